@@ -1,0 +1,70 @@
+"""Parameter checks that fail with one line naming the parameter and the bad value."""
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+
+
+class ParameterError(ValueError):
+    """A component parameter is invalid; the message is one line naming the parameter and the value."""
+
+
+def finite(owner: str, name: str, value: float) -> float:
+    """Return ``float(value)`` or raise if it is not a finite real number."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{owner} parameter {name} = {value!r}: not a real number") from None
+    if not math.isfinite(v):
+        raise ParameterError(f"{owner} parameter {name} = {value!r}: must be finite")
+    return v
+
+
+def not_nan(owner: str, name: str, value: float) -> float:
+    """Return ``float(value)``; infinity is allowed (e.g. 'never'), NaN is not."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{owner} parameter {name} = {value!r}: not a real number") from None
+    if math.isnan(v):
+        raise ParameterError(f"{owner} parameter {name} = nan: must be a number")
+    return v
+
+
+def positive(owner: str, name: str, value: float) -> float:
+    """A finite value > 0."""
+    v = finite(owner, name, value)
+    if v <= 0.0:
+        raise ParameterError(f"{owner} parameter {name} = {value!r}: must be > 0")
+    return v
+
+
+def non_negative(owner: str, name: str, value: float) -> float:
+    """A finite value >= 0."""
+    v = finite(owner, name, value)
+    if v < 0.0:
+        raise ParameterError(f"{owner} parameter {name} = {value!r}: must be >= 0")
+    return v
+
+
+def positive_int(owner: str, name: str, value: int) -> int:
+    """An integer >= 1 (a float with an integral value is accepted)."""
+    v = finite(owner, name, value)
+    if v != int(v) or v < 1:
+        raise ParameterError(f"{owner} parameter {name} = {value!r}: must be an integer >= 1")
+    return int(v)
+
+
+def choice(owner: str, name: str, value: str, allowed: Iterable[str]) -> str:
+    """One of a fixed set of names."""
+    allowed = tuple(allowed)
+    if value not in allowed:
+        raise ParameterError(f"{owner} parameter {name} = {value!r}: must be one of {', '.join(allowed)}")
+    return value
+
+
+def step(owner: str, dt: float) -> float:
+    """A communication step [s]: finite and > 0."""
+    if not (dt > 0.0 and math.isfinite(dt)):
+        raise ParameterError(f"{owner}: step size h = {dt!r} s: must be finite and > 0")
+    return float(dt)
