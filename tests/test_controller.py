@@ -1,0 +1,119 @@
+"""The controller: odometry, desired motion, adaptation window and the decisions of (51)."""
+import math
+
+import numpy as np
+import pytest
+
+from wmr_cosim.components import paper
+from wmr_cosim.components.controller import CONTROLLER_OUTPUTS, Controller, ControllerParams
+from wmr_cosim.components.direct_loop import run_direct
+from wmr_cosim.components.planner import profile, profile_integral
+from wmr_cosim.components.plant import Plant
+
+IDX = {n: i for i, n in enumerate(CONTROLLER_OUTPUTS)}
+
+
+def test_odometry_follows_the_true_pose_with_perfect_measurements():
+    pl = Plant()
+    c = Controller()
+    c.reset(0.0, 0.0, 0.0, 0.0, 0.0)
+    h = 0.002
+    for k in range(5000):
+        out = pl.step(k * h, h, 4.5 + math.sin(k * h), 4.2)
+        co = c.step((k + 1) * h, h, out[0], out[1], out[2], out[3])
+    x, y, b = co[IDX["x_hat"]], co[IDX["y_hat"]], co[IDX["beta_hat"]]
+    assert math.hypot(x - out[4], y - out[5]) < 1e-5
+    assert b == pytest.approx(out[6], abs=1e-9)   # heading is linear in the angles: exact
+
+
+def test_line_task_desired_motion_is_the_closed_form():
+    c = Controller(**paper.task_controller("LINE"))
+    v_r = 0.4 / paper.WHEEL_RADIUS_M
+    for t in (0.5, 5.0, 9.0, 15.0, 20.0):
+        co = c.step(t, 0.002, 0.0, 0.0, 0.0, 0.0)
+        assert co[IDX["alpha_dot_d1"]] == co[IDX["alpha_dot_d2"]] == pytest.approx(v_r * profile(t, 5, 15, 10))
+        assert co[IDX["alpha_d1"]] == pytest.approx(v_r * profile_integral(t, 5, 15, 10))
+        assert co[IDX["beta_dot_d"]] == 0.0
+
+
+def test_goal_reached_sets_braking_time():
+    r = run_direct(t_stop=50.0)
+    sig = r.signals
+    tg = sig["controller.t_goal"][-1]
+    assert 35.0 < tg < 45.0
+    t = sig["time"]
+    prof = sig["controller.profile"]
+    # (50) with b2 = t_G + 1: the profile is 1/2 (minus the start term) at t_G + 1 and 0 later
+    k = int(round((tg + 1.0) / 0.002))
+    assert prof[k] == pytest.approx(profile(t[k], 5.0, tg + 1.0, 10.0), rel=1e-12)
+    assert prof[-1] < 1e-20
+
+
+@pytest.fixture(scope="module")
+def g1_runs():
+    # the default reading, and the printed one: (51) with the Frobenius norm, stopping only P
+    return {True: run_direct(t_stop=50.0).signals,
+            False: run_direct(controller=ControllerParams(freeze_w_with_p=False, p_norm="frobenius"),
+                              t_stop=50.0).signals}
+
+
+def test_default_stops_W_once_P_has_collapsed(g1_runs):
+    """Decisions 17-18: once the smallest eigenvalue of P has fallen to P0, W and P stop adapting."""
+    sig = g1_runs[True]
+    pn = sig["controller.P_norm"]
+    collapsed = np.nonzero(pn <= paper.table1()["P0"])[0]
+    assert collapsed.size, "P never collapsed"
+    k0 = collapsed[0]
+    t0 = sig["time"][k0]
+    assert 4.0 < t0 < 8.0  # during the acceleration phase (b1 = 5 s)
+    W = np.stack([sig[f"controller.W{i}"] for i in (1, 2, 3)], axis=1)
+    assert np.all(W[k0 + 1:] == W[k0 + 1])             # constant afterwards
+    assert np.any(W[k0] != W[0])                       # it did adapt before
+    assert np.all(sig["controller.adapting"][k0 + 1:] == 0.0)
+
+
+def test_printed_reading_keeps_adapting_W_in_the_window(g1_runs):
+    sig = g1_runs[False]
+    t = sig["time"]
+    assert t[-1] == 50.0
+    W1 = sig["controller.W1"]
+    late = (t > 20.0) & (t < 38.0)
+    assert np.ptp(W1[late]) > 0.0
+    after = t > 39.01
+    assert np.ptp(W1[after]) == 0.0                    # adaptation window 0-39 s
+
+
+def test_no_adaptation_keeps_initial_weights():
+    W0 = (0.09, 0.07, 0.08)
+    r = run_direct(controller=ControllerParams(adapt=False, W_init=W0), t_stop=10.0)
+    for i in (1, 2, 3):
+        assert np.all(r.signals[f"controller.W{i}"] == W0[i - 1])
+
+
+def test_frozen_runs_with_learned_weights_reach_the_goal(g1_runs):
+    sig = g1_runs[True]
+    W = tuple(float(sig[f"controller.W{i}"][-1]) for i in (1, 2, 3))
+    P = tuple(float(sig[f"controller.P{n}"][-1]) for n in ("11", "12", "13", "22", "23", "33"))
+    r = run_direct(controller=ControllerParams(adapt=False, W_init=W, P_init=P), t_stop=50.0)
+    x, y = r.signals["plant.x_A"][-1], r.signals["plant.y_A"][-1]
+    assert math.hypot(x - 2, y - 5) < 0.03
+
+
+def test_printed_player_sign_diverges():
+    """Decision 1: (46) as printed is positive feedback."""
+    r = run_direct(controller=ControllerParams(player_form="printed"), t_stop=10.0)
+    e = np.abs(r.signals["controller.e1"])
+    assert r.status == "diverged" or e[-1] > 1.0
+
+
+def test_state_round_trip_is_exact():
+    c = Controller()
+    c.reset(0.0, 0.0, 0.0, 0.0, 0.0)
+    h = 0.002
+    meas = [(0.01 * k * k * h, 0.009 * k * k * h, 0.02 * k * h, 0.018 * k * h) for k in range(2000)]
+    for k in range(1, 1000):
+        c.step(k * h, h, *meas[k])
+    s = c.get_state()
+    a = [c.step(k * h, h, *meas[k]) for k in range(1000, 2000)]
+    c.set_state(s)
+    assert [c.step(k * h, h, *meas[k]) for k in range(1000, 2000)] == a

@@ -1,0 +1,120 @@
+"""The sensor chain against (42), (43) and the encoder's resolution."""
+import math
+
+import numpy as np
+import pytest
+from scipy.linalg import expm as scipy_expm
+
+from wmr_cosim.components.linalg import expm, zoh
+from wmr_cosim.components.sensor import Sensor, SensorParams, filter_matrices
+
+H = 0.002
+Q = 2 * math.pi / (500 * 19.7)  # one count of wheel angle [rad]
+
+
+def test_count_resolution():
+    assert SensorParams().count_angle == pytest.approx(Q, rel=1e-15)
+    assert Q == pytest.approx(6.378e-4, rel=1e-3)
+
+
+def test_counts_are_floor_of_angle_with_phase():
+    s = Sensor(phase1=0.0, phase2=0.5)
+    s.reset(0.0, 0.0)
+    out = s.step(H, 10.4 * Q, 10.4 * Q)
+    assert out[6] == 10 and out[7] == 10     # floor(10.4), floor(10.9)
+    out = s.step(H, 10.6 * Q, 10.6 * Q)
+    assert out[6] == 10 and out[7] == 11     # wheel 2 is half a count out of phase
+    out = s.step(H, -0.3 * Q, -0.3 * Q)
+    assert out[6] == -1 and out[7] == 0
+
+
+def test_increment_velocity_42():
+    """(42): alpha_dot = 2 pi / (500 x 19.7 x h) INC, the mean speed over the step."""
+    s = Sensor(phase1=0.5, phase2=0.5)
+    s.reset(0.0, 0.0)
+    w = 4.85  # rad/s
+    incs = []
+    for k in range(1, 2001):
+        out = s.step(H, w * k * H, -w * k * H)
+        incs.append((out[4], out[5]))
+    inc = np.array(incs)
+    quanta = inc[:, 0] / (Q / H)
+    assert np.allclose(quanta, np.round(quanta), atol=1e-9)           # whole counts
+    assert set(np.round(quanta).astype(int)) <= {15, 16}              # 4.85*0.002/Q = 15.2 counts
+    assert inc[:, 0].mean() == pytest.approx(w, rel=1e-3)             # the mean is the true speed
+    assert inc[:, 1].mean() == pytest.approx(-w, rel=1e-3)
+
+
+def test_expm_matches_scipy():
+    rng = np.random.default_rng(1)
+    for scale in (0.01, 1.0, 30.0):
+        a = rng.normal(size=(4, 4)) * scale
+        assert np.allclose(expm(a), scipy_expm(a), rtol=1e-12, atol=1e-12)
+
+
+def _poles(c2, c1, c0):
+    disc = math.sqrt(c1 * c1 - 4 * c2 * c0)
+    return (-c1 + disc) / (2 * c2), (-c1 - disc) / (2 * c2)
+
+
+def test_normalised_filter_poles_and_dc_gain():
+    p1, p2 = _poles(1e-4, 0.03, 1.0)
+    assert p1 == pytest.approx(-38.197, rel=1e-4) and p2 == pytest.approx(-261.803, rel=1e-4)
+    ad, bd = filter_matrices("normalised", H)
+    A = np.array(ad).reshape(3, 3)[1:, 1:]
+    B = np.array(bd)[1:]
+    # DC gain: y_ss = (I - A)^-1 B = 1
+    yss = np.linalg.solve(np.eye(2) - A, B)
+    assert yss[0] == pytest.approx(1.0, rel=1e-12)
+
+
+def test_printed_filter_has_dc_gain_1e4():
+    ad, bd = filter_matrices("printed", H)
+    A = np.array(ad).reshape(3, 3)[1:, 1:]
+    B = np.array(bd)[1:]
+    assert np.linalg.solve(np.eye(2) - A, B)[0] == pytest.approx(1e4, rel=1e-8)
+
+
+@pytest.mark.parametrize("h", [0.002, 0.001, 0.005])
+def test_filter_step_response_is_the_analytic_one(h):
+    """A speed step through (43), normalised: y(t) = v (1 + (p2 e^{p1 t} - p1 e^{p2 t}) / (p1 - p2)),
+    and the angle is its exact integral.  The increment velocity is a whole number of counts per step."""
+    n_counts = 3
+    v = n_counts * Q / h
+    s = Sensor(phase1=0.5, phase2=0.5)
+    s.reset(0.0, 0.0)
+    p1, p2 = _poles(1e-4, 0.03, 1.0)
+    for k in range(1, 200):
+        t = k * h
+        out = s.step(h, n_counts * Q * k, n_counts * Q * k)
+        y = v * (1 + (p2 * math.exp(p1 * t) - p1 * math.exp(p2 * t)) / (p1 - p2))
+        theta = v * (t + (p2 / p1 * (math.exp(p1 * t) - 1) - p1 / p2 * (math.exp(p2 * t) - 1)) / (p1 - p2))
+        assert out[2] == pytest.approx(y, rel=1e-10, abs=1e-12)
+        assert out[0] == pytest.approx(theta, rel=1e-10, abs=1e-12)
+        assert out[4] == pytest.approx(v, rel=1e-12)
+
+
+def test_angle_from_counts():
+    s = Sensor(angle_source="counts", phase1=0.0, phase2=0.5)
+    s.reset(0.2, 0.2)
+    out = s.step(H, 0.2 + 100.2 * Q, 0.2 + 100.2 * Q)
+    # the count angle is relative to the start and resolved to one count
+    assert abs(out[0] - 100.2 * Q) < Q and abs(out[1] - 100.2 * Q) < Q
+    assert out[0] / Q == pytest.approx(round(out[0] / Q), abs=1e-9)
+
+
+def test_zoh_of_integrator():
+    ad, bd = zoh(np.array([[0.0]]), np.array([[1.0]]), 0.3)
+    assert ad[0, 0] == 1.0 and bd[0, 0] == pytest.approx(0.3, rel=1e-15)
+
+
+def test_step_change_recomputes_discretisation_and_state_round_trips():
+    s = Sensor()
+    s.reset(0.0, 0.0)
+    for k in range(1, 300):
+        s.step(H, 0.01 * k, 0.011 * k)
+    st = s.get_state()
+    a = [s.step(H * 0.5, 3.0 + 0.005 * k, 3.3 + 0.0055 * k) for k in range(1, 100)]
+    s.set_state(st)
+    b = [s.step(H * 0.5, 3.0 + 0.005 * k, 3.3 + 0.0055 * k) for k in range(1, 100)]
+    assert a == b
