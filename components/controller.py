@@ -21,7 +21,7 @@ from .critic import eig_sym3, hamiltonian, p_norm, players, regressor, rls_step,
 from .friction import shape_function
 from .planner import goal_control, polar_error, profile, profile_integral, profile_rate, wheel_rates
 from .plant import mass_matrix_inverse
-from .validation import ParameterError, choice, finite, non_negative, not_nan, positive
+from .validation import ParameterError, boolean, choice, finite, mass_matrix_pd, non_negative, not_nan, positive
 
 _T1 = paper.table1()
 _LINE = paper.results()["line_task"]
@@ -124,12 +124,12 @@ class ControllerParams:
 
     def __post_init__(self) -> None:
         o = "controller"
-        for name in ("a1", "a2", "a3", "cF", "r", "l1", "v_star", "omega_star", "eps_G", "k1", "k2", "c",
+        for name in ("cF", "r", "l1", "v_star", "omega_star", "eps_G", "k1", "k2", "c",
                      "Lambda", "R", "gamma", "xi", "xi_P", "nu"):
             setattr(self, name, positive(o, name, getattr(self, name)))
         for name in ("a4", "a5", "a6", "Q", "P0"):
             setattr(self, name, non_negative(o, name, getattr(self, name)))
-        for name in ("x0", "y0", "beta0", "goal_x", "goal_y", "b1", "adapt_t_start"):
+        for name in ("a1", "a2", "a3", "x0", "y0", "beta0", "goal_x", "goal_y", "b1", "adapt_t_start"):
             setattr(self, name, finite(o, name, getattr(self, name)))
         self.adapt_t_end = not_nan(o, "adapt_t_end", self.adapt_t_end)
         self.line_b2 = finite(o, "line_b2", self.line_b2)
@@ -157,11 +157,9 @@ class ControllerParams:
         self.P_init = tuple(finite(o, f"P_init[{i}]", v) for i, v in enumerate(self.P_init))
         if eig_sym3(*self.P_init)[2] <= 0.0:
             raise ParameterError(f"controller parameter P_init = {self.P_init!r}: must be positive definite")
-        m11, m12 = self.a1 + self.a2 + self.a3, self.a1 - self.a2
-        if not m11 > abs(m12):
-            raise ParameterError(
-                f"controller parameters a1 = {self.a1!r}, a2 = {self.a2!r}, a3 = {self.a3!r}: "
-                f"M of (35) is not positive definite")
+        mass_matrix_pd(o, self.a1, self.a2, self.a3)
+        for name in ("clip_kinematic", "profile_on_turn", "adapt", "freeze_w_with_p"):
+            setattr(self, name, boolean(o, name, getattr(self, name)))
         if self.adapt_t_end < self.adapt_t_start:
             raise ParameterError(
                 f"controller parameter adapt_t_end = {self.adapt_t_end!r}: before adapt_t_start = {self.adapt_t_start!r}")

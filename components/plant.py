@@ -16,12 +16,12 @@ Wheel 1 is the right wheel: by (23) its speed grows when the robot turns counter
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from typing import Any
 
 from . import paper
 from .friction import shape_function
-from .validation import ParameterError, finite, non_negative, positive, positive_int
+from .validation import ParameterError, boolean, finite, mass_matrix_pd, non_negative, positive, positive_int
 
 _A = paper.table1()["a"]
 _CF = paper.table1()["cF"]
@@ -72,17 +72,15 @@ class PlantParams:
         for name in ("a1", "a2", "a3", "a4", "a5", "a6", "x0", "y0", "beta0", "foam_da1", "foam_da2",
                      "foam_t_on", "foam_x_min", "foam_x_max", "foam_y_min", "foam_y_max"):
             setattr(self, name, finite(o, name, getattr(self, name)))
-        for name in ("a1", "a2", "a3", "cF", "r", "l1"):
+        for name in ("cF", "r", "l1"):
             setattr(self, name, positive(o, name, getattr(self, name)))
+        for name in ("foam_on_time", "foam_on_region"):
+            setattr(self, name, boolean(o, name, getattr(self, name)))
         for name in ("a4", "a5", "a6", "foam_ramp"):
             setattr(self, name, non_negative(o, name, getattr(self, name)))
         self.substeps = positive_int(o, "substeps", self.substeps)
         shape_function(self.friction_form, o)
-        m11, m12 = mass_matrix(self.a1, self.a2, self.a3)
-        if not m11 > abs(m12):  # eigenvalues of M are m11 +- m12
-            raise ParameterError(
-                f"plant parameters a1 = {self.a1!r}, a2 = {self.a2!r}, a3 = {self.a3!r}: "
-                f"M of (35) is not positive definite (a1+a2+a3 = {m11:.6g} <= |a1-a2| = {abs(m12):.6g})")
+        mass_matrix_pd(o, self.a1, self.a2, self.a3)
         if self.foam_on_region and not (self.foam_x_min < self.foam_x_max and self.foam_y_min < self.foam_y_max):
             raise ParameterError(
                 f"plant parameter foam region [{self.foam_x_min}, {self.foam_x_max}] x "
@@ -102,18 +100,6 @@ def mass_matrix_inverse(a1: float, a2: float, a3: float) -> tuple[float, float]:
     m11, m12 = mass_matrix(a1, a2, a3)
     det = m11 * m11 - m12 * m12
     return m11 / det, -m12 / det
-
-
-@dataclass
-class PlantState:
-    """The plant's complete internal state (everything needed to resume a run bit for bit)."""
-
-    t: float = 0.0
-    x: list[float] = field(default_factory=lambda: [0.0] * 7)  # alpha1, alpha2, w1, w2, x_A, y_A, beta
-    u: list[float] = field(default_factory=lambda: [0.0, 0.0])
-    tau: list[float] = field(default_factory=lambda: [0.0, 0.0])
-    t_foam: float = math.inf  # time the foam is reached (inf: not yet)
-    region_hit: bool = False
 
 
 class Plant:

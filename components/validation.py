@@ -55,6 +55,25 @@ def positive_int(owner: str, name: str, value: int) -> int:
     return int(v)
 
 
+def boolean(owner: str, name: str, value: bool) -> bool:
+    """A true/false flag (0 and 1 are accepted)."""
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, (int, float)) and value in (0, 1):
+        return bool(value)
+    raise ParameterError(f"{owner} parameter {name} = {value!r}: must be true or false")
+
+
+def mass_matrix_pd(owner: str, a1: float, a2: float, a3: float) -> None:
+    """M of (35) = [[a1+a2+a3, a1-a2], [a1-a2, a1+a2+a3]] must be positive definite: a1+a2+a3 > |a1-a2|."""
+    m11, m12 = a1 + a2 + a3, a1 - a2
+    if not m11 > abs(m12):
+        kind = "singular" if m11 == abs(m12) else "not positive definite"
+        raise ParameterError(
+            f"{owner} parameters a1 = {a1!r}, a2 = {a2!r}, a3 = {a3!r}: M of (35) is {kind} "
+            f"(a1+a2+a3 = {m11:.6g}, |a1-a2| = {abs(m12):.6g})")
+
+
 def choice(owner: str, name: str, value: str, allowed: Iterable[str]) -> str:
     """One of a fixed set of names."""
     allowed = tuple(allowed)
