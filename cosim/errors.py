@@ -1,0 +1,38 @@
+"""Errors of the master.  Every message is one line; the CLI prints it and exits with ``exit_code``."""
+from __future__ import annotations
+
+EXIT_OK = 0
+EXIT_RUN_FAILED = 1
+EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 130
+
+
+class CosimError(Exception):
+    """A failure the user must see as one line (no traceback)."""
+
+    exit_code = EXIT_BAD_INPUT
+
+    def __init__(self, message: str) -> None:
+        super().__init__(" ".join(str(message).split()))
+
+
+class ScenarioError(CosimError):
+    """A scenario or system file is invalid: names the file, the field and the reason."""
+
+    def __init__(self, file: str, field: str, reason: str) -> None:
+        self.file, self.field, self.reason = file, field, reason
+        super().__init__(f"{file}: {field}: {reason}" if field else f"{file}: {reason}")
+
+
+class FmuLoadError(CosimError):
+    """An FMU file is missing, unsafe, not FMI 2.0 co-simulation, or cannot be loaded."""
+
+
+class RunError(CosimError):
+    """The run stopped: a non-OK status, a non-finite output, or an exception while stepping."""
+
+    exit_code = EXIT_RUN_FAILED
+
+    def __init__(self, message: str, instance: str = "", time: float | None = None) -> None:
+        self.instance, self.time = instance, time
+        super().__init__(message)

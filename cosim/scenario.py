@@ -1,0 +1,279 @@
+"""System and scenario files (TOML): which FMUs, their parameters, the connections, the experiment,
+what to record and the timed events.  See scenarios/example.toml for a commented example.
+
+Every problem is reported as ScenarioError(file, field, reason) before any FMU is loaded.
+"""
+from __future__ import annotations
+
+import copy
+import math
+import os
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .errors import ScenarioError
+
+ALGORITHMS = ("gauss-seidel", "jacobi")
+ACTIONS = ("override", "bias", "reset")
+
+_TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "record", "events"}
+_EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order"}
+_INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "description"}
+_CONNECTION_KEYS = {"from", "to", "factor", "offset"}
+_RECORD_KEYS = {"variables", "decimation"}
+_EVENT_KEYS = {"time", "variable", "action", "value"}
+
+
+@dataclass
+class InstanceSpec:
+    """One FMU instance.  ``names`` maps the FMU's own variable names to the names the scenario uses
+    (their -> ours); ``units`` declares units for variables whose FMU does not (scenario name -> unit)."""
+
+    name: str
+    fmu: str
+    fmu_path: Path | None
+    parameters: dict[str, Any] = field(default_factory=dict)
+    names: dict[str, str] = field(default_factory=dict)
+    units: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass
+class ConnectionSpec:
+    src: str
+    dst: str
+    factor: float = 1.0
+    offset: float = 0.0
+    index: int = 0
+
+
+@dataclass
+class EventSpec:
+    time: float
+    variable: str
+    action: str
+    value: Any = None
+    index: int = 0
+
+
+@dataclass
+class Scenario:
+    """A parsed and syntactically checked scenario; :func:`cosim.system.resolve` checks it against the FMUs."""
+
+    file: str
+    start: float = 0.0
+    stop: float = 1.0
+    step: float = 0.002
+    algorithm: str = "gauss-seidel"
+    order: list[str] = field(default_factory=list)
+    instances: dict[str, InstanceSpec] = field(default_factory=dict)
+    connections: list[ConnectionSpec] = field(default_factory=list)
+    record: list[str] = field(default_factory=list)
+    decimation: int = 1
+    events: list[EventSpec] = field(default_factory=list)
+    data: dict[str, Any] = field(default_factory=dict)  # the merged document, as run
+
+
+def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    out = copy.deepcopy(base)
+    for k, v in over.items():
+        if isinstance(v, dict) and isinstance(out.get(k), dict):
+            out[k] = _merge(out[k], v)
+        else:
+            out[k] = copy.deepcopy(v)
+    return out
+
+
+def _read(path: Path, seen: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """Read one file, absolutise its FMU paths, and merge it over its ``base``."""
+    name = str(path)
+    if not path.is_file():
+        raise ScenarioError(name, "", "file not found")
+    if path.resolve() in seen:
+        raise ScenarioError(name, "base", "circular base chain")
+    try:
+        with path.open("rb") as fh:
+            doc = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(name, "", f"not valid TOML ({exc})") from None
+    unknown = set(doc) - _TOP_KEYS
+    if unknown:
+        raise ScenarioError(name, sorted(unknown)[0], f"unknown key (allowed: {', '.join(sorted(_TOP_KEYS))})")
+    for iname, inst in (doc.get("instances") or {}).items():
+        if isinstance(inst, dict) and isinstance(inst.get("fmu"), str) and _is_path(inst["fmu"]):
+            inst["fmu"] = str((path.parent / inst["fmu"]).resolve())
+    if "base" in doc:
+        b = doc.pop("base")
+        if not isinstance(b, str):
+            raise ScenarioError(name, "base", "must be a file name")
+        doc = _merge(_read((path.parent / b), seen + (path.resolve(),)), doc)
+    return doc
+
+
+def _is_path(fmu: str) -> bool:
+    return fmu.endswith(".fmu") or "/" in fmu or os.sep in fmu
+
+
+def _num(file: str, fld: str, v: Any, *, positive: bool = False, allow_none: bool = False) -> float:
+    if v is None and allow_none:
+        return math.nan
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise ScenarioError(file, fld, f"must be a number, not {v!r}")
+    v = float(v)
+    if not math.isfinite(v):
+        raise ScenarioError(file, fld, f"must be finite, not {v!r}")
+    if positive and v <= 0:
+        raise ScenarioError(file, fld, f"must be > 0, not {v!r}")
+    return v
+
+
+def _table(file: str, fld: str, v: Any) -> dict[str, Any]:
+    if v is None:
+        return {}
+    if not isinstance(v, dict):
+        raise ScenarioError(file, fld, "must be a table")
+    return v
+
+
+def _keys(file: str, fld: str, d: dict[str, Any], allowed: set[str]) -> None:
+    for k in d:
+        if k not in allowed:
+            raise ScenarioError(file, f"{fld}.{k}" if fld else k,
+                                f"unknown key (allowed: {', '.join(sorted(allowed))})")
+
+
+def split_ref(file: str, fld: str, ref: Any) -> tuple[str, str]:
+    """'instance.variable' -> (instance, variable); the variable name may itself contain dots."""
+    if not isinstance(ref, str) or "." not in ref:
+        raise ScenarioError(file, fld, f"{ref!r} is not of the form \"instance.variable\"")
+    inst, var = ref.split(".", 1)
+    if not inst or not var:
+        raise ScenarioError(file, fld, f"{ref!r} is not of the form \"instance.variable\"")
+    return inst, var
+
+
+def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
+    """Check the structure of a merged scenario document and build a :class:`Scenario`.
+
+    ``resolver(model_name) -> Path | None`` turns an FMU given by model name (e.g. ``WmrPlant``) into a
+    file; without one, every ``fmu`` must be a path.
+    """
+    sc = Scenario(file=file, data=doc)
+    exp = _table(file, "experiment", doc.get("experiment"))
+    _keys(file, "experiment", exp, _EXPERIMENT_KEYS)
+    sc.start = _num(file, "experiment.start", exp.get("start", 0.0))
+    sc.stop = _num(file, "experiment.stop", exp.get("stop", 1.0))
+    sc.step = _num(file, "experiment.step", exp.get("step", 0.002), positive=True)
+    if sc.stop <= sc.start:
+        raise ScenarioError(file, "experiment.stop", f"{sc.stop!r} is not after the start {sc.start!r}")
+    n = (sc.stop - sc.start) / sc.step
+    if abs(n - round(n)) > 1e-6 * max(1.0, n):
+        raise ScenarioError(file, "experiment.step",
+                            f"{sc.step!r} s does not divide the run {sc.start!r}..{sc.stop!r} s into whole steps")
+    sc.algorithm = str(exp.get("algorithm", "gauss-seidel")).lower()
+    if sc.algorithm not in ALGORITHMS:
+        raise ScenarioError(file, "experiment.algorithm", f"{sc.algorithm!r}: must be one of {', '.join(ALGORITHMS)}")
+
+    insts = _table(file, "instances", doc.get("instances"))
+    if not insts:
+        raise ScenarioError(file, "instances", "no FMU instances")
+    for iname, inst in insts.items():
+        fld = f"instances.{iname}"
+        if not iname.isidentifier():
+            raise ScenarioError(file, fld, f"instance name {iname!r} must be an identifier")
+        inst = _table(file, fld, inst)
+        _keys(file, fld, inst, _INSTANCE_KEYS)
+        fmu = inst.get("fmu")
+        if not isinstance(fmu, str) or not fmu:
+            raise ScenarioError(file, f"{fld}.fmu", "missing: a model name or a path to an .fmu file")
+        if _is_path(fmu):
+            path: Path | None = Path(fmu)
+            if not path.is_file():
+                raise ScenarioError(file, f"{fld}.fmu", f"FMU file not found: {fmu}")
+        else:
+            path = resolver(fmu) if resolver is not None else None
+            if path is None:
+                raise ScenarioError(file, f"{fld}.fmu", f"unknown model name {fmu!r} and not a path to an .fmu file")
+        params = _table(file, f"{fld}.parameters", inst.get("parameters"))
+        names = _table(file, f"{fld}.names", inst.get("names"))
+        for their, ours in names.items():
+            if not isinstance(ours, str):
+                raise ScenarioError(file, f"{fld}.names.{their}", "must map to a variable name (a string)")
+        if len(set(names.values())) != len(names):
+            raise ScenarioError(file, f"{fld}.names", "two of the FMU's variables map to the same name")
+        units = _table(file, f"{fld}.units", inst.get("units"))
+        for var, u in units.items():
+            if not isinstance(u, str):
+                raise ScenarioError(file, f"{fld}.units.{var}", "must be a unit name (a string)")
+        sc.instances[iname] = InstanceSpec(iname, fmu, path, dict(params), dict(names), dict(units))
+
+    order = exp.get("order", list(sc.instances))
+    if not isinstance(order, list) or sorted(order) != sorted(sc.instances):
+        raise ScenarioError(file, "experiment.order",
+                            f"{order!r} must list every instance exactly once ({', '.join(sc.instances)})")
+    sc.order = list(order)
+
+    conns = doc.get("connections") or []
+    if not isinstance(conns, list):
+        raise ScenarioError(file, "connections", "must be an array of tables ([[connections]])")
+    for i, c in enumerate(conns):
+        fld = f"connections[{i}]"
+        c = _table(file, fld, c)
+        _keys(file, fld, c, _CONNECTION_KEYS)
+        for end in ("from", "to"):
+            if end not in c:
+                raise ScenarioError(file, f"{fld}.{end}", "missing")
+            inst, _ = split_ref(file, f"{fld}.{end}", c[end])
+            if inst not in sc.instances:
+                raise ScenarioError(file, f"{fld}.{end}", f"unknown instance {inst!r}")
+        sc.connections.append(ConnectionSpec(c["from"], c["to"], _num(file, f"{fld}.factor", c.get("factor", 1.0)),
+                                             _num(file, f"{fld}.offset", c.get("offset", 0.0)), i))
+
+    rec = _table(file, "record", doc.get("record"))
+    _keys(file, "record", rec, _RECORD_KEYS)
+    variables = rec.get("variables", [])
+    if not isinstance(variables, list) or not all(isinstance(v, str) for v in variables):
+        raise ScenarioError(file, "record.variables", "must be an array of \"instance.variable\" patterns")
+    sc.record = list(variables)
+    dec = rec.get("decimation", 1)
+    if isinstance(dec, bool) or not isinstance(dec, int) or dec < 1:
+        raise ScenarioError(file, "record.decimation", f"{dec!r}: must be an integer >= 1")
+    sc.decimation = dec
+
+    evs = doc.get("events") or []
+    if not isinstance(evs, list):
+        raise ScenarioError(file, "events", "must be an array of tables ([[events]])")
+    for i, e in enumerate(evs):
+        fld = f"events[{i}]"
+        e = _table(file, fld, e)
+        _keys(file, fld, e, _EVENT_KEYS)
+        t = _num(file, f"{fld}.time", e.get("time"))
+        if "variable" not in e:
+            raise ScenarioError(file, f"{fld}.variable", "missing")
+        inst, _ = split_ref(file, f"{fld}.variable", e["variable"])
+        if inst not in sc.instances:
+            raise ScenarioError(file, f"{fld}.variable", f"unknown instance {inst!r}")
+        action = e.get("action", "override")
+        if action not in ACTIONS:
+            raise ScenarioError(file, f"{fld}.action", f"{action!r}: must be one of {', '.join(ACTIONS)}")
+        if action != "reset" and "value" not in e:
+            raise ScenarioError(file, f"{fld}.value", f"missing (needed by {action})")
+        if action == "reset" and "value" in e:
+            raise ScenarioError(file, f"{fld}.value", "a reset takes no value")
+        sc.events.append(EventSpec(t, e["variable"], action, e.get("value"), i))
+    return sc
+
+
+def load(path: str | os.PathLike, resolver=None, overrides: dict[str, Any] | None = None) -> Scenario:
+    """Read a scenario file (following its ``base`` chain), apply ``overrides`` ({'inst.param': value}),
+    and check its structure."""
+    path = Path(path)
+    doc = _read(path)
+    for ref, value in (overrides or {}).items():
+        inst, var = split_ref(str(path), f"--set {ref}", ref)
+        insts = doc.setdefault("instances", {})
+        if inst not in insts:
+            raise ScenarioError(str(path), f"--set {ref}", f"unknown instance {inst!r}")
+        insts[inst].setdefault("parameters", {})[var] = value
+    return parse(doc, str(path), resolver)

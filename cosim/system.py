@@ -1,0 +1,214 @@
+"""Resolve a scenario against its FMUs: every check that can be made before the first step.
+
+Checks (each a ScenarioError naming the file, the field and the reason): a missing or unsafe FMU file,
+an FMU that is not FMI 2.0 co-simulation, a variable that does not exist, wrong causality (an input driven
+twice, an output or parameter used as a connection target, a connection from a non-output), a type
+mismatch, a unit mismatch (convertible units are converted), a step the FMU cannot take, a parameter or
+start value of the wrong type or outside the min/max the model description declares.
+"""
+from __future__ import annotations
+
+import fnmatch
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from .errors import CosimError, FmuLoadError, ScenarioError
+from .model import PY_TYPES, FmuModel, Variable, load_model
+from .scenario import ConnectionSpec, InstanceSpec, Scenario, split_ref
+from .units import conversion, lookup, units_of
+
+
+@dataclass
+class InstancePlan:
+    """One instance, its FMU, and the name map between the scenario's names and the FMU's."""
+
+    name: str
+    spec: InstanceSpec
+    model: FmuModel
+    ours_to_theirs: dict[str, str] = field(default_factory=dict)
+    theirs_to_ours: dict[str, str] = field(default_factory=dict)
+    parameters: list[tuple[Variable, Any]] = field(default_factory=list)
+
+    def our_name(self, var: Variable) -> str:
+        return self.theirs_to_ours.get(var.name, var.name)
+
+
+@dataclass
+class ConnectionPlan:
+    """output -> input, value_in = factor * value_out + offset (unit conversion folded in)."""
+
+    src: str
+    src_var: Variable
+    dst: str
+    dst_var: Variable
+    factor: float
+    offset: float
+    spec: ConnectionSpec
+
+
+@dataclass
+class RecordPlan:
+    instance: str
+    var: Variable
+    column: str
+
+
+@dataclass
+class EventPlan:
+    time: float
+    step: int          # applied before the step starting at t = start + step * h
+    instance: str
+    var: Variable
+    action: str
+    value: Any
+    ref: str
+
+
+@dataclass
+class Plan:
+    scenario: Scenario
+    instances: dict[str, InstancePlan]
+    connections: list[ConnectionPlan]
+    record: list[RecordPlan]
+    events: list[EventPlan]
+    n_steps: int
+
+    @property
+    def order(self) -> list[str]:
+        return self.scenario.order
+
+
+def _value(file: str, fld: str, var: Variable, value: Any) -> Any:
+    types = PY_TYPES.get(var.type)
+    if types is None:
+        raise ScenarioError(file, fld, f"variables of type {var.type} cannot be set")
+    if isinstance(value, bool) and var.type != "Boolean":
+        raise ScenarioError(file, fld, f"type mismatch: {var.name} is {var.type}, got a boolean {value!r}")
+    if not isinstance(value, types):
+        raise ScenarioError(file, fld, f"type mismatch: {var.name} is {var.type}, got {type(value).__name__} {value!r}")
+    if var.type == "Real":
+        value = float(value)
+        if not math.isfinite(value):
+            raise ScenarioError(file, fld, f"{value!r} is not finite")
+    reason = var.check_range(value)
+    if reason:
+        raise ScenarioError(file, fld, reason)
+    return value
+
+
+def _var(file: str, fld: str, inst: InstancePlan, name: str) -> Variable:
+    theirs = inst.ours_to_theirs.get(name, name)
+    var = inst.model.variables.get(theirs)
+    if var is None:
+        mapped = f" (mapped to {theirs!r})" if theirs != name else ""
+        raise ScenarioError(file, fld, f"{inst.name} ({inst.model.path.name}) has no variable {name!r}{mapped}")
+    return var
+
+
+def _unit(inst: InstancePlan, var: Variable):
+    declared = inst.spec.units.get(inst.our_name(var)) or inst.spec.units.get(var.name)
+    if declared:
+        return lookup(declared, units_of(inst.model.md))
+    return var.unit
+
+
+def resolve(sc: Scenario) -> Plan:
+    """Load every FMU of the scenario and run all the checks; returns the executable plan."""
+    file = sc.file
+    insts: dict[str, InstancePlan] = {}
+    for name, spec in sc.instances.items():
+        try:
+            model = load_model(spec.fmu_path)
+        except FmuLoadError as exc:
+            raise ScenarioError(file, f"instances.{name}.fmu", str(exc)) from None
+        ip = InstancePlan(name, spec, model, {o: t for t, o in spec.names.items()}, dict(spec.names))
+        for their in spec.names:
+            if their not in model.variables:
+                raise ScenarioError(file, f"instances.{name}.names.{their}",
+                                    f"{model.path.name} has no variable {their!r}")
+        for var_name in spec.units:
+            _var(file, f"instances.{name}.units.{var_name}", ip, var_name)
+        # the step: an FMU that cannot vary its step must be driven at (a multiple of) its own
+        if not model.can_vary_step and model.default_step:
+            ratio = sc.step / model.default_step
+            if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-9 * ratio:
+                raise ScenarioError(file, "experiment.step",
+                                    f"{sc.step!r} s: {name} ({model.path.name}) cannot vary its step and "
+                                    f"declares {model.default_step!r} s")
+        for pname, value in spec.parameters.items():
+            fld = f"instances.{name}.parameters.{pname}"
+            var = _var(file, fld, ip, pname)
+            if var.causality not in ("parameter", "input"):
+                raise ScenarioError(file, fld, f"{var.name} is {var.causality}: only parameters and inputs can be set")
+            if var.variability == "constant":
+                raise ScenarioError(file, fld, f"{var.name} is a constant")
+            ip.parameters.append((var, _value(file, fld, var, value)))
+        insts[name] = ip
+
+    conns: list[ConnectionPlan] = []
+    driven: dict[tuple[str, str], int] = {}
+    for c in sc.connections:
+        fld = f"connections[{c.index}]"
+        si, sv = split_ref(file, f"{fld}.from", c.src)
+        di, dv = split_ref(file, f"{fld}.to", c.dst)
+        svar = _var(file, f"{fld}.from", insts[si], sv)
+        dvar = _var(file, f"{fld}.to", insts[di], dv)
+        if svar.causality != "output":
+            raise ScenarioError(file, f"{fld}.from", f"{c.src} is {svar.causality}, not an output")
+        if dvar.causality != "input":
+            raise ScenarioError(file, f"{fld}.to", f"{c.dst} is {dvar.causality}, not an input: it cannot be a target")
+        key = (di, dvar.name)
+        if key in driven:
+            raise ScenarioError(file, f"{fld}.to", f"{c.dst} is already driven by connections[{driven[key]}]")
+        driven[key] = c.index
+        if svar.type != dvar.type:
+            raise ScenarioError(file, fld, f"type mismatch: {c.src} is {svar.type}, {c.dst} is {dvar.type}")
+        if svar.type not in ("Real", "Integer", "Boolean"):
+            raise ScenarioError(file, fld, f"connections of type {svar.type} are not supported")
+        f, o = 1.0, 0.0
+        if svar.type == "Real":
+            try:
+                f, o = conversion(_unit(insts[si], svar), _unit(insts[di], dvar))
+            except CosimError as exc:
+                raise ScenarioError(file, fld, f"unit mismatch: {c.src} -> {c.dst}: {exc}") from None
+        elif c.factor != 1.0 or c.offset != 0.0:
+            raise ScenarioError(file, fld, "a linear transform needs Real variables")
+        conns.append(ConnectionPlan(si, svar, di, dvar, c.factor * f, c.factor * o + c.offset, c))
+
+    # what to record: all outputs by default
+    candidates = [(n, v) for n in sc.order for v in insts[n].model.outputs()]
+    record: list[RecordPlan] = []
+    seen: set[tuple[str, str]] = set()
+    patterns = sc.record or ["*.*"]
+    for i, pat in enumerate(patterns):
+        hits = [(n, v) for n, v in candidates if fnmatch.fnmatchcase(f"{n}.{insts[n].our_name(v)}", pat)]
+        if not hits and not any(ch in pat for ch in "*?["):
+            # an explicit name may also be a non-output (a parameter, an input)
+            inst, var = split_ref(file, f"record.variables[{i}]", pat)
+            if inst not in insts:
+                raise ScenarioError(file, f"record.variables[{i}]", f"unknown instance {inst!r}")
+            hits = [(inst, _var(file, f"record.variables[{i}]", insts[inst], var))]
+        if not hits:
+            raise ScenarioError(file, f"record.variables[{i}]", f"{pat!r} matches no output")
+        for n, v in hits:
+            if (n, v.name) not in seen and v.type in ("Real", "Integer", "Boolean", "Enumeration"):
+                seen.add((n, v.name))
+                record.append(RecordPlan(n, v, f"{n}.{insts[n].our_name(v)}"))
+
+    n_steps = int(round((sc.stop - sc.start) / sc.step))
+    events: list[EventPlan] = []
+    for e in sc.events:
+        fld = f"events[{e.index}]"
+        inst, vname = split_ref(file, f"{fld}.variable", e.variable)
+        var = _var(file, f"{fld}.variable", insts[inst], vname)
+        if var.causality not in ("input", "output") or var.type != "Real":
+            raise ScenarioError(file, f"{fld}.variable", f"{e.variable} must be a Real input or output")
+        if not sc.start <= e.time <= sc.stop:
+            raise ScenarioError(file, f"{fld}.time", f"{e.time!r} is outside the run {sc.start!r}..{sc.stop!r} s")
+        k = int(math.ceil((e.time - sc.start) / sc.step - 1e-9))
+        value = None if e.action == "reset" else _value(file, f"{fld}.value", var, e.value) if e.action == "override" \
+            else float(_value(file, f"{fld}.value", Variable(var.name, 0, "Real", "input", "", None, None, None, None), e.value))
+        events.append(EventPlan(e.time, k, inst, var, e.action, value, e.variable))
+    events.sort(key=lambda ev: ev.step)  # stable: file order within a step
+    return Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps)

@@ -1,0 +1,89 @@
+"""Units of FMI variables: conversion between convertible units, rejection of incompatible ones.
+
+A unit is its exponents of the SI base units (kg, m, s, A, K, mol, cd, rad) with a factor and an offset:
+value in base units = factor * value + offset (FMI 2.0, section 2.2.2).  Units are taken from the model
+description's UnitDefinitions; a unit an FMU names without defining it is looked up in a small table of
+common units; a variable without a unit is compatible with anything (nothing to check).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from .errors import CosimError
+
+_BASES = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+
+
+@dataclass(frozen=True)
+class Unit:
+    """A unit: name, exponents of (kg, m, s, A, K, mol, cd, rad), factor and offset to the base unit."""
+
+    name: str
+    exps: tuple[int, ...]
+    factor: float = 1.0
+    offset: float = 0.0
+
+
+def _u(name: str, factor: float = 1.0, offset: float = 0.0, **exps: int) -> Unit:
+    return Unit(name, tuple(exps.get(b, 0) for b in _BASES), factor, offset)
+
+
+_DEG = math.pi / 180.0
+#: Common units, used when an FMU names a unit it does not define.
+KNOWN: dict[str, Unit] = {u.name: u for u in (
+    _u("1"), _u("-"), _u("rad", rad=1), _u("deg", _DEG, rad=1), _u("rev", 2 * math.pi, rad=1),
+    _u("rad/s", rad=1, s=-1), _u("deg/s", _DEG, rad=1, s=-1), _u("rpm", 2 * math.pi / 60, rad=1, s=-1),
+    _u("rad/s2", rad=1, s=-2), _u("rad/s^2", rad=1, s=-2), _u("deg/s2", _DEG, rad=1, s=-2),
+    _u("m", m=1), _u("mm", 1e-3, m=1), _u("cm", 1e-2, m=1), _u("km", 1e3, m=1),
+    _u("m/s", m=1, s=-1), _u("km/h", 1 / 3.6, m=1, s=-1), _u("mm/s", 1e-3, m=1, s=-1),
+    _u("m/s2", m=1, s=-2), _u("s", s=1), _u("ms", 1e-3, s=1), _u("min", 60.0, s=1), _u("h", 3600.0, s=1),
+    _u("1/s", s=-1), _u("Hz", s=-1), _u("kg", kg=1), _u("g", 1e-3, kg=1),
+    _u("N", kg=1, m=1, s=-2), _u("N.m", kg=1, m=2, s=-2), _u("Nm", kg=1, m=2, s=-2),
+    _u("N*m", kg=1, m=2, s=-2), _u("mN.m", 1e-3, kg=1, m=2, s=-2), _u("kg.m2", kg=1, m=2),
+    _u("kg.m^2", kg=1, m=2), _u("N.m.s/rad", kg=1, m=2, s=-1, rad=-1), _u("s/rad", s=1, rad=-1),
+    _u("W", kg=1, m=2, s=-3), _u("V", kg=1, m=2, s=-3, A=-1), _u("A", A=1), _u("K", K=1),
+    _u("degC", 1.0, 273.15, K=1),
+)}
+
+
+def units_of(model_description) -> dict[str, Unit]:
+    """The UnitDefinitions of an FMPy model description, by name."""
+    out: dict[str, Unit] = {}
+    for ud in getattr(model_description, "unitDefinitions", None) or []:
+        bu = ud.baseUnit
+        if bu is None:
+            if ud.name in KNOWN:
+                out[ud.name] = KNOWN[ud.name]
+            continue
+        out[ud.name] = Unit(ud.name, tuple(int(getattr(bu, b)) for b in _BASES),
+                            float(bu.factor), float(bu.offset))
+    return out
+
+
+def lookup(name: str | None, defined: dict[str, Unit]) -> Unit | None:
+    """The Unit named ``name``: from the FMU's definitions, else the table of common units, else a unit
+    with unknown base (compatible only with itself by name).  None when there is no unit."""
+    if not name:
+        return None
+    if name in defined:
+        return defined[name]
+    if name in KNOWN:
+        return KNOWN[name]
+    return Unit(name, (), 1.0, 0.0)
+
+
+def conversion(src: Unit | None, dst: Unit | None) -> tuple[float, float]:
+    """(factor, offset) such that value_in_dst = factor * value_in_src + offset.
+
+    Raises CosimError (message without context; the caller adds file and field) for incompatible units.
+    """
+    if src is None or dst is None or src.name == dst.name:
+        return 1.0, 0.0
+    if not src.exps or not dst.exps:
+        raise CosimError(f"unit '{src.name}' is not convertible to '{dst.name}' (unknown unit)")
+    if src.exps != dst.exps:
+        raise CosimError(f"unit '{src.name}' is incompatible with '{dst.name}'")
+    f = src.factor / dst.factor
+    o = (src.offset - dst.offset) / dst.factor
+    return f, o
