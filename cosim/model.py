@@ -2,9 +2,12 @@
 from __future__ import annotations
 
 import os
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from xml.etree import ElementTree
 
 from fmpy import read_model_description
 
@@ -94,10 +97,26 @@ def _start(v: Any) -> Any:
     return s
 
 
+def _fmi_version(path: Path) -> str:
+    """The fmiVersion attribute of the model description, read before FMPy parses it."""
+    try:
+        with zipfile.ZipFile(path) as zf, zf.open("modelDescription.xml") as fh:
+            for _, elem in ElementTree.iterparse(fh, events=("start",)):
+                return elem.get("fmiVersion", "?")
+    except KeyError:
+        raise FmuLoadError(f"{path}: no modelDescription.xml: not an FMU") from None
+    except ElementTree.ParseError as exc:
+        raise FmuLoadError(f"{path}: modelDescription.xml is not well-formed XML ({exc})") from None
+    return "?"
+
+
 def load_model(path: str | os.PathLike) -> FmuModel:
     """Read and check an FMU: it exists, is a safe archive, and is FMI 2.0 with co-simulation."""
     path = Path(path)
     check_archive(path)
+    version = _fmi_version(path)
+    if version != "2.0":
+        raise FmuLoadError(f"{path}: FMI version {version}: only FMI 2.0 is supported")
     try:
         md = read_model_description(str(path), validate=False)
     except Exception as exc:  # FMPy raises plain Exceptions for unreadable descriptions

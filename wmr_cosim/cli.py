@@ -1,12 +1,14 @@
 """The ``wmr-cosim`` command line.
 
-Exit codes: 0 success; 1 the run failed or diverged; 2 bad input (a parameter, a file, an option).
+Exit codes: 0 success; 1 the run failed or diverged; 2 bad input (a parameter, a file, an option);
+130 interrupted (Ctrl-C).
 """
 from __future__ import annotations
 
 import argparse
 import json
 import sys
+from pathlib import Path
 from typing import Any
 
 from .components import paper
@@ -16,6 +18,7 @@ from .components.metrics import run_metrics
 from .components.plant import PlantParams
 from .components.sensor import SensorParams
 from .components.validation import ParameterError
+from .cosim.errors import CosimError
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -80,6 +83,61 @@ def cmd_direct(args: argparse.Namespace) -> int:
     return EXIT_OK if res.status == "ok" and not m["diverged"] else EXIT_FAILED
 
 
+def cmd_build(args: argparse.Namespace) -> int:
+    """Build WmrPlant.fmu, WmrSensor.fmu and WmrController.fmu (only those whose sources changed)."""
+    from .fmus.build import BuildError, build_all, default_out_dir, up_to_date
+
+    out = args.out if args.out is not None else default_out_dir()
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {str(out)!r}: exists and is not a directory")
+    current = {} if args.force else up_to_date(out)
+    try:
+        paths = build_all(out, force=args.force)
+    except BuildError as exc:
+        print(f"wmr-cosim: build failed: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    for model, path in paths.items():
+        print(f"{model}: {path} ({'up to date' if current.get(model) else 'built'})")
+    return EXIT_OK
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    """Run a scenario through the co-simulation master."""
+    from .runner import default_out, parse_set, run_scenario
+
+    out = args.out if args.out is not None else default_out(args.scenario)
+    res = run_scenario(args.scenario, out, parse_set(args.set), progress=False if args.quiet else None)
+    per = f", {res.wall_s / res.steps * 1e6:.1f} us/step" if res.steps else ""
+    if res.status == "ok":
+        print(f"{args.scenario}: ok, {res.steps} steps to t = {res.t_end:g} s in {res.wall_s:.2f} s{per} "
+              f"(set-up {res.setup_s:.2f} s); results in {out}")
+    else:
+        print(f"wmr-cosim: run {res.status}: {res.message}", file=sys.stderr)
+        print(f"{args.scenario}: {res.status} after {res.steps} steps (t = {res.t_end:g} s); "
+              f"what was recorded is in {out}", file=sys.stderr)
+    return res.exit_code
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    """Every check of a scenario against its FMUs, without stepping."""
+    from .runner import load_plan, parse_set
+
+    plan = load_plan(args.scenario, parse_set(args.set))
+    sc = plan.scenario
+    print(f"{args.scenario}: ok: {len(plan.instances)} instances ({', '.join(plan.order)}), "
+          f"{len(plan.connections)} connections, {len(plan.record)} recorded variables, {len(plan.events)} events, "
+          f"{plan.n_steps} steps of {sc.step:g} s ({sc.algorithm})")
+    return EXIT_OK
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    """Describe an FMU: model, capabilities, default experiment, variables with units and ranges."""
+    from .runner import describe_fmu
+
+    print(describe_fmu(args.fmu))
+    return EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="wmr-cosim", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -94,6 +152,34 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override parameters, e.g. plant.foam_on_time=true plant.foam_t_on=8.38 controller.gamma=5")
     d.add_argument("--json", action="store_true", help="print only the JSON line")
     d.set_defaults(func=cmd_direct)
+    b = sub.add_parser("build", help="build the three FMUs (WmrPlant, WmrSensor, WmrController)",
+                       description="Build WmrPlant.fmu, WmrSensor.fmu and WmrController.fmu into DIR, rebuilding "
+                                   "only those whose sources changed.")
+    b.add_argument("--out", type=Path, default=None, metavar="DIR",
+                   help="output folder (default: build/fmus of the source tree, git-ignored)")
+    b.add_argument("--force", action="store_true", help="rebuild even if up to date")
+    b.set_defaults(func=cmd_build)
+
+    r = sub.add_parser("run", help="run a scenario (TOML) through the co-simulation master",
+                       description="Run a scenario file: FMUs, parameters, connections, experiment, recording, events. "
+                                   "Results go to a folder: signals.npy (written as the run goes), signals.csv, "
+                                   "scenario.json, logs/, summary.json. Exit codes: 0 ok, 1 the run failed "
+                                   "(an FMU error, a non-finite value), 2 bad input, 130 interrupted.")
+    r.add_argument("scenario", type=Path, help="scenario file (.toml)")
+    r.add_argument("--out", type=Path, default=None, metavar="DIR", help="results folder (default results/<scenario>)")
+    r.add_argument("--set", nargs="*", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.set_defaults(func=cmd_run)
+    c = sub.add_parser("check", help="check a scenario against its FMUs without running it",
+                       description="Run every check of a scenario (files, variables, causality, types, units, "
+                                   "steps, ranges, keys) without stepping. Exit code 0 if it would run, 2 if not.")
+    c.add_argument("scenario", type=Path, help="scenario file (.toml)")
+    c.add_argument("--set", nargs="*", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
+    c.set_defaults(func=cmd_check)
+    i = sub.add_parser("info", help="describe an FMU", description="Describe an FMU: model, FMI capabilities, "
+                       "default experiment, and every variable with causality, type, unit, range and start.")
+    i.add_argument("fmu", type=Path, help="an .fmu file")
+    i.set_defaults(func=cmd_info)
     return ap
 
 
@@ -105,6 +191,9 @@ def main(argv: list[str] | None = None) -> int:
     except (ParameterError, UsageError) as exc:
         print(f"wmr-cosim: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except CosimError as exc:
+        print(f"wmr-cosim: error: {exc}", file=sys.stderr)
+        return exc.exit_code
     except KeyboardInterrupt:
         print("wmr-cosim: interrupted", file=sys.stderr)
         return 130

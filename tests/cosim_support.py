@@ -1,0 +1,52 @@
+"""Support for the master's tests (not a test module): scenarios written from Python, test FMUs built
+from tests/slaves/ with pythonfmu."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+G1 = ROOT / "scenarios" / "g1_learn.toml"
+
+
+def toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, list):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f'"{k}" = {toml_value(x)}' for k, x in v.items()) + "}"
+    raise TypeError(v)
+
+
+def write_scenario(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+def g1_with_paths(tmp: Path, fmus: dict[str, Path], extra: str = "", name: str = "g1.toml",
+                  head: str = "", skip: tuple[str, ...] = ()) -> Path:
+    """The G1 learning scenario with our FMUs given by absolute path (no build on demand); ``head`` goes
+    before any table, ``extra`` after; instances in ``skip`` are left for ``extra`` to declare."""
+    text = f'base = {toml_value(str(G1))}\n{head}'
+    text += "".join(f'[instances.{inst}]\nfmu = {toml_value(str(fmus[model]))}\n'
+                    for inst, model in (("plant", "WmrPlant"), ("sensor", "WmrSensor"), ("controller", "WmrController"))
+                    if inst not in skip)
+    return write_scenario(tmp / name, text + extra)
+
+
+def build_test_fmu(script: str, out: Path) -> Path:
+    """Build tests/slaves/<script> with pythonfmu into ``out``; returns the .fmu."""
+    src = ROOT / "tests" / "slaves" / script
+    p = subprocess.run([sys.executable, "-m", "pythonfmu", "build", "-f", str(src), "-d", str(out)],
+                       capture_output=True, text=True)
+    if p.returncode != 0:
+        raise RuntimeError(p.stdout + p.stderr)
+    fmus = sorted(out.glob("*.fmu"), key=lambda f: f.stat().st_mtime)
+    return fmus[-1]

@@ -1,0 +1,185 @@
+"""Every check before the first step fails with one line naming the file, the field and the reason."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from cosim_support import G1, g1_with_paths
+from wmr_cosim.cosim import scenario, system
+from wmr_cosim.cosim.archive import check_archive, safe_extract
+from wmr_cosim.cosim.errors import CosimError, FmuLoadError, ScenarioError
+from wmr_cosim.cosim.units import KNOWN, conversion
+
+
+def _resolve(path: Path):
+    return system.resolve(scenario.load(path))
+
+
+def _rewrite_fmu(src: Path, dst: Path, old: str, new: str) -> Path:
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w", zipfile.ZIP_DEFLATED) as zout:
+        for item in zin.infolist():
+            data = zin.read(item.filename)
+            if item.filename == "modelDescription.xml":
+                text = data.decode()
+                assert old in text, old
+                data = text.replace(old, new).encode()
+            zout.writestr(item, data)
+    return dst
+
+
+BAD = {
+    "unknown top key": ("HEAD colour = 1\n", "colour", "unknown key"),
+    "unknown experiment key": ("[experiment]\nstpe = 0.1\n", "experiment.stpe", "unknown key"),
+    "unknown instance key": ("[instances.sensor]\nfmuu = 1\n", "instances.sensor.fmuu", "unknown key"),
+    "missing fmu file": ('[instances.sensor]\nfmu = "nowhere/Missing.fmu"\n', "instances.sensor.fmu", "not found"),
+    "unknown model name": ('[instances.sensor]\nfmu = "NoSuchModel"\n', "instances.sensor.fmu", "unknown model name"),
+    "unknown parameter": ("[instances.plant.parameters]\nfoam_dx = 1.0\n", "instances.plant.parameters.foam_dx",
+                          "no variable 'foam_dx'"),
+    "parameter below min": ("[instances.sensor.parameters]\nppr = -500.0\n", "instances.sensor.parameters.ppr",
+                            "below the minimum"),
+    "parameter above max": ("[instances.sensor.parameters]\nphase2 = 1.5\n", "instances.sensor.parameters.phase2",
+                            "above the maximum"),
+    "parameter of wrong type": ('[instances.controller.parameters]\ngamma = "eleven"\n',
+                                "instances.controller.parameters.gamma", "type mismatch"),
+    "output set as parameter": ("[instances.plant.parameters]\nx_A = 1.0\n", "instances.plant.parameters.x_A",
+                                "only parameters and inputs"),
+    "unknown variable in connection": ('[[connections]]\nfrom = "plant.alpha9"\nto = "sensor.alpha1"\n',
+                                       "connections[0].from", "no variable 'alpha9'"),
+    "input driven twice": ('[[connections]]\nfrom = "plant.alpha1"\nto = "sensor.alpha1"\n'
+                           '[[connections]]\nfrom = "plant.alpha2"\nto = "sensor.alpha1"\n', "connections[1].to",
+                           "already driven by connections[0]"),
+    "output used as target": ('[[connections]]\nfrom = "plant.alpha2"\nto = "controller.u1"\n',
+                              "connections[0].to", "not an input"),
+    "input used as source": ('[[connections]]\nfrom = "plant.u1"\nto = "plant.tau_d1"\n', "connections[0].from",
+                             "not an output"),
+    "type mismatch": ('[[connections]]\nfrom = "sensor.count1"\nto = "plant.tau_d1"\n', "connections[0]",
+                      "type mismatch"),
+    "unit mismatch": ('[[connections]]\nfrom = "plant.x_A"\nto = "plant.tau_d1"\n', "connections[0]",
+                      "unit mismatch: plant.x_A -> plant.tau_d1: unit 'm' is incompatible with 'N.m'"),
+    "step not dividing the run": ("[experiment]\nstep = 0.003\nstop = 1.0\n", "experiment.step", "whole steps"),
+    "bad algorithm": ('[experiment]\nalgorithm = "newton"\n', "experiment.algorithm", "must be one of"),
+    "bad order": ('[experiment]\norder = ["plant", "sensor"]\n', "experiment.order", "every instance"),
+    "bad reference": ('[[connections]]\nfrom = "plant"\nto = "sensor.alpha1"\n', "connections[0].from",
+                      "instance.variable"),
+    "record nothing": ('[record]\nvariables = ["plant.nothing*"]\n', "record.variables[0]", "matches no output"),
+    "bad decimation": ("[record]\ndecimation = 0\n", "record.decimation", "integer >= 1"),
+    "event on a parameter": ('[[events]]\ntime = 1.0\nvariable = "plant.a1"\nvalue = 1.0\n', "events[0].variable",
+                             "Real input or output"),
+    "event outside the run": ('[[events]]\ntime = 99.0\nvariable = "plant.tau_d1"\nvalue = 1.0\n', "events[0].time",
+                              "outside the run"),
+    "event without value": ('[[events]]\ntime = 1.0\nvariable = "plant.tau_d1"\n', "events[0].value", "missing"),
+    "not toml": ("[experiment\n", "", "not valid TOML"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_scenario_is_refused_with_file_field_and_reason(case, built_fmus, tmp_path):
+    extra, field, reason = BAD[case]
+    if extra.startswith("HEAD "):
+        path = g1_with_paths(tmp_path, built_fmus, head=extra[5:])
+    else:
+        skip = ("sensor",) if extra.startswith("[instances.sensor]") else ()
+        path = g1_with_paths(tmp_path, built_fmus, "\n" + extra, skip=skip)
+    with pytest.raises(ScenarioError) as exc:
+        _resolve(path)
+    msg = str(exc.value)
+    assert "\n" not in msg
+    assert msg.startswith(str(path)), msg
+    assert exc.value.field == field, msg
+    assert reason in msg, msg
+
+
+def test_not_co_simulation_fmu_is_refused(built_fmus, tmp_path):
+    bad = _rewrite_fmu(built_fmus["WmrSensor"], tmp_path / "me.fmu", "<CoSimulation", "<ModelExchange")
+    bad2 = _rewrite_fmu(built_fmus["WmrSensor"], tmp_path / "v3.fmu", 'fmiVersion="2.0"', 'fmiVersion="3.0"')
+    for fmu, why in ((bad, "not a co-simulation FMU"), (bad2, "only FMI 2.0")):
+        path = g1_with_paths(tmp_path, built_fmus, f'[instances.sensor]\nfmu = "{fmu}"\n', name=f"{fmu.stem}.toml",
+                             skip=("sensor",))
+        with pytest.raises(ScenarioError, match=why) as exc:
+            _resolve(path)
+        assert exc.value.field == "instances.sensor.fmu"
+
+
+def test_step_the_fmu_cannot_take_is_refused(built_fmus, tmp_path):
+    fixed = _rewrite_fmu(built_fmus["WmrSensor"], tmp_path / "fixed.fmu",
+                         'canHandleVariableCommunicationStepSize="true"', 'canHandleVariableCommunicationStepSize="false"')
+    ok = g1_with_paths(tmp_path, built_fmus, f'[instances.sensor]\nfmu = "{fixed}"\n[experiment]\nstep = 0.004\n',
+                       name="ok.toml", skip=("sensor",))
+    _resolve(ok)  # a multiple of its 2 ms
+    bad = g1_with_paths(tmp_path, built_fmus, f'[instances.sensor]\nfmu = "{fixed}"\n[experiment]\nstep = 0.001\n',
+                        name="bad.toml", skip=("sensor",))
+    with pytest.raises(ScenarioError, match="cannot vary its step") as exc:
+        _resolve(bad)
+    assert exc.value.field == "experiment.step"
+
+
+def test_override_of_unknown_instance_or_parameter(built_fmus, tmp_path):
+    path = g1_with_paths(tmp_path, built_fmus)
+    with pytest.raises(ScenarioError, match="unknown instance 'robot'"):
+        scenario.load(path, None, {"robot.gamma": 3})
+    with pytest.raises(ScenarioError, match="no variable 'gama'"):
+        system.resolve(scenario.load(path, None, {"controller.gama": 3}))
+
+
+def test_units_convert_or_refuse():
+    assert conversion(KNOWN["deg"], KNOWN["rad"])[0] == pytest.approx(0.017453292519943295, rel=1e-15)
+    assert conversion(KNOWN["rpm"], KNOWN["rad/s"])[0] == pytest.approx(0.10471975511965977)
+    f, o = conversion(KNOWN["degC"], KNOWN["K"])
+    assert (f, o) == (1.0, 273.15)
+    assert conversion(None, KNOWN["m"]) == (1.0, 0.0)
+    with pytest.raises(CosimError, match="incompatible"):
+        conversion(KNOWN["N.m"], KNOWN["rad"])
+
+
+def _evil_zip(path: Path, kind: str) -> Path:
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("modelDescription.xml", "<fmiModelDescription/>")
+        if kind == "dotdot":
+            zf.writestr("../escaped.txt", "x")
+        elif kind == "absolute":
+            zf.writestr("/tmp/escaped_abs.txt", "x")
+        elif kind == "symlink":
+            info = zipfile.ZipInfo("resources/link")
+            info.external_attr = (0o120777 << 16)
+            zf.writestr(info, "/etc/passwd")
+    return path
+
+
+@pytest.mark.parametrize("kind", ["dotdot", "absolute", "symlink"])
+def test_unsafe_archive_is_refused_before_anything_is_written(tmp_path, kind):
+    box = tmp_path / "box"
+    box.mkdir()
+    evil = _evil_zip(box / "evil.fmu", kind)
+    dest = box / "extract"
+    before = set(tmp_path.rglob("*"))
+    with pytest.raises(FmuLoadError, match="refused") as exc:
+        safe_extract(evil, dest)
+    assert "evil.fmu" in str(exc.value)
+    assert set(tmp_path.rglob("*")) == before   # nothing written, not even the folder
+    assert not Path("/tmp/escaped_abs.txt").exists()
+    with pytest.raises(FmuLoadError):
+        check_archive(evil)
+
+
+def test_cli_check_and_info(built_fmus, tmp_path):
+    path = g1_with_paths(tmp_path, built_fmus)
+    p = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "check", str(path)], capture_output=True, text=True)
+    assert p.returncode == 0 and "11 connections" in p.stdout, p.stderr
+    p = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "check", str(path), "--set", "sensor.ppr=-1"],
+                       capture_output=True, text=True)
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1 and "instances.sensor.parameters.ppr" in p.stderr
+    p = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "info", str(built_fmus["WmrPlant"])],
+                       capture_output=True, text=True)
+    assert p.returncode == 0 and "foam_da1" in p.stdout and "N.m" in p.stdout
+    p = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "info", str(tmp_path / "missing.fmu")],
+                       capture_output=True, text=True)
+    assert p.returncode == 2 and "not found" in p.stderr and "Traceback" not in p.stderr
+    for cmd in ("run", "check", "info", "build", "direct"):
+        h = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", cmd, "--help"], capture_output=True, text=True)
+        assert h.returncode == 0 and "usage" in h.stdout
