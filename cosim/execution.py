@@ -154,6 +154,7 @@ def run(plan: Plan, out_dir: str | os.PathLike | None, progress: bool | None = N
     _write_json(out / "scenario.json", _resolved(plan))
     t_setup = _time.perf_counter()
     bar = None
+    stop = _Interrupt()
     try:
         try:
             # ------------------------------------------------------------ set-up
@@ -169,6 +170,7 @@ def run(plan: Plan, out_dir: str | os.PathLike | None, progress: bool | None = N
                 inst.call("fmi2SetupExperiment", inst.fmu.setupExperiment, None, t0, sc.stop)
             for inst in instances.values():
                 inst.call("fmi2EnterInitializationMode", inst.fmu.enterInitializationMode)
+            stop.check()
 
             # the row buffer: time, each instance's Real outputs that are connected or recorded, then
             # recorded Integer/Boolean outputs
@@ -261,6 +263,7 @@ def run(plan: Plan, out_dir: str | os.PathLike | None, progress: bool | None = N
                     if ev_i < len(events):
                         k_end = min(k_end, max(events[ev_i].step, k + 1))
                     fail = loop(k, k_end)
+                    stop.check()
                     if fail is not None:
                         kf, name, what, val = fail
                         k_done = kf if what != "fmi2GetReal" and not what.startswith("fmi2Get") else kf - 1
@@ -272,10 +275,19 @@ def run(plan: Plan, out_dir: str | os.PathLike | None, progress: bool | None = N
                         raise inst.fail_status(what, int(val), tf)
                     k_done = k = k_end
                     if len(chunk) >= FLUSH_ROWS or k == n_steps:
-                        _flush(recorder, chunk, rec_cols, columns)
-                        chunk.clear()
+                        try:
+                            _flush(recorder, chunk, rec_cols, columns)
+                        except RunError as exc:
+                            k_done = int(round((exc.time - t0) / h))
+                            raise
+                        finally:
+                            chunk.clear()
                     if bar is not None:
                         bar.update(k_done - bar.n)
+            except KeyboardInterrupt:
+                if chunk:  # the steps completed inside the interrupted segment, from the last recorded row
+                    k_done = max(k_done, int(round((float(np.frombuffer(chunk[-1], "<f8", 1)[0]) - t0) / h)))
+                raise
             finally:
                 wall_s = _time.perf_counter() - wall0
                 if bar is not None:
@@ -285,6 +297,7 @@ def run(plan: Plan, out_dir: str | os.PathLike | None, progress: bool | None = N
                         _flush(recorder, chunk, rec_cols, columns)
                     except RunError as exc:
                         status, message, failed = "failed", str(exc), exc.instance
+                        k_done = min(k_done, int(round((exc.time - t0) / h)))
                     chunk.clear()
         except KeyboardInterrupt:
             status, message = "interrupted", f"interrupted by the user at t = {t0 + k_done * h:.6g} s"
@@ -293,6 +306,7 @@ def run(plan: Plan, out_dir: str | os.PathLike | None, progress: bool | None = N
     except CosimError as exc:
         status, message = "failed", str(exc)
     finally:
+        stop.restore()
         for inst in instances.values():
             inst.shutdown()
         if recorder is not None:
@@ -322,6 +336,35 @@ def run(plan: Plan, out_dir: str | os.PathLike | None, progress: bool | None = N
 
 
 # ---------------------------------------------------------------------- helpers
+class _Interrupt:
+    """Ctrl-C during a run: a Python KeyboardInterrupt raised inside an FMU's own Python code (a pythonfmu
+    slave runs in this interpreter) would make that FMU report Fatal.  So the first SIGINT only sets a
+    flag, checked between loop segments (every few hundredths of a second); a second one interrupts at once."""
+
+    def __init__(self) -> None:
+        self.flag = False
+        self.old = None
+        import signal
+        import threading
+        if threading.current_thread() is threading.main_thread():
+            self.old = signal.signal(signal.SIGINT, self._handler)
+
+    def _handler(self, signum, frame) -> None:
+        if self.flag:
+            raise KeyboardInterrupt
+        self.flag = True
+
+    def check(self) -> None:
+        if self.flag:
+            raise KeyboardInterrupt
+
+    def restore(self) -> None:
+        if self.old is not None:
+            import signal
+            signal.signal(signal.SIGINT, self.old)
+            self.old = None
+
+
 def _check(inst: Instance, what: str, status: int, t: float) -> None:
     if status:
         raise inst.fail_status(what, status, t)
@@ -365,7 +408,7 @@ def _flush(recorder: NpyRecorder, chunk: list[bytes], cols: np.ndarray, columns:
     if not finite.all():
         r, c = np.argwhere(~finite)[0]
         recorder.append(block[: r + 1])
-        raise RunError(f"{columns[c]} is {block[r, c]!r} at t = {block[r, 0]:.6g} s (a non-finite output)",
+        raise RunError(f"{columns[c]} is {float(block[r, c])!r} at t = {block[r, 0]:.6g} s (a non-finite output)",
                        columns[c].split(".", 1)[0], float(block[r, 0]))
     recorder.append(block)
 
