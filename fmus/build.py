@@ -1,0 +1,246 @@
+"""Build WmrPlant.fmu, WmrSensor.fmu and WmrController.fmu with pythonfmu, rebuilding only what changed.
+
+Each FMU carries, in its resources, a copy of the components package (with paper_results.json) plus
+fmus/fmi_base.py under a package name unique to the FMU and to the source version,
+``wmrfmu_<component>_<hash8>``, and its slave script as ``wmr_<component>_slave_<hash8>.py`` with the
+two ``wmr_cosim`` imports rewritten to that package.  So the code inside an FMU never collides with the
+installed ``wmr_cosim``, with another of the three FMUs, or with another build of the same FMU loaded in
+the same process (traps 4 and 5 of shared/notes/fmi-stack-facts.md).
+
+``hash8`` is the start of a SHA-256 over everything that goes into the FMU: the slave script,
+fmi_base.py, every file of components/ (.py and .json), this build script and the pythonfmu version.
+It is stored beside the FMU (``WmrPlant.fmu.sha256``); an FMU is rebuilt only when it is missing or
+its hash differs.  pythonfmu's builder runs in a child process (it imports the slave script and leaves
+modules and sys.path entries behind).
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+_HERE = Path(__file__).resolve().parent
+
+#: model name -> (slave script in fmus/, component short name)
+SLAVES: dict[str, tuple[str, str]] = {
+    "WmrPlant": ("slave_plant.py", "plant"),
+    "WmrSensor": ("slave_sensor.py", "sensor"),
+    "WmrController": ("slave_controller.py", "controller"),
+}
+#: Build options: state save/restore and serialisation declared (trap 7); never --interpolate-inputs (trap 8).
+BUILD_OPTIONS = ("--handle-state", "--serialize-state")
+_IMPORT_RE = re.compile(r"^\s*(from|import)\s+wmr_cosim\b", re.MULTILINE)
+
+
+class BuildError(RuntimeError):
+    """An FMU could not be built; the message is one line (plus the builder's output, if any)."""
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What goes into one FMU."""
+
+    model: str
+    short: str
+    script: Path
+    digest: str
+
+    @property
+    def hash8(self) -> str:
+        return self.digest[:8]
+
+    @property
+    def package(self) -> str:
+        return f"wmrfmu_{self.short}_{self.hash8}"
+
+    @property
+    def module(self) -> str:
+        return f"wmr_{self.short}_slave_{self.hash8}"
+
+
+def _components_dir() -> Path:
+    """The components package folder: ../components in a source tree, else the installed package."""
+    here = _HERE.parent / "components"
+    if (here / "plant.py").is_file():
+        return here
+    from wmr_cosim import components  # installed (non-editable): use the package's own folder
+    return Path(components.__file__).resolve().parent
+
+
+def _component_files() -> list[Path]:
+    d = _components_dir()
+    files = sorted(p for p in d.iterdir() if p.is_file() and p.suffix in (".py", ".json"))
+    if not any(p.name == "paper_results.json" for p in files):
+        raise BuildError(f"{d}: paper_results.json is missing")
+    return files
+
+
+def _pythonfmu_version() -> str:
+    from pythonfmu import __version__
+    return __version__
+
+
+def plan(model: str) -> Plan:
+    """The inputs of one FMU and their hash."""
+    script_name, short = SLAVES[model]
+    script = _HERE / script_name
+    h = hashlib.sha256()
+
+    def add(label: str, data: bytes) -> None:
+        h.update(f"{label}\0{len(data)}\0".encode())
+        h.update(data)
+
+    add("pythonfmu", _pythonfmu_version().encode())
+    add("options", " ".join(BUILD_OPTIONS).encode())
+    add("build.py", Path(__file__).read_bytes())
+    add("slave", script.read_bytes())
+    add("fmi_base.py", (_HERE / "fmi_base.py").read_bytes())
+    for f in _component_files():
+        add(f"components/{f.name}", f.read_bytes())
+    return Plan(model, short, script, h.hexdigest())
+
+
+def default_out_dir() -> Path:
+    """<repository>/build/fmus in a source checkout (build/ is git-ignored), else ./build/fmus."""
+    root = _HERE.parent
+    if (root / "pyproject.toml").is_file() and (root / "components").is_dir():
+        return root / "build" / "fmus"
+    return Path.cwd() / "build" / "fmus"
+
+
+def rewrite_imports(source: str, package: str) -> str:
+    """The slave script with its ``wmr_cosim.components`` / ``wmr_cosim.fmus`` imports pointing at the
+    bundled package; refuses a script that would still import wmr_cosim."""
+    out = re.sub(r"^(\s*from\s+)wmr_cosim\.(components|fmus)\.", rf"\g<1>{package}.", source, flags=re.MULTILINE)
+    if _IMPORT_RE.search(out):
+        raise BuildError(f"slave script still imports wmr_cosim after rewriting to {package}: "
+                         f"import only from wmr_cosim.components.<module> and wmr_cosim.fmus.fmi_base")
+    return out
+
+
+def _stage(p: Plan, stage: Path) -> Path:
+    """Write the slave script and the bundled package into ``stage``; return the script's path."""
+    pkg = stage / p.package
+    pkg.mkdir(parents=True)
+    for f in _component_files():
+        text = f.read_bytes()
+        if f.suffix == ".py" and _IMPORT_RE.search(text.decode("utf-8")):
+            raise BuildError(f"components/{f.name} imports wmr_cosim: components must use relative imports only")
+        (pkg / f.name).write_bytes(text)
+    shutil.copyfile(_HERE / "fmi_base.py", pkg / "fmi_base.py")
+    script = stage / f"{p.module}.py"
+    script.write_text(rewrite_imports(p.script.read_text(encoding="utf-8"), p.package), encoding="utf-8")
+    return script
+
+
+def _hash_file(fmu: Path) -> Path:
+    return fmu.with_name(fmu.name + ".sha256")
+
+
+def is_current(fmu: Path, p: Plan) -> bool:
+    """True if ``fmu`` exists and was built from exactly the inputs of ``p``."""
+    hf = _hash_file(fmu)
+    try:
+        return fmu.is_file() and hf.read_text(encoding="utf-8").strip() == p.digest
+    except OSError:
+        return False
+
+
+def _check_archive(fmu: Path, p: Plan) -> None:
+    with zipfile.ZipFile(fmu) as zf:
+        names = set(zf.namelist())
+        md = zf.read("modelDescription.xml").decode("utf-8")
+    need = {"modelDescription.xml", f"resources/{p.module}.py", f"resources/{p.package}/__init__.py",
+            f"resources/{p.package}/fmi_base.py", f"resources/{p.package}/paper_results.json",
+            "resources/slavemodule.txt", f"binaries/linux64/{p.model}.so"}
+    missing = sorted(need - names)
+    if missing:
+        raise BuildError(f"{fmu}: entries missing from the built FMU: {', '.join(missing)}")
+    if f'modelName="{p.model}"' not in md or 'canGetAndSetFMUstate="true"' not in md:
+        raise BuildError(f"{fmu}: unexpected model description (model name or state capabilities)")
+
+
+def up_to_date(out_dir: Path | None = None) -> dict[str, bool]:
+    """{model name: True if its FMU in ``out_dir`` is current} (what :func:`build_all` would skip)."""
+    out = Path(out_dir) if out_dir is not None else default_out_dir()
+    return {m: is_current(out / f"{m}.fmu", plan(m)) for m in SLAVES}
+
+
+def build_all(out_dir: Path | None = None, force: bool = False, models: tuple[str, ...] | None = None,
+              ) -> dict[str, Path]:
+    """Build the FMUs into ``out_dir`` (default :func:`default_out_dir`); rebuild only those whose inputs
+    changed (or all, with ``force``).  Returns {model name: path of the .fmu}."""
+    out = Path(out_dir) if out_dir is not None else default_out_dir()
+    if out.exists() and not out.is_dir():
+        raise BuildError(f"output {out} exists and is not a directory")
+    out.mkdir(parents=True, exist_ok=True)
+    models = tuple(SLAVES) if models is None else models
+    unknown = [m for m in models if m not in SLAVES]
+    if unknown:
+        raise BuildError(f"unknown FMU {', '.join(unknown)}: one of {', '.join(SLAVES)}")
+    result: dict[str, Path] = {}
+    todo: list[tuple[Plan, Path]] = []
+    for m in models:
+        p = plan(m)
+        fmu = out / f"{m}.fmu"
+        result[m] = fmu
+        if force or not is_current(fmu, p):
+            todo.append((p, fmu))
+    if not todo:
+        return result
+    with tempfile.TemporaryDirectory(prefix="wmr_fmu_build_") as tmp:
+        procs = []
+        for p, fmu in todo:
+            stage = Path(tmp) / p.model
+            script = _stage(p, stage)
+            dest = stage / "out"
+            cmd = [sys.executable, "-m", "pythonfmu", "build", "-f", str(script), "-d", str(dest),
+                   *BUILD_OPTIONS, str(stage / p.package)]
+            env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+            procs.append((p, fmu, dest, subprocess.Popen(cmd, cwd=stage, env=env, stdout=subprocess.PIPE,
+                                                          stderr=subprocess.STDOUT, text=True)))
+        errors = []
+        for p, fmu, dest, proc in procs:
+            log, _ = proc.communicate()
+            built = dest / f"{p.model}.fmu"
+            if proc.returncode != 0 or not built.is_file():
+                tail = "\n".join(log.strip().splitlines()[-15:])
+                errors.append(f"{p.model}: pythonfmu build failed (exit {proc.returncode})\n{tail}")
+                continue
+            _check_archive(built, p)
+            _hash_file(fmu).unlink(missing_ok=True)  # no stale hash beside a half-replaced FMU
+            os.replace(built, fmu) if _same_fs(built, fmu) else shutil.move(str(built), str(fmu))
+            _hash_file(fmu).write_text(p.digest + "\n", encoding="utf-8")
+        if errors:
+            raise BuildError("\n".join(errors))
+    return result
+
+
+def _same_fs(a: Path, b: Path) -> bool:
+    try:
+        return os.stat(a).st_dev == os.stat(b.parent).st_dev
+    except OSError:
+        return False
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m wmr_cosim.fmus.build [--out DIR] [--force]``."""
+    import argparse
+    ap = argparse.ArgumentParser(prog="python -m wmr_cosim.fmus.build", description=__doc__.splitlines()[0])
+    ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--force", action="store_true")
+    args = ap.parse_args(argv)
+    for model, path in build_all(args.out, args.force).items():
+        print(f"{model}: {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,563 @@
+"""What the project's three pythonfmu slaves share: variable declarations with unit, min and max, a
+truthful ModelStructure, fast value-reference paths, complete state save/restore, and failure handling.
+
+This module is bundled inside every FMU next to a copy of the components (see fmus/build.py), so it
+imports nothing of the project: only pythonfmu and the standard library.
+
+Design (each point answers a trap of the FMI notes, shared/notes/fmi-stack-facts.md):
+
+* Every value of the FMU lives in one list ``self._vals`` indexed by value reference; the overridden
+  ``get_real``/``set_real``/... read and write it directly (no per-variable lambdas in the hot path).
+* Parameters are read in ``exit_initialization_mode``, where the component is built (trap 9); before
+  that, outputs hold the initial state of the default parameters and, inside initialization mode,
+  are recomputed from the current parameters and inputs whenever they are read (trap 10).
+* Outputs are listed in ModelStructure/Outputs with their true direct-feedthrough ``dependencies``
+  and in InitialUnknowns (trap 2); Real variables carry unit, min and max, declared in UnitDefinitions
+  (trap 3).
+* ``do_step`` never raises: a failure is logged with its cause and returned as fmi2Discard; later steps
+  are refused the same way (trap 6).  Initialisation can fail only as fmi2Fatal: the one-line cause is
+  logged first.
+* The FMU state holds every variable value and the component's own ``get_state()`` (trap 7).
+* The communication step is whatever the master gives; a step or time within 1e-9 (relative) of the
+  previous step or of a whole multiple of it is snapped to it, so that the rounding of other masters
+  neither recomputes discretisations nor perturbs the results.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from typing import Any
+from xml.etree.ElementTree import Element, SubElement
+
+from pythonfmu import Boolean, DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
+from pythonfmu.enums import Fmi2Initial, Fmi2Status
+from pythonfmu.variables import ScalarVariable
+
+DBL_MAX = sys.float_info.max
+DBL_MIN = sys.float_info.min  # smallest positive normal double: "min = DBL_MIN" encodes "> 0"
+INT_MAX = 2**31 - 1
+
+#: Declared ranges (min, max).  ``max = DBL_MAX`` excludes +inf, ``min = -DBL_MAX`` excludes -inf; NaN
+#: fails every range check, so FINITE encodes "a finite number".
+FINITE = (-DBL_MAX, DBL_MAX)
+POSITIVE = (DBL_MIN, DBL_MAX)
+NON_NEGATIVE = (0.0, DBL_MAX)
+SIGN = (-1.0, 1.0)
+
+#: Units of the FMUs as SI base-unit exponents (FMI 2.0 <BaseUnit>).  "1" is dimensionless.
+UNITS: dict[str, dict[str, int]] = {
+    "1": {},
+    "rad": {"rad": 1},
+    "rad/s": {"rad": 1, "s": -1},
+    "rad/s2": {"rad": 1, "s": -2},
+    "N.m": {"kg": 1, "m": 2, "s": -2},
+    "kg.m2": {"kg": 1, "m": 2},
+    "m": {"m": 1},
+    "m/s": {"m": 1, "s": -1},
+    "s": {"s": 1},
+    "1/s": {"s": -1},
+    "1/m": {"m": -1},
+    "1/rad": {"rad": -1},
+    "s/rad": {"s": 1, "rad": -1},
+}
+
+#: Relative tolerance within which a step size equals the previous one, or a time a multiple of it.
+STEP_RTOL = 1e-9
+
+_CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input,
+              "output": Fmi2Causality.output}
+_VARIABILITY = {"fixed": Fmi2Variability.fixed, "tunable": Fmi2Variability.tunable,
+                "discrete": Fmi2Variability.discrete, "continuous": Fmi2Variability.continuous}
+_KINDS = {"Real": Real, "Integer": Integer, "Boolean": Boolean, "String": String}
+
+
+def _xml_number(v: float | int) -> str:
+    """Shortest text that reads back as the same double (pythonfmu's '%.16g' does not always)."""
+    if isinstance(v, bool):
+        raise TypeError("a boolean is not a number")
+    if isinstance(v, int):
+        return str(v)
+    v = float(v)
+    if math.isnan(v):
+        return "NaN"
+    if math.isinf(v):
+        return "INF" if v > 0 else "-INF"
+    return repr(v)
+
+
+class Var:
+    """One variable of an FMU: what the model description says about it.
+
+    ``kind`` Real, Integer, Boolean or String; ``causality`` parameter, input or output;
+    ``variability`` fixed or tunable for parameters, continuous or discrete for inputs and outputs;
+    ``unit`` a key of :data:`UNITS` (Real only); ``range`` (min, max), either may be None;
+    ``deps``: for an output, the names of the inputs it depends on directly (direct feedthrough) in a
+    step, None meaning all inputs; ``init_deps``: the inputs it depends on in initialization mode
+    (default ``deps``; every parameter is added, as a sound over-approximation).
+    """
+
+    __slots__ = ("name", "kind", "causality", "description", "unit", "range", "variability", "start",
+                 "deps", "init_deps", "vr")
+
+    def __init__(self, name: str, kind: str, causality: str, description: str, unit: str | None = None,
+                 range: tuple[float | None, float | None] = (None, None), variability: str | None = None,
+                 start: Any = None, deps: tuple[str, ...] | None = None,
+                 init_deps: tuple[str, ...] | None = None) -> None:
+        if kind not in _KINDS:
+            raise ValueError(f"variable {name}: kind {kind!r}")
+        if causality not in _CAUSALITY:
+            raise ValueError(f"variable {name}: causality {causality!r}")
+        if unit is not None and (kind != "Real" or unit not in UNITS):
+            raise ValueError(f"variable {name}: unit {unit!r} (only Real variables have units, from UNITS)")
+        if variability is None:
+            variability = "fixed" if causality == "parameter" else ("continuous" if kind == "Real" else "discrete")
+        self.name, self.kind, self.causality, self.description = name, kind, causality, description
+        self.unit, self.range, self.variability, self.start = unit, range, variability, start
+        self.deps = deps
+        self.init_deps = deps if init_deps is None else init_deps
+        self.vr = -1
+
+
+class RealU(Real):
+    """pythonfmu's Real with the attributes it lacks: unit, min, max (trap 3); start written exactly."""
+
+    def __init__(self, name: str, unit: str | None = None, min: float | None = None,
+                 max: float | None = None, **kwargs: Any) -> None:
+        super().__init__(name, **kwargs)
+        self.unit, self.min, self.max = unit, min, max
+
+    def to_xml(self) -> Element:
+        node = ScalarVariable.to_xml(self)
+        attrib: dict[str, str] = {}
+        if self.unit is not None:
+            attrib["unit"] = self.unit
+        if self.min is not None:
+            attrib["min"] = _xml_number(self.min)
+        if self.max is not None:
+            attrib["max"] = _xml_number(self.max)
+        if self.start is not None:
+            attrib["start"] = _xml_number(self.start)
+        SubElement(node, "Real", attrib)
+        return node
+
+
+class IntegerR(Integer):
+    """pythonfmu's Integer with min and max."""
+
+    def __init__(self, name: str, min: int | None = None, max: int | None = None, **kwargs: Any) -> None:
+        super().__init__(name, **kwargs)
+        self.min, self.max = min, max
+
+    def to_xml(self) -> Element:
+        node = ScalarVariable.to_xml(self)
+        attrib: dict[str, str] = {}
+        if self.min is not None:
+            attrib["min"] = str(int(self.min))
+        if self.max is not None:
+            attrib["max"] = str(int(self.max))
+        if self.start is not None:
+            attrib["start"] = str(int(self.start))
+        SubElement(node, "Integer", attrib)
+        return node
+
+
+class WmrSlave(Fmi2Slave):
+    """Base of the project's slaves.  A subclass declares its variables with :meth:`declare` in
+    ``__init__`` and implements :meth:`_build` (component from the parameters, initial outputs),
+    :meth:`_step` and optionally :meth:`_retune`."""
+
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=50.0, step_size=0.002)
+    author = "wmr-cosim"
+
+    # ------------------------------------------------------------------ declaration
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self._vals: list[Any] = []
+        self._decl: list[Var] = []
+        self._by_name: dict[str, Var] = {}
+        self._comp: Any = None          # the component object (Plant, Sensor, Controller)
+        self._mode = "instantiated"     # -> "init" -> "run"
+        self._failed = ""               # cause of the failed step; steps are refused after one
+        self._dirty = False             # a tunable parameter was set since the last step
+        self._stale = False             # initialization mode: outputs not recomputed since a set
+        self._h = math.nan              # the step size in use
+        self._t0 = 0.0                  # start time (setup_experiment)
+
+    def declare(self, variables: list[Var]) -> None:
+        """Register the variables (value reference = position) and prepare the fast paths."""
+        for var in variables:
+            if var.name in self._by_name:
+                raise ValueError(f"duplicate variable {var.name}")
+            lo, hi = var.range
+            common = dict(causality=_CAUSALITY[var.causality], description=var.description,
+                          variability=_VARIABILITY[var.variability])
+            if var.causality == "parameter":
+                common["initial"] = Fmi2Initial.exact
+            if var.kind == "Real":
+                sv = RealU(var.name, unit=var.unit, min=lo, max=hi, **common)
+            elif var.kind == "Integer":
+                sv = IntegerR(var.name, min=lo, max=hi, **common)
+            else:
+                sv = _KINDS[var.kind](var.name, **common)
+            vr = len(self._vals)
+            sv.getter = (lambda i=vr: self._vals[i])
+            sv.setter = (lambda x, i=vr: self._vals.__setitem__(i, x))
+            self.register_variable(sv)
+            assert sv.value_reference == vr
+            var.vr = vr
+            self._vals.append(var.start)
+            self._decl.append(var)
+            self._by_name[var.name] = var
+        self._index()
+
+    def _index(self) -> None:
+        decl = self._decl
+        kinds = {k: frozenset(v.vr for v in decl if v.kind == k) for k in _KINDS}
+        self._kind_vrs = kinds
+        self._params = [v for v in decl if v.causality == "parameter"]
+        self._inputs = [v for v in decl if v.causality == "input"]
+        self._outputs = [v for v in decl if v.causality == "output"]
+        for group in (self._inputs, self._outputs):  # contiguous, so that slices read and write them
+            vrs = [v.vr for v in group]
+            if vrs and vrs != list(range(vrs[0], vrs[0] + len(vrs))):
+                raise ValueError(f"{type(self).__name__}: declare the inputs, and the outputs, consecutively")
+        self._in0 = self._inputs[0].vr if self._inputs else 0
+        self._in1 = self._in0 + len(self._inputs)
+        self._out0 = self._outputs[0].vr if self._outputs else 0
+        self._out1 = self._out0 + len(self._outputs)
+        param_vrs = {v.vr for v in self._params}
+        input_vrs = {v.vr for v in self._inputs}
+        tunable = {v.vr for v in self._params if v.variability == "tunable"}
+        self._settable_before = {k: frozenset(vs & (param_vrs | input_vrs)) for k, vs in kinds.items()}
+        self._settable_running = {k: frozenset(vs & (tunable | input_vrs)) for k, vs in kinds.items()}
+        self._tunable = frozenset(tunable)
+        self._settable = self._settable_before
+        self._watch: frozenset[int] = frozenset()
+
+    def parameter_values(self) -> dict[str, Any]:
+        """The current parameter values by name (the types of the declaration)."""
+        vals = self._vals
+        out: dict[str, Any] = {}
+        for v in self._params:
+            x = vals[v.vr]
+            if v.kind == "Real":
+                x = float(x)
+            elif v.kind == "Integer":
+                x = int(x)
+            elif v.kind == "Boolean":
+                x = bool(x)
+            else:
+                x = str(x)
+            out[v.name] = x
+        return out
+
+    def vr(self, name: str) -> int:
+        """Value reference of a variable."""
+        return self._by_name[name].vr
+
+    # ------------------------------------------------------------------ to be implemented
+    def _build(self) -> None:
+        """Build the component from the current parameter and input values; write the initial outputs."""
+        raise NotImplementedError
+
+    def _step(self, t: float, h: float) -> None:
+        """One communication step from t to t + h [s]: read inputs, write outputs in ``self._vals``."""
+        raise NotImplementedError
+
+    def _retune(self) -> None:
+        """Apply tunable parameters set since the last step (default: none are declared)."""
+
+    # ------------------------------------------------------------------ model description
+    def to_xml(self, model_options: dict[str, str] = dict()) -> Element:  # noqa: B006 (pythonfmu's signature)
+        root = super().to_xml(model_options)
+        pkg = __name__.rpartition(".")[0]
+        root.set("version", "development" if pkg.startswith("wmr_cosim") else pkg.rpartition("_")[2])
+        # UnitDefinitions right after <CoSimulation> (schema order), only the units in use
+        used = sorted({v.unit for v in self._decl if v.unit is not None})
+        units = Element("UnitDefinitions")
+        for name in used:
+            SubElement(SubElement(units, "Unit", {"name": name}), "BaseUnit",
+                       {k: str(e) for k, e in UNITS[name].items()})
+        cosim = root.find("CoSimulation")
+        root.insert(list(root).index(cosim) + 1, units)
+        # ModelStructure: Outputs and InitialUnknowns with their true dependencies (1-based indices)
+        structure = root.find("ModelStructure")
+        for child in list(structure):
+            structure.remove(child)
+        index = {v.name: v.vr + 1 for v in self._decl}
+        all_inputs = tuple(v.name for v in self._inputs)
+        params = [index[v.name] for v in self._params]
+        if self._outputs:
+            outs = SubElement(structure, "Outputs")
+            for v in self._outputs:
+                deps = all_inputs if v.deps is None else v.deps
+                SubElement(outs, "Unknown", {"index": str(index[v.name]),
+                                             "dependencies": " ".join(str(index[d]) for d in deps)})
+            init = SubElement(structure, "InitialUnknowns")
+            for v in self._outputs:
+                deps = all_inputs if v.init_deps is None else v.init_deps
+                idx = sorted(params + [index[d] for d in deps])
+                SubElement(init, "Unknown", {"index": str(index[v.name]),
+                                             "dependencies": " ".join(map(str, idx))})
+        return root
+
+    # ------------------------------------------------------------------ fast value access
+    def get_real(self, vrs: list[int]) -> list[float]:
+        if not self._kind_vrs["Real"].issuperset(vrs):
+            self._wrong_type(vrs, "Real")
+        v = self._vals
+        return [v[i] for i in vrs]
+
+    def get_integer(self, vrs: list[int]) -> list[int]:
+        if not self._kind_vrs["Integer"].issuperset(vrs):
+            self._wrong_type(vrs, "Integer")
+        v = self._vals
+        return [int(v[i]) for i in vrs]
+
+    def get_boolean(self, vrs: list[int]) -> list[bool]:
+        if not self._kind_vrs["Boolean"].issuperset(vrs):
+            self._wrong_type(vrs, "Boolean")
+        v = self._vals
+        return [bool(v[i]) for i in vrs]
+
+    def get_string(self, vrs: list[int]) -> list[str]:
+        if not self._kind_vrs["String"].issuperset(vrs):
+            self._wrong_type(vrs, "String")
+        v = self._vals
+        return [str(v[i]) for i in vrs]
+
+    def set_real(self, vrs: list[int], values: list[float]) -> None:
+        if not self._settable["Real"].issuperset(vrs):
+            self._refuse_set(vrs, "Real")
+        v = self._vals
+        for i, x in zip(vrs, values):
+            v[i] = x
+        if self._watch and not self._watch.isdisjoint(vrs):
+            self._dirty = True
+
+    def set_integer(self, vrs: list[int], values: list[int]) -> None:
+        self._set_other(vrs, values, "Integer", int)
+
+    def set_boolean(self, vrs: list[int], values: list[bool]) -> None:
+        self._set_other(vrs, values, "Boolean", bool)
+
+    def set_string(self, vrs: list[int], values: list[str]) -> None:
+        self._set_other(vrs, values, "String", str)
+
+    def _set_other(self, vrs: list[int], values: list[Any], kind: str, conv: Any) -> None:
+        if not self._settable[kind].issuperset(vrs):
+            self._refuse_set(vrs, kind)
+        v = self._vals
+        for i, x in zip(vrs, values):
+            v[i] = conv(x)
+        if self._watch and not self._watch.isdisjoint(vrs):
+            self._dirty = True
+
+    def _name_of(self, vr: int) -> str:
+        return self._decl[vr].name if 0 <= vr < len(self._decl) else f"<unknown value reference {vr}>"
+
+    def _wrong_type(self, vrs: list[int], kind: str) -> None:
+        bad = [self._name_of(i) for i in vrs if i not in self._kind_vrs[kind]]
+        msg = f"{self.modelName} instance {self.instance_name}: get{kind} on variables that are not {kind}: {', '.join(bad)}"
+        self.log(msg, Fmi2Status.fatal)
+        raise TypeError(msg)
+
+    def _refuse_set(self, vrs: list[int], kind: str) -> None:
+        bad = []
+        for i in vrs:
+            if i not in self._settable[kind]:
+                name = self._name_of(i)
+                if i in self._kind_vrs[kind] and 0 <= i < len(self._decl):
+                    var = self._decl[i]
+                    why = (f"{var.causality} {name}" if var.causality == "output" else
+                           f"{var.variability} parameter {name} after initialisation")
+                else:
+                    why = f"{name} (not {kind})"
+                bad.append(why)
+        msg = f"{self.modelName} instance {self.instance_name}: set{kind} refused for {', '.join(bad)}"
+        self.log(msg, Fmi2Status.fatal)
+        raise ValueError(msg)
+
+    # ------------------------------------------------------------------ life cycle
+    def setup_experiment(self, start_time: float = 0.0, stop_time: float | None = None,
+                         tolerance: float | None = None) -> None:
+        self._t0 = float(start_time)
+
+    def enter_initialization_mode(self) -> None:
+        self._mode = "init"
+        self._stale = True
+        self._install_init_paths()
+
+    def exit_initialization_mode(self) -> None:
+        self._remove_init_paths()
+        self._build_logged()
+        self._mode = "run"
+        self._settable = self._settable_running
+        self._watch = self._tunable
+        self._dirty = False
+
+    def _build_logged(self) -> None:
+        """:meth:`_build`, logging the one-line cause of a failure before re-raising it (-> fmi2Fatal)."""
+        try:
+            self._build()
+        except Exception as exc:
+            self.log(f"{self.modelName} instance {self.instance_name}: initialisation failed: "
+                     f"{_cause(exc)}", Fmi2Status.fatal)
+            raise
+        self._stale = False
+
+    # In initialization mode the outputs follow the current parameters and inputs: the get/set methods
+    # are replaced by instance attributes (no cost to the stepping paths, which never see them).
+    def _install_init_paths(self) -> None:
+        cls = type(self)
+        for name in ("get_real", "get_integer", "get_boolean", "get_string"):
+            fast = getattr(cls, name).__get__(self)
+            setattr(self, name, self._init_getter(fast))
+        for name in ("set_real", "set_integer", "set_boolean", "set_string"):
+            fast = getattr(cls, name).__get__(self)
+            setattr(self, name, self._init_setter(fast))
+
+    def _remove_init_paths(self) -> None:
+        for name in ("get_real", "get_integer", "get_boolean", "get_string",
+                     "set_real", "set_integer", "set_boolean", "set_string"):
+            self.__dict__.pop(name, None)
+
+    def _init_getter(self, fast: Any) -> Any:
+        def get(vrs: list[int]) -> list[Any]:
+            if self._stale and any(self._out0 <= i < self._out1 for i in vrs):
+                self._build_logged()
+            return fast(vrs)
+        return get
+
+    def _init_setter(self, fast: Any) -> Any:
+        def set_(vrs: list[int], values: list[Any]) -> None:
+            fast(vrs, values)
+            self._stale = True
+        return set_
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        h = step_size
+        try:
+            if h != self._h or self._dirty or self._failed:  # the rare cases, out of the hot path
+                h = self._before_step(current_time, h)
+                if h is None:
+                    return False
+            # a time within STEP_RTOL of a whole multiple of h is that multiple (see snap_time)
+            t = current_time
+            tn = round(t / h) * h
+            if tn != t and abs(tn - t) <= STEP_RTOL * abs(t):
+                t = tn
+            self._step(t, h)
+            return True
+        except Exception as exc:
+            self._failed = _cause(exc)
+            self.log(f"{self.modelName} instance {self.instance_name}: step from t = {current_time!r} s "
+                     f"over h = {step_size!r} s failed: {self._failed}", Fmi2Status.discard)
+            return False
+
+    def _before_step(self, current_time: float, h: float) -> float | None:
+        """Refuse a step after a failed one; snap or adopt a new step size; apply tunable parameters."""
+        if self._failed:
+            self.log(f"{self.modelName} instance {self.instance_name}: step at t = {current_time!r} s refused: "
+                     f"an earlier step failed ({self._failed})", Fmi2Status.discard)
+            return None
+        if h != self._h:
+            if abs(h - self._h) <= STEP_RTOL * self._h:
+                h = self._h
+            elif h > 0.0 and math.isfinite(h):
+                self._h = h
+            else:
+                raise ValueError(f"step size h = {h!r} s: must be finite and > 0")
+        if self._dirty:
+            self._dirty = False
+            self._retune()
+        return h
+
+    def terminate(self) -> None:
+        pass
+
+    # ------------------------------------------------------------------ FMU state (trap 7)
+    def _get_fmu_state(self) -> dict[str, Any]:
+        return {"vals": list(self._vals), "comp": None if self._comp is None else self._comp.get_state(),
+                "mode": self._mode, "failed": self._failed, "dirty": self._dirty, "stale": self._stale,
+                "h": None if math.isnan(self._h) else self._h, "t0": self._t0}
+
+    def _set_fmu_state(self, state: dict[str, Any]) -> None:
+        vals = list(state["vals"])
+        if len(vals) != len(self._vals):
+            raise ValueError(f"{self.modelName}: FMU state of {len(vals)} variables, expected {len(self._vals)}")
+        old = self._vals
+        same_params = self._comp is not None and all(old[v.vr] == vals[v.vr] for v in self._params)
+        self._vals = vals
+        self._t0 = float(state["t0"])
+        if state["comp"] is not None:
+            if not same_params:
+                self._build()  # the component of the saved parameters; its state is then overwritten
+            self._comp.set_state(state["comp"])
+            self._vals = list(state["vals"])  # _build wrote initial outputs: restore the saved ones
+        else:
+            self._comp = None
+        self._failed = state["failed"]
+        self._stale = bool(state["stale"])
+        self._h = math.nan if state["h"] is None else float(state["h"])
+        self._mode = state["mode"]
+        self._remove_init_paths()
+        if self._mode == "init":
+            self._install_init_paths()
+        running = self._mode == "run"
+        self._settable = self._settable_running if running else self._settable_before
+        self._watch = self._tunable if running else frozenset()
+        # re-apply the tunable parameters of the restored values at the next step (idempotent)
+        self._dirty = bool(state["dirty"]) or (running and bool(self._tunable))
+
+
+def parameters_of(defaults: Any, spec: dict[str, tuple], tunable: tuple[str, ...] = ()) -> list[Var]:
+    """FMU parameters mirroring the fields of a component's parameter dataclass instance ``defaults``:
+    same names, start values from the component's defaults, the kind from the default's type.
+
+    ``spec[name]`` is (unit, range, description) for a Real field, (range, description) for an
+    Integer field and (description,) for a Boolean or String field.  Every field of ``defaults`` must
+    be in ``spec`` or be expanded by the caller (``spec[name] = None``), so that a new component
+    parameter cannot be forgotten silently.
+    """
+    out: list[Var] = []
+    fields = list(defaults.__dataclass_fields__)
+    missing = [f for f in fields if f not in spec]
+    extra = [f for f in spec if f not in fields]
+    if missing or extra:
+        raise ValueError(f"{type(defaults).__name__}: no FMU declaration for {missing}, unknown {extra}")
+    for name in fields:
+        entry = spec[name]
+        if entry is None:
+            continue
+        value = getattr(defaults, name)
+        variability = "tunable" if name in tunable else "fixed"
+        if isinstance(value, bool):
+            out.append(Var(name, "Boolean", "parameter", entry[0], variability=variability, start=value))
+        elif isinstance(value, int):
+            out.append(Var(name, "Integer", "parameter", entry[1], range=entry[0], variability=variability,
+                           start=value))
+        elif isinstance(value, float):
+            out.append(Var(name, "Real", "parameter", entry[2], unit=entry[0], range=entry[1],
+                           variability=variability, start=value))
+        elif isinstance(value, str):
+            out.append(Var(name, "String", "parameter", entry[0], variability=variability, start=value))
+        else:
+            raise TypeError(f"{type(defaults).__name__}.{name}: no FMU type for {value!r}")
+    return out
+
+
+def snap_time(t: float, h: float) -> float:
+    """t, or the nearest whole multiple of h if t is within STEP_RTOL (relative) of it: a master that
+    accumulates time then sees the times k h of the direct loop."""
+    n = round(t / h)
+    tn = n * h
+    if tn != t and abs(tn - t) <= STEP_RTOL * abs(t):
+        return tn
+    return t
+
+
+def _cause(exc: BaseException) -> str:
+    """One line: the exception's type and message."""
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0] if text else '(no message)'}"
