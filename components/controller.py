@@ -17,7 +17,8 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from . import paper
-from .critic import eig_sym3, hamiltonian, p_norm, players, regressor, rls_step, s_rate_model, value
+from .critic import (eig_sym3, hamiltonian, hamiltonian_weights, p_norm, player_gains, players, regressor,
+                     rls_step, s_rate_model, value)
 from .friction import shape_function
 from .planner import goal_control, polar_error, profile, profile_integral, profile_rate, wheel_rates
 from .plant import mass_matrix_inverse
@@ -187,6 +188,9 @@ class Controller:
         self._i11, self._i12 = mass_matrix_inverse(p.a1, p.a2, p.a3)
         self._g = shape_function(p.friction_form)
         self._v_over_r = p.v_star / p.r
+        self._ku, self._kd = player_gains(p.R, p.gamma, p.player_form, p.player_gamma_power)
+        self._hq, self._hg = hamiltonian_weights(p.Q, p.gamma, p.h_state_cost_sign, p.h_gamma_power)
+        self._kf = 0.5 * p.cF
         self.reset(0.0, 0.0, 0.0, 0.0, 0.0)
 
     # ------------------------------------------------------------------ state
@@ -302,16 +306,15 @@ class Controller:
         # ---- players (46) read through (13), value (45)
         w1, w2, w3 = W
         dv1, dv2 = 2.0 * w1 * s1 + w2 * s2, w2 * s1 + 2.0 * w3 * s2
-        u1, u2, df1, df2 = players(dv1, dv2, i11, i12, p.R, p.gamma, p.player_form, p.player_gamma_power)
+        u1, u2, df1, df2 = players(dv1, dv2, i11, i12, self._ku, self._kd)
         # ---- regressor (48) and Hamiltonian (49) with the nominal model (decision 9)
-        k = 0.5 * p.cF
-        f1 = 2.0 * p.a5 * self._g(k * wm1)
-        f2 = 2.0 * p.a6 * self._g(k * wm2)
+        g, k = self._g, self._kf
+        f1 = 2.0 * p.a5 * g(k * wm1)
+        f2 = 2.0 * p.a6 * g(k * wm2)
         sd1, sd2 = s_rate_model(addd1, addd2, ed1, ed2, wm1, wm2, u1, u2, df1, df2, lam, i11, i12,
                                 p.a4, f1, f2, p.drift)
         sg1, sg2, sg3 = regressor(s1, s2, sd1, sd2)
-        H = hamiltonian(w1, w2, w3, sg1, sg2, sg3, s1, s2, u1, u2, df1, df2, p.Q, p.R, p.gamma,
-                        p.h_state_cost_sign, p.h_gamma_power)
+        H = hamiltonian(w1, w2, w3, sg1, sg2, sg3, s1, s2, u1, u2, df1, df2, self._hq, p.R, self._hg)
         # ---- what adapts over the next step: window, and (51) with decisions 17, 18
         active = p.adapt and p.adapt_t_start <= t < p.adapt_t_end
         p_live = self.pn > p.P0

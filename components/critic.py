@@ -28,19 +28,24 @@ def value_gradient(w1: float, w2: float, w3: float, s1: float, s2: float) -> tup
     return 2.0 * w1 * s1 + w2 * s2, w2 * s1 + 2.0 * w3 * s2
 
 
-def players(dv1: float, dv2: float, i11: float, i12: float, R: float, gamma: float,
-            player_form: str = "eq13", gamma_power: int = 2) -> tuple[float, float, float, float]:
-    """(u1, u2, dF1, dF2) [N.m]: the minimising and maximising players.
+def player_gains(R: float, gamma: float, player_form: str = "eq13", gamma_power: int = 2) -> tuple[float, float]:
+    """(ku, kd) with u = ku M^-1 dV/ds and dF = kd M^-1 dV/ds (the players, below).
 
     'eq13' (decision 1, default): u = -1/2 R^-1 g^T dV/ds = +1/2 R^-1 M^-1 dV/ds and
     dF = 1/(2 gamma^2) k^T dV/ds = 1/(2 gamma^2) M^-1 dV/ds, as (13) gives with g = -M^-1, k = M^-1.
     'printed': u = +1/2 R^-1 g^T grad Psi W = -1/2 R^-1 M^-1 dV/ds as (46) prints it (positive feedback).
     ``gamma_power`` 2 (decision 2, default) or 1 (as (46) prints gamma).
     """
-    m1 = i11 * dv1 + i12 * dv2
-    m2 = i12 * dv1 + i11 * dv2
     ku = 0.5 / R if player_form == "eq13" else -0.5 / R
     kd = 0.5 / (gamma * gamma if gamma_power == 2 else gamma)
+    return ku, kd
+
+
+def players(dv1: float, dv2: float, i11: float, i12: float, ku: float, kd: float) -> tuple[float, float, float, float]:
+    """(u1, u2, dF1, dF2) [N.m]: the minimising and maximising players (46) read through (13), from
+    dV/ds = (dv1, dv2), M^-1 = [[i11, i12], [i12, i11]] and the gains of :func:`player_gains`."""
+    m1 = i11 * dv1 + i12 * dv2
+    m2 = i12 * dv1 + i11 * dv2
     return ku * m1, ku * m2, kd * m1, kd * m2
 
 
@@ -71,17 +76,17 @@ def regressor(s1: float, s2: float, sd1: float, sd2: float) -> tuple[float, floa
     return 2.0 * s1 * sd1, s2 * sd1 + s1 * sd2, 2.0 * s2 * sd2
 
 
+def hamiltonian_weights(Q: float, gamma: float, state_cost_sign: float = 1.0, gamma_power: int = 2) -> tuple[float, float]:
+    """(q, g) for :func:`hamiltonian`: q = state_cost_sign Q (decision 3: +1, as (10), (18), (49); -1 as
+    (12) prints), g = gamma^2 (decision 4; gamma as (44)/(49) print with gamma_power = 1)."""
+    return state_cost_sign * Q, (gamma * gamma if gamma_power == 2 else gamma)
+
+
 def hamiltonian(w1: float, w2: float, w3: float, sg1: float, sg2: float, sg3: float,
                 s1: float, s2: float, u1: float, u2: float, df1: float, df2: float,
-                Q: float, R: float, gamma: float, state_cost_sign: float = 1.0,
-                gamma_power: int = 2) -> float:
-    """H of (49) = W^T sigma + s^T Q s + u^T R u - gamma^2 dF^T dF.
-
-    ``state_cost_sign`` +1 (decision 3, default; -1 as (12) prints); ``gamma_power`` 2 (decision 4,
-    default; 1 as (44)/(49) print).
-    """
-    g = gamma * gamma if gamma_power == 2 else gamma
-    return (w1 * sg1 + w2 * sg2 + w3 * sg3 + state_cost_sign * Q * (s1 * s1 + s2 * s2)
+                q: float, R: float, g: float) -> float:
+    """H of (49) = W^T sigma + s^T Q s + u^T R u - gamma^2 dF^T dF, with (q, g) from :func:`hamiltonian_weights`."""
+    return (w1 * sg1 + w2 * sg2 + w3 * sg3 + q * (s1 * s1 + s2 * s2)
             + R * (u1 * u1 + u2 * u2) - g * (df1 * df1 + df2 * df2))
 
 

@@ -280,8 +280,10 @@ class Plant:
 
     def outputs(self) -> tuple[float, ...]:
         """The outputs at the current time, named by :data:`PLANT_OUTPUTS`."""
-        p = self.p
         x1, x2, w1, w2, xa, ya, be = self.x
+        if self.t < self.t_foam:  # no foam yet: Delta F is the external torque alone
+            return (x1, x2, w1, w2, xa, ya, be, self.tau1, self.tau2, 0.0)
+        p = self.p
         lam = self.foam_level(self.t)
         k = 0.5 * p.cF
         df1 = 2.0 * lam * p.foam_da1 * self._g(k * w1) + self.tau1

@@ -269,9 +269,8 @@ def run(plan: Plan, out_dir: str | os.PathLike | None, progress: bool | None = N
                         k_done = kf if what != "fmi2GetReal" and not what.startswith("fmi2Get") else kf - 1
                         inst = instances[name]
                         tf = t0 + kf * h
-                        if what.startswith("input"):
-                            raise RunError(f"{name}: input {wiring.vrs[name][int(what.split()[1])]} (value reference) "
-                                           f"would receive the non-finite value {val!r} at t = {tf:.6g} s", name, tf)
+                        if what == "inputs":
+                            raise _bad_input(plan, name, ios[plan.order.index(name)], tf)
                         raise inst.fail_status(what, int(val), tf)
                     k_done = k = k_end
                     if len(chunk) >= FLUSH_ROWS or k == n_steps:
@@ -363,6 +362,21 @@ class _Interrupt:
             import signal
             signal.signal(signal.SIGINT, self.old)
             self.old = None
+
+
+def _bad_input(plan: Plan, name: str, io: InstanceIO, t: float) -> RunError:
+    """The first non-finite value the master was about to set on an input of ``name`` (or an overflow of
+    their sum, reported as such)."""
+    ip = plan.instances[name]
+    by_vr = {v.vr: v for v in ip.model.variables.values()}
+    vrs = list(io.in_vr)
+    for pos, arr, i, f, o in io.copies:
+        v = arr[i] * f + o if (f != 1.0 or o != 0.0) else arr[i]
+        if v - v != 0.0:
+            var = by_vr.get(vrs[pos])
+            label = f"{name}.{ip.our_name(var)}" if var is not None else f"{name} input {vrs[pos]}"
+            return RunError(f"{label} would receive the non-finite value {v!r} at t = {t:.6g} s", name, t)
+    return RunError(f"{name}: the inputs' values overflow (their sum is not finite) at t = {t:.6g} s", name, t)
 
 
 def _check(inst: Instance, what: str, status: int, t: float) -> None:

@@ -56,14 +56,18 @@ def compile_loop(ios: list[InstanceIO], algorithm: str, t0: float, h: float, dec
     w("        Tv.value = t")
 
     def copies(i: int, io: InstanceIO, ind: str) -> None:
+        names = []
         for j, (pos, arr, idx, f, o) in enumerate(io.copies):
             a = f"src_{i}_{j}"
             env[a] = arr
             expr = f"{a}[{idx}]" if (f == 1.0 and o == 0.0) else f"{a}[{idx}] * {f!r} + {o!r}"
-            w(f"{ind}v = {expr}")
-            if check_inputs:
-                w(f"{ind}if v - v != 0.0: return (k, {io.name!r}, 'input {pos}', v)")
-            w(f"{ind}in_{i}[{pos}] = v")
+            w(f"{ind}v{j} = {expr}")
+            names.append(f"v{j}")
+        if names and check_inputs:  # one test for all: a sum is non-finite if any term is (or it overflows)
+            w(f"{ind}x = {' + '.join(names)}")
+            w(f"{ind}if x - x != 0.0: return (k, {io.name!r}, 'inputs', x)")
+        for j, (pos, *_rest) in enumerate(io.copies):
+            w(f"{ind}in_{i}[{pos}] = v{j}")
         if io.copies:
             w(f"{ind}s = setr_{i}(c_{i}, invr_{i}, nin_{i}, in_{i})")
             w(f"{ind}if s: return (k, {io.name!r}, 'fmi2SetReal', s)")

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import sys
+from operator import itemgetter
 from typing import Any
 from xml.etree.ElementTree import Element, SubElement
 
@@ -223,6 +224,11 @@ class WmrSlave(Fmi2Slave):
                 raise ValueError(f"{type(self).__name__}: declare the inputs, and the outputs, consecutively")
         self._in0 = self._inputs[0].vr if self._inputs else 0
         self._in1 = self._in0 + len(self._inputs)
+        self._in_list = [v.vr for v in self._inputs if v.kind == "Real"]
+        if self._in_list != list(range(self._in0, self._in1)):
+            self._in_list = [-1]  # the fast path of set_real needs all inputs Real and contiguous
+        self._get_key: list[int] = [-1]
+        self._get_items: Any = None
         self._out0 = self._outputs[0].vr if self._outputs else 0
         self._out1 = self._out0 + len(self._outputs)
         param_vrs = {v.vr for v in self._params}
@@ -303,9 +309,15 @@ class WmrSlave(Fmi2Slave):
 
     # ------------------------------------------------------------------ fast value access
     def get_real(self, vrs: list[int]) -> list[float]:
+        # fast path: a master asks for the same value references every step (checked once, then cached)
+        if vrs == self._get_key:
+            return list(self._get_items(self._vals))
         if not self._kind_vrs["Real"].issuperset(vrs):
             self._wrong_type(vrs, "Real")
         v = self._vals
+        if len(vrs) > 1:
+            self._get_key = list(vrs)
+            self._get_items = itemgetter(*vrs)
         return [v[i] for i in vrs]
 
     def get_integer(self, vrs: list[int]) -> list[int]:
@@ -327,6 +339,11 @@ class WmrSlave(Fmi2Slave):
         return [str(v[i]) for i in vrs]
 
     def set_real(self, vrs: list[int], values: list[float]) -> None:
+        # fast path: all the Real inputs, in order (what a master sets every step); inputs are settable in
+        # every mode and never watched, so nothing else needs checking
+        if vrs == self._in_list:
+            self._vals[self._in0:self._in1] = values
+            return
         if not self._settable["Real"].issuperset(vrs):
             self._refuse_set(vrs, "Real")
         v = self._vals

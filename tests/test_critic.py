@@ -31,12 +31,12 @@ def test_players_match_13_with_g_minus_Minv():
     dV = grad_psi(S).T @ W
     u = -0.5 / R * g.T @ dV                 # (13)
     d = 1 / (2 * gamma ** 2) * k.T @ dV     # (13)
-    out = critic.players(*dV, I11, I12, R, gamma)
+    out = critic.players(*dV, I11, I12, *critic.player_gains(R, gamma))
     assert np.allclose(out[:2], u, rtol=1e-13)
     assert np.allclose(out[2:], d, rtol=1e-13)
     # the disturbance player is R / gamma^2 = 1/242 of the control: "250 times lower"
     assert out[0] / out[2] == pytest.approx(242.0)
-    printed = critic.players(*dV, I11, I12, R, gamma, player_form="printed", gamma_power=1)
+    printed = critic.players(*dV, I11, I12, *critic.player_gains(R, gamma, player_form="printed", gamma_power=1))
     assert np.allclose(printed[:2], -u) and np.allclose(printed[2:], d * gamma)
 
 
@@ -66,7 +66,11 @@ def test_regressor_and_hamiltonian_49():
     u = np.array([1.0, 2.0]); dF = np.array([0.01, 0.02])
     Q, R, g = 1.0, 0.5, 11.0
     Hh = W @ sig + Q * S @ S + R * u @ u - g ** 2 * dF @ dF
-    assert critic.hamiltonian(*W, *sig, *S, *u, *dF, Q, R, g) == pytest.approx(Hh, rel=1e-14)
+    assert critic.hamiltonian(*W, *sig, *S, *u, *dF, *critic.hamiltonian_weights(Q, g)[:1], R,
+                              critic.hamiltonian_weights(Q, g)[1]) == pytest.approx(Hh, rel=1e-14)
+    # the printed readings: -x'Qx (12) and gamma instead of gamma^2 (44)/(49)
+    q, gg = critic.hamiltonian_weights(Q, g, state_cost_sign=-1.0, gamma_power=1)
+    assert (q, gg) == (-Q, g)
 
 
 def test_eigenvalues_of_symmetric_3x3():
