@@ -117,7 +117,7 @@ class Instance:
         self.freed = True
         try:
             if self.initialised:
-                self.fmu.fmi2Terminate(self.c)
+                self.fmu.terminate()
         except Exception:
             pass
         try:

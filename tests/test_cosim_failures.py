@@ -142,3 +142,36 @@ def test_quiet_progress_and_cleanup_when_not_a_terminal(built_fmus, tmp_path):
     assert p.stderr == ""                                # no progress bar into a pipe
     assert "ok, 6000 steps" in p.stdout
     assert list((tmp_path / "tmp").iterdir()) == []
+
+
+@pytest.mark.parametrize("mode", ["ok", "discard", "fatal"])
+def test_every_instance_terminated_and_freed_exactly_once(mode, built_fmus, failer, tmp_path, monkeypatch):
+    """On success and on error each instance gets one fmi2Terminate and one fmi2FreeInstance; an instance
+    that reported Fatal gets no call at all after it (FMI 2.0)."""
+    from fmpy.fmi2 import FMU2Slave
+
+    from wmr_cosim.cosim import execution, scenario, system
+
+    calls: list[tuple[str, str]] = []
+    real_term, real_free = FMU2Slave.terminate, FMU2Slave.freeInstance
+
+    def term(self):
+        calls.append(("terminate", self.instanceName))
+        return real_term(self)
+
+    def free(self):
+        calls.append(("free", self.instanceName))
+        return real_free(self)
+
+    monkeypatch.setattr(FMU2Slave, "terminate", term)
+    monkeypatch.setattr(FMU2Slave, "freeInstance", free)
+    path = _scenario(tmp_path, built_fmus, failer, mode)
+    _connections_keep(path)
+    res = execution.run(system.resolve(scenario.load(path)), tmp_path / "out", progress=False)
+    assert res.status == ("ok" if mode == "ok" else "failed")
+    survivors = ["plant", "sensor", "controller"] + ([] if mode == "fatal" else ["failer"])
+    for name in survivors:
+        assert calls.count(("terminate", name)) == 1, (name, calls)
+        assert calls.count(("free", name)) == 1, (name, calls)
+    if mode == "fatal":
+        assert not [c for c in calls if c[1] == "failer"]
