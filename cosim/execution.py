@@ -316,7 +316,7 @@ def run(plan: Plan, out_dir: str | os.PathLike | None, progress: bool | None = N
     if recorder is not None and recorder.rows:
         data = np.load(out / "signals.npy")
         final = {c: float(data[c][-1]) for c in columns}
-        if keep:
+        if keep and sc.csv:
             write_csv(out / "signals.npy", out / "signals.csv")
     for n, inst in instances.items():
         (out / "logs" / f"{n}.log").write_text("\n".join(inst.all_log) + ("\n" if inst.all_log else ""))

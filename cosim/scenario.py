@@ -18,11 +18,14 @@ from .errors import ScenarioError
 ALGORITHMS = ("gauss-seidel", "jacobi")
 ACTIONS = ("override", "bias", "reset")
 
-_TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "record", "events"}
+_TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "record", "events", "runs",
+             "variants"}
 _EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order"}
 _INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "description"}
 _CONNECTION_KEYS = {"from", "to", "factor", "offset"}
-_RECORD_KEYS = {"variables", "decimation"}
+_RECORD_KEYS = {"variables", "decimation", "csv"}
+_RUN_KEYS = {"name", "description", "parameters", "carry"}
+_VARIANT_KEYS = {"description", "parameters"}
 _EVENT_KEYS = {"time", "variable", "action", "value"}
 
 
@@ -58,6 +61,17 @@ class EventSpec:
 
 
 @dataclass
+class RunSpec:
+    """One run of a protocol: parameter values ("instance.param" -> value) and values carried from an
+    earlier run's final outputs ("instance.param" -> "run.instance.variable")."""
+
+    name: str
+    parameters: dict[str, Any] = field(default_factory=dict)
+    carry: dict[str, str] = field(default_factory=dict)
+    description: str = ""
+
+
+@dataclass
 class Scenario:
     """A parsed and syntactically checked scenario; :func:`cosim.system.resolve` checks it against the FMUs."""
 
@@ -72,6 +86,9 @@ class Scenario:
     record: list[str] = field(default_factory=list)
     decimation: int = 1
     events: list[EventSpec] = field(default_factory=list)
+    csv: bool = True
+    runs: list[RunSpec] = field(default_factory=list)
+    variants: dict[str, dict[str, Any]] = field(default_factory=dict)
     data: dict[str, Any] = field(default_factory=dict)  # the merged document, as run
 
 
@@ -240,6 +257,52 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
     if isinstance(dec, bool) or not isinstance(dec, int) or dec < 1:
         raise ScenarioError(file, "record.decimation", f"{dec!r}: must be an integer >= 1")
     sc.decimation = dec
+    csv = rec.get("csv", True)
+    if not isinstance(csv, bool):
+        raise ScenarioError(file, "record.csv", f"{csv!r}: must be true or false")
+    sc.csv = csv
+
+    runs = doc.get("runs") or []
+    if not isinstance(runs, list):
+        raise ScenarioError(file, "runs", "must be an array of tables ([[runs]])")
+    names: list[str] = []
+    for i, r in enumerate(runs):
+        fld = f"runs[{i}]"
+        r = _table(file, fld, r)
+        _keys(file, fld, r, _RUN_KEYS)
+        name = r.get("name")
+        if not isinstance(name, str) or not name.isidentifier():
+            raise ScenarioError(file, f"{fld}.name", f"{name!r}: a run needs a name that is an identifier")
+        if name in names:
+            raise ScenarioError(file, f"{fld}.name", f"{name!r}: two runs with this name")
+        params = _table(file, f"{fld}.parameters", r.get("parameters"))
+        for ref in params:
+            inst, _ = split_ref(file, f"{fld}.parameters.{ref}", ref)
+            if inst not in sc.instances:
+                raise ScenarioError(file, f"{fld}.parameters.{ref}", f"unknown instance {inst!r}")
+        carry = _table(file, f"{fld}.carry", r.get("carry"))
+        for ref, src in carry.items():
+            inst, _ = split_ref(file, f"{fld}.carry.{ref}", ref)
+            if inst not in sc.instances:
+                raise ScenarioError(file, f"{fld}.carry.{ref}", f"unknown instance {inst!r}")
+            if not isinstance(src, str) or src.count(".") < 2:
+                raise ScenarioError(file, f"{fld}.carry.{ref}", f"{src!r}: must be \"run.instance.variable\"")
+            run = src.split(".", 1)[0]
+            if run not in names:
+                raise ScenarioError(file, f"{fld}.carry.{ref}", f"{src!r}: no earlier run named {run!r}")
+        sc.runs.append(RunSpec(name, dict(params), dict(carry), str(r.get("description", ""))))
+        names.append(name)
+    variants = _table(file, "variants", doc.get("variants"))
+    for vname, v in variants.items():
+        fld = f"variants.{vname}"
+        v = _table(file, fld, v)
+        _keys(file, fld, v, _VARIANT_KEYS)
+        params = _table(file, f"{fld}.parameters", v.get("parameters"))
+        for ref in params:
+            inst, _ = split_ref(file, f"{fld}.parameters.{ref}", ref)
+            if inst not in sc.instances:
+                raise ScenarioError(file, f"{fld}.parameters.{ref}", f"unknown instance {inst!r}")
+        sc.variants[vname] = dict(params)
 
     evs = doc.get("events") or []
     if not isinstance(evs, list):

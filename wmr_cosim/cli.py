@@ -138,6 +138,25 @@ def cmd_info(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_paper(args: argparse.Namespace) -> int:
+    """Every experiment of section 5 through the FMU co-simulation, with analysis, figures and a report."""
+    from .paper_job import run_paper
+
+    r = run_paper(args.out, variant=args.variant, compare=not args.no_compare, workers=args.workers,
+                  manifest=args.manifest, progress=False if args.quiet else None)
+    m = r["metrics"]
+    f = m["fidelity"]
+    print(f"report: {args.out / 'report.md'} (and report.html, metrics.json, figures/) in {r['wall_s']:.1f} s")
+    print(f"variant {m['variant']}: {f['within_1_5']} of {f['n_cells']} RMSE cells within 1.5x of the paper, "
+          f"{f['within_2_5']} within 2.5x, rms log-factor {f['rms_log_factor'] if f['rms_log_factor'] is None else round(f['rms_log_factor'], 3)}; "
+          f"diverged runs: {', '.join(m['diverged_runs']) or 'none'}")
+    for v, mv in r["variants"].items():
+        if v != m["variant"]:
+            print(f"variant {v}: {mv['fidelity']['within_1_5']} cells within 1.5x; diverged runs: "
+                  f"{', '.join(mv['diverged_runs']) or 'none'}")
+    return EXIT_OK if not m["diverged_runs"] else EXIT_FAILED
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="wmr-cosim", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -180,6 +199,22 @@ def build_parser() -> argparse.ArgumentParser:
                        "default experiment, and every variable with causality, type, unit, range and start.")
     i.add_argument("fmu", type=Path, help="an .fmu file")
     i.set_defaults(func=cmd_info)
+    pp = sub.add_parser("paper", help="run the paper's experiments and write the report",
+                        description="Run every experiment of section 5 of the paper (G1, G2, G3, LINE; each a "
+                                    "learning run, a frozen-weights run on the reference floor and one on foam) "
+                                    "through the FMU co-simulation, in parallel processes; analyse them and write "
+                                    "report.md, report.html, metrics.json and figures/ into DIR. Exit code 0, or 1 if "
+                                    "a run of the chosen variant diverged.")
+    pp.add_argument("--out", type=Path, default=Path("results/paper"), metavar="DIR",
+                    help="output folder (default results/paper)")
+    pp.add_argument("--variant", default="freeze", choices=("freeze", "printed"),
+                    help="the reading of (51) the report and metrics.json describe (default freeze)")
+    pp.add_argument("--no-compare", action="store_true",
+                    help="do not also run the other variant (the report then cannot compare them)")
+    pp.add_argument("--workers", type=int, default=None, help="worker processes (default: one per core)")
+    pp.add_argument("--manifest", type=Path, default=None, help="the tasks file (default scenarios/paper.toml)")
+    pp.add_argument("--quiet", action="store_true", help="no progress lines")
+    pp.set_defaults(func=cmd_paper)
     return ap
 
 

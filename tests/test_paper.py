@@ -1,0 +1,152 @@
+"""The paper's experiments through the FMU co-simulation: the protocol as data, the weights carried
+through the controller FMU's parameters, and the fidelity targets on the full-length runs."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from wmr_cosim.analysis import cumulative_integral, disturbance_analysis, fidelity
+from wmr_cosim.components import paper
+
+
+@pytest.fixture(scope="module")
+def job(built_fmus, tmp_path_factory, monkeypatch_module):
+    """The whole paper job once (both variants, 24 runs of 50 s), on the session's FMUs."""
+    from wmr_cosim import paper_job, runner
+
+    monkeypatch_module.setattr(runner, "resolve_model", lambda name: built_fmus.get(name))
+    out = tmp_path_factory.mktemp("paper")
+    # workers are forked: they see the patched resolver
+    return paper_job.run_paper(out, progress=False)
+
+
+@pytest.fixture(scope="module")
+def monkeypatch_module():
+    mp = pytest.MonkeyPatch()
+    yield mp
+    mp.undo()
+
+
+def test_no_run_diverges_in_the_default_variant(job):
+    m = job["metrics"]
+    assert m["variant"] == "freeze"
+    assert m["diverged_runs"] == []
+    for task in paper.TASKS:
+        for run in ("learn", "frozen", "foam"):
+            r = m["tasks"][task][run]
+            assert r["status"] == "ok" and r["samples"] == 25001, (task, run)
+
+
+def test_fidelity_to_tables_2_and_3(job):
+    f = job["metrics"]["fidelity"]
+    assert f["n_cells"] == 32
+    assert f["within_1_5"] >= 26, f
+    assert f["within_2_5"] == 32, f
+    assert f["rms_log_factor"] <= 1.4, f
+
+
+def test_learning_runs_reach_their_goals(job):
+    eps = paper.table1()["eps_G"]
+    for task in ("G1", "G2", "G3"):
+        r = job["metrics"]["tasks"][task]["learn"]
+        gx, gy = paper.task_goal(task)
+        assert math.dist(r["final_position"], (gx, gy)) <= eps
+        assert r["t_goal"] is not None and 30.0 < r["t_goal"] < 45.0
+        assert r["position_error_to_paper"] < 0.03   # the paper's final positions
+
+
+def test_cruising_control_and_foam_rise(job):
+    for task in paper.TASKS:
+        fr, fo = job["metrics"]["tasks"][task]["frozen"], job["metrics"]["tasks"][task]["foam"]
+        assert all(3.5 < u < 4.8 for u in fr["cruise_u"]), (task, fr["cruise_u"])   # "near 4 N.m"
+        want = 0.5 if task == "LINE" else 0.4
+        assert all(abs(r - want) < 0.1 for r in fo["foam_rise"]), (task, fo["foam_rise"])
+
+
+def test_weights_carried_through_the_controller_parameters(job):
+    """The frozen runs start from the learning run's final W (and P) given as FMU parameters, adapt no more."""
+    out = job["out"]
+    for task in paper.TASKS:
+        learn = np.load(out / "runs" / task / "learn" / "signals.npy")
+        for run in ("frozen", "foam"):
+            d = np.load(out / "runs" / task / run / "signals.npy")
+            for i in (1, 2, 3):
+                assert np.all(d[f"controller.W{i}"] == learn[f"controller.W{i}"][-1])
+            for p in ("11", "12", "13", "22", "23", "33"):
+                assert np.all(d[f"controller.P{p}"] == learn[f"controller.P{p}"][-1])
+            resolved = json.loads((out / "runs" / task / run / "scenario.json").read_text())
+            params = resolved["instances"]["controller"]["parameters"]
+            assert params["W1_init"] == learn["controller.W1"][-1] and params["adapt"] is False
+
+
+def test_printed_variant_diverges_on_frozen_go_to_goal_runs(job):
+    pr = job["variants"]["printed"]
+    assert {"G1.frozen", "G1.foam"} <= set(pr["diverged_runs"])
+    assert "LINE.foam" not in pr["diverged_runs"]   # the straight line survives
+    assert job["variants"]["freeze"]["fidelity"]["within_1_5"] > pr["fidelity"]["within_1_5"]
+
+
+def test_metrics_json_shape(job):
+    m = json.loads((job["out"] / "metrics.json").read_text())
+    assert m["variant"] == "freeze"
+    for task in paper.TASKS:
+        for run in ("learn", "foam", "frozen"):
+            r = m["tasks"][task][run]
+            assert len(r["rmse_e"]) == 2 and len(r["rmse_edot"]) == 2 and len(r["final_position"]) == 2
+            assert isinstance(r["diverged"], bool)
+            assert (r["t_goal"] is None) == (task == "LINE")
+        for key in ("gamma_star", "gamma_true", "gain_incremental"):
+            assert isinstance(m[key][task], float)
+    assert json.loads((job["out"] / "variants" / "printed" / "metrics.json").read_text())["variant"] == "printed"
+
+
+def test_report_and_figures(job):
+    out = job["out"]
+    md = (out / "report.md").read_text()
+    html = (out / "report.html").read_text()
+    for name in ("fig5_g1_learn", "fig6_value_paths", "fig7_g1_foam", "fig8_g1_gamma", "fig9_g2_g3_gamma",
+                 "fig11_line_learn", "fig12_line_foam", "fig13_line_gamma"):
+        assert (out / "figures" / f"{name}.png").stat().st_size > 10_000
+        assert f"figures/{name}.png" in md
+    assert html.count("data:image/png;base64,") == 8 and "<img" in html and 'src="figures' not in html
+    assert "Table 2" in md and "Table 3" in md and "which reading of (51) reproduces more" in md
+    assert "What is not reproduced" in md
+
+
+def test_gamma_star_of_53_on_a_known_case():
+    """(53) on synthetic signals: constant cost rate c and a disturbance estimate of constant size d from
+    t_F: gamma*(t) = sqrt(c t / (2 d^2 (t - t_F)))."""
+    t = np.arange(0, 10.0 + 1e-9, 0.002)
+    base = {"time": t, "controller.s1": np.zeros_like(t), "controller.s2": np.zeros_like(t),
+            "controller.u1": np.full_like(t, 2.0), "controller.u2": np.full_like(t, 2.0),
+            "plant.dF1": np.zeros_like(t), "plant.dF2": np.zeros_like(t), "plant.foam_level": np.zeros_like(t),
+            "controller.v_A_d": np.zeros_like(t)}
+    foam = dict(base)
+    on = t > 5.0
+    foam["controller.u1"] = np.where(on, 2.3, 2.0)
+    foam["controller.u2"] = np.where(on, 2.3, 2.0)
+    foam["plant.dF1"] = np.where(on, 0.3, 0.0)
+    foam["plant.dF2"] = np.where(on, 0.3, 0.0)
+    foam["plant.foam_level"] = on.astype(float)
+    d = disturbance_analysis(base, foam, Q=1.0, R=0.5, gamma=11.0)
+    assert d["t_F"] == pytest.approx(5.0)
+    cost = cumulative_integral(0.5 * (foam["controller.u1"] ** 2 + foam["controller.u2"] ** 2), t)[-1]
+    assert d["gamma_star"] == pytest.approx(math.sqrt(cost / (2 * 0.09 * 5.0)), rel=2e-3)
+    assert d["gamma_true"] == pytest.approx(d["gamma_star"], rel=1e-9)
+    # the controlled output changes only by the control: |dz|^2 = R (0.3^2 + 0.3^2)
+    assert d["gain_incremental"] == pytest.approx(math.sqrt(0.5), rel=2e-3)
+    assert d["foam_rise"] == [pytest.approx(0.3), pytest.approx(0.3)]
+
+
+def test_fidelity_counts():
+    tasks = {t: {r: {"rmse_e": [v[0], v[1]], "rmse_edot": [v[2], v[3]]} for r, v in paper.rmse_table(t).items()}
+             for t in paper.TASKS}
+    f = fidelity(tasks)
+    assert f["within_1_5"] == 32 and f["rms_log_factor"] == pytest.approx(1.0)
+    tasks["G1"]["learn"]["rmse_e"][0] *= 2.0
+    f = fidelity(tasks)
+    assert f["within_1_5"] == 31 and f["within_2_5"] == 32
+    assert f["rms_log_factor"] == pytest.approx(math.exp(math.sqrt(math.log(2) ** 2 / 32)))

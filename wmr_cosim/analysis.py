@@ -1,0 +1,165 @@
+"""The analysis of the paper's experiments from recorded runs: the figures of Tables 2 and 3, the
+disturbance estimate (52), the H-infinity gain (53), the true gains a simulation can add, and how close
+the whole is to the paper.
+
+Signals are dicts of numpy arrays named as recorded ('time', 'plant.x_A', 'controller.e1', ...).
+Units: rad, rad/s, N.m, m, s.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .components import paper
+from .components.metrics import rmse, run_metrics
+
+Signals = dict[str, np.ndarray]
+RUNS = ("learn", "frozen", "foam")
+#: the tables' rows: our run name -> the paper's row (Table 2/3 "without disturbances" / "under changing
+#: operating conditions"); the frozen run is ours only (the reference of (52))
+TABLE_ROWS = {"learn": "learn", "foam": "foam"}
+
+
+def load_signals(folder: str | Path) -> Signals | None:
+    """The signals of one run folder (None if it recorded nothing)."""
+    f = Path(folder) / "signals.npy"
+    if not f.is_file():
+        return None
+    data = np.load(f)
+    if not len(data):
+        return None
+    return {name: np.asarray(data[name]) for name in data.dtype.names}
+
+
+def cumulative_integral(f: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The trapezoidal integral of f from t[0] to every t[k]."""
+    out = np.zeros_like(f, dtype=float)
+    if len(f) > 1:
+        out[1:] = np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(t))
+    return out
+
+
+def cruise_mask(sig: Signals, v_star: float) -> np.ndarray:
+    """Samples at cruising speed: the desired speed of A at least 95 % of v*."""
+    return sig["controller.v_A_d"] >= 0.95 * v_star
+
+
+def run_summary(sig: Signals | None, goal: tuple[float, float] | None, status: str = "ok") -> dict[str, Any]:
+    """Table 2/3 figures of one run and more: RMSE (54) of e and e_dot per wheel over all samples,
+    the true final position of A, the time eps_G was reached, diverged, final W, cruising and peak control."""
+    if sig is None:
+        return {"rmse_e": None, "rmse_edot": None, "final_position": None, "t_goal": None, "diverged": True,
+                "status": status, "samples": 0}
+    m = run_metrics(sig, goal)
+    v_star = paper.table1()["v_star"]
+    cr = cruise_mask(sig, v_star)
+    u1, u2 = sig["controller.u1"], sig["controller.u2"]
+    complete = status == "ok"
+    out = {
+        "rmse_e": m["rmse_e"], "rmse_edot": m["rmse_edot"], "final_position": m["final_position"],
+        "t_goal": m["t_goal"], "diverged": bool(m["diverged"] or not complete), "status": status,
+        "samples": int(len(sig["time"])), "final_W": m["final_W"],
+        "cruise_u": [float(np.mean(u1[cr])), float(np.mean(u2[cr]))] if cr.any() else None,
+        "peak_u": [float(np.max(np.abs(u1))), float(np.max(np.abs(u2)))],
+        "final_e": [float(sig["controller.e1"][-1]), float(sig["controller.e2"][-1])],
+        "final_u": [float(u1[-1]), float(u2[-1])],
+    }
+    if goal is not None:
+        out["goal_distance"] = m["goal_distance"]
+    return out
+
+
+def foam_onset(foam: Signals) -> float:
+    """t_F: the last sample before the foam's friction change appears in the plant (the paper reads it
+    from the disturbance course)."""
+    lvl = foam["plant.foam_level"]
+    on = np.nonzero(lvl > 0.0)[0]
+    if not on.size:
+        return math.inf
+    return float(foam["time"][max(on[0] - 1, 0)])
+
+
+def disturbance_analysis(frozen: Signals, foam: Signals, Q: float, R: float, gamma: float,
+                         ramp: float = 0.1) -> dict[str, Any]:
+    """(52), (53) and the gains a simulation can add.
+
+    dF_hat_i = u_foam_i - u_frozen_i for t > t_F, 0 before (52); gamma*(t) = sqrt(int_0^t [s'Qs + u'Ru] /
+    int_0^t dF_hat'dF_hat) on the foam run (53); gamma_true(t): (53) with the injected dF (the plant's
+    output) in the denominator; gain_incremental = sqrt(int |z_foam - z_frozen|^2 / int |dF|^2) with
+    |z|^2 = s'Qs + u'Ru (9): the gain from the injected disturbance to the change of the controlled output.
+    """
+    n = min(len(frozen["time"]), len(foam["time"]))
+    t = foam["time"][:n]
+    tF = foam_onset(foam)
+    after = t > tF
+    du1 = np.where(after, foam["controller.u1"][:n] - frozen["controller.u1"][:n], 0.0)
+    du2 = np.where(after, foam["controller.u2"][:n] - frozen["controller.u2"][:n], 0.0)
+    s1, s2 = foam["controller.s1"][:n], foam["controller.s2"][:n]
+    u1, u2 = foam["controller.u1"][:n], foam["controller.u2"][:n]
+    cost = cumulative_integral(Q * (s1 * s1 + s2 * s2) + R * (u1 * u1 + u2 * u2), t)
+    den_hat = cumulative_integral(du1 * du1 + du2 * du2, t)
+    d1, d2 = foam["plant.dF1"][:n], foam["plant.dF2"][:n]
+    den_true = cumulative_integral(d1 * d1 + d2 * d2, t)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g_star = np.where(den_hat > 0, np.sqrt(cost / den_hat), np.nan)
+        g_true = np.where(den_true > 0, np.sqrt(cost / den_true), np.nan)
+    dz = (Q * ((s1 - frozen["controller.s1"][:n]) ** 2 + (s2 - frozen["controller.s2"][:n]) ** 2)
+          + R * ((u1 - frozen["controller.u1"][:n]) ** 2 + (u2 - frozen["controller.u2"][:n]) ** 2))
+    num_inc = cumulative_integral(dz, t)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g_inc = np.where(den_true > 0, np.sqrt(num_inc / den_true), np.nan)
+    # the rise of the control on the foam: its mean over the 2 s after the edge (the ramp and 0.5 s over),
+    # where the robot still moves at about its speed at the edge
+    settled = (t > tF + ramp + 0.5) & (t <= tF + ramp + 2.5)
+    rise = [float(np.mean((foam[f"controller.u{i}"][:n] - frozen[f"controller.u{i}"][:n])[settled]))
+            if settled.any() else None for i in (1, 2)]
+    late = t > tF + 1.0
+    return {
+        "t_F": tF, "time": t, "dF_hat": (du1, du2), "dF_true": (d1, d2), "gamma_star_curve": g_star,
+        "gamma_true_curve": g_true, "gain_incremental_curve": g_inc,
+        "gamma_star": _last_finite(g_star), "gamma_true": _last_finite(g_true),
+        "gain_incremental": _last_finite(g_inc),
+        "gamma_star_max": float(np.nanmax(g_star[late])) if np.isfinite(g_star[late]).any() else None,
+        "foam_rise": rise,
+        "dF_hat_rms": float(rmse(np.concatenate([du1[after], du2[after]]))) if after.any() else None,
+    }
+
+
+def _last_finite(x: np.ndarray) -> float | None:
+    ok = np.isfinite(x)
+    return float(x[ok][-1]) if ok.any() else None
+
+
+def fidelity(tasks: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """The 32 RMSE cells of Tables 2 and 3 (ours against the paper's): each ratio, how many within a
+    factor 1.5 and 2.5, and the rms log-factor exp(sqrt(mean(log(ours/paper)^2)))."""
+    cells = []
+    for task in paper.TASKS:
+        ref = paper.rmse_table(task)
+        for run, row in TABLE_ROWS.items():
+            m = tasks.get(task, {}).get(run)
+            names = ("e_1", "e_2", "e_dot_1", "e_dot_2")
+            ours = (m["rmse_e"] + m["rmse_edot"]) if m and m.get("rmse_e") else [None] * 4
+            for name, o, p in zip(names, ours, ref[row]):
+                ratio = (o / p) if (o is not None and math.isfinite(o)) else None
+                cells.append({"task": task, "run": run, "cell": name, "ours": o, "paper": p, "ratio": ratio})
+    logs = [math.log(c["ratio"]) for c in cells if c["ratio"] and c["ratio"] > 0]
+    complete = len(logs) == len(cells)
+    return {
+        "cells": cells,
+        "n_cells": len(cells),
+        "within_1_5": sum(1 for c in cells if c["ratio"] and 1 / 1.5 <= c["ratio"] <= 1.5),
+        "within_2_5": sum(1 for c in cells if c["ratio"] and 1 / 2.5 <= c["ratio"] <= 2.5),
+        "rms_log_factor": math.exp(math.sqrt(sum(x * x for x in logs) / len(logs))) if complete else None,
+    }
+
+
+def position_error(task: str, final_position: list[float] | None) -> float | None:
+    """Distance [m] between our final position of A and the paper's (go-to-goal tasks)."""
+    fp = paper.results()["final_positions"].get(task)
+    if fp is None or final_position is None:
+        return None
+    return math.dist(fp, final_position)

@@ -1,0 +1,213 @@
+"""The paper's figures redrawn from our runs (PNG), in the layout of Figures 5-9 and 11-13.
+
+Every axis carries its unit.  Functions take the signals of the runs (see analysis.load_signals) and
+write one PNG each; they return the path.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .components import paper  # noqa: E402
+
+Signals = dict[str, np.ndarray]
+WHEELS = (("1", "wheel 1", "C0"), ("2", "wheel 2", "C3"))
+DPI = 110
+
+
+def _wheels(ax, sig: Signals, name: str, ylabel: str, title: str, scale: float = 1.0, label: str = "") -> None:
+    t = sig["time"]
+    for i, wl, col in WHEELS:
+        ax.plot(t, scale * sig[f"controller.{name}{i}"], color=col, lw=1.0, label=f"{label}{wl}")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=9, loc="left")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, loc="best")
+
+
+def _weights(ax, sig: Signals, title: str) -> None:
+    t = sig["time"]
+    for j in (1, 2, 3):
+        ax.plot(t, sig[f"controller.W{j}"], lw=1.0, label=f"W{j}")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("W [-]")
+    ax.set_title(title, fontsize=9, loc="left")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+
+
+def _save(fig, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path
+
+
+def fig_learning(sig: Signals, out: Path, task: str, number: str) -> Path:
+    """Fig. 5 (G1) / Fig. 11 (LINE): tracking errors, control and disturbance players, kinematic control and
+    velocity profile, weight adaptation of the learning run."""
+    fig, axs = plt.subplots(3, 2, figsize=(10, 9))
+    _wheels(axs[0, 0], sig, "e", "e [rad]", f"(a) angle tracking error e, {task} learning")
+    _wheels(axs[0, 1], sig, "edot", "de/dt [rad/s]", "(b) velocity tracking error")
+    _wheels(axs[1, 0], sig, "u", "u [N.m]", "(c) control u (minimising player)")
+    _wheels(axs[1, 1], sig, "dF_hat", "dF_hat [N.m]", "(d) worst-case disturbance (maximising player)")
+    ax = axs[2, 0]
+    t = sig["time"]
+    ax.plot(t, sig["controller.u_v"], lw=1.0, label="u_v")
+    ax.plot(t, sig["controller.u_beta"], lw=1.0, label="u_beta")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("kinematic control [-]")
+    ax2 = ax.twinx()
+    ax2.plot(t, sig["controller.v_A_d"], color="k", lw=1.0, ls="--", label="v_A")
+    ax2.set_ylabel("v_A [m/s]")
+    ax.set_title("(e) kinematic control (31)-(32) and velocity profile (50)", fontsize=9, loc="left")
+    ax.grid(True, alpha=0.3)
+    lines = ax.get_legend_handles_labels()
+    lines2 = ax2.get_legend_handles_labels()
+    ax.legend(lines[0] + lines2[0], lines[1] + lines2[1], fontsize=7)
+    _weights(axs[2, 1], sig, "(f) critic weights W")
+    fig.suptitle(f"Fig. {number} redrawn: {task}, learning run (adaptation 0-39 s, reference floor)", fontsize=10)
+    return _save(fig, out / f"fig{number}_{task.lower()}_learn.png")
+
+
+def fig_value_and_paths(g1: Signals, learns: dict[str, Signals], out: Path) -> Path:
+    """Fig. 6: the value function of G1 (a) and the paths of point A to G1-G3 (b)."""
+    fig, axs = plt.subplots(1, 2, figsize=(10, 4.2))
+    ax = axs[0]
+    ax.plot(g1["time"], g1["controller.V_hat"], lw=1.0)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("V_hat [(rad/s)^2 s]")
+    ax.set_title("(a) value function (45), G1 learning", fontsize=9, loc="left")
+    ax.grid(True, alpha=0.3)
+    ax = axs[1]
+    goals = paper.table1()["goals"]
+    for task, sig in learns.items():
+        ax.plot(sig["plant.x_A"], sig["plant.y_A"], lw=1.2, label=f"{task} {tuple(goals[task])}")
+        ax.plot(*goals[task], "kx")
+    ax.plot(0, 0, "ko", ms=4)
+    ax.set_xlabel("x_A [m]")
+    ax.set_ylabel("y_A [m]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_title("(b) paths of point A (true pose), learning runs", fontsize=9, loc="left")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.suptitle("Fig. 6 redrawn", fontsize=10)
+    return _save(fig, out / "fig6_value_paths.png")
+
+
+def fig_foam(sig: Signals, out: Path, task: str, number: str, t_F: float) -> Path:
+    """Fig. 7 (G1) / Fig. 12 (LINE): errors, control and disturbance players on the foam."""
+    fig, axs = plt.subplots(2, 2, figsize=(10, 6.5))
+    _wheels(axs[0, 0], sig, "e", "e [rad]", f"(a) angle tracking error, {task} on foam")
+    _wheels(axs[0, 1], sig, "edot", "de/dt [rad/s]", "(b) velocity tracking error")
+    _wheels(axs[1, 0], sig, "u", "u [N.m]", "(c) control u")
+    _wheels(axs[1, 1], sig, "dF_hat", "dF_hat [N.m]", "(d) worst-case disturbance (player)")
+    for ax in axs.ravel():
+        if np.isfinite(t_F):
+            ax.axvline(t_F, color="k", lw=0.6, ls=":")
+    fig.suptitle(f"Fig. {number} redrawn: {task}, learned weights frozen, foam from t_F = {t_F:.2f} s", fontsize=10)
+    return _save(fig, out / f"fig{number}_{task.lower()}_foam.png")
+
+
+def _gamma(ax, d: dict[str, Any], title: str, gamma: float) -> None:
+    t = d["time"]
+    ax.plot(t, d["gamma_star_curve"], lw=1.2, label="gamma* (53), dF_hat of (52)")
+    ax.plot(t, d["gamma_true_curve"], lw=1.0, ls="--", label="(53) with the injected dF")
+    ax.axhline(gamma, color="k", lw=0.8, label=f"gamma = {gamma:g}")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("gain [-]")
+    finite = np.concatenate([x[np.isfinite(x)] for x in (d["gamma_star_curve"], d["gamma_true_curve"])] + [[gamma]])
+    ax.set_ylim(0, 1.3 * max(gamma, float(np.percentile(finite, 99))))
+    ax.set_title(title, fontsize=9, loc="left")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+
+
+def _dF(ax, d: dict[str, Any], title: str) -> None:
+    t = d["time"]
+    for (i, wl, col), est, true in zip(WHEELS, d["dF_hat"], d["dF_true"]):
+        ax.plot(t, est, color=col, lw=1.0, label=f"dF_hat (52), {wl}")
+        ax.plot(t, true, color=col, lw=0.8, ls="--", label=f"injected dF, {wl}")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("dF [N.m]")
+    ax.set_title(title, fontsize=9, loc="left")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+
+
+def fig_gamma_g1(d: dict[str, Any], out: Path, gamma: float) -> Path:
+    """Fig. 8: the disturbance estimate (52) (a) and the gain curve (53) (b), G1."""
+    fig, axs = plt.subplots(1, 2, figsize=(10, 4.2))
+    _dF(axs[0], d, "(a) disturbance estimate (52), G1")
+    _gamma(axs[1], d, "(b) gamma* gain (53), G1", gamma)
+    fig.suptitle("Fig. 8 redrawn", fontsize=10)
+    return _save(fig, out / "fig8_g1_gamma.png")
+
+
+def fig_gamma_g2_g3(d2: dict[str, Any], d3: dict[str, Any], out: Path, gamma: float) -> Path:
+    """Fig. 9: gamma* for G2 (a) and G3 (b)."""
+    fig, axs = plt.subplots(1, 2, figsize=(10, 4.2))
+    _gamma(axs[0], d2, "(a) gamma* gain (53), G2", gamma)
+    _gamma(axs[1], d3, "(b) gamma* gain (53), G3", gamma)
+    fig.suptitle("Fig. 9 redrawn", fontsize=10)
+    return _save(fig, out / "fig9_g2_g3_gamma.png")
+
+
+def fig_line_control(frozen: Signals, foam: Signals, d: dict[str, Any], out: Path, gamma: float) -> Path:
+    """Fig. 13: the control without (a) and with (b) the foam, the estimate (52) (c), gamma and gamma* (d)."""
+    fig, axs = plt.subplots(2, 2, figsize=(10, 6.5))
+    _wheels(axs[0, 0], frozen, "u", "u [N.m]", "(a) control, reference floor")
+    _wheels(axs[0, 1], foam, "u", "u [N.m]", "(b) control, foam")
+    _dF(axs[1, 0], d, "(c) disturbance estimate (52)")
+    _gamma(axs[1, 1], d, "(d) gamma and gamma* (53)", gamma)
+    fig.suptitle("Fig. 13 redrawn: LINE", fontsize=10)
+    return _save(fig, out / "fig13_line_gamma.png")
+
+
+def fig_line_learning(sig: Signals, out: Path) -> Path:
+    """Fig. 11: LINE learning run: errors, control with 30 x dF_hat (as the paper scales it), weights."""
+    fig, axs = plt.subplots(2, 2, figsize=(10, 6.5))
+    _wheels(axs[0, 0], sig, "e", "e [rad]", "(a) angle tracking error, LINE learning")
+    _wheels(axs[0, 1], sig, "edot", "de/dt [rad/s]", "(b) velocity tracking error")
+    _wheels(axs[1, 0], sig, "u", "u, 30 dF_hat [N.m]", "(c) control u and 30 x dF_hat", label="u ")
+    _wheels(axs[1, 0], sig, "dF_hat", "u, 30 dF_hat [N.m]", "(c) control u and 30 x dF_hat", scale=30.0,
+            label="30 dF_hat ")
+    _weights(axs[1, 1], sig, "(d) critic weights W")
+    fig.suptitle("Fig. 11 redrawn: LINE, learning run", fontsize=10)
+    return _save(fig, out / "fig11_line_learn.png")
+
+
+def render_all(runs: dict[str, dict[str, Signals]], dist: dict[str, dict[str, Any]], out: str | os.PathLike
+               ) -> list[Path]:
+    """Every figure for which the runs exist; returns the files written."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    gamma = paper.table1()["gamma"]
+    files: list[Path] = []
+    g = lambda task, run: runs.get(task, {}).get(run)  # noqa: E731
+    if g("G1", "learn") is not None:
+        files.append(fig_learning(g("G1", "learn"), out, "G1", "5"))
+    learns = {t: g(t, "learn") for t in ("G1", "G2", "G3") if g(t, "learn") is not None}
+    if g("G1", "learn") is not None and learns:
+        files.append(fig_value_and_paths(g("G1", "learn"), learns, out))
+    if g("G1", "foam") is not None:
+        files.append(fig_foam(g("G1", "foam"), out, "G1", "7", dist.get("G1", {}).get("t_F", np.inf)))
+    if "G1" in dist:
+        files.append(fig_gamma_g1(dist["G1"], out, gamma))
+    if "G2" in dist and "G3" in dist:
+        files.append(fig_gamma_g2_g3(dist["G2"], dist["G3"], out, gamma))
+    if g("LINE", "learn") is not None:
+        files.append(fig_line_learning(g("LINE", "learn"), out))
+    if g("LINE", "foam") is not None:
+        files.append(fig_foam(g("LINE", "foam"), out, "LINE", "12", dist.get("LINE", {}).get("t_F", np.inf)))
+    if "LINE" in dist and g("LINE", "frozen") is not None:
+        files.append(fig_line_control(g("LINE", "frozen"), g("LINE", "foam"), dist["LINE"], out, gamma))
+    return files
