@@ -170,6 +170,16 @@ def split_ref(file: str, fld: str, ref: Any) -> tuple[str, str]:
     return inst, var
 
 
+def _instance_refs(file: str, fld: str, table: Any, sc: Scenario) -> dict[str, Any]:
+    """A table keyed by "instance.variable" whose instances all exist."""
+    table = _table(file, fld, table)
+    for ref in table:
+        inst, _ = split_ref(file, f"{fld}.{ref}", ref)
+        if inst not in sc.instances:
+            raise ScenarioError(file, f"{fld}.{ref}", f"unknown instance {inst!r}")
+    return table
+
+
 def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
     """Check the structure of a merged scenario document and build a :class:`Scenario`.
 
@@ -275,11 +285,7 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
             raise ScenarioError(file, f"{fld}.name", f"{name!r}: a run needs a name that is an identifier")
         if name in names:
             raise ScenarioError(file, f"{fld}.name", f"{name!r}: two runs with this name")
-        params = _table(file, f"{fld}.parameters", r.get("parameters"))
-        for ref in params:
-            inst, _ = split_ref(file, f"{fld}.parameters.{ref}", ref)
-            if inst not in sc.instances:
-                raise ScenarioError(file, f"{fld}.parameters.{ref}", f"unknown instance {inst!r}")
+        params = _instance_refs(file, f"{fld}.parameters", r.get("parameters"), sc)
         carry = _table(file, f"{fld}.carry", r.get("carry"))
         for ref, src in carry.items():
             inst, _ = split_ref(file, f"{fld}.carry.{ref}", ref)
@@ -297,11 +303,7 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
         fld = f"variants.{vname}"
         v = _table(file, fld, v)
         _keys(file, fld, v, _VARIANT_KEYS)
-        params = _table(file, f"{fld}.parameters", v.get("parameters"))
-        for ref in params:
-            inst, _ = split_ref(file, f"{fld}.parameters.{ref}", ref)
-            if inst not in sc.instances:
-                raise ScenarioError(file, f"{fld}.parameters.{ref}", f"unknown instance {inst!r}")
+        params = _instance_refs(file, f"{fld}.parameters", v.get("parameters"), sc)
         sc.variants[vname] = dict(params)
 
     evs = doc.get("events") or []

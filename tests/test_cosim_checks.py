@@ -74,6 +74,12 @@ BAD = {
                               "outside the run"),
     "event without value": ('[[events]]\ntime = 1.0\nvariable = "plant.tau_d1"\n', "events[0].value", "missing"),
     "not toml": ("[experiment\n", "", "not valid TOML"),
+    "run without name": ("[[runs]]\nparameters = {}\n", "runs[0].name", "needs a name"),
+    "carry from unknown run": ('[[runs]]\nname = "a"\ncarry = {"controller.W1_init" = "zzz.controller.W1"}\n',
+                               "runs[0].carry.controller.W1_init", "no earlier run named 'zzz'"),
+    "run parameter of unknown instance": ('[[runs]]\nname = "a"\nparameters = {"robot.x" = 1}\n',
+                                          "runs[0].parameters.robot.x", "unknown instance 'robot'"),
+    "variant key": ("[variants.v]\nparams = {}\n", "variants.v.params", "unknown key"),
 }
 
 
@@ -183,3 +189,23 @@ def test_cli_check_and_info(built_fmus, tmp_path):
     for cmd in ("run", "check", "info", "build", "direct"):
         h = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", cmd, "--help"], capture_output=True, text=True)
         assert h.returncode == 0 and "usage" in h.stdout
+
+
+def test_protocol_errors(built_fmus, tmp_path):
+    from wmr_cosim.cosim.protocol import plan_runs, run_protocol
+
+    path = g1_with_paths(tmp_path, built_fmus, """
+[experiment]
+stop = 0.1
+[record]
+variables = ["plant.x_A"]
+[[runs]]
+name = "a"
+[[runs]]
+name = "b"
+carry = { "controller.W1_init" = "a.controller.W1" }
+""")
+    with pytest.raises(ScenarioError, match="no variant 'nope'"):
+        plan_runs(path, None, "nope")
+    with pytest.raises(ScenarioError, match=r"runs.b.carry.controller.W1_init: 'a.controller.W1' was not recorded"):
+        run_protocol(path, tmp_path / "out", None, progress=False)

@@ -138,13 +138,7 @@ def swap_fmu(tmp_path_factory):
     return build_test_fmu("swap_plant.py", tmp_path_factory.mktemp("swap"))
 
 
-def test_swapped_plant_with_other_names_and_degrees(resolver, tmp_path, swap_fmu, gs_run):
-    _, gs = gs_run
-    path = tmp_path / "swap.toml"
-    path.write_text(f"""
-base = "{G1}"
-[instances.plant]
-fmu = "{swap_fmu}"
+SWAP_NAMES = """
 [instances.plant.names]
 torque_right = "u1"
 torque_left = "u2"
@@ -153,15 +147,18 @@ phi_left_deg = "alpha2"
 pos_x = "x_A"
 pos_y = "y_A"
 heading = "beta"
-[instances.plant.units]
-alpha1 = "deg"
-alpha2 = "deg"
-x_A = "m"
-y_A = "m"
-beta = "rad"
-u1 = "N.m"
-u2 = "N.m"
-""")
+"""
+
+
+def _swap_scenario(path, swap_fmu, units: str):
+    path.write_text(f'base = "{G1}"\n[instances.plant]\nfmu = "{swap_fmu}"\n{SWAP_NAMES}[instances.plant.units]\n{units}')
+    return path
+
+
+def test_swapped_plant_with_other_names_and_degrees(resolver, tmp_path, swap_fmu, gs_run):
+    _, gs = gs_run
+    path = _swap_scenario(tmp_path / "swap.toml", swap_fmu,
+                          'alpha1 = "deg"\nalpha2 = "deg"\nx_A = "m"\ny_A = "m"\nbeta = "rad"\nu1 = "N.m"\nu2 = "N.m"\n')
     plan = system.resolve(scenario.load(path, resolver))
     conv = {c.spec.src: (c.factor, c.offset) for c in plan.connections}
     assert conv["plant.alpha1"] == (pytest.approx(math.pi / 180, rel=1e-15), 0.0)   # deg -> rad
@@ -177,22 +174,7 @@ u2 = "N.m"
 
 
 def test_swapped_plant_is_checked(resolver, tmp_path, swap_fmu):
-    path = tmp_path / "swap.toml"
-    path.write_text(f"""
-base = "{G1}"
-[instances.plant]
-fmu = "{swap_fmu}"
-[instances.plant.names]
-torque_right = "u1"
-torque_left = "u2"
-phi_right_deg = "alpha1"
-phi_left_deg = "alpha2"
-pos_x = "x_A"
-pos_y = "y_A"
-heading = "beta"
-[instances.plant.units]
-alpha1 = "N.m"
-""")
+    path = _swap_scenario(tmp_path / "swap.toml", swap_fmu, 'alpha1 = "N.m"\n')
     from wmr_cosim.cosim.errors import ScenarioError
     with pytest.raises(ScenarioError, match=r"connections\[0\]: unit mismatch: plant.alpha1 -> sensor.alpha1"):
         system.resolve(scenario.load(path, resolver))
