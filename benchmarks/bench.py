@@ -10,6 +10,9 @@ NAME:
               loop, master_us_per_fmu_step = (loop time - time inside FMI calls) / steps / FMUs (target <= 1.5 us).
     paper   the whole `wmr-cosim paper` job (4 tasks x 3 runs x 2 variants, analysis, figures, report),
             once, the FMUs already built: paper_s (target < 60 s on 2 cores).
+    sweep   a 16-run sweep (scenarios/sweep-geometry.toml) through the Dask path with 1 and with 2 worker
+            processes: sweep_startup_s (cluster start-up, excluded), sweep_1w_s, sweep_2w_s, sweep_speedup
+            (target >= 1.7 on 2 cores) and same_results.
 """
 from __future__ import annotations
 
@@ -99,7 +102,35 @@ def bench_paper(repeats: int) -> dict[str, float]:
             "rms_log_factor": round(f["rms_log_factor"], 4)}
 
 
-BENCHES = {"loop": bench_loop_all, "paper": bench_paper}
+def bench_sweep(repeats: int) -> dict[str, float]:
+    """scenarios/sweep-geometry.toml (16 G1 learning runs of 50 s, random r, l1 and goal) through the Dask
+    path with 1 and with 2 worker processes; cluster start-up timed apart."""
+    import tempfile
+    import time
+
+    from wmr_cosim.sweep import Cluster, run_sweep
+
+    root = __import__("pathlib").Path(__file__).resolve().parents[1]
+    f = root / "scenarios" / "sweep-geometry.toml"
+    figures: dict[str, float] = {}
+    tables = {}
+    startups = []
+    for n in (1, 2):
+        with tempfile.TemporaryDirectory() as tmp, Cluster(workers=n) as cl:
+            startups.append(cl.startup_s)
+            cl.client.run(lambda: __import__("wmr_cosim.cosim.execution"))  # imports warm, as in a long sweep
+            t0 = time.perf_counter()
+            df = run_sweep(f, tmp, cluster=cl, progress=False)
+            figures[f"sweep_{n}w_s"] = round(time.perf_counter() - t0, 3)
+            tables[n] = df.drop(columns=["wall_s"])
+    figures["sweep_startup_s"] = round(max(startups), 3)
+    figures["sweep_speedup"] = round(figures["sweep_1w_s"] / figures["sweep_2w_s"], 3)
+    figures["runs"] = len(tables[1])
+    figures["same_results"] = bool(tables[1].equals(tables[2]))
+    return figures
+
+
+BENCHES = {"loop": bench_loop_all, "paper": bench_paper, "sweep": bench_sweep}
 
 
 def main(argv: list[str] | None = None) -> int:

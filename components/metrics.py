@@ -11,7 +11,8 @@ import numpy as np
 def rmse(x: np.ndarray) -> float:
     """RMSE (54): sqrt(1/N sum x_i^2) over all N samples."""
     x = np.asarray(x, dtype=float)
-    return float(np.sqrt(np.mean(x * x)))
+    with np.errstate(over="ignore", invalid="ignore"):  # a diverged run's RMSE is inf, not a warning
+        return float(np.sqrt(np.mean(x * x)))
 
 
 def run_metrics(sig: Mapping[str, np.ndarray], goal: tuple[float, float] | None = None,

@@ -91,6 +91,12 @@ def disturbance_analysis(frozen: Signals, foam: Signals, Q: float, R: float, gam
     output) in the denominator; gain_incremental = sqrt(int |z_foam - z_frozen|^2 / int |dF|^2) with
     |z|^2 = s'Qs + u'Ru (9): the gain from the injected disturbance to the change of the controlled output.
     """
+    with np.errstate(over="ignore", invalid="ignore"):  # diverged runs give inf, not warnings
+        return _disturbance_analysis(frozen, foam, Q, R, gamma, ramp)
+
+
+def _disturbance_analysis(frozen: Signals, foam: Signals, Q: float, R: float, gamma: float,
+                          ramp: float) -> dict[str, Any]:
     n = min(len(frozen["time"]), len(foam["time"]))
     t = foam["time"][:n]
     tF = foam_onset(foam)

@@ -157,6 +157,39 @@ def cmd_paper(args: argparse.Namespace) -> int:
     return EXIT_OK if not m["diverged_runs"] else EXIT_FAILED
 
 
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """A sweep file on Dask: one full co-simulation per point, in worker processes."""
+    from .sweep import run_sweep
+
+    out = args.out if args.out is not None else Path("results") / args.sweep.stem
+    df = run_sweep(args.sweep, out, workers=args.workers, scheduler=args.scheduler,
+                   progress=False if args.quiet else None)
+    counts = df["status"].value_counts().to_dict()
+    print(f"{args.sweep}: {len(df)} points ({', '.join(f'{v} {k}' for k, v in sorted(counts.items()))}); "
+          f"results in {out} (results.parquet, results.csv, figures/)")
+    return EXIT_OK
+
+
+def cmd_gamma_search(args: argparse.Namespace) -> int:
+    """gamma* against gamma on a grid, then bisection: the smallest gamma for which the condition holds."""
+    from .gamma_search import gamma_search
+
+    out = args.out if args.out is not None else Path("results") / f"gamma-search-{args.scenario.stem}"
+    r = gamma_search(args.scenario, out, grid=args.grid, variant=args.variant, workers=args.workers,
+                     scheduler=args.scheduler, progress=False if args.quiet else None)
+    for p in r["curve"]:
+        gs = "-" if p["gamma_star"] is None else f"{p['gamma_star']:.3f}"
+        print(f"  gamma {p['gamma']:8.3f}  gamma* {gs:>10s}  {'holds' if p['holds'] else 'fails'}"
+              f"{'' if p['stable'] else '  (' + p['status'] + ')'}")
+    sg = r["smallest_gamma"]
+    print(f"smallest gamma for which the learning + foam protocol stays stable with gamma* <= gamma: "
+          f"{'none on this grid' if sg is None else f'{sg:.4g}'}"
+          f"{'' if r['monotone'] else ' (the condition is not monotone in gamma: see the whole curve)'}")
+    print(r["note"])
+    print(f"results in {out} (gamma_search.json, gamma_search.csv, gamma_search.png)")
+    return EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="wmr-cosim", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -215,6 +248,33 @@ def build_parser() -> argparse.ArgumentParser:
     pp.add_argument("--manifest", type=Path, default=None, help="the tasks file (default scenarios/paper.toml)")
     pp.add_argument("--quiet", action="store_true", help="no progress lines")
     pp.set_defaults(func=cmd_paper)
+    sw = sub.add_parser("sweep", help="run a parameter sweep or Monte Carlo study on Dask",
+                        description="Run a sweep file (scenarios/sweep-*.toml): a base scenario or protocol, grids "
+                                    "and random distributions over any parameter, a seed. Each point is one full "
+                                    "co-simulation (all the base's runs) in a Dask worker process; a local cluster by "
+                                    "default, or an existing dask.distributed scheduler. Results: results.parquet, "
+                                    "results.csv, figures/, points/ (a restarted sweep skips the points done).")
+    sw.add_argument("sweep", type=Path, help="sweep file (.toml)")
+    sw.add_argument("--out", type=Path, default=None, metavar="DIR", help="results folder (default results/<sweep>)")
+    sw.add_argument("--workers", type=int, default=None, help="local worker processes (default: one per core)")
+    sw.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                    help="an existing dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 (workers must see the "
+                         "same files and have this project installed)")
+    sw.add_argument("--quiet", action="store_true", help="no progress bar")
+    sw.set_defaults(func=cmd_sweep)
+    gs = sub.add_parser("gamma-search", help="the smallest gamma for which the H-infinity condition holds",
+                        description="gamma* of (53) against gamma on a grid (the whole learning + frozen + foam "
+                                    "protocol at each gamma), then bisection where the grid shows a single crossing; "
+                                    "reports the smallest gamma for which every run stays stable and gamma* <= gamma, "
+                                    "and the whole curve.")
+    gs.add_argument("scenario", type=Path, help="a protocol with runs learn, frozen, foam (e.g. scenarios/paper/g1.toml)")
+    gs.add_argument("--out", type=Path, default=None, metavar="DIR")
+    gs.add_argument("--grid", type=float, nargs="+", default=None, metavar="GAMMA", help="the gamma grid")
+    gs.add_argument("--variant", default="freeze", help="a variant the protocol declares (default freeze)")
+    gs.add_argument("--workers", type=int, default=None)
+    gs.add_argument("--scheduler", default=None, metavar="ADDRESS")
+    gs.add_argument("--quiet", action="store_true")
+    gs.set_defaults(func=cmd_gamma_search)
     return ap
 
 
@@ -229,6 +289,11 @@ def main(argv: list[str] | None = None) -> int:
     except CosimError as exc:
         print(f"wmr-cosim: error: {exc}", file=sys.stderr)
         return exc.exit_code
+    except ImportError as exc:
+        if exc.name and exc.name.split(".")[0] in ("dask", "distributed", "pandas", "pyarrow"):
+            print(f"wmr-cosim: error: {args.command} needs {exc.name}: pip install 'wmr-cosim[sweep]'", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        raise
     except KeyboardInterrupt:
         print("wmr-cosim: interrupted", file=sys.stderr)
         return 130

@@ -1,0 +1,192 @@
+"""Sweeps and the gamma search on Dask: the file format, determinism whatever the number of workers,
+restart, failures recorded, a real scheduler with two workers."""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from wmr_cosim import sweep
+from wmr_cosim.cosim.errors import ScenarioError
+
+DATA = Path(__file__).parent / "data"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _fmus(built_fmus):
+    """Points run on the session's FMUs (the workers are separate processes: they get the paths)."""
+    mp = pytest.MonkeyPatch()
+    mp.setattr(sweep, "fmu_paths", lambda: {k: str(v) for k, v in built_fmus.items()})
+    yield
+    mp.undo()
+
+
+def _sweep_file(tmp: Path, body: str, name: str = "sweep-test.toml") -> Path:
+    f = tmp / name
+    f.write_text(f'base = "{DATA / "short_protocol.toml"}"\n' + body)
+    return f
+
+
+SMALL = """
+runs = ["learn"]
+seed = 5
+samples = 2
+[grid]
+"plant.foam_da1+plant.foam_da2" = [0.2, 0.6]
+[random]
+"controller.goal_x" = { dist = "uniform", low = 1.8, high = 2.2 }
+"""
+
+
+@pytest.fixture(scope="module")
+def cluster2():
+    with sweep.Cluster(workers=2) as cl:
+        yield cl
+
+
+def _table(df: pd.DataFrame) -> pd.DataFrame:
+    return df.drop(columns=["wall_s"])
+
+
+def test_points_are_drawn_from_the_seed(tmp_path):
+    spec = sweep.load_sweep(_sweep_file(tmp_path, SMALL))
+    a, b = sweep.draw_points(spec), sweep.draw_points(spec)
+    assert a == b and len(a) == 4
+    assert [p["params"]["plant.foam_da1"] for p in a] == [0.2, 0.2, 0.6, 0.6]
+    assert all(p["params"]["plant.foam_da1"] == p["params"]["plant.foam_da2"] for p in a)   # linked
+    assert all(1.8 <= p["params"]["controller.goal_x"] <= 2.2 for p in a)
+    spec.seed = 6
+    assert sweep.draw_points(spec) != a
+
+
+@pytest.mark.parametrize("body, field, reason", [
+    ("colour = 1\n", "colour", "unknown key"),
+    ("[random]\n\"plant.a5\" = { dist = \"gauss\" }\n", "random.plant.a5", "needs dist"),
+    ("[random]\n\"plant.a5\" = { dist = \"uniform\", low = 1 }\n", "random.plant.a5.high", "missing"),
+    ("[grid]\n\"plant.a5\" = []\n", "grid.plant.a5", "non-empty"),
+    ("[grid]\n\"a5\" = [1]\n", "grid.a5", "instance.param"),
+    ("samples = 0\n", "samples", "integer >= 1"),
+    ('runs = ["learn", "nope"]\n', "runs", "'nope' is not a run"),
+])
+def test_bad_sweep_files(tmp_path, body, field, reason):
+    with pytest.raises(ScenarioError) as exc:
+        sweep.load_sweep(_sweep_file(tmp_path, body))
+    assert exc.value.field == field and reason in str(exc.value), str(exc.value)
+
+
+def test_same_results_with_one_or_two_workers_and_after_a_restart(tmp_path, cluster2):
+    f = _sweep_file(tmp_path, SMALL)
+    with sweep.Cluster(workers=1) as one:
+        df1 = sweep.run_sweep(f, tmp_path / "one", cluster=one, progress=False)
+    df2 = sweep.run_sweep(f, tmp_path / "two", cluster=cluster2, progress=False)
+    assert (df1["status"] == "ok").all()
+    pd.testing.assert_frame_equal(_table(df1), _table(df2))
+    assert df1["learn.rmse_e1"].nunique() == 4      # the points differ
+    # interrupted: two points lost; started again: only those run, the table is the same
+    pts = tmp_path / "two" / "points"
+    stamps = {p.name: p.stat().st_mtime_ns for p in pts.iterdir()}
+    (pts / "00001.json").unlink()
+    (pts / "00003.json").unlink()
+    df3 = sweep.run_sweep(f, tmp_path / "two", cluster=cluster2, progress=False)
+    pd.testing.assert_frame_equal(_table(df3), _table(df2))
+    for name in ("00000.json", "00002.json"):
+        assert (pts / name).stat().st_mtime_ns == stamps[name]
+    back = pd.read_parquet(tmp_path / "two" / "results.parquet")
+    pd.testing.assert_frame_equal(_table(back), _table(df3))
+    assert (tmp_path / "two" / "results.csv").is_file()
+    assert any((tmp_path / "two" / "figures").glob("*.png"))
+    # another sweep into the same folder is refused
+    g = _sweep_file(tmp_path, SMALL.replace("seed = 5", "seed = 9"), "other.toml")
+    from wmr_cosim.cosim.errors import CosimError
+    with pytest.raises(CosimError, match="another sweep"):
+        sweep.run_sweep(g, tmp_path / "two", cluster=cluster2, progress=False)
+
+
+def test_a_failing_point_is_recorded_and_the_sweep_goes_on(tmp_path, cluster2):
+    f = _sweep_file(tmp_path, 'runs = ["learn"]\n[grid]\n"sensor.phase2" = [0.5, 1.5]\n')
+    df = sweep.run_sweep(f, tmp_path / "out", cluster=cluster2, progress=False)
+    assert list(df["status"]) == ["ok", "failed"]
+    assert "phase2" in df["reason"][1] and "maximum" in df["reason"][1]
+    f = _sweep_file(tmp_path, 'runs = ["learn"]\n[grid]\n"controller.gamma" = [11.0, 0.25]\n', "div.toml")
+    df = sweep.run_sweep(f, tmp_path / "div", cluster=cluster2, progress=False)
+    assert df["status"][0] == "ok" and df["status"][1] in ("diverged", "failed") and df["reason"][1]
+
+
+def test_gamma_search_finds_the_crossing(tmp_path):
+    from wmr_cosim.gamma_search import gamma_search, holds
+
+    r = gamma_search(DATA / "short_protocol.toml", tmp_path / "gs", grid=[4.0, 40.0], workers=2, progress=False)
+    curve = r["curve"]
+    assert r["bisected"] and r["monotone"]
+    g = r["smallest_gamma"]
+    assert g is not None and 4.0 < g <= 40.0
+    below = [p for p in curve if p["gamma"] < g]
+    assert below and not any(p["holds"] for p in below)
+    best = next(p for p in curve if p["gamma"] == g)
+    assert best["gamma_star"] <= g
+    # bisection narrowed it to 1 %: the largest failing gamma is within 1 % of the answer
+    assert max(p["gamma"] for p in below) >= 0.99 * g
+    assert "plant.foam_da1 = 0.4" in r["note"]
+    assert (tmp_path / "gs" / "gamma_search.png").is_file()
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_sweep_on_an_existing_scheduler_with_two_workers(tmp_path):
+    port = _free_port()
+    addr = f"tcp://127.0.0.1:{port}"
+    env = {**os.environ, "DASK_DISTRIBUTED__WORKER__DAEMON": "True"}
+    procs = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+                               "--port", str(port), "--no-dashboard"], stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL, env=env)]
+    try:
+        time.sleep(1.0)
+        for i in range(2):
+            procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", addr, "--nthreads", "1",
+                                           "--no-dashboard", "--local-directory", str(tmp_path / f"w{i}")],
+                                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env))
+        from distributed import Client
+        with Client(addr, timeout="20s") as c:
+            c.wait_for_workers(2, timeout=30)
+            assert len(c.scheduler_info()["workers"]) == 2
+        f = _sweep_file(tmp_path, SMALL)
+        with sweep.Cluster(address=addr) as cl:
+            df = sweep.run_sweep(f, tmp_path / "out", cluster=cl, progress=False)
+            workers_used = {w for w in cl.client.run(lambda: os.getpid()).values()}
+        assert (df["status"] == "ok").all() and len(df) == 4
+        assert len(workers_used) == 2
+        # the CLI on the same scheduler: the points are done, the table is the same
+        p = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "sweep", str(f), "--out", str(tmp_path / "out"),
+                            "--scheduler", addr], capture_output=True, text=True, timeout=120)
+        assert p.returncode == 0, p.stderr
+        assert "4 points (4 ok)" in p.stdout
+    finally:
+        for pr in reversed(procs):
+            pr.terminate()
+        for pr in procs:
+            try:
+                pr.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                pr.kill()
+
+
+def test_cli_sweep_errors_are_one_line(tmp_path):
+    f = _sweep_file(tmp_path, "colour = 1\n")
+    p = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "sweep", str(f)], capture_output=True, text=True)
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "colour" in p.stderr
+    p = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "sweep", str(_sweep_file(tmp_path, SMALL, "s2.toml")),
+                        "--scheduler", "tcp://127.0.0.1:1"], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2 and "cannot connect" in p.stderr and "Traceback" not in p.stderr

@@ -1,0 +1,408 @@
+"""Sweeps and Monte Carlo studies on Dask: many full co-simulations, each point in a worker process.
+
+A sweep file (``scenarios/sweep-*.toml``)::
+
+    base = "paper/g1.toml"        # a scenario or protocol file (its runs: learn, frozen, foam, ...)
+    variant = "freeze"            # optional: a variant the base declares
+    runs = ["learn", "frozen", "foam"]   # optional: which of its runs (default all)
+    seed = 1                      # for the random draws
+    samples = 8                   # random draws per grid point (default 1)
+    metrics = ["foam.rmse_e1", "gamma_star"]   # the columns to plot (the table keeps every metric)
+    [grid]                        # the cartesian product of these
+    "plant.foam_da1+plant.foam_da2" = [0.2, 0.4, 0.8]   # '+' links parameters to one value
+    [random]                      # drawn with the seed, `samples` times per grid point
+    "plant.foam_t_on" = { dist = "uniform", low = 7.0, high = 10.0 }
+    "controller.l1" = { dist = "normal", mean = 0.16, std = 0.004 }
+
+Every point runs the base's runs with its parameter values; the results are one row per point (the
+parameters, status, reason, metrics) in ``results.parquet`` and ``results.csv``, plots in ``figures/``.
+Each finished point is written at once to ``points/<id>.json``: a sweep interrupted and started again
+with the same output folder skips the points already done and gives the same final table.  Points are
+drawn in the parent from the seed, so the results do not depend on the number of workers.
+"""
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+import os
+import shutil
+import sys
+import tempfile
+import time
+import tomllib
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .cosim.errors import CosimError, ScenarioError
+
+DISTRIBUTIONS = {"uniform": ("low", "high"), "normal": ("mean", "std"), "lognormal": ("mean", "sigma"),
+                 "choice": ("values",)}
+_KEYS = {"description", "base", "variant", "runs", "seed", "samples", "metrics", "grid", "random", "keep_runs"}
+
+
+@dataclass
+class SweepSpec:
+    file: str
+    base: str
+    variant: str | None = None
+    runs: list[str] | None = None
+    seed: int = 0
+    samples: int = 1
+    metrics: list[str] = field(default_factory=list)
+    grid: dict[str, list[Any]] = field(default_factory=dict)       # "a.x+b.y" -> values
+    random: dict[str, dict[str, Any]] = field(default_factory=dict)
+    keep_runs: bool = False
+    description: str = ""
+
+
+def load_sweep(path: str | os.PathLike) -> SweepSpec:
+    """Read and check a sweep file; errors name the file, the field and the reason."""
+    path = Path(path)
+    f = str(path)
+    if not path.is_file():
+        raise ScenarioError(f, "", "file not found")
+    try:
+        doc = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f, "", f"not valid TOML ({exc})") from None
+    for k in doc:
+        if k not in _KEYS:
+            raise ScenarioError(f, k, f"unknown key (allowed: {', '.join(sorted(_KEYS))})")
+    base = doc.get("base")
+    if not isinstance(base, str) or not (path.parent / base).is_file():
+        raise ScenarioError(f, "base", f"{base!r}: the scenario file to sweep is missing")
+    spec = SweepSpec(f, str((path.parent / base).resolve()), doc.get("variant"), doc.get("runs"),
+                     description=str(doc.get("description", "")))
+    seed = doc.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ScenarioError(f, "seed", f"{seed!r}: must be an integer >= 0")
+    spec.seed = seed
+    samples = doc.get("samples", 1)
+    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
+        raise ScenarioError(f, "samples", f"{samples!r}: must be an integer >= 1")
+    spec.samples = samples
+    metrics = doc.get("metrics", [])
+    if not isinstance(metrics, list) or not all(isinstance(m, str) for m in metrics):
+        raise ScenarioError(f, "metrics", "must be an array of metric names")
+    spec.metrics = metrics
+    if spec.runs is not None and (not isinstance(spec.runs, list) or not all(isinstance(r, str) for r in spec.runs)):
+        raise ScenarioError(f, "runs", "must be an array of run names")
+    keep = doc.get("keep_runs", False)
+    if not isinstance(keep, bool):
+        raise ScenarioError(f, "keep_runs", "must be true or false")
+    spec.keep_runs = keep
+    grid = doc.get("grid", {})
+    if not isinstance(grid, dict):
+        raise ScenarioError(f, "grid", "must be a table \"instance.param\" = [values]")
+    for key, values in grid.items():
+        _refs(f, f"grid.{key}", key)
+        if not isinstance(values, list) or not values:
+            raise ScenarioError(f, f"grid.{key}", "must be a non-empty array of values")
+        spec.grid[key] = list(values)
+    rnd = doc.get("random", {})
+    if not isinstance(rnd, dict):
+        raise ScenarioError(f, "random", "must be a table \"instance.param\" = {dist = ..., ...}")
+    for key, d in rnd.items():
+        fld = f"random.{key}"
+        _refs(f, fld, key)
+        if not isinstance(d, dict) or d.get("dist") not in DISTRIBUTIONS:
+            raise ScenarioError(f, fld, f"needs dist = one of {', '.join(DISTRIBUTIONS)}")
+        need = DISTRIBUTIONS[d["dist"]]
+        extra = set(d) - set(need) - {"dist"}
+        if extra:
+            raise ScenarioError(f, f"{fld}.{sorted(extra)[0]}", f"unknown key for dist = {d['dist']!r}")
+        for k in need:
+            if k not in d:
+                raise ScenarioError(f, f"{fld}.{k}", f"missing (dist = {d['dist']!r} needs {', '.join(need)})")
+        if d["dist"] == "uniform" and not d["low"] < d["high"]:
+            raise ScenarioError(f, f"{fld}.high", "must be above low")
+        if d["dist"] in ("normal",) and not d["std"] >= 0:
+            raise ScenarioError(f, f"{fld}.std", "must be >= 0")
+        spec.random[key] = dict(d)
+    # the base must parse (model names are not built here), and the variant and runs must exist
+    from .cosim.protocol import plan_runs
+
+    _, runs, _ = plan_runs(spec.base, lambda name: Path(name), spec.variant)
+    if spec.runs:
+        names = [r.name for r in runs]
+        for r in spec.runs:
+            if r not in names:
+                raise ScenarioError(f, "runs", f"{r!r} is not a run of {spec.base} ({', '.join(names)})")
+    return spec
+
+
+def _refs(file: str, fld: str, key: str) -> list[str]:
+    refs = key.split("+")
+    for r in refs:
+        if r.count(".") < 1 or not all(r.split(".", 1)):
+            raise ScenarioError(file, fld, f"{r!r} is not of the form \"instance.param\"")
+    return refs
+
+
+def draw_points(spec: SweepSpec) -> list[dict[str, Any]]:
+    """Every point: {'id': i, 'params': {'instance.param': value}}; random values drawn from the seed."""
+    rng = np.random.default_rng(spec.seed)
+    grid_keys = list(spec.grid)
+    combos = list(itertools.product(*(spec.grid[k] for k in grid_keys))) if grid_keys else [()]
+    out = []
+    for combo in combos:
+        for _ in range(spec.samples):
+            params: dict[str, Any] = {}
+            for key, value in zip(grid_keys, combo):
+                for ref in key.split("+"):
+                    params[ref] = value
+            for key, d in spec.random.items():
+                if d["dist"] == "uniform":
+                    v = float(rng.uniform(d["low"], d["high"]))
+                elif d["dist"] == "normal":
+                    v = float(rng.normal(d["mean"], d["std"]))
+                elif d["dist"] == "lognormal":
+                    v = float(rng.lognormal(d["mean"], d["sigma"]))
+                else:
+                    v = d["values"][int(rng.integers(len(d["values"])))]
+                for ref in key.split("+"):
+                    params[ref] = v
+            out.append({"id": len(out), "params": params})
+    return out
+
+
+# ---------------------------------------------------------------------- one point (in a worker)
+def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[str] | None,
+              fmus: dict[str, str], out_dir: str, keep_runs: bool = False) -> dict[str, Any]:
+    """Run one point (the base's runs with the point's parameters) and return its row: id, parameters,
+    status ('ok', 'diverged', 'failed'), reason and metrics.  Never raises: a failure is a row."""
+    from .analysis import disturbance_analysis, load_signals, run_summary
+    from .components import paper
+    from .cosim.protocol import run_protocol
+
+    row: dict[str, Any] = {"point": point["id"], **point["params"], "status": "ok", "reason": ""}
+    work = Path(out_dir) / "runs" / f"{point['id']:05d}" if keep_runs else Path(tempfile.mkdtemp(prefix="wmr-sweep-"))
+    t0 = time.perf_counter()
+    try:
+        results = run_protocol(base, work, lambda name: Path(fmus[name]) if name in fmus else None,
+                               variant=variant, overrides=point["params"], progress=False, only=runs)
+        sigs = {}
+        for name, res in results.items():
+            sig = load_signals(work / name)
+            sigs[name] = sig
+            goal = _goal(work / name)
+            s = run_summary(sig, goal, res.status)
+            for i in (0, 1):
+                row[f"{name}.rmse_e{i + 1}"] = s["rmse_e"][i] if s["rmse_e"] else math.nan
+                row[f"{name}.rmse_edot{i + 1}"] = s["rmse_edot"][i] if s["rmse_edot"] else math.nan
+            fp = s.get("final_position") or [math.nan, math.nan]
+            row[f"{name}.final_x"], row[f"{name}.final_y"] = fp
+            row[f"{name}.t_goal"] = s["t_goal"] if s.get("t_goal") is not None else math.nan
+            row[f"{name}.goal_distance"] = s.get("goal_distance", math.nan)
+            row[f"{name}.diverged"] = bool(s["diverged"])
+            if res.status != "ok":
+                row["status"], row["reason"] = "failed", f"{name}: {res.message}"
+            elif s["diverged"] and row["status"] == "ok":
+                row["status"], row["reason"] = "diverged", f"{name}: |e| = {max(map(abs, s['final_e'])):.3g} rad at the end"
+        if sigs.get("frozen") is not None and sigs.get("foam") is not None:
+            t1 = paper.table1()
+            d = disturbance_analysis(sigs["frozen"], sigs["foam"], t1["Q"], t1["R"], t1["gamma"])
+            for k in ("gamma_star", "gamma_true", "gain_incremental"):
+                row[k] = d[k] if d[k] is not None else math.nan
+            row["foam_rise1"], row["foam_rise2"] = [math.nan if r is None else r for r in d["foam_rise"]]
+    except CosimError as exc:
+        row["status"], row["reason"] = "failed", str(exc)
+    except Exception as exc:  # a point must never take the sweep down
+        row["status"], row["reason"] = "failed", f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+    finally:
+        if not keep_runs:
+            shutil.rmtree(work, ignore_errors=True)
+    row["wall_s"] = time.perf_counter() - t0
+    return row
+
+
+def _goal(run_dir: Path) -> tuple[float, float] | None:
+    try:
+        resolved = json.loads((run_dir / "scenario.json").read_text())
+        p = resolved["instances"]["controller"]["parameters"]
+        if p.get("task", "goal") == "line":
+            return None
+        return float(p["goal_x"]), float(p["goal_y"])
+    except (OSError, KeyError, ValueError, TypeError):
+        return None
+
+
+# ---------------------------------------------------------------------- the sweep (in the parent)
+def fmu_paths() -> dict[str, str]:
+    """Our three FMUs, built if needed, as absolute paths (workers must see the same file system)."""
+    from .runner import resolve_model
+
+    return {m: str(resolve_model(m).resolve()) for m in ("WmrPlant", "WmrSensor", "WmrController")}
+
+
+class Cluster:
+    """A Dask client: a local cluster of ``workers`` processes (one thread each), or an existing
+    scheduler at ``address``."""
+
+    def __init__(self, workers: int | None = None, address: str | None = None) -> None:
+        import logging
+
+        from distributed import Client, LocalCluster
+
+        t0 = time.perf_counter()
+        self.cluster = None
+        if address:
+            try:
+                self.client = Client(address, timeout="10s")
+            except Exception as exc:
+                raise CosimError(f"--scheduler {address}: cannot connect ({' '.join(str(exc).split())})") from None
+        else:
+            self.cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
+                                        processes=True, dashboard_address=":0", silence_logs=logging.ERROR)
+            self.client = Client(self.cluster)
+        self.startup_s = time.perf_counter() - t0
+
+    def close(self) -> None:
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+
+    def __enter__(self) -> "Cluster":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+def run_points(points: list[dict[str, Any]], base: str, variant: str | None, runs: list[str] | None,
+               out: Path, cluster: Cluster, keep_runs: bool = False, progress: bool | None = None,
+               label: str = "sweep") -> list[dict[str, Any]]:
+    """Run the points not yet in ``out/points`` on the cluster; returns every point's row, by id."""
+    from distributed import as_completed
+
+    pts_dir = out / "points"
+    pts_dir.mkdir(parents=True, exist_ok=True)
+    rows: dict[int, dict[str, Any]] = {}
+    for p in points:
+        f = pts_dir / f"{p['id']:05d}.json"
+        if f.is_file():
+            try:
+                rows[p["id"]] = json.loads(f.read_text())
+            except json.JSONDecodeError:
+                f.unlink()  # a half-written point: run it again
+    todo = [p for p in points if p["id"] not in rows]
+    fmus = fmu_paths()
+    bar = None
+    if progress is None:
+        progress = sys.stderr.isatty()
+    if progress and todo:
+        from tqdm import tqdm
+        bar = tqdm(total=len(points), initial=len(rows), desc=label, unit="run", file=sys.stderr)
+    failed = sum(1 for r in rows.values() if r["status"] != "ok")
+    futures = [cluster.client.submit(run_point, p, base, variant, runs, fmus, str(out), keep_runs,
+                                     key=f"{label}-{out.name}-{p['id']}-{_digest(p)}", pure=False) for p in todo]
+    try:
+        for fut in as_completed(futures):
+            row = fut.result()
+            tmp = pts_dir / f"{row['point']:05d}.json.tmp"
+            tmp.write_text(json.dumps(row, default=_jsonable))
+            os.replace(tmp, pts_dir / f"{row['point']:05d}.json")
+            rows[row["point"]] = row
+            failed += row["status"] != "ok"
+            if bar is not None:
+                bar.set_postfix(failed=failed)
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+        for fut in futures:
+            fut.cancel()
+    return [rows[p["id"]] for p in points]
+
+
+def _digest(p: dict[str, Any]) -> str:
+    return hashlib.sha1(json.dumps(p, sort_keys=True, default=str).encode()).hexdigest()[:8]
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    return str(x)
+
+
+def run_sweep(path: str | os.PathLike, out: str | os.PathLike | None = None, workers: int | None = None,
+              scheduler: str | None = None, progress: bool | None = None, cluster: Cluster | None = None):
+    """Run a sweep file; write results.parquet, results.csv, sweep.json and figures/ into ``out``.
+    Returns the table (a pandas DataFrame, one row per point, ordered by point)."""
+    import pandas as pd
+
+    spec = load_sweep(path)
+    out = Path(out) if out is not None else Path("results") / Path(path).stem
+    out.mkdir(parents=True, exist_ok=True)
+    points = draw_points(spec)
+    meta = {"spec": asdict(spec), "points": points}
+    meta_file = out / "sweep.json"
+    if meta_file.is_file():
+        old = json.loads(meta_file.read_text())
+        if old.get("points") != json.loads(json.dumps(points)) or old["spec"]["base"] != spec.base:
+            raise CosimError(f"{out}: holds the results of another sweep (different points); use another --out")
+    meta_file.write_text(json.dumps(meta, indent=1) + "\n")
+    own = cluster is None
+    cl = cluster or Cluster(workers, scheduler)
+    try:
+        rows = run_points(points, spec.base, spec.variant, spec.runs, out, cl, spec.keep_runs, progress)
+    finally:
+        if own:
+            cl.close()
+    df = pd.DataFrame(rows).sort_values("point").reset_index(drop=True)
+    df.to_parquet(out / "results.parquet", index=False)
+    df.to_csv(out / "results.csv", index=False)
+    plot_sweep(df, spec, out / "figures")
+    return df
+
+
+def plot_sweep(df, spec: SweepSpec, out: Path) -> list[Path]:
+    """Each chosen metric against each swept parameter (failed points marked)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out.mkdir(parents=True, exist_ok=True)
+    params = []
+    for key in list(spec.grid) + list(spec.random):
+        params.append(key.split("+")[0])
+    metrics = spec.metrics or [c for c in ("foam.rmse_e1", "learn.rmse_e1", "gamma_star") if c in df.columns][:2]
+    files = []
+    for m in metrics:
+        if m not in df.columns:
+            continue
+        for p in params:
+            fig, ax = plt.subplots(figsize=(5.5, 3.8))
+            ok = df["status"] == "ok"
+            ax.plot(df.loc[ok, p], df.loc[ok, m], "o", ms=4, label="ok")
+            if (~ok).any():
+                ax.plot(df.loc[~ok, p], df.loc[~ok, m].fillna(0.0), "x", color="C3", label="failed / diverged")
+            ax.set_xlabel(f"{p} [{_unit(p)}]")
+            ax.set_ylabel(f"{m} [{_unit(m)}]")
+            ax.grid(True, alpha=0.3)
+            ax.legend(fontsize=7)
+            fig.tight_layout()
+            f = out / f"{m}_vs_{p}.png".replace("/", "_")
+            fig.savefig(f, dpi=100)
+            plt.close(fig)
+            files.append(f)
+    return files
+
+
+_UNITS = {"rmse_e": "rad", "rmse_edot": "rad/s", "final_x": "m", "final_y": "m", "t_goal": "s", "goal_distance": "m",
+          "gamma": "-", "gain": "-", "foam_rise": "N.m", "foam_da": "N.m", "foam_t_on": "s", "l1": "m", "r": "m",
+          "a5": "N.m", "a6": "N.m", "goal_": "m", "W": "-"}
+
+
+def _unit(name: str) -> str:
+    last = name.rsplit(".", 1)[-1]
+    for k, u in _UNITS.items():
+        if last.startswith(k):
+            return u
+    return "-"
