@@ -178,3 +178,33 @@ def test_swapped_plant_is_checked(resolver, tmp_path, swap_fmu):
     from wmr_cosim.cosim.errors import ScenarioError
     with pytest.raises(ScenarioError, match=r"connections\[0\]: unit mismatch: plant.alpha1 -> sensor.alpha1"):
         system.resolve(scenario.load(path, resolver))
+
+
+def test_cli_runs_every_run_of_a_protocol(built_fmus, tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    path = g1_with_paths(tmp_path, built_fmus, """
+[experiment]
+stop = 6.0
+[[runs]]
+name = "a"
+[[runs]]
+name = "b"
+parameters = { "controller.adapt" = false }
+carry = { "controller.W2_init" = "a.controller.W2" }
+""")
+    out = tmp_path / "out"
+    p = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "run", str(path), "--out", str(out), "--quiet"],
+                       capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    a = np.load(out / "a" / "signals.npy")
+    b = np.load(out / "b" / "signals.npy")
+    assert a["controller.W2"][-1] != 0.05                      # a adapted
+    assert np.all(b["controller.W2"] == a["controller.W2"][-1])  # b started from a's final W2, frozen
+    assert json.loads((out / "b" / "scenario.json").read_text())["instances"]["controller"]["parameters"]["W2_init"] \
+        == a["controller.W2"][-1]
+    p = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "run", str(path), "--variant", "x"],
+                       capture_output=True, text=True)
+    assert p.returncode == 2 and "no variant 'x'" in p.stderr

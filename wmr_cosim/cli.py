@@ -106,6 +106,24 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .runner import default_out, parse_set, run_scenario
 
     out = args.out if args.out is not None else default_out(args.scenario)
+    if str(args.scenario).endswith(".toml"):
+        from .cosim.protocol import plan_runs, run_protocol
+        from .runner import resolve_model
+
+        sc, runs, _ = plan_runs(args.scenario, resolve_model, args.variant)
+        if sc.runs:  # a protocol: every run, in order, into OUT/<run>
+            code = EXIT_OK
+            for name, r in run_protocol(args.scenario, out, resolve_model, variant=args.variant,
+                                        overrides=parse_set(args.set),
+                                        progress=False if args.quiet else None).items():
+                if r.status == "ok":
+                    print(f"{args.scenario} [{name}]: ok, {r.steps} steps in {r.wall_s:.2f} s; results in {out / name}")
+                else:
+                    print(f"wmr-cosim: run {name} {r.status}: {r.message}", file=sys.stderr)
+                code = max(code, r.exit_code)
+            return code
+        if args.variant is not None:
+            raise UsageError(f"--variant {args.variant}: {args.scenario} declares no runs")
     res = run_scenario(args.scenario, out, parse_set(args.set), progress=False if args.quiet else None)
     per = f", {res.wall_s / res.steps * 1e6:.1f} us/step" if res.steps else ""
     if res.status == "ok":
@@ -220,6 +238,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("scenario", type=Path, help="scenario file (.toml)")
     r.add_argument("--out", type=Path, default=None, metavar="DIR", help="results folder (default results/<scenario>)")
     r.add_argument("--set", nargs="*", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
+    r.add_argument("--variant", default=None, help="a variant the scenario declares ([variants.NAME])")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.set_defaults(func=cmd_run)
     c = sub.add_parser("check", help="check a scenario against its FMUs without running it",
