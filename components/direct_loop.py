@@ -12,7 +12,6 @@ floats.  Every output of every component is recorded at every sample t_0 ... t_N
 """
 from __future__ import annotations
 
-import math
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass, field

@@ -31,7 +31,7 @@ import numpy as np
 
 from .archive import safe_extract
 from .errors import EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN_FAILED, CosimError, RunError
-from .instance import STATUS, Instance, real_array, vr_array
+from .instance import Instance, real_array, vr_array
 from .observer import NpyRecorder, write_csv
 from .stepper import InstanceIO, compile_loop, raw
 from .system import Plan

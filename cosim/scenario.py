@@ -117,7 +117,7 @@ def _read(path: Path, seen: tuple[Path, ...] = ()) -> dict[str, Any]:
     unknown = set(doc) - _TOP_KEYS
     if unknown:
         raise ScenarioError(name, sorted(unknown)[0], f"unknown key (allowed: {', '.join(sorted(_TOP_KEYS))})")
-    for iname, inst in (doc.get("instances") or {}).items():
+    for inst in (doc.get("instances") or {}).values():
         if isinstance(inst, dict) and isinstance(inst.get("fmu"), str) and _is_path(inst["fmu"]):
             inst["fmu"] = str((path.parent / inst["fmu"]).resolve())
     if "base" in doc:

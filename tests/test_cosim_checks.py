@@ -1,7 +1,6 @@
 """Every check before the first step fails with one line naming the file, the field and the reason."""
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 import zipfile
@@ -9,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim_support import G1, g1_with_paths
+from cosim_support import g1_with_paths
 from wmr_cosim.cosim import scenario, system
 from wmr_cosim.cosim.archive import check_archive, safe_extract
 from wmr_cosim.cosim.errors import CosimError, FmuLoadError, ScenarioError

@@ -123,7 +123,7 @@ variable = "controller.u1"
 action = "override"
 value = 2.0
 """)
-    res = _run(path, None, tmp_path / "out")
+    assert _run(path, None, tmp_path / "out").status == "ok"
     d = np.load(tmp_path / "out" / "signals.npy")
     # the controller still outputs its own u1 (recorded: it brakes, since the wheel runs ahead of the
     # desired motion), but the plant receives 2 N.m and moves

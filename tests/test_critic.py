@@ -1,11 +1,10 @@
 """The ADP critic against (13), (41), (45)-(51), computed literally with numpy."""
-import math
 
 import numpy as np
 import pytest
 
 from wmr_cosim.components import critic
-from wmr_cosim.components.plant import mass_matrix, mass_matrix_inverse
+from wmr_cosim.components.plant import mass_matrix_inverse
 
 A = (0.0691, 0.0511, 0.0291)
 M = np.array([[A[0] + A[1] + A[2], A[0] - A[1]], [A[0] - A[1], A[0] + A[1] + A[2]]])

@@ -7,7 +7,7 @@ from scipy.integrate import solve_ivp
 
 from wmr_cosim.components import paper
 from wmr_cosim.components.friction import friction
-from wmr_cosim.components.plant import Plant, PlantParams, mass_matrix, mass_matrix_inverse
+from wmr_cosim.components.plant import Plant, mass_matrix, mass_matrix_inverse
 
 A = paper.table1()["a"]
 CF = paper.table1()["cF"]
@@ -69,7 +69,7 @@ def _rk4_error(substeps: int) -> float:
         t = k * h
         u1, u2 = u(t)
         pl.step(t, h, u1, u2)
-        sol = solve_ivp(lambda tt, xx: pl.derivatives(tt, list(xx), u1, u2), (t, t + h), ref,
+        sol = solve_ivp(lambda tt, xx, u1=u1, u2=u2: pl.derivatives(tt, list(xx), u1, u2), (t, t + h), ref,
                         method="DOP853", rtol=1e-13, atol=1e-13)
         ref = sol.y[:, -1]
     return float(np.max(np.abs(np.array(pl.x) - ref)))

@@ -2,16 +2,13 @@
 restart, failures recorded, a real scheduler with two workers."""
 from __future__ import annotations
 
-import json
 import os
-import shutil
 import socket
 import subprocess
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 import pytest
 
@@ -122,7 +119,7 @@ def test_a_failing_point_is_recorded_and_the_sweep_goes_on(tmp_path, cluster2):
 
 
 def test_gamma_search_finds_the_crossing(tmp_path):
-    from wmr_cosim.gamma_search import gamma_search, holds
+    from wmr_cosim.gamma_search import gamma_search
 
     r = gamma_search(DATA / "short_protocol.toml", tmp_path / "gs", grid=[4.0, 40.0], workers=2, progress=False)
     curve = r["curve"]

@@ -5,7 +5,7 @@ import sys
 
 import pytest
 
-from wmr_cosim.components.controller import Controller, ControllerParams
+from wmr_cosim.components.controller import ControllerParams
 from wmr_cosim.components.direct_loop import run_direct
 from wmr_cosim.components.plant import Plant, PlantParams
 from wmr_cosim.components.sensor import Sensor, SensorParams

@@ -133,7 +133,7 @@ def _gamma(ax, d: dict[str, Any], title: str, gamma: float) -> None:
 
 def _dF(ax, d: dict[str, Any], title: str) -> None:
     t = d["time"]
-    for (i, wl, col), est, true in zip(WHEELS, d["dF_hat"], d["dF_true"]):
+    for (_, wl, col), est, true in zip(WHEELS, d["dF_hat"], d["dF_true"]):
         ax.plot(t, est, color=col, lw=1.0, label=f"dF_hat (52), {wl}")
         ax.plot(t, true, color=col, lw=0.8, ls="--", label=f"injected dF, {wl}")
     ax.set_xlabel("t [s]")
