@@ -13,6 +13,15 @@ NAME:
     sweep   a 16-run sweep (scenarios/sweep-geometry.toml) through the Dask path with 1 and with 2 worker
             processes: sweep_startup_s (cluster start-up, excluded), sweep_1w_s, sweep_2w_s, sweep_speedup
             (target >= 1.7 on 2 cores) and same_results.
+    interop the G1 learning system (Jacobi, exported as SSP with the signals the comparison needs) under our
+            master and third-party masters, each in a fresh process as its users run it, with its defaults
+            (wmr_cosim.interop): peers = wall seconds per master (median of up to 3 runs; creating the
+            execution, initialisation and 25,000 steps, recording included; not importing the library):
+            ours (load_ssp + resolve + execution.run, signals.npy), libcosim (from_ssp_file, time-series
+            observer), ecos (EcosSimulation, CSV writer, step(n)), fmpy_ssp (simulate_ssp), and ecos_pinned
+            (ecos with its process pinned to one core); c_plant_s = ours with the C plant (WmrCPlant.fmu)
+            in place of the Python plant.  Target: ours the fastest of the default runs, and within 10 % of
+            ecos_pinned.
 """
 from __future__ import annotations
 
@@ -130,7 +139,46 @@ def bench_sweep(repeats: int) -> dict[str, float]:
     return figures
 
 
-BENCHES = {"loop": bench_loop_all, "paper": bench_paper, "sweep": bench_sweep}
+def bench_interop(repeats: int) -> dict[str, float]:
+    """Ours, libcosim, ecos, FMPy's simulate_ssp (and ecos pinned) on the exported G1 Jacobi system."""
+    import tempfile
+    from pathlib import Path
+
+    from wmr_cosim.cosim import scenario, system
+    from wmr_cosim.cosim.ssp import export_ssp
+    from wmr_cosim.interop import SIGNALS, run_peer
+    from wmr_cosim.runner import resolve_model
+
+    root = Path(__file__).resolve().parents[1]
+    n = max(1, min(repeats, 3))
+    figures: dict[str, float] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        archives = {}
+        for key, scen in (("python", "g1_learn.toml"), ("c", "g1_c_plant.toml")):
+            sc = scenario.load(root / "scenarios" / scen, resolve_model)
+            sc.algorithm, sc.record = "jacobi", list(SIGNALS)
+            archives[key] = export_ssp(system.resolve(sc), Path(tmp) / f"{key}.ssp")
+        walls: dict[str, list[float]] = {}
+        steps = {}
+        for _ in range(n):  # interleaved, so that a slow phase of the machine hits every master alike
+            for peer in ("ours", "libcosim", "ecos", "fmpy_ssp", "ecos_pinned"):
+                r = run_peer(peer, archives["python"], 50.0, 0.002)
+                walls.setdefault(peer, []).append(r["wall_s"])
+                steps[peer] = r["steps"]
+            c_signals = [x.replace("plant.x_A", "plant.pos_x").replace("plant.y_A", "plant.pos_y") for x in SIGNALS]
+            walls.setdefault("c_plant", []).append(run_peer("ours", archives["c"], 50.0, 0.002, c_signals)["wall_s"])
+    med = {k: round(statistics.median(v), 3) for k, v in walls.items()}
+    figures["peers"] = {k: med[k] for k in ("ours", "libcosim", "ecos", "fmpy_ssp", "ecos_pinned")}
+    figures["c_plant_s"] = med["c_plant"]
+    figures["steps"] = steps
+    figures["repeats"] = n
+    default = {k: v for k, v in figures["peers"].items() if k != "ecos_pinned"}
+    figures["ours_fastest"] = min(default, key=default.get) == "ours"
+    figures["ours_to_ecos_pinned"] = round(med["ours"] / med["ecos_pinned"], 3)
+    return figures
+
+
+BENCHES = {"loop": bench_loop_all, "paper": bench_paper, "sweep": bench_sweep, "interop": bench_interop}
 
 
 def main(argv: list[str] | None = None) -> int:

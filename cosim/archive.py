@@ -25,17 +25,22 @@ def check_archive(path: str | os.PathLike) -> list[zipfile.ZipInfo]:
         raise FmuLoadError(f"{path}: not a zip archive ({exc})") from None
     with zf:
         infos = zf.infolist()
+    check_entries(str(path), infos)
+    return infos
+
+
+def check_entries(label: str, infos: list[zipfile.ZipInfo]) -> None:
+    """FmuLoadError naming ``label`` and the first entry that is absolute, climbs out with '..' or is a link."""
     for info in infos:
         name = info.filename
         p = PurePosixPath(name.replace("\\", "/"))
         mode = (info.external_attr >> 16) & 0xFFFF
         if name.startswith(("/", "\\")) or (len(name) > 1 and name[1] == ":"):
-            raise FmuLoadError(f"{path}: refused: entry '{name}' has an absolute path")
+            raise FmuLoadError(f"{label}: refused: entry '{name}' has an absolute path")
         if ".." in p.parts:
-            raise FmuLoadError(f"{path}: refused: entry '{name}' would extract outside its folder")
+            raise FmuLoadError(f"{label}: refused: entry '{name}' would extract outside its folder")
         if stat.S_ISLNK(mode):
-            raise FmuLoadError(f"{path}: refused: entry '{name}' is a symbolic link")
-    return infos
+            raise FmuLoadError(f"{label}: refused: entry '{name}' is a symbolic link")
 
 
 def safe_extract(path: str | os.PathLike, dest: str | os.PathLike) -> Path:

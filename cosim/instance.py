@@ -9,6 +9,8 @@ collection).
 from __future__ import annotations
 
 import ctypes
+import itertools
+import weakref
 from collections import deque
 from typing import Any
 
@@ -28,6 +30,28 @@ except ImportError:  # pragma: no cover
     from fmpy.fmi1 import calloc, free  # type: ignore
 
 
+# FMPy's C logger proxy (it formats the variadic arguments ctypes cannot pass) forwards every message to ONE
+# process-wide logger, the one last registered with addLoggerProxy.  So the master registers one dispatcher,
+# alive for the whole process, that routes each message to its Instance by the componentEnvironment the
+# Instance gave at instantiation.  (Registering each Instance's own logger sent every FMU's messages to the
+# last Instance created, and, once that Instance was collected, made any later proxied message -- FMPy's
+# default callbacks included -- call freed memory: a segfault.)
+_LIVE: "weakref.WeakValueDictionary[int, Instance]" = weakref.WeakValueDictionary()
+_IDS = itertools.count(1)
+
+
+def _dispatch(env, instance_name, status, category, message) -> None:
+    inst = _LIVE.get(env or 0)
+    if inst is not None:
+        inst._logger(env, instance_name, status, category, message)
+    else:  # an FMU this master did not instantiate (FMPy's own defaults): print as FMPy does
+        label = STATUS[status] if 0 <= status < len(STATUS) else status
+        print(f"[{label}] {(message or b'').decode('utf-8', 'replace')}")
+
+
+_DISPATCH = fmi2CallbackLoggerTYPE(_dispatch)
+
+
 class Instance:
     """An instantiated FMU (FMI 2.0 co-simulation) with its log lines."""
 
@@ -42,7 +66,10 @@ class Instance:
         self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir,
                              modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
         self._callbacks = fmi2CallbackFunctions()
-        self._callbacks.logger = fmi2CallbackLoggerTYPE(self._logger)
+        self._env = next(_IDS)
+        _LIVE[self._env] = self
+        self._callbacks.componentEnvironment = self._env
+        self._callbacks.logger = _DISPATCH
         self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
         try:  # FMPy's C proxy formats the variadic message arguments

@@ -124,6 +124,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             return code
         if args.variant is not None:
             raise UsageError(f"--variant {args.variant}: {args.scenario} declares no runs")
+    elif args.variant is not None:
+        raise UsageError(f"--variant {args.variant}: only a scenario file (.toml) declares variants")
     res = run_scenario(args.scenario, out, parse_set(args.set), progress=False if args.quiet else None)
     per = f", {res.wall_s / res.steps * 1e6:.1f} us/step" if res.steps else ""
     if res.status == "ok":
@@ -138,13 +140,28 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def cmd_check(args: argparse.Namespace) -> int:
     """Every check of a scenario against its FMUs, without stepping."""
-    from .runner import load_plan, parse_set
+    import contextlib
 
-    plan = load_plan(args.scenario, parse_set(args.set))
-    sc = plan.scenario
-    print(f"{args.scenario}: ok: {len(plan.instances)} instances ({', '.join(plan.order)}), "
-          f"{len(plan.connections)} connections, {len(plan.record)} recorded variables, {len(plan.events)} events, "
-          f"{plan.n_steps} steps of {sc.step:g} s ({sc.algorithm})")
+    from .cosim.ssp import is_ssp
+    from .runner import load_plan, parse_set, ssp_plan
+
+    with (ssp_plan(args.scenario, parse_set(args.set)) if is_ssp(args.scenario)
+          else contextlib.nullcontext(load_plan(args.scenario, parse_set(args.set)))) as plan:
+        sc = plan.scenario
+        print(f"{args.scenario}: ok: {len(plan.instances)} instances ({', '.join(plan.order)}), "
+              f"{len(plan.connections)} connections, {len(plan.record)} recorded variables, {len(plan.events)} events, "
+              f"{plan.n_steps} steps of {sc.step:g} s ({sc.algorithm})")
+    return EXIT_OK
+
+
+def cmd_export_ssp(args: argparse.Namespace) -> int:
+    """Write a scenario as an SSP 1.0 archive (FMUs, system structure, parameter set, default experiment)."""
+    from .runner import export_ssp, parse_set
+
+    if not str(args.out).lower().endswith(".ssp"):
+        raise UsageError(f"--out {str(args.out)!r}: an SSP archive's name ends in .ssp")
+    out = export_ssp(args.scenario, args.out, parse_set(args.set))
+    print(f"{args.scenario}: written {out}")
     return EXIT_OK
 
 
@@ -235,7 +252,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "Results go to a folder: signals.npy (written as the run goes), signals.csv, "
                                    "scenario.json, logs/, summary.json. Exit codes: 0 ok, 1 the run failed "
                                    "(an FMU error, a non-finite value), 2 bad input, 130 interrupted.")
-    r.add_argument("scenario", type=Path, help="scenario file (.toml)")
+    r.add_argument("scenario", type=Path, help="scenario file (.toml) or SSP 1.0 archive (.ssp)")
     r.add_argument("--out", type=Path, default=None, metavar="DIR", help="results folder (default results/<scenario>)")
     r.add_argument("--set", nargs="*", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
     r.add_argument("--variant", default=None, help="a variant the scenario declares ([variants.NAME])")
@@ -244,9 +261,19 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("check", help="check a scenario against its FMUs without running it",
                        description="Run every check of a scenario (files, variables, causality, types, units, "
                                    "steps, ranges, keys) without stepping. Exit code 0 if it would run, 2 if not.")
-    c.add_argument("scenario", type=Path, help="scenario file (.toml)")
+    c.add_argument("scenario", type=Path, help="scenario file (.toml) or SSP 1.0 archive (.ssp)")
     c.add_argument("--set", nargs="*", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
     c.set_defaults(func=cmd_check)
+    e = sub.add_parser("export-ssp", help="write a scenario as an SSP 1.0 archive",
+                       description="Write a scenario as an SSP 1.0 archive that other tools (libcosim, ecos, FMPy, "
+                                   "OMSimulator) run: the FMUs as resources, SystemStructure.ssd (components, "
+                                   "connectors, connections with linear transforms, units, default experiment with "
+                                   "the step), the parameter values as an SSV parameter set named 'parameters'. "
+                                   "Timed events cannot be expressed in SSP 1.0 and are refused.")
+    e.add_argument("scenario", type=Path, help="scenario file (.toml)")
+    e.add_argument("--out", type=Path, required=True, metavar="FILE.ssp", help="the archive to write")
+    e.add_argument("--set", nargs="*", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
+    e.set_defaults(func=cmd_export_ssp)
     i = sub.add_parser("info", help="describe an FMU", description="Describe an FMU: model, FMI capabilities, "
                        "default experiment, and every variable with causality, type, unit, range and start.")
     i.add_argument("fmu", type=Path, help="an .fmu file")

@@ -2,20 +2,28 @@
 ``WmrPlant`` resolve to FMUs built on demand; the ``run``, ``check`` and ``info`` commands."""
 from __future__ import annotations
 
+import contextlib
 import json
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from .cosim import execution, scenario, system
+from .cosim import execution, scenario, ssp, system
 from .cosim.errors import CosimError, ScenarioError
 from .cosim.model import load_model
 
 
 def resolve_model(name: str) -> Path | None:
-    """Our FMU for a model name (WmrPlant, WmrSensor, WmrController), built when missing or when its
-    sources changed; None for any other name."""
+    """Our FMU for a model name (WmrPlant, WmrSensor, WmrController; WmrCPlant, the plant in C), built when
+    missing or when its sources changed; None for any other name."""
     from .fmus.build import SLAVES, BuildError, build_all
 
+    if name == "WmrCPlant":
+        from .fmus.cplant_build import CBuildError, build_c_plant
+        try:
+            return build_c_plant()
+        except CBuildError as exc:
+            raise CosimError(f"building {name}: {' '.join(str(exc).split())}") from None
     if name not in SLAVES:
         return None
     try:
@@ -44,9 +52,27 @@ def parse_set(items: list[str] | None) -> dict[str, Any]:
 
 
 def load_plan(path: str | Path, overrides: dict[str, Any] | None = None) -> system.Plan:
-    """Parse a scenario file and run every check against its FMUs."""
+    """Parse a scenario file (TOML, or an SSP archive: ``.ssp``) and run every check against its FMUs.
+    For an SSP archive the plan's FMUs live in a temporary folder: use :func:`ssp_plan` to remove it."""
+    if ssp.is_ssp(path):
+        raise CosimError(f"{path}: an SSP archive, not a scenario file (.toml)")  # (run/check use ssp_plan)
     sc = scenario.load(path, resolve_model, overrides)
     return system.resolve(sc)
+
+
+@contextlib.contextmanager
+def ssp_plan(path: str | Path, overrides: dict[str, Any] | None = None) -> Iterator[system.Plan]:
+    """The checked plan of an SSP archive, its FMUs extracted for the time of the ``with`` block."""
+    arch = ssp.load_ssp(path, overrides=overrides)
+    try:
+        yield system.resolve(arch.scenario)
+    finally:
+        arch.cleanup()
+
+
+def export_ssp(path: str | Path, out: str | Path, overrides: dict[str, Any] | None = None) -> Path:
+    """Write the scenario file ``path`` as an SSP 1.0 archive ``out``."""
+    return ssp.export_ssp(load_plan(path, overrides), out)
 
 
 def default_out(path: str | Path) -> Path:
@@ -55,8 +81,12 @@ def default_out(path: str | Path) -> Path:
 
 def run_scenario(path: str | Path, out: str | Path | None = None, overrides: dict[str, Any] | None = None,
                  progress: bool | None = None) -> execution.RunResult:
+    out = out if out is not None else default_out(path)
+    if ssp.is_ssp(path):
+        with ssp_plan(path, overrides) as plan:
+            return execution.run(plan, out, progress=progress)
     plan = load_plan(path, overrides)
-    return execution.run(plan, out if out is not None else default_out(path), progress=progress)
+    return execution.run(plan, out, progress=progress)
 
 
 def describe_fmu(path: str | Path) -> str:
@@ -81,4 +111,5 @@ def describe_fmu(path: str | Path) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["CosimError", "ScenarioError", "resolve_model", "parse_set", "load_plan", "run_scenario", "describe_fmu"]
+__all__ = ["CosimError", "ScenarioError", "resolve_model", "parse_set", "load_plan", "ssp_plan", "export_ssp",
+           "run_scenario", "describe_fmu"]
