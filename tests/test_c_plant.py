@@ -214,3 +214,14 @@ def test_fmpy_default_logging_still_works_after_our_master_ran(c_plant, built_fm
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr[-2000:]
     assert "[Error] inertia_a1..a3 = 1, 0, -0.5: M of (35) is not positive definite" in p.stdout
+
+
+def test_cli_build_with_the_c_plant(tmp_path):
+    import subprocess
+    import sys
+
+    p = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "build", "--c-plant", "--out", str(tmp_path)],
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    assert (tmp_path / "WmrCPlant.fmu").is_file() and (tmp_path / "WmrPlant.fmu").is_file()
+    assert "WmrCPlant" in p.stdout

@@ -98,6 +98,14 @@ def cmd_build(args: argparse.Namespace) -> int:
         return EXIT_FAILED
     for model, path in paths.items():
         print(f"{model}: {path} ({'up to date' if current.get(model) else 'built'})")
+    if args.c_plant:
+        from .fmus.cplant_build import CBuildError, build_c_plant
+
+        try:
+            print(f"WmrCPlant: {build_c_plant(out, force=args.force)} (C, built with cmake when its sources changed)")
+        except CBuildError as exc:
+            print(f"wmr-cosim: build failed: {' '.join(str(exc).split())}", file=sys.stderr)
+            return EXIT_FAILED
     return EXIT_OK
 
 
@@ -245,6 +253,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--out", type=Path, default=None, metavar="DIR",
                    help="output folder (default: build/fmus of the source tree, git-ignored)")
     b.add_argument("--force", action="store_true", help="rebuild even if up to date")
+    b.add_argument("--c-plant", action="store_true",
+                   help="also build WmrCPlant.fmu, the plant in C (needs cmake and a C compiler)")
     b.set_defaults(func=cmd_build)
 
     r = sub.add_parser("run", help="run a scenario (TOML) through the co-simulation master",
