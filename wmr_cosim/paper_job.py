@@ -237,7 +237,7 @@ def report_blocks(results: dict[str, Any], variant: str, figures: list[Path], ou
                      fmt(rise[0], 3) + " / " + fmt(rise[1], 3) if rise else "-",
                      fmt(rep["foam_control_rise_line_Nm"] if t == "LINE" else rep["foam_control_rise_goal_Nm"], 1),
                      fmt(fo["final_u"][0], 2) + " / " + fmt(fo["final_u"][1], 2) if fo.get("final_u") else "-"])
-    b.append(("table", ["task", "cruising u, wheel 1 / 2 [N.m]", "peak |u| [N.m]", "rise on foam (2 s after the edge) [N.m]",
+    b.append(("table", ["task", "cruising u, wheel 1 / 2 [N.m]", "peak of abs(u) [N.m]", "rise on foam (2 s after the edge) [N.m]",
                         "paper's rise [N.m]", "u at 50 s, foam [N.m]"], rows))
     b.append(("p", f"The paper: cruising control about {rep['line_cruise_control_Nm']:.0f} N.m (line), a peak of "
                    f"about {rep['foam_control_peak_Nm']} N.m at the foam's edge and a static control of "
