@@ -52,7 +52,6 @@ class RunResult:
     columns: list[str]
     final: dict[str, float] = field(default_factory=dict)
     fmi_s: float | None = None  # time inside FMI calls (only with timing=True)
-    failed_instance: str = ""
 
     @property
     def exit_code(self) -> int:
@@ -146,7 +145,7 @@ def run(plan: Plan, out_dir: str | os.PathLike | None, progress: bool | None = N
     work = Path(tempfile.mkdtemp(prefix="wmr-cosim-fmus-"))
     instances: dict[str, Instance] = {}
     recorder: NpyRecorder | None = None
-    status, message, failed = "ok", "", ""
+    status, message = "ok", ""
     k_done = 0
     setup_s = wall_s = 0.0
     fmi_acc = [0.0]
@@ -295,13 +294,13 @@ def run(plan: Plan, out_dir: str | os.PathLike | None, progress: bool | None = N
                     try:
                         _flush(recorder, chunk, rec_cols, columns)
                     except RunError as exc:
-                        status, message, failed = "failed", str(exc), exc.instance
+                        status, message = "failed", str(exc)
                         k_done = min(k_done, int(round((exc.time - t0) / h)))
                     chunk.clear()
         except KeyboardInterrupt:
             status, message = "interrupted", f"interrupted by the user at t = {t0 + k_done * h:.6g} s"
     except RunError as exc:
-        status, message, failed = "failed", str(exc), exc.instance
+        status, message = "failed", str(exc)
     except CosimError as exc:
         status, message = "failed", str(exc)
     finally:
@@ -321,7 +320,7 @@ def run(plan: Plan, out_dir: str | os.PathLike | None, progress: bool | None = N
     for n, inst in instances.items():
         (out / "logs" / f"{n}.log").write_text("\n".join(inst.all_log) + ("\n" if inst.all_log else ""))
     res = RunResult(status, message, k_done, t0 + k_done * h, wall_s, setup_s, out if keep else None, columns,
-                    final, fmi_acc[0] if timing else None, failed)
+                    final, fmi_acc[0] if timing else None)
     _write_json(out / "summary.json", {
         "status": status, "message": message, "steps": k_done, "n_steps": n_steps, "t_end": res.t_end,
         "step": h, "algorithm": sc.algorithm, "wall_s": round(wall_s, 6), "setup_s": round(setup_s, 6),

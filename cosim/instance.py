@@ -112,14 +112,7 @@ class Instance:
 
     def instantiate(self) -> None:
         self.call("fmi2Instantiate", self.fmu.instantiate, False, self._callbacks, True)
-        self.c = self.fmu.component
-        self.setReal = self.fmu.dll.fmi2SetReal
-        self.getReal = self.fmu.dll.fmi2GetReal
-        self.setInteger = self.fmu.dll.fmi2SetInteger
-        self.getInteger = self.fmu.dll.fmi2GetInteger
-        self.setBoolean = self.fmu.dll.fmi2SetBoolean
-        self.getBoolean = self.fmu.dll.fmi2GetBoolean
-        self.doStep = self.fmu.dll.fmi2DoStep
+        self.c = self.fmu.component  # the stepping loop calls the library through stepper.raw()
 
     def set_values(self, pairs: list[tuple[Variable, Any]]) -> None:
         """Set start values / parameters by type."""
@@ -133,9 +126,6 @@ class Instance:
                 self.call(f"fmi2SetBoolean({var.name})", self.fmu.setBoolean, vr, [bool(value)])
             elif var.type == "String":
                 self.call(f"fmi2SetString({var.name})", self.fmu.setString, vr, [str(value)])
-
-    def get_real(self, vrs: list[int]) -> list[float]:
-        return self.call("fmi2GetReal", self.fmu.getReal, vrs)
 
     def shutdown(self) -> None:
         """Terminate (if initialised) and free, exactly once; nothing at all after a Fatal."""

@@ -59,10 +59,6 @@ class FmuModel:
         return self.md.modelName
 
     @property
-    def model_identifier(self) -> str:
-        return self.md.coSimulation.modelIdentifier
-
-    @property
     def can_vary_step(self) -> bool:
         return bool(self.md.coSimulation.canHandleVariableCommunicationStepSize)
 

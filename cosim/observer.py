@@ -24,9 +24,9 @@ class NpyRecorder:
         self.dtype = np.dtype([(c, "<f8") for c in self.columns])
         self.rows = 0
         self._fh = open(self.path, "wb+")
-        self._data_offset = self._write_header(0, reserve=True)
+        self._write_header(0)
 
-    def _write_header(self, rows: int, reserve: bool = False) -> int:
+    def _write_header(self, rows: int) -> None:
         """Write the .npy 1.0 header for ``rows`` rows; its length never changes (room for 10^15 rows)."""
         d = {"descr": npformat.dtype_to_descr(self.dtype), "fortran_order": False, "shape": (rows,)}
         width = len(repr({**d, "shape": (10 ** 15,)}))
@@ -36,7 +36,6 @@ class NpyRecorder:
         self._fh.seek(0)
         self._fh.write(b"\x93NUMPY\x01\x00" + len(body).to_bytes(2, "little") + body.encode("latin1"))
         self._fh.flush()
-        return 10 + len(body)
 
     def append(self, block: np.ndarray) -> None:
         """Append a (rows, len(columns)) float64 block and make the file consistent on disk."""
@@ -55,11 +54,6 @@ class NpyRecorder:
         if not self._fh.closed:
             self._fh.flush()
             self._fh.close()
-
-
-def load_signals(path: str | os.PathLike) -> np.ndarray:
-    """The structured array of a recording (``numpy.load`` works as well)."""
-    return np.load(path)
 
 
 def write_csv(npy_path: str | os.PathLike, csv_path: str | os.PathLike) -> None:

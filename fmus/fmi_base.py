@@ -63,6 +63,9 @@ UNITS: dict[str, dict[str, int]] = {
 }
 
 #: Relative tolerance within which a step size equals the previous one, or a time a multiple of it.
+#: The snapping rule (inlined in do_step and the controller's step, both on the hot path): a time t
+#: within STEP_RTOL * |t| of round(t / h) * h is that multiple, so a master that accumulates time sees
+#: the times k h of the direct loop.
 STEP_RTOL = 1e-9
 
 _CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input,
@@ -459,7 +462,7 @@ class WmrSlave(Fmi2Slave):
                 h = self._before_step(current_time, h)
                 if h is None:
                     return False
-            # a time within STEP_RTOL of a whole multiple of h is that multiple (see snap_time)
+            # a time within STEP_RTOL of a whole multiple of h is that multiple (see STEP_RTOL)
             t = current_time
             tn = round(t / h) * h
             if tn != t and abs(tn - t) <= STEP_RTOL * abs(t):
@@ -562,16 +565,6 @@ def parameters_of(defaults: Any, spec: dict[str, tuple], tunable: tuple[str, ...
         else:
             raise TypeError(f"{type(defaults).__name__}.{name}: no FMU type for {value!r}")
     return out
-
-
-def snap_time(t: float, h: float) -> float:
-    """t, or the nearest whole multiple of h if t is within STEP_RTOL (relative) of it: a master that
-    accumulates time then sees the times k h of the direct loop."""
-    n = round(t / h)
-    tn = n * h
-    if tn != t and abs(tn - t) <= STEP_RTOL * abs(t):
-        return tn
-    return t
 
 
 def _cause(exc: BaseException) -> str:

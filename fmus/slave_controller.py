@@ -182,7 +182,7 @@ class WmrController(WmrSlave):
         if s - s != 0.0:
             raise ValueError("non-finite input: " + ", ".join(
                 f"{v_.name} = {val!r}" for v_, val in zip(self._inputs, x)))
-        tn = t + h  # the sample time: (k + 1) h when t = k h, as in the direct loop (see fmi_base.snap_time)
+        tn = t + h  # the sample time: (k + 1) h when t = k h, as in the direct loop (see fmi_base.STEP_RTOL)
         tr = round(tn / h) * h
         if tr != tn and abs(tr - tn) <= STEP_RTOL * abs(tn):
             tn = tr

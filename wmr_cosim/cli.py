@@ -233,6 +233,15 @@ def cmd_gamma_search(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _dask_options(p: argparse.ArgumentParser) -> None:
+    """--workers, --scheduler, --quiet: where the points of a sweep or gamma search run."""
+    p.add_argument("--workers", type=int, default=None, help="local worker processes (default: one per core)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="an existing dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 (workers must see the "
+                        "same files and have this project installed)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="wmr-cosim", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -312,11 +321,7 @@ def build_parser() -> argparse.ArgumentParser:
                                     "results.csv, figures/, points/ (a restarted sweep skips the points done).")
     sw.add_argument("sweep", type=Path, help="sweep file (.toml)")
     sw.add_argument("--out", type=Path, default=None, metavar="DIR", help="results folder (default results/<sweep>)")
-    sw.add_argument("--workers", type=int, default=None, help="local worker processes (default: one per core)")
-    sw.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                    help="an existing dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 (workers must see the "
-                         "same files and have this project installed)")
-    sw.add_argument("--quiet", action="store_true", help="no progress bar")
+    _dask_options(sw)
     sw.set_defaults(func=cmd_sweep)
     gs = sub.add_parser("gamma-search", help="the smallest gamma for which the H-infinity condition holds",
                         description="gamma* of (53) against gamma on a grid (the whole learning + frozen + foam "
@@ -327,9 +332,7 @@ def build_parser() -> argparse.ArgumentParser:
     gs.add_argument("--out", type=Path, default=None, metavar="DIR")
     gs.add_argument("--grid", type=float, nargs="+", default=None, metavar="GAMMA", help="the gamma grid")
     gs.add_argument("--variant", default="freeze", help="a variant the protocol declares (default freeze)")
-    gs.add_argument("--workers", type=int, default=None)
-    gs.add_argument("--scheduler", default=None, metavar="ADDRESS")
-    gs.add_argument("--quiet", action="store_true")
+    _dask_options(gs)
     gs.set_defaults(func=cmd_gamma_search)
     return ap
 
