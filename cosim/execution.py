@@ -1,24 +1,20 @@
-"""The execution: owns the instances and the clock, steps them at a fixed communication step with a
-Gauss-Seidel or Jacobi algorithm, applies the scenario's events, records, and reports.
+"""The execution: owns the instances and the clock; runs a plan from set-up to the last step and writes
+its results folder.
 
-Per step k (t_k = start + k h; time is always computed as start + k h, never accumulated):
-  * Gauss-Seidel, in the scenario's order: for each instance, set its inputs from the current values of
-    the outputs connected to them (an instance later in the order sees the outputs its predecessors
-    produced in this step), do the step, get its outputs.
-  * Jacobi: set every instance's inputs from the outputs of the previous step, step all, get all.
-Initialisation follows the order too: every instance enters initialisation mode; then, in order, each
-gets its inputs from the connected outputs and exits initialisation mode.
+``run(plan, out)`` reads as its phases: load the FMUs, initialise (instantiate, set up the experiment, set
+parameters and start values, enter initialisation mode, exchange outputs to inputs until nothing changes,
+exit initialisation mode), step (the algorithm's generated loop, in segments between events and flushes),
+and finish (terminate and free every instance exactly once; nothing after a Fatal).
 
 The run stops at the first non-OK status of any FMU call (Warning included) or the first non-finite value
 passed along a connection; non-finite values in recorded outputs stop it at the next flush of the
-recording.  What was recorded up to there is on disk.  Every instance is terminated and freed exactly
-once, on success, on error and on Ctrl-C, except an instance that reported Fatal (no call at all).
+recording.  An FMU that ends the simulation itself (Discard from fmi2DoStep with fmi2Terminated true)
+ends the run cleanly at its last successful time.  What was recorded up to there is on disk.
 """
 from __future__ import annotations
 
 import ctypes
-import json
-import os
+import math
 import shutil
 import sys
 import tempfile
@@ -29,20 +25,22 @@ from typing import Any
 
 import numpy as np
 
+from .algorithm import InstanceIO, compile_loop
 from .archive import safe_extract
 from .errors import EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN_FAILED, CosimError, RunError
-from .instance import Instance, real_array, vr_array
-from .observer import NpyRecorder, write_csv
-from .stepper import InstanceIO, compile_loop, raw
+from .instance import Instance, raw, vr_array
+from .recording import NpyRecorder, RowBuffer, write_csv, write_json
 from .system import Plan
+from .wiring import RowLayout, Wiring, discrete_copier, table_feeder
 
 #: Rows recorded between two flushes to disk (and progress updates).
 FLUSH_ROWS = 2500
+DISCARD = 2
 
 
 @dataclass
 class RunResult:
-    status: str                 # 'ok', 'failed', 'interrupted'
+    status: str                 # 'ok', 'terminated' (by an FMU), 'failed', 'interrupted'
     message: str
     steps: int
     t_end: float
@@ -55,281 +53,293 @@ class RunResult:
 
     @property
     def exit_code(self) -> int:
-        return {"ok": EXIT_OK, "interrupted": EXIT_INTERRUPTED}.get(self.status, EXIT_RUN_FAILED)
+        return {"ok": EXIT_OK, "terminated": EXIT_OK, "interrupted": EXIT_INTERRUPTED}.get(self.status,
+                                                                                          EXIT_RUN_FAILED)
 
 
-def _timed(fn: Any, acc: list[float]) -> Any:
-    pc = _time.perf_counter
+class _Stop(Exception):
+    """An FMU ended the simulation itself at ``t``."""
 
-    def wrapped(*args: Any) -> int:
-        t0 = pc()
-        r = fn(*args)
-        acc[0] += pc() - t0
-        return r
-    return wrapped
+    def __init__(self, name: str, t: float) -> None:
+        self.name, self.t = name, t
 
 
-class _Wiring:
-    """Where every Real input set by the master takes its value from, and the events' overrides."""
+class Execution:
+    """One run of a plan: its instances, wiring, row buffer and recording."""
 
-    def __init__(self, plan: Plan, out_arr: dict[str, Any], need: dict[str, list[int]]) -> None:
-        self.plan = plan
-        self.vrs: dict[str, list[int]] = {n: [] for n in plan.order}
-        self.base: dict[tuple[str, int], tuple[Any, int, float, float]] = {}   # (inst, pos) -> source
-        self.feeds: dict[tuple[str, int], tuple[str, int]] = {}                 # (inst, pos) -> output (inst, vr)
-        for c in plan.connections:
-            if c.dst_var.type != "Real":
-                continue
-            pos = self._pos(c.dst, c.dst_var.vr)
-            self.base[(c.dst, pos)] = (out_arr[c.src], need[c.src].index(c.src_var.vr), c.factor, c.offset)
-            self.feeds[(c.dst, pos)] = (c.src, c.src_var.vr)
-        for ev in plan.events:  # an unconnected input driven by events: its start value until overridden
-            if ev.var.causality == "input" and (ev.instance, self._pos(ev.instance, ev.var.vr)) not in self.base:
-                start = ev.var.start if ev.var.start is not None else 0.0
-                for v, val in plan.instances[ev.instance].parameters:
-                    if v.vr == ev.var.vr:
-                        start = val
-                self.base[(ev.instance, self._pos(ev.instance, ev.var.vr))] = (real_array([float(start)]), 0, 1.0, 0.0)
-        self.overrides: dict[tuple[str, int, str], tuple[str, float]] = {}
+    def __init__(self, plan: Plan, out: Path, timing: bool = False) -> None:
+        self.plan, self.out, self.timing = plan, out, timing
+        sc = plan.scenario
+        self.t0, self.h, self.n_steps = sc.start, sc.step, plan.n_steps
+        self.work = Path(tempfile.mkdtemp(prefix="wmr-cosim-fmus-"))
+        self.instances: dict[str, Instance] = {}
+        self.columns = ["time"] + [r.column for r in plan.record]
+        self.types = ["Real"] + [r.var.type for r in plan.record]
+        self.recorder: NpyRecorder | None = None
+        self.rows: RowBuffer | None = None
+        self.ios: list[InstanceIO] = []
+        self.fmi_acc = [0.0]
+        self.k_done = 0
+        self.setup_s = self.wall_s = 0.0
+        self.status, self.message = "ok", ""
 
-    def _pos(self, inst: str, vr: int) -> int:
-        vrs = self.vrs[inst]
-        if vr not in vrs:
-            vrs.append(vr)
-        return vrs.index(vr)
+    # ---------------------------------------------------------------- set-up
+    def load(self) -> None:
+        """Extract every FMU file once and create an Instance per instance of the plan."""
+        unz: dict[Path, str] = {}
+        for name, ip in self.plan.instances.items():
+            p = ip.model.path.resolve()
+            if p not in unz:
+                unz[p] = str(safe_extract(p, self.work / f"{len(unz)}_{p.stem}"))
+            self.instances[name] = Instance(name, ip.model.md, unz[p], self.out / "logs" / f"{name}.log",
+                                            ip.spec.logging)
 
-    def apply(self, ev: Any) -> None:
-        key = (ev.instance, ev.var.vr, ev.var.causality)
-        if ev.action == "reset":
-            self.overrides.pop(key, None)
-            return
-        prev = self.overrides.get(key)
-        if ev.action == "bias" and prev is not None:
-            self.overrides[key] = (prev[0], prev[1] + ev.value)
-        else:
-            self.overrides[key] = (ev.action, float(ev.value))
+    def initialise(self, check_inputs: bool) -> None:
+        """Instantiate, set up, set start values, initialise with the inputs at their fixed point, and
+        record the row at the start time."""
+        sc = self.plan.scenario
+        for name, inst in self.instances.items():
+            inst.instantiate()
+            inst.setup_experiment(self.t0, sc.stop, sc.tolerance)
+            inst.set_values(self.plan.instances[name].parameters)
+        for inst in self.instances.values():
+            inst.enter_initialization()
+        self.layout = RowLayout.of(self.plan)
+        self.wiring = Wiring(self.plan, self.layout)
+        self.ios = [self._io(n) for n in self.plan.order]
+        self._exchange_initial(check_inputs)
+        for io in self.ios:
+            self.instances[io.name].exit_initialization()
+        self._get_all(self.t0)
+        self.recorder = NpyRecorder(self.out / "signals.npy", self.columns, self.types)
+        self.rows = RowBuffer(self.recorder, [0] + [self.layout.slot(r) for r in self.plan.record])
+        self.layout.row[0] = self.t0
+        self.rows.chunk.append(bytes(self.layout.row))
 
-    def copies(self, inst: str) -> list[tuple[int, Any, int, float, float]]:
-        out = []
-        for pos, vr in enumerate(self.vrs[inst]):
-            arr, i, f, o = self.base[(inst, pos)]
-            ov = self.overrides.get((inst, vr, "input"))
-            if ov is None and (inst, pos) in self.feeds:
-                src, svr = self.feeds[(inst, pos)]
-                ov = self.overrides.get((src, svr, "output"))
-                if ov is not None and ov[0] == "bias":  # a bias on the output, before the connection's transform
-                    ov = ("bias", ov[1] * f)
-            if ov is None:
-                out.append((pos, arr, i, f, o))
-            elif ov[0] == "override":
-                out.append((pos, real_array([ov[1]]), 0, 1.0, 0.0))
-            else:
-                out.append((pos, arr, i, f, o + ov[1]))
-        return out
+    def _io(self, n: str) -> InstanceIO:
+        """The loop's view of instance ``n``: raw entry points, input and output arrays, copies."""
+        inst, lay, plan = self.instances[n], self.layout, self.plan
+        dll = inst.fmu.dll
+        extra = [(r.var.vr, lay.slot(r), r.var.type) for r in lay.extra if r.instance == n]
+        ints = [(v, s) for v, s, t in extra if t in ("Integer", "Enumeration")]
+        bools = [(v, s) for v, s, t in extra if t == "Boolean"]
+        vrs = self.wiring.vrs[n]
+        io = InstanceIO(
+            n, ctypes.c_void_p(inst.c), raw(dll, "fmi2SetReal"), raw(dll, "fmi2DoStep"), raw(dll, "fmi2GetReal"),
+            raw(dll, "fmi2GetInteger"), raw(dll, "fmi2GetBoolean"),
+            vr_array(vrs), (ctypes.c_double * max(1, len(vrs)))(), ctypes.c_size_t(len(vrs)),
+            vr_array(lay.reals[n]), lay.out_arr[n], ctypes.c_size_t(len(lay.reals[n])), self.wiring.copies(n),
+            _int_spec(ints, ctypes.c_int), _int_spec(bools, ctypes.c_int),
+            [discrete_copier(self.instances, c) for c in plan.connections if c.dst == n and c.dst_var.type != "Real"],
+            table_feeder(inst, self.wiring.tables.get(n),
+                         [ip for ip in plan.inputs if ip.instance == n and ip.var.type != "Real"]))
+        if self.timing:
+            io.set_real, io.do_step, io.get_real = (_timed(f, self.fmi_acc) for f in (io.set_real, io.do_step,
+                                                                                       io.get_real))
+        return io
+
+    def _exchange_initial(self, check_inputs: bool) -> None:
+        """In initialisation mode: outputs to inputs in the plan's order, pass after pass, until no input
+        changes (a chain of N instances settles in at most N passes, whatever the order)."""
+        self._get_all(self.t0)
+        last: list[float] | None = None
+        for _ in range(len(self.ios) + 1):
+            values: list[float] = []
+            for io in self.ios:
+                inst = self.instances[io.name]
+                if io.feed is not None:
+                    _check(inst, "fmi2Set (tabulated inputs)", io.feed(0), self.t0)
+                for pos, arr, i, f, o in io.copies:
+                    io.in_val[pos] = arr[i] * f + o if (f != 1.0 or o != 0.0) else arr[i]
+                    values.append(io.in_val[pos])
+                if check_inputs and any(v - v != 0.0 for v in io.in_val[:io.n_in.value]):
+                    raise self.wiring.bad_input(io.name, io.in_vr, io.copies, self.t0)
+                if io.n_in.value:
+                    _check(inst, "fmi2SetReal", io.set_real(io.c, io.in_vr, io.n_in, io.in_val), self.t0)
+                for fn in io.other:
+                    _check(inst, "fmi2SetInteger/Boolean", fn(), self.t0)
+                if io.n_out.value:
+                    _check(inst, "fmi2GetReal", io.get_real(io.c, io.out_vr, io.n_out, io.out_val), self.t0)
+            if values == last:
+                break
+            last = values
+
+    def _get_all(self, t: float) -> None:
+        """Every instance's Real outputs and recorded Integer/Boolean outputs into the row."""
+        row = self.layout.row
+        for io in self.ios:
+            inst = self.instances[io.name]
+            if io.n_out.value:
+                _check(inst, "fmi2GetReal", io.get_real(io.c, io.out_vr, io.n_out, io.out_val), t)
+            for spec, getter, what in ((io.rec_int, io.get_integer, "fmi2GetInteger"),
+                                       (io.rec_bool, io.get_boolean, "fmi2GetBoolean")):
+                if spec is not None:
+                    vr, buf, n, slots = spec
+                    _check(inst, what, getter(io.c, vr, n, buf), t)
+                    for j, slot in enumerate(slots):
+                        row[slot] = float(buf[j])
+
+    # ---------------------------------------------------------------- stepping
+    def simulate(self, progress: bool | None, check_inputs: bool, stop: "_Interrupt") -> None:
+        """Step from the start to the stop time in segments that end at events and flushes."""
+        sc, rows, events = self.plan.scenario, self.rows, list(self.plan.events)
+        ev_i, loop = 0, None
+        block = FLUSH_ROWS * sc.decimation
+        bar = _progress(progress, self.n_steps)
+        wall0 = _time.perf_counter()
+        try:
+            k = 0
+            while k < self.n_steps:
+                changed = loop is None
+                while ev_i < len(events) and events[ev_i].step <= k:
+                    self.wiring.apply(events[ev_i])
+                    ev_i, changed = ev_i + 1, True
+                if changed:
+                    for io in self.ios:
+                        io.copies = self.wiring.copies(io.name)
+                    loop = compile_loop(self.ios, sc.algorithm, self.t0, self.h, sc.decimation, self.n_steps,
+                                        self.layout.row, rows.chunk, check_inputs)
+                k_end = min(self.n_steps, k + block - (k % block))
+                if ev_i < len(events):
+                    k_end = min(k_end, max(events[ev_i].step, k + 1))
+                self._errors = {n: i.n_errors for n, i in self.instances.items()}
+                fail = loop(k, k_end)
+                stop.check()
+                if fail is not None:
+                    self._failed(*fail)
+                self.k_done = k = k_end
+                if len(rows) >= FLUSH_ROWS or k == self.n_steps:
+                    self._flush()
+                if bar is not None:
+                    bar.update(self.k_done - bar.n)
+        except KeyboardInterrupt:
+            last = rows.last_time()  # the steps completed inside the interrupted segment
+            if last is not None:
+                self.k_done = max(self.k_done, int(round((last - self.t0) / self.h)))
+            raise
+        finally:
+            self.wall_s = _time.perf_counter() - wall0
+            if bar is not None:
+                bar.close()
+
+    def _failed(self, kf: int, name: str, what: str, val: Any) -> None:
+        """A segment stopped at step ``kf``: an FMU that ended the simulation, or an error."""
+        tf = self.t0 + kf * self.h
+        self.k_done = kf if not what.startswith("fmi2Get") else kf - 1
+        inst = self.instances[name]
+        if what == "inputs":
+            io = self.ios[self.plan.order.index(name)]
+            raise self.wiring.bad_input(name, io.in_vr, io.copies, tf)
+        if what == "fmi2DoStep" and int(val) == DISCARD and inst.n_errors == self._errors[name]:
+            # fmi2Terminated after a Discard with no error logged: the FMU ended the simulation (some
+            # exporters report every failed step as terminated; their error message tells them apart)
+            t_end = inst.terminated_at()
+            if t_end is not None:
+                raise _Stop(name, t_end if math.isfinite(t_end) else tf)
+        raise inst.fail_status(what, int(val), tf)
+
+    def record_final(self, t: float) -> None:
+        """The row at the time an FMU ended the simulation."""
+        self._get_all(t)
+        self.layout.row[0] = t
+        self.rows.chunk.append(bytes(self.layout.row))
+
+    def _flush(self) -> None:
+        try:
+            self.rows.flush()
+        except RunError as exc:
+            self.k_done = min(self.k_done, int(round((exc.time - self.t0) / self.h)))
+            raise
+
+    # ---------------------------------------------------------------- finish
+    def close(self) -> None:
+        """Flush what is left, terminate and free every instance (the Fatal rule), close the recording."""
+        if self.rows is not None and len(self.rows):
+            try:
+                self._flush()
+            except RunError as exc:
+                if self.status != "failed":
+                    self.status, self.message = "failed", str(exc)
+        for inst in self.instances.values():
+            inst.shutdown()
+        if self.recorder is not None:
+            self.recorder.close()
+        shutil.rmtree(self.work, ignore_errors=True)
 
 
-def run(plan: Plan, out_dir: str | os.PathLike | None, progress: bool | None = None,
+def run(plan: Plan, out_dir: str | Path | None, progress: bool | None = None,
         timing: bool = False, check_inputs: bool = True) -> RunResult:
     """Run the plan and write its results folder ``out_dir``: signals.npy (written as the run goes),
     signals.csv, scenario.json (the scenario as resolved), logs/<instance>.log and summary.json.
     ``out_dir=None`` runs in a temporary folder that is removed afterwards (the result keeps the
     final values).  ``timing=True`` also measures the time spent inside the stepping FMI calls."""
-    sc = plan.scenario
-    h, t0, n_steps = sc.step, sc.start, plan.n_steps
     keep = out_dir is not None
-    out = Path(out_dir) if keep else Path(tempfile.mkdtemp(prefix="wmr-cosim-out-"))
+    out = _prepare(Path(out_dir) if keep else Path(tempfile.mkdtemp(prefix="wmr-cosim-out-")), plan)
+    ex = Execution(plan, out, timing)
+    stop = _Interrupt()
+    t_setup = _time.perf_counter()
+    try:
+        ex.load()
+        ex.initialise(check_inputs)
+        ex.setup_s = _time.perf_counter() - t_setup
+        stop.check()
+        ex.simulate(progress, check_inputs, stop)
+    except _Stop as s:
+        ex.k_done = min(plan.n_steps, int(math.floor((s.t - ex.t0) / ex.h + 1e-9)))
+        try:
+            ex.record_final(s.t)
+            ex.status, ex.message = "terminated", f"terminated by FMU {s.name} at t = {s.t:.6g} s"
+        except RunError as exc:
+            ex.status, ex.message = "failed", str(exc)
+    except KeyboardInterrupt:
+        ex.status, ex.message = "interrupted", f"interrupted by the user at t = {ex.t0 + ex.k_done * ex.h:.6g} s"
+    except CosimError as exc:
+        ex.status, ex.message = "failed", str(exc)
+    finally:
+        stop.restore()
+        ex.close()
+    res = _results(ex, keep)
+    if not keep:
+        shutil.rmtree(out, ignore_errors=True)
+    return res
+
+
+def _prepare(out: Path, plan: Plan) -> Path:
+    """The results folder, emptied of an earlier run's result files, with the resolved scenario."""
     out.mkdir(parents=True, exist_ok=True)
     (out / "logs").mkdir(exist_ok=True)
     for stale in ("signals.npy", "signals.csv", "summary.json"):
         (out / stale).unlink(missing_ok=True)
-    work = Path(tempfile.mkdtemp(prefix="wmr-cosim-fmus-"))
-    instances: dict[str, Instance] = {}
-    recorder: NpyRecorder | None = None
-    status, message = "ok", ""
-    k_done = 0
-    setup_s = wall_s = 0.0
-    fmi_acc = [0.0]
-    columns = ["time"] + [r.column for r in plan.record]
-    _write_json(out / "scenario.json", _resolved(plan))
-    t_setup = _time.perf_counter()
-    bar = None
-    stop = _Interrupt()
-    try:
-        try:
-            # ------------------------------------------------------------ set-up
-            unz: dict[Path, str] = {}
-            for name, ip in plan.instances.items():
-                p = ip.model.path.resolve()
-                if p not in unz:
-                    unz[p] = str(safe_extract(p, work / f"{len(unz)}_{p.stem}"))
-                instances[name] = Instance(name, ip.model.md, unz[p])
-            for name, inst in instances.items():
-                inst.instantiate()
-                inst.set_values(plan.instances[name].parameters)
-                inst.call("fmi2SetupExperiment", inst.fmu.setupExperiment, None, t0, sc.stop)
-            for inst in instances.values():
-                inst.call("fmi2EnterInitializationMode", inst.fmu.enterInitializationMode)
-            stop.check()
+    for old in (out / "logs").glob("*.log"):
+        old.unlink()
+    write_json(out / "scenario.json", _resolved(plan))
+    return out
 
-            # the row buffer: time, each instance's Real outputs that are connected or recorded, then
-            # recorded Integer/Boolean outputs
-            need: dict[str, list[int]] = {n: [] for n in plan.order}
-            for c in plan.connections:
-                if c.src_var.type == "Real" and c.src_var.vr not in need[c.src]:
-                    need[c.src].append(c.src_var.vr)
-            for r in plan.record:
-                if r.var.type == "Real" and r.var.vr not in need[r.instance]:
-                    need[r.instance].append(r.var.vr)
-            offset, pos = {}, 1
-            for n in plan.order:
-                offset[n] = pos
-                pos += len(need[n])
-            n_real = pos
-            extra = [r for r in plan.record if r.var.type != "Real"]
-            row = (ctypes.c_double * (n_real + len(extra)))()
-            out_arr = {n: (ctypes.c_double * len(need[n])).from_buffer(row, offset[n] * 8) for n in plan.order}
-            rec_idx = [0] + [offset[r.instance] + need[r.instance].index(r.var.vr) if r.var.type == "Real"
-                             else n_real + extra.index(r) for r in plan.record]
-            wiring = _Wiring(plan, out_arr, need)
-            other_conns = [c for c in plan.connections if c.dst_var.type != "Real"]
 
-            ios: list[InstanceIO] = []
-            for n in plan.order:
-                inst = instances[n]
-                dll = inst.fmu.dll
-                ints = [(r.var.vr, rec_idx[1 + plan.record.index(r)]) for r in extra
-                        if r.instance == n and r.var.type in ("Integer", "Enumeration")]
-                bools = [(r.var.vr, rec_idx[1 + plan.record.index(r)]) for r in extra
-                         if r.instance == n and r.var.type == "Boolean"]
-                io = InstanceIO(
-                    n, ctypes.c_void_p(inst.c), raw(dll, "fmi2SetReal"), raw(dll, "fmi2DoStep"), raw(dll, "fmi2GetReal"),
-                    raw(dll, "fmi2GetInteger"), raw(dll, "fmi2GetBoolean"),
-                    vr_array(wiring.vrs[n]), (ctypes.c_double * max(1, len(wiring.vrs[n])))(),
-                    ctypes.c_size_t(len(wiring.vrs[n])), vr_array(need[n]), out_arr[n], ctypes.c_size_t(len(need[n])),
-                    wiring.copies(n),
-                    (vr_array([v for v, _ in ints]), (ctypes.c_int * len(ints))(), ctypes.c_size_t(len(ints)),
-                     [s for _, s in ints]) if ints else None,
-                    (vr_array([v for v, _ in bools]), (ctypes.c_int * len(bools))(), ctypes.c_size_t(len(bools)),
-                     [s for _, s in bools]) if bools else None,
-                    [_other_setter(instances, c) for c in other_conns if c.dst == n])
-                if timing:
-                    io.set_real, io.do_step, io.get_real = (_timed(f, fmi_acc) for f in (io.set_real, io.do_step, io.get_real))
-                ios.append(io)
-
-            # initialisation in order: inputs from the connected outputs, then exit initialisation mode
-            chunk: list[bytes] = []
-            for io in ios:
-                inst = instances[io.name]
-                for pos_, arr, i, f, o in io.copies:
-                    io.in_val[pos_] = arr[i] * f + o if (f != 1.0 or o != 0.0) else arr[i]
-                if io.n_in.value:
-                    _check(inst, "fmi2SetReal", io.set_real(io.c, io.in_vr, io.n_in, io.in_val), t0)
-                for fn in io.other:
-                    _check(inst, "fmi2SetInteger/Boolean", fn(), t0)
-                inst.call("fmi2ExitInitializationMode", inst.fmu.exitInitializationMode)
-                inst.initialised = True
-                if io.n_out.value:
-                    _check(inst, "fmi2GetReal", io.get_real(io.c, io.out_vr, io.n_out, io.out_val), t0)
-            setup_s = _time.perf_counter() - t_setup
-
-            recorder = NpyRecorder(out / "signals.npy", columns)
-            row[0] = t0
-            _record_extra(ios, instances, row, t0)
-            chunk.append(bytes(row))
-            rec_cols = np.asarray(rec_idx)
-
-            # ------------------------------------------------------------ stepping
-            events = list(plan.events)
-            ev_i = 0
-            dec = sc.decimation
-            block = FLUSH_ROWS * dec
-            bar = _progress(progress, n_steps)
-            loop = None
-            wall0 = _time.perf_counter()
-            try:
-                k = 0
-                while k < n_steps:
-                    changed = loop is None
-                    while ev_i < len(events) and events[ev_i].step <= k:
-                        wiring.apply(events[ev_i])
-                        ev_i += 1
-                        changed = True
-                    if changed:
-                        for io in ios:
-                            io.copies = wiring.copies(io.name)
-                        loop = compile_loop(ios, sc.algorithm, t0, h, dec, n_steps, row, chunk, check_inputs)
-                    k_end = min(n_steps, k + block - (k % block))
-                    if ev_i < len(events):
-                        k_end = min(k_end, max(events[ev_i].step, k + 1))
-                    fail = loop(k, k_end)
-                    stop.check()
-                    if fail is not None:
-                        kf, name, what, val = fail
-                        k_done = kf if what != "fmi2GetReal" and not what.startswith("fmi2Get") else kf - 1
-                        inst = instances[name]
-                        tf = t0 + kf * h
-                        if what == "inputs":
-                            raise _bad_input(plan, name, ios[plan.order.index(name)], tf)
-                        raise inst.fail_status(what, int(val), tf)
-                    k_done = k = k_end
-                    if len(chunk) >= FLUSH_ROWS or k == n_steps:
-                        try:
-                            _flush(recorder, chunk, rec_cols, columns)
-                        except RunError as exc:
-                            k_done = int(round((exc.time - t0) / h))
-                            raise
-                        finally:
-                            chunk.clear()
-                    if bar is not None:
-                        bar.update(k_done - bar.n)
-            except KeyboardInterrupt:
-                if chunk:  # the steps completed inside the interrupted segment, from the last recorded row
-                    k_done = max(k_done, int(round((float(np.frombuffer(chunk[-1], "<f8", 1)[0]) - t0) / h)))
-                raise
-            finally:
-                wall_s = _time.perf_counter() - wall0
-                if bar is not None:
-                    bar.close()
-                if chunk and recorder is not None:
-                    try:
-                        _flush(recorder, chunk, rec_cols, columns)
-                    except RunError as exc:
-                        status, message = "failed", str(exc)
-                        k_done = min(k_done, int(round((exc.time - t0) / h)))
-                    chunk.clear()
-        except KeyboardInterrupt:
-            status, message = "interrupted", f"interrupted by the user at t = {t0 + k_done * h:.6g} s"
-    except RunError as exc:
-        status, message = "failed", str(exc)
-    except CosimError as exc:
-        status, message = "failed", str(exc)
-    finally:
-        stop.restore()
-        for inst in instances.values():
-            inst.shutdown()
-        if recorder is not None:
-            recorder.close()
-        shutil.rmtree(work, ignore_errors=True)
-
+def _results(ex: Execution, keep: bool) -> RunResult:
+    """The run's result, signals.csv and summary.json."""
+    plan, out = ex.plan, ex.out
+    sc = plan.scenario
     final: dict[str, float] = {}
-    if recorder is not None and recorder.rows:
-        data = np.load(out / "signals.npy")
-        final = {c: float(data[c][-1]) for c in columns}
+    if ex.recorder is not None and ex.recorder.rows:
+        data = np.load(out / "signals.npy", mmap_mode="r")
+        final = {c: data[c][-1].item() for c in ex.columns}
         if keep and sc.csv:
             write_csv(out / "signals.npy", out / "signals.csv")
-    for n, inst in instances.items():
-        (out / "logs" / f"{n}.log").write_text("\n".join(inst.all_log) + ("\n" if inst.all_log else ""))
-    res = RunResult(status, message, k_done, t0 + k_done * h, wall_s, setup_s, out if keep else None, columns,
-                    final, fmi_acc[0] if timing else None)
-    _write_json(out / "summary.json", {
-        "status": status, "message": message, "steps": k_done, "n_steps": n_steps, "t_end": res.t_end,
-        "step": h, "algorithm": sc.algorithm, "wall_s": round(wall_s, 6), "setup_s": round(setup_s, 6),
-        "us_per_step": round(wall_s / k_done * 1e6, 3) if k_done else None, "rows": recorder.rows if recorder else 0,
-        "instances": {n: {"fmu": str(ip.model.path), "model": ip.model.model_name} for n, ip in plan.instances.items()},
+    t_end = final.get("time", ex.t0 + ex.k_done * ex.h) if ex.status == "terminated" else ex.t0 + ex.k_done * ex.h
+    res = RunResult(ex.status, ex.message, ex.k_done, t_end, ex.wall_s, ex.setup_s, out if keep else None,
+                    ex.columns, final, ex.fmi_acc[0] if ex.timing else None)
+    write_json(out / "summary.json", {
+        "status": ex.status, "message": ex.message, "steps": ex.k_done, "n_steps": plan.n_steps,
+        "t_end": res.t_end, "step": ex.h, "algorithm": sc.algorithm, "wall_s": round(ex.wall_s, 6),
+        "setup_s": round(ex.setup_s, 6),
+        "us_per_step": round(ex.wall_s / ex.k_done * 1e6, 3) if ex.k_done else None,
+        "rows": ex.recorder.rows if ex.recorder else 0,
+        "instances": {n: {"fmu": str(ip.model.path), "model": ip.model.model_name,
+                          "log_lines": ex.instances[n].log_lines if n in ex.instances else 0}
+                      for n, ip in plan.instances.items()},
         "final": final,
     })
-    if not keep:
-        shutil.rmtree(out, ignore_errors=True)
     return res
 
 
@@ -340,10 +350,11 @@ class _Interrupt:
     flag, checked between loop segments (every few hundredths of a second); a second one interrupts at once."""
 
     def __init__(self) -> None:
-        self.flag = False
-        self.old = None
         import signal
         import threading
+
+        self.flag = False
+        self.old = None
         if threading.current_thread() is threading.main_thread():
             self.old = signal.signal(signal.SIGINT, self._handler)
 
@@ -363,67 +374,28 @@ class _Interrupt:
             self.old = None
 
 
-def _bad_input(plan: Plan, name: str, io: InstanceIO, t: float) -> RunError:
-    """The first non-finite value the master was about to set on an input of ``name`` (or an overflow of
-    their sum, reported as such)."""
-    ip = plan.instances[name]
-    by_vr = {v.vr: v for v in ip.model.variables.values()}
-    vrs = list(io.in_vr)
-    for pos, arr, i, f, o in io.copies:
-        v = arr[i] * f + o if (f != 1.0 or o != 0.0) else arr[i]
-        if v - v != 0.0:
-            var = by_vr.get(vrs[pos])
-            label = f"{name}.{ip.our_name(var)}" if var is not None else f"{name} input {vrs[pos]}"
-            return RunError(f"{label} would receive the non-finite value {v!r} at t = {t:.6g} s", name, t)
-    return RunError(f"{name}: the inputs' values overflow (their sum is not finite) at t = {t:.6g} s", name, t)
+def _int_spec(pairs: list[tuple[int, int]], ctype: Any) -> tuple[Any, Any, Any, list[int]] | None:
+    """(vr array, buffer, count, row slots) of recorded Integer or Boolean outputs, or None."""
+    if not pairs:
+        return None
+    return (vr_array([v for v, _ in pairs]), (ctype * len(pairs))(), ctypes.c_size_t(len(pairs)),
+            [s for _, s in pairs])
+
+
+def _timed(fn: Any, acc: list[float]) -> Any:
+    pc = _time.perf_counter
+
+    def wrapped(*args: Any) -> int:
+        t0 = pc()
+        r = fn(*args)
+        acc[0] += pc() - t0
+        return r
+    return wrapped
 
 
 def _check(inst: Instance, what: str, status: int, t: float) -> None:
     if status:
         raise inst.fail_status(what, status, t)
-
-
-def _other_setter(instances: dict[str, Instance], c: Any):
-    """A closure copying one Integer/Boolean output to an input (get + set: two FMI calls)."""
-    src, dst = instances[c.src], instances[c.dst]
-    svr, dvr = vr_array([c.src_var.vr]), vr_array([c.dst_var.vr])
-    buf = (ctypes.c_int * 1)()
-    one = ctypes.c_size_t(1)
-    if c.src_var.type == "Integer":
-        get, put = raw(src.fmu.dll, "fmi2GetInteger"), raw(dst.fmu.dll, "fmi2SetInteger")
-    else:
-        get, put = raw(src.fmu.dll, "fmi2GetBoolean"), raw(dst.fmu.dll, "fmi2SetBoolean")
-    sc, dc = ctypes.c_void_p(src.c), ctypes.c_void_p(dst.c)
-
-    def copy() -> int:
-        return get(sc, svr, one, buf) or put(dc, dvr, one, buf)
-    return copy
-
-
-def _record_extra(ios: list[InstanceIO], instances: dict[str, Instance], row: Any, t: float) -> None:
-    """Recorded Integer/Boolean outputs into their row slots (as floats)."""
-    for io in ios:
-        for spec, getter, what in ((io.rec_int, io.get_integer, "fmi2GetInteger"),
-                                   (io.rec_bool, io.get_boolean, "fmi2GetBoolean")):
-            if spec is not None:
-                vr, buf, n, slots = spec
-                _check(instances[io.name], what, getter(io.c, vr, n, buf), t)
-                for j, slot in enumerate(slots):
-                    row[slot] = float(buf[j])
-
-
-def _flush(recorder: NpyRecorder, chunk: list[bytes], cols: np.ndarray, columns: list[str]) -> None:
-    if not chunk:
-        return
-    raw_ = np.frombuffer(b"".join(chunk), dtype="<f8")
-    block = raw_.reshape(len(chunk), -1)[:, cols]
-    finite = np.isfinite(block)
-    if not finite.all():
-        r, c = np.argwhere(~finite)[0]
-        recorder.append(block[: r + 1])
-        raise RunError(f"{columns[c]} is {float(block[r, c])!r} at t = {block[r, 0]:.6g} s (a non-finite output)",
-                       columns[c].split(".", 1)[0], float(block[r, 0]))
-    recorder.append(block)
 
 
 def _progress(enabled: bool | None, total: int):
@@ -441,17 +413,14 @@ def _progress(enabled: bool | None, total: int):
 def _resolved(plan: Plan) -> dict[str, Any]:
     sc = plan.scenario
     return {"file": sc.file, "experiment": {"start": sc.start, "stop": sc.stop, "step": sc.step,
-                                            "algorithm": sc.algorithm, "order": sc.order},
+                                            "algorithm": sc.algorithm, "order": sc.order,
+                                            "tolerance": sc.tolerance},
             "instances": {n: {"fmu": str(ip.model.path), "model": ip.model.model_name,
                               "parameters": {v.name: val for v, val in ip.parameters},
-                              "names": ip.spec.names, "units": ip.spec.units}
+                              "names": ip.spec.names, "units": ip.spec.units, "logging": ip.spec.logging}
                           for n, ip in plan.instances.items()},
             "connections": [{"from": c.spec.src, "to": c.spec.dst, "factor": c.factor, "offset": c.offset}
                             for c in plan.connections],
             "record": [r.column for r in plan.record], "decimation": sc.decimation,
             "events": [{"time": e.time, "variable": e.ref, "action": e.action, "value": e.value} for e in plan.events],
             "document": sc.data}
-
-
-def _write_json(path: Path, obj: Any) -> None:
-    path.write_text(json.dumps(obj, indent=2, default=str) + "\n")

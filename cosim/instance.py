@@ -1,21 +1,33 @@
-"""One FMU instance under FMPy: life cycle with the FMI 2.0 rules, its log, and raw ctypes entry points
-for the stepping loop.
+"""One FMU instance: its life cycle under the FMI 2.0 rules, its log, and raw ctypes entry points.
+
+Life cycle, in the order FMPy and libcosim use (some tools' FMUs, 20-sim's among them, reset their
+parameters in fmi2SetupExperiment, so values set before it would be lost): instantiate, set up the
+experiment, set parameters and start values, enter initialisation mode, (inputs exchanged by the
+execution), exit initialisation mode, step, terminate, free.
 
 Rules kept here: every instance that reported OK, Warning, Discard or Error is terminated (if it was
 initialised) and freed exactly once; an instance that reported Fatal gets no further call at all (FMI 2.0;
 freeing a pythonfmu instance after Fatal corrupts its heap and crashes the host at the next garbage
 collection).
+
+Logging: a level per instance ("error", "warning", "info", "all"; default "warning").  The FMU is asked
+through fmi2SetDebugLogging for the categories of that level it declares, so a verbose FMU does not call
+back at every step, and messages below the level are dropped on this side too.  Lines go to the
+instance's log file as they come; only the last few are kept in memory (for error messages).
 """
 from __future__ import annotations
 
 import ctypes
 import itertools
+import math
+import os
 import weakref
 from collections import deque
 from typing import Any
 
 from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Real, fmi2ValueReference)
+                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2LastSuccessfulTime, fmi2Real,
+                       fmi2Terminated, fmi2ValueReference)
 from fmpy.fmi1 import FMICallException
 
 from .errors import RunError
@@ -37,13 +49,20 @@ except ImportError:  # pragma: no cover
 # last Instance created, and, once that Instance was collected, made any later proxied message -- FMPy's
 # default callbacks included -- call freed memory: a segfault.)
 _LIVE: "weakref.WeakValueDictionary[int, Instance]" = weakref.WeakValueDictionary()
+_BY_NAME: "weakref.WeakValueDictionary[bytes, Instance]" = weakref.WeakValueDictionary()
 _IDS = itertools.count(1)
+
+#: Logging levels: the lowest status kept.
+LOG_LEVELS = {"all": 0, "info": 0, "warning": 1, "error": 3}
+_LEVEL_WORDS = {"warning": ("warn", "discard", "error", "fatal", "pending"), "error": ("error", "fatal")}
 
 
 def _dispatch(env, instance_name, status, category, message) -> None:
-    inst = _LIVE.get(env or 0)
+    # some tools' FMUs (20-sim) pass back a componentEnvironment other than the one they were given:
+    # then the instance name routes the message
+    inst = _LIVE.get(env or 0) or _BY_NAME.get(instance_name or b"")
     if inst is not None:
-        inst._logger(env, instance_name, status, category, message)
+        inst._logger(status, category, message)
     else:  # an FMU this master did not instantiate (FMPy's own defaults): print as FMPy does
         label = STATUS[status] if 0 <= status < len(STATUS) else status
         print(f"[{label}] {(message or b'').decode('utf-8', 'replace')}")
@@ -53,13 +72,18 @@ _DISPATCH = fmi2CallbackLoggerTYPE(_dispatch)
 
 
 class Instance:
-    """An instantiated FMU (FMI 2.0 co-simulation) with its log lines."""
+    """An instantiated FMU (FMI 2.0 co-simulation) with its log."""
 
-    def __init__(self, name: str, md: Any, unzipdir: str, log_size: int = 2000) -> None:
+    def __init__(self, name: str, md: Any, unzipdir: str, log_path: str | os.PathLike | None = None,
+                 logging: str = "warning", log_size: int = 200) -> None:
         self.name = name
         self.md = md
         self.log: deque[str] = deque(maxlen=log_size)
-        self.all_log: list[str] = []
+        self.log_lines = 0
+        self.n_errors = 0          # messages of status Error or Fatal, kept or not
+        self.min_status = LOG_LEVELS[logging]
+        self.logging = logging
+        self._log_fh = open(log_path, "w", encoding="utf-8") if log_path is not None else None
         self.fatal = False
         self.initialised = False
         self.freed = False
@@ -68,6 +92,7 @@ class Instance:
         self._callbacks = fmi2CallbackFunctions()
         self._env = next(_IDS)
         _LIVE[self._env] = self
+        _BY_NAME[name.encode("utf-8")] = self
         self._callbacks.componentEnvironment = self._env
         self._callbacks.logger = _DISPATCH
         self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
@@ -80,15 +105,25 @@ class Instance:
         self.c = None
 
     # ------------------------------------------------------------------ log
-    def _logger(self, env, instance_name, status, category, message) -> None:
+    def _logger(self, status, category, message) -> None:
+        if status >= 3:
+            self.n_errors += 1
+        if status < self.min_status:
+            return
         line = f"[{STATUS[status] if 0 <= status < len(STATUS) else status}] " \
                f"{(category or b'').decode('utf-8', 'replace')}: {(message or b'').decode('utf-8', 'replace')}"
         self.log.append(line)
-        self.all_log.append(line)
+        self.log_lines += 1
+        if self._log_fh is not None:
+            self._log_fh.write(line + "\n")
 
     def last_log(self, n: int = 3) -> str:
-        lines = [ln for ln in list(self.log)[-n:]]
+        lines = list(self.log)[-n:]
         return " | ".join(" ".join(ln.split()) for ln in lines) if lines else "(the FMU logged nothing)"
+
+    def close_log(self) -> None:
+        if self._log_fh is not None and not self._log_fh.closed:
+            self._log_fh.close()
 
     # ------------------------------------------------------------------ life cycle
     def fail_status(self, what: str, status: int, t: float | None) -> RunError:
@@ -111,8 +146,22 @@ class Instance:
                            self.name, t) from None
 
     def instantiate(self) -> None:
+        """fmi2Instantiate (logging on), then fmi2SetDebugLogging with the categories of the level."""
         self.call("fmi2Instantiate", self.fmu.instantiate, False, self._callbacks, True)
-        self.c = self.fmu.component  # the stepping loop calls the library through stepper.raw()
+        self.c = self.fmu.component  # the stepping loop calls the library through raw()
+        words = _LEVEL_WORDS.get(self.logging)
+        cats = [c.name for c in getattr(self.md, "logCategories", None) or []]
+        # pythonfmu FMUs report exceptions with no category, which a category list filters out: they
+        # get no list (they do not log at every step anyway), and the level is applied on this side
+        pythonfmu = (self.md.generationTool or "").lower().startswith("pythonfmu")
+        if self.logging == "all" and cats:
+            self.call("fmi2SetDebugLogging", self.fmu.setDebugLogging, True, [])
+        elif words and cats and not pythonfmu:
+            chosen = [c for c in cats if any(w in c.lower() for w in words)]
+            self.call("fmi2SetDebugLogging", self.fmu.setDebugLogging, bool(chosen), chosen)
+
+    def setup_experiment(self, start: float, stop: float | None, tolerance: float | None) -> None:
+        self.call("fmi2SetupExperiment", self.fmu.setupExperiment, tolerance, start, stop)
 
     def set_values(self, pairs: list[tuple[Variable, Any]]) -> None:
         """Set start values / parameters by type."""
@@ -127,8 +176,29 @@ class Instance:
             elif var.type == "String":
                 self.call(f"fmi2SetString({var.name})", self.fmu.setString, vr, [str(value)])
 
+    def enter_initialization(self) -> None:
+        self.call("fmi2EnterInitializationMode", self.fmu.enterInitializationMode)
+
+    def exit_initialization(self) -> None:
+        self.call("fmi2ExitInitializationMode", self.fmu.exitInitializationMode)
+        self.initialised = True
+
+    def terminated_at(self) -> float | None:
+        """After a Discard from fmi2DoStep: the FMU's last successful time if it says it has ended the
+        simulation (fmi2Terminated), else None."""
+        try:
+            if not self.fmu.getBooleanStatus(fmi2Terminated):
+                return None
+        except Exception:
+            return None
+        try:
+            return float(self.fmu.getRealStatus(fmi2LastSuccessfulTime))
+        except Exception:
+            return math.nan
+
     def shutdown(self) -> None:
         """Terminate (if initialised) and free, exactly once; nothing at all after a Fatal."""
+        self.close_log()
         if self.freed or self.fatal or self.c is None:
             return
         self.freed = True
@@ -141,6 +211,13 @@ class Instance:
             self.fmu.freeInstance()
         except Exception:
             pass
+
+
+def raw(dll: Any, name: str) -> Any:
+    """A fresh ctypes function for ``name`` without argtypes (FMPy's copy carries converting argtypes)."""
+    f = dll[name]
+    f.restype = ctypes.c_int
+    return f
 
 
 def real_array(values) -> Any:

@@ -34,6 +34,20 @@ class Variable:
     max: float | None
     start: Any
     description: str = ""
+    initial: str | None = None
+
+    def settable(self) -> str | None:
+        """None if a master may set this variable before initialisation (FMI 2.0, 4.2.4: variability not
+        constant and initial exact or approx, or an input), else the reason."""
+        if self.variability == "constant":
+            return f"{self.name} is a constant"
+        if self.causality == "input" or self.initial in ("exact", "approx"):
+            return None
+        if self.causality == "independent":
+            return f"{self.name} is the independent variable"
+        why = f"initial=\"{self.initial}\"" if self.initial else f"a {self.causality} with no start value"
+        return f"{self.name} is {self.causality} with {why}: only parameters, inputs and variables with " \
+               "initial exact or approx can be set"
 
     def check_range(self, value: Any) -> str | None:
         """None if value is within [min, max], else the reason."""
@@ -93,6 +107,19 @@ def _start(v: Any) -> Any:
     return s
 
 
+def _initial(v: Any) -> str | None:
+    """The variable's ``initial``, or its default by causality and variability (FMI 2.0, table of 2.2.7)."""
+    if v.initial:
+        return v.initial
+    if v.causality in ("parameter",) or v.variability == "constant":
+        return "exact"
+    if v.causality == "calculatedParameter":
+        return "calculated"
+    if v.causality in ("output", "local"):
+        return "calculated" if v.start is None else "exact"
+    return None
+
+
 def _fmi_version(path: Path) -> str:
     """The fmiVersion attribute of the model description, read before FMPy parses it."""
     try:
@@ -104,6 +131,24 @@ def _fmi_version(path: Path) -> str:
     except ElementTree.ParseError as exc:
         raise FmuLoadError(f"{path}: modelDescription.xml is not well-formed XML ({exc})") from None
     return "?"
+
+
+def _check_binary(path: Path, identifier: str) -> None:
+    """FmuLoadError unless the archive holds the binary for this platform, named by the model identifier."""
+    from fmpy import platform, sharedLibraryExtension
+
+    want = f"binaries/{platform}/{identifier}{sharedLibraryExtension}"
+    with zipfile.ZipFile(path) as zf:
+        names = zf.namelist()
+    if want in names:
+        return
+    here = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") >= 2})
+    others = [n for n in names if n.startswith(f"binaries/{platform}/") and n.endswith(sharedLibraryExtension)]
+    if others:
+        raise FmuLoadError(f"{path}: no {want} (the binary for this platform must be named after the model "
+                           f"identifier {identifier!r}; the archive has {others[0]})")
+    raise FmuLoadError(f"{path}: no binary for this platform ({platform}): the FMU has binaries for "
+                       f"{', '.join(here) or 'no platform'} (a source-only or other-platform FMU cannot run here)")
 
 
 def load_model(path: str | os.PathLike) -> FmuModel:
@@ -121,6 +166,7 @@ def load_model(path: str | os.PathLike) -> FmuModel:
         raise FmuLoadError(f"{path}: FMI version {md.fmiVersion}: only FMI 2.0 is supported")
     if md.coSimulation is None:
         raise FmuLoadError(f"{path}: not a co-simulation FMU (model exchange only)")
+    _check_binary(path, md.coSimulation.modelIdentifier)
     defined = units_of(md)
     model = FmuModel(path, md)
     for v in md.modelVariables:
@@ -131,5 +177,5 @@ def load_model(path: str | os.PathLike) -> FmuModel:
         model.variables[v.name] = Variable(
             v.name, int(v.valueReference), typ, v.causality or "local", v.variability or "continuous",
             lookup(unit_name, defined) if typ == "Real" else None,
-            _num(vmin, typ), _num(vmax, typ), _start(v), v.description or "")
+            _num(vmin, typ), _num(vmax, typ), _start(v), v.description or "", _initial(v))
     return model

@@ -6,6 +6,7 @@ Every problem is reported as ScenarioError(file, field, reason) before any FMU i
 from __future__ import annotations
 
 import copy
+import json
 import math
 import os
 import tomllib
@@ -17,11 +18,13 @@ from .errors import ScenarioError
 
 ALGORITHMS = ("gauss-seidel", "jacobi")
 ACTIONS = ("override", "bias", "reset")
+LOGGING = ("error", "warning", "info", "all")
 
 _TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "record", "events", "runs",
-             "variants"}
-_EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order"}
-_INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "description"}
+             "variants", "inputs"}
+_INPUTS_KEYS = {"file", "interpolation"}
+_EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance"}
+_INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "description", "logging"}
 _CONNECTION_KEYS = {"from", "to", "factor", "offset"}
 _RECORD_KEYS = {"variables", "decimation", "csv"}
 _RUN_KEYS = {"name", "description", "parameters", "carry"}
@@ -32,7 +35,8 @@ _EVENT_KEYS = {"time", "variable", "action", "value"}
 @dataclass
 class InstanceSpec:
     """One FMU instance.  ``names`` maps the FMU's own variable names to the names the scenario uses
-    (their -> ours); ``units`` declares units for variables whose FMU does not (scenario name -> unit)."""
+    (their -> ours); ``units`` declares units for variables whose FMU does not (scenario name -> unit);
+    ``logging`` is the level of the FMU's messages kept in its log ("error", "warning", "info", "all")."""
 
     name: str
     fmu: str
@@ -40,6 +44,7 @@ class InstanceSpec:
     parameters: dict[str, Any] = field(default_factory=dict)
     names: dict[str, str] = field(default_factory=dict)
     units: dict[str, str] = field(default_factory=dict)
+    logging: str = "warning"
 
 
 @dataclass
@@ -76,9 +81,10 @@ class Scenario:
     """A parsed and syntactically checked scenario; :func:`cosim.system.resolve` checks it against the FMUs."""
 
     file: str
-    start: float = 0.0
-    stop: float = 1.0
-    step: float = 0.002
+    start: float | None = None      # None: from the FMUs' default experiments (else 0)
+    stop: float | None = None       # None: from the FMUs' default experiments
+    step: float | None = None       # None: from the FMUs' default experiments
+    tolerance: float | None = None  # passed to fmi2SetupExperiment
     algorithm: str = "gauss-seidel"
     order: list[str] = field(default_factory=list)
     instances: dict[str, InstanceSpec] = field(default_factory=dict)
@@ -89,6 +95,8 @@ class Scenario:
     csv: bool = True
     runs: list[RunSpec] = field(default_factory=list)
     variants: dict[str, dict[str, Any]] = field(default_factory=dict)
+    inputs_file: Path | None = None                      # a CSV table of input signals
+    interpolation: dict[str, str] = field(default_factory=dict)  # column -> "linear" | "hold"
     data: dict[str, Any] = field(default_factory=dict)  # the merged document, as run
 
 
@@ -120,6 +128,9 @@ def _read(path: Path, seen: tuple[Path, ...] = ()) -> dict[str, Any]:
     for inst in (doc.get("instances") or {}).values():
         if isinstance(inst, dict) and isinstance(inst.get("fmu"), str) and _is_path(inst["fmu"]):
             inst["fmu"] = str((path.parent / inst["fmu"]).resolve())
+    inputs = doc.get("inputs")
+    if isinstance(inputs, dict) and isinstance(inputs.get("file"), str):
+        inputs["file"] = str((path.parent / inputs["file"]).resolve())
     if "base" in doc:
         b = doc.pop("base")
         if not isinstance(b, str):
@@ -189,15 +200,11 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
     sc = Scenario(file=file, data=doc)
     exp = _table(file, "experiment", doc.get("experiment"))
     _keys(file, "experiment", exp, _EXPERIMENT_KEYS)
-    sc.start = _num(file, "experiment.start", exp.get("start", 0.0))
-    sc.stop = _num(file, "experiment.stop", exp.get("stop", 1.0))
-    sc.step = _num(file, "experiment.step", exp.get("step", 0.002), positive=True)
-    if sc.stop <= sc.start:
-        raise ScenarioError(file, "experiment.stop", f"{sc.stop!r} is not after the start {sc.start!r}")
-    n = (sc.stop - sc.start) / sc.step
-    if abs(n - round(n)) > 1e-6 * max(1.0, n):
-        raise ScenarioError(file, "experiment.step",
-                            f"{sc.step!r} s does not divide the run {sc.start!r}..{sc.stop!r} s into whole steps")
+    for key in ("start", "stop", "step", "tolerance"):
+        if key in exp:
+            setattr(sc, key, _num(file, f"experiment.{key}", exp[key], positive=key in ("step", "tolerance")))
+    if sc.start is not None and sc.stop is not None and sc.step is not None:
+        check_experiment(sc)
     sc.algorithm = str(exp.get("algorithm", "gauss-seidel")).lower()
     if sc.algorithm not in ALGORITHMS:
         raise ScenarioError(file, "experiment.algorithm", f"{sc.algorithm!r}: must be one of {', '.join(ALGORITHMS)}")
@@ -207,7 +214,7 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
         raise ScenarioError(file, "instances", "no FMU instances")
     for iname, inst in insts.items():
         fld = f"instances.{iname}"
-        if not iname.isidentifier():
+        if not isinstance(iname, str) or not iname.isidentifier():
             raise ScenarioError(file, fld, f"instance name {iname!r} must be an identifier")
         inst = _table(file, fld, inst)
         _keys(file, fld, inst, _INSTANCE_KEYS)
@@ -233,10 +240,14 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
         for var, u in units.items():
             if not isinstance(u, str):
                 raise ScenarioError(file, f"{fld}.units.{var}", "must be a unit name (a string)")
-        sc.instances[iname] = InstanceSpec(iname, fmu, path, dict(params), dict(names), dict(units))
+        logging = inst.get("logging", "warning")
+        if logging not in LOGGING:
+            raise ScenarioError(file, f"{fld}.logging", f"{logging!r}: must be one of {', '.join(LOGGING)}")
+        sc.instances[iname] = InstanceSpec(iname, fmu, path, dict(params), dict(names), dict(units), logging)
 
     order = exp.get("order", list(sc.instances))
-    if not isinstance(order, list) or sorted(order) != sorted(sc.instances):
+    if not isinstance(order, list) or not all(isinstance(o, str) for o in order) \
+            or sorted(order) != sorted(sc.instances):
         raise ScenarioError(file, "experiment.order",
                             f"{order!r} must list every instance exactly once ({', '.join(sc.instances)})")
     sc.order = list(order)
@@ -306,6 +317,19 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
         params = _instance_refs(file, f"{fld}.parameters", v.get("parameters"), sc)
         sc.variants[vname] = dict(params)
 
+    inputs = _table(file, "inputs", doc.get("inputs"))
+    _keys(file, "inputs", inputs, _INPUTS_KEYS)
+    if inputs:
+        f = inputs.get("file")
+        if not isinstance(f, str) or not Path(f).is_file():
+            raise ScenarioError(file, "inputs.file", f"{f!r}: not a file (a CSV table of input signals)")
+        sc.inputs_file = Path(f)
+        interp = _table(file, "inputs.interpolation", inputs.get("interpolation"))
+        for ref, mode in interp.items():
+            if mode not in ("linear", "hold"):
+                raise ScenarioError(file, f"inputs.interpolation.{ref}", f"{mode!r}: must be linear or hold")
+        sc.interpolation = dict(interp)
+
     evs = doc.get("events") or []
     if not isinstance(evs, list):
         raise ScenarioError(file, "events", "must be an array of tables ([[events]])")
@@ -330,15 +354,59 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
     return sc
 
 
+def check_experiment(sc: Scenario, where: str = "experiment") -> None:
+    """The run's times: stop after start, a step that divides the run into whole steps."""
+    file = sc.file
+    if sc.stop <= sc.start:
+        raise ScenarioError(file, f"{where}.stop", f"{sc.stop!r} is not after the start {sc.start!r}")
+    n = (sc.stop - sc.start) / sc.step
+    if not math.isfinite(n) or abs(n - round(n)) > 1e-6 * max(1.0, n):
+        raise ScenarioError(file, f"{where}.step",
+                            f"{sc.step!r} s does not divide the run {sc.start!r}..{sc.stop!r} s into whole steps")
+
+
+def apply_overrides(doc: dict[str, Any], overrides: dict[str, Any] | None, file: str) -> dict[str, Any]:
+    """Set ``overrides`` ({'inst.param': value}, from ``--set`` or the API) as parameters in a document."""
+    for ref, value in (overrides or {}).items():
+        inst, var = split_ref(file, f"--set {ref}", ref)
+        insts = doc.setdefault("instances", {})
+        if inst not in insts:
+            raise ScenarioError(file, f"--set {ref}", f"unknown instance {inst!r}")
+        if not isinstance(insts[inst], dict):
+            raise ScenarioError(file, f"instances.{inst}", "must be a table")
+        params = insts[inst].setdefault("parameters", {})
+        if not isinstance(params, dict):
+            raise ScenarioError(file, f"instances.{inst}.parameters", "must be a table")
+        params[var] = value
+    return doc
+
+
+def parse_value(text: str) -> Any:
+    """A value given on the command line: true/false, a JSON number, string or array, else the text."""
+    low = text.strip().lower()
+    if low in ("true", "false"):
+        return low == "true"
+    try:
+        return json.loads(text)
+    except (json.JSONDecodeError, RecursionError):
+        return text
+
+
+def parse_set(items: list[str] | None, form: str = "INSTANCE.PARAM=VALUE") -> dict[str, Any]:
+    """['plant.foam_da1=0.4', 'controller.task="line"'] -> {'plant.foam_da1': 0.4, ...}; repeated options
+    add up (the last value of a name wins)."""
+    out: dict[str, Any] = {}
+    for item in items or []:
+        key, sep, text = item.partition("=")
+        if not sep or "." not in key:
+            raise ScenarioError("--set", item, f"expected {form}")
+        out[key.strip()] = parse_value(text)
+    return out
+
+
 def load(path: str | os.PathLike, resolver=None, overrides: dict[str, Any] | None = None) -> Scenario:
     """Read a scenario file (following its ``base`` chain), apply ``overrides`` ({'inst.param': value}),
     and check its structure."""
     path = Path(path)
-    doc = _read(path)
-    for ref, value in (overrides or {}).items():
-        inst, var = split_ref(str(path), f"--set {ref}", ref)
-        insts = doc.setdefault("instances", {})
-        if inst not in insts:
-            raise ScenarioError(str(path), f"--set {ref}", f"unknown instance {inst!r}")
-        insts[inst].setdefault("parameters", {})[var] = value
+    doc = apply_overrides(_read(path), overrides, str(path))
     return parse(doc, str(path), resolver)

@@ -35,13 +35,13 @@ import os
 import shutil
 import tempfile
 import zipfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any
 
 from .archive import check_archive, check_entries, safe_extract
 from .errors import CosimError, FmuLoadError, ScenarioError
-from .scenario import ConnectionSpec, InstanceSpec, Scenario
+from .scenario import Scenario, apply_overrides, parse
 from .system import Plan
 
 SSP_VERSION = "1.0"
@@ -315,6 +315,7 @@ class SspArchive:
 
     scenario: Scenario
     folder: Path
+    warnings: list[str] = field(default_factory=list)
 
     def cleanup(self) -> None:
         shutil.rmtree(self.folder, ignore_errors=True)
@@ -403,6 +404,14 @@ def _bindings(owner, archive: Path, folder: Path, where: str, base: str) -> list
     return out
 
 
+def _with_version(data: bytes, root) -> bytes:
+    """The SSD with its version attribute set to 1.0 (for the schema check of an SSP 1.0 document)."""
+    from lxml import etree as ET
+
+    root.set("version", SSP_VERSION)
+    return ET.tostring(root, xml_declaration=True, encoding="UTF-8")
+
+
 def _step_from_annotations(root) -> tuple[float | None, str | None, list[str] | None]:
     step = algorithm = order = None
     for de in root.findall("ssd:DefaultExperiment", NS):
@@ -462,9 +471,12 @@ def load_ssp(path: str | os.PathLike, *, step: float | None = None, stop: float 
                             f"root element {ET.QName(root).localname} in {ns}: not an SSP 1.0 system structure "
                             f"(only SSP {SSP_VERSION} is supported)")
     version = root.get("version")
-    if version != SSP_VERSION:
-        raise ScenarioError(where, "SystemStructure.ssd",
-                            f"SSP version {version!r}: only SSP {SSP_VERSION} is supported")
+    warnings: list[str] = []
+    if version != SSP_VERSION:  # OMSimulator writes version "2.0" with the SSP 1.0 namespaces
+        warnings.append(f"{where}: the SSD says version {version!r} but uses the SSP {SSP_VERSION} namespaces: "
+                        f"read as SSP {SSP_VERSION}")
+        ssd_bytes = _with_version(ssd_bytes, root)
+        root = _parse_xml(ssd_bytes, f"{where}: SystemStructure.ssd")
     validate_xml(ssd_bytes, "ssd", f"{where}: SystemStructure.ssd")
 
     system = root.find("ssd:System", NS)
@@ -482,129 +494,121 @@ def load_ssp(path: str | os.PathLike, *, step: float | None = None, stop: float 
             safe_extract(path, folder / "archive")
         except FmuLoadError as exc:
             raise ScenarioError(where, "", str(exc)) from None
-        arch = folder / "archive"
-        sc = Scenario(file=where)
-        sc.data = {"ssp": where, "name": root.get("name")}
-        comps = system.findall("ssd:Elements/ssd:Component", NS)
-        if not comps:
-            raise ScenarioError(where, "System", "no components")
-        connectors: dict[tuple[str, str], Any] = {}
-        models: dict[str, Any] = {}
-        comp_params: list[tuple[str, str, Any]] = []
-        for comp in comps:
-            cname = comp.get("name")
-            fld = f"Component {cname}"
-            if not cname or not cname.isidentifier():
-                raise ScenarioError(where, fld, "a component name must be an identifier for this master")
-            if cname in sc.instances:
-                raise ScenarioError(where, fld, "two components with this name")
-            ctype = comp.get("type", FMU_MIME)
-            if ctype != FMU_MIME:
-                raise ScenarioError(where, fld, f"type {ctype!r}: only FMUs ({FMU_MIME}) are supported")
-            if comp.get("implementation", "CoSimulation") not in ("CoSimulation", "any"):
-                raise ScenarioError(where, fld, f"implementation {comp.get('implementation')!r}: only co-simulation "
-                                                "is supported")
-            src = comp.get("source") or ""
-            entry = src[2:] if src.startswith("./") else src
-            if "://" in entry or entry.startswith("/") or ".." in PurePosixPath(entry).parts or "#" in entry:
-                raise ScenarioError(where, f"{fld}.source", f"{src!r}: only FMUs inside the archive are supported")
-            fmu = arch / entry
-            if not entry or not fmu.is_file():
-                raise ScenarioError(where, f"{fld}.source", f"resource {src!r} is missing from the archive")
-            try:
-                from .model import load_model
-                model = load_model(fmu)
-            except FmuLoadError as exc:
-                raise ScenarioError(where, f"{fld}.source", f"{src}: {str(exc).replace(f'{fmu}: ', '', 1)}") from None
-            units: dict[str, str] = {}
-            for con in comp.findall("ssd:Connectors/ssd:Connector", NS):
-                cn = con.get("name")
-                if cn not in model.variables:
-                    raise ScenarioError(where, f"{fld}.Connector {cn}",
-                                        f"unknown connector: {src} has no variable {cn!r}")
-                connectors[(cname, cn)] = con
-                real = con.find("ssc:Real", NS)
-                if real is not None and real.get("unit"):
-                    units[cn] = real.get("unit")
-            sc.instances[cname] = InstanceSpec(cname, str(fmu), fmu, {}, {}, units)
-            models[cname] = model
-            for pname, value in _bindings(comp, path, arch, where, ""):
-                comp_params.append((cname, pname, value))
-
-        # parameters: system-level bindings address "component.variable"; component-level ones the variable
-        for pname, value in _bindings(system, path, arch, where, ""):
-            inst, dot, var = pname.partition(".")
-            if not dot or inst not in sc.instances:
-                raise ScenarioError(where, f"parameter {pname}", "names no component of the system (expected "
-                                                                  "\"component.variable\")")
-            comp_params.append((inst, var, value))
-        for inst, var, value in comp_params:
-            if var not in models[inst].variables:
-                raise ScenarioError(where, f"parameter {inst}.{var}", f"{inst} has no variable {var!r}")
-            sc.instances[inst].parameters[var] = value
-        for ref, value in (overrides or {}).items():
-            inst, dot, var = ref.partition(".")
-            if not dot or inst not in sc.instances:
-                raise ScenarioError(where, f"--set {ref}", f"unknown instance {inst!r}")
-            sc.instances[inst].parameters[var] = value
-
-        for i, c in enumerate(system.findall("ssd:Connections/ssd:Connection", NS)):
-            fld = f"Connection[{i}]"
-            se, scn, ee, ecn = (c.get(k) for k in ("startElement", "startConnector", "endElement", "endConnector"))
-            if se is None or ee is None:
-                raise ScenarioError(where, fld, "connections to the system's own connectors are not supported")
-            for el, cn in ((se, scn), (ee, ecn)):
-                if el not in sc.instances:
-                    raise ScenarioError(where, fld, f"unknown component {el!r}")
-                if (el, cn) not in connectors:
-                    raise ScenarioError(where, fld, f"unknown connector {el}.{cn} (not declared by the component)")
-            factor, offset = 1.0, 0.0
-            lt = c.find("ssc:LinearTransformation", NS)
-            if lt is not None:
-                factor, offset = float(lt.get("factor", 1.0)), float(lt.get("offset", 0.0))
-            elif len([k for k in c if isinstance(k.tag, str) and ET.QName(k).localname.endswith("Transformation")]):
-                raise ScenarioError(where, fld, "only LinearTransformation is supported")
-            if c.get("suppressUnitConversion") == "true":
-                raise ScenarioError(where, fld, "suppressUnitConversion is not supported")
-            sc.connections.append(ConnectionSpec(f"{se}.{scn}", f"{ee}.{ecn}", factor, offset, i))
-
-        a_step, a_alg, a_order = _step_from_annotations(root)
-        de = root.find("ssd:DefaultExperiment", NS)
-        sc.start = float(de.get("startTime", 0.0)) if de is not None else 0.0
-        sc.stop = stop if stop is not None else (float(de.get("stopTime")) if de is not None and de.get("stopTime")
-                                                 else math.nan)
-        if not math.isfinite(sc.stop):
-            steps = {m.md.defaultExperiment.stopTime for m in models.values() if m.md.defaultExperiment is not None}
-            sc.stop = float(next(iter(steps))) if len(steps) == 1 and None not in steps else math.nan
-        if not math.isfinite(sc.stop) or sc.stop <= sc.start:
-            raise ScenarioError(where, "DefaultExperiment", "no stop time after the start (give one with --stop)")
-        h = step if step is not None else a_step
-        if h is None:
-            defaults = {m.default_step for m in models.values()}
-            defaults.discard(None)
-            if len(defaults) != 1:
-                raise ScenarioError(where, "DefaultExperiment", "no communication step in the archive and the FMUs "
-                                                                 "declare no common default: give one with --step")
-            h = defaults.pop()
-        if not h > 0:
-            raise ScenarioError(where, "DefaultExperiment", f"step {h!r}: must be > 0")
-        sc.step = float(h)
-        n = (sc.stop - sc.start) / sc.step
-        if abs(n - round(n)) > 1e-6 * max(1.0, n):
-            raise ScenarioError(where, "DefaultExperiment", f"step {sc.step!r} s does not divide the run "
-                                                             f"{sc.start!r}..{sc.stop!r} s into whole steps")
-        sc.algorithm = algorithm or a_alg or "jacobi"
-        if sc.algorithm not in ("gauss-seidel", "jacobi"):
-            raise ScenarioError(where, "algorithm", f"{sc.algorithm!r}: must be gauss-seidel or jacobi")
-        sc.order = a_order if a_order and sorted(a_order) == sorted(sc.instances) else list(sc.instances)
-        # record every connector that is an output (what other SSP tools report), else all outputs
-        outs = [f"{i}.{n}" for (i, n), con in connectors.items() if con.get("kind") == "output"]
-        sc.record = outs or ["*.*"]
+        doc = _document(root, system, path, folder / "archive", step, stop, algorithm)
+        doc = apply_overrides(doc, overrides, where)
+        sc = parse(doc, where)
         ok = True
-        return SspArchive(sc, folder)
+        return SspArchive(sc, folder, warnings)
     finally:
         if not ok:
             shutil.rmtree(folder, ignore_errors=True)
+
+
+def _document(root, system, path: Path, arch: Path, step: float | None, stop: float | None,
+              algorithm: str | None) -> dict[str, Any]:
+    """The scenario document an SSD describes: the same document a TOML file gives, so the one parser
+    and the one resolver check both."""
+    from .model import load_model
+
+    where = str(path)
+    comps = system.findall("ssd:Elements/ssd:Component", NS)
+    if not comps:
+        raise ScenarioError(where, "System", "no components")
+    instances: dict[str, Any] = {}
+    connectors: dict[tuple[str, str], Any] = {}
+    models: dict[str, Any] = {}
+    comp_params: list[tuple[str, str, Any]] = []
+    for comp in comps:
+        cname = comp.get("name")
+        fld = f"Component {cname}"
+        if cname in instances:
+            raise ScenarioError(where, fld, "two components with this name")
+        ctype = comp.get("type", FMU_MIME)
+        if ctype != FMU_MIME:
+            raise ScenarioError(where, fld, f"type {ctype!r}: only FMUs ({FMU_MIME}) are supported")
+        if comp.get("implementation", "CoSimulation") not in ("CoSimulation", "any"):
+            raise ScenarioError(where, fld, f"implementation {comp.get('implementation')!r}: only co-simulation "
+                                            "is supported")
+        src = comp.get("source") or ""
+        entry = src[2:] if src.startswith("./") else src
+        if "://" in entry or entry.startswith("/") or ".." in PurePosixPath(entry).parts or "#" in entry:
+            raise ScenarioError(where, f"{fld}.source", f"{src!r}: only FMUs inside the archive are supported")
+        fmu = arch / entry
+        if not entry or not fmu.is_file():
+            raise ScenarioError(where, f"{fld}.source", f"resource {src!r} is missing from the archive")
+        try:
+            model = load_model(fmu)
+        except FmuLoadError as exc:
+            raise ScenarioError(where, f"{fld}.source", f"{src}: {str(exc).replace(f'{fmu}: ', '', 1)}") from None
+        units: dict[str, str] = {}
+        for con in comp.findall("ssd:Connectors/ssd:Connector", NS):
+            cn = con.get("name")
+            if cn not in model.variables:
+                raise ScenarioError(where, f"{fld}.Connector {cn}", f"unknown connector: {src} has no variable {cn!r}")
+            connectors[(cname, cn)] = con
+            real = con.find("ssc:Real", NS)
+            if real is not None and real.get("unit"):
+                units[cn] = real.get("unit")
+        instances[cname] = {"fmu": str(fmu), "parameters": {}, "units": units}
+        models[cname] = model
+        comp_params += [(cname, p, v) for p, v in _bindings(comp, path, arch, where, "")]
+
+    # parameters: system-level bindings address "component.variable"; component-level ones the variable
+    for pname, value in _bindings(system, path, arch, where, ""):
+        inst, dot, var = pname.partition(".")
+        if not dot or inst not in instances:
+            raise ScenarioError(where, f"parameter {pname}", "names no component of the system (expected "
+                                                              "\"component.variable\")")
+        comp_params.append((inst, var, value))
+    for inst, var, value in comp_params:
+        instances[inst]["parameters"][var] = value
+    a_step, a_alg, a_order = _step_from_annotations(root)
+    de = root.find("ssd:DefaultExperiment", NS)
+    experiment: dict[str, Any] = {"algorithm": algorithm or a_alg or "jacobi"}
+    for key, value in (("start", de.get("startTime") if de is not None else None),
+                       ("stop", stop if stop is not None else de.get("stopTime") if de is not None else None),
+                       ("step", step if step is not None else a_step)):
+        if value is not None:
+            try:
+                experiment[key] = float(value)
+            except ValueError:
+                raise ScenarioError(where, f"DefaultExperiment.{key}", f"{value!r} is not a number") from None
+    if a_order and sorted(a_order) == sorted(instances):
+        experiment["order"] = a_order
+    outs = [f"{i}.{n}" for (i, n), con in connectors.items() if con.get("kind") == "output"]
+    return {"experiment": experiment, "instances": instances,
+            "connections": _connections(system, instances, connectors, where),
+            "record": {"variables": outs or ["*.*"]}, "ssp": where, "name": root.get("name")}
+
+
+def _connections(system, instances: dict[str, Any], connectors: dict[tuple[str, str], Any], where: str
+                 ) -> list[dict[str, Any]]:
+    from lxml import etree as ET
+
+    out = []
+    for i, c in enumerate(system.findall("ssd:Connections/ssd:Connection", NS)):
+        fld = f"Connection[{i}]"
+        se, scn, ee, ecn = (c.get(k) for k in ("startElement", "startConnector", "endElement", "endConnector"))
+        if se is None or ee is None:
+            raise ScenarioError(where, fld, "connections to the system's own connectors are not supported")
+        for el, cn in ((se, scn), (ee, ecn)):
+            if el not in instances:
+                raise ScenarioError(where, fld, f"unknown component {el!r}")
+            if (el, cn) not in connectors:
+                raise ScenarioError(where, fld, f"unknown connector {el}.{cn} (not declared by the component)")
+        conn: dict[str, Any] = {"from": f"{se}.{scn}", "to": f"{ee}.{ecn}"}
+        lt = c.find("ssc:LinearTransformation", NS)
+        if lt is not None:
+            try:
+                conn["factor"], conn["offset"] = float(lt.get("factor", 1.0)), float(lt.get("offset", 0.0))
+            except ValueError:
+                raise ScenarioError(where, fld, "LinearTransformation: factor and offset must be numbers") from None
+        elif len([k for k in c if isinstance(k.tag, str) and ET.QName(k).localname.endswith("Transformation")]):
+            raise ScenarioError(where, fld, "only LinearTransformation is supported")
+        if c.get("suppressUnitConversion") == "true":
+            raise ScenarioError(where, fld, "suppressUnitConversion is not supported")
+        out.append(conn)
+    return out
 
 
 def is_ssp(path: str | os.PathLike) -> bool:

@@ -8,14 +8,17 @@ start value of the wrong type or outside the min/max the model description decla
 """
 from __future__ import annotations
 
-import fnmatch
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from .errors import CosimError, FmuLoadError, ScenarioError
+from .inputs import InputPlan, read_inputs
 from .model import PY_TYPES, FmuModel, Variable, load_model
-from .scenario import ConnectionSpec, InstanceSpec, Scenario, split_ref
+from .scenario import ConnectionSpec, InstanceSpec, Scenario, check_experiment, split_ref
 from .units import conversion, lookup, units_of
 
 
@@ -73,6 +76,7 @@ class Plan:
     record: list[RecordPlan]
     events: list[EventPlan]
     n_steps: int
+    inputs: list[InputPlan] = field(default_factory=list)
 
     @property
     def order(self) -> list[str]:
@@ -113,6 +117,89 @@ def _unit(inst: InstancePlan, var: Variable):
     return var.unit
 
 
+def _experiment(sc: Scenario, models: dict[str, FmuModel]) -> None:
+    """Fill start, stop and step the scenario leaves open from the FMUs' default experiments (refused
+    where they disagree), then check the run's times."""
+    attrs = {"start": "startTime", "stop": "stopTime", "step": "stepSize", "tolerance": "tolerance"}
+    for key, attr in attrs.items():
+        if getattr(sc, key) is not None:
+            continue
+        found = {}
+        for name, m in models.items():
+            de = m.md.defaultExperiment
+            v = getattr(de, attr, None) if de is not None else None
+            if v is not None:
+                found[name] = float(v)
+        if len(set(found.values())) > 1:
+            listed = ", ".join(f"{n} {v!r}" for n, v in found.items())
+            raise ScenarioError(sc.file, f"experiment.{key}", f"not given, and the FMUs' default experiments "
+                                                              f"disagree ({listed}): give one")
+        if found:
+            setattr(sc, key, next(iter(found.values())))
+        elif key == "start":
+            sc.start = 0.0
+        elif key in ("stop", "step"):
+            raise ScenarioError(sc.file, f"experiment.{key}", "not given, and no FMU's default experiment gives one")
+    check_experiment(sc)
+
+
+def _record(sc: Scenario, insts: dict[str, InstancePlan]) -> list[RecordPlan]:
+    """What to record (all outputs by default): exact names always; ``*`` and ``?`` as wildcards only
+    where a name does not match exactly (FMI names such as ``x[1]`` or ``der(x)`` are plain names)."""
+    file = sc.file
+    candidates = [(n, v) for n in sc.order for v in insts[n].model.outputs()]
+    record: list[RecordPlan] = []
+    seen: set[tuple[str, str]] = set()
+    for i, pat in enumerate(sc.record or ["*.*"]):
+        fld = f"record.variables[{i}]"
+        hits = [(n, v) for n, v in candidates if f"{n}.{insts[n].our_name(v)}" == pat]
+        if not hits and ("*" in pat or "?" in pat):
+            rx = re.compile("".join(".*" if ch == "*" else "." if ch == "?" else re.escape(ch) for ch in pat),
+                            re.DOTALL)
+            hits = [(n, v) for n, v in candidates if rx.fullmatch(f"{n}.{insts[n].our_name(v)}")]
+            hits = [(n, v) for n, v in hits if v.type != "String"]  # reported by check, not recorded
+            if not hits:
+                raise ScenarioError(file, fld, f"{pat!r} matches no output")
+        elif not hits:  # an explicit name may also be a non-output (a parameter, an input)
+            inst, var = split_ref(file, fld, pat)
+            if inst not in insts:
+                raise ScenarioError(file, fld, f"unknown instance {inst!r}")
+            hits = [(inst, _var(file, fld, insts[inst], var))]
+        for n, v in hits:
+            if v.type == "String":
+                raise ScenarioError(file, fld, f"{n}.{insts[n].our_name(v)} is a String: String variables "
+                                               "cannot be recorded")
+            if (n, v.name) not in seen:
+                seen.add((n, v.name))
+                record.append(RecordPlan(n, v, f"{n}.{insts[n].our_name(v)}"))
+    return record
+
+
+def _inputs(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str, str], int]) -> list[InputPlan]:
+    """The tabulated inputs, sampled at the communication points (each column an input no connection drives)."""
+    if sc.inputs_file is None:
+        return []
+    file = sc.file
+
+    def resolve_var(col: str) -> tuple[str, Variable]:
+        inst, dot, name = col.partition(".")
+        if not (dot and inst in insts):
+            if len(insts) != 1:
+                raise ScenarioError(file, f"inputs.{col}", "a column must be named \"instance.variable\"")
+            inst, name = next(iter(insts)), col
+        var = _var(file, f"inputs.{col}", insts[inst], name)
+        if var.causality != "input":
+            raise ScenarioError(file, f"inputs.{col}", f"{var.name} is {var.causality}, not an input")
+        if (inst, var.name) in driven:
+            raise ScenarioError(file, f"inputs.{col}", f"{col} is already driven by "
+                                                       f"connections[{driven[(inst, var.name)]}]")
+        return inst, var
+
+    n_steps = int(round((sc.stop - sc.start) / sc.step))
+    grid = sc.start + np.arange(n_steps) * sc.step
+    return read_inputs(sc.inputs_file, file, sc.interpolation, resolve_var, grid)
+
+
 def resolve(sc: Scenario) -> Plan:
     """Load every FMU of the scenario and run all the checks; returns the executable plan."""
     file = sc.file
@@ -123,28 +210,24 @@ def resolve(sc: Scenario) -> Plan:
         except FmuLoadError as exc:
             raise ScenarioError(file, f"instances.{name}.fmu", str(exc)) from None
         ip = InstancePlan(name, spec, model, {o: t for t, o in spec.names.items()}, dict(spec.names))
-        for their in spec.names:
+        for their, ours in spec.names.items():
             if their not in model.variables:
                 raise ScenarioError(file, f"instances.{name}.names.{their}",
                                     f"{model.path.name} has no variable {their!r}")
+            if ours != their and ours in model.variables and ours not in spec.names:
+                raise ScenarioError(file, f"instances.{name}.names.{their}",
+                                    f"{ours!r} is already the name of another variable of {model.path.name}")
         for var_name in spec.units:
             _var(file, f"instances.{name}.units.{var_name}", ip, var_name)
-        # the step: an FMU that cannot vary its step must be driven at (a multiple of) its own
-        if not model.can_vary_step and model.default_step:
-            ratio = sc.step / model.default_step
-            if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-9 * ratio:
-                raise ScenarioError(file, "experiment.step",
-                                    f"{sc.step!r} s: {name} ({model.path.name}) cannot vary its step and "
-                                    f"declares {model.default_step!r} s")
         for pname, value in spec.parameters.items():
             fld = f"instances.{name}.parameters.{pname}"
             var = _var(file, fld, ip, pname)
-            if var.causality not in ("parameter", "input"):
-                raise ScenarioError(file, fld, f"{var.name} is {var.causality}: only parameters and inputs can be set")
-            if var.variability == "constant":
-                raise ScenarioError(file, fld, f"{var.name} is a constant")
+            reason = var.settable()
+            if reason:
+                raise ScenarioError(file, fld, reason)
             ip.parameters.append((var, _value(file, fld, var, value)))
         insts[name] = ip
+    _experiment(sc, {n: ip.model for n, ip in insts.items()})
 
     conns: list[ConnectionPlan] = []
     driven: dict[tuple[str, str], int] = {}
@@ -176,25 +259,8 @@ def resolve(sc: Scenario) -> Plan:
             raise ScenarioError(file, fld, "a linear transform needs Real variables")
         conns.append(ConnectionPlan(si, svar, di, dvar, c.factor * f, c.factor * o + c.offset, c))
 
-    # what to record: all outputs by default
-    candidates = [(n, v) for n in sc.order for v in insts[n].model.outputs()]
-    record: list[RecordPlan] = []
-    seen: set[tuple[str, str]] = set()
-    patterns = sc.record or ["*.*"]
-    for i, pat in enumerate(patterns):
-        hits = [(n, v) for n, v in candidates if fnmatch.fnmatchcase(f"{n}.{insts[n].our_name(v)}", pat)]
-        if not hits and not any(ch in pat for ch in "*?["):
-            # an explicit name may also be a non-output (a parameter, an input)
-            inst, var = split_ref(file, f"record.variables[{i}]", pat)
-            if inst not in insts:
-                raise ScenarioError(file, f"record.variables[{i}]", f"unknown instance {inst!r}")
-            hits = [(inst, _var(file, f"record.variables[{i}]", insts[inst], var))]
-        if not hits:
-            raise ScenarioError(file, f"record.variables[{i}]", f"{pat!r} matches no output")
-        for n, v in hits:
-            if (n, v.name) not in seen and v.type in ("Real", "Integer", "Boolean", "Enumeration"):
-                seen.add((n, v.name))
-                record.append(RecordPlan(n, v, f"{n}.{insts[n].our_name(v)}"))
+    record = _record(sc, insts)
+    inputs = _inputs(sc, insts, driven)
 
     n_steps = int(round((sc.stop - sc.start) / sc.step))
     events: list[EventPlan] = []
@@ -204,11 +270,12 @@ def resolve(sc: Scenario) -> Plan:
         var = _var(file, f"{fld}.variable", insts[inst], vname)
         if var.causality not in ("input", "output") or var.type != "Real":
             raise ScenarioError(file, f"{fld}.variable", f"{e.variable} must be a Real input or output")
-        if not sc.start <= e.time <= sc.stop:
-            raise ScenarioError(file, f"{fld}.time", f"{e.time!r} is outside the run {sc.start!r}..{sc.stop!r} s")
+        if not sc.start <= e.time < sc.stop:
+            raise ScenarioError(file, f"{fld}.time", f"{e.time!r} is outside the run {sc.start!r}..{sc.stop!r} s "
+                                                     "(an event at the stop time would never act)")
         k = int(math.ceil((e.time - sc.start) / sc.step - 1e-9))
         value = None if e.action == "reset" else _value(file, f"{fld}.value", var, e.value) if e.action == "override" \
             else float(_value(file, f"{fld}.value", Variable(var.name, 0, "Real", "input", "", None, None, None, None), e.value))
         events.append(EventPlan(e.time, k, inst, var, e.action, value, e.variable))
     events.sort(key=lambda ev: ev.step)  # stable: file order within a step
-    return Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps)
+    return Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs)

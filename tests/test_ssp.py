@@ -186,8 +186,9 @@ def test_a_foreign_archive_runs(tmp_path, built_fmus):
     try:
         sc = arch.scenario
         assert sc.instances["controller"].parameters == {"goal_x": 1.25}
+        plan = system.resolve(sc)
         assert (sc.step, sc.stop, sc.algorithm) == (0.002, 0.5, "jacobi")  # step from the FMUs; SSP tools' Jacobi
-        res = execution.run(system.resolve(sc), tmp_path / "out", progress=False)
+        res = execution.run(plan, tmp_path / "out", progress=False)
         assert res.status == "ok" and res.steps == 250, res.message
         assert "controller.u1" in res.columns
     finally:
@@ -232,9 +233,6 @@ def bad_archives(g1_ssp, built_fmus, tmp_path_factory):
                                        edit=lambda t: t.replace('name="alpha_m1" kind="output"',
                                                                 'name="alpha_mX" kind="output"', 1)),
                               "unknown connector: resources/WmrSensor.fmu has no variable 'alpha_mX'"),
-        "unsupported version": (_rewrite(g1_ssp, d / "version.ssp", edit=lambda t: t.replace('version="1.0"',
-                                                                                           'version="2.0"', 1)),
-                                "SSP version '2.0': only SSP 1.0 is supported"),
         "SSP 2.0 namespace": (_rewrite(g1_ssp, d / "ns2.ssp", edit=lambda t: t.replace("SSP1/", "SSP2/")),
                               "not an SSP 1.0 system structure"),
         "model exchange FMU": (_rewrite(g1_ssp, d / "me.ssp", drop=("resources/WmrSensor.fmu",),
@@ -249,7 +247,7 @@ def bad_archives(g1_ssp, built_fmus, tmp_path_factory):
     }
 
 
-@pytest.mark.parametrize("case", ["missing resource", "unknown connector", "unsupported version", "SSP 2.0 namespace",
+@pytest.mark.parametrize("case", ["missing resource", "unknown connector", "SSP 2.0 namespace",
                                   "model exchange FMU", "not valid", "no system structure", "not a zip"])
 def test_a_bad_or_foreign_archive_gives_one_line(bad_archives, case, tmp_path):
     path, expected = bad_archives[case]
@@ -261,6 +259,20 @@ def test_a_bad_or_foreign_archive_gives_one_line(bad_archives, case, tmp_path):
     assert p.returncode == 2, p
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in p.stderr and expected.split(":")[0] in lines[0], p.stderr
+
+
+def test_version_2_with_the_ssp_1_namespaces_is_read_with_a_warning(g1_ssp, tmp_path):
+    """OMSimulator writes SSDs that say version "2.0" but use the SSP 1.0 namespaces."""
+    path = _rewrite(g1_ssp, tmp_path / "oms.ssp", edit=lambda t: t.replace('version="1.0"', 'version="2.0"', 1))
+    arch = load_ssp(path)
+    try:
+        assert len(arch.warnings) == 1 and "version '2.0'" in arch.warnings[0]
+        assert set(arch.scenario.instances) == {"plant", "sensor", "controller"}
+    finally:
+        arch.cleanup()
+    p = _cli("check", path)
+    assert p.returncode == 0, p.stderr
+    assert p.stderr.count("warning") == 1 and "SSP 1.0 namespaces" in p.stderr
 
 
 # ------------------------------------------------------------------------------- archives escaping their folder

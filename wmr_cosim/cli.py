@@ -18,23 +18,12 @@ from .components.metrics import run_metrics
 from .components.plant import PlantParams
 from .components.sensor import SensorParams
 from .components.validation import ParameterError
-from .cosim.errors import CosimError
-
-EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+from .cosim.errors import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN_FAILED as EXIT_FAILED, CosimError
+from .cosim.scenario import parse_value
 
 
 class UsageError(Exception):
     """Bad command-line input; the message is one line."""
-
-
-def _parse_value(text: str) -> Any:
-    low = text.strip().lower()
-    if low in ("true", "false"):
-        return low == "true"
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError:
-        return text
 
 
 def _overrides(items: list[str]) -> dict[str, dict[str, Any]]:
@@ -49,7 +38,7 @@ def _overrides(items: list[str]) -> dict[str, dict[str, Any]]:
             raise UsageError(f"--set {item!r}: expected COMPONENT.PARAM=VALUE with COMPONENT plant, sensor or controller")
         if name not in fields[comp]:
             raise UsageError(f"--set {item!r}: {comp} has no parameter {name!r}")
-        v = _parse_value(val)
+        v = parse_value(val)
         out[comp][name] = tuple(v) if isinstance(v, list) else v
     return out
 
@@ -134,10 +123,15 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise UsageError(f"--variant {args.variant}: {args.scenario} declares no runs")
     elif args.variant is not None:
         raise UsageError(f"--variant {args.variant}: only a scenario file (.toml) declares variants")
-    res = run_scenario(args.scenario, out, parse_set(args.set), progress=False if args.quiet else None)
+    fmu_only = (args.input, args.stop, args.step)
+    if any(v is not None for v in fmu_only) and not str(args.scenario).lower().endswith(".fmu"):
+        raise UsageError("--input, --stop and --step apply to a single FMU (.fmu); a scenario file says them itself")
+    res = run_scenario(args.scenario, out, parse_set(args.set), progress=False if args.quiet else None,
+                       inputs=args.input, stop=args.stop, step=args.step)
     per = f", {res.wall_s / res.steps * 1e6:.1f} us/step" if res.steps else ""
-    if res.status == "ok":
-        print(f"{args.scenario}: ok, {res.steps} steps to t = {res.t_end:g} s in {res.wall_s:.2f} s{per} "
+    if res.status in ("ok", "terminated"):
+        how = "ok" if res.status == "ok" else res.message
+        print(f"{args.scenario}: {how}, {res.steps} steps to t = {res.t_end:g} s in {res.wall_s:.2f} s{per} "
               f"(set-up {res.setup_s:.2f} s); results in {out}")
     else:
         print(f"wmr-cosim: run {res.status}: {res.message}", file=sys.stderr)
@@ -153,8 +147,12 @@ def cmd_check(args: argparse.Namespace) -> int:
     from .cosim.ssp import is_ssp
     from .runner import load_plan, parse_set, ssp_plan
 
-    with (ssp_plan(args.scenario, parse_set(args.set)) if is_ssp(args.scenario)
-          else contextlib.nullcontext(load_plan(args.scenario, parse_set(args.set)))) as plan:
+    from .runner import fmu_plan, is_fmu
+
+    overrides = parse_set(args.set)
+    with (ssp_plan(args.scenario, overrides) if is_ssp(args.scenario)
+          else contextlib.nullcontext(fmu_plan(args.scenario, overrides) if is_fmu(args.scenario)
+                                      else load_plan(args.scenario, overrides))) as plan:
         sc = plan.scenario
         print(f"{args.scenario}: ok: {len(plan.instances)} instances ({', '.join(plan.order)}), "
               f"{len(plan.connections)} connections, {len(plan.record)} recorded variables, {len(plan.events)} events, "
@@ -252,7 +250,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("task", nargs="?", default="G1", choices=paper.TASKS, help="task (default G1)")
     d.add_argument("--t-stop", type=float, default=50.0, help="stop time [s] (default 50)")
     d.add_argument("--step", type=float, default=0.002, help="communication step h [s] (default 0.002)")
-    d.add_argument("--set", nargs="*", metavar="COMP.PARAM=VALUE",
+    d.add_argument("--set", nargs="+", action="extend", metavar="COMP.PARAM=VALUE",
                    help="override parameters, e.g. plant.foam_on_time=true plant.foam_t_on=8.38 controller.gamma=5")
     d.add_argument("--json", action="store_true", help="print only the JSON line")
     d.set_defaults(func=cmd_direct)
@@ -271,17 +269,22 @@ def build_parser() -> argparse.ArgumentParser:
                                    "Results go to a folder: signals.npy (written as the run goes), signals.csv, "
                                    "scenario.json, logs/, summary.json. Exit codes: 0 ok, 1 the run failed "
                                    "(an FMU error, a non-finite value), 2 bad input, 130 interrupted.")
-    r.add_argument("scenario", type=Path, help="scenario file (.toml) or SSP 1.0 archive (.ssp)")
+    r.add_argument("scenario", type=Path, help="scenario file (.toml), SSP 1.0 archive (.ssp) or one FMU (.fmu)")
     r.add_argument("--out", type=Path, default=None, metavar="DIR", help="results folder (default results/<scenario>)")
-    r.add_argument("--set", nargs="*", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
+    r.add_argument("--set", nargs="+", action="extend", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
     r.add_argument("--variant", default=None, help="a variant the scenario declares ([variants.NAME])")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--input", type=Path, default=None, metavar="FILE.csv",
+                   help="one FMU only: input signals (a time column, one column per input; see docs/scenarios.md)")
+    r.add_argument("--stop", type=float, default=None, help="one FMU only: stop time [s] (default: its default experiment)")
+    r.add_argument("--step", type=float, default=None,
+                   help="one FMU only: communication step [s] (default: its default experiment)")
     r.set_defaults(func=cmd_run)
     c = sub.add_parser("check", help="check a scenario against its FMUs without running it",
                        description="Run every check of a scenario (files, variables, causality, types, units, "
                                    "steps, ranges, keys) without stepping. Exit code 0 if it would run, 2 if not.")
-    c.add_argument("scenario", type=Path, help="scenario file (.toml) or SSP 1.0 archive (.ssp)")
-    c.add_argument("--set", nargs="*", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
+    c.add_argument("scenario", type=Path, help="scenario file (.toml), SSP 1.0 archive (.ssp) or one FMU (.fmu)")
+    c.add_argument("--set", nargs="+", action="extend", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
     c.set_defaults(func=cmd_check)
     e = sub.add_parser("export-ssp", help="write a scenario as an SSP 1.0 archive",
                        description="Write a scenario as an SSP 1.0 archive that other tools (libcosim, ecos, FMPy, "
@@ -291,7 +294,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "Timed events cannot be expressed in SSP 1.0 and are refused.")
     e.add_argument("scenario", type=Path, help="scenario file (.toml)")
     e.add_argument("--out", type=Path, required=True, metavar="FILE.ssp", help="the archive to write")
-    e.add_argument("--set", nargs="*", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
+    e.add_argument("--set", nargs="+", action="extend", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
     e.set_defaults(func=cmd_export_ssp)
     i = sub.add_parser("info", help="describe an FMU", description="Describe an FMU: model, FMI capabilities, "
                        "default experiment, and every variable with causality, type, unit, range and start.")
@@ -355,7 +358,7 @@ def main(argv: list[str] | None = None) -> int:
         raise
     except KeyboardInterrupt:
         print("wmr-cosim: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import contextlib
-import json
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -11,6 +11,7 @@ from typing import Any
 from .cosim import execution, scenario, ssp, system
 from .cosim.errors import CosimError, ScenarioError
 from .cosim.model import load_model
+from .cosim.scenario import parse_set
 
 
 def resolve_model(name: str) -> Path | None:
@@ -32,23 +33,37 @@ def resolve_model(name: str) -> Path | None:
         raise CosimError(f"building {name}: {' '.join(str(exc).split())}") from None
 
 
-def parse_set(items: list[str] | None) -> dict[str, Any]:
-    """['plant.foam_da1=0.4', 'controller.task="line"'] -> {'plant.foam_da1': 0.4, ...}."""
-    out: dict[str, Any] = {}
-    for item in items or []:
-        key, sep, text = item.partition("=")
-        if not sep or "." not in key:
-            raise CosimError(f"--set {item!r}: expected INSTANCE.PARAM=VALUE")
-        low = text.strip().lower()
-        if low in ("true", "false"):
-            value: Any = low == "true"
-        else:
-            try:
-                value = json.loads(text)
-            except json.JSONDecodeError:
-                value = text
-        out[key.strip()] = value
-    return out
+def fmu_document(fmu: str | Path, inputs: str | Path | None = None, stop: float | None = None,
+                 step: float | None = None) -> dict[str, Any]:
+    """The scenario document of one FMU run alone (as ``fmpy simulate`` runs it): one instance named after
+    the model, every output recorded, start, stop and step from its default experiment unless given (with
+    no default step, 500 steps over the run, as FMPy; with no stop either, 1 s), inputs from a CSV table."""
+    import re
+
+    path = Path(fmu).resolve()
+    model = load_model(path)
+    name = re.sub(r"\W", "_", model.model_name) or "fmu"
+    name = name if name.isidentifier() else f"fmu_{name}"
+    doc: dict[str, Any] = {"instances": {name: {"fmu": str(path)}}, "record": {"variables": ["*.*"]}}
+    de = model.md.defaultExperiment
+    if step is None and model.default_step is None:  # as FMPy: 500 steps over the run
+        start = float(de.startTime) if de is not None and de.startTime is not None else 0.0
+        end = stop if stop is not None else float(de.stopTime) if de is not None and de.stopTime is not None else 1.0
+        step = (end - start) / 500
+        stop = end
+    exp = {k: v for k, v in (("stop", stop), ("step", step)) if v is not None}
+    if exp:
+        doc["experiment"] = exp
+    if inputs is not None:
+        doc["inputs"] = {"file": str(Path(inputs).resolve())}
+    return doc
+
+
+def fmu_plan(fmu: str | Path, overrides: dict[str, Any] | None = None, inputs: str | Path | None = None,
+             stop: float | None = None, step: float | None = None) -> system.Plan:
+    """The checked plan of one FMU run alone (see :func:`fmu_document`)."""
+    doc = scenario.apply_overrides(fmu_document(fmu, inputs, stop, step), overrides, str(fmu))
+    return system.resolve(scenario.parse(doc, str(fmu)))
 
 
 def load_plan(path: str | Path, overrides: dict[str, Any] | None = None) -> system.Plan:
@@ -64,6 +79,8 @@ def load_plan(path: str | Path, overrides: dict[str, Any] | None = None) -> syst
 def ssp_plan(path: str | Path, overrides: dict[str, Any] | None = None) -> Iterator[system.Plan]:
     """The checked plan of an SSP archive, its FMUs extracted for the time of the ``with`` block."""
     arch = ssp.load_ssp(path, overrides=overrides)
+    for w in arch.warnings:
+        print(f"wmr-cosim: warning: {w}", file=sys.stderr)
     try:
         yield system.resolve(arch.scenario)
     finally:
@@ -79,9 +96,17 @@ def default_out(path: str | Path) -> Path:
     return Path("results") / Path(path).stem
 
 
+def is_fmu(path: str | Path) -> bool:
+    return str(path).lower().endswith(".fmu")
+
+
 def run_scenario(path: str | Path, out: str | Path | None = None, overrides: dict[str, Any] | None = None,
-                 progress: bool | None = None) -> execution.RunResult:
+                 progress: bool | None = None, inputs: str | Path | None = None, stop: float | None = None,
+                 step: float | None = None) -> execution.RunResult:
+    """Run a scenario file (.toml), an SSP archive (.ssp) or one FMU alone (.fmu)."""
     out = out if out is not None else default_out(path)
+    if is_fmu(path):
+        return execution.run(fmu_plan(path, overrides, inputs, stop, step), out, progress=progress)
     if ssp.is_ssp(path):
         with ssp_plan(path, overrides) as plan:
             return execution.run(plan, out, progress=progress)

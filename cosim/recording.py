@@ -1,0 +1,142 @@
+"""Recording (the observers): the row buffer flushed to a structured .npy file as the run goes, the
+CSV written from it in bounded chunks, and result files that exist only when whole.
+
+``numpy.load('signals.npy')`` gives a structured array with one named field per column: 'time' and every
+Real as float64, Integer and Enumeration as int32, Boolean as bool ('plant.alpha1', ...);
+``pandas.DataFrame(numpy.load('signals.npy'))`` gives a table.  The header is rewritten at every flush,
+so whatever was recorded up to a failure (or a kill) loads with one call.
+"""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.lib import format as npformat
+
+from .errors import RunError
+
+#: FMI type -> column dtype in signals.npy.
+DTYPES: dict[str, str] = {"Real": "<f8", "Integer": "<i4", "Enumeration": "<i4", "Boolean": "?"}
+#: Rows of the CSV converted at a time (bounds the memory the CSV writer needs).
+CSV_CHUNK = 20000
+
+
+def atomic_write(path: Path, data: str | bytes) -> None:
+    """Write ``path`` through a temporary name and rename it: a file that exists is whole."""
+    tmp = path.with_name(path.name + ".part")
+    with open(tmp, "wb") as fh:
+        fh.write(data.encode() if isinstance(data, str) else data)
+    os.replace(tmp, path)
+
+
+def write_json(path: Path, obj: Any) -> None:
+    atomic_write(path, json.dumps(obj, indent=2, default=str) + "\n")
+
+
+class NpyRecorder:
+    """Append rows to a structured .npy file, keeping the file loadable after every flush."""
+
+    def __init__(self, path: str | os.PathLike, columns: list[str], types: list[str] | None = None) -> None:
+        self.path = Path(path)
+        self.columns = list(columns)
+        types = types or ["Real"] * len(columns)
+        self.dtype = np.dtype([(c, DTYPES[t]) for c, t in zip(self.columns, types)])
+        self.rows = 0
+        self._fh = open(self.path, "wb+")
+        self._write_header(0)
+
+    def _write_header(self, rows: int) -> None:
+        """Write the .npy 1.0 header for ``rows`` rows; its length never changes (room for 10^15 rows).
+        Column names outside Latin-1 need the .npy 3.0 header (UTF-8)."""
+        d = {"descr": npformat.dtype_to_descr(self.dtype), "fortran_order": False, "shape": (rows,)}
+        width = len(repr({**d, "shape": (10 ** 15,)}))
+        body = repr(d).ljust(width)
+        try:
+            body.encode("latin1")
+            version, enc, nlen = b"\x01\x00", "latin1", 2
+        except UnicodeEncodeError:
+            version, enc, nlen = b"\x03\x00", "utf8", 4
+        encoded = body.encode(enc)
+        total = 8 + nlen + len(encoded) + 1
+        encoded += b" " * ((64 - total % 64) % 64) + b"\n"
+        self._fh.seek(0)
+        self._fh.write(b"\x93NUMPY" + version + len(encoded).to_bytes(nlen, "little") + encoded)
+        self._fh.flush()
+
+    def append(self, block: np.ndarray) -> None:
+        """Append a (rows, len(columns)) float64 block, each column converted to its type."""
+        if block.ndim != 2 or block.shape[1] != len(self.columns):
+            raise ValueError(f"block of shape {block.shape} for {len(self.columns)} columns")
+        if not block.shape[0]:
+            return
+        rec = np.empty(block.shape[0], self.dtype)
+        for j, name in enumerate(self.columns):
+            rec[name] = block[:, j]
+        self._fh.seek(0, os.SEEK_END)
+        self._fh.write(rec.tobytes())
+        self.rows += block.shape[0]
+        self._write_header(self.rows)
+        self._fh.flush()
+
+    def close(self) -> None:
+        if not self._fh.closed:
+            self._fh.flush()
+            self._fh.close()
+
+
+class RowBuffer:
+    """The rows of the current segment (``bytes`` of the master's float64 row buffer), flushed to the
+    recorder with a check that every recorded value is finite."""
+
+    def __init__(self, recorder: NpyRecorder, cols: list[int]) -> None:
+        self.recorder = recorder
+        self.cols = np.asarray(cols)
+        self.chunk: list[bytes] = []
+
+    def __len__(self) -> int:
+        return len(self.chunk)
+
+    def last_time(self) -> float | None:
+        return float(np.frombuffer(self.chunk[-1], "<f8", 1)[0]) if self.chunk else None
+
+    def flush(self) -> None:
+        """Write the rows; RunError at the first non-finite value (rows up to it are written)."""
+        if not self.chunk:
+            return
+        raw = np.frombuffer(b"".join(self.chunk), dtype="<f8")
+        block = raw.reshape(len(self.chunk), -1)[:, self.cols]
+        self.chunk.clear()
+        finite = np.isfinite(block)
+        if not finite.all():
+            r, c = np.argwhere(~finite)[0]
+            self.recorder.append(block[: r + 1])
+            name = self.recorder.columns[c]
+            raise RunError(f"{name} is {float(block[r, c])!r} at t = {block[r, 0]:.6g} s (a non-finite output)",
+                           name.split(".", 1)[0], float(block[r, 0]))
+        self.recorder.append(block)
+
+
+def write_csv(npy_path: str | os.PathLike, csv_path: str | os.PathLike, chunk: int = CSV_CHUNK) -> None:
+    """The recording as CSV (header row of column names; floats at full precision, integers as integers,
+    booleans as 0/1), converted ``chunk`` rows at a time and renamed into place when complete."""
+    data = np.load(npy_path, mmap_mode="r")
+    names = data.dtype.names or ()
+    csv_path = Path(csv_path)
+    tmp = csv_path.with_name(csv_path.name + ".part")
+    fmts = ["%r" if data.dtype[n].kind == "f" else "%d" for n in names]
+    with open(tmp, "w", newline="") as fh:
+        fh.write(",".join(_csv_name(n) for n in names) + "\n")
+        for i in range(0, len(data), chunk):
+            part = data[i:i + chunk]
+            cols = [part[n].tolist() if data.dtype[n].kind == "f" else part[n].astype(np.int64).tolist()
+                    for n in names]
+            line = ",".join(fmts)
+            fh.writelines(line % row + "\n" for row in zip(*cols))
+    os.replace(tmp, csv_path)
+
+
+def _csv_name(name: str) -> str:
+    return '"' + name.replace('"', '""') + '"' if any(ch in name for ch in ',"\n') else name
