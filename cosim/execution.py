@@ -339,6 +339,7 @@ def _results(ex: Execution, keep: bool) -> RunResult:
                           "log_lines": ex.instances[n].log_lines if n in ex.instances else 0}
                       for n, ip in plan.instances.items()},
         "final": final,
+        "not_recorded": plan.not_recorded,
     })
     return res
 

@@ -77,6 +77,7 @@ class Plan:
     events: list[EventPlan]
     n_steps: int
     inputs: list[InputPlan] = field(default_factory=list)
+    not_recorded: list[str] = field(default_factory=list)   # String outputs a pattern matched
 
     @property
     def order(self) -> list[str]:
@@ -143,12 +144,13 @@ def _experiment(sc: Scenario, models: dict[str, FmuModel]) -> None:
     check_experiment(sc)
 
 
-def _record(sc: Scenario, insts: dict[str, InstancePlan]) -> list[RecordPlan]:
+def _record(sc: Scenario, insts: dict[str, InstancePlan]) -> tuple[list[RecordPlan], list[str]]:
     """What to record (all outputs by default): exact names always; ``*`` and ``?`` as wildcards only
     where a name does not match exactly (FMI names such as ``x[1]`` or ``der(x)`` are plain names)."""
     file = sc.file
     candidates = [(n, v) for n in sc.order for v in insts[n].model.outputs()]
     record: list[RecordPlan] = []
+    skipped: list[str] = []
     seen: set[tuple[str, str]] = set()
     for i, pat in enumerate(sc.record or ["*.*"]):
         fld = f"record.variables[{i}]"
@@ -157,6 +159,7 @@ def _record(sc: Scenario, insts: dict[str, InstancePlan]) -> list[RecordPlan]:
             rx = re.compile("".join(".*" if ch == "*" else "." if ch == "?" else re.escape(ch) for ch in pat),
                             re.DOTALL)
             hits = [(n, v) for n, v in candidates if rx.fullmatch(f"{n}.{insts[n].our_name(v)}")]
+            skipped += [f"{n}.{insts[n].our_name(v)}" for n, v in hits if v.type == "String"]
             hits = [(n, v) for n, v in hits if v.type != "String"]  # reported by check, not recorded
             if not hits:
                 raise ScenarioError(file, fld, f"{pat!r} matches no output")
@@ -172,7 +175,7 @@ def _record(sc: Scenario, insts: dict[str, InstancePlan]) -> list[RecordPlan]:
             if (n, v.name) not in seen:
                 seen.add((n, v.name))
                 record.append(RecordPlan(n, v, f"{n}.{insts[n].our_name(v)}"))
-    return record
+    return record, sorted(set(skipped))
 
 
 def _inputs(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str, str], int]) -> list[InputPlan]:
@@ -247,7 +250,7 @@ def resolve(sc: Scenario) -> Plan:
         driven[key] = c.index
         if svar.type != dvar.type:
             raise ScenarioError(file, fld, f"type mismatch: {c.src} is {svar.type}, {c.dst} is {dvar.type}")
-        if svar.type not in ("Real", "Integer", "Boolean"):
+        if svar.type not in ("Real", "Integer", "Boolean", "Enumeration"):
             raise ScenarioError(file, fld, f"connections of type {svar.type} are not supported")
         f, o = 1.0, 0.0
         if svar.type == "Real":
@@ -259,7 +262,7 @@ def resolve(sc: Scenario) -> Plan:
             raise ScenarioError(file, fld, "a linear transform needs Real variables")
         conns.append(ConnectionPlan(si, svar, di, dvar, c.factor * f, c.factor * o + c.offset, c))
 
-    record = _record(sc, insts)
+    record, not_recorded = _record(sc, insts)
     inputs = _inputs(sc, insts, driven)
 
     n_steps = int(round((sc.stop - sc.start) / sc.step))
@@ -278,4 +281,4 @@ def resolve(sc: Scenario) -> Plan:
             else float(_value(file, f"{fld}.value", Variable(var.name, 0, "Real", "input", "", None, None, None, None), e.value))
         events.append(EventPlan(e.time, k, inst, var, e.action, value, e.variable))
     events.sort(key=lambda ev: ev.step)  # stable: file order within a step
-    return Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs)
+    return Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs, not_recorded)

@@ -157,6 +157,8 @@ def cmd_check(args: argparse.Namespace) -> int:
         print(f"{args.scenario}: ok: {len(plan.instances)} instances ({', '.join(plan.order)}), "
               f"{len(plan.connections)} connections, {len(plan.record)} recorded variables, {len(plan.events)} events, "
               f"{plan.n_steps} steps of {sc.step:g} s ({sc.algorithm})")
+        if plan.not_recorded:
+            print(f"note: String outputs are not recorded: {', '.join(plan.not_recorded)}")
     return EXIT_OK
 
 

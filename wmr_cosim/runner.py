@@ -36,13 +36,13 @@ def resolve_model(name: str) -> Path | None:
 def fmu_document(fmu: str | Path, inputs: str | Path | None = None, stop: float | None = None,
                  step: float | None = None) -> dict[str, Any]:
     """The scenario document of one FMU run alone (as ``fmpy simulate`` runs it): one instance named after
-    the model, every output recorded, start, stop and step from its default experiment unless given (with
+    the model identifier, every output recorded, start, stop and step from its default experiment unless given (with
     no default step, 500 steps over the run, as FMPy; with no stop either, 1 s), inputs from a CSV table."""
     import re
 
     path = Path(fmu).resolve()
     model = load_model(path)
-    name = re.sub(r"\W", "_", model.model_name) or "fmu"
+    name = re.sub(r"\W", "_", model.md.coSimulation.modelIdentifier) or "fmu"
     name = name if name.isidentifier() else f"fmu_{name}"
     doc: dict[str, Any] = {"instances": {name: {"fmu": str(path)}}, "record": {"variables": ["*.*"]}}
     de = model.md.defaultExperiment

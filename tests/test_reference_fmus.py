@@ -1,0 +1,255 @@
+"""The master on FMUs from other tools: the Modelica Association's Reference FMUs (FMI 2.0, linux64, in
+tests/data/reference-fmus) against FMPy's simulate_fmu with the same step and against their reference
+results, and the FMU behaviours of other exporters (call order, initialisation, names, start values,
+tabulated inputs, types, missing binaries, logging)."""
+from __future__ import annotations
+
+import csv
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy import read_csv, simulate_fmu
+
+from cosim_support import build_test_fmu, write_scenario
+from wmr_cosim.cosim import execution, scenario, system
+from wmr_cosim.cosim.errors import ScenarioError
+from wmr_cosim.runner import fmu_plan
+
+REF = Path(__file__).resolve().parent / "data" / "reference-fmus"
+FMI2 = REF / "fmi2"
+
+
+def _cli(*args: object) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "wmr_cosim.cli", *map(str, args)], capture_output=True, text=True)
+
+
+def _ours(fmu: Path, tmp: Path, **kw) -> np.ndarray:
+    res = execution.run(fmu_plan(fmu, **kw), tmp / "out", progress=False)
+    assert res.status in ("ok", "terminated"), res.message
+    return np.load(tmp / "out" / "signals.npy")
+
+
+def _fmpy(fmu: Path, step: float, **kw) -> np.ndarray:
+    return simulate_fmu(str(fmu), output_interval=step, **kw)
+
+
+@pytest.mark.parametrize("model", ["BouncingBall", "Dahlquist", "Resource", "Stair", "VanDerPol"])
+def test_reference_fmu_equals_fmpy_and_its_reference(model, tmp_path):
+    fmu = FMI2 / f"{model}.fmu"
+    plan = fmu_plan(fmu)
+    ours = _ours(fmu, tmp_path)
+    theirs = _fmpy(fmu, plan.scenario.step, stop_time=plan.scenario.stop)
+    assert len(ours) == len(theirs), (len(ours), len(theirs))
+    np.testing.assert_allclose(ours["time"], theirs["time"], rtol=0, atol=1e-12)
+    for name in theirs.dtype.names[1:]:
+        col = f"{model}.{name}"
+        assert col in ours.dtype.names, col
+        np.testing.assert_allclose(ours[col].astype(float), theirs[name].astype(float), rtol=0, atol=1e-12,
+                                   err_msg=col)
+    ref = read_csv(str(FMI2 / f"{model}_ref.csv"))
+    for name in ref.dtype.names[1:]:  # the reference result, at the times both have
+        t_ours = np.round(ours["time"], 9)
+        for t, v in zip(np.round(ref["time"], 9), ref[name]):
+            hit = np.flatnonzero(t_ours == t)
+            if hit.size:
+                assert abs(float(ours[f"{model}.{name}"][hit[-1]]) - float(v)) < 1e-6, (name, t)
+
+
+def test_an_fmu_that_ends_the_simulation_ends_the_run_cleanly(tmp_path):
+    """Stair returns Discard with fmi2Terminated at t = 9 s: status terminated, last row at 9 s, exit 0."""
+    p = _cli("run", FMI2 / "Stair.fmu", "--out", tmp_path / "out", "--quiet")
+    assert p.returncode == 0, p.stderr
+    assert "terminated by FMU Stair at t = 9 s" in p.stdout
+    data = np.load(tmp_path / "out" / "signals.npy")
+    assert data["time"][-1] == pytest.approx(9.0) and data["Stair.counter"][-1] == 10
+    assert data["Stair.counter"].dtype == np.int32   # Integer recorded as an integer
+
+
+def _feedthrough_chain(tmp: Path, algorithm: str, factor: float = 1.0, offset: float = 0.0) -> Path:
+    fmu = FMI2 / "Feedthrough.fmu"
+    return write_scenario(tmp / f"chain_{algorithm}.toml", f'''
+[experiment]
+stop = 0.1
+step = 0.01
+algorithm = "{algorithm}"
+order = ["b", "a"]          # against the flow: a feeds b
+[instances.a]
+fmu = "{fmu}"
+parameters = {{ Float64_continuous_input = 3.0, Int32_input = 7, Boolean_input = true }}
+[instances.b]
+fmu = "{fmu}"
+[[connections]]
+from = "a.Float64_continuous_output"
+to = "b.Float64_continuous_input"
+factor = {factor}
+offset = {offset}
+[[connections]]
+from = "a.Int32_output"
+to = "b.Int32_input"
+[[connections]]
+from = "a.Boolean_output"
+to = "b.Boolean_input"
+[[connections]]
+from = "a.Enumeration_output"
+to = "b.Enumeration_input"
+[record]
+variables = ["*.Float64_continuous_output", "*.Int32_output", "*.Boolean_output", "*.Enumeration_output"]
+''')
+
+
+@pytest.mark.parametrize("algorithm", ["gauss-seidel", "jacobi"])
+def test_initialisation_exchanges_outputs_to_inputs_against_the_order(algorithm, tmp_path):
+    """The row at the start time shows the initialised system: b gets a's output although b comes first
+    (never 0.0), through the connection's linear transform, for every type."""
+    for factor, offset in ((1.0, 0.0), (2.0, 1.0)):
+        plan = system.resolve(scenario.load(_feedthrough_chain(tmp_path, algorithm, factor, offset)))
+        res = execution.run(plan, tmp_path / "out", progress=False)
+        assert res.status == "ok", res.message
+        d = np.load(tmp_path / "out" / "signals.npy")
+        assert d["a.Float64_continuous_output"][0] == 3.0
+        assert d["b.Float64_continuous_output"][0] == 3.0 * factor + offset
+        assert d["b.Int32_output"][0] == 7 and d["b.Boolean_output"][0]
+        assert d["b.Int32_output"].dtype == np.int32 and d["b.Boolean_output"].dtype == np.bool_
+        assert np.all(d["b.Float64_continuous_output"] == 3.0 * factor + offset)
+
+
+def test_parameters_survive_an_fmu_that_resets_them_in_setup_experiment(tmp_path):
+    fmu = build_test_fmu("resetter.py", tmp_path / "fmu")
+    path = write_scenario(tmp_path / "r.toml", f'''
+[experiment]
+stop = 0.01
+step = 0.001
+[instances.r]
+fmu = "{fmu}"
+parameters = {{ p = 5.0 }}
+''')
+    res = execution.run(system.resolve(scenario.load(path)), tmp_path / "out", progress=False)
+    assert res.status == "ok", res.message
+    d = np.load(tmp_path / "out" / "signals.npy")
+    assert np.all(d["r.y"] == 5.0)
+
+
+@pytest.mark.parametrize("level, kept", [("warning", 0), ("info", 10), ("all", 10)])
+def test_log_level_filters_a_verbose_fmu(level, kept, tmp_path):
+    fmu = build_test_fmu("resetter.py", tmp_path / "fmu")
+    path = write_scenario(tmp_path / "r.toml", f'''
+[experiment]
+stop = 0.01
+step = 0.001
+[instances.r]
+fmu = "{fmu}"
+logging = "{level}"
+''')
+    res = execution.run(system.resolve(scenario.load(path)), tmp_path / "out", progress=False)
+    assert res.status == "ok", res.message
+    lines = (tmp_path / "out" / "logs" / "r.log").read_text().splitlines()
+    assert sum("step at t" in ln for ln in lines) == kept
+
+
+def test_fmi_names_are_exact_and_patterns_only_where_written(tmp_path):
+    """der(x0) and a name map to x[1]: exact names always work; '[1]' is not a character class."""
+    fmu = FMI2 / "VanDerPol.fmu"
+    path = write_scenario(tmp_path / "v.toml", f'''
+[experiment]
+stop = 1.0
+step = 0.01
+[instances.vdp]
+fmu = "{fmu}"
+names = {{ x1 = "x[1]" }}
+[record]
+variables = ["vdp.x[1]", "vdp.der(x0)", "vdp.x?"]
+''')
+    plan = system.resolve(scenario.load(path))
+    assert [r.column for r in plan.record] == ["vdp.x[1]", "vdp.der(x0)", "vdp.x0"]
+    res = execution.run(plan, tmp_path / "out", progress=False)
+    assert res.status == "ok", res.message
+    d = np.load(tmp_path / "out" / "signals.npy")
+    ref = _fmpy(fmu, 0.01, stop_time=1.0, output=["x0", "x1"])
+    np.testing.assert_allclose(d["vdp.x[1]"], ref["x1"], rtol=0, atol=1e-12)
+
+
+def test_start_values_of_states_follow_the_initial_rules(tmp_path):
+    fmu = FMI2 / "VanDerPol.fmu"
+    ours = _ours(fmu, tmp_path, overrides={"VanDerPol.x0": 3.0, "VanDerPol.mu": 0.5}, stop=2.0)
+    assert ours["VanDerPol.x0"][0] == 3.0
+    theirs = _fmpy(fmu, 0.01, stop_time=2.0, start_values={"x0": 3.0, "mu": 0.5})
+    np.testing.assert_allclose(ours["VanDerPol.x0"], theirs["x0"], rtol=0, atol=1e-12)
+    with pytest.raises(ScenarioError, match="initial=\"calculated\""):   # a derivative cannot be set
+        fmu_plan(fmu, overrides={"VanDerPol.der(x0)": 1.0})
+
+
+def _ft_inputs(path: Path) -> Path:
+    """Feedthrough's shipped input file (its Int32 column, extremes included), with a Real, a Boolean and
+    an Enumeration column, a step (a repeated time) and a ramp."""
+    with open(REF / "Feedthrough_in.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["time", "Float64_continuous_input", "Float64_discrete_input", "Int32_input", "Boolean_input",
+                    "Enumeration_input"])
+        w.writerow([0.0, 0.0, 0.0, rows[0]["Int32_input"], 0, 1])
+        w.writerow([0.5, 1.0, 1.0, rows[0]["Int32_input"], 1, 2])
+        w.writerow([0.5, 3.0, 3.0, rows[1]["Int32_input"], 1, 2])
+        w.writerow([1.0, 5.0, 4.0, rows[1]["Int32_input"], 0, 1])
+    return path
+
+
+def test_tabulated_inputs_match_fmpy_on_feedthrough(tmp_path):
+    fmu = FMI2 / "Feedthrough.fmu"
+    table = _ft_inputs(tmp_path / "in.csv")
+    ours = _ours(fmu, tmp_path, inputs=table, stop=1.5, step=0.1)
+    theirs = _fmpy(fmu, 0.1, stop_time=1.5, input=read_csv(str(table)))
+    assert len(ours) == len(theirs)
+    for name in ("Float64_continuous_output", "Float64_discrete_output", "Int32_output", "Boolean_output",
+                 "Enumeration_output"):
+        np.testing.assert_allclose(ours[f"Feedthrough.{name}"].astype(float), theirs[name].astype(float),
+                                   rtol=0, atol=1e-12, err_msg=name)
+    assert ours["Feedthrough.Int32_output"].max() == 2 ** 31 - 1 and ours["Feedthrough.Int32_output"].min() == -2 ** 31
+    # set before the step from t_k, seen in the row of t_k+1: at 0.5 s the value after the step in the
+    # table (3, not 1), at 0.6 s linear between (0.5, 3) and (1, 5)
+    i = int(np.flatnonzero(np.isclose(ours["time"], 0.5))[0])
+    out = ours["Feedthrough.Float64_continuous_output"]
+    assert out[i + 1] == 3.0 and out[i + 2] == pytest.approx(3.4, abs=1e-12)
+
+
+def test_a_string_output_is_reported_not_silently_dropped(tmp_path):
+    p = _cli("check", FMI2 / "Feedthrough.fmu")
+    assert p.returncode == 0 and "String outputs are not recorded: Feedthrough.String_output" in p.stdout, p
+
+
+def _rebinary(src: Path, dst: Path, rename) -> Path:
+    with zipfile.ZipFile(src) as zi, zipfile.ZipFile(dst, "w") as zo:
+        for info in zi.infolist():
+            data = zi.read(info)
+            info.filename = rename(info.filename)
+            zo.writestr(info, data)
+    return dst
+
+
+@pytest.mark.parametrize("kind, reason", [("win64", "no binary for this platform"),
+                                          ("renamed", "must be named after the model identifier")])
+def test_a_missing_binary_is_found_by_check(kind, reason, tmp_path):
+    src = FMI2 / "Dahlquist.fmu"
+    fmu = _rebinary(src, tmp_path / "D.fmu", (lambda n: n.replace("linux64", "win64").replace(".so", ".dll"))
+                    if kind == "win64" else (lambda n: n.replace("Dahlquist.so", "libdahlquist.so")))
+    for cmd in ("check", "run"):
+        p = _cli(cmd, fmu, "--out", tmp_path / "o") if cmd == "run" else _cli(cmd, fmu)
+        assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+        assert len(p.stderr.strip().splitlines()) == 1 and reason in p.stderr, p.stderr
+
+
+def test_defaults_come_from_the_fmus_and_must_agree(tmp_path):
+    a, b = FMI2 / "Dahlquist.fmu", FMI2 / "VanDerPol.fmu"
+    path = write_scenario(tmp_path / "d.toml", f'[instances.a]\nfmu = "{a}"\n[instances.b]\nfmu = "{b}"\n')
+    with pytest.raises(ScenarioError, match="default experiments disagree") as exc:
+        system.resolve(scenario.load(path))
+    assert exc.value.field == "experiment.stop"
+    path.write_text(path.read_text() + "[experiment]\nstop = 1.0\nstep = 0.1\ntolerance = 1e-6\n")
+    plan = system.resolve(scenario.load(path))
+    assert (plan.scenario.start, plan.scenario.tolerance, plan.n_steps) == (0.0, 1e-6, 10)
+    one = fmu_plan(a)
+    assert (one.scenario.stop, one.scenario.step) == (10.0, 0.1)
