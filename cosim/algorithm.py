@@ -42,7 +42,7 @@ class InstanceIO:
     copies: list[tuple[int, Any, int, float, float]] = field(default_factory=list)  # (pos, src array, idx, f, o)
     rec_int: tuple[Any, Any, Any, list[int]] | None = None   # (vr array, int buffer, n, row slots)
     rec_bool: tuple[Any, Any, Any, list[int]] | None = None
-    other: list[Callable[[], int]] = field(default_factory=list)  # Integer/Boolean connections
+    other: list[Callable[[], int]] = field(default_factory=list)  # connections other than Real -> Real
     feed: Callable[[int], int] | None = None       # tabulated inputs of step k (wiring.table_feeder)
 
 
@@ -83,7 +83,7 @@ def _copies(s: _Source, i: int, io: InstanceIO, ind: str, check_inputs: bool) ->
         s.w(f"{ind}if s: return (k, name_{i}, 'fmi2SetReal', s)")
     for j, fn in enumerate(io.other):
         s.w(f"{ind}s = {s.bind(f'other_{i}_{j}', fn)}()")
-        s.w(f"{ind}if s: return (k, name_{i}, 'fmi2SetInteger/Boolean', s)")
+        s.w(f"{ind}if s: return (k, name_{i}, 'fmi2Get/Set (a connection)', s)")
 
 
 def _step(s: _Source, i: int, ind: str) -> None:

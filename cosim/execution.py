@@ -31,7 +31,7 @@ from .errors import EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN_FAILED, CosimError, RunE
 from .instance import Instance, raw, vr_array
 from .recording import NpyRecorder, RowBuffer, write_csv, write_json
 from .system import Plan
-from .wiring import RowLayout, Wiring, discrete_copier, table_feeder
+from .wiring import RowLayout, Wiring, discrete_copier, is_real, table_feeder
 
 #: Rows recorded between two flushes to disk (and progress updates).
 FLUSH_ROWS = 2500
@@ -82,6 +82,7 @@ class Execution:
         self.k_done = 0
         self.setup_s = self.wall_s = 0.0
         self.status, self.message = "ok", ""
+        self._discrete: dict[tuple[str, int], Any] = {}   # values events have set on non-Real inputs
 
     # ---------------------------------------------------------------- set-up
     def load(self) -> None:
@@ -130,7 +131,7 @@ class Execution:
             vr_array(vrs), (ctypes.c_double * max(1, len(vrs)))(), ctypes.c_size_t(len(vrs)),
             vr_array(lay.reals[n]), lay.out_arr[n], ctypes.c_size_t(len(lay.reals[n])), self.wiring.copies(n),
             _int_spec(ints, ctypes.c_int), _int_spec(bools, ctypes.c_int),
-            [discrete_copier(self.instances, c) for c in plan.connections if c.dst == n and c.dst_var.type != "Real"],
+            [discrete_copier(self.instances, c) for c in plan.connections if c.dst == n and not is_real(c)],
             table_feeder(inst, self.wiring.tables.get(n),
                          [ip for ip in plan.inputs if ip.instance == n and ip.var.type != "Real"]))
         if self.timing:
@@ -192,8 +193,12 @@ class Execution:
             while k < self.n_steps:
                 changed = loop is None
                 while ev_i < len(events) and events[ev_i].step <= k:
-                    self.wiring.apply(events[ev_i])
-                    ev_i, changed = ev_i + 1, True
+                    if events[ev_i].var.type == "Real":
+                        self.wiring.apply(events[ev_i])
+                        changed = True
+                    else:
+                        self._set_discrete(events[ev_i])
+                    ev_i += 1
                 if changed:
                     for io in self.ios:
                         io.copies = self.wiring.copies(io.name)
@@ -221,6 +226,26 @@ class Execution:
             self.wall_s = _time.perf_counter() - wall0
             if bar is not None:
                 bar.close()
+
+    def _set_discrete(self, ev: Any) -> None:
+        """An event on an Integer, Enumeration, Boolean or String input: set now, held until the next."""
+        key = (ev.instance, ev.var.vr)
+        start = ev.var.start
+        for v, val in self.plan.instances[ev.instance].parameters:
+            if v.vr == ev.var.vr:
+                start = val
+        current = self._discrete.get(key, start)
+        if ev.action == "reset":
+            self._discrete.pop(key, None)
+            value = start
+        elif ev.action == "bias":
+            value = int(current or 0) + int(ev.value)
+            self._discrete[key] = value
+        else:
+            value = ev.value
+            self._discrete[key] = value
+        if value is not None:
+            self.instances[ev.instance].set_values([(ev.var, value)])
 
     def _failed(self, kf: int, name: str, what: str, val: Any) -> None:
         """A segment stopped at step ``kf``: an FMU that ended the simulation, or an error."""
@@ -336,7 +361,8 @@ def _results(ex: Execution, keep: bool) -> RunResult:
         "us_per_step": round(ex.wall_s / ex.k_done * 1e6, 3) if ex.k_done else None,
         "rows": ex.recorder.rows if ex.recorder else 0,
         "instances": {n: {"fmu": str(ip.model.path), "model": ip.model.model_name,
-                          "log_lines": ex.instances[n].log_lines if n in ex.instances else 0}
+                          "log_lines": ex.instances[n].log_lines if n in ex.instances else 0,
+                          "log_received": ex.instances[n].received if n in ex.instances else 0}
                       for n, ip in plan.instances.items()},
         "final": final,
         "not_recorded": plan.not_recorded,

@@ -81,6 +81,7 @@ class Instance:
         self.log: deque[str] = deque(maxlen=log_size)
         self.log_lines = 0
         self.n_errors = 0          # messages of status Error or Fatal, kept or not
+        self.received = 0          # messages the FMU sent, kept or not
         self.min_status = LOG_LEVELS[logging]
         self.logging = logging
         self._log_fh = open(log_path, "w", encoding="utf-8") if log_path is not None else None
@@ -106,6 +107,7 @@ class Instance:
 
     # ------------------------------------------------------------------ log
     def _logger(self, status, category, message) -> None:
+        self.received += 1
         if status >= 3:
             self.n_errors += 1
         if status < self.min_status:

@@ -25,7 +25,7 @@ _TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "r
 _INPUTS_KEYS = {"file", "interpolation"}
 _EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance"}
 _INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "description", "logging"}
-_CONNECTION_KEYS = {"from", "to", "factor", "offset"}
+_CONNECTION_KEYS = {"from", "to", "factor", "offset", "convert", "threshold"}
 _RECORD_KEYS = {"variables", "decimation", "csv"}
 _RUN_KEYS = {"name", "description", "parameters", "carry"}
 _VARIANT_KEYS = {"description", "parameters"}
@@ -49,11 +49,16 @@ class InstanceSpec:
 
 @dataclass
 class ConnectionSpec:
+    """output -> input; ``convert`` allows Boolean -> Real (0 or 1, then factor and offset) and Real ->
+    Boolean (true when the value exceeds ``threshold``)."""
+
     src: str
     dst: str
     factor: float = 1.0
     offset: float = 0.0
     index: int = 0
+    convert: bool = False
+    threshold: float = 0.5
 
 
 @dataclass
@@ -265,8 +270,12 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
             inst, _ = split_ref(file, f"{fld}.{end}", c[end])
             if inst not in sc.instances:
                 raise ScenarioError(file, f"{fld}.{end}", f"unknown instance {inst!r}")
+        convert = c.get("convert", False)
+        if not isinstance(convert, bool):
+            raise ScenarioError(file, f"{fld}.convert", f"{convert!r}: must be true or false")
         sc.connections.append(ConnectionSpec(c["from"], c["to"], _num(file, f"{fld}.factor", c.get("factor", 1.0)),
-                                             _num(file, f"{fld}.offset", c.get("offset", 0.0)), i))
+                                             _num(file, f"{fld}.offset", c.get("offset", 0.0)), i, convert,
+                                             _num(file, f"{fld}.threshold", c.get("threshold", 0.5))))
 
     rec = _table(file, "record", doc.get("record"))
     _keys(file, "record", rec, _RECORD_KEYS)

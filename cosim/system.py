@@ -118,6 +118,30 @@ def _unit(inst: InstancePlan, var: Variable):
     return var.unit
 
 
+def _connection_types(file: str, fld: str, c: ConnectionSpec, svar: Variable, dvar: Variable,
+                      si: InstancePlan, di: InstancePlan) -> tuple[float, float]:
+    """The unit conversion (factor, offset) of a connection whose types agree (or that converts
+    Boolean <-> Real where the scenario asks for it)."""
+    pair = (svar.type, dvar.type)
+    if c.convert:
+        if pair not in (("Boolean", "Real"), ("Real", "Boolean")):
+            raise ScenarioError(file, f"{fld}.convert", f"converts Boolean <-> Real only, not {pair[0]} -> {pair[1]}")
+        if pair == ("Real", "Boolean") and (c.factor != 1.0 or c.offset != 0.0):
+            raise ScenarioError(file, fld, "a Real -> Boolean conversion takes a threshold, not a factor or offset")
+        return 1.0, 0.0
+    if svar.type != dvar.type:
+        hint = " (convert = true converts Boolean <-> Real)" if set(pair) == {"Boolean", "Real"} else ""
+        raise ScenarioError(file, fld, f"type mismatch: {c.src} is {svar.type}, {c.dst} is {dvar.type}{hint}")
+    if svar.type == "Real":
+        try:
+            return conversion(_unit(si, svar), _unit(di, dvar))
+        except CosimError as exc:
+            raise ScenarioError(file, fld, f"unit mismatch: {c.src} -> {c.dst}: {exc}") from None
+    if c.factor != 1.0 or c.offset != 0.0:
+        raise ScenarioError(file, fld, "a linear transform needs Real variables")
+    return 1.0, 0.0
+
+
 def _experiment(sc: Scenario, models: dict[str, FmuModel]) -> None:
     """Fill start, stop and step the scenario leaves open from the FMUs' default experiments (refused
     where they disagree), then check the run's times."""
@@ -203,6 +227,42 @@ def _inputs(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str
     return read_inputs(sc.inputs_file, file, sc.interpolation, resolve_var, grid)
 
 
+def _events(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str, str], int],
+            inputs: list[InputPlan]) -> list[EventPlan]:
+    """The timed events: on a Real input or output (override, bias, reset: see the wiring), or on an
+    Integer, Enumeration, Boolean or String input that no connection or table drives (set at the event's
+    step; bias only on Integer)."""
+    file = sc.file
+    tabled = {(ip.instance, ip.var.name) for ip in inputs}
+    events: list[EventPlan] = []
+    for e in sc.events:
+        fld = f"events[{e.index}]"
+        inst, vname = split_ref(file, f"{fld}.variable", e.variable)
+        var = _var(file, f"{fld}.variable", insts[inst], vname)
+        if var.type == "Real":
+            if var.causality not in ("input", "output"):
+                raise ScenarioError(file, f"{fld}.variable", f"{e.variable} must be an input or output")
+        elif var.causality != "input" or (inst, var.name) in driven or (inst, var.name) in tabled:
+            raise ScenarioError(file, f"{fld}.variable", f"{e.variable}: an event on a {var.type} variable needs "
+                                                         "an input that no connection or table drives")
+        elif e.action == "bias" and var.type != "Integer":
+            raise ScenarioError(file, f"{fld}.action", f"a bias needs a Real or Integer variable, "
+                                                       f"{e.variable} is {var.type}")
+        if not sc.start <= e.time < sc.stop:
+            raise ScenarioError(file, f"{fld}.time", f"{e.time!r} is outside the run {sc.start!r}..{sc.stop!r} s "
+                                                     "(an event at the stop time would never act)")
+        k = int(math.ceil((e.time - sc.start) / sc.step - 1e-9))
+        if e.action == "reset":
+            value = None
+        elif e.action == "override" or var.type != "Real":
+            value = _value(file, f"{fld}.value", var, e.value)
+        else:
+            value = float(_value(file, f"{fld}.value", Variable(var.name, 0, "Real", "input", "", None, None, None,
+                                                                None), e.value))
+        events.append(EventPlan(e.time, k, inst, var, e.action, value, e.variable))
+    return events
+
+
 def resolve(sc: Scenario) -> Plan:
     """Load every FMU of the scenario and run all the checks; returns the executable plan."""
     file = sc.file
@@ -248,37 +308,13 @@ def resolve(sc: Scenario) -> Plan:
         if key in driven:
             raise ScenarioError(file, f"{fld}.to", f"{c.dst} is already driven by connections[{driven[key]}]")
         driven[key] = c.index
-        if svar.type != dvar.type:
-            raise ScenarioError(file, fld, f"type mismatch: {c.src} is {svar.type}, {c.dst} is {dvar.type}")
-        if svar.type not in ("Real", "Integer", "Boolean", "Enumeration"):
-            raise ScenarioError(file, fld, f"connections of type {svar.type} are not supported")
-        f, o = 1.0, 0.0
-        if svar.type == "Real":
-            try:
-                f, o = conversion(_unit(insts[si], svar), _unit(insts[di], dvar))
-            except CosimError as exc:
-                raise ScenarioError(file, fld, f"unit mismatch: {c.src} -> {c.dst}: {exc}") from None
-        elif c.factor != 1.0 or c.offset != 0.0:
-            raise ScenarioError(file, fld, "a linear transform needs Real variables")
+        f, o = _connection_types(file, fld, c, svar, dvar, insts[si], insts[di])
         conns.append(ConnectionPlan(si, svar, di, dvar, c.factor * f, c.factor * o + c.offset, c))
 
     record, not_recorded = _record(sc, insts)
     inputs = _inputs(sc, insts, driven)
 
     n_steps = int(round((sc.stop - sc.start) / sc.step))
-    events: list[EventPlan] = []
-    for e in sc.events:
-        fld = f"events[{e.index}]"
-        inst, vname = split_ref(file, f"{fld}.variable", e.variable)
-        var = _var(file, f"{fld}.variable", insts[inst], vname)
-        if var.causality not in ("input", "output") or var.type != "Real":
-            raise ScenarioError(file, f"{fld}.variable", f"{e.variable} must be a Real input or output")
-        if not sc.start <= e.time < sc.stop:
-            raise ScenarioError(file, f"{fld}.time", f"{e.time!r} is outside the run {sc.start!r}..{sc.stop!r} s "
-                                                     "(an event at the stop time would never act)")
-        k = int(math.ceil((e.time - sc.start) / sc.step - 1e-9))
-        value = None if e.action == "reset" else _value(file, f"{fld}.value", var, e.value) if e.action == "override" \
-            else float(_value(file, f"{fld}.value", Variable(var.name, 0, "Real", "input", "", None, None, None, None), e.value))
-        events.append(EventPlan(e.time, k, inst, var, e.action, value, e.variable))
+    events = _events(sc, insts, driven, inputs)
     events.sort(key=lambda ev: ev.step)  # stable: file order within a step
     return Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs, not_recorded)

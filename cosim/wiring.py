@@ -71,7 +71,7 @@ class Wiring:
         self.base: dict[tuple[str, int], Copy] = {}
         self.feeds: dict[tuple[str, int], tuple[str, int]] = {}     # (inst, pos) -> output (inst, vr)
         for c in plan.connections:
-            if c.dst_var.type != "Real":
+            if not is_real(c):
                 continue
             pos = self._pos(c.dst, c.dst_var.vr)
             src = layout.out_arr[c.src], layout.reals[c.src].index(c.src_var.vr)
@@ -87,7 +87,7 @@ class Wiring:
                     self.base[(inst, pos)] = (pos, arr, j, 1.0, 0.0)
                 self.tables[inst] = (arr, np.ascontiguousarray(np.column_stack([ip.values for ip in cols])))
         for ev in plan.events:  # an unconnected input driven by events holds its start value until overridden
-            if ev.var.causality != "input":
+            if ev.var.causality != "input" or ev.var.type != "Real":
                 continue
             key = (ev.instance, self._pos(ev.instance, ev.var.vr))
             if key not in self.base:
@@ -212,16 +212,35 @@ def table_feeder(inst: Instance, table: tuple[Any, np.ndarray] | None, discrete:
     return feed
 
 
+def is_real(c: ConnectionPlan) -> bool:
+    """A Real -> Real connection (a copy in the generated loop); the others are copied by closures."""
+    return c.src_var.type == "Real" and c.dst_var.type == "Real"
+
+
 def discrete_copier(instances: dict[str, Instance], c: ConnectionPlan) -> Callable[[], int]:
-    """A closure copying one Integer/Enumeration/Boolean output to an input (a get and a set)."""
+    """A closure copying one output to an input with a get and a set: Integer, Enumeration, Boolean and
+    String as they are; Boolean -> Real as 0 or 1 through the factor and offset; Real -> Boolean as
+    value > threshold."""
     src, dst = instances[c.src], instances[c.dst]
     svr, dvr = vr_array([c.src_var.vr]), vr_array([c.dst_var.vr])
-    buf = (ctypes.c_int * 1)()
     one = ctypes.c_size_t(1)
-    kind = "Boolean" if c.src_var.type == "Boolean" else "Integer"
-    get, put = raw(src.fmu.dll, f"fmi2Get{kind}"), raw(dst.fmu.dll, f"fmi2Set{kind}")
     sc, dc = ctypes.c_void_p(src.c), ctypes.c_void_p(dst.c)
+    kinds = {"Real": ("Real", ctypes.c_double), "Integer": ("Integer", ctypes.c_int),
+             "Enumeration": ("Integer", ctypes.c_int), "Boolean": ("Boolean", ctypes.c_int),
+             "String": ("String", ctypes.c_char_p)}
+    (gk, gt), (pk, pt) = kinds[c.src_var.type], kinds[c.dst_var.type]
+    get, put = raw(src.fmu.dll, f"fmi2Get{gk}"), raw(dst.fmu.dll, f"fmi2Set{pk}")
+    ibuf, obuf = (gt * 1)(), (pt * 1)()
+    if gt is pt:
+        def copy() -> int:
+            return get(sc, svr, one, ibuf) or put(dc, dvr, one, ibuf)
+        return copy
+    f, o, threshold = c.factor, c.offset, c.spec.threshold
 
-    def copy() -> int:
-        return get(sc, svr, one, buf) or put(dc, dvr, one, buf)
-    return copy
+    def convert() -> int:
+        s = get(sc, svr, one, ibuf)
+        if s:
+            return s
+        obuf[0] = (1.0 if ibuf[0] else 0.0) * f + o if pk == "Real" else int(ibuf[0] > threshold)
+        return put(dc, dvr, one, obuf)
+    return convert

@@ -5,6 +5,7 @@ tabulated inputs, types, missing binaries, logging)."""
 from __future__ import annotations
 
 import csv
+import json
 import subprocess
 import sys
 import zipfile
@@ -253,3 +254,134 @@ def test_defaults_come_from_the_fmus_and_must_agree(tmp_path):
     assert (plan.scenario.start, plan.scenario.tolerance, plan.n_steps) == (0.0, 1e-6, 10)
     one = fmu_plan(a)
     assert (one.scenario.stop, one.scenario.step) == (10.0, 0.1)
+
+
+# ------------------------------------------------------------------------------- C FMUs of other exporters
+def _probe_run(fmu: Path, tmp: Path, extra: str = "", name: str = "Probe") -> tuple[execution.RunResult, Path]:
+    path = write_scenario(tmp / "probe.toml", f'''
+[experiment]
+stop = 0.5
+step = 0.01
+[instances.{name.lower()}]
+fmu = "{fmu}"
+{extra}
+''')
+    out = tmp / "out"
+    return execution.run(system.resolve(scenario.load(path)), out, progress=False), out
+
+
+def test_c_fmu_resetting_its_parameters_in_setup_experiment_gets_the_scenarios_values(tmp_path):
+    from c_fmu_support import build_probe
+
+    fmu = build_probe(tmp_path / "fmu", RESET_IN_SETUP=True)
+    res, out = _probe_run(fmu, tmp_path, 'parameters = { p = 3.0, u = 2.0 }\n[record]\nvariables = ["probe.p", "probe.y"]')
+    assert res.status == "ok", res.message
+    d = np.load(out / "signals.npy")
+    assert np.all(d["probe.p"] == 3.0) and d["probe.y"][0] == 6.0
+
+
+@pytest.mark.parametrize("level, lines", [("warning", 0), ("all", 51)])
+def test_c_fmu_logging_with_a_foreign_environment_and_a_verbose_fmu(level, lines, tmp_path):
+    """A verbose FMU (a message at every step) that passes back a componentEnvironment of its own: at the
+    default level fmi2SetDebugLogging stops it at the source; at "all" every message reaches this
+    instance's log, routed by the instance name."""
+    from c_fmu_support import build_probe
+
+    fmu = build_probe(tmp_path / "fmu", VERBOSE=True, FOREIGN_ENV=True)
+    res, out = _probe_run(fmu, tmp_path, f'logging = "{level}"')
+    assert res.status == "ok", res.message
+    log = (out / "logs" / "probe.log").read_text().splitlines()
+    assert len(log) == lines and sum("a message at every step" in ln for ln in log) == max(0, lines - 1), log[:3]
+    summary = json.loads((out / "summary.json").read_text())["instances"]["probe"]
+    assert summary["log_lines"] == len(log)
+    assert summary["log_received"] == (1 if level == "warning" else lines)  # only the message of instantiation
+
+
+def test_c_fmu_ending_the_simulation_with_discard_and_terminated(tmp_path):
+    from c_fmu_support import build_probe
+
+    fmu = build_probe(tmp_path / "fmu", TERMINATE_AT=0.25)
+    res, out = _probe_run(fmu, tmp_path, '[record]\nvariables = ["probe.n"]')
+    assert res.status == "terminated" and res.exit_code == 0 and "probe at t = 0.25 s" in res.message
+    d = np.load(out / "signals.npy")
+    assert d["time"][-1] == pytest.approx(0.25) and d["probe.n"][-1] == 25
+
+
+def test_events_on_discrete_inputs_and_converting_connections(tmp_path):
+    """Events set Integer/Boolean inputs (override, bias, reset); Boolean -> Real and Real -> Boolean
+    connections convert where asked; a String connection copies its text."""
+    fmu = FMI2 / "Feedthrough.fmu"
+    path = write_scenario(tmp_path / "ev.toml", f'''
+[experiment]
+stop = 0.2
+step = 0.01
+[instances.a]
+fmu = "{fmu}"
+parameters = {{ Int32_input = 1, Float64_continuous_input = 1.0 }}
+[instances.b]
+fmu = "{fmu}"
+[[connections]]
+from = "a.Boolean_output"
+to = "b.Float64_continuous_input"
+convert = true
+factor = 2.0
+offset = 0.5
+[[connections]]
+from = "a.Float64_continuous_output"
+to = "b.Boolean_input"
+convert = true
+threshold = 1.5
+[[connections]]
+from = "a.String_output"
+to = "b.String_input"
+[[events]]
+time = 0.05
+variable = "a.Int32_input"
+value = 5
+[[events]]
+time = 0.08
+variable = "a.Int32_input"
+action = "bias"
+value = 2
+[[events]]
+time = 0.1
+variable = "a.Int32_input"
+action = "reset"
+[[events]]
+time = 0.03
+variable = "a.Boolean_input"
+value = true
+[[events]]
+time = 0.12
+variable = "a.Float64_continuous_input"
+value = 2.0
+[record]
+variables = ["a.Int32_output", "a.Boolean_output", "b.Float64_continuous_output", "b.Boolean_output"]
+''')
+    res = execution.run(system.resolve(scenario.load(path)), tmp_path / "out", progress=False)
+    assert res.status == "ok", res.message
+    d = np.load(tmp_path / "out" / "signals.npy")
+    t = np.round(d["time"], 9)
+
+    def at(col, time):  # the output in the row after the step from `time`
+        return d[col][np.flatnonzero(t == round(time + 0.01, 9))[0]]
+    assert [at("a.Int32_output", x) for x in (0.04, 0.05, 0.07, 0.08, 0.1)] == [1, 5, 5, 7, 1]
+    assert not at("a.Boolean_output", 0.02) and at("a.Boolean_output", 0.03)
+    assert at("b.Float64_continuous_output", 0.01) == 0.5 and at("b.Float64_continuous_output", 0.05) == 2.5
+    assert not at("b.Boolean_output", 0.11) and at("b.Boolean_output", 0.13)
+
+
+@pytest.mark.parametrize("text, reason", [
+    ('[[connections]]\nfrom = "a.Boolean_output"\nto = "b.Float64_continuous_input"\n', "convert = true converts"),
+    ('[[connections]]\nfrom = "a.Int32_output"\nto = "b.Float64_continuous_input"\nconvert = true\n',
+     "converts Boolean <-> Real only"),
+    ('[[events]]\ntime = 0.1\nvariable = "b.Boolean_input"\nvalue = true\n[[connections]]\nfrom = "a.Boolean_output"\n'
+     'to = "b.Boolean_input"\n', "no connection or table drives"),
+    ('[[events]]\ntime = 0.1\nvariable = "b.Boolean_input"\naction = "bias"\nvalue = 1\n', "a bias needs"),
+])
+def test_type_rules_of_connections_and_events(text, reason, tmp_path):
+    fmu = FMI2 / "Feedthrough.fmu"
+    path = write_scenario(tmp_path / "bad.toml", f'[experiment]\nstop = 0.2\nstep = 0.01\n[instances.a]\nfmu = "{fmu}"\n'
+                                                 f'[instances.b]\nfmu = "{fmu}"\n{text}')
+    with pytest.raises(ScenarioError, match=reason.replace("(", r"\(")):
+        system.resolve(scenario.load(path))
