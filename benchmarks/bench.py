@@ -13,6 +13,11 @@ NAME:
     sweep   a 16-run sweep (scenarios/sweep-geometry.toml) through the Dask path with 1 and with 2 worker
             processes: sweep_startup_s (cluster start-up, excluded), sweep_1w_s, sweep_2w_s, sweep_speedup
             (target >= 1.7 on 2 cores) and same_results.
+    generic three C FMUs (the Reference FMUs Dahlquist -> Feedthrough -> Feedthrough, 100,000 steps of 0.1 ms,
+            Gauss-Seidel) under ours, a plain loop on FMPy's FMU2Slave, libcosim and ecos (Jacobi, their
+            only algorithm for an SSP), each creating, initialising and stepping the system and recording the
+            three outputs: us_per_fmu_step per master (target: ours the fastest, <= 2 us), ours_loop (our
+            stepping loop alone), ours_equals_fmpy_loop (bit for bit).
     interop the G1 learning system (Jacobi, exported as SSP with the signals the comparison needs) under our
             master and third-party masters, each in a fresh process as its users run it, with its defaults
             (wmr_cosim.interop): peers = wall seconds per master (median of up to 3 runs; creating the
@@ -27,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from typing import Any
 import platform
 import statistics
 import sys
@@ -178,7 +184,134 @@ def bench_interop(repeats: int) -> dict[str, float]:
     return figures
 
 
-BENCHES = {"loop": bench_loop_all, "paper": bench_paper, "sweep": bench_sweep, "interop": bench_interop}
+GENERIC_STEPS = 100_000
+GENERIC_H = 1e-4
+
+
+def _generic_scenario(tmp) -> "Path":
+    """Dahlquist -> Feedthrough -> Feedthrough (Reference FMUs, C, FMI 2.0), Gauss-Seidel, 100,000 steps."""
+    from pathlib import Path
+
+    ref = Path(__file__).resolve().parents[1] / "tests" / "data" / "reference-fmus" / "fmi2"
+    path = Path(tmp) / "chain.toml"
+    path.write_text(f"""
+[experiment]
+stop = {GENERIC_STEPS * GENERIC_H!r}
+step = {GENERIC_H!r}
+[instances.d]
+fmu = "{ref / 'Dahlquist.fmu'}"
+parameters = {{ k = 0.5 }}
+[instances.f1]
+fmu = "{ref / 'Feedthrough.fmu'}"
+[instances.f2]
+fmu = "{ref / 'Feedthrough.fmu'}"
+[[connections]]
+from = "d.x"
+to = "f1.Float64_continuous_input"
+[[connections]]
+from = "f1.Float64_continuous_output"
+to = "f2.Float64_continuous_input"
+factor = 2.0
+[record]
+variables = ["d.x", "f1.Float64_continuous_output", "f2.Float64_continuous_output"]
+csv = false
+""")
+    return path
+
+
+def _fmpy_loop(plan) -> tuple[float, "np.ndarray"]:
+    """The same chain as a plain Gauss-Seidel loop on FMPy's FMU2Slave (its wrapper methods), recording the
+    three outputs in a preallocated array."""
+    import shutil
+    import tempfile
+    import time
+
+    import numpy as np
+    from fmpy import extract
+    from fmpy.fmi2 import FMU2Slave
+
+    t0 = time.perf_counter()
+    fmus, dirs = {}, []
+    for name, ip in plan.instances.items():
+        d = extract(str(ip.model.path), unzipdir=tempfile.mkdtemp(prefix="wmr-bench-"))
+        dirs.append(d)
+        md = ip.model.md
+        f = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier,
+                      instanceName=name)
+        f.instantiate()
+        f.setupExperiment(startTime=0.0)
+        for var, value in ip.parameters:
+            f.setReal([var.vr], [value])
+        f.enterInitializationMode()
+        f.exitInitializationMode()
+        fmus[name] = f
+    vr = {n: {v.name: v.vr for v in ip.model.variables.values()} for n, ip in plan.instances.items()}
+    d, f1, f2 = fmus["d"], fmus["f1"], fmus["f2"]
+    x_vr, i1, o1 = [vr["d"]["x"]], [vr["f1"]["Float64_continuous_input"]], [vr["f1"]["Float64_continuous_output"]]
+    i2, o2 = [vr["f2"]["Float64_continuous_input"]], [vr["f2"]["Float64_continuous_output"]]
+    n, h = plan.n_steps, plan.scenario.step
+    out = np.empty((n, 3))
+    for k in range(n):
+        t = k * h
+        d.doStep(t, h)
+        x = d.getReal(x_vr)[0]
+        f1.setReal(i1, [x])
+        f1.doStep(t, h)
+        y1 = f1.getReal(o1)[0]
+        f2.setReal(i2, [2.0 * y1])
+        f2.doStep(t, h)
+        out[k] = (x, y1, f2.getReal(o2)[0])
+    wall = time.perf_counter() - t0
+    for f in fmus.values():
+        f.terminate()
+        f.freeInstance()
+    for dd in dirs:
+        shutil.rmtree(dd, ignore_errors=True)
+    return wall, out
+
+
+def bench_generic(repeats: int) -> dict[str, Any]:
+    """Three C FMUs (Reference FMUs Dahlquist -> Feedthrough -> Feedthrough), 100,000 steps, under ours,
+    a plain loop on FMPy's FMU2Slave, libcosim and ecos; us_per_fmu_step = wall time (creating the system,
+    initialisation and stepping, recording included) / steps / 3, median of the repeats.  ``ours_loop``
+    is our stepping loop alone (RunResult.wall_s).  Target: ours the fastest, <= 2 us per FMU and step."""
+    import tempfile
+    from pathlib import Path
+
+    import numpy as np
+
+    from wmr_cosim.cosim import scenario, system
+    from wmr_cosim.cosim.ssp import export_ssp
+    from wmr_cosim.interop import run_peer
+
+    n = max(1, min(repeats, 5))
+    signals = ["d.x", "f1.Float64_continuous_output", "f2.Float64_continuous_output"]
+    walls: dict[str, list[float]] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        plan = system.resolve(scenario.load(_generic_scenario(tmp)))
+        ssp = export_ssp(plan, Path(tmp) / "chain.ssp")
+        stop, h = plan.scenario.stop, plan.scenario.step
+        results = {}
+        for _ in range(n):  # interleaved, so that a slow phase of the machine hits every master alike
+            for peer in ("ours", "libcosim", "ecos"):
+                r = run_peer(peer, ssp, stop, h, signals)  # ours: Gauss-Seidel, as the archive says
+                walls.setdefault(peer, []).append(r["wall_s"])
+                if peer == "ours":
+                    walls.setdefault("ours_loop", []).append(r["loop_s"])
+                results[peer] = r
+            wall, loop_out = _fmpy_loop(plan)
+            walls.setdefault("fmpy_loop", []).append(wall)
+    per = {k: round(statistics.median(v) / plan.n_steps / 3 * 1e6, 3) for k, v in walls.items()}
+    ours = results["ours"]["signals"]
+    same = all(np.array_equal(ours[s][1:], loop_out[:, j]) for j, s in enumerate(signals))  # (ours: + t0 row)
+    default = {k: v for k, v in per.items() if k != "ours_loop"}
+    return {"us_per_fmu_step": per, "steps": plan.n_steps, "repeats": n,
+            "ours_fastest": min(default, key=default.get) == "ours",
+            "ours_equals_fmpy_loop": bool(same),
+            "libcosim_steps": results["libcosim"]["steps"], "ecos_steps": results["ecos"]["steps"]}
+
+
+BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "paper": bench_paper, "sweep": bench_sweep, "interop": bench_interop}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -215,9 +215,19 @@ class Instance:
             pass
 
 
+_PYDLLS: dict[int, Any] = {}
+
+
 def raw(dll: Any, name: str) -> Any:
-    """A fresh ctypes function for ``name`` without argtypes (FMPy's copy carries converting argtypes)."""
-    f = dll[name]
+    """A fresh ctypes function for ``name`` without argtypes (FMPy's copy carries converting argtypes),
+    called with the GIL held (through a PyDLL view of the library already loaded): an FMU's own Python
+    code (pythonfmu) and its log callbacks take the GIL recursively, and a call saves the release and the
+    re-acquisition of the GIL."""
+    handle = dll._handle
+    py = _PYDLLS.get(handle)
+    if py is None:
+        py = _PYDLLS[handle] = ctypes.PyDLL(dll._name, handle=handle)
+    f = py[name]
     f.restype = ctypes.c_int
     return f
 

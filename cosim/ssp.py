@@ -250,6 +250,9 @@ def export_ssp(plan: Plan, out: str | os.PathLike, name: str | None = None) -> P
                 for var, value in mine:
                     typ, attrs = _ssv_value(var, value)
                     ssv.add_parameter(var.name, typ, value=attrs["value"], unit=attrs.get("unit"))
+                    # pyssp-standard 0.9 keeps unit=None as an attribute of a Real and fails writing it
+                    pt = ssv.parameters[-1]["type_value"]
+                    pt.parameter = {k: v for k, v in dict(pt.parameter).items() if v is not None}
             ssvs[f"resources/{inst}.ssv"] = ssv_path.read_bytes()
             validate_xml(ssvs[f"resources/{inst}.ssv"], "ssv", f"{out}: resources/{inst}.ssv (as written)")
 

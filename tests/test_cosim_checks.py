@@ -68,7 +68,7 @@ BAD = {
     "record nothing": ('[record]\nvariables = ["plant.nothing*"]\n', "record.variables[0]", "matches no output"),
     "bad decimation": ("[record]\ndecimation = 0\n", "record.decimation", "integer >= 1"),
     "event on a parameter": ('[[events]]\ntime = 1.0\nvariable = "plant.a1"\nvalue = 1.0\n', "events[0].variable",
-                             "Real input or output"),
+                             "must be an input or output"),
     "event outside the run": ('[[events]]\ntime = 99.0\nvariable = "plant.tau_d1"\nvalue = 1.0\n', "events[0].time",
                               "outside the run"),
     "event without value": ('[[events]]\ntime = 1.0\nvariable = "plant.tau_d1"\n', "events[0].value", "missing"),

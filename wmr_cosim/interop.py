@@ -115,12 +115,12 @@ def _n_steps(start: float, stop: float, step: float) -> int:
 
 
 # ------------------------------------------------------------------------------------------ peers
-def _ours(ssp: Path, stop: float, step: float, signals, tmp: Path) -> dict[str, Any]:
+def _ours(ssp: Path, stop: float, step: float, signals, tmp: Path, algorithm: str | None = None) -> dict[str, Any]:
     from .cosim import execution, system
     from .cosim.ssp import load_ssp
 
     t0 = time.perf_counter()
-    arch = load_ssp(ssp, step=step, stop=stop)
+    arch = load_ssp(ssp, step=step, stop=stop, algorithm=algorithm)
     try:
         arch.scenario.record = list(signals)
         arch.scenario.csv = False  # the recording in signals.npy, as the others record in memory or one CSV
