@@ -197,12 +197,26 @@ def _instance_refs(file: str, fld: str, table: Any, sc: Scenario) -> dict[str, A
 
 
 def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
-    """Check the structure of a merged scenario document and build a :class:`Scenario`.
+    """Check the structure of a merged scenario document and build a :class:`Scenario`.  TOML files, SSP
+    archives and documents built in code all come through here, so every check exists once.
 
     ``resolver(model_name) -> Path | None`` turns an FMU given by model name (e.g. ``WmrPlant``) into a
     file; without one, every ``fmu`` must be a path.
     """
     sc = Scenario(file=file, data=doc)
+    _parse_experiment(sc, doc)
+    _parse_instances(sc, doc, resolver)
+    _parse_connections(sc, doc)
+    _parse_record(sc, doc)
+    _parse_runs(sc, doc)
+    _parse_inputs(sc, doc)
+    _parse_events(sc, doc)
+    return sc
+
+
+def _parse_experiment(sc: Scenario, doc: dict[str, Any]) -> None:
+    """[experiment]: times, tolerance and algorithm (the order is checked with the instances)."""
+    file = sc.file
     exp = _table(file, "experiment", doc.get("experiment"))
     _keys(file, "experiment", exp, _EXPERIMENT_KEYS)
     for key in ("start", "stop", "step", "tolerance"):
@@ -214,6 +228,10 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
     if sc.algorithm not in ALGORITHMS:
         raise ScenarioError(file, "experiment.algorithm", f"{sc.algorithm!r}: must be one of {', '.join(ALGORITHMS)}")
 
+
+def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:
+    """[instances.NAME]: the FMU (a path or a model name), parameters, name map, units, logging; then the order."""
+    file = sc.file
     insts = _table(file, "instances", doc.get("instances"))
     if not insts:
         raise ScenarioError(file, "instances", "no FMU instances")
@@ -250,6 +268,8 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
             raise ScenarioError(file, f"{fld}.logging", f"{logging!r}: must be one of {', '.join(LOGGING)}")
         sc.instances[iname] = InstanceSpec(iname, fmu, path, dict(params), dict(names), dict(units), logging)
 
+
+    exp = doc.get("experiment") or {}
     order = exp.get("order", list(sc.instances))
     if not isinstance(order, list) or not all(isinstance(o, str) for o in order) \
             or sorted(order) != sorted(sc.instances):
@@ -257,6 +277,10 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
                             f"{order!r} must list every instance exactly once ({', '.join(sc.instances)})")
     sc.order = list(order)
 
+
+def _parse_connections(sc: Scenario, doc: dict[str, Any]) -> None:
+    """[[connections]]: output -> input with factor, offset, conversion."""
+    file = sc.file
     conns = doc.get("connections") or []
     if not isinstance(conns, list):
         raise ScenarioError(file, "connections", "must be an array of tables ([[connections]])")
@@ -277,6 +301,10 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
                                              _num(file, f"{fld}.offset", c.get("offset", 0.0)), i, convert,
                                              _num(file, f"{fld}.threshold", c.get("threshold", 0.5))))
 
+
+def _parse_record(sc: Scenario, doc: dict[str, Any]) -> None:
+    """[record]: the variables (names or patterns), decimation, CSV."""
+    file = sc.file
     rec = _table(file, "record", doc.get("record"))
     _keys(file, "record", rec, _RECORD_KEYS)
     variables = rec.get("variables", [])
@@ -292,6 +320,10 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
         raise ScenarioError(file, "record.csv", f"{csv!r}: must be true or false")
     sc.csv = csv
 
+
+def _parse_runs(sc: Scenario, doc: dict[str, Any]) -> None:
+    """[[runs]] and [variants.NAME] of a protocol."""
+    file = sc.file
     runs = doc.get("runs") or []
     if not isinstance(runs, list):
         raise ScenarioError(file, "runs", "must be an array of tables ([[runs]])")
@@ -326,6 +358,10 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
         params = _instance_refs(file, f"{fld}.parameters", v.get("parameters"), sc)
         sc.variants[vname] = dict(params)
 
+
+def _parse_inputs(sc: Scenario, doc: dict[str, Any]) -> None:
+    """[inputs]: a CSV table of input signals and the interpolation of its columns."""
+    file = sc.file
     inputs = _table(file, "inputs", doc.get("inputs"))
     _keys(file, "inputs", inputs, _INPUTS_KEYS)
     if inputs:
@@ -339,6 +375,10 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
                 raise ScenarioError(file, f"inputs.interpolation.{ref}", f"{mode!r}: must be linear or hold")
         sc.interpolation = dict(interp)
 
+
+def _parse_events(sc: Scenario, doc: dict[str, Any]) -> None:
+    """[[events]]: timed override, bias or reset of a variable."""
+    file = sc.file
     evs = doc.get("events") or []
     if not isinstance(evs, list):
         raise ScenarioError(file, "events", "must be an array of tables ([[events]])")
@@ -360,7 +400,6 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
         if action == "reset" and "value" in e:
             raise ScenarioError(file, f"{fld}.value", "a reset takes no value")
         sc.events.append(EventSpec(t, e["variable"], action, e.get("value"), i))
-    return sc
 
 
 def check_experiment(sc: Scenario, where: str = "experiment") -> None:

@@ -30,7 +30,6 @@ default experiments (or ``step=``).  Every problem is a one-line :class:`~.error
 from __future__ import annotations
 
 import io
-import math
 import os
 import shutil
 import tempfile
@@ -153,13 +152,6 @@ def export_ssp(plan: Plan, out: str | os.PathLike, name: str | None = None) -> P
     Refuses (ScenarioError) what SSP 1.0 cannot express: timed events, and Integer/Boolean connections
     with a linear transform (already refused by the master).
     """
-    from lxml import etree as ET
-    from pyssp_standard import SSP, SSV
-    from pyssp_standard.common_content_ssc import (Annotation, TypeBoolean, TypeInteger, TypeReal,
-                                                   TypeString)
-    from pyssp_standard.ssd import Component, Connector, DefaultExperiment, ParameterBinding, System
-    from pyssp_standard.unit import BaseUnit, Unit
-
     sc = plan.scenario
     out = Path(out)
     if plan.events:
@@ -167,98 +159,18 @@ def export_ssp(plan: Plan, out: str | os.PathLike, name: str | None = None) -> P
                                                 "without [[events]]")
     name = name or Path(sc.file).stem or "system"
     resources = _resource_names(plan)
-
-    # connectors per instance: FMU variable name -> (kind, Variable)
-    conns: dict[str, dict[str, tuple[str, Any]]] = {n: {} for n in plan.order}
-    for c in plan.connections:
-        conns[c.src].setdefault(c.src_var.name, ("output", c.src_var))
-        conns[c.dst].setdefault(c.dst_var.name, ("input", c.dst_var))
-    for r in plan.record:
-        if r.var.causality in ("output", "input"):
-            conns[r.instance].setdefault(r.var.name, (r.var.causality, r.var))
-    params: list[tuple[str, Any, Any]] = []
-    for n, ip in plan.instances.items():
-        for var, value in ip.parameters:
-            kind = "input" if var.causality == "input" else "parameter"
-            conns[n].setdefault(var.name, (kind, var))
-            params.append((n, var, value))
-
-    def unit_of(inst: str, var) -> Any:
-        ip = plan.instances[inst]
-        declared = ip.spec.units.get(ip.our_name(var)) or ip.spec.units.get(var.name)
-        if declared:
-            from .units import lookup, units_of
-            return lookup(declared, units_of(ip.model.md))
-        return var.unit
-
+    conns, params = _connectors(plan)
     tmp = Path(tempfile.mkdtemp(prefix="wmr-cosim-ssp-"))
     try:
         ssd_path = tmp / "SystemStructure.ssd"
-        units: dict[str, Any] = {}
-        with _ordered_ssd()(ssd_path, mode="w") as ssd:
-            ssd.name, ssd.version = name, SSP_VERSION
-            ssd.top_level_metadata.generationTool = "wmr-cosim"
-            system = System(name=name)
-            for inst, ip in plan.instances.items():
-                comp = Component()
-                comp.name, comp.component_type, comp.source = inst, FMU_MIME, resources[ip.model.path.resolve()]
-                for vname, (kind, var) in conns[inst].items():
-                    if var.type == "Real":
-                        u = unit_of(inst, var)
-                        typ = TypeReal(u.name if u is not None and u.exps else None)
-                        if u is not None and u.exps:
-                            units[u.name] = u
-                    elif var.type == "Boolean":
-                        typ = TypeBoolean()
-                    elif var.type in ("Integer", "Enumeration"):
-                        typ = TypeInteger()
-                    else:
-                        typ = TypeString()
-                    comp.connectors.append(Connector(name=vname, kind=kind, type_=typ))
-                if any(i == inst for i, _, _ in params):
-                    comp.parameter_bindings = [ParameterBinding(source=f"resources/{inst}.ssv")]
-                system.elements.append(comp)
-            for c in plan.connections:
-                system.connections.append(_LinearConnection(
-                    start_element=c.src, start_connector=c.src_var.name, end_element=c.dst,
-                    end_connector=c.dst_var.name, factor=c.spec.factor, offset=c.spec.offset))
-            ssd.system = system
-            de = DefaultExperiment()
-            de.start_time, de.stop_time = sc.start, sc.stop
-            osp = Annotation(OSP_TYPE)
-            alg = ET.SubElement(osp.root, f"{{{OSP_NS}}}Algorithm")
-            ET.SubElement(alg, f"{{{OSP_NS}}}FixedStepAlgorithm", baseStepSize=_fmt(sc.step))
-            own = Annotation(OWN_TYPE)
-            ET.SubElement(own.root, f"{{{OWN_NS}}}Experiment", step=_fmt(sc.step),
-                          algorithm=sc.algorithm, order=" ".join(sc.order))
-            de.annotations.add_annotation(osp)
-            de.annotations.add_annotation(own)
-            ssd.default_experiment = de
-            for u in units.values():
-                ssd.units.add_unit(Unit(u.name, base_unit=BaseUnit(_unit_base(u))))
+        _write_ssd(plan, name, resources, conns, {i for i, _, _ in params}, ssd_path)
         validate_xml(ssd_path.read_bytes(), "ssd", f"{out}: SystemStructure.ssd (as written)")
-
-        ssvs: dict[str, bytes] = {}
-        for inst in plan.order:
-            mine = [(var, value) for i, var, value in params if i == inst]
-            if not mine:
-                continue
-            ssv_path = tmp / f"{inst}.ssv"
-            with SSV(ssv_path, mode="w") as ssv:
-                ssv.ssv_elem.name = PARAMETER_SET  # (pyssp-standard 0.9's property setter drops it)
-                ssv.ssv_elem.top_level_metadata.generationTool = "wmr-cosim"
-                for var, value in mine:
-                    typ, attrs = _ssv_value(var, value)
-                    ssv.add_parameter(var.name, typ, value=attrs["value"], unit=attrs.get("unit"))
-                    # pyssp-standard 0.9 keeps unit=None as an attribute of a Real and fails writing it
-                    pt = ssv.parameters[-1]["type_value"]
-                    pt.parameter = {k: v for k, v in dict(pt.parameter).items() if v is not None}
-            ssvs[f"resources/{inst}.ssv"] = ssv_path.read_bytes()
-            validate_xml(ssvs[f"resources/{inst}.ssv"], "ssv", f"{out}: resources/{inst}.ssv (as written)")
-
+        ssvs = _write_ssvs(plan, params, tmp, out)
         out.parent.mkdir(parents=True, exist_ok=True)
         part = out.with_name(out.name + ".part")
         part.unlink(missing_ok=True)
+        from pyssp_standard import SSP
+
         with SSP(part, mode="w") as ssp:
             shutil.copyfile(ssd_path, ssp.get_file_temp_path("SystemStructure.ssd"))
             ssp.mark_changed()
@@ -270,6 +182,114 @@ def export_ssp(plan: Plan, out: str | os.PathLike, name: str | None = None) -> P
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return out
+
+
+def _connectors(plan: Plan) -> tuple[dict[str, dict[str, tuple[str, Any]]], list[tuple[str, Any, Any]]]:
+    """Per instance, FMU variable name -> (connector kind, Variable): the connected inputs and outputs, the
+    recorded ones and the parameters set; and the parameters as (instance, Variable, value)."""
+    conns: dict[str, dict[str, tuple[str, Any]]] = {n: {} for n in plan.order}
+    for c in plan.connections:
+        conns[c.src].setdefault(c.src_var.name, ("output", c.src_var))
+        conns[c.dst].setdefault(c.dst_var.name, ("input", c.dst_var))
+    for r in plan.record:
+        if r.var.causality in ("output", "input"):
+            conns[r.instance].setdefault(r.var.name, (r.var.causality, r.var))
+    params: list[tuple[str, Any, Any]] = []
+    for n, ip in plan.instances.items():
+        for var, value in ip.parameters:
+            conns[n].setdefault(var.name, ("input" if var.causality == "input" else "parameter", var))
+            params.append((n, var, value))
+    return conns, params
+
+
+def _unit_of(plan: Plan, inst: str, var) -> Any:
+    """The unit of a variable as the scenario declares it, else as its FMU does."""
+    ip = plan.instances[inst]
+    declared = ip.spec.units.get(ip.our_name(var)) or ip.spec.units.get(var.name)
+    if declared:
+        from .units import lookup, units_of
+        return lookup(declared, units_of(ip.model.md))
+    return var.unit
+
+
+def _write_ssd(plan: Plan, name: str, resources: dict[Path, str], conns, with_params: set[str], path: Path) -> None:
+    """SystemStructure.ssd: components with their connectors, connections, units, default experiment."""
+    from pyssp_standard.common_content_ssc import TypeBoolean, TypeInteger, TypeReal, TypeString
+    from pyssp_standard.ssd import Component, Connector, ParameterBinding, System
+    from pyssp_standard.unit import BaseUnit, Unit
+
+    units: dict[str, Any] = {}
+    with _ordered_ssd()(path, mode="w") as ssd:
+        ssd.name, ssd.version = name, SSP_VERSION
+        ssd.top_level_metadata.generationTool = "wmr-cosim"
+        system = System(name=name)
+        for inst, ip in plan.instances.items():
+            comp = Component()
+            comp.name, comp.component_type, comp.source = inst, FMU_MIME, resources[ip.model.path.resolve()]
+            for vname, (kind, var) in conns[inst].items():
+                if var.type == "Real":
+                    u = _unit_of(plan, inst, var)
+                    typ = TypeReal(u.name if u is not None and u.exps else None)
+                    if u is not None and u.exps:
+                        units[u.name] = u
+                else:
+                    typ = {"Boolean": TypeBoolean, "Integer": TypeInteger, "Enumeration": TypeInteger}.get(
+                        var.type, TypeString)()
+                comp.connectors.append(Connector(name=vname, kind=kind, type_=typ))
+            if inst in with_params:
+                comp.parameter_bindings = [ParameterBinding(source=f"resources/{inst}.ssv")]
+            system.elements.append(comp)
+        for c in plan.connections:
+            system.connections.append(_LinearConnection(
+                start_element=c.src, start_connector=c.src_var.name, end_element=c.dst,
+                end_connector=c.dst_var.name, factor=c.spec.factor, offset=c.spec.offset))
+        ssd.system = system
+        ssd.default_experiment = _default_experiment(plan.scenario)
+        for u in units.values():
+            ssd.units.add_unit(Unit(u.name, base_unit=BaseUnit(_unit_base(u))))
+
+
+def _default_experiment(sc: Scenario):
+    """The DefaultExperiment (start, stop) with the step in OSP's annotation and this master's own."""
+    from lxml import etree as ET
+    from pyssp_standard.common_content_ssc import Annotation
+    from pyssp_standard.ssd import DefaultExperiment
+
+    de = DefaultExperiment()
+    de.start_time, de.stop_time = sc.start, sc.stop
+    osp = Annotation(OSP_TYPE)
+    alg = ET.SubElement(osp.root, f"{{{OSP_NS}}}Algorithm")
+    ET.SubElement(alg, f"{{{OSP_NS}}}FixedStepAlgorithm", baseStepSize=_fmt(sc.step))
+    own = Annotation(OWN_TYPE)
+    ET.SubElement(own.root, f"{{{OWN_NS}}}Experiment", step=_fmt(sc.step), algorithm=sc.algorithm,
+                  order=" ".join(sc.order))
+    de.annotations.add_annotation(osp)
+    de.annotations.add_annotation(own)
+    return de
+
+
+def _write_ssvs(plan: Plan, params: list[tuple[str, Any, Any]], tmp: Path, out: Path) -> dict[str, bytes]:
+    """One parameter set per component with parameters: archive entry -> the validated SSV document."""
+    from pyssp_standard import SSV
+
+    ssvs: dict[str, bytes] = {}
+    for inst in plan.order:
+        mine = [(var, value) for i, var, value in params if i == inst]
+        if not mine:
+            continue
+        ssv_path = tmp / f"{inst}.ssv"
+        with SSV(ssv_path, mode="w") as ssv:
+            ssv.ssv_elem.name = PARAMETER_SET  # (pyssp-standard 0.9's property setter drops it)
+            ssv.ssv_elem.top_level_metadata.generationTool = "wmr-cosim"
+            for var, value in mine:
+                typ, attrs = _ssv_value(var, value)
+                ssv.add_parameter(var.name, typ, value=attrs["value"], unit=attrs.get("unit"))
+                # pyssp-standard 0.9 keeps unit=None as an attribute of a Real and fails writing it
+                pt = ssv.parameters[-1]["type_value"]
+                pt.parameter = {k: v for k, v in dict(pt.parameter).items() if v is not None}
+        ssvs[f"resources/{inst}.ssv"] = ssv_path.read_bytes()
+        validate_xml(ssvs[f"resources/{inst}.ssv"], "ssv", f"{out}: resources/{inst}.ssv (as written)")
+    return ssvs
 
 
 def _ordered_ssd():
@@ -442,45 +462,9 @@ def load_ssp(path: str | os.PathLike, *, step: float | None = None, stop: float 
     override its parameter values.  The step, when neither given nor annotated, is the FMUs' common
     default experiment step.  Raises ScenarioError (one line) for anything unsafe, foreign or missing.
     """
-    from lxml import etree as ET
-
     path = Path(path)
     where = str(path)
-    if not path.is_file():
-        raise ScenarioError(where, "", "file not found")
-    try:
-        infos = check_archive(path)
-    except FmuLoadError as exc:
-        raise ScenarioError(where, "", str(exc).replace(f"{path}: ", "", 1)) from None
-    names = {i.filename for i in infos}
-    if "SystemStructure.ssd" not in names:
-        raise ScenarioError(where, "", "no SystemStructure.ssd at the top of the archive: not an SSP file")
-    with zipfile.ZipFile(path) as zf:
-        ssd_bytes = zf.read("SystemStructure.ssd")
-        # the FMUs inside are archives too: every one checked before anything is extracted
-        for info in infos:
-            if info.filename.lower().endswith(".fmu"):
-                try:
-                    with zipfile.ZipFile(io.BytesIO(zf.read(info))) as inner:
-                        check_entries(f"{info.filename} in the archive", inner.infolist())
-                except zipfile.BadZipFile as exc:
-                    raise ScenarioError(where, info.filename, f"not a zip archive ({exc})") from None
-                except FmuLoadError as exc:
-                    raise ScenarioError(where, "", str(exc)) from None
-    root = _parse_xml(ssd_bytes, f"{where}: SystemStructure.ssd")
-    if root.tag != _q("ssd", "SystemStructureDescription"):
-        ns = ET.QName(root).namespace or "no namespace"
-        raise ScenarioError(where, "SystemStructure.ssd",
-                            f"root element {ET.QName(root).localname} in {ns}: not an SSP 1.0 system structure "
-                            f"(only SSP {SSP_VERSION} is supported)")
-    version = root.get("version")
-    warnings: list[str] = []
-    if version != SSP_VERSION:  # OMSimulator writes version "2.0" with the SSP 1.0 namespaces
-        warnings.append(f"{where}: the SSD says version {version!r} but uses the SSP {SSP_VERSION} namespaces: "
-                        f"read as SSP {SSP_VERSION}")
-        ssd_bytes = _with_version(ssd_bytes, root)
-        root = _parse_xml(ssd_bytes, f"{where}: SystemStructure.ssd")
-    validate_xml(ssd_bytes, "ssd", f"{where}: SystemStructure.ssd")
+    root, warnings = _read_ssd(path)
 
     system = root.find("ssd:System", NS)
     if system is None:
@@ -507,10 +491,84 @@ def load_ssp(path: str | os.PathLike, *, step: float | None = None, stop: float 
             shutil.rmtree(folder, ignore_errors=True)
 
 
+def _read_ssd(path: Path) -> tuple[Any, list[str]]:
+    """The archive checked (entries, and the FMUs inside) and its SSD parsed and validated, with the
+    warnings of reading it."""
+    from lxml import etree as ET
+
+    where = str(path)
+    if not path.is_file():
+        raise ScenarioError(where, "", "file not found")
+    try:
+        infos = check_archive(path)
+    except FmuLoadError as exc:
+        raise ScenarioError(where, "", str(exc).replace(f"{path}: ", "", 1)) from None
+    if "SystemStructure.ssd" not in {i.filename for i in infos}:
+        raise ScenarioError(where, "", "no SystemStructure.ssd at the top of the archive: not an SSP file")
+    with zipfile.ZipFile(path) as zf:
+        ssd_bytes = zf.read("SystemStructure.ssd")
+        for info in infos:  # the FMUs inside are archives too: every one checked before anything is extracted
+            if info.filename.lower().endswith(".fmu"):
+                try:
+                    with zipfile.ZipFile(io.BytesIO(zf.read(info))) as inner:
+                        check_entries(f"{info.filename} in the archive", inner.infolist())
+                except zipfile.BadZipFile as exc:
+                    raise ScenarioError(where, info.filename, f"not a zip archive ({exc})") from None
+                except FmuLoadError as exc:
+                    raise ScenarioError(where, "", str(exc)) from None
+    root = _parse_xml(ssd_bytes, f"{where}: SystemStructure.ssd")
+    if root.tag != _q("ssd", "SystemStructureDescription"):
+        ns = ET.QName(root).namespace or "no namespace"
+        raise ScenarioError(where, "SystemStructure.ssd",
+                            f"root element {ET.QName(root).localname} in {ns}: not an SSP 1.0 system structure "
+                            f"(only SSP {SSP_VERSION} is supported)")
+    warnings: list[str] = []
+    if root.get("version") != SSP_VERSION:  # OMSimulator writes version "2.0" with the SSP 1.0 namespaces
+        warnings.append(f"{where}: the SSD says version {root.get('version')!r} but uses the SSP {SSP_VERSION} "
+                        f"namespaces: read as SSP {SSP_VERSION}")
+        ssd_bytes = _with_version(ssd_bytes, root)
+        root = _parse_xml(ssd_bytes, f"{where}: SystemStructure.ssd")
+    validate_xml(ssd_bytes, "ssd", f"{where}: SystemStructure.ssd")
+    return root, warnings
+
+
 def _document(root, system, path: Path, arch: Path, step: float | None, stop: float | None,
               algorithm: str | None) -> dict[str, Any]:
     """The scenario document an SSD describes: the same document a TOML file gives, so the one parser
     and the one resolver check both."""
+    where = str(path)
+    instances, connectors, comp_params = _components(system, path, arch)
+    # parameters: system-level bindings address "component.variable"; component-level ones the variable
+    for pname, value in _bindings(system, path, arch, where, ""):
+        inst, dot, var = pname.partition(".")
+        if not dot or inst not in instances:
+            raise ScenarioError(where, f"parameter {pname}", "names no component of the system (expected "
+                                                              "\"component.variable\")")
+        comp_params.append((inst, var, value))
+    for inst, var, value in comp_params:
+        instances[inst]["parameters"][var] = value
+    a_step, a_alg, a_order = _step_from_annotations(root)
+    de = root.find("ssd:DefaultExperiment", NS)
+    experiment: dict[str, Any] = {"algorithm": algorithm or a_alg or "jacobi"}
+    for key, value in (("start", de.get("startTime") if de is not None else None),
+                       ("stop", stop if stop is not None else de.get("stopTime") if de is not None else None),
+                       ("step", step if step is not None else a_step)):
+        if value is not None:
+            try:
+                experiment[key] = float(value)
+            except ValueError:
+                raise ScenarioError(where, f"DefaultExperiment.{key}", f"{value!r} is not a number") from None
+    if a_order and sorted(a_order) == sorted(instances):
+        experiment["order"] = a_order
+    outs = [f"{i}.{n}" for (i, n), con in connectors.items() if con.get("kind") == "output"]
+    return {"experiment": experiment, "instances": instances,
+            "connections": _connections(system, instances, connectors, where),
+            "record": {"variables": outs or ["*.*"]}, "ssp": where, "name": root.get("name")}
+
+
+def _components(system, path: Path, arch: Path) -> tuple[dict[str, Any], dict[tuple[str, str], Any], list]:
+    """The components as scenario instances (FMU inside the archive, connector units), their connectors,
+    and their own parameter bindings as (component, name, value)."""
     from .model import load_model
 
     where = str(path)
@@ -519,7 +577,6 @@ def _document(root, system, path: Path, arch: Path, step: float | None, stop: fl
         raise ScenarioError(where, "System", "no components")
     instances: dict[str, Any] = {}
     connectors: dict[tuple[str, str], Any] = {}
-    models: dict[str, Any] = {}
     comp_params: list[tuple[str, str, Any]] = []
     for comp in comps:
         cname = comp.get("name")
@@ -553,35 +610,9 @@ def _document(root, system, path: Path, arch: Path, step: float | None, stop: fl
             if real is not None and real.get("unit"):
                 units[cn] = real.get("unit")
         instances[cname] = {"fmu": str(fmu), "parameters": {}, "units": units}
-        models[cname] = model
         comp_params += [(cname, p, v) for p, v in _bindings(comp, path, arch, where, "")]
 
-    # parameters: system-level bindings address "component.variable"; component-level ones the variable
-    for pname, value in _bindings(system, path, arch, where, ""):
-        inst, dot, var = pname.partition(".")
-        if not dot or inst not in instances:
-            raise ScenarioError(where, f"parameter {pname}", "names no component of the system (expected "
-                                                              "\"component.variable\")")
-        comp_params.append((inst, var, value))
-    for inst, var, value in comp_params:
-        instances[inst]["parameters"][var] = value
-    a_step, a_alg, a_order = _step_from_annotations(root)
-    de = root.find("ssd:DefaultExperiment", NS)
-    experiment: dict[str, Any] = {"algorithm": algorithm or a_alg or "jacobi"}
-    for key, value in (("start", de.get("startTime") if de is not None else None),
-                       ("stop", stop if stop is not None else de.get("stopTime") if de is not None else None),
-                       ("step", step if step is not None else a_step)):
-        if value is not None:
-            try:
-                experiment[key] = float(value)
-            except ValueError:
-                raise ScenarioError(where, f"DefaultExperiment.{key}", f"{value!r} is not a number") from None
-    if a_order and sorted(a_order) == sorted(instances):
-        experiment["order"] = a_order
-    outs = [f"{i}.{n}" for (i, n), con in connectors.items() if con.get("kind") == "output"]
-    return {"experiment": experiment, "instances": instances,
-            "connections": _connections(system, instances, connectors, where),
-            "record": {"variables": outs or ["*.*"]}, "ssp": where, "name": root.get("name")}
+    return instances, connectors, comp_params
 
 
 def _connections(system, instances: dict[str, Any], connectors: dict[tuple[str, str], Any], where: str
