@@ -7,7 +7,9 @@ NAME:
               cosim_s (the stepping loop, first step to last, recording included), cosim_setup_s
               (extraction, instantiation, initialisation), cosim_us_per_step (target <= 22 us),
               cosim_to_direct (target <= 1.8), and, from a separate run that times every FMI call of the
-              loop, master_us_per_fmu_step = (loop time - time inside FMI calls) / steps / FMUs (target <= 1.5 us).
+              loop, master_us_per_fmu_step = (loop time - time inside FMI calls) / steps / FMUs (target <= 1.5 us);
+            - the same co-simulation with a plain loop over the instances in place of the generated one
+              (interleaved runs): cosim_plain_us_per_step, cosim_generated_us_per_step, generated_speedup.
     paper   the whole `wmr-cosim paper` job (4 tasks x 3 runs x 2 variants, analysis, figures, report),
             once, the FMUs already built: paper_s (target < 60 s on 2 cores).
     sweep   a 16-run sweep (scenarios/sweep-geometry.toml) through the Dask path with 1 and with 2 worker
@@ -91,10 +93,75 @@ def bench_cosim(repeats: int) -> dict[str, float]:
             "master_us_per_fmu_step": round(overhead, 3)}
 
 
+def plain_loop(ios, algorithm, t0, h, dec, n_steps, row, chunk, check_inputs=True):
+    """The stepping loop written as a plain loop over the instances, making the same raw ctypes calls as
+    the generated one (Gauss-Seidel, Real connections only: what G1 needs): the yardstick that decides
+    whether generating the loop pays for itself."""
+    import ctypes
+
+    if algorithm != "gauss-seidel" or any(io.other or io.feed or io.rec_int or io.rec_bool for io in ios):
+        raise ValueError("the plain loop covers Gauss-Seidel with Real connections only")
+    T, H = ctypes.c_double(0.0), ctypes.c_double(h)
+    items = [(io.name, io.c, io.set_real, io.do_step, io.get_real, io.in_vr, io.in_val, io.n_in, io.out_vr,
+              io.out_val, io.n_out, io.copies, bool(io.n_out.value)) for io in ios]
+    append = chunk.append
+
+    def loop(k0, k1):
+        for k in range(k0, k1):
+            T.value = t0 + k * h
+            for name, c, setr, dostep, getr, invr, inv, nin, outvr, outv, nout, copies, has_out in items:
+                if copies:
+                    for pos, arr, i, f, o in copies:
+                        v = arr[i] * f + o
+                        if check_inputs and v - v != 0.0:
+                            return (k, name, "inputs", v)
+                        inv[pos] = v
+                    s = setr(c, invr, nin, inv)
+                    if s:
+                        return (k, name, "fmi2SetReal", s)
+                s = dostep(c, T, H, 1)
+                if s:
+                    return (k, name, "fmi2DoStep", s)
+                if has_out:
+                    s = getr(c, outvr, nout, outv)
+                    if s:
+                        return (k + 1, name, "fmi2GetReal", s)
+            if (k + 1) % dec == 0 or k + 1 == n_steps:
+                row[0] = t0 + (k + 1) * h
+                append(bytes(row))
+        return None
+    return loop
+
+
+def bench_plain(repeats: int) -> dict[str, float]:
+    """G1 as in bench_cosim, with the plain loop in place of the generated one (interleaved runs)."""
+    from wmr_cosim.cosim import execution, scenario, system
+    from wmr_cosim.runner import resolve_model
+
+    root = __import__("pathlib").Path(__file__).resolve().parents[1]
+    sc = scenario.load(root / "scenarios" / "g1_learn.toml", resolve_model)
+    sc.record = ANALYSIS_RECORD
+    plan = system.resolve(sc)
+    generated = execution.compile_loop
+    walls: dict[str, list[float]] = {"generated": [], "plain": []}
+    for _ in range(repeats):
+        for kind, fn in (("generated", generated), ("plain", plain_loop)):
+            execution.compile_loop = fn
+            try:
+                walls[kind].append(execution.run(plan, None, progress=False).wall_s)
+            finally:
+                execution.compile_loop = generated
+    g, p = statistics.median(walls["generated"]), statistics.median(walls["plain"])
+    return {"cosim_plain_us_per_step": round(p / plan.n_steps * 1e6, 2),
+            "cosim_generated_us_per_step": round(g / plan.n_steps * 1e6, 2),
+            "generated_speedup": round(p / g, 3)}
+
+
 def bench_loop_all(repeats: int) -> dict[str, float]:
     figures = bench_loop(repeats)
     figures.update(bench_cosim(repeats))
     figures["cosim_to_direct"] = round(figures["cosim_s"] / figures["direct_s"], 3)
+    figures.update(bench_plain(repeats))
     return figures
 
 
