@@ -85,9 +85,15 @@ def run_direct(plant: PlantParams | None = None, sensor: SensorParams | None = N
         tn = (k + 1) * h
         if disturbance is not None:
             tau1, tau2 = disturbance(t)
-        po = pstep(t, h, co[0], co[1], tau1, tau2)
-        so = sstep(h, po[0], po[1])
-        co = cstep(tn, h, so[0], so[1], so[2], so[3], po[4], po[5], po[6])
+        try:
+            po = pstep(t, h, co[0], co[1], tau1, tau2)
+            so = sstep(h, po[0], po[1])
+            co = cstep(tn, h, so[0], so[1], so[2], so[3], po[4], po[5], po[6])
+        except (ValueError, OverflowError, ZeroDivisionError) as exc:  # a non-finite state reached a component
+            status = "diverged"
+            message = f"the state is no longer finite at t = {tn:.3f} s ({exc})"
+            k -= 1
+            break
         if record:
             times.append(tn)
             rp.append(po)

@@ -28,6 +28,10 @@ class FmuLoadError(CosimError):
     """An FMU file is missing, unsafe, not FMI 2.0 co-simulation, or cannot be loaded."""
 
 
+class OutputError(CosimError):
+    """A results folder cannot be written, or another run holds it."""
+
+
 class RunError(CosimError):
     """The run stopped: a non-OK status, a non-finite output, or an exception while stepping."""
 

@@ -29,7 +29,7 @@ from .algorithm import InstanceIO, compile_loop
 from .archive import safe_extract
 from .errors import EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN_FAILED, CosimError, RunError
 from .instance import Instance, raw, vr_array
-from .recording import NpyRecorder, RowBuffer, write_csv, write_json
+from .recording import NpyRecorder, OutputLock, RowBuffer, make_folder, write_csv, write_json
 from .system import Plan
 from .wiring import RowLayout, Wiring, discrete_copier, is_real, table_feeder
 
@@ -209,7 +209,8 @@ class Execution:
                     k_end = min(k_end, max(events[ev_i].step, k + 1))
                 self._errors = {n: i.n_errors for n, i in self.instances.items()}
                 fail = loop(k, k_end)
-                stop.check()
+                if k_end < self.n_steps:  # a Ctrl-C after the last step interrupts nothing
+                    stop.check()
                 if fail is not None:
                     self._failed(*fail)
                 self.k_done = k = k_end
@@ -299,7 +300,13 @@ def run(plan: Plan, out_dir: str | Path | None, progress: bool | None = None,
     ``out_dir=None`` runs in a temporary folder that is removed afterwards (the result keeps the
     final values).  ``timing=True`` also measures the time spent inside the stepping FMI calls."""
     keep = out_dir is not None
-    out = _prepare(Path(out_dir) if keep else Path(tempfile.mkdtemp(prefix="wmr-cosim-out-")), plan)
+    out = make_folder(Path(out_dir)) if keep else Path(tempfile.mkdtemp(prefix="wmr-cosim-out-"))
+    with OutputLock(out):
+        return _run(plan, out, keep, progress, timing, check_inputs)
+
+
+def _run(plan: Plan, out: Path, keep: bool, progress: bool | None, timing: bool, check_inputs: bool) -> RunResult:
+    _prepare(out, plan)
     ex = Execution(plan, out, timing)
     stop = _Interrupt()
     t_setup = _time.perf_counter()
@@ -331,7 +338,6 @@ def run(plan: Plan, out_dir: str | Path | None, progress: bool | None = None,
 
 def _prepare(out: Path, plan: Plan) -> Path:
     """The results folder, emptied of an earlier run's result files, with the resolved scenario."""
-    out.mkdir(parents=True, exist_ok=True)
     (out / "logs").mkdir(exist_ok=True)
     for stale in ("signals.npy", "signals.csv", "summary.json"):
         (out / stale).unlink(missing_ok=True)

@@ -41,7 +41,8 @@ def plan_runs(path: str | os.PathLike, resolver: Resolver | None = None, variant
 def run_protocol(path: str | os.PathLike, out_dir: str | os.PathLike, resolver: Resolver | None = None,
                  variant: str | None = None, overrides: dict[str, Any] | None = None,
                  progress: bool | None = None, only: list[str] | None = None,
-                 on_run: Callable[[str, execution.RunResult], None] | None = None) -> dict[str, execution.RunResult]:
+                 on_run: Callable[[str, execution.RunResult], None] | None = None,
+                 force: bool = False) -> dict[str, execution.RunResult]:
     """Run every run of the file in order into ``out_dir/<run>``; returns {run name: result}.
 
     A run whose carried source run failed is still run if the source recorded the value; a carried value
@@ -65,7 +66,7 @@ def run_protocol(path: str | os.PathLike, out_dir: str | os.PathLike, resolver: 
                                     f"{src!r} was not recorded by run {src_run!r}")
             params[ref] = final[col]
         params.update(overrides or {})
-        plan = system.resolve(scenario.load(path, resolver, params))
+        plan = system.resolve(scenario.load(path, resolver, params), force)
         res = execution.run(plan, out / run.name, progress=progress)
         results[run.name] = res
         if on_run is not None:

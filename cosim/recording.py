@@ -16,12 +16,77 @@ from typing import Any
 import numpy as np
 from numpy.lib import format as npformat
 
-from .errors import RunError
+from .errors import OutputError, RunError
 
 #: FMI type -> column dtype in signals.npy.
 DTYPES: dict[str, str] = {"Real": "<f8", "Integer": "<i4", "Enumeration": "<i4", "Boolean": "?"}
 #: Rows of the CSV converted at a time (bounds the memory the CSV writer needs).
 CSV_CHUNK = 20000
+
+
+LOCK_NAME = ".wmr-cosim.lock"
+
+
+class OutputLock:
+    """An exclusive lock on a results folder (``.wmr-cosim.lock`` inside it, held with flock): a second
+    run into the same folder is refused at once, naming the holder's process id.  The kernel releases the
+    lock when its process ends, so a lock left by a killed run is simply taken over."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = Path(folder)
+        self.path = self.folder / LOCK_NAME
+        self._fh = None
+
+    def acquire(self) -> "OutputLock":
+        import fcntl
+
+        fh = open(self.path, "a+")
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            fh.seek(0)
+            holder = fh.read().strip() or "?"
+            fh.close()
+            raise OutputError(f"{self.folder}: in use by another run (process {holder}): choose another --out "
+                              "or wait for it to finish") from None
+        fh.seek(0)
+        fh.truncate()
+        fh.write(f"{os.getpid()}\n")
+        fh.flush()
+        self._fh = fh
+        return self
+
+    def release(self) -> None:
+        if self._fh is not None:
+            try:
+                self.path.unlink(missing_ok=True)
+            finally:
+                self._fh.close()  # closing releases the flock
+                self._fh = None
+
+    def __enter__(self) -> "OutputLock":
+        return self.acquire()
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+
+def make_folder(folder: Path, what: str = "--out") -> Path:
+    """Create ``folder`` (and its parents) and make sure files can be written in it; OutputError (one line)
+    if not: under a regular file, on an existing file, read-only, in /proc, ..."""
+    folder = Path(folder)
+    try:
+        if folder.exists() and not folder.is_dir():
+            raise OutputError(f"{what} {folder}: exists and is not a folder")
+        folder.mkdir(parents=True, exist_ok=True)
+        probe = folder / f".wmr-cosim-probe-{os.getpid()}"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OutputError:
+        raise
+    except OSError as exc:
+        raise OutputError(f"{what} {folder}: cannot write there ({exc.strerror or exc})") from None
+    return folder
 
 
 def atomic_write(path: Path, data: str | bytes) -> None:
@@ -126,16 +191,19 @@ def write_csv(npy_path: str | os.PathLike, csv_path: str | os.PathLike, chunk: i
     names = data.dtype.names or ()
     csv_path = Path(csv_path)
     tmp = csv_path.with_name(csv_path.name + ".part")
-    fmts = ["%r" if data.dtype[n].kind == "f" else "%d" for n in names]
-    with open(tmp, "w", newline="") as fh:
-        fh.write(",".join(_csv_name(n) for n in names) + "\n")
-        for i in range(0, len(data), chunk):
-            part = data[i:i + chunk]
-            cols = [part[n].tolist() if data.dtype[n].kind == "f" else part[n].astype(np.int64).tolist()
-                    for n in names]
-            line = ",".join(fmts)
-            fh.writelines(line % row + "\n" for row in zip(*cols))
-    os.replace(tmp, csv_path)
+    line = ",".join("%r" if data.dtype[n].kind == "f" else "%d" for n in names)
+    try:
+        with open(tmp, "w", newline="") as fh:
+            fh.write(",".join(_csv_name(n) for n in names) + "\n")
+            for i in range(0, len(data), chunk):
+                part = data[i:i + chunk]
+                cols = [part[n].tolist() if data.dtype[n].kind == "f" else part[n].astype(np.int64).tolist()
+                        for n in names]
+                fh.writelines(line % row + "\n" for row in zip(*cols))
+        os.replace(tmp, csv_path)
+    except BaseException:  # interrupted or failed: no partial file left behind
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def _csv_name(name: str) -> str:

@@ -23,10 +23,10 @@ LOGGING = ("error", "warning", "info", "all")
 _TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "record", "events", "runs",
              "variants", "inputs"}
 _INPUTS_KEYS = {"file", "interpolation"}
-_EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance"}
+_EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps"}
 _INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "description", "logging"}
 _CONNECTION_KEYS = {"from", "to", "factor", "offset", "convert", "threshold"}
-_RECORD_KEYS = {"variables", "decimation", "csv"}
+_RECORD_KEYS = {"variables", "decimation", "csv", "max_bytes"}
 _RUN_KEYS = {"name", "description", "parameters", "carry"}
 _VARIANT_KEYS = {"description", "parameters"}
 _EVENT_KEYS = {"time", "variable", "action", "value"}
@@ -90,6 +90,9 @@ class Scenario:
     stop: float | None = None       # None: from the FMUs' default experiments
     step: float | None = None       # None: from the FMUs' default experiments
     tolerance: float | None = None  # passed to fmi2SetupExperiment
+    max_steps: int = 50_000_000     # a run of more steps is refused (unless forced)
+    max_bytes: int = 4 * 2 ** 30    # a recording expected larger than this is refused (unless forced)
+    force: bool = False             # lift max_steps and max_bytes (the command line's --force)
     algorithm: str = "gauss-seidel"
     order: list[str] = field(default_factory=list)
     instances: dict[str, InstanceSpec] = field(default_factory=dict)
@@ -115,19 +118,40 @@ def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _read(path: Path, seen: tuple[Path, ...] = ()) -> dict[str, Any]:
-    """Read one file, absolutise its FMU paths, and merge it over its ``base``."""
+#: Top-level keys of the other files of this project, and the command that takes each.
+_OTHER_FILES = {"tasks": "a paper manifest: run it with `wmr-cosim paper --manifest FILE`",
+                "grid": "a sweep file: run it with `wmr-cosim sweep FILE`",
+                "random": "a sweep file: run it with `wmr-cosim sweep FILE`",
+                "samples": "a sweep file: run it with `wmr-cosim sweep FILE`"}
+#: The longest instance name (it names files: logs/<instance>.log).
+MAX_NAME = 100
+
+
+def _read(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, str] | None = None) -> dict[str, Any]:
+    """Read one file, absolutise its FMU and input paths, and merge it over its ``base``."""
     name = str(path)
     if not path.is_file():
-        raise ScenarioError(name, "", "file not found")
+        if asked_by is not None:
+            raise ScenarioError(asked_by[0], "base", f"{asked_by[1]!r}: "
+                                                     f"{'a folder' if path.is_dir() else 'file not found'} ({path})")
+        raise ScenarioError(name, "", "a folder, not a scenario file" if path.is_dir() else "file not found")
     if path.resolve() in seen:
         raise ScenarioError(name, "base", "circular base chain")
     try:
         with path.open("rb") as fh:
             doc = tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(name, "", f"not valid TOML ({exc})") from None
+        raise ScenarioError(name, "", f"not valid TOML ({' '.join(str(exc).split())})") from None
+    except UnicodeDecodeError:
+        raise ScenarioError(name, "", "not a text file (TOML is UTF-8 text)") from None
+    except RecursionError:
+        raise ScenarioError(name, "", "not valid TOML (nested too deeply)") from None
+    except OSError as exc:
+        raise ScenarioError(name, "", f"cannot be read ({exc.strerror or exc})") from None
     unknown = set(doc) - _TOP_KEYS
+    for key in sorted(unknown):
+        if key in _OTHER_FILES:
+            raise ScenarioError(name, "", f"not a scenario but {_OTHER_FILES[key]}")
     if unknown:
         raise ScenarioError(name, sorted(unknown)[0], f"unknown key (allowed: {', '.join(sorted(_TOP_KEYS))})")
     for inst in (doc.get("instances") or {}).values():
@@ -140,7 +164,7 @@ def _read(path: Path, seen: tuple[Path, ...] = ()) -> dict[str, Any]:
         b = doc.pop("base")
         if not isinstance(b, str):
             raise ScenarioError(name, "base", "must be a file name")
-        doc = _merge(_read((path.parent / b), seen + (path.resolve(),)), doc)
+        doc = _merge(_read((path.parent / b), seen + (path.resolve(),), (name, b)), doc)
     return doc
 
 
@@ -158,6 +182,12 @@ def _num(file: str, fld: str, v: Any, *, positive: bool = False, allow_none: boo
         raise ScenarioError(file, fld, f"must be finite, not {v!r}")
     if positive and v <= 0:
         raise ScenarioError(file, fld, f"must be > 0, not {v!r}")
+    return v
+
+
+def _count(file: str, fld: str, v: Any) -> int:
+    if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+        raise ScenarioError(file, fld, f"{v!r}: must be an integer >= 1")
     return v
 
 
@@ -222,6 +252,8 @@ def _parse_experiment(sc: Scenario, doc: dict[str, Any]) -> None:
     for key in ("start", "stop", "step", "tolerance"):
         if key in exp:
             setattr(sc, key, _num(file, f"experiment.{key}", exp[key], positive=key in ("step", "tolerance")))
+    if "max_steps" in exp:
+        sc.max_steps = _count(file, "experiment.max_steps", exp["max_steps"])
     if sc.start is not None and sc.stop is not None and sc.step is not None:
         check_experiment(sc)
     sc.algorithm = str(exp.get("algorithm", "gauss-seidel")).lower()
@@ -239,6 +271,9 @@ def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:
         fld = f"instances.{iname}"
         if not isinstance(iname, str) or not iname.isidentifier():
             raise ScenarioError(file, fld, f"instance name {iname!r} must be an identifier")
+        if len(iname) > MAX_NAME:
+            raise ScenarioError(file, fld[:60] + "...", f"an instance name of {len(iname)} characters: at most "
+                                                        f"{MAX_NAME} (it names the instance's log file)")
         inst = _table(file, fld, inst)
         _keys(file, fld, inst, _INSTANCE_KEYS)
         fmu = inst.get("fmu")
@@ -319,6 +354,8 @@ def _parse_record(sc: Scenario, doc: dict[str, Any]) -> None:
     if not isinstance(csv, bool):
         raise ScenarioError(file, "record.csv", f"{csv!r}: must be true or false")
     sc.csv = csv
+    if "max_bytes" in rec:
+        sc.max_bytes = _count(file, "record.max_bytes", rec["max_bytes"])
 
 
 def _parse_runs(sc: Scenario, doc: dict[str, Any]) -> None:
@@ -411,6 +448,7 @@ def check_experiment(sc: Scenario, where: str = "experiment") -> None:
     if not math.isfinite(n) or abs(n - round(n)) > 1e-6 * max(1.0, n):
         raise ScenarioError(file, f"{where}.step",
                             f"{sc.step!r} s does not divide the run {sc.start!r}..{sc.stop!r} s into whole steps")
+
 
 
 def apply_overrides(doc: dict[str, Any], overrides: dict[str, Any] | None, file: str) -> dict[str, Any]:

@@ -80,6 +80,12 @@ class Plan:
     not_recorded: list[str] = field(default_factory=list)   # String outputs a pattern matched
 
     @property
+    def output_bytes(self) -> int:
+        """The expected size of signals.npy (the CSV, when written, is about three times larger)."""
+        rows = self.n_steps // self.scenario.decimation + 2
+        return rows * 8 * (1 + len(self.record))
+
+    @property
     def order(self) -> list[str]:
         return self.scenario.order
 
@@ -166,6 +172,11 @@ def _experiment(sc: Scenario, models: dict[str, FmuModel]) -> None:
         elif key in ("stop", "step"):
             raise ScenarioError(sc.file, f"experiment.{key}", "not given, and no FMU's default experiment gives one")
     check_experiment(sc)
+    n = (sc.stop - sc.start) / sc.step
+    if n > sc.max_steps and not sc.force:
+        raise ScenarioError(sc.file, "experiment.step", f"{n:.4g} steps of {sc.step!r} s from {sc.start!r} to "
+                                                        f"{sc.stop!r} s: more than max_steps = {sc.max_steps} "
+                                                        "(raise experiment.max_steps, or --force)")
 
 
 def _record(sc: Scenario, insts: dict[str, InstancePlan]) -> tuple[list[RecordPlan], list[str]]:
@@ -263,8 +274,11 @@ def _events(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str
     return events
 
 
-def resolve(sc: Scenario) -> Plan:
-    """Load every FMU of the scenario and run all the checks; returns the executable plan."""
+def resolve(sc: Scenario, force: bool | None = None) -> Plan:
+    """Load every FMU of the scenario and run all the checks (the one preflight that ``check`` and ``run``
+    share); returns the executable plan.  ``force`` lifts the limits of steps and recording size."""
+    if force is not None:
+        sc.force = force
     file = sc.file
     insts: dict[str, InstancePlan] = {}
     for name, spec in sc.instances.items():
@@ -317,4 +331,9 @@ def resolve(sc: Scenario) -> Plan:
     n_steps = int(round((sc.stop - sc.start) / sc.step))
     events = _events(sc, insts, driven, inputs)
     events.sort(key=lambda ev: ev.step)  # stable: file order within a step
-    return Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs, not_recorded)
+    plan = Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs, not_recorded)
+    if plan.output_bytes > sc.max_bytes and not sc.force:
+        raise ScenarioError(file, "record", f"the recording would take about {plan.output_bytes / 2 ** 20:.0f} MiB "
+                                            f"(more than max_bytes = {sc.max_bytes}): record fewer variables, "
+                                            f"decimate, raise record.max_bytes, or --force")
+    return plan

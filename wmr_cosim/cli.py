@@ -111,8 +111,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         if sc.runs:  # a protocol: every run, in order, into OUT/<run>
             code = EXIT_OK
             for name, r in run_protocol(args.scenario, out, resolve_model, variant=args.variant,
-                                        overrides=parse_set(args.set),
-                                        progress=False if args.quiet else None).items():
+                                        overrides=parse_set(args.set), progress=False if args.quiet else None,
+                                        force=args.force).items():
                 if r.status == "ok":
                     print(f"{args.scenario} [{name}]: ok, {r.steps} steps in {r.wall_s:.2f} s; results in {out / name}")
                 else:
@@ -127,7 +127,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if any(v is not None for v in fmu_only) and not str(args.scenario).lower().endswith(".fmu"):
         raise UsageError("--input, --stop and --step apply to a single FMU (.fmu); a scenario file says them itself")
     res = run_scenario(args.scenario, out, parse_set(args.set), progress=False if args.quiet else None,
-                       inputs=args.input, stop=args.stop, step=args.step)
+                       inputs=args.input, stop=args.stop, step=args.step, force=args.force)
     per = f", {res.wall_s / res.steps * 1e6:.1f} us/step" if res.steps else ""
     if res.status in ("ok", "terminated"):
         how = "ok" if res.status == "ok" else res.message
@@ -150,16 +150,26 @@ def cmd_check(args: argparse.Namespace) -> int:
     from .runner import fmu_plan, is_fmu
 
     overrides = parse_set(args.set)
-    with (ssp_plan(args.scenario, overrides) if is_ssp(args.scenario)
-          else contextlib.nullcontext(fmu_plan(args.scenario, overrides) if is_fmu(args.scenario)
-                                      else load_plan(args.scenario, overrides))) as plan:
+    f = args.force
+    with (ssp_plan(args.scenario, overrides, f) if is_ssp(args.scenario)
+          else contextlib.nullcontext(fmu_plan(args.scenario, overrides, force=f) if is_fmu(args.scenario)
+                                      else load_plan(args.scenario, overrides, f))) as plan:
         sc = plan.scenario
         print(f"{args.scenario}: ok: {len(plan.instances)} instances ({', '.join(plan.order)}), "
               f"{len(plan.connections)} connections, {len(plan.record)} recorded variables, {len(plan.events)} events, "
-              f"{plan.n_steps} steps of {sc.step:g} s ({sc.algorithm})")
+              f"{plan.n_steps} steps of {sc.step:g} s ({sc.algorithm}); signals.npy about "
+              f"{_size(plan.output_bytes)}{' (and signals.csv about ' + _size(3 * plan.output_bytes) + ')' if sc.csv else ''}")
         if plan.not_recorded:
             print(f"note: String outputs are not recorded: {', '.join(plan.not_recorded)}")
     return EXIT_OK
+
+
+def _size(n: float) -> str:
+    for unit in ("bytes", "KiB", "MiB", "GiB"):
+        if n < 1024 or unit == "GiB":
+            return f"{n:.0f} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
+        n /= 1024
+    return f"{n:.1f} GiB"
 
 
 def cmd_export_ssp(args: argparse.Namespace) -> int:
@@ -281,12 +291,15 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--stop", type=float, default=None, help="one FMU only: stop time [s] (default: its default experiment)")
     r.add_argument("--step", type=float, default=None,
                    help="one FMU only: communication step [s] (default: its default experiment)")
+    r.add_argument("--force", action="store_true",
+                   help="run even beyond the limits of steps (experiment.max_steps) and recording size (record.max_bytes)")
     r.set_defaults(func=cmd_run)
     c = sub.add_parser("check", help="check a scenario against its FMUs without running it",
                        description="Run every check of a scenario (files, variables, causality, types, units, "
                                    "steps, ranges, keys) without stepping. Exit code 0 if it would run, 2 if not.")
     c.add_argument("scenario", type=Path, help="scenario file (.toml), SSP 1.0 archive (.ssp) or one FMU (.fmu)")
     c.add_argument("--set", nargs="+", action="extend", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
+    c.add_argument("--force", action="store_true", help="check as `run --force` would run")
     c.set_defaults(func=cmd_check)
     e = sub.add_parser("export-ssp", help="write a scenario as an SSP 1.0 archive",
                        description="Write a scenario as an SSP 1.0 archive that other tools (libcosim, ecos, FMPy, "

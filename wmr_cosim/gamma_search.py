@@ -41,12 +41,16 @@ def gamma_search(scenario: str | os.PathLike, out: str | os.PathLike, grid: list
     from .cosim.errors import CosimError
 
     scenario = str(Path(scenario).resolve())
-    sc, runs, vparams = plan_runs(scenario, lambda name: Path(name), variant)
+    sc, runs, _ = plan_runs(scenario, lambda name: Path(name), None)
     names = [r.name for r in runs]
     for need in ("frozen", "foam"):
         if need not in names:
-            raise CosimError(f"{scenario}: gamma-search needs a protocol with runs 'frozen' and 'foam' "
-                             f"(this one has {', '.join(names)})")
+            raise CosimError(f"{scenario}: gamma-search needs a protocol with runs 'learn', 'frozen' and 'foam', "
+                             f"such as scenarios/paper/g1.toml (this file has {', '.join(names)})")
+    if variant is not None and variant not in sc.variants:
+        raise CosimError(f"{scenario}: --variant {variant}: the protocol declares "
+                         f"{', '.join(sc.variants) or 'no variants'}")
+    sc, runs, vparams = plan_runs(scenario, lambda name: Path(name), variant)
     grid = sorted(set(float(g) for g in (grid or DEFAULT_GRID)))
     if not grid or grid[0] <= 0:
         raise CosimError("gamma-search: the grid must hold values > 0")

@@ -60,29 +60,33 @@ def fmu_document(fmu: str | Path, inputs: str | Path | None = None, stop: float 
 
 
 def fmu_plan(fmu: str | Path, overrides: dict[str, Any] | None = None, inputs: str | Path | None = None,
-             stop: float | None = None, step: float | None = None) -> system.Plan:
+             stop: float | None = None, step: float | None = None, force: bool = False) -> system.Plan:
     """The checked plan of one FMU run alone (see :func:`fmu_document`)."""
-    doc = scenario.apply_overrides(fmu_document(fmu, inputs, stop, step), overrides, str(fmu))
-    return system.resolve(scenario.parse(doc, str(fmu)))
+    try:
+        doc = fmu_document(fmu, inputs, stop, step)
+    except CosimError as exc:
+        raise ScenarioError(str(fmu), "", str(exc).replace(f"{Path(fmu).resolve()}: ", "", 1)) from None
+    doc = scenario.apply_overrides(doc, overrides, str(fmu))
+    return system.resolve(scenario.parse(doc, str(fmu)), force)
 
 
-def load_plan(path: str | Path, overrides: dict[str, Any] | None = None) -> system.Plan:
+def load_plan(path: str | Path, overrides: dict[str, Any] | None = None, force: bool = False) -> system.Plan:
     """Parse a scenario file (TOML, or an SSP archive: ``.ssp``) and run every check against its FMUs.
     For an SSP archive the plan's FMUs live in a temporary folder: use :func:`ssp_plan` to remove it."""
     if ssp.is_ssp(path):
         raise CosimError(f"{path}: an SSP archive, not a scenario file (.toml)")  # (run/check use ssp_plan)
     sc = scenario.load(path, resolve_model, overrides)
-    return system.resolve(sc)
+    return system.resolve(sc, force)
 
 
 @contextlib.contextmanager
-def ssp_plan(path: str | Path, overrides: dict[str, Any] | None = None) -> Iterator[system.Plan]:
+def ssp_plan(path: str | Path, overrides: dict[str, Any] | None = None, force: bool = False) -> Iterator[system.Plan]:
     """The checked plan of an SSP archive, its FMUs extracted for the time of the ``with`` block."""
     arch = ssp.load_ssp(path, overrides=overrides)
     for w in arch.warnings:
         print(f"wmr-cosim: warning: {w}", file=sys.stderr)
     try:
-        yield system.resolve(arch.scenario)
+        yield system.resolve(arch.scenario, force)
     finally:
         arch.cleanup()
 
@@ -102,15 +106,15 @@ def is_fmu(path: str | Path) -> bool:
 
 def run_scenario(path: str | Path, out: str | Path | None = None, overrides: dict[str, Any] | None = None,
                  progress: bool | None = None, inputs: str | Path | None = None, stop: float | None = None,
-                 step: float | None = None) -> execution.RunResult:
+                 step: float | None = None, force: bool = False) -> execution.RunResult:
     """Run a scenario file (.toml), an SSP archive (.ssp) or one FMU alone (.fmu)."""
     out = out if out is not None else default_out(path)
     if is_fmu(path):
-        return execution.run(fmu_plan(path, overrides, inputs, stop, step), out, progress=progress)
+        return execution.run(fmu_plan(path, overrides, inputs, stop, step, force), out, progress=progress)
     if ssp.is_ssp(path):
-        with ssp_plan(path, overrides) as plan:
+        with ssp_plan(path, overrides, force) as plan:
             return execution.run(plan, out, progress=progress)
-    plan = load_plan(path, overrides)
+    plan = load_plan(path, overrides, force)
     return execution.run(plan, out, progress=progress)
 
 
