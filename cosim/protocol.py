@@ -33,7 +33,7 @@ def plan_runs(path: str | os.PathLike, resolver: Resolver | None = None, variant
     if variant is not None:
         if variant not in sc.variants:
             known = ", ".join(sc.variants) or "none"
-            raise ScenarioError(str(path), "variants", f"no variant {variant!r} (declared: {known})")
+            raise ScenarioError(str(path), f"--variant {variant}", f"not declared by this file (declared: {known})")
         vparams = sc.variants[variant]
     return sc, runs, vparams
 

@@ -233,9 +233,15 @@ def _inputs(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str
                                                        f"connections[{driven[(inst, var.name)]}]")
         return inst, var
 
+    def column(col: str) -> tuple[str, Variable]:
+        try:
+            return resolve_var(col)
+        except ScenarioError as exc:
+            raise ScenarioError(file, exc.field, f"{exc.reason} (a column of {sc.inputs_file})") from None
+
     n_steps = int(round((sc.stop - sc.start) / sc.step))
     grid = sc.start + np.arange(n_steps) * sc.step
-    return read_inputs(sc.inputs_file, file, sc.interpolation, resolve_var, grid)
+    return read_inputs(sc.inputs_file, file, sc.interpolation, column, grid)
 
 
 def _events(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str, str], int],

@@ -21,9 +21,9 @@ MODEL_DESCRIPTION = """<?xml version="1.0" encoding="UTF-8"?>
   </LogCategories>
   <DefaultExperiment startTime="0" stopTime="1" stepSize="0.01"/>
   <ModelVariables>
-    <ScalarVariable name="p" valueReference="0" causality="parameter" variability="fixed" initial="exact"><Real start="1"/></ScalarVariable>
-    <ScalarVariable name="u" valueReference="1" causality="input"><Real start="0"/></ScalarVariable>
-    <ScalarVariable name="y" valueReference="2" causality="output"><Real/></ScalarVariable>
+    <ScalarVariable name="p" valueReference="0" causality="parameter" variability="fixed" initial="exact"><Real start="1" min="0" max="10"/></ScalarVariable>
+    <ScalarVariable name="u" valueReference="1" causality="input"><Real start="0" unit="m"/></ScalarVariable>
+    <ScalarVariable name="y" valueReference="2" causality="output"><Real unit="m"/></ScalarVariable>
     <ScalarVariable name="c" valueReference="3" causality="local" initial="exact"><Real start="0"/></ScalarVariable>
     <ScalarVariable name="b" valueReference="4" causality="input" variability="discrete"><Boolean start="false"/></ScalarVariable>
     <ScalarVariable name="n" valueReference="5" causality="output" variability="discrete"><Integer/></ScalarVariable>

@@ -203,7 +203,7 @@ name = "a"
 name = "b"
 carry = { "controller.W1_init" = "a.controller.W1" }
 """)
-    with pytest.raises(ScenarioError, match="no variant 'nope'"):
+    with pytest.raises(ScenarioError, match="--variant nope: not declared"):
         plan_runs(path, None, "nope")
     with pytest.raises(ScenarioError, match=r"runs.b.carry.controller.W1_init: 'a.controller.W1' was not recorded"):
         run_protocol(path, tmp_path / "out", None, progress=False)

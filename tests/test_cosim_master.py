@@ -207,4 +207,4 @@ carry = { "controller.W2_init" = "a.controller.W2" }
         == a["controller.W2"][-1]
     p = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "run", str(path), "--variant", "x"],
                        capture_output=True, text=True)
-    assert p.returncode == 2 and "no variant 'x'" in p.stderr
+    assert p.returncode == 2 and "--variant x: not declared" in p.stderr
