@@ -106,6 +106,7 @@ value = 1e300
     p = _cli("run", str(path), "--out", str(out), "--quiet")
     assert p.returncode == 1 and "Traceback" not in p.stderr
     assert "non-finite" in p.stderr and "sensor" in p.stderr and "t = 0.2 s" in p.stderr
+    assert "plant.alpha" in p.stderr and "produced" in p.stderr   # the output that produced it, named
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "failed" and summary["steps"] == 100   # the override acts from step 100
     data = np.load(out / "signals.npy")

@@ -385,3 +385,32 @@ def test_type_rules_of_connections_and_events(text, reason, tmp_path):
                                                  f'[instances.b]\nfmu = "{fmu}"\n{text}')
     with pytest.raises(ScenarioError, match=reason.replace("(", r"\(")):
         system.resolve(scenario.load(path))
+
+
+def test_a_ctrl_c_after_the_last_step_interrupts_nothing(tmp_path, monkeypatch):
+    import os
+    import signal
+
+    from wmr_cosim.cosim import execution as ex
+
+    real = ex.compile_loop
+
+    def compile_then_signal(ios, algorithm, t0, h, dec, n_steps, *rest):
+        loop = real(ios, algorithm, t0, h, dec, n_steps, *rest)
+
+        def wrapped(k0, k1):
+            r = loop(k0, k1)
+            if k1 == n_steps:
+                os.kill(os.getpid(), signal.SIGINT)   # Ctrl-C once every step has run
+            return r
+        return wrapped
+    monkeypatch.setattr(ex, "compile_loop", compile_then_signal)
+    res = execution.run(fmu_plan(FMI2 / "Dahlquist.fmu"), tmp_path / "out", progress=False)
+    assert res.status == "ok" and res.steps == 100, res.message
+
+
+def test_the_direct_loop_reports_a_non_finite_state_as_diverged():
+    from wmr_cosim.components.direct_loop import run_direct
+
+    r = run_direct(t_stop=2.0, disturbance=lambda t: (float("nan"), 0.0) if t > 1.0 else (0.0, 0.0))
+    assert r.status == "diverged" and "no longer finite at t = 1.004 s" in r.message
