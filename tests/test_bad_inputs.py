@@ -164,13 +164,15 @@ def test_bad_scenario_file(case, sandbox, capsys):
     (["run", str(FT), "--input", "bad_col.csv", "--out", "o"], ["bad_col.csv", "no variable"]),
     (["run", str(FT), "--set", "Feedthrough.Float64_fixed_parameter=x"], ["type mismatch"]),
     (["gamma-search", "{good}"], ["gamma-search needs a protocol"]),
+    (["run", "{flat}", "--set", "a.k=1"], ["instances.a", "must be a table"]),
 ])
 def test_bad_command_line(argv, words, sandbox, capsys):
     work, _ = sandbox
     good = work / "good.toml"
     good.write_text(HEAD)
     (work / "afile").write_text("x")
-    argv = [a.format(good=good, file=work / "afile") for a in argv]
+    (work / "flat.toml").write_text("[instances]\na = 3\n")
+    argv = [a.format(good=good, file=work / "afile", flat=work / "flat.toml") for a in argv]
     _one_line(capsys, main(argv), 2, words)
 
 
