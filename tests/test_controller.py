@@ -117,3 +117,17 @@ def test_state_round_trip_is_exact():
     a = [c.step(k * h, h, *meas[k]) for k in range(1000, 2000)]
     c.set_state(s)
     assert [c.step(k * h, h, *meas[k]) for k in range(1000, 2000)] == a
+
+
+def test_adaptation_stops_when_the_norm_of_P_equals_P0():
+    """(51) adapts while the norm of P is above P0: at exactly P0 nothing adapts (W and P both frozen,
+    decision 18); a hair below P(0)'s norm, the first step adapts."""
+    p_init = ControllerParams().P_init[0]   # P(0) = p I: its smallest eigenvalue is p
+    at = run_direct(controller=ControllerParams(P0=p_init), t_stop=0.1)
+    below = run_direct(controller=ControllerParams(P0=p_init * (1 - 1e-12)), t_stop=0.1)
+    assert at.signals["controller.P_norm"][0] == p_init
+    assert np.all(at.signals["controller.adapting"] == 0.0)
+    assert below.signals["controller.adapting"][0] == 1.0
+    W0 = ControllerParams().W_init
+    for i in (1, 2, 3):
+        assert np.all(at.signals[f"controller.W{i}"] == W0[i - 1])

@@ -414,3 +414,45 @@ def test_the_direct_loop_reports_a_non_finite_state_as_diverged():
 
     r = run_direct(t_stop=2.0, disturbance=lambda t: (float("nan"), 0.0) if t > 1.0 else (0.0, 0.0))
     assert r.status == "diverged" and "no longer finite at t = 1.004 s" in r.message
+
+
+def test_a_bias_adds_to_the_value_and_an_override_replaces_it(tmp_path):
+    """A Real input at 1.0 (its start value): a bias of +2 gives 3 (an override would give 2); a bias on an
+    output acts before the connection's factor; reset restores the source."""
+    fmu = FMI2 / "Feedthrough.fmu"
+    path = write_scenario(tmp_path / "bias.toml", f'''
+[experiment]
+stop = 0.1
+step = 0.01
+[instances.a]
+fmu = "{fmu}"
+parameters = {{ Float64_continuous_input = 1.0 }}
+[instances.b]
+fmu = "{fmu}"
+[[connections]]
+from = "a.Float64_continuous_output"
+to = "b.Float64_continuous_input"
+factor = 10.0
+[[events]]
+time = 0.02
+variable = "a.Float64_continuous_input"
+action = "bias"
+value = 2.0
+[[events]]
+time = 0.05
+variable = "a.Float64_continuous_output"
+action = "bias"
+value = 0.5
+[[events]]
+time = 0.08
+variable = "a.Float64_continuous_output"
+action = "reset"
+[record]
+variables = ["a.Float64_continuous_output", "b.Float64_continuous_output"]
+''')
+    res = execution.run(system.resolve(scenario.load(path)), tmp_path / "out", progress=False)
+    assert res.status == "ok", res.message
+    d = np.load(tmp_path / "out" / "signals.npy")
+    a, b = d["a.Float64_continuous_output"], d["b.Float64_continuous_output"]
+    assert a[2] == 1.0 and a[3] == 3.0                  # the row after the step from 0.02 s
+    assert b[5] == 30.0 and b[6] == 35.0 and b[8] == 35.0 and b[9] == 30.0   # 10 * (3 + 0.5), then reset

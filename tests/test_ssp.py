@@ -284,6 +284,8 @@ def _evil_zip(path: Path, kind: str, inner_ok: Path | None = None) -> Path:
                     zf.writestr(info, zi.read(info))
         if kind == "dotdot":
             zf.writestr("../../evil_dotdot.txt", "x")
+        elif kind == "dotdot-inside":   # climbs out from the middle of its path
+            zf.writestr("resources/../../evil_dotdot.txt", "x")
         elif kind == "absolute":
             zf.writestr(str(path.parent / "evil_absolute.txt"), "x")
         elif kind == "symlink":
@@ -293,7 +295,7 @@ def _evil_zip(path: Path, kind: str, inner_ok: Path | None = None) -> Path:
     return path
 
 
-@pytest.mark.parametrize("kind", ["dotdot", "absolute", "symlink"])
+@pytest.mark.parametrize("kind", ["dotdot", "dotdot-inside", "absolute", "symlink"])
 def test_an_escaping_ssp_is_refused_before_anything_is_written(kind, g1_ssp, tmp_path):
     work = tmp_path / "work"
     (work / "tmp").mkdir(parents=True)
