@@ -28,22 +28,23 @@ class InstanceIO:
 
     name: str
     c: Any                                  # c_void_p of the instance
-    set_real: Any                           # raw fmi2SetReal (no argtypes)
-    do_step: Any
-    get_real: Any
-    get_integer: Any
-    get_boolean: Any
+    set_real: Any                           # raw fmi2SetReal / fmi3SetFloat64 (no argtypes)
+    do_step: Any                            # raw fmi2DoStep / fmi3DoStep
+    get_real: Any                           # raw fmi2GetReal / fmi3GetFloat64
     in_vr: Any                              # c_uint array
     in_val: Any                             # c_double array
-    n_in: Any                               # c_size_t
+    n_in: Any                               # c_size_t: value references
     out_vr: Any
     out_val: Any                            # a view into the row buffer
     n_out: Any
     copies: list[tuple[int, Any, int, float, float]] = field(default_factory=list)  # (pos, src array, idx, f, o)
-    rec_int: tuple[Any, Any, Any, list[int]] | None = None   # (vr array, int buffer, n, row slots)
-    rec_bool: tuple[Any, Any, Any, list[int]] | None = None
-    other: list[Callable[[], int]] = field(default_factory=list)  # connections other than Real -> Real
+    extras: list[tuple[Any, Any, Any, Any, Any, list[tuple[int, int]]]] = field(default_factory=list)
+    # recorded outputs other than Float64: (get(vrs, n, buf, nv), vrs, n, buf, nv, [(index in buf, slot)])
+    other: list[Callable[[], int]] = field(default_factory=list)  # connections other than Float64 -> Float64
     feed: Callable[[int], int] | None = None       # tabulated inputs of step k (wiring.table_feeder)
+    fmi: int = 2
+    nv_in: Any = None                       # c_size_t: values (FMI 3.0 arrays)
+    nv_out: Any = None
 
 
 class _Source:
@@ -79,70 +80,89 @@ def _copies(s: _Source, i: int, io: InstanceIO, ind: str, check_inputs: bool) ->
     for j, (pos, *_rest) in enumerate(io.copies):
         s.w(f"{ind}in_{i}[{s.bind(f'pos_{i}_{j}', pos)}] = v{j}")
     if io.copies:
-        s.w(f"{ind}s = setr_{i}(c_{i}, invr_{i}, nin_{i}, in_{i})")
+        nv = f", nvin_{i}" if io.fmi == 3 else ""
+        s.w(f"{ind}s = setr_{i}(c_{i}, invr_{i}, nin_{i}, in_{i}{nv})")
         s.w(f"{ind}if s: return (k, name_{i}, 'fmi2SetReal', s)")
     for j, fn in enumerate(io.other):
         s.w(f"{ind}s = {s.bind(f'other_{i}_{j}', fn)}()")
         s.w(f"{ind}if s: return (k, name_{i}, 'fmi2Get/Set (a connection)', s)")
 
 
-def _step(s: _Source, i: int, ind: str) -> None:
-    s.w(f"{ind}s = dostep_{i}(c_{i}, Tv, H, 1)")
-    s.w(f"{ind}if s: return (k, name_{i}, 'fmi2DoStep', s)")
+def _step(s: _Source, i: int, io: InstanceIO, ind: str) -> None:
+    if io.fmi == 2:
+        s.w(f"{ind}s = dostep_{i}(c_{i}, Tv, H, 1)")
+        s.w(f"{ind}if s: return (k, name_{i}, 'fmi2DoStep', s)")
+        return
+    # FMI 3.0: event (unused: no event mode), terminateSimulation, earlyReturn (not allowed), lastSuccessfulTime
+    flags = [ctypes.c_bool(), ctypes.c_bool(), ctypes.c_bool(), ctypes.c_double()]
+    s.bind(f"term_{i}", flags[1]), s.bind(f"last_{i}", flags[3])
+    refs = ", ".join(s.bind(f"ref{j}_{i}", ctypes.byref(f)) for j, f in enumerate(flags))
+    s.w(f"{ind}s = dostep_{i}(c_{i}, Tv, H, True, {refs})")
+    s.w(f"{ind}if s: return (k, name_{i}, 'fmi3DoStep', s)")
+    s.w(f"{ind}if term_{i}.value: ended = (name_{i}, last_{i}.value)")
 
 
 def _get(s: _Source, i: int, io: InstanceIO, ind: str) -> None:
     if io.n_out.value:
-        s.w(f"{ind}s = getr_{i}(c_{i}, outvr_{i}, nout_{i}, out_{i})")
-        s.w(f"{ind}if s: return (k + 1, name_{i}, 'fmi2GetReal', s)")
+        nv = f", nvout_{i}" if io.fmi == 3 else ""
+        s.w(f"{ind}s = getr_{i}(c_{i}, outvr_{i}, nout_{i}, out_{i}{nv})")
+        s.w(f"{ind}if s: return (k + 1, name_{i}, 'fmi{io.fmi}GetReal', s)")
 
 
-def _record(s: _Source, ios: list[InstanceIO], dec: int) -> None:
-    s.w("        if (k + 1) % dec == 0 or k + 1 == n_steps:" if dec > 1 else "        if True:")
+def _record(s: _Source, ios: list[InstanceIO], dec: int, n_double: int) -> None:
+    fmi3 = any(io.fmi == 3 for io in ios)
+    if dec > 1:
+        s.w(f"        if (k + 1) % dec == 0 or k + 1 == n_steps{' or ended is not None' if fmi3 else ''}:")
+    else:
+        s.w("        if True:")
     s.w("            row[0] = t0 + (k + 1) * h")
     for i, io in enumerate(ios):
-        for kind, spec, getter in (("int", io.rec_int, f"geti_{i}"), ("bool", io.rec_bool, f"getb_{i}")):
-            if spec is None:
-                continue
-            vr, buf, n, slots = spec
-            s.bind(f"{kind}vr_{i}", vr), s.bind(f"{kind}buf_{i}", buf), s.bind(f"{kind}n_{i}", n)
-            s.w(f"            s = {getter}(c_{i}, {kind}vr_{i}, {kind}n_{i}, {kind}buf_{i})")
-            s.w(f"            if s: return (k + 1, name_{i}, 'fmi2Get{kind.capitalize()}', s)")
-            for j, slot in enumerate(slots):
-                s.w(f"            row[{s.bind(f'{kind}slot_{i}_{j}', slot)}] = {kind}buf_{i}[{j}]")
-    s.w("            append(bytes(row))")
+        for j, (get, vrs, n, buf, nv, slots) in enumerate(io.extras):
+            names = [s.bind(f"x{w}_{i}_{j}", x) for w, x in zip("gvnbc", (get, vrs, n, buf, nv))]
+            s.w(f"            s = {names[0]}({', '.join(names[1:])})")
+            s.w(f"            if s: return (k + 1, name_{i}, 'fmi{io.fmi}Get (recorded)', s)")
+            for e, slot in slots:
+                target = f"row[{s.bind(f'xs_{i}_{j}_{e}', slot)}]" if slot < n_double else \
+                    f"irow[{s.bind(f'xs_{i}_{j}_{e}', slot - n_double)}]"
+                s.w(f"            {target} = {names[3]}[{s.bind(f'xe_{i}_{j}_{e}', e)}]")
+    s.w("            append(bytes(buf))")
+    if fmi3:  # an FMI 3.0 FMU ended the simulation in this step: its row is recorded, then stop
+        s.w("        if ended is not None: return (k + 1, ended[0], 'fmi3Terminated', ended[1])")
 
 
-def compile_loop(ios: list[InstanceIO], algorithm: str, t0: float, h: float, dec: int, n_steps: int, row: Any,
+def compile_loop(ios: list[InstanceIO], algorithm: str, t0: float, h: float, dec: int, n_steps: int, layout: Any,
                  chunk: list[bytes], check_inputs: bool = True) -> Callable[[int, int], Any]:
-    """Generate and compile the loop for the instances in order."""
+    """Generate and compile the loop for the instances in order; ``layout`` is the row buffer's
+    (wiring.RowLayout: ``buf``, its doubles ``row`` and integers ``irow``, ``n_double``)."""
     s = _Source()
-    s.env.update({"row": row, "append": chunk.append, "bytes": bytes, "T": ctypes.c_double(0.0),
+    s.env.update({"row": layout.row, "irow": layout.irow, "buf": layout.buf, "append": chunk.append,
+                  "bytes": bytes, "T": ctypes.c_double(0.0),
                   "H": ctypes.c_double(h), "t0": float(t0), "h": float(h), "dec": int(dec), "n_steps": int(n_steps)})
     for i, io in enumerate(ios):
         s.env.update({f"name_{i}": io.name, f"c_{i}": io.c, f"setr_{i}": io.set_real, f"dostep_{i}": io.do_step,
                       f"getr_{i}": io.get_real, f"invr_{i}": io.in_vr, f"in_{i}": io.in_val, f"nin_{i}": io.n_in,
                       f"outvr_{i}": io.out_vr, f"out_{i}": io.out_val, f"nout_{i}": io.n_out,
-                      f"geti_{i}": io.get_integer, f"getb_{i}": io.get_boolean})
+                      f"nvin_{i}": io.nv_in, f"nvout_{i}": io.nv_out})
     ind = "        "
     body = _Source()
     body.env = s.env
     if algorithm == "jacobi":
         for i, io in enumerate(ios):
             _copies(body, i, io, ind, check_inputs)
-        for i, _ in enumerate(ios):
-            _step(body, i, ind)
+        for i, io in enumerate(ios):
+            _step(body, i, io, ind)
         for i, io in enumerate(ios):
             _get(body, i, io, ind)
     else:
         for i, io in enumerate(ios):
             _copies(body, i, io, ind, check_inputs)
-            _step(body, i, ind)
+            _step(body, i, io, ind)
             _get(body, i, io, ind)
-    _record(body, ios, dec)
+    _record(body, ios, dec, layout.n_double)
     # every bound value becomes a keyword default: a fast local inside the loop
     s.w(f"def loop(k0, k1, *, {', '.join(f'{n}={n}' for n in s.env)}):")
     s.w("    Tv = T")
+    s.w("    ended = None")
     s.w("    for k in range(k0, k1):")
     s.w("        Tv.value = t0 + k * h")
     s.lines += body.lines

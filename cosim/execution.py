@@ -28,10 +28,10 @@ import numpy as np
 from .algorithm import InstanceIO, compile_loop
 from .archive import safe_extract
 from .errors import EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN_FAILED, CosimError, RunError
-from .instance import Instance, raw, vr_array
+from .instance import Instance, Instance3, accessor, raw, vr_array
 from .recording import NpyRecorder, OutputLock, RowBuffer, make_folder, write_csv, write_json
 from .system import Plan
-from .wiring import RowLayout, Wiring, discrete_copier, is_real, table_feeder
+from .wiring import RowLayout, Wiring, discrete_copier, is_f64, is_real, table_feeder
 
 #: Rows recorded between two flushes to disk (and progress updates).
 FLUSH_ROWS = 2500
@@ -60,8 +60,8 @@ class RunResult:
 class _Stop(Exception):
     """An FMU ended the simulation itself at ``t``."""
 
-    def __init__(self, name: str, t: float) -> None:
-        self.name, self.t = name, t
+    def __init__(self, name: str, t: float, recorded: bool = False) -> None:
+        self.name, self.t, self.recorded = name, t, recorded
 
 
 class Execution:
@@ -74,7 +74,8 @@ class Execution:
         self.work = Path(tempfile.mkdtemp(prefix="wmr-cosim-fmus-"))
         self.instances: dict[str, Instance] = {}
         self.columns = ["time"] + [r.column for r in plan.record]
-        self.types = ["Real"] + [r.var.type for r in plan.record]
+        self.types = ["Real"] + ["Int64" if r.var.fmi_type == "Enumeration" and plan.instances[r.instance].model.fmi == 3
+                                 else r.var.fmi_type for r in plan.record]
         self.recorder: NpyRecorder | None = None
         self.rows: RowBuffer | None = None
         self.ios: list[InstanceIO] = []
@@ -92,8 +93,9 @@ class Execution:
             p = ip.model.path.resolve()
             if p not in unz:
                 unz[p] = str(safe_extract(p, self.work / f"{len(unz)}_{p.stem}"))
-            self.instances[name] = Instance(name, ip.model.md, unz[p], self.out / "logs" / f"{name}.log",
-                                            ip.spec.logging)
+            cls = Instance3 if ip.model.fmi == 3 else Instance
+            self.instances[name] = cls(name, ip.model.md, unz[p], self.out / "logs" / f"{name}.log",
+                                       ip.spec.logging)
 
     def initialise(self, check_inputs: bool) -> None:
         """Instantiate, set up, set start values, initialise with the inputs at their fixed point, and
@@ -113,27 +115,28 @@ class Execution:
             self.instances[io.name].exit_initialization()
         self._get_all(self.t0)
         self.recorder = NpyRecorder(self.out / "signals.npy", self.columns, self.types)
-        self.rows = RowBuffer(self.recorder, [0] + [self.layout.slot(r) for r in self.plan.record])
+        self.rows = RowBuffer(self.recorder, [0] + [self.layout.slot(r) for r in self.plan.record],
+                              self.layout.n_double, self.layout.n_int)
         self.layout.row[0] = self.t0
-        self.rows.chunk.append(bytes(self.layout.row))
+        self.rows.chunk.append(bytes(self.layout.buf))
 
     def _io(self, n: str) -> InstanceIO:
         """The loop's view of instance ``n``: raw entry points, input and output arrays, copies."""
         inst, lay, plan = self.instances[n], self.layout, self.plan
-        dll = inst.fmu.dll
-        extra = [(r.var.vr, lay.slot(r), r.var.type) for r in lay.extra if r.instance == n]
-        ints = [(v, s) for v, s, t in extra if t in ("Integer", "Enumeration")]
-        bools = [(v, s) for v, s, t in extra if t == "Boolean"]
-        vrs = self.wiring.vrs[n]
+        dll, fmi = inst.fmu.dll, self.plan.instances[n].model.fmi
+        names = ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal") if fmi == 2 else \
+            ("fmi3SetFloat64", "fmi3DoStep", "fmi3GetFloat64")
+        vrs, nvals = self.wiring.vrs[n], len(self.wiring.values[n])
+        n_out = sum(size for _, size in lay.reals[n])
         io = InstanceIO(
-            n, ctypes.c_void_p(inst.c), raw(dll, "fmi2SetReal"), raw(dll, "fmi2DoStep"), raw(dll, "fmi2GetReal"),
-            raw(dll, "fmi2GetInteger"), raw(dll, "fmi2GetBoolean"),
-            vr_array(vrs), (ctypes.c_double * max(1, len(vrs)))(), ctypes.c_size_t(len(vrs)),
-            vr_array(lay.reals[n]), lay.out_arr[n], ctypes.c_size_t(len(lay.reals[n])), self.wiring.copies(n),
-            _int_spec(ints, ctypes.c_int), _int_spec(bools, ctypes.c_int),
+            n, ctypes.c_void_p(inst.c), *(raw(dll, f) for f in names),
+            vr_array(vrs), (ctypes.c_double * max(1, nvals))(), ctypes.c_size_t(len(vrs)),
+            vr_array([vr for vr, _ in lay.reals[n]]), lay.out_arr[n], ctypes.c_size_t(len(lay.reals[n])),
+            self.wiring.copies(n), _extras(inst, [r for r in lay.extra if r.instance == n], lay),
             [discrete_copier(self.instances, c) for c in plan.connections if c.dst == n and not is_real(c)],
             table_feeder(inst, self.wiring.tables.get(n),
-                         [ip for ip in plan.inputs if ip.instance == n and ip.var.type != "Real"]))
+                         [ip for ip in plan.inputs if ip.instance == n and not is_f64(ip.var)]),
+            fmi, ctypes.c_size_t(nvals), ctypes.c_size_t(n_out))
         if self.timing:
             io.set_real, io.do_step, io.get_real = (_timed(f, self.fmi_acc) for f in (io.set_real, io.do_step,
                                                                                        io.get_real))
@@ -153,32 +156,28 @@ class Execution:
                 for pos, arr, i, f, o in io.copies:
                     io.in_val[pos] = arr[i] * f + o if (f != 1.0 or o != 0.0) else arr[i]
                     values.append(io.in_val[pos])
-                if check_inputs and any(v - v != 0.0 for v in io.in_val[:io.n_in.value]):
+                if check_inputs and any(v - v != 0.0 for v in io.in_val[:io.nv_in.value]):
                     raise self.wiring.bad_input(io.name, io.in_vr, io.copies, self.t0)
                 if io.n_in.value:
-                    _check(inst, "fmi2SetReal", io.set_real(io.c, io.in_vr, io.n_in, io.in_val), self.t0)
+                    _check(inst, "set inputs", _set_reals(io), self.t0)
                 for fn in io.other:
-                    _check(inst, "fmi2SetInteger/Boolean", fn(), self.t0)
+                    _check(inst, "set inputs (a connection)", fn(), self.t0)
                 if io.n_out.value:
-                    _check(inst, "fmi2GetReal", io.get_real(io.c, io.out_vr, io.n_out, io.out_val), self.t0)
+                    _check(inst, "get outputs", _get_reals(io), self.t0)
             if values == last:
                 break
             last = values
 
     def _get_all(self, t: float) -> None:
-        """Every instance's Real outputs and recorded Integer/Boolean outputs into the row."""
-        row = self.layout.row
+        """Every instance's Float64 outputs and recorded other outputs into the row."""
         for io in self.ios:
             inst = self.instances[io.name]
             if io.n_out.value:
-                _check(inst, "fmi2GetReal", io.get_real(io.c, io.out_vr, io.n_out, io.out_val), t)
-            for spec, getter, what in ((io.rec_int, io.get_integer, "fmi2GetInteger"),
-                                       (io.rec_bool, io.get_boolean, "fmi2GetBoolean")):
-                if spec is not None:
-                    vr, buf, n, slots = spec
-                    _check(inst, what, getter(io.c, vr, n, buf), t)
-                    for j, slot in enumerate(slots):
-                        row[slot] = float(buf[j])
+                _check(inst, "get outputs", _get_reals(io), t)
+            for get, vrs, n, buf, nv, slots in io.extras:
+                _check(inst, "get outputs (recorded)", get(vrs, n, buf, nv), t)
+                for e, slot in slots:
+                    self.layout.write(slot, buf[e])
 
     # ---------------------------------------------------------------- stepping
     def simulate(self, progress: bool | None, check_inputs: bool, stop: "_Interrupt") -> None:
@@ -203,7 +202,7 @@ class Execution:
                     for io in self.ios:
                         io.copies = self.wiring.copies(io.name)
                     loop = compile_loop(self.ios, sc.algorithm, self.t0, self.h, sc.decimation, self.n_steps,
-                                        self.layout.row, rows.chunk, check_inputs)
+                                        self.layout, rows.chunk, check_inputs)
                 k_end = min(self.n_steps, k + block - (k % block))
                 if ev_i < len(events):
                     k_end = min(k_end, max(events[ev_i].step, k + 1))
@@ -256,6 +255,9 @@ class Execution:
         if what == "inputs":
             io = self.ios[self.plan.order.index(name)]
             raise self.wiring.bad_input(name, io.in_vr, io.copies, tf)
+        if what == "fmi3Terminated":  # the step's row is recorded already
+            self.k_done = kf
+            raise _Stop(name, tf, recorded=True)
         if what == "fmi2DoStep" and int(val) == DISCARD and inst.n_errors == self._errors[name]:
             # fmi2Terminated after a Discard with no error logged: the FMU ended the simulation (some
             # exporters report every failed step as terminated; their error message tells them apart)
@@ -268,7 +270,7 @@ class Execution:
         """The row at the time an FMU ended the simulation."""
         self._get_all(t)
         self.layout.row[0] = t
-        self.rows.chunk.append(bytes(self.layout.row))
+        self.rows.chunk.append(bytes(self.layout.buf))
 
     def _flush(self) -> None:
         try:
@@ -319,7 +321,8 @@ def _run(plan: Plan, out: Path, keep: bool, progress: bool | None, timing: bool,
     except _Stop as s:
         ex.k_done = min(plan.n_steps, int(math.floor((s.t - ex.t0) / ex.h + 1e-9)))
         try:
-            ex.record_final(s.t)
+            if not s.recorded:
+                ex.record_final(s.t)
             ex.status, ex.message = "terminated", f"terminated by FMU {s.name} at t = {s.t:.6g} s"
         except RunError as exc:
             ex.status, ex.message = "failed", str(exc)
@@ -407,12 +410,34 @@ class _Interrupt:
             self.old = None
 
 
-def _int_spec(pairs: list[tuple[int, int]], ctype: Any) -> tuple[Any, Any, Any, list[int]] | None:
-    """(vr array, buffer, count, row slots) of recorded Integer or Boolean outputs, or None."""
-    if not pairs:
-        return None
-    return (vr_array([v for v, _ in pairs]), (ctype * len(pairs))(), ctypes.c_size_t(len(pairs)),
-            [s for _, s in pairs])
+def _extras(inst: Instance, recs: list[Any], lay: RowLayout) -> list[tuple]:
+    """One getter per FMI type for an instance's recorded outputs that are not Float64:
+    (get, vrs, n, buffer, n_values, [(index in the buffer, row slot)])."""
+    out = []
+    for t in sorted({r.var.fmi_type for r in recs}):
+        mine = [r for r in recs if r.var.fmi_type == t]
+        vars_ = list({r.var.vr: r.var for r in mine}.values())
+        start = {}
+        i = 0
+        for v in vars_:
+            start[v.vr] = i
+            i += v.size
+        get, ctype = accessor(inst, t, "Get")
+        out.append((get, vr_array([v.vr for v in vars_]), ctypes.c_size_t(len(vars_)), (ctype * i)(),
+                    ctypes.c_size_t(i), [(start[r.var.vr] + r.elem, lay.slot(r)) for r in mine]))
+    return out
+
+
+def _set_reals(io: InstanceIO) -> int:
+    if io.fmi == 2:
+        return io.set_real(io.c, io.in_vr, io.n_in, io.in_val)
+    return io.set_real(io.c, io.in_vr, io.n_in, io.in_val, io.nv_in)
+
+
+def _get_reals(io: InstanceIO) -> int:
+    if io.fmi == 2:
+        return io.get_real(io.c, io.out_vr, io.n_out, io.out_val)
+    return io.get_real(io.c, io.out_vr, io.n_out, io.out_val, io.nv_out)
 
 
 def _timed(fn: Any, acc: list[float]) -> Any:

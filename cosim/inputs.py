@@ -24,10 +24,9 @@ from typing import Any
 import numpy as np
 
 from .errors import ScenarioError
-from .model import Variable
+from .model import INT_RANGES, Variable
 
 INTERPOLATIONS = ("linear", "hold")
-_INT_RANGE = (-2 ** 31, 2 ** 31 - 1)   # FMI 2.0 Integer is 32 bits
 
 
 @dataclass
@@ -52,8 +51,9 @@ def _convert(text: str, var: Variable, where: str, fld: str) -> Any:
             return float(t)
         if var.type in ("Integer", "Enumeration"):
             v = int(t)
-            if not _INT_RANGE[0] <= v <= _INT_RANGE[1]:
-                raise ScenarioError(where, fld, f"{t} does not fit the 32-bit Integer {var.name}")
+            lo, hi = INT_RANGES.get(var.fmi_type, INT_RANGES["Integer"])
+            if not lo <= v <= hi:
+                raise ScenarioError(where, fld, f"{t} does not fit the {var.fmi_type} {var.name} ({lo}..{hi})")
             return v
         if var.type == "Boolean":
             if t.lower() not in ("true", "false", "1", "0"):
@@ -141,6 +141,8 @@ def read_inputs(file: Path, where: str, interpolation: dict[str, str], resolve_v
             arr = np.array(vals, dtype=bool)
         elif var.type == "String":
             arr = np.array(vals, dtype=object)
+        elif var.fmi_type == "UInt64":
+            arr = np.array(vals, dtype=np.uint64)
         else:
             arr = np.array(vals, dtype=np.int64)
         sampled = sample_linear(t, arr, grid) if mode == "linear" else sample_hold(t, arr, grid)

@@ -218,6 +218,67 @@ class Instance:
 _PYDLLS: dict[int, Any] = {}
 
 
+class Instance3(Instance):
+    """An instantiated FMI 3.0 co-simulation FMU (no event mode, no early return) with its log."""
+
+    def __init__(self, name: str, md: Any, unzipdir: str, log_path: str | os.PathLike | None = None,
+                 logging: str = "warning", log_size: int = 200) -> None:
+        from fmpy.fmi3 import FMU3Slave
+
+        self.name = name
+        self.md = md
+        self.log = deque(maxlen=log_size)
+        self.log_lines = self.n_errors = self.received = 0
+        self.min_status = LOG_LEVELS[logging]
+        self.logging = logging
+        self._log_fh = open(log_path, "w", encoding="utf-8") if log_path is not None else None
+        self.fatal = self.initialised = self.freed = False
+        self.fmu = FMU3Slave(guid=md.guid, unzipDirectory=unzipdir,
+                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+        self.c = None
+        self._experiment: tuple[float, float | None, float | None] = (0.0, None, None)
+
+    def _log3(self, env, status, category, message) -> None:  # fmi3LogMessageCallback: no variadic arguments
+        self._logger(status, category, message)
+
+    def instantiate(self) -> None:
+        self.call("fmi3InstantiateCoSimulation", self.fmu.instantiate, False, True, False, False, self._log3)
+        self.c = self.fmu.component
+        cats = [c.name for c in getattr(self.md, "logCategories", None) or []]
+        words = _LEVEL_WORDS.get(self.logging)
+        if self.logging == "all" and cats:
+            self.call("fmi3SetDebugLogging", self.fmu.setDebugLogging, True, [])
+        elif words and cats:
+            chosen = [c for c in cats if any(w in c.lower() for w in words)]
+            self.call("fmi3SetDebugLogging", self.fmu.setDebugLogging, bool(chosen), chosen)
+
+    def setup_experiment(self, start: float, stop: float | None, tolerance: float | None) -> None:
+        self._experiment = (start, stop, tolerance)   # FMI 3.0 takes them at fmi3EnterInitializationMode
+
+    def set_values(self, pairs: list[tuple[Variable, Any]]) -> None:
+        for var, value in pairs:
+            values = list(value) if isinstance(value, (list, tuple)) else [value]
+            t = var.fmi_type
+            if var.type == "Real":
+                values = [float(v) for v in values]
+            elif var.type == "Boolean":
+                values = [bool(v) for v in values]
+            elif var.type == "Binary":
+                values = [bytes.fromhex(v) for v in values]
+            self.call(f"fmi3Set{t}({var.name})", getattr(self.fmu, f"set{t}"), [var.vr], values)
+
+    def enter_initialization(self) -> None:
+        start, stop, tol = self._experiment
+        self.call("fmi3EnterInitializationMode", self.fmu.enterInitializationMode, tol, start, stop)
+
+    def exit_initialization(self) -> None:
+        self.call("fmi3ExitInitializationMode", self.fmu.exitInitializationMode)
+        self.initialised = True
+
+    def terminated_at(self) -> float | None:
+        return None   # FMI 3.0 says it in fmi3DoStep's terminateSimulation (see the algorithm)
+
+
 def raw(dll: Any, name: str) -> Any:
     """A fresh ctypes function for ``name`` without argtypes (FMPy's copy carries converting argtypes),
     called with the GIL held (through a PyDLL view of the library already loaded): an FMU's own Python
@@ -230,6 +291,33 @@ def raw(dll: Any, name: str) -> Any:
     f = py[name]
     f.restype = ctypes.c_int
     return f
+
+
+#: FMI type -> (ctypes element type, the FMI function's type name) for FMI 2.0 and 3.0.
+_ACCESS = {
+    2: {"Real": (ctypes.c_double, "Real"), "Integer": (ctypes.c_int, "Integer"),
+        "Enumeration": (ctypes.c_int, "Integer"), "Boolean": (ctypes.c_int, "Boolean"),
+        "String": (ctypes.c_char_p, "String")},
+    3: {"Float64": (ctypes.c_double, "Float64"), "Float32": (ctypes.c_float, "Float32"),
+        "Int8": (ctypes.c_int8, "Int8"), "UInt8": (ctypes.c_uint8, "UInt8"), "Int16": (ctypes.c_int16, "Int16"),
+        "UInt16": (ctypes.c_uint16, "UInt16"), "Int32": (ctypes.c_int32, "Int32"),
+        "UInt32": (ctypes.c_uint32, "UInt32"), "Int64": (ctypes.c_int64, "Int64"),
+        "UInt64": (ctypes.c_uint64, "UInt64"), "Enumeration": (ctypes.c_int64, "Int64"),
+        "Boolean": (ctypes.c_bool, "Boolean"), "String": (ctypes.c_char_p, "String")},
+}
+
+
+def accessor(inst: Instance, fmi_type: str, op: str) -> tuple[Any, Any]:
+    """(call, ctype): ``call(vrs, n, buf, n_values)`` gets (``op`` "Get") or sets ("Set") values of
+    ``fmi_type`` on the instance with one raw FMI call (FMI 2.0 ignores n_values); ctype is the element
+    type of ``buf``."""
+    fmi = 3 if isinstance(inst, Instance3) else 2
+    ctype, tname = _ACCESS[fmi][fmi_type]
+    fn = raw(inst.fmu.dll, f"fmi{fmi}{op}{tname}")
+    c = ctypes.c_void_p(inst.c)
+    if fmi == 2:
+        return (lambda vrs, n, buf, nv: fn(c, vrs, n, buf)), ctype
+    return (lambda vrs, n, buf, nv: fn(c, vrs, n, buf, nv)), ctype
 
 
 def real_array(values) -> Any:

@@ -15,9 +15,21 @@ from .archive import check_archive
 from .errors import FmuLoadError
 from .units import Unit, lookup, units_of
 
-#: FMI 2.0 type -> the Python types a scenario value of that variable may have.
+#: The master's kind of a variable -> the Python types a scenario value of that variable may have.
 PY_TYPES: dict[str, tuple[type, ...]] = {"Real": (float, int), "Integer": (int,), "Enumeration": (int,),
-                                          "Boolean": (bool,), "String": (str,)}
+                                          "Boolean": (bool,), "String": (str,), "Binary": (str,)}
+#: FMI 3.0 types -> the master's kind (FMI 2.0 types are their own kind).
+KINDS: dict[str, str] = {"Float64": "Real", "Float32": "Real", "Int8": "Integer", "UInt8": "Integer",
+                         "Int16": "Integer", "UInt16": "Integer", "Int32": "Integer", "UInt32": "Integer",
+                         "Int64": "Integer", "UInt64": "Integer", "Enumeration": "Enumeration",
+                         "Boolean": "Boolean", "String": "String", "Binary": "Binary", "Clock": "Clock"}
+#: Ranges of the FMI integer types (FMI 2.0 Integer is 32 bits).
+INT_RANGES: dict[str, tuple[int, int]] = {
+    "Integer": (-2 ** 31, 2 ** 31 - 1), "Int8": (-2 ** 7, 2 ** 7 - 1), "UInt8": (0, 2 ** 8 - 1),
+    "Int16": (-2 ** 15, 2 ** 15 - 1), "UInt16": (0, 2 ** 16 - 1), "Int32": (-2 ** 31, 2 ** 31 - 1),
+    "UInt32": (0, 2 ** 32 - 1), "Int64": (-2 ** 63, 2 ** 63 - 1), "UInt64": (0, 2 ** 64 - 1)}
+#: The platform folder of the binaries by FMI version.
+PLATFORMS = {2: "linux64", 3: "x86_64-linux"}
 
 
 @dataclass
@@ -35,12 +47,31 @@ class Variable:
     start: Any
     description: str = ""
     initial: str | None = None
+    fmi_type: str = ""                 # the FMI type as declared (Float64, Int8, ...; FMI 2.0: = type)
+    shape: tuple[int, ...] = ()        # FMI 3.0 arrays: the dimensions; () for a scalar
+
+    @property
+    def size(self) -> int:
+        n = 1
+        for d in self.shape:
+            n *= d
+        return n
+
+    def element_names(self) -> list[str]:
+        """``x`` for a scalar; ``x[1]``, ``x[2]``, ... (``A[1,1]``, ``A[1,2]``, ... row-major) for an array."""
+        if not self.shape:
+            return [self.name]
+        import itertools
+        return [f"{self.name}[{','.join(str(i + 1) for i in idx)}]"
+                for idx in itertools.product(*(range(d) for d in self.shape))]
 
     def settable(self) -> str | None:
         """None if a master may set this variable before initialisation (FMI 2.0, 4.2.4: variability not
         constant and initial exact or approx, or an input), else the reason."""
         if self.variability == "constant":
             return f"{self.name} is a constant"
+        if self.causality == "structuralParameter":
+            return f"{self.name} is a structural parameter (it sizes arrays): not supported"
         if self.causality == "input" or self.initial in ("exact", "approx"):
             return None
         if self.causality == "independent":
@@ -50,9 +81,12 @@ class Variable:
                "initial exact or approx can be set"
 
     def check_range(self, value: Any) -> str | None:
-        """None if value is within [min, max], else the reason."""
+        """None if value is within [min, max] (and the range of its integer type), else the reason."""
         if self.type not in ("Real", "Integer", "Enumeration") or isinstance(value, bool):
             return None
+        lo, hi = INT_RANGES.get(self.fmi_type or self.type, (None, None))
+        if lo is not None and not lo <= value <= hi:
+            return f"value {value!r} does not fit the {self.fmi_type or self.type} range {lo}..{hi}"
         if self.min is not None and value < self.min:
             return f"value {value!r} is below the minimum {self.min!r} declared by the FMU"
         if self.max is not None and value > self.max:
@@ -62,11 +96,12 @@ class Variable:
 
 @dataclass
 class FmuModel:
-    """An FMU file and its model description (FMI 2.0 co-simulation checked)."""
+    """An FMU file and its model description (FMI 2.0 or 3.0 co-simulation checked)."""
 
     path: Path
     md: Any
     variables: dict[str, Variable] = field(default_factory=dict)
+    fmi: int = 2
 
     @property
     def model_name(self) -> str:
@@ -94,15 +129,24 @@ def _num(text: Any, typ: str) -> float | None:
         return None
 
 
-def _start(v: Any) -> Any:
+def _start(v: Any, kind: str, shape: tuple[int, ...]) -> Any:
     s = v.start
     if s is None:
         return None
-    if v.type == "Real":
-        return float(s)
-    if v.type in ("Integer", "Enumeration"):
-        return int(s)
-    if v.type == "Boolean":
+    if shape and isinstance(s, str) and kind not in ("String", "Binary"):
+        return [_scalar(x, kind) for x in s.split()]
+    return _scalar(s, kind)
+
+
+def _scalar(s: Any, kind: str) -> Any:
+    try:
+        if kind == "Real":
+            return float(s)
+        if kind in ("Integer", "Enumeration"):
+            return int(s)
+    except (TypeError, ValueError):
+        return None
+    if kind == "Boolean":
         return s in ("true", "1", True)
     return s
 
@@ -133,10 +177,11 @@ def _fmi_version(path: Path) -> str:
     return "?"
 
 
-def _check_binary(path: Path, identifier: str) -> None:
+def _check_binary(path: Path, identifier: str, fmi: int = 2) -> None:
     """FmuLoadError unless the archive holds the binary for this platform, named by the model identifier."""
-    from fmpy import platform, sharedLibraryExtension
+    from fmpy import sharedLibraryExtension
 
+    platform = PLATFORMS[fmi]
     want = f"binaries/{platform}/{identifier}{sharedLibraryExtension}"
     with zipfile.ZipFile(path) as zf:
         names = zf.namelist()
@@ -152,30 +197,49 @@ def _check_binary(path: Path, identifier: str) -> None:
 
 
 def load_model(path: str | os.PathLike) -> FmuModel:
-    """Read and check an FMU: it exists, is a safe archive, and is FMI 2.0 with co-simulation."""
+    """Read and check an FMU: it exists, is a safe archive, and is FMI 2.0 or 3.0 with co-simulation (and,
+    for FMI 3.0, needs neither clocks nor event mode)."""
     path = Path(path)
     check_archive(path)
     version = _fmi_version(path)
-    if version != "2.0":
-        raise FmuLoadError(f"{path}: FMI version {version}: only FMI 2.0 is supported")
+    if version not in ("2.0",) and not version.startswith("3."):
+        raise FmuLoadError(f"{path}: FMI version {version}: only FMI 2.0 and 3.0 are supported")
     try:
         md = read_model_description(str(path), validate=False)
     except Exception as exc:  # FMPy raises plain Exceptions for unreadable descriptions
         raise FmuLoadError(f"{path}: cannot read modelDescription.xml ({' '.join(str(exc).split())})") from None
-    if md.fmiVersion != "2.0":
-        raise FmuLoadError(f"{path}: FMI version {md.fmiVersion}: only FMI 2.0 is supported")
+    fmi = 3 if md.fmiVersion.startswith("3") else 2
     if md.coSimulation is None:
-        raise FmuLoadError(f"{path}: not a co-simulation FMU (model exchange only)")
-    _check_binary(path, md.coSimulation.modelIdentifier)
+        other = "scheduled execution" if getattr(md, "scheduledExecution", None) is not None else "model exchange"
+        raise FmuLoadError(f"{path}: not a co-simulation FMU ({other} only)")
+    _check_binary(path, md.coSimulation.modelIdentifier, fmi)
+    model = FmuModel(path, md, fmi=fmi)
     defined = units_of(md)
-    model = FmuModel(path, md)
+    by_vr = {int(v.valueReference): v for v in md.modelVariables}
     for v in md.modelVariables:
-        typ = v.type
+        kind = KINDS.get(v.type, v.type) if fmi == 3 else v.type
+        if kind == "Clock":
+            raise FmuLoadError(f"{path}: clock {v.name!r}: FMUs with clocks (event mode, scheduled execution) "
+                               "are not supported")
+        shape = _shape(v, by_vr) if fmi == 3 else ()
         unit_name = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
         vmin = v.min if v.min is not None else (v.declaredType.min if v.declaredType is not None else None)
         vmax = v.max if v.max is not None else (v.declaredType.max if v.declaredType is not None else None)
         model.variables[v.name] = Variable(
-            v.name, int(v.valueReference), typ, v.causality or "local", v.variability or "continuous",
-            lookup(unit_name, defined) if typ == "Real" else None,
-            _num(vmin, typ), _num(vmax, typ), _start(v), v.description or "", _initial(v))
+            v.name, int(v.valueReference), kind, v.causality or "local", v.variability or "continuous",
+            lookup(unit_name, defined) if kind == "Real" else None,
+            _num(vmin, kind), _num(vmax, kind), _start(v, kind, shape), v.description or "", _initial(v),
+            v.type, shape)
     return model
+
+
+def _shape(v: Any, by_vr: dict[int, Any]) -> tuple[int, ...]:
+    """The dimensions of an FMI 3.0 array: fixed, or the start value of a structural parameter."""
+    dims = []
+    for d in getattr(v, "dimensions", None) or []:
+        if d.start is not None:
+            dims.append(int(d.start))
+        else:
+            sp = by_vr.get(int(d.valueReference))
+            dims.append(int(sp.start) if sp is not None and sp.start is not None else 0)
+    return tuple(dims)

@@ -18,8 +18,10 @@ from numpy.lib import format as npformat
 
 from .errors import OutputError, RunError
 
-#: FMI type -> column dtype in signals.npy.
-DTYPES: dict[str, str] = {"Real": "<f8", "Integer": "<i4", "Enumeration": "<i4", "Boolean": "?"}
+#: FMI type -> column dtype in signals.npy (FMI 2.0 Real, Integer, Enumeration, Boolean; FMI 3.0 types).
+DTYPES: dict[str, str] = {"Real": "<f8", "Integer": "<i4", "Enumeration": "<i4", "Boolean": "?",
+                          "Float64": "<f8", "Float32": "<f4", "Int8": "<i1", "UInt8": "<u1", "Int16": "<i2",
+                          "UInt16": "<u2", "Int32": "<i4", "UInt32": "<u4", "Int64": "<i8", "UInt64": "<u8"}
 #: Rows of the CSV converted at a time (bounds the memory the CSV writer needs).
 CSV_CHUNK = 20000
 
@@ -131,18 +133,21 @@ class NpyRecorder:
         self._fh.write(b"\x93NUMPY" + version + len(encoded).to_bytes(nlen, "little") + encoded)
         self._fh.flush()
 
-    def append(self, block: np.ndarray) -> None:
-        """Append a (rows, len(columns)) float64 block, each column converted to its type."""
-        if block.ndim != 2 or block.shape[1] != len(self.columns):
-            raise ValueError(f"block of shape {block.shape} for {len(self.columns)} columns")
-        if not block.shape[0]:
+    def append(self, cols: list[np.ndarray]) -> None:
+        """Append rows given as one array per column (float64 or int64), each converted to its type
+        (an int64 column of an unsigned type is reinterpreted bit for bit)."""
+        if len(cols) != len(self.columns):
+            raise ValueError(f"{len(cols)} columns for {len(self.columns)}")
+        n = len(cols[0]) if cols else 0
+        if not n:
             return
-        rec = np.empty(block.shape[0], self.dtype)
-        for j, name in enumerate(self.columns):
-            rec[name] = block[:, j]
+        rec = np.empty(n, self.dtype)
+        for name, col in zip(self.columns, cols):
+            kind = self.dtype[name].kind
+            rec[name] = col.view(np.uint64) if kind == "u" and col.dtype == np.int64 else col
         self._fh.seek(0, os.SEEK_END)
         self._fh.write(rec.tobytes())
-        self.rows += block.shape[0]
+        self.rows += n
         self._write_header(self.rows)
         self._fh.flush()
 
@@ -153,12 +158,14 @@ class NpyRecorder:
 
 
 class RowBuffer:
-    """The rows of the current segment (``bytes`` of the master's float64 row buffer), flushed to the
-    recorder with a check that every recorded value is finite."""
+    """The rows of the current segment (``bytes`` of the master's row buffer: ``n_double`` float64 slots,
+    then ``n_int`` int64 slots), flushed to the recorder with a check that every recorded real is finite."""
 
-    def __init__(self, recorder: NpyRecorder, cols: list[int]) -> None:
+    def __init__(self, recorder: NpyRecorder, cols: list[int], n_double: int, n_int: int = 0) -> None:
         self.recorder = recorder
-        self.cols = np.asarray(cols)
+        self.cols = list(cols)
+        self.n_double = n_double
+        self.dtype = np.dtype([("d", "<f8", (n_double,)), ("i", "<i8", (n_int,))])
         self.chunk: list[bytes] = []
 
     def __len__(self) -> int:
@@ -171,17 +178,20 @@ class RowBuffer:
         """Write the rows; RunError at the first non-finite value (rows up to it are written)."""
         if not self.chunk:
             return
-        raw = np.frombuffer(b"".join(self.chunk), dtype="<f8")
-        block = raw.reshape(len(self.chunk), -1)[:, self.cols]
+        raw = np.frombuffer(b"".join(self.chunk), dtype=self.dtype)
         self.chunk.clear()
+        d, i = raw["d"], raw["i"]
+        cols = [d[:, c] if c < self.n_double else i[:, c - self.n_double] for c in self.cols]
+        reals = [j for j, c in enumerate(self.cols) if c < self.n_double]
+        block = np.column_stack([cols[j] for j in reals])
         finite = np.isfinite(block)
         if not finite.all():
             r, c = np.argwhere(~finite)[0]
-            self.recorder.append(block[: r + 1])
-            name = self.recorder.columns[c]
+            self.recorder.append([col[: r + 1] for col in cols])
+            name = self.recorder.columns[reals[c]]
             raise RunError(f"{name} is {float(block[r, c])!r} at t = {block[r, 0]:.6g} s (a non-finite output)",
                            name.split(".", 1)[0], float(block[r, 0]))
-        self.recorder.append(block)
+        self.recorder.append(cols)
 
 
 def write_csv(npy_path: str | os.PathLike, csv_path: str | os.PathLike, chunk: int = CSV_CHUNK) -> None:

@@ -55,6 +55,7 @@ class RecordPlan:
     instance: str
     var: Variable
     column: str
+    elem: int = 0      # the element of an FMI 3.0 array (row-major), 0 for a scalar
 
 
 @dataclass
@@ -91,6 +92,15 @@ class Plan:
 
 
 def _value(file: str, fld: str, var: Variable, value: Any) -> Any:
+    if var.shape:   # an FMI 3.0 array: every element, row-major
+        if not isinstance(value, list) or len(value) != var.size:
+            raise ScenarioError(file, fld, f"{var.name} is an array of {var.size} values {var.shape}: give a "
+                                           f"list of {var.size}")
+        return [_scalar_value(file, fld, var, v) for v in value]
+    return _scalar_value(file, fld, var, value)
+
+
+def _scalar_value(file: str, fld: str, var: Variable, value: Any) -> Any:
     types = PY_TYPES.get(var.type)
     if types is None:
         raise ScenarioError(file, fld, f"variables of type {var.type} cannot be set")
@@ -194,8 +204,8 @@ def _record(sc: Scenario, insts: dict[str, InstancePlan]) -> tuple[list[RecordPl
             rx = re.compile("".join(".*" if ch == "*" else "." if ch == "?" else re.escape(ch) for ch in pat),
                             re.DOTALL)
             hits = [(n, v) for n, v in candidates if rx.fullmatch(f"{n}.{insts[n].our_name(v)}")]
-            skipped += [f"{n}.{insts[n].our_name(v)}" for n, v in hits if v.type == "String"]
-            hits = [(n, v) for n, v in hits if v.type != "String"]  # reported by check, not recorded
+            skipped += [f"{n}.{insts[n].our_name(v)}" for n, v in hits if v.type in ("String", "Binary")]
+            hits = [(n, v) for n, v in hits if v.type not in ("String", "Binary")]  # reported, not recorded
             if not hits:
                 raise ScenarioError(file, fld, f"{pat!r} matches no output")
         elif not hits:  # an explicit name may also be a non-output (a parameter, an input)
@@ -207,9 +217,14 @@ def _record(sc: Scenario, insts: dict[str, InstancePlan]) -> tuple[list[RecordPl
             if v.type == "String":
                 raise ScenarioError(file, fld, f"{n}.{insts[n].our_name(v)} is a String: String variables "
                                                "cannot be recorded")
+            if v.type == "Binary":
+                raise ScenarioError(file, fld, f"{n}.{insts[n].our_name(v)} is Binary: Binary variables "
+                                               "cannot be recorded")
             if (n, v.name) not in seen:
                 seen.add((n, v.name))
-                record.append(RecordPlan(n, v, f"{n}.{insts[n].our_name(v)}"))
+                ours = insts[n].our_name(v)
+                names = [ours] if not v.shape else [ours + e[len(v.name):] for e in v.element_names()]
+                record += [RecordPlan(n, v, f"{n}.{name}", j) for j, name in enumerate(names)]
     return record, sorted(set(skipped))
 
 

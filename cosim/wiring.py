@@ -18,7 +18,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .errors import RunError
-from .instance import Instance, raw, real_array, vr_array
+from .instance import Instance, accessor, raw, real_array, vr_array
 from .inputs import InputPlan
 from .system import ConnectionPlan, EventPlan, Plan
 
@@ -26,40 +26,78 @@ from .system import ConnectionPlan, EventPlan, Plan
 Copy = tuple[int, Any, int, float, float]
 
 
+def is_f64(var: Any) -> bool:
+    """A 64-bit real (FMI 2.0 Real, FMI 3.0 Float64): the values the generated loop copies directly."""
+    return var.fmi_type in ("Real", "Float64")
+
+
 @dataclass
 class RowLayout:
-    """Where each value lives in the row buffer."""
+    """Where each value lives in the row buffer: doubles first (time, each instance's Float64 outputs that
+    are connected or recorded, then the other recorded reals), then 64-bit integers (recorded integers,
+    enumerations and booleans).  A slot numbers the doubles from 0 and the integers after them."""
 
-    reals: dict[str, list[int]]          # instance -> value references of its Real outputs in the row
-    offset: dict[str, int]               # instance -> first slot of its Real outputs
-    n_real: int                          # slots of time and Real outputs
-    extra: list[Any]                     # recorded non-Real outputs (RecordPlan), after the Reals
-    row: Any = None                      # the ctypes double array
-    out_arr: dict[str, Any] = field(default_factory=dict)   # instance -> view of its Real outputs
+    reals: dict[str, list[tuple[int, int]]]   # instance -> (vr, number of values) of its Float64 outputs
+    offset: dict[str, int]                     # instance -> first slot of its Float64 outputs
+    n_real: int                                # slots of time and Float64 outputs
+    extra: list[Any]                           # recorded outputs that are not Float64 (RecordPlan)
+    n_double: int = 0
+    n_int: int = 0
+    buf: Any = None                            # the raw bytes of the row
+    row: Any = None                            # its doubles (ctypes view)
+    irow: Any = None                           # its integers (ctypes view)
+    out_arr: dict[str, Any] = field(default_factory=dict)   # instance -> view of its Float64 outputs
+    extra_slot: dict[int, int] = field(default_factory=dict)  # id(RecordPlan) -> slot
 
     @classmethod
     def of(cls, plan: Plan) -> "RowLayout":
-        reals: dict[str, list[int]] = {n: [] for n in plan.order}
+        reals: dict[str, list[tuple[int, int]]] = {n: [] for n in plan.order}
+
+        def add(inst: str, var: Any) -> None:
+            if is_f64(var) and (var.vr, var.size) not in reals[inst]:
+                reals[inst].append((var.vr, var.size))
         for c in plan.connections:
-            if c.src_var.type == "Real" and c.src_var.vr not in reals[c.src]:
-                reals[c.src].append(c.src_var.vr)
+            add(c.src, c.src_var)
         for r in plan.record:
-            if r.var.type == "Real" and r.var.vr not in reals[r.instance]:
-                reals[r.instance].append(r.var.vr)
+            add(r.instance, r.var)
         offset, pos = {}, 1
         for n in plan.order:
             offset[n] = pos
-            pos += len(reals[n])
-        lay = cls(reals, offset, pos, [r for r in plan.record if r.var.type != "Real"])
-        lay.row = (ctypes.c_double * (pos + len(lay.extra)))()
-        lay.out_arr = {n: (ctypes.c_double * len(reals[n])).from_buffer(lay.row, offset[n] * 8) for n in plan.order}
+            pos += sum(size for _, size in reals[n])
+        lay = cls(reals, offset, pos, [r for r in plan.record if not is_f64(r.var)])
+        floats = [r for r in lay.extra if r.var.type == "Real"]
+        ints = [r for r in lay.extra if r.var.type != "Real"]
+        lay.n_double, lay.n_int = pos + len(floats), len(ints)
+        lay.extra_slot = {id(r): pos + j for j, r in enumerate(floats)}
+        lay.extra_slot.update({id(r): lay.n_double + j for j, r in enumerate(ints)})
+        lay.buf = (ctypes.c_byte * (8 * (lay.n_double + lay.n_int)))()
+        lay.row = (ctypes.c_double * lay.n_double).from_buffer(lay.buf)
+        lay.irow = (ctypes.c_int64 * max(1, lay.n_int)).from_buffer(lay.buf, 8 * lay.n_double) if lay.n_int \
+            else (ctypes.c_int64 * 1)()
+        lay.out_arr = {n: (ctypes.c_double * sum(sz for _, sz in reals[n])).from_buffer(
+            lay.buf, offset[n] * 8) for n in plan.order}
         return lay
+
+    def index(self, inst: str, vr: int, elem: int = 0) -> int:
+        """The position of a Float64 output's value in ``out_arr[inst]``."""
+        i = 0
+        for v, size in self.reals[inst]:
+            if v == vr:
+                return i + elem
+            i += size
+        raise KeyError((inst, vr))
 
     def slot(self, rec: Any) -> int:
         """The row slot of a recorded variable (RecordPlan)."""
-        if rec.var.type == "Real":
-            return self.offset[rec.instance] + self.reals[rec.instance].index(rec.var.vr)
-        return self.n_real + self.extra.index(rec)
+        if is_f64(rec.var):
+            return self.offset[rec.instance] + self.index(rec.instance, rec.var.vr, rec.elem)
+        return self.extra_slot[id(rec)]
+
+    def write(self, slot: int, value: Any) -> None:
+        if slot < self.n_double:
+            self.row[slot] = value
+        else:
+            self.irow[slot - self.n_double] = value
 
 
 class Wiring:
@@ -68,18 +106,20 @@ class Wiring:
     def __init__(self, plan: Plan, layout: RowLayout) -> None:
         self.plan = plan
         self.vrs: dict[str, list[int]] = {n: [] for n in plan.order}
+        self.values: dict[str, list[tuple[int, int]]] = {n: [] for n in plan.order}
         self.base: dict[tuple[str, int], Copy] = {}
         self.feeds: dict[tuple[str, int], tuple[str, int]] = {}     # (inst, pos) -> output (inst, vr)
         for c in plan.connections:
             if not is_real(c):
                 continue
-            pos = self._pos(c.dst, c.dst_var.vr)
-            src = layout.out_arr[c.src], layout.reals[c.src].index(c.src_var.vr)
-            self.base[(c.dst, pos)] = (pos, *src, c.factor, c.offset)
-            self.feeds[(c.dst, pos)] = (c.src, c.src_var.vr)
+            for e in range(c.dst_var.size):  # every element of an array
+                pos = self._pos(c.dst, c.dst_var.vr, e)
+                src = layout.out_arr[c.src], layout.index(c.src, c.src_var.vr, e)
+                self.base[(c.dst, pos)] = (pos, *src, c.factor, c.offset)
+                self.feeds[(c.dst, pos)] = (c.src, c.src_var.vr)
         self.tables: dict[str, tuple[Any, np.ndarray]] = {}   # instance -> (array the copies read, values)
         for inst in plan.order:  # tabulated Real inputs: sources refreshed before each step
-            cols = [ip for ip in plan.inputs if ip.instance == inst and ip.var.type == "Real"]
+            cols = [ip for ip in plan.inputs if ip.instance == inst and is_f64(ip.var)]
             if cols:
                 arr = (ctypes.c_double * len(cols))()
                 for j, ip in enumerate(cols):
@@ -94,11 +134,15 @@ class Wiring:
                 self.base[key] = (key[1], real_array([float(_start(plan, ev))]), 0, 1.0, 0.0)
         self.overrides: dict[tuple[str, int, str], tuple[str, float]] = {}
 
-    def _pos(self, inst: str, vr: int) -> int:
-        vrs = self.vrs[inst]
-        if vr not in vrs:
-            vrs.append(vr)
-        return vrs.index(vr)
+    def _pos(self, inst: str, vr: int, elem: int = 0) -> int:
+        """The position of (vr, element) among the values the master sets on ``inst`` (an array's
+        elements follow one another; the value references of fmi3SetFloat64 name each array once)."""
+        vals = self.values[inst]
+        if (vr, elem) not in vals:
+            vals.append((vr, elem))
+            if elem == 0:
+                self.vrs[inst].append(vr)
+        return vals.index((vr, elem))
 
     def apply(self, ev: EventPlan) -> None:
         """Put an event's action in force (override, bias on top of an earlier one, or reset)."""
@@ -115,7 +159,7 @@ class Wiring:
     def copies(self, inst: str) -> list[Copy]:
         """The copies that set ``inst``'s Real inputs, with the overrides in force."""
         out = []
-        for pos, vr in enumerate(self.vrs[inst]):
+        for pos, (vr, _) in enumerate(self.values[inst]):
             _, arr, i, f, o = self.base[(inst, pos)]
             ov = self.overrides.get((inst, vr, "input"))
             if ov is None and (inst, pos) in self.feeds:
@@ -136,7 +180,7 @@ class Wiring:
         produced it (or an overflow of their sum, reported as such)."""
         ip = self.plan.instances[name]
         by_vr = {v.vr: v for v in ip.model.variables.values()}
-        vrs = list(in_vr)
+        vrs = [vr for vr, _ in self.values[name]]
         for pos, arr, i, f, o in copies:
             v = arr[i] * f + o if (f != 1.0 or o != 0.0) else arr[i]
             if v - v != 0.0:
@@ -163,8 +207,8 @@ def _start(plan: Plan, ev: EventPlan) -> float:
 
 def table_feeder(inst: Instance, table: tuple[Any, np.ndarray] | None, discrete: list[InputPlan]
                  ) -> Callable[[int], int] | None:
-    """A closure that puts the tabulated inputs of step k in place: the Real values where the copies read
-    them, the others set on the FMU (Integer, Enumeration, Boolean with one call per type; String)."""
+    """A closure that puts the tabulated inputs of step k in place: the Float64 values where the copies
+    read them, the others set on the FMU with one call per FMI type."""
     if table is None and not discrete:
         return None
     steps: list[Callable[[int], int]] = []
@@ -176,30 +220,22 @@ def table_feeder(inst: Instance, table: tuple[Any, np.ndarray] | None, discrete:
             view[:] = values[k]
             return 0
         steps.append(reals)
-    c = ctypes.c_void_p(inst.c)
-    for kind, types in (("Integer", ("Integer", "Enumeration")), ("Boolean", ("Boolean",))):
-        cols = [ip for ip in discrete if ip.var.type in types]
-        if cols:
-            vrs, buf, n = vr_array([ip.var.vr for ip in cols]), (ctypes.c_int * len(cols))(), ctypes.c_size_t(len(cols))
-            mat = np.column_stack([ip.values.astype(np.int64) for ip in cols]).tolist()
-            put = raw(inst.fmu.dll, f"fmi2Set{kind}")
+    for t in sorted({ip.var.fmi_type for ip in discrete}):
+        cols = [ip for ip in discrete if ip.var.fmi_type == t]
+        put, ctype = accessor(inst, t, "Set")
+        vrs, n = vr_array([ip.var.vr for ip in cols]), ctypes.c_size_t(len(cols))
+        buf = (ctype * len(cols))()
+        if ctype is ctypes.c_char_p:
+            mat = [[str(v).encode("utf-8") for v in row] for row in zip(*(ip.values for ip in cols))]
+        elif ctype in (ctypes.c_double, ctypes.c_float):
+            mat = np.column_stack([ip.values.astype(float) for ip in cols]).tolist()
+        else:
+            mat = [list(map(int, row)) for row in zip(*(ip.values for ip in cols))]
 
-            def ints(k: int, put=put, vrs=vrs, buf=buf, n=n, mat=mat) -> int:
-                buf[:] = mat[k]
-                return put(c, vrs, n, buf)
-            steps.append(ints)
-    strings = [ip for ip in discrete if ip.var.type == "String"]
-    if strings:
-        vrs_s = vr_array([ip.var.vr for ip in strings])
-        put_s = raw(inst.fmu.dll, "fmi2SetString")
-        mat_s = [[str(v).encode("utf-8") for v in row] for row in zip(*(ip.values for ip in strings))]
-        sbuf = (ctypes.c_char_p * len(strings))()
-        ns = ctypes.c_size_t(len(strings))
-
-        def texts(k: int) -> int:
-            sbuf[:] = mat_s[k]
-            return put_s(c, vrs_s, ns, sbuf)
-        steps.append(texts)
+        def put_k(k: int, put=put, vrs=vrs, n=n, buf=buf, mat=mat) -> int:
+            buf[:] = mat[k]
+            return put(vrs, n, buf, n)
+        steps.append(put_k)
     if len(steps) == 1:
         return steps[0]
 
@@ -213,34 +249,38 @@ def table_feeder(inst: Instance, table: tuple[Any, np.ndarray] | None, discrete:
 
 
 def is_real(c: ConnectionPlan) -> bool:
-    """A Real -> Real connection (a copy in the generated loop); the others are copied by closures."""
-    return c.src_var.type == "Real" and c.dst_var.type == "Real"
+    """A Float64 -> Float64 connection (a copy in the generated loop); the others are copied by closures."""
+    return is_f64(c.src_var) and is_f64(c.dst_var)
 
 
 def discrete_copier(instances: dict[str, Instance], c: ConnectionPlan) -> Callable[[], int]:
-    """A closure copying one output to an input with a get and a set: Integer, Enumeration, Boolean and
-    String as they are; Boolean -> Real as 0 or 1 through the factor and offset; Real -> Boolean as
-    value > threshold."""
-    src, dst = instances[c.src], instances[c.dst]
+    """A closure copying one output to an input with a get and a set (FMI 2.0 or 3.0, arrays whole):
+    integers, enumerations, booleans and strings as they are; reals of another width through the factor
+    and offset; Boolean -> Real as 0 or 1 through the factor and offset; Real -> Boolean as value > threshold."""
+    n = c.src_var.size
+    get, gt = accessor(instances[c.src], c.src_var.fmi_type, "Get")
+    put, pt = accessor(instances[c.dst], c.dst_var.fmi_type, "Set")
     svr, dvr = vr_array([c.src_var.vr]), vr_array([c.dst_var.vr])
-    one = ctypes.c_size_t(1)
-    sc, dc = ctypes.c_void_p(src.c), ctypes.c_void_p(dst.c)
-    kinds = {"Real": ("Real", ctypes.c_double), "Integer": ("Integer", ctypes.c_int),
-             "Enumeration": ("Integer", ctypes.c_int), "Boolean": ("Boolean", ctypes.c_int),
-             "String": ("String", ctypes.c_char_p)}
-    (gk, gt), (pk, pt) = kinds[c.src_var.type], kinds[c.dst_var.type]
-    get, put = raw(src.fmu.dll, f"fmi2Get{gk}"), raw(dst.fmu.dll, f"fmi2Set{pk}")
-    ibuf, obuf = (gt * 1)(), (pt * 1)()
-    if gt is pt:
+    one, nv = ctypes.c_size_t(1), ctypes.c_size_t(n)
+    ibuf, obuf = (gt * n)(), (pt * n)()
+    sk, dk = c.src_var.type, c.dst_var.type
+    if sk == dk and sk != "Real" and gt is pt:
         def copy() -> int:
-            return get(sc, svr, one, ibuf) or put(dc, dvr, one, ibuf)
+            return get(svr, one, ibuf, nv) or put(dvr, one, ibuf, nv)
         return copy
     f, o, threshold = c.factor, c.offset, c.spec.threshold
 
     def convert() -> int:
-        s = get(sc, svr, one, ibuf)
+        s = get(svr, one, ibuf, nv)
         if s:
             return s
-        obuf[0] = (1.0 if ibuf[0] else 0.0) * f + o if pk == "Real" else int(ibuf[0] > threshold)
-        return put(dc, dvr, one, obuf)
+        for i in range(n):
+            x = ibuf[i]
+            if dk == "Real":
+                obuf[i] = (float(x) if sk == "Real" else (1.0 if x else 0.0)) * f + o
+            elif dk == "Boolean" and sk == "Real":
+                obuf[i] = x > threshold
+            else:
+                obuf[i] = x
+        return put(dvr, one, obuf, nv)
     return convert

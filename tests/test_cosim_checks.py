@@ -101,8 +101,8 @@ def test_bad_scenario_is_refused_with_file_field_and_reason(case, built_fmus, tm
 
 def test_not_co_simulation_fmu_is_refused(built_fmus, tmp_path):
     bad = _rewrite_fmu(built_fmus["WmrSensor"], tmp_path / "me.fmu", "<CoSimulation", "<ModelExchange")
-    bad2 = _rewrite_fmu(built_fmus["WmrSensor"], tmp_path / "v3.fmu", 'fmiVersion="2.0"', 'fmiVersion="3.0"')
-    for fmu, why in ((bad, "not a co-simulation FMU"), (bad2, "only FMI 2.0")):
+    bad2 = _rewrite_fmu(built_fmus["WmrSensor"], tmp_path / "v1.fmu", 'fmiVersion="2.0"', 'fmiVersion="1.0"')
+    for fmu, why in ((bad, "not a co-simulation FMU"), (bad2, "only FMI 2.0 and 3.0")):
         path = g1_with_paths(tmp_path, built_fmus, f'[instances.sensor]\nfmu = "{fmu}"\n', name=f"{fmu.stem}.toml",
                              skip=("sensor",))
         with pytest.raises(ScenarioError, match=why) as exc:
