@@ -13,13 +13,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .archive import use_scenario_limits
 from .errors import ScenarioError
 
 ALGORITHMS = ("gauss-seidel", "jacobi")
 ACTIONS = ("override", "bias", "reset")
 
 _TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "record", "events", "runs",
-             "variants"}
+             "variants", "limits"}
 _EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order"}
 _INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "description"}
 _CONNECTION_KEYS = {"from", "to", "factor", "offset"}
@@ -187,6 +188,7 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
     file; without one, every ``fmu`` must be a path.
     """
     sc = Scenario(file=file, data=doc)
+    use_scenario_limits(file, doc.get("limits"))  # [limits] archive_size, archive_ratio: see archive.py
     exp = _table(file, "experiment", doc.get("experiment"))
     _keys(file, "experiment", exp, _EXPERIMENT_KEYS)
     sc.start = _num(file, "experiment.start", exp.get("start", 0.0))

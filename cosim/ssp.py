@@ -29,7 +29,6 @@ default experiments (or ``step=``).  Every problem is a one-line :class:`~.error
 """
 from __future__ import annotations
 
-import io
 import math
 import os
 import shutil
@@ -39,7 +38,7 @@ from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-from .archive import check_archive, check_entries, safe_extract
+from .archive import check_archive, check_entries, check_sizes, safe_extract
 from .errors import CosimError, FmuLoadError, ScenarioError
 from .scenario import ConnectionSpec, InstanceSpec, Scenario
 from .system import Plan
@@ -328,9 +327,15 @@ def _parse_xml(data: bytes, where: str):
     from lxml import etree as ET
 
     try:
-        return ET.fromstring(data, ET.XMLParser(resolve_entities=False, no_network=True))
+        root = ET.fromstring(data, ET.XMLParser(resolve_entities=False, no_network=True))
     except ET.XMLSyntaxError as exc:
         raise ScenarioError(where, "", f"not well-formed XML ({' '.join(str(exc).split())})") from None
+    dtd = root.getroottree().docinfo.internalDTD
+    for ent in dtd.iterentities() if dtd is not None else ():
+        # an external entity can read a local file, nested internal ones expand without bound; SSP needs neither
+        raise ScenarioError(where, "", f"declares the XML entity {ent.name!r}: refused (entities can read local "
+                                       "files or expand without bound)")
+    return root
 
 
 def _typed(elem, where: str, fld: str) -> Any:
@@ -445,12 +450,14 @@ def load_ssp(path: str | os.PathLike, *, step: float | None = None, stop: float 
         raise ScenarioError(where, "", "no SystemStructure.ssd at the top of the archive: not an SSP file")
     with zipfile.ZipFile(path) as zf:
         ssd_bytes = zf.read("SystemStructure.ssd")
-        # the FMUs inside are archives too: every one checked before anything is extracted
+        # the FMUs inside are archives too: every one checked before anything is extracted (their
+        # directories read through a stream, not into memory)
         for info in infos:
             if info.filename.lower().endswith(".fmu"):
                 try:
-                    with zipfile.ZipFile(io.BytesIO(zf.read(info))) as inner:
+                    with zf.open(info) as stream, zipfile.ZipFile(stream) as inner:
                         check_entries(f"{info.filename} in the archive", inner.infolist())
+                        check_sizes(f"{info.filename} in the archive", inner.infolist(), info.file_size)
                 except zipfile.BadZipFile as exc:
                     raise ScenarioError(where, info.filename, f"not a zip archive ({exc})") from None
                 except FmuLoadError as exc:

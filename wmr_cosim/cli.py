@@ -245,6 +245,10 @@ def _dask_options(p: argparse.ArgumentParser) -> None:
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="wmr-cosim", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--max-archive-size", metavar="SIZE", default=None,
+                    help="refuse FMU/SSP archives that unpack to more than SIZE (default 2 GiB; e.g. 8GiB)")
+    ap.add_argument("--max-archive-ratio", metavar="RATIO", default=None,
+                    help="refuse archives that unpack to more than RATIO times their size (default 200)")
     sub = ap.add_subparsers(dest="command", required=True)
     d = sub.add_parser("direct", help="run a task of the paper through the FMI-free direct loop",
                        description="Run one task of the paper (learning run: adaptation 0-39 s, reference floor) "
@@ -341,6 +345,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = build_parser()
     args = ap.parse_args(argv)
     try:
+        from .cosim.archive import set_command_line_limits
+        set_command_line_limits(args.max_archive_size, args.max_archive_ratio)
         return int(args.func(args))
     except (ParameterError, UsageError) as exc:
         print(f"wmr-cosim: error: {exc}", file=sys.stderr)
