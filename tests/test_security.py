@@ -248,11 +248,9 @@ def test_a_model_description_with_entities_is_refused(built_fmus, tmp_path, kind
         return _doctype(text[:j] + ref + text[j:], "fmiModelDescription", decl)
 
     evil = _copy_with(built_fmus["WmrSensor"], tmp_path / "evil.fmu", edit={"modelDescription.xml": edit})
-    t0 = time.perf_counter()
     with pytest.raises(FmuLoadError, match="declares the XML entity '(xxe|lol0)': refused") as exc:
         load_model(evil)
     assert "TOPSECRET" not in str(exc.value)
-    assert time.perf_counter() - t0 < 30          # (a guard against a hang, not a speed figure)
     p = _cli("info", evil)
     assert p.returncode == 2 and "declares the XML entity" in p.stderr and "TOPSECRET" not in p.stdout + p.stderr
 
