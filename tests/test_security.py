@@ -405,6 +405,15 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+def test_a_clear_text_scheduler_beyond_this_machine_is_warned_about():
+    from wmr_cosim.sweep import cleartext_warning
+
+    assert "neither encrypted nor authenticated" in cleartext_warning("tcp://10.0.0.5:8786")
+    assert "use tls://" in cleartext_warning("tcp://[2001:db8::1]:8786")
+    for quiet in ("tcp://127.0.0.1:8786", "tcp://localhost:8786", "tcp://[::1]:8786", "tls://10.0.0.5:8786"):
+        assert cleartext_warning(quiet) is None, quiet
+
+
 def test_a_sweep_on_a_tls_scheduler(tmp_path):
     from distributed import Client
 

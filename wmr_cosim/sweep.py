@@ -278,6 +278,20 @@ def cluster_options(args: Any) -> dict[str, Any]:
             "dashboard": bool(getattr(args, "dashboard", False))}
 
 
+def cleartext_warning(address: str) -> str | None:
+    """A one-line warning for a scheduler reached in clear text beyond this machine (``tcp://`` to an
+    address other than the loopback), or None."""
+    from urllib.parse import urlsplit
+
+    if not address.startswith("tcp://"):
+        return None
+    host = urlsplit(address).hostname or ""
+    if host == "localhost" or host.startswith("127.") or host == "::1":
+        return None
+    return (f"wmr-cosim: warning: {address} is neither encrypted nor authenticated, and a Dask scheduler runs "
+            "whatever it is sent: use tls:// unless every host that can reach it is trusted (docs/security.md)")
+
+
 class Cluster:
     """A Dask client: a local cluster of ``workers`` processes (one thread each), or an existing
     scheduler at ``address`` (``tcp://`` or, with certificates, ``tls://``).
@@ -299,6 +313,9 @@ class Cluster:
         t0 = time.perf_counter()
         self.cluster = None
         if address:
+            warning = cleartext_warning(address)
+            if warning:
+                print(warning, file=sys.stderr)
             try:
                 self.client = Client(address, timeout="10s", security=security)
             except Exception as exc:
