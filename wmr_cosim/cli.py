@@ -352,8 +352,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = build_parser()
     args = ap.parse_args(argv)
     try:
-        from .cosim.archive import set_command_line_limits
-        set_command_line_limits(args.max_archive_size, args.max_archive_ratio)
+        if args.max_archive_size is not None or args.max_archive_ratio is not None:
+            from .cosim.archive import set_command_line_limits
+            set_command_line_limits(args.max_archive_size, args.max_archive_ratio)
         return int(args.func(args))
     except (ParameterError, UsageError) as exc:
         print(f"wmr-cosim: error: {exc}", file=sys.stderr)
