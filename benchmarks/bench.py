@@ -29,6 +29,10 @@ NAME:
             (ecos with its process pinned to one core); c_plant_s = ours with the C plant (WmrCPlant.fmu)
             in place of the Python plant.  Target: ours the fastest of the default runs, and within 10 % of
             ecos_pinned.
+    archive the archive checks on our three FMUs: check_directory_ms (the directory's entries and declared
+            sizes), check_verify_ms (also every entry decompressed and counted, as loading a model does),
+            extract_ms (counted extraction), summed over the three FMUs, medians; lying_bomb_refused_ms (256 MiB
+            of zeros whose directory declares 1 KiB, refused while extracting) and nothing_left.
 """
 from __future__ import annotations
 
@@ -255,7 +259,7 @@ GENERIC_STEPS = 100_000
 GENERIC_H = 1e-4
 
 
-def _generic_scenario(tmp) -> "Path":
+def _generic_scenario(tmp: str) -> Any:
     """Dahlquist -> Feedthrough -> Feedthrough (Reference FMUs, C, FMI 2.0), Gauss-Seidel, 100,000 steps."""
     from pathlib import Path
 
@@ -286,7 +290,7 @@ csv = false
     return path
 
 
-def _fmpy_loop(plan) -> tuple[float, "np.ndarray"]:
+def _fmpy_loop(plan: Any) -> tuple[float, Any]:
     """The same chain as a plain Gauss-Seidel loop on FMPy's FMU2Slave (its wrapper methods), recording the
     three outputs in a preallocated array."""
     import shutil
@@ -378,7 +382,71 @@ def bench_generic(repeats: int) -> dict[str, Any]:
             "libcosim_steps": results["libcosim"]["steps"], "ecos_steps": results["ecos"]["steps"]}
 
 
-BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "paper": bench_paper, "sweep": bench_sweep, "interop": bench_interop}
+def bench_archive(repeats: int) -> dict[str, float]:
+    """The archive checks on our three FMUs (median of ``repeats``, summed over the three): from the directory
+    only, with every entry decompressed and counted (what loading a model does), and the extraction; and the
+    refusal of a lying bomb (256 MiB of zeros declared as 1 KiB)."""
+    import shutil
+    import struct
+    import tempfile
+    import time
+    import zipfile
+    from pathlib import Path
+
+    from wmr_cosim.cosim.archive import check_archive, safe_extract
+    from wmr_cosim.cosim.errors import FmuLoadError
+    from wmr_cosim.runner import resolve_model
+
+    fmus = [resolve_model(m) for m in ("WmrPlant", "WmrSensor", "WmrController")]
+
+    def timed(fn) -> float:
+        ts = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            fn()
+            ts.append(time.perf_counter() - t0)
+        return statistics.median(ts)
+
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+
+        def extract_all() -> None:
+            for i, f in enumerate(fmus):
+                safe_extract(f, tmp / f"x{i}")
+            for i in range(len(fmus)):
+                shutil.rmtree(tmp / f"x{i}")
+
+        figures = {"fmu_mb": round(sum(f.stat().st_size for f in fmus) / 1e6, 3),
+                   "check_directory_ms": round(1e3 * timed(lambda: [check_archive(f, verify=False) for f in fmus]), 3),
+                   "check_verify_ms": round(1e3 * timed(lambda: [check_archive(f) for f in fmus]), 3),
+                   "extract_ms": round(1e3 * timed(extract_all), 3)}
+        bomb = tmp / "bomb.fmu"
+        with zipfile.ZipFile(bomb, "w", zipfile.ZIP_DEFLATED) as zf:
+            zf.writestr("modelDescription.xml", "<fmiModelDescription/>")
+            with zf.open("zeros.bin", "w", force_zip64=True) as fh:
+                for _ in range(256):
+                    fh.write(bytes(1024**2))
+        data = bytearray(bomb.read_bytes())
+        for sig, size_at in ((b"PK\x01\x02", 24),):
+            i = data.rfind(sig)
+            struct.pack_into("<I", data, i + size_at, 1024)
+        bomb.write_bytes(bytes(data))
+
+        def refuse() -> None:
+            try:
+                safe_extract(bomb, tmp / "b")
+            except FmuLoadError:
+                return
+            raise AssertionError("the bomb was extracted")
+
+        figures["bomb_mb"] = round(bomb.stat().st_size / 1e6, 3)
+        figures["lying_bomb_refused_ms"] = round(1e3 * timed(refuse), 3)
+        figures["nothing_left"] = not (tmp / "b").exists()
+    return figures
+
+
+BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "paper": bench_paper, "sweep": bench_sweep,
+           "interop": bench_interop, "archive": bench_archive}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from xml.etree import ElementTree
+from xml.parsers import expat
 
 from fmpy import read_model_description
 
@@ -165,14 +165,30 @@ def _initial(v: Any) -> str | None:
 
 
 def _fmi_version(path: Path) -> str:
-    """The fmiVersion attribute of the model description, read before FMPy parses it."""
+    """The fmiVersion attribute of the model description, read before FMPy parses it.  A model description
+    that declares XML entities is refused: an external entity can read a local file into the model, and
+    nested internal ones expand without bound ("billion laughs"); FMI needs neither."""
+    class _Root(Exception):
+        pass
+
+    def start(name: str, attrs: dict[str, str]) -> None:
+        raise _Root(attrs.get("fmiVersion", "?"))
+
+    def entity(name: str, *_: Any) -> None:
+        raise FmuLoadError(f"{path}: modelDescription.xml declares the XML entity {name!r}: refused (entities can "
+                           "read local files or expand without bound)")
+
+    parser = expat.ParserCreate()
+    parser.StartElementHandler = start
+    parser.EntityDeclHandler = entity
     try:
         with zipfile.ZipFile(path) as zf, zf.open("modelDescription.xml") as fh:
-            for _, elem in ElementTree.iterparse(fh, events=("start",)):
-                return elem.get("fmiVersion", "?")
+            parser.ParseFile(fh)
+    except _Root as root:
+        return str(root.args[0])
     except KeyError:
         raise FmuLoadError(f"{path}: no modelDescription.xml: not an FMU") from None
-    except ElementTree.ParseError as exc:
+    except expat.ExpatError as exc:
         raise FmuLoadError(f"{path}: modelDescription.xml is not well-formed XML ({exc})") from None
     return "?"
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .archive import use_scenario_limits
 from .errors import ScenarioError
 
 ALGORITHMS = ("gauss-seidel", "jacobi")
@@ -21,7 +22,7 @@ ACTIONS = ("override", "bias", "reset")
 LOGGING = ("error", "warning", "info", "all")
 
 _TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "record", "events", "runs",
-             "variants", "inputs"}
+             "variants", "inputs", "limits"}
 _INPUTS_KEYS = {"file", "interpolation"}
 _EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps"}
 _INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "description", "logging"}
@@ -234,6 +235,7 @@ def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
     file; without one, every ``fmu`` must be a path.
     """
     sc = Scenario(file=file, data=doc)
+    use_scenario_limits(file, doc.get("limits"))  # [limits] archive_size, archive_ratio: see archive.py
     _parse_experiment(sc, doc)
     _parse_instances(sc, doc, resolver)
     _parse_connections(sc, doc)

@@ -29,7 +29,6 @@ default experiments (or ``step=``).  Every problem is a one-line :class:`~.error
 """
 from __future__ import annotations
 
-import io
 import os
 import shutil
 import tempfile
@@ -38,7 +37,7 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-from .archive import check_archive, check_entries, safe_extract
+from .archive import check_archive, check_entries, check_sizes, safe_extract
 from .errors import CosimError, FmuLoadError, ScenarioError
 from .scenario import Scenario, apply_overrides, parse
 from .system import Plan
@@ -352,9 +351,16 @@ def _parse_xml(data: bytes, where: str):
     from lxml import etree as ET
 
     try:
-        return ET.fromstring(data, ET.XMLParser(resolve_entities=False, no_network=True))
+        root = ET.fromstring(data, ET.XMLParser(resolve_entities=False, no_network=True))
     except ET.XMLSyntaxError as exc:
         raise ScenarioError(where, "", f"not well-formed XML ({' '.join(str(exc).split())})") from None
+    # an external entity can read a local file, nested internal ones expand without bound; SSP needs neither
+    dtd = root.getroottree().docinfo.internalDTD
+    entities = list(dtd.iterentities()) if dtd is not None else []
+    if entities:
+        raise ScenarioError(where, "", f"declares the XML entity {entities[0].name!r}: refused (entities can read "
+                                       "local files or expand without bound)")
+    return root
 
 
 def _typed(elem, where: str, fld: str) -> Any:
@@ -509,9 +515,10 @@ def _read_ssd(path: Path) -> tuple[Any, list[str]]:
         ssd_bytes = zf.read("SystemStructure.ssd")
         for info in infos:  # the FMUs inside are archives too: every one checked before anything is extracted
             if info.filename.lower().endswith(".fmu"):
-                try:
-                    with zipfile.ZipFile(io.BytesIO(zf.read(info))) as inner:
+                try:  # their directories read through a stream, not into memory
+                    with zf.open(info) as stream, zipfile.ZipFile(stream) as inner:
                         check_entries(f"{info.filename} in the archive", inner.infolist())
+                        check_sizes(f"{info.filename} in the archive", inner.infolist(), info.file_size)
                 except zipfile.BadZipFile as exc:
                     raise ScenarioError(where, info.filename, f"not a zip archive ({exc})") from None
                 except FmuLoadError as exc:

@@ -18,7 +18,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .errors import RunError
-from .instance import Instance, accessor, raw, real_array, vr_array
+from .instance import Instance, accessor, real_array, vr_array
 from .inputs import InputPlan
 from .system import ConnectionPlan, EventPlan, Plan
 

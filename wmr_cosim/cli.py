@@ -212,11 +212,10 @@ def cmd_paper(args: argparse.Namespace) -> int:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     """A sweep file on Dask: one full co-simulation per point, in worker processes."""
-    from .sweep import run_sweep
+    from .sweep import cluster_options, run_sweep
 
     out = args.out if args.out is not None else Path("results") / args.sweep.stem
-    df = run_sweep(args.sweep, out, workers=args.workers, scheduler=args.scheduler,
-                   progress=False if args.quiet else None)
+    df = run_sweep(args.sweep, out, progress=False if args.quiet else None, **cluster_options(args))
     counts = df["status"].value_counts().to_dict()
     print(f"{args.sweep}: {len(df)} points ({', '.join(f'{v} {k}' for k, v in sorted(counts.items()))}); "
           f"results in {out} (results.parquet, results.csv, figures/)")
@@ -226,10 +225,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 def cmd_gamma_search(args: argparse.Namespace) -> int:
     """gamma* against gamma on a grid, then bisection: the smallest gamma for which the condition holds."""
     from .gamma_search import gamma_search
+    from .sweep import cluster_options
 
     out = args.out if args.out is not None else Path("results") / f"gamma-search-{args.scenario.stem}"
-    r = gamma_search(args.scenario, out, grid=args.grid, variant=args.variant, workers=args.workers,
-                     scheduler=args.scheduler, progress=False if args.quiet else None)
+    r = gamma_search(args.scenario, out, grid=args.grid, variant=args.variant,
+                     progress=False if args.quiet else None, **cluster_options(args))
     for p in r["curve"]:
         gs = "-" if p["gamma_star"] is None else f"{p['gamma_star']:.3f}"
         print(f"  gamma {p['gamma']:8.3f}  gamma* {gs:>10s}  {'holds' if p['holds'] else 'fails'}"
@@ -244,17 +244,28 @@ def cmd_gamma_search(args: argparse.Namespace) -> int:
 
 
 def _dask_options(p: argparse.ArgumentParser) -> None:
-    """--workers, --scheduler, --quiet: where the points of a sweep or gamma search run."""
+    """--workers, --scheduler, --dashboard, --tls-*, --quiet: where the points of a sweep or gamma search run."""
     p.add_argument("--workers", type=int, default=None, help="local worker processes (default: one per core)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="an existing dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 (workers must see the "
-                        "same files and have this project installed)")
+                   help="an existing dask.distributed scheduler, e.g. tls://10.0.0.5:8786 (workers must see the "
+                        "same files and have this project installed; a scheduler runs any code it is sent: "
+                        "plain tcp:// only on a trusted network, see docs/security.md)")
+    p.add_argument("--dashboard", action="store_true",
+                   help="start the local cluster's Dask dashboard (on 127.0.0.1 only) and print its address "
+                        "(with --scheduler: print that scheduler's)")
+    for opt, what in (("--tls-ca-file", "the CA certificate that signed the scheduler's"), ("--tls-cert", "this "
+                      "client's certificate"), ("--tls-key", "this client's private key")):
+        p.add_argument(opt, default=None, metavar="PEM", help=f"for a tls:// scheduler: {what} (PEM file)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="wmr-cosim", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--max-archive-size", metavar="SIZE", default=None,
+                    help="refuse FMU/SSP archives that unpack to more than SIZE (default 2 GiB; e.g. 8GiB)")
+    ap.add_argument("--max-archive-ratio", metavar="RATIO", default=None,
+                    help="refuse archives that unpack to more than RATIO times their size (default 200)")
     sub = ap.add_subparsers(dest="command", required=True)
     d = sub.add_parser("direct", help="run a task of the paper through the FMI-free direct loop",
                        description="Run one task of the paper (learning run: adaptation 0-39 s, reference floor) "
@@ -359,6 +370,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = build_parser()
     args = ap.parse_args(argv)
     try:
+        if args.max_archive_size is not None or args.max_archive_ratio is not None:
+            from .cosim.archive import set_command_line_limits
+            set_command_line_limits(args.max_archive_size, args.max_archive_ratio)
         return int(args.func(args))
     except (ParameterError, UsageError) as exc:
         print(f"wmr-cosim: error: {exc}", file=sys.stderr)

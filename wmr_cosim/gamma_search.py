@@ -31,10 +31,10 @@ def holds(row: dict[str, Any]) -> bool:
 
 def gamma_search(scenario: str | os.PathLike, out: str | os.PathLike, grid: list[float] | None = None,
                  variant: str | None = "freeze", tol: float = 0.01, max_bisections: int = 12,
-                 workers: int | None = None, scheduler: str | None = None, progress: bool | None = None
-                 ) -> dict[str, Any]:
+                 workers: int | None = None, scheduler: str | None = None, progress: bool | None = None,
+                 security: Any = None, dashboard: bool = False) -> dict[str, Any]:
     """Grid, then bisection where the grid shows a single crossing; writes gamma_search.json, .csv and a
-    figure into ``out``; returns the result."""
+    figure into ``out``; returns the result.  ``security`` and ``dashboard``: see :class:`.sweep.Cluster`."""
     import pandas as pd
 
     from .cosim.protocol import plan_runs
@@ -58,7 +58,7 @@ def gamma_search(scenario: str | os.PathLike, out: str | os.PathLike, grid: list
     out.mkdir(parents=True, exist_ok=True)
     friction = {k: v for r in runs if r.name == "foam" for k, v in r.parameters.items() if k.startswith("plant.foam")}
     rows: list[dict[str, Any]] = []
-    with Cluster(workers, scheduler) as cl:
+    with Cluster(workers, scheduler, security, dashboard) as cl:
         pts = [{"id": i, "params": {"controller.gamma": g}} for i, g in enumerate(grid)]
         rows = run_points(pts, scenario, variant, None, out, cl, progress=progress, label="gamma grid")
         ok = [holds(r) for r in rows]

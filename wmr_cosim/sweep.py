@@ -173,12 +173,21 @@ def draw_points(spec: SweepSpec) -> list[dict[str, Any]]:
 
 # ---------------------------------------------------------------------- one point (in a worker)
 def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[str] | None,
-              fmus: dict[str, str], out_dir: str, keep_runs: bool = False) -> dict[str, Any]:
+              fmus: dict[str, str], out_dir: str, keep_runs: bool = False,
+              archive_limits: dict[str, str] | None = None) -> dict[str, Any]:
     """Run one point (the base's runs with the point's parameters) and return its row: id, parameters,
-    status ('ok', 'diverged', 'failed'), reason and metrics.  Never raises: a failure is a row."""
+    status ('ok', 'diverged', 'failed'), reason and metrics.  Never raises: a failure is a row.
+    ``archive_limits``: the submitting process's command-line archive limits (a worker may be elsewhere)."""
     from .analysis import disturbance_analysis, load_signals, run_summary
     from .components import paper
+    from .cosim.archive import ENV_RATIO, ENV_SIZE
     from .cosim.protocol import run_protocol
+
+    for k in (ENV_SIZE, ENV_RATIO):     # the submitter's, not those of an earlier sweep on this worker
+        if archive_limits and k in archive_limits:
+            os.environ[k] = archive_limits[k]
+        else:
+            os.environ.pop(k, None)
 
     row: dict[str, Any] = {"point": point["id"], **point["params"], "status": "ok", "reason": ""}
     work = Path(out_dir) / "runs" / f"{point['id']:05d}" if keep_runs else Path(tempfile.mkdtemp(prefix="wmr-sweep-"))
@@ -240,11 +249,63 @@ def fmu_paths() -> dict[str, str]:
     return {m: str(resolve_model(m).resolve()) for m in ("WmrPlant", "WmrSensor", "WmrController")}
 
 
+def dask_security(ca_file: str | None = None, cert: str | None = None, key: str | None = None) -> Any:
+    """A ``distributed.security.Security`` for a ``tls://`` scheduler from PEM files (the CA that signed
+    the scheduler's certificate, this client's certificate and its private key), requiring encryption;
+    None when no file is given (Dask's configuration then applies).  CosimError if one is missing."""
+    given = {"--tls-ca-file": ca_file, "--tls-cert": cert, "--tls-key": key}
+    if not any(given.values()):
+        return None
+    for opt, f in given.items():
+        if not f:
+            raise CosimError(f"{opt}: missing (TLS needs --tls-ca-file, --tls-cert and --tls-key together)")
+        if not Path(f).is_file():
+            raise CosimError(f"{opt} {f}: file not found")
+    from distributed.security import Security
+
+    return Security(tls_ca_file=str(ca_file), tls_client_cert=str(cert), tls_client_key=str(key),
+                    require_encryption=True)
+
+
+def cluster_options(args: Any) -> dict[str, Any]:
+    """The Dask keyword arguments of :func:`run_sweep` and ``gamma_search`` from the command line's options
+    (``--workers``, ``--scheduler``, ``--dashboard``, ``--tls-ca-file``, ``--tls-cert``, ``--tls-key``)."""
+    sec = dask_security(getattr(args, "tls_ca_file", None), getattr(args, "tls_cert", None),
+                        getattr(args, "tls_key", None))
+    if sec is not None and not (args.scheduler or "").startswith("tls://"):
+        raise CosimError("--tls-ca-file/--tls-cert/--tls-key: need --scheduler tls://HOST:PORT")
+    return {"workers": args.workers, "scheduler": args.scheduler, "security": sec,
+            "dashboard": bool(getattr(args, "dashboard", False))}
+
+
+def cleartext_warning(address: str) -> str | None:
+    """A one-line warning for a scheduler reached in clear text beyond this machine (``tcp://`` to an
+    address other than the loopback), or None."""
+    from urllib.parse import urlsplit
+
+    if not address.startswith("tcp://"):
+        return None
+    host = urlsplit(address).hostname or ""
+    if host == "localhost" or host.startswith("127.") or host == "::1":
+        return None
+    return (f"wmr-cosim: warning: {address} is neither encrypted nor authenticated, and a Dask scheduler runs "
+            "whatever it is sent: use tls:// unless every host that can reach it is trusted (docs/security.md)")
+
+
 class Cluster:
     """A Dask client: a local cluster of ``workers`` processes (one thread each), or an existing
-    scheduler at ``address``."""
+    scheduler at ``address`` (``tcp://`` or, with certificates, ``tls://``).
 
-    def __init__(self, workers: int | None = None, address: str | None = None) -> None:
+    The local cluster listens on the loopback address only (scheduler, workers and the scheduler's HTTP
+    endpoint); its dashboard is off unless ``dashboard`` is true, and then it too listens on the loopback
+    address only, and its address is printed on stderr.  ``security`` (a ``distributed.security.Security``,
+    see :func:`dask_security`) gives the certificates for a ``tls://`` scheduler; without it Dask's own
+    configuration (``distributed.comm.tls.*``) applies.  A Dask scheduler runs whatever code it is sent:
+    see docs/security.md.
+    """
+
+    def __init__(self, workers: int | None = None, address: str | None = None, security: Any = None,
+                 dashboard: bool = False) -> None:
         import logging
 
         from distributed import Client, LocalCluster
@@ -252,14 +313,28 @@ class Cluster:
         t0 = time.perf_counter()
         self.cluster = None
         if address:
+            warning = cleartext_warning(address)
+            if warning:
+                print(warning, file=sys.stderr)
             try:
-                self.client = Client(address, timeout="10s")
+                self.client = Client(address, timeout="10s", security=security)
             except Exception as exc:
-                raise CosimError(f"--scheduler {address}: cannot connect ({' '.join(str(exc).split())})") from None
+                hint = ""
+                if address.startswith("tls://") and security is None:
+                    hint = "; a tls:// scheduler needs --tls-ca-file, --tls-cert and --tls-key (or Dask's configuration)"
+                raise CosimError(f"--scheduler {address}: cannot connect ({' '.join(str(exc).split())}){hint}") from None
         else:
+            # the scheduler's HTTP endpoint always runs: on the loopback address, at a free port, and it
+            # serves the dashboard only when asked for (":0" would listen on every interface)
             self.cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
-                                        processes=True, dashboard_address=":0", silence_logs=logging.ERROR)
+                                        processes=True, host="127.0.0.1",
+                                        dashboard_address="127.0.0.1:0" if dashboard else None,
+                                        scheduler_kwargs=None if dashboard else {"dashboard_address": "127.0.0.1:0"},
+                                        silence_logs=logging.ERROR)
             self.client = Client(self.cluster)
+        self.dashboard = self.client.dashboard_link if dashboard else None
+        if self.dashboard:
+            print(f"dask dashboard: {self.dashboard}", file=sys.stderr)
         self.startup_s = time.perf_counter() - t0
 
     def close(self) -> None:
@@ -299,7 +374,10 @@ def run_points(points: list[dict[str, Any]], base: str, variant: str | None, run
         from tqdm import tqdm
         bar = tqdm(total=len(points), initial=len(rows), desc=label, unit="run", file=sys.stderr)
     failed = sum(1 for r in rows.values() if r["status"] != "ok")
-    futures = [cluster.client.submit(run_point, p, base, variant, runs, fmus, str(out), keep_runs,
+    from .cosim.archive import command_line_limits
+
+    limits = command_line_limits()
+    futures = [cluster.client.submit(run_point, p, base, variant, runs, fmus, str(out), keep_runs, limits,
                                      key=f"{label}-{out.name}-{p['id']}-{_digest(p)}", pure=False) for p in todo]
     try:
         for fut in as_completed(futures):
@@ -331,9 +409,11 @@ def _jsonable(x: Any) -> Any:
 
 
 def run_sweep(path: str | os.PathLike, out: str | os.PathLike | None = None, workers: int | None = None,
-              scheduler: str | None = None, progress: bool | None = None, cluster: Cluster | None = None):
+              scheduler: str | None = None, progress: bool | None = None, cluster: Cluster | None = None,
+              security: Any = None, dashboard: bool = False):
     """Run a sweep file; write results.parquet, results.csv, sweep.json and figures/ into ``out``.
-    Returns the table (a pandas DataFrame, one row per point, ordered by point)."""
+    Returns the table (a pandas DataFrame, one row per point, ordered by point).  ``security`` and
+    ``dashboard``: see :class:`Cluster`."""
     import pandas as pd
 
     spec = load_sweep(path)
@@ -348,7 +428,7 @@ def run_sweep(path: str | os.PathLike, out: str | os.PathLike | None = None, wor
             raise CosimError(f"{out}: holds the results of another sweep (different points); use another --out")
     meta_file.write_text(json.dumps(meta, indent=1) + "\n")
     own = cluster is None
-    cl = cluster or Cluster(workers, scheduler)
+    cl = cluster or Cluster(workers, scheduler, security, dashboard)
     try:
         rows = run_points(points, spec.base, spec.variant, spec.runs, out, cl, spec.keep_runs, progress)
     finally:
