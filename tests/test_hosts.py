@@ -53,7 +53,7 @@ def c_host(tmp_path_factory) -> Path:
     import fmpy
     exe = tmp_path_factory.mktemp("c_host") / "fmi_host"
     subprocess.run([cc, "-O2", "-ffp-contract=off", "-Wall", f"-I{Path(fmpy.__file__).parent / 'c-code'}",
-                    "-o", str(exe), str(TESTS / "c_host" / "fmi_host.c"), "-ldl"], check=True)
+                    "-o", str(exe), str(TESTS / "c_host" / "fmi_host.c"), "-ldl", "-lpthread"], check=True)
     return exe
 
 
@@ -92,10 +92,11 @@ def spec_lines(m: Model, instance: str, inputs) -> list[str]:
 
 
 def run_host(host: Path, blocks: list[list[str]], tmp: Path, env: dict[str, str] | None = None,
-             n: int = N) -> subprocess.CompletedProcess:
+             n: int = N, parallel: bool = False) -> subprocess.CompletedProcess:
     """The C host on the given instances, with an empty environment plus ``env``."""
     spec = tmp / "host.spec"
-    spec.write_text("\n".join(line for b in blocks for line in b) + f"\nsteps {n} {H!r}\n")
+    spec.write_text("\n".join(line for b in blocks for line in b) + f"\nsteps {n} {H!r}\n"
+                    + ("parallel\n" if parallel else ""))
     return subprocess.run([str(host), str(spec)], env=dict(env or {}), capture_output=True, text=True,
                            timeout=600, cwd=tmp)
 
@@ -184,14 +185,28 @@ def test_two_of_ours_a_c_fmu_and_two_instances_of_one_fmu_in_one_c_host(c_host, 
               spec_lines(host_copy["WmrPlant"], "plant", INPUTS["WmrPlant"]),
               spec_lines(host_copy["WmrCPlant"], "cplant", INPUTS["WmrCPlant"]),
               spec_lines(host_copy["WmrSensor"], "sensorB", SENSOR_B)]
+    locks = set(Path("/dev/shm").glob("sem.wmr-pyloader-*"))
     p = run_host(c_host, blocks, tmp_path, n=300)
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
+    assert set(Path("/dev/shm").glob("sem.wmr-pyloader-*")) <= locks  # the loaders' lock is not left behind
     got = host_outputs(p.stdout)
     assert got["sensorA"] == fmpy_outputs(host_copy["WmrSensor"], INPUTS["WmrSensor"], 300)
     assert got["sensorB"] == fmpy_outputs(host_copy["WmrSensor"], SENSOR_B, 300)
     assert got["sensorA"][-1] != got["sensorB"][-1]
     assert got["plant"] == fmpy_outputs(host_copy["WmrPlant"], INPUTS["WmrPlant"], 300)
     assert got["cplant"] == fmpy_outputs(host_copy["WmrCPlant"], INPUTS["WmrCPlant"], 300)
+
+
+def test_our_fmus_instantiated_at_once_on_several_threads_start_one_interpreter(c_host, host_copy, tmp_path):
+    """The first fmi2Instantiate of three FMUs (three copies of the loader) at the same moment on three
+    threads: one of them starts the interpreter, the others wait for it and use it."""
+    blocks = [spec_lines(host_copy[m], m, INPUTS[m]) for m in ("WmrPlant", "WmrSensor", "WmrController")]
+    for _ in range(3):
+        p = run_host(c_host, blocks, tmp_path, n=20, parallel=True)
+        assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
+        got = host_outputs(p.stdout)
+        for m in ("WmrPlant", "WmrSensor", "WmrController"):
+            assert got[m] == fmpy_outputs(host_copy[m], INPUTS[m], 20), m
 
 
 def _python_without_numpy() -> str | None:
@@ -269,12 +284,12 @@ def test_no_interpreter_gives_null_and_one_log_line(what, c_host, host_copy, tmp
 
 # ------------------------------------------------------------------------------------------ Python hosts
 _PY_HOST = r"""
-import json, sys
+import json, re, sys
 from fmpy import simulate_fmu
 r = simulate_fmu(sys.argv[1], stop_time=0.2, output_interval=0.002,
                  input=None, start_values={'phase1': 0.25})
 maps = open('/proc/self/maps').read()
-libs = sorted({ln.split()[-1] for ln in maps.splitlines() if 'libpython' in ln.split()[-1]})
+libs = sorted({m.group(0) for m in re.finditer(r'\S*/libpython3[^/\s]*\.so[^/\s]*', maps)})
 print(json.dumps({'last': [float(x) for x in r[-1]], 'libpython': libs}))
 """
 

@@ -15,6 +15,7 @@
  *      lib/pythonX.Y/os.py), initialises it without signal handlers and releases the GIL, as pythonfmu
  *      expects of an embedding host;
  *   3. loads libpythonfmu-export.so and resolves its FMI functions.
+ * Steps 1 and 2 are serialised across all our FMUs in the process (see process_lock).
  * When no interpreter can be had, fmi2Instantiate returns NULL after one line through the host's logger
  * saying what was looked for and how to choose another Python.  The interpreter is never finalised.
  *
@@ -24,7 +25,9 @@
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
+#include <fcntl.h>
 #include <limits.h>
+#include <semaphore.h>
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -194,7 +197,34 @@ static int start_python(void *h, const char *lib, int recorded, const char *how)
     return 1;
 }
 
+/* Several of our FMUs (each a separate copy of this loader, with its own statics) may be instantiated at
+ * once on several threads: a named semaphore private to the process serialises starting the interpreter
+ * across all of them.  It is unlinked after the first attempt: a loader that comes later creates a fresh
+ * one and finds the interpreter started (or fails the same way). */
+static sem_t *process_lock(char *name, size_t n) {
+    snprintf(name, n, "/wmr-pyloader-%ld", (long)getpid());
+    sem_t *sem = sem_open(name, O_CREAT, 0600, 1);
+    if (sem == SEM_FAILED) return NULL; /* no /dev/shm: the per-FMU mutex alone */
+    while (sem_wait(sem) != 0) {
+    }
+    return sem;
+}
+
+static int ensure_python_locked(void);
+
 static int ensure_python(void) {
+    char name[64];
+    sem_t *sem = process_lock(name, sizeof name);
+    int ok = ensure_python_locked();
+    if (sem) {
+        sem_unlink(name); /* nothing left in /dev/shm; later loaders find the outcome, not the lock */
+        sem_post(sem);
+        sem_close(sem);
+    }
+    return ok;
+}
+
+static int ensure_python_locked(void) {
     /* 1. an interpreter already in the process (a Python host, or one loaded by another FMU) */
     if (dlsym(RTLD_DEFAULT, "Py_IsInitialized") != NULL) {
         Dl_info info;

@@ -9,6 +9,8 @@
  *                                            initialisation mode and at t = k h before each step from k h
  *   real VR / int VR / bool VR               an output, printed after initialisation and after every step
  *   steps N H                                (once, anywhere) N steps of H seconds for every instance
+ *   parallel                                 (once, anywhere) call every fmi2Instantiate at the same time,
+ *                                            one thread per instance
  *
  * Each instance: instantiate, setup experiment (start 0), enter initialisation, set inputs, exit
  * initialisation, then the instances step in turn (set inputs, do step); terminate, free.
@@ -17,9 +19,10 @@
  * fmi2Instantiate returned NULL, 4 if another call failed, 2 on a bad spec or a library that will not load.
  *
  * The host itself does not link libm (sin comes from a private dlopen of it), so an FMU that needs libm
- * must declare it.  Compile: cc -ffp-contract=off -I<FMI 2.0 headers> fmi_host.c -ldl
+ * must declare it.  Compile: cc -ffp-contract=off -I<FMI 2.0 headers> fmi_host.c -ldl -lpthread
  */
 #include <dlfcn.h>
+#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -57,6 +60,8 @@ typedef struct {
 } Inst;
 
 static double (*sin_fn)(double);
+static fmi2CallbackFunctions cb;
+static pthread_barrier_t start_line;
 static Lib libs[MAXI];
 static int nlibs = 0;
 static Inst insts[MAXI];
@@ -148,6 +153,18 @@ static int print_outputs(Inst *in, int k) {
     return 1;
 }
 
+static void instantiate(Inst *in) {
+    char uri[2100];
+    snprintf(uri, sizeof uri, "file://%s/resources", in->lib->dir);
+    in->c = in->lib->instantiate(in->name, fmi2CoSimulation, in->guid, uri, &cb, fmi2False, fmi2True);
+}
+
+static void *instantiate_thread(void *arg) {
+    pthread_barrier_wait(&start_line);
+    instantiate((Inst *)arg);
+    return NULL;
+}
+
 int main(int argc, char **argv) {
     if (argc != 2) {
         fprintf(stderr, "usage: fmi_host SPEC\n");
@@ -165,6 +182,7 @@ int main(int argc, char **argv) {
     }
     char line[4096], dir[1024], model[128], guid[128], name[128];
     long nsteps = 0;
+    int parallel = 0;
     double h = 0.0;
     Inst *cur = NULL;
     while (fgets(line, sizeof line, f)) {
@@ -189,6 +207,8 @@ int main(int argc, char **argv) {
         } else if (cur && sscanf(line, "bool %u", &vr) == 1) {
             cur->out_vr[cur->nout] = vr;
             cur->out_int[cur->nout++] = 2;
+        } else if (strncmp(line, "parallel", 8) == 0) {
+            parallel = 1;
         } else if (sscanf(line, "steps %ld %lf", &nsteps, &h) == 2) {
         } else if (line[0] != '\n' && line[0] != '#') {
             fprintf(stderr, "bad spec line: %s", line);
@@ -196,12 +216,19 @@ int main(int argc, char **argv) {
         }
     }
     fclose(f);
-    fmi2CallbackFunctions cb = {logger, calloc, free, NULL, NULL};
+    cb.logger = logger;
+    cb.allocateMemory = calloc;
+    cb.freeMemory = free;
+    if (parallel) {
+        pthread_t th[MAXI];
+        pthread_barrier_init(&start_line, NULL, (unsigned)ninsts);
+        for (int i = 0; i < ninsts; ++i) pthread_create(&th[i], NULL, instantiate_thread, &insts[i]);
+        for (int i = 0; i < ninsts; ++i) pthread_join(th[i], NULL);
+    } else {
+        for (int i = 0; i < ninsts; ++i) instantiate(&insts[i]);
+    }
     for (int i = 0; i < ninsts; ++i) {
         Inst *in = &insts[i];
-        char uri[2100];
-        snprintf(uri, sizeof uri, "file://%s/resources", in->lib->dir);
-        in->c = in->lib->instantiate(in->name, fmi2CoSimulation, in->guid, uri, &cb, fmi2False, fmi2True);
         if (!in->c) {
             printf("INSTANTIATE_FAILED %s\n", in->name);
             return 3;
