@@ -22,6 +22,7 @@ model description records the Python version, library and variable in its Vendor
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import re
@@ -132,6 +133,16 @@ def c_compiler() -> str:
     return cc
 
 
+@functools.lru_cache(maxsize=None)
+def _compiler_identity() -> str:
+    """The C compiler's path and version line, for the build hash ("no C compiler" when there is none:
+    the build then stops with one line)."""
+    try:
+        return _compiler_id(c_compiler())
+    except BuildError:
+        return "no C compiler"
+
+
 def _compiler_id(cc: str) -> str:
     try:
         out = subprocess.run([cc, "--version"], capture_output=True, text=True, timeout=60).stdout
@@ -220,7 +231,7 @@ def plan(model: str) -> Plan:
     add("fmi_base.py", (_HERE / "fmi_base.py").read_bytes())
     add("loader", LOADER_SOURCE.read_bytes())
     add("python", repr(build_python()).encode())
-    add("compiler", _compiler_id(c_compiler()).encode())
+    add("compiler", _compiler_identity().encode())
     for f in _component_files():
         add(f"components/{f.name}", f.read_bytes())
     return Plan(model, short, script, h.hexdigest())

@@ -169,6 +169,15 @@ def test_the_fmu_binary_is_our_loader_with_pythonfmus_beside_it(unzipped):
         assert f'<Python version="{py.version}"' in md and f'override="{LIBPYTHON_ENV}"' in md
 
 
+def test_no_c_compiler_stops_the_build_with_one_line(tmp_path, monkeypatch):
+    from wmr_cosim.fmus.build import BuildError, build_all
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))
+    monkeypatch.delenv("CC", raising=False)
+    with pytest.raises(BuildError, match=r"^building the FMUs needs a C compiler \(cc, gcc or clang\) on PATH"):
+        build_all(tmp_path / "out", models=("WmrSensor",))
+    assert not list((tmp_path / "out").glob("*.fmu"))
+
+
 def test_the_c_plant_declares_libm(unzipped):
     """Its binary needs exp, tanh, sincos, nearbyint: libm must be a DT_NEEDED entry (the C host test of
     WmrCPlant fails with "undefined symbol: sincos" otherwise: the host does not link libm)."""
