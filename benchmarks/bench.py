@@ -33,6 +33,11 @@ NAME:
             sizes), check_verify_ms (also every entry decompressed and counted, as loading a model does),
             extract_ms (counted extraction), summed over the three FMUs, medians; lying_bomb_refused_ms (256 MiB
             of zeros whose directory declares 1 KiB, refused while extracting) and nothing_left.
+    loader  what the FMUs' Python loader (binaries/linux64/<model>.so forwarding to pythonfmu's binary) costs:
+            the sensor FMU stepped 25,000 times (setReal + doStep + getReal through ctypes, as a master does)
+            once through the loader and once through pythonfmu's binary loaded directly, in one process,
+            interleaved, best of the rounds: via_loader_us_per_step, direct_us_per_step, loader_overhead
+            (ratio - 1; target <= 0.05).
 """
 from __future__ import annotations
 
@@ -445,8 +450,68 @@ def bench_archive(repeats: int) -> dict[str, float]:
     return figures
 
 
+def bench_loader(repeats: int) -> dict[str, float]:
+    """The same sensor FMU through our loader and through pythonfmu's binary itself, in one process."""
+    import ctypes
+    import shutil
+    import tempfile
+    import time
+    from pathlib import Path
+
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    from wmr_cosim.fmus.build import REAL_BINARY
+    from wmr_cosim.runner import resolve_model
+
+    fmu = resolve_model("WmrSensor")
+    n = 25000
+    with tempfile.TemporaryDirectory() as tmp:
+        md = read_model_description(str(fmu))
+        dirs = {"via_loader": Path(extract(str(fmu), unzipdir=str(Path(tmp) / "loader"))),
+                "direct": Path(extract(str(fmu), unzipdir=str(Path(tmp) / "direct")))}
+        lib = dirs["direct"] / "binaries" / "linux64"
+        shutil.copyfile(lib / REAL_BINARY, lib / "WmrSensor.so")  # pythonfmu's binary under the model's name
+        ins = [v.valueReference for v in md.modelVariables if v.causality == "input"]
+        outs = [v.valueReference for v in md.modelVariables if v.causality == "output" and v.type == "Real"]
+        runs = {}
+        for key, d in dirs.items():
+            f = FMU2Slave(guid=md.guid, unzipDirectory=str(d), modelIdentifier="WmrSensor", instanceName=key)
+            f.instantiate(loggingOn=False)
+            f.setupExperiment(startTime=0.0)
+            f.enterInitializationMode()
+            f.exitInitializationMode()
+            runs[key] = f
+        best = {k: float("inf") for k in runs}
+        t_step = 0
+        for r in range(max(3, repeats)):
+            for key, f in (list(runs.items()) if r % 2 == 0 else list(runs.items())[::-1]):  # alternate the order
+                dll, c = f.dll, ctypes.c_void_p(f.component)
+                set_real, do_step, get_real = dll.fmi2SetReal, dll.fmi2DoStep, dll.fmi2GetReal
+                vin = (ctypes.c_uint * len(ins))(*ins)
+                vout = (ctypes.c_uint * len(outs))(*outs)
+                xin = (ctypes.c_double * len(ins))()
+                xout = (ctypes.c_double * len(outs))()
+                h = ctypes.c_double(0.002)
+                t0 = time.perf_counter()
+                for k in range(t_step, t_step + n):
+                    xin[0] = xin[1] = 0.001 * k
+                    set_real(c, vin, len(ins), xin)
+                    do_step(c, ctypes.c_double(k * 0.002), h, 1)
+                    get_real(c, vout, len(outs), xout)
+                best[key] = min(best[key], time.perf_counter() - t0)
+            t_step += n
+        for f in runs.values():
+            f.terminate()
+            f.freeInstance()
+    us = {k: v / n * 1e6 for k, v in best.items()}
+    return {"steps": n, "rounds": max(3, repeats), "via_loader_us_per_step": round(us["via_loader"], 3),
+            "direct_us_per_step": round(us["direct"], 3),
+            "loader_overhead": round(us["via_loader"] / us["direct"] - 1.0, 4)}
+
+
 BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "paper": bench_paper, "sweep": bench_sweep,
-           "interop": bench_interop, "archive": bench_archive}
+           "interop": bench_interop, "archive": bench_archive, "loader": bench_loader}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -23,8 +23,6 @@ import math
 from dataclasses import asdict, dataclass
 from typing import Any
 
-import numpy as np
-
 from . import paper
 from .linalg import zoh
 from .validation import ParameterError, choice, finite, positive, step as check_step
@@ -92,10 +90,10 @@ def filter_matrices(form: str, h: float) -> tuple[tuple[float, ...], tuple[float
     velocity v: theta' = y, c2 y'' + c1 y' + c0 y = v.  Returns Ad (9 floats, row-major) and Bd (3 floats).
     """
     c2, c1, c0 = filter_coefficients(form)
-    a = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, -c0 / c2, -c1 / c2]])
-    b = np.array([[0.0], [0.0], [1.0 / c2]])
+    a = [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, -c0 / c2, -c1 / c2]]
+    b = [[0.0], [0.0], [1.0 / c2]]
     ad, bd = zoh(a, b, h)
-    return tuple(float(v) for v in ad.ravel()), tuple(float(v) for v in bd.ravel())
+    return tuple(v for row in ad for v in row), tuple(row[0] for row in bd)
 
 
 class Sensor:

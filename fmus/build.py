@@ -12,9 +12,17 @@ fmi_base.py, every file of components/ (.py and .json), this build script and th
 It is stored beside the FMU (``WmrPlant.fmu.sha256``); an FMU is rebuilt only when it is missing or
 its hash differs.  pythonfmu's builder runs in a child process (it imports the slave script and leaves
 modules and sys.path entries behind).
+
+Loader: pythonfmu's binary takes the Python C API from the process that loads it, so alone it runs only in
+Python hosts.  Each FMU's ``binaries/linux64/<model>.so`` is instead our loader (fmus/pyloader/, compiled
+here with the system C compiler): it uses the interpreter already in the process, or loads the libpython
+this build ran on (recorded in the loader; the environment variable :data:`LIBPYTHON_ENV` names another),
+and forwards every FMI call to pythonfmu's binary, shipped beside it as ``libpythonfmu-export.so``.  The
+model description records the Python version, library and variable in its VendorAnnotations.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import re
@@ -37,6 +45,11 @@ SLAVES: dict[str, tuple[str, str]] = {
 #: Build options: state save/restore and serialisation declared (trap 7); never --interpolate-inputs (trap 8).
 BUILD_OPTIONS = ("--handle-state", "--serialize-state")
 _IMPORT_RE = re.compile(r"^\s*(from|import)\s+wmr_cosim\b", re.MULTILINE)
+#: The loader's C source and the name pythonfmu's own binary gets beside it.
+LOADER_SOURCE = _HERE / "pyloader" / "wmr_pyloader.c"
+REAL_BINARY = "libpythonfmu-export.so"
+#: The environment variable that points the FMUs at another libpython (a path to libpython3.X.so).
+LIBPYTHON_ENV = "WMR_FMU_LIBPYTHON"
 
 
 class BuildError(RuntimeError):
@@ -87,6 +100,120 @@ def _pythonfmu_version() -> str:
     return __version__
 
 
+@dataclass(frozen=True)
+class PythonRecord:
+    """The interpreter a build records for the loader: version "X.Y", its shared library ("" if it has
+    none: a Python built without --enable-shared) and its prefix (where its standard library is)."""
+
+    version: str
+    library: str
+    home: str
+
+
+def build_python() -> PythonRecord:
+    """The Python this build runs on, as the loader records it."""
+    import sysconfig
+    version = f"{sys.version_info.major}.{sys.version_info.minor}"
+    libdir = sysconfig.get_config_var("LIBDIR") or ""
+    library = ""
+    if sysconfig.get_config_var("Py_ENABLE_SHARED"):
+        for name in (sysconfig.get_config_var("INSTSONAME"), sysconfig.get_config_var("LDLIBRARY")):
+            if name and libdir and (Path(libdir) / name).is_file():
+                library = str(Path(libdir) / name)
+                break
+    return PythonRecord(version, library, sys.base_prefix)
+
+
+def c_compiler() -> str:
+    """The C compiler the loader is built with: $CC, else cc, gcc or clang on PATH."""
+    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+    if not cc:
+        raise BuildError("building the FMUs needs a C compiler (cc, gcc or clang) on PATH for their Python "
+                         "loader (fmus/pyloader/wmr_pyloader.c): install one, e.g. apt-get install gcc")
+    return cc
+
+
+@functools.lru_cache(maxsize=None)
+def _compiler_identity() -> str:
+    """The C compiler's path and version line, for the build hash ("no C compiler" when there is none:
+    the build then stops with one line)."""
+    try:
+        return _compiler_id(c_compiler())
+    except BuildError:
+        return "no C compiler"
+
+
+def _compiler_id(cc: str) -> str:
+    try:
+        out = subprocess.run([cc, "--version"], capture_output=True, text=True, timeout=60).stdout
+    except OSError as exc:
+        raise BuildError(f"C compiler {cc}: {exc}") from None
+    return cc + "\n" + (out.splitlines()[0] if out else "")
+
+
+def _fmi_headers() -> Path:
+    """The FMI 2.0 headers FMPy ships (fmi2Functions.h and the files it includes)."""
+    import fmpy
+    d = Path(fmpy.__file__).parent / "c-code"
+    if not (d / "fmi2Functions.h").is_file():
+        raise BuildError(f"{d}: FMPy's FMI 2.0 headers not found (fmpy >= 0.3.20 ships them)")
+    return d
+
+
+def _c_string(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def compile_loader(dest: Path, py: PythonRecord | None = None) -> Path:
+    """Compile the loader into ``dest`` (a shared library); returns its path."""
+    py = py or build_python()
+    cc = c_compiler()
+    cmd = [cc, "-shared", "-fPIC", "-O2", "-Wall", f"-I{_fmi_headers()}",
+           f"-DWMR_PY_LIBRARY={_c_string(py.library)}", f"-DWMR_PY_HOME={_c_string(py.home)}",
+           f"-DWMR_PY_VERSION={_c_string(py.version)}", f"-DWMR_PY_ENV={_c_string(LIBPYTHON_ENV)}",
+           "-o", str(dest), str(LOADER_SOURCE), "-ldl", "-lpthread"]
+    p = subprocess.run(cmd, capture_output=True, text=True)
+    if p.returncode != 0 or not dest.is_file():
+        tail = "\n".join((p.stdout + p.stderr).strip().splitlines()[-10:])
+        raise BuildError(f"compiling the FMU loader {LOADER_SOURCE.name} with {cc} failed (exit {p.returncode}):\n{tail}")
+    return dest
+
+
+def _vendor_annotation(py: PythonRecord) -> str:
+    from xml.sax.saxutils import quoteattr
+    return (f'\t<VendorAnnotations>\n\t\t<Tool name="wmr-cosim">\n'
+            f'\t\t\t<Python version={quoteattr(py.version)} library={quoteattr(py.library)} '
+            f'override={quoteattr(LIBPYTHON_ENV)} platforms="linux64" description='
+            f'{quoteattr(f"Runs on Python {py.version} (its shared library libpython{py.version}.so, found at the path recorded here) or on the interpreter of a Python host; set the environment variable {LIBPYTHON_ENV} to the path of another libpython3.X.so to use it")}/>\n'
+            f'\t\t</Tool>\n\t</VendorAnnotations>\n')
+
+
+def install_loader(fmu: Path, model: str, loader: Path, py: PythonRecord) -> None:
+    """Rewrite ``fmu`` in place: pythonfmu's binaries/linux64/<model>.so becomes ``libpythonfmu-export.so``,
+    the loader takes its name, and the model description gets the loader's VendorAnnotations."""
+    ours = f"binaries/linux64/{model}.so"
+    part = fmu.with_name(fmu.name + ".part")
+    with zipfile.ZipFile(fmu) as src, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as dst:
+        names = src.namelist()
+        if ours not in names:
+            raise BuildError(f"{fmu}: pythonfmu wrote no {ours}")
+        for info in src.infolist():
+            data = src.read(info)
+            if info.filename == ours:
+                dst.writestr(f"binaries/linux64/{REAL_BINARY}", data)
+                dst.write(loader, ours)
+                continue
+            if info.filename == "modelDescription.xml":
+                text = data.decode("utf-8")
+                if "<VendorAnnotations" in text or "<ModelVariables" not in text:
+                    raise BuildError(f"{fmu}: unexpected model description (VendorAnnotations already there)")
+                at = text.rfind("\n", 0, text.index("<ModelVariables")) + 1  # schema order: just before
+                text = text[:at] + _vendor_annotation(py) + text[at:]
+                data = text.encode("utf-8")
+            dst.writestr(info.filename, data)
+    os.replace(part, fmu)
+
+
 def plan(model: str) -> Plan:
     """The inputs of one FMU and their hash."""
     script_name, short = SLAVES[model]
@@ -102,6 +229,9 @@ def plan(model: str) -> Plan:
     add("build.py", Path(__file__).read_bytes())
     add("slave", script.read_bytes())
     add("fmi_base.py", (_HERE / "fmi_base.py").read_bytes())
+    add("loader", LOADER_SOURCE.read_bytes())
+    add("python", repr(build_python()).encode())
+    add("compiler", _compiler_identity().encode())
     for f in _component_files():
         add(f"components/{f.name}", f.read_bytes())
     return Plan(model, short, script, h.hexdigest())
@@ -159,11 +289,12 @@ def _check_archive(fmu: Path, p: Plan) -> None:
         md = zf.read("modelDescription.xml").decode("utf-8")
     need = {"modelDescription.xml", f"resources/{p.module}.py", f"resources/{p.package}/__init__.py",
             f"resources/{p.package}/fmi_base.py", f"resources/{p.package}/paper_results.json",
-            "resources/slavemodule.txt", f"binaries/linux64/{p.model}.so"}
+            "resources/slavemodule.txt", f"binaries/linux64/{p.model}.so", f"binaries/linux64/{REAL_BINARY}"}
     missing = sorted(need - names)
     if missing:
         raise BuildError(f"{fmu}: entries missing from the built FMU: {', '.join(missing)}")
-    if f'modelName="{p.model}"' not in md or 'canGetAndSetFMUstate="true"' not in md:
+    if (f'modelName="{p.model}"' not in md or 'canGetAndSetFMUstate="true"' not in md
+            or f'override="{LIBPYTHON_ENV}"' not in md):
         raise BuildError(f"{fmu}: unexpected model description (model name or state capabilities)")
 
 
@@ -195,7 +326,9 @@ def build_all(out_dir: Path | None = None, force: bool = False, models: tuple[st
             todo.append((p, fmu))
     if not todo:
         return result
+    py = build_python()
     with tempfile.TemporaryDirectory(prefix="wmr_fmu_build_") as tmp:
+        loader = compile_loader(Path(tmp) / "loader.so", py)
         procs = []
         for p, fmu in todo:
             stage = Path(tmp) / p.model
@@ -214,6 +347,7 @@ def build_all(out_dir: Path | None = None, force: bool = False, models: tuple[st
                 tail = "\n".join(log.strip().splitlines()[-15:])
                 errors.append(f"{p.model}: pythonfmu build failed (exit {proc.returncode})\n{tail}")
                 continue
+            install_loader(built, p.model, loader, py)
             _check_archive(built, p)
             _hash_file(fmu).unlink(missing_ok=True)  # no stale hash beside a half-replaced FMU
             os.replace(built, fmu) if _same_fs(built, fmu) else shutil.move(str(built), str(fmu))

@@ -24,6 +24,8 @@ _HERE = Path(__file__).resolve().parent
 SRC = _HERE / "c_plant"
 MODEL = "WmrCPlant"
 C_FLAGS = "-O2 -ffp-contract=off -fno-fast-math"
+#: Libraries the FMU's binary declares (DT_NEEDED) besides libc.
+C_LIBS = "-lm"
 
 
 class CBuildError(RuntimeError):
@@ -81,6 +83,7 @@ def digest() -> str:
         if f.is_file():
             add(f"fmpy/{f.name}", f.read_bytes())
     add("flags", C_FLAGS.encode())
+    add("libs", C_LIBS.encode())
     add("compiler", _compiler_id().encode())
     return h.hexdigest()
 
@@ -116,7 +119,10 @@ def build_c_plant(out_dir: str | os.PathLike | None = None, force: bool = False)
         build = Path(tmp) / "build"
         build.mkdir()
         # FMPy writes the CMake cache (model identifier, sources, include dirs, target folder) ...
-        create_cmake_settings(unz, build, cmake_options={"CMAKE_C_FLAGS:STRING": C_FLAGS})
+        # (FMPy's project links no libm: the plant's exp, tanh, sincos and nearbyint need it declared, or a
+        # host without libm already loaded fails with "undefined symbol: sincos")
+        create_cmake_settings(unz, build, cmake_options={"CMAKE_C_FLAGS:STRING": C_FLAGS,
+                                                         "CMAKE_C_STANDARD_LIBRARIES:STRING": C_LIBS})
         env = dict(os.environ)
         for cmd in ([cmake, "-S", str(_fmpy_c_code()), "-B", str(build)],
                     [cmake, "--build", str(build), "--target", "install", "--config", "Release"]):

@@ -56,28 +56,13 @@ _OUTSIDE = """## Running the FMUs outside this project
 
 An FMU file is self-contained apart from Python itself: its `resources/` hold the slave script, a copy
 of the component code under a package name unique to the build (`wmrfmu_<component>_<hash8>`), the
-paper's constants (`paper_results.json`) and pythonfmu's Python part; `binaries/linux64/` and
-`binaries/win64/` hold pythonfmu's loader. What the machine needs:
-
-- **Linux x86-64 or Windows x64** (the only binaries pythonfmu ships).
-- **A Python 3 (3.11 tested) with numpy** (the sensor's filter discretisation uses it; the plant and the
-  controller need the standard library only). Neither this project nor pythonfmu has to be installed.
-- **A Python host** (FMPy, libcosimpy, ecospy, a Python script) just works: the loader takes the Python
-  symbols from the process that loads it. Instantiate with logging on (`loggingOn=true`) to receive the
-  FMU's messages: pythonfmu drops them all, including the cause of a Discard or Fatal, otherwise.
-- **A non-Python host** (a C program, the `OMSimulator` or `ecos` command line) must preload the
-  Python library and find the Python environment with numpy, for example
-
-  ```
-  LD_PRELOAD=$(python3 -c "import sysconfig, os; print(os.path.join(sysconfig.get_config_var('LIBDIR'), sysconfig.get_config_var('LDLIBRARY')))") \\
-  PATH=/path/to/venv/bin:$PATH OMSimulator system.ssp
-  ```
-
-  (or set `PYTHONHOME`/`PYTHONPATH`); without it the host crashes or reports a missing symbol.
-- After an fmi2Fatal (only possible during initialisation, or on a refused call) the host must not call
-  the instance again, not even to free it (pythonfmu's heap is then corrupt): leak it and stop.
-- Two instances of the same FMU, or FMUs of different builds, can live in one process: every build's
-  modules have their own names.
+paper's constants (`paper_results.json`) and pythonfmu's Python part. Any FMI 2.0 host on Linux x86-64
+(the only platform built) loads it, Python or not, with nothing set up; the machine needs the Python
+version the FMUs were built with (its shared library and standard library only, no numpy), and the
+environment variable `WMR_FMU_LIBPYTHON` selects another: see [docs/hosts.md](docs/hosts.md).
+After an fmi2Fatal (only possible during initialisation, or on a refused call) the host must not call
+the instance again, not even to free it: leak it and stop. Two instances of the same FMU, or FMUs of
+different builds, can live in one process: every build's modules have their own names.
 """
 
 

@@ -104,8 +104,8 @@ def test_angle_from_counts():
 
 
 def test_zoh_of_integrator():
-    ad, bd = zoh(np.array([[0.0]]), np.array([[1.0]]), 0.3)
-    assert ad[0, 0] == 1.0 and bd[0, 0] == pytest.approx(0.3, rel=1e-15)
+    ad, bd = zoh([[0.0]], [[1.0]], 0.3)
+    assert ad[0][0] == 1.0 and bd[0][0] == pytest.approx(0.3, rel=1e-15)
 
 
 def test_step_change_recomputes_discretisation_and_state_round_trips():
@@ -118,3 +118,47 @@ def test_step_change_recomputes_discretisation_and_state_round_trips():
     s.set_state(st)
     b = [s.step(H * 0.5, 3.0 + 0.005 * k, 3.3 + 0.0055 * k) for k in range(1, 100)]
     assert a == b
+
+
+def test_fused_multiply_add_is_rounded_once():
+    """linalg's fma: a * b + c with one rounding (exact rational arithmetic as the reference)."""
+    import random
+    from fractions import Fraction
+
+    from wmr_cosim.components.linalg import _fma_exact, fma
+    e = 2.0 ** -30
+    # (1 + e)(1 - e) - 1 = -e^2 exactly: an unfused product rounds e^2 away and gives 0
+    assert (1 + e) * (1 - e) - 1.0 == 0.0
+    for f in (_fma_exact, fma):
+        assert f(1 + e, 1 - e, -1.0) == -(e * e)
+    rng = random.Random(5)
+    for _ in range(20000):
+        a, b, c = (rng.choice((-1, 1)) * rng.random() * 10.0 ** rng.uniform(-20, 20) for _ in range(3))
+        exact = Fraction(a) * Fraction(b) + Fraction(c)
+        assert _fma_exact(a, b, c) == float(exact)
+
+
+def test_filter_discretisation_keeps_its_bits():
+    """The exact discretisation of (43) at 2 ms, bit for bit as the G1 runs have always used it (computed
+    before with numpy's matrix product on an x86-64 with FMA; now in the standard library, the same on every
+    machine): a change here changes every run in its last bits."""
+    ad, bd = filter_matrices("normalised", H)
+    assert [x.hex() for x in ad] == [
+        "0x1.0000000000000p+0", "0x1.04a201294db36p-9", "0x1.ba6e9c62f8533p-20",
+        "0x0.0p+0", "0x1.f78fafe864ce4p-1", "0x1.87a59a819caacp-10",
+        "0x0.0p+0", "-0x1.de15a71b37beap+3", "0x1.1214a76072ff1p-1"]
+    assert [x.hex() for x in bd] == ["0x1.82dc05ccf0348p-17", "0x1.0e0a02f36810dp-6", "0x1.de15a71b37b70p+3"]
+
+
+def test_sensor_components_need_no_numpy():
+    """The sensor (and the other components an FMU runs) import only the standard library."""
+    import subprocess
+    import sys
+    code = ("import sys; sys.modules['numpy'] = None\n"
+            "from wmr_cosim.components import sensor, plant, controller\n"
+            "s = sensor.Sensor(); s.reset(0.0, 0.0); print(s.step(0.002, 0.01, 0.02)[2])")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    ref = Sensor()
+    ref.reset(0.0, 0.0)
+    assert float(p.stdout) == ref.step(H, 0.01, 0.02)[2]

@@ -28,7 +28,6 @@ import os
 import shutil
 import subprocess
 import sys
-import sysconfig
 import tempfile
 import time
 from pathlib import Path
@@ -48,16 +47,6 @@ class PeerError(RuntimeError):
 
 
 # ------------------------------------------------------------------------------------------ helpers
-def libpython() -> Path | None:
-    """The shared libpython of this interpreter (what a non-Python host must preload), or None when the
-    interpreter is statically linked (a pyenv build without --enable-shared)."""
-    libdir, name = sysconfig.get_config_var("LIBDIR"), sysconfig.get_config_var("LDLIBRARY")
-    if not libdir or not name or not name.endswith(".so") and ".so." not in name:
-        return None
-    p = Path(libdir) / name
-    return p if p.is_file() else None
-
-
 def tbb_library() -> Path | None:
     """libtbb.so.12 as installed by the ``tbb`` wheel (into <prefix>/lib, not on the loader's path)."""
     for base in (sys.prefix, sys.base_prefix):
@@ -79,12 +68,13 @@ def _load_ecospy():
     return ecospy
 
 
-def ecos_cli_env() -> tuple[list[str], dict[str, str]]:
-    """The ecos command line and the environment it needs to host pythonfmu FMUs: libpython preloaded
-    (the FMUs' loader takes the Python symbols from the host process), this environment's bin first on
-    PATH (the embedded interpreter finds its prefix, hence its site-packages with numpy, from there),
-    libtbb on LD_LIBRARY_PATH.  The wheel installs the program without its execute bit: a copy is made
-    executable in a temporary folder (the caller removes ``env['_ECOS_TMP']``)."""
+def ecos_cli_env() -> tuple[list[str], dict[str, str], Path]:
+    """The ecos command line, the environment it runs in and a temporary folder the caller removes.
+
+    The environment is empty but for ``LD_LIBRARY_PATH`` to ``libtbb.so.12``, which the program itself needs
+    (the ``tbb`` wheel puts it where the loader does not look): no ``LD_PRELOAD``, no ``PATH`` or
+    ``PYTHONHOME``, as a user's C host has it; our FMUs' loader finds their Python itself.  The wheel
+    installs the program without its execute bit: a copy is made executable in the temporary folder."""
     import importlib.util
     spec = importlib.util.find_spec("ecospy")  # located, not imported (that would load its library)
     if spec is None or not spec.submodule_search_locations:
@@ -92,22 +82,15 @@ def ecos_cli_env() -> tuple[list[str], dict[str, str]]:
     src = Path(list(spec.submodule_search_locations)[0]) / "binaries" / "ecos"
     if not src.is_file():
         raise PeerError(f"{src}: ecos program not found in the ecospy wheel")
-    lib = libpython()
-    if lib is None:
-        raise PeerError("this Python has no shared libpython (built without --enable-shared): a non-Python "
-                        "host cannot load pythonfmu FMUs")
     tmp = Path(tempfile.mkdtemp(prefix="wmr-ecos-cli-"))
     exe = tmp / "ecos"
     shutil.copyfile(src, exe)
     exe.chmod(0o755)
-    env = dict(os.environ)
-    env["LD_PRELOAD"] = str(lib)
-    env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
+    env: dict[str, str] = {}
     tbb = tbb_library()
     if tbb is not None:
-        env["LD_LIBRARY_PATH"] = str(tbb.parent) + os.pathsep + env.get("LD_LIBRARY_PATH", "")
-    env["_ECOS_TMP"] = str(tmp)
-    return [str(exe)], env
+        env["LD_LIBRARY_PATH"] = str(tbb.parent)
+    return [str(exe)], env, tmp
 
 
 def _n_steps(start: float, stop: float, step: float) -> int:
@@ -253,7 +236,7 @@ def _ecos(ssp: Path, stop: float, step: float, signals, tmp: Path, pinned: bool 
 
 
 def _ecos_cli(ssp: Path, stop: float, step: float, signals, tmp: Path) -> dict[str, Any]:
-    cmd, env = ecos_cli_env()
+    cmd, env, ecos_tmp = ecos_cli_env()
     try:
         cfg = tmp / "CsvConfig.xml"
         by_inst: dict[str, list[str]] = {}
@@ -281,7 +264,7 @@ def _ecos_cli(ssp: Path, stop: float, step: float, signals, tmp: Path) -> dict[s
         sig = {k: v[1:] for k, v in sig.items()}
         return {"wall_s": wall, "steps": len(t) - 1, "t_end": float(t[-1]), "signals": sig}
     finally:
-        shutil.rmtree(env["_ECOS_TMP"], ignore_errors=True)
+        shutil.rmtree(ecos_tmp, ignore_errors=True)
 
 
 def fmpy_parameter_set(ssp: Path):

@@ -1,0 +1,346 @@
+"""Our FMUs in hosts other than this project's Python: a plain C host (tests/c_host/fmi_host.c, compiled
+here with the system C compiler, no Python in it) run with an empty environment (``env -i``), on each of
+the four FMUs, several in one process, two instances of one FMU, on a Python without numpy, with no
+interpreter to be had; and Python hosts (FMPy here, and a statically linked system python3) where the FMU
+must use the host's interpreter and load no libpython.
+
+Every C-host run is compared with FMPy driving the same FMU through the same calls with the same inputs:
+the outputs must be equal bit for bit (the host prints %.17g, which reads back exactly).
+"""
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+from pathlib import Path
+
+import pytest
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+from wmr_cosim.fmus import cplant_build
+from wmr_cosim.fmus.build import LIBPYTHON_ENV, REAL_BINARY, build_python
+
+TESTS = Path(__file__).resolve().parent
+H = 0.002
+N = 1000
+PI2 = math.pi / 2
+#: Inputs in model-description order, each (c, b, a, w, phi): u(t) = c + b t + a sin(w t + phi).
+INPUTS = {
+    "WmrPlant": [(0, 0, 2.0, 3.0, 0), (0, 0, 1.5, 2.0, PI2), (0, 0, 0.1, 1.0, 0), (0, 0, 0, 0, 0)],
+    "WmrCPlant": [(0, 0, 2.0, 3.0, 0), (0, 0, 1.5, 2.0, PI2), (0, 0, 0.1, 1.0, 0), (0, 0, 0, 0, 0)],
+    "WmrSensor": [(0, 0.8, 0.3, 5.0, 0), (0, 0.7, 0, 0, 0)],
+    "WmrController": [(0, 3.0, 0.2, 4.0, 0), (0, 2.8, 0, 0, 0), (3.0, 0, 0.8, 4.0, PI2), (2.8, 0, 0, 0, 0),
+                      (0, 0, 0, 0, 0), (0, 0, 0, 0, 0), (0, 0, 0, 0, 0)],
+}
+#: A second set of sensor inputs (a second instance must not see the first one's state).
+SENSOR_B = [(0.1, -0.5, 0.2, 7.0, 0.3), (0, 0.9, 0.05, 11.0, 0)]
+
+
+def _u(spec, t):
+    return [c + b * t + a * math.sin(w * t + phi) for c, b, a, w, phi in spec]
+
+
+# ------------------------------------------------------------------------------------------ fixtures
+@pytest.fixture(scope="session")
+def c_host(tmp_path_factory) -> Path:
+    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        pytest.skip("no C compiler on PATH")
+    import fmpy
+    exe = tmp_path_factory.mktemp("c_host") / "fmi_host"
+    subprocess.run([cc, "-O2", "-ffp-contract=off", "-Wall", f"-I{Path(fmpy.__file__).parent / 'c-code'}",
+                    "-o", str(exe), str(TESTS / "c_host" / "fmi_host.c"), "-ldl", "-lpthread"], check=True)
+    return exe
+
+
+@pytest.fixture(scope="session")
+def all_fmus(built_fmus, tmp_path_factory) -> dict[str, Path]:
+    fmus = dict(built_fmus)
+    fmus["WmrCPlant"] = cplant_build.build_c_plant(tmp_path_factory.mktemp("cplant_hosts"))
+    return fmus
+
+
+@pytest.fixture(scope="session")
+def unzipped(all_fmus, tmp_path_factory) -> dict[str, Path]:
+    """Each FMU extracted once (into a folder whose name has a space, as users' folders may)."""
+    root = tmp_path_factory.mktemp("unzipped hosts")
+    return {m: Path(extract(str(p), unzipdir=str(root / m))) for m, p in all_fmus.items()}
+
+
+class Model:
+    """What the host and the reference need of one FMU: vrs of inputs and outputs."""
+
+    def __init__(self, d: Path):
+        self.dir = d
+        self.md = read_model_description(str(d / "modelDescription.xml"))
+        self.id = self.md.coSimulation.modelIdentifier
+        self.inputs = [v for v in self.md.modelVariables if v.causality == "input"]
+        self.outputs = [v for v in self.md.modelVariables if v.causality == "output"]
+
+
+def spec_lines(m: Model, instance: str, inputs) -> list[str]:
+    lines = [f"fmu {m.dir} {m.id} {m.md.guid} {instance}"]
+    for v, k in zip(m.inputs, inputs, strict=True):
+        lines.append(f"in {v.valueReference} " + " ".join(repr(float(x)) for x in k))
+    kinds = {"Real": "real", "Integer": "int", "Boolean": "bool"}
+    lines += [f"{kinds[v.type]} {v.valueReference}" for v in m.outputs]
+    return lines
+
+
+def run_host(host: Path, blocks: list[list[str]], tmp: Path, env: dict[str, str] | None = None,
+             n: int = N, parallel: bool = False) -> subprocess.CompletedProcess:
+    """The C host on the given instances, with an empty environment plus ``env``."""
+    spec = tmp / "host.spec"
+    spec.write_text("\n".join(line for b in blocks for line in b) + f"\nsteps {n} {H!r}\n"
+                    + ("parallel\n" if parallel else ""))
+    return subprocess.run([str(host), str(spec)], env=dict(env or {}), capture_output=True, text=True,
+                           timeout=600, cwd=tmp)
+
+
+def host_outputs(stdout: str) -> dict[str, list[list[float]]]:
+    out: dict[str, list[list[float]]] = {}
+    for line in stdout.splitlines():
+        if line.startswith("OUT "):
+            _, inst, k, *vals = line.split()
+            rows = out.setdefault(inst, [])
+            assert int(k) == len(rows)
+            rows.append([float(x) for x in vals])
+    return out
+
+
+def fmpy_outputs(m: Model, inputs, n: int = N) -> list[list[float]]:
+    """FMPy making the host's calls in this (Python) process."""
+    fmu = FMU2Slave(guid=m.md.guid, unzipDirectory=str(m.dir), modelIdentifier=m.id, instanceName="ref")
+    fmu.instantiate(loggingOn=False)
+    ins = [v.valueReference for v in m.inputs]
+    getters = {"Real": fmu.getReal, "Integer": fmu.getInteger, "Boolean": fmu.getBoolean}
+
+    def outs():
+        return [float(getters[v.type]([v.valueReference])[0]) for v in m.outputs]
+
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.setReal(ins, _u(inputs, 0.0))
+    fmu.exitInitializationMode()
+    rows = [outs()]
+    for k in range(n):
+        t = k * H
+        fmu.setReal(ins, _u(inputs, t))
+        fmu.doStep(t, H)
+        rows.append(outs())
+    fmu.terminate()
+    fmu.freeInstance()
+    return rows
+
+
+# ------------------------------------------------------------------------------------------ the C host
+@pytest.fixture(scope="session")
+def host_copy(unzipped, tmp_path_factory):
+    """FMUs extracted to folders without spaces (the host's spec is whitespace-separated)."""
+    root = tmp_path_factory.mktemp("host_fmus")
+    out = {}
+    for m, d in unzipped.items():
+        shutil.copytree(d, root / m)
+        out[m] = Model(root / m)
+    return out
+
+
+@pytest.mark.parametrize("model", ["WmrPlant", "WmrSensor", "WmrController", "WmrCPlant"])
+def test_a_c_host_with_an_empty_environment_runs_each_fmu_as_fmpy_does(model, c_host, host_copy, tmp_path):
+    m = host_copy[model]
+    p = run_host(c_host, [spec_lines(m, "one", INPUTS[model])], tmp_path)
+    assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
+    got = host_outputs(p.stdout)["one"]
+    assert len(got) == N + 1
+    assert got == fmpy_outputs(m, INPUTS[model])
+    assert got[-1] != got[0]  # the run moved
+
+
+def test_the_fmu_binary_is_our_loader_with_pythonfmus_beside_it(unzipped):
+    for model in ("WmrPlant", "WmrSensor", "WmrController"):
+        d = unzipped[model] / "binaries" / "linux64"
+        assert sorted(p.name for p in d.iterdir()) == sorted([f"{model}.so", REAL_BINARY])
+        md = (unzipped[model] / "modelDescription.xml").read_text()
+        py = build_python()
+        assert f'<Python version="{py.version}"' in md and f'override="{LIBPYTHON_ENV}"' in md
+
+
+def test_no_c_compiler_stops_the_build_with_one_line(tmp_path, monkeypatch):
+    from wmr_cosim.fmus.build import BuildError, build_all
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))
+    monkeypatch.delenv("CC", raising=False)
+    with pytest.raises(BuildError, match=r"^building the FMUs needs a C compiler \(cc, gcc or clang\) on PATH"):
+        build_all(tmp_path / "out", models=("WmrSensor",))
+    assert not list((tmp_path / "out").glob("*.fmu"))
+
+
+def test_the_c_plant_declares_libm(unzipped):
+    """Its binary needs exp, tanh, sincos, nearbyint: libm must be a DT_NEEDED entry (the C host test of
+    WmrCPlant fails with "undefined symbol: sincos" otherwise: the host does not link libm)."""
+    readelf = shutil.which("readelf")
+    if readelf is None:
+        pytest.skip("readelf not on PATH")
+    out = subprocess.run([readelf, "-d", str(unzipped["WmrCPlant"] / "binaries" / "linux64" / "WmrCPlant.so")],
+                         capture_output=True, text=True, check=True).stdout
+    assert "[libm.so.6]" in out
+
+
+def test_two_of_ours_a_c_fmu_and_two_instances_of_one_fmu_in_one_c_host(c_host, host_copy, tmp_path):
+    blocks = [spec_lines(host_copy["WmrSensor"], "sensorA", INPUTS["WmrSensor"]),
+              spec_lines(host_copy["WmrPlant"], "plant", INPUTS["WmrPlant"]),
+              spec_lines(host_copy["WmrCPlant"], "cplant", INPUTS["WmrCPlant"]),
+              spec_lines(host_copy["WmrSensor"], "sensorB", SENSOR_B)]
+    locks = set(Path("/dev/shm").glob("sem.wmr-pyloader-*"))
+    p = run_host(c_host, blocks, tmp_path, n=300)
+    assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
+    assert set(Path("/dev/shm").glob("sem.wmr-pyloader-*")) <= locks  # the loaders' lock is not left behind
+    got = host_outputs(p.stdout)
+    assert got["sensorA"] == fmpy_outputs(host_copy["WmrSensor"], INPUTS["WmrSensor"], 300)
+    assert got["sensorB"] == fmpy_outputs(host_copy["WmrSensor"], SENSOR_B, 300)
+    assert got["sensorA"][-1] != got["sensorB"][-1]
+    assert got["plant"] == fmpy_outputs(host_copy["WmrPlant"], INPUTS["WmrPlant"], 300)
+    assert got["cplant"] == fmpy_outputs(host_copy["WmrCPlant"], INPUTS["WmrCPlant"], 300)
+
+
+def test_our_fmus_instantiated_at_once_on_several_threads_start_one_interpreter(c_host, host_copy, tmp_path):
+    """The first fmi2Instantiate of three FMUs (three copies of the loader) at the same moment on three
+    threads: one of them starts the interpreter, the others wait for it and use it."""
+    blocks = [spec_lines(host_copy[m], m, INPUTS[m]) for m in ("WmrPlant", "WmrSensor", "WmrController")]
+    for _ in range(3):
+        p = run_host(c_host, blocks, tmp_path, n=20, parallel=True)
+        assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
+        got = host_outputs(p.stdout)
+        for m in ("WmrPlant", "WmrSensor", "WmrController"):
+            assert got[m] == fmpy_outputs(host_copy[m], INPUTS[m], 20), m
+
+
+def _python_without_numpy() -> str | None:
+    """A shared libpython of our version whose Python has no numpy (the system's, on Debian/Ubuntu)."""
+    ver = f"{sys.version_info.major}.{sys.version_info.minor}"
+    exe = shutil.which(f"python{ver}", path="/usr/bin")
+    if exe is None:
+        return None
+    probe = subprocess.run([exe, "-c", "import sysconfig, os, importlib.util as u; "
+                            "print(os.path.join(sysconfig.get_config_var('LIBDIR'), "
+                            "sysconfig.get_config_var('INSTSONAME') or ''), u.find_spec('numpy') is None)"],
+                           capture_output=True, text=True, env={})
+    if probe.returncode != 0:
+        return None
+    lib, no_numpy = probe.stdout.split()
+    return lib if no_numpy == "True" and os.path.isfile(lib) else None
+
+
+def test_the_fmus_run_on_a_python_without_numpy(c_host, host_copy, tmp_path):
+    """The C host pointed (through the override variable) at the system's libpython, which has no numpy:
+    the three FMUs in one process give FMPy's outputs."""
+    lib = _python_without_numpy()
+    if lib is None:
+        pytest.skip(f"no /usr/bin/python{sys.version_info.major}.{sys.version_info.minor} with a shared "
+                    f"libpython and without numpy on this machine")
+    blocks = [spec_lines(host_copy[m], m, INPUTS[m]) for m in ("WmrPlant", "WmrSensor", "WmrController")]
+    p = run_host(c_host, blocks, tmp_path, env={LIBPYTHON_ENV: lib}, n=200)
+    assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
+    got = host_outputs(p.stdout)
+    for m in ("WmrPlant", "WmrSensor", "WmrController"):
+        assert got[m] == fmpy_outputs(host_copy[m], INPUTS[m], 200), m
+
+
+def test_the_fmu_code_needs_only_the_standard_library(unzipped, tmp_path):
+    """Each FMU's resources imported and stepped by this Python in isolated mode without site-packages
+    (-I -S: no numpy, no pythonfmu but the FMU's own copy)."""
+    for model in ("WmrPlant", "WmrSensor", "WmrController"):
+        res = unzipped[model] / "resources"
+        module = (res / "slavemodule.txt").read_text().strip()
+        code = (f"import sys; sys.path.insert(0, {str(res)!r})\n"
+                f"import {module} as s\n"
+                f"cls = s.{model}\n"
+                f"inst = cls(instance_name='x', resources={str(res)!r}, visible=False, logger=None)\n"
+                "inst.setup_experiment(0.0); inst.enter_initialization_mode(); inst.exit_initialization_mode()\n"
+                "assert all(inst.do_step(k * 0.002, 0.002) for k in range(20))\n"
+                "assert 'numpy' not in sys.modules\n"
+                "print('ok')")
+        p = subprocess.run([sys.executable, "-I", "-S", "-c", code], capture_output=True, text=True,
+                           timeout=120, cwd=tmp_path)
+        assert p.returncode == 0 and p.stdout.strip() == "ok", (model, p.stderr[-2000:])
+
+
+@pytest.mark.parametrize("what", ["missing", "not_python"])
+def test_no_interpreter_gives_null_and_one_log_line(what, c_host, host_copy, tmp_path):
+    if what == "missing":
+        lib = str(tmp_path / "nowhere" / "libpython3.99.so")
+        expect = f"cannot load {lib} (given by {LIBPYTHON_ENV})"
+    else:
+        import ctypes.util
+        libm = ctypes.util.find_library("m")
+        lib = next((str(Path(d) / (libm or "libm.so.6")) for d in ("/lib/x86_64-linux-gnu", "/usr/lib64", "/lib64")
+                    if (Path(d) / (libm or "libm.so.6")).is_file()), None)
+        if lib is None:
+            pytest.skip("libm.so.6 not found")
+        expect = f"{lib} (given by {LIBPYTHON_ENV}) is not a Python 3 library"
+    p = run_host(c_host, [spec_lines(host_copy["WmrSensor"], "s", INPUTS["WmrSensor"])], tmp_path,
+                 env={LIBPYTHON_ENV: lib}, n=1)
+    assert p.returncode == 3, p.stdout + p.stderr              # fmi2Instantiate returned NULL; no crash
+    logs = [ln for ln in p.stdout.splitlines() if ln.startswith("LOG ")]
+    assert len(logs) == 1, p.stdout
+    assert logs[0].startswith("LOG s 3 logStatusError WmrSensor: no Python interpreter for this FMU: ")
+    assert expect in logs[0] and LIBPYTHON_ENV in logs[0]
+    assert "INSTANTIATE_FAILED s" in p.stdout
+
+
+# ------------------------------------------------------------------------------------------ Python hosts
+_PY_HOST = r"""
+import json, re, sys
+from fmpy import simulate_fmu
+r = simulate_fmu(sys.argv[1], stop_time=0.2, output_interval=0.002,
+                 input=None, start_values={'phase1': 0.25})
+maps = open('/proc/self/maps').read()
+libs = sorted({m.group(0) for m in re.finditer(r'\S*/libpython3[^/\s]*\.so[^/\s]*', maps)})
+print(json.dumps({'last': [float(x) for x in r[-1]], 'libpython': libs}))
+"""
+
+
+def _py_host(python: str, fmu: Path, tmp: Path, extra_env: dict[str, str]) -> dict:
+    import json
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", LIBPYTHON_ENV)}
+    env.update(extra_env)
+    env[LIBPYTHON_ENV] = str(tmp / "nowhere" / "libpython3.99.so")  # must not be consulted in a Python host
+    p = subprocess.run([python, "-c", _PY_HOST, str(fmu)], capture_output=True, text=True, env=env,
+                       timeout=300, cwd=tmp)
+    assert p.returncode == 0, p.stderr[-3000:]
+    return json.loads(p.stdout.strip().splitlines()[-1])
+
+
+def test_fmpy_in_this_environment_uses_its_own_interpreter(all_fmus, tmp_path):
+    r = _py_host(sys.executable, all_fmus["WmrSensor"], tmp_path, {})
+    own = sysconfig.get_config_var("INSTSONAME") or ""
+    assert len(r["libpython"]) <= 1                   # never a second libpython
+    if r["libpython"]:
+        assert Path(r["libpython"][0]).name == own
+    assert r["last"][0] == pytest.approx(0.2)
+
+
+def test_a_statically_linked_python_host_loads_no_libpython(all_fmus, tmp_path):
+    """Debian's /usr/bin/python3 has the interpreter linked in: the FMU must use it and load no libpython.
+    FMPy comes from this environment's site-packages when the versions match (same ABI)."""
+    exe = "/usr/bin/python3"
+    if not os.path.isfile(exe):
+        pytest.skip("no /usr/bin/python3")
+    probe = subprocess.run([exe, "-c", "import sys; print(int('libpython' in open('/proc/self/maps').read()), "
+                            "'%d.%d' % sys.version_info[:2])"], capture_output=True, text=True, env={})
+    shared, ver = probe.stdout.split()
+    if shared != "0":
+        pytest.skip(f"{exe} uses a shared libpython (not statically linked)")
+    if ver != f"{sys.version_info.major}.{sys.version_info.minor}":
+        pytest.skip(f"{exe} is Python {ver}: it cannot import FMPy from this environment and has none of its own")
+    has_fmpy = subprocess.run([exe, "-c", "import fmpy"], capture_output=True, env={}).returncode == 0
+    site = sysconfig.get_paths()["purelib"]
+    extra = {} if has_fmpy else {"PYTHONPATH": os.pathsep.join(dict.fromkeys(
+        [site, sysconfig.get_paths(vars={"base": sys.base_prefix})["purelib"]]))}
+    r = _py_host(exe, all_fmus["WmrSensor"], tmp_path, extra)
+    assert r["libpython"] == []                        # the executable's interpreter, nothing loaded
+    ref = _py_host(sys.executable, all_fmus["WmrSensor"], tmp_path, {})
+    assert r["last"] == ref["last"]
