@@ -108,11 +108,15 @@ def plan(model: str) -> Plan:
 
 
 def default_out_dir() -> Path:
-    """<repository>/build/fmus in a source checkout (build/ is git-ignored), else ./build/fmus."""
+    """Where FMUs named by model name are built: ``<checkout>/build/fmus`` in a source checkout or an
+    editable install (build/ is git-ignored); installed from a wheel, the per-user cache
+    ``$XDG_CACHE_HOME/wmr-cosim/fmus`` (``~/.cache/wmr-cosim/fmus``), never inside the installed package.
+    One cache serves every working folder; an FMU there is rebuilt when its inputs' hash differs."""
     root = _HERE.parent
     if (root / "pyproject.toml").is_file() and (root / "components").is_dir():
         return root / "build" / "fmus"
-    return Path.cwd() / "build" / "fmus"
+    cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(cache) / "wmr-cosim" / "fmus"
 
 
 def rewrite_imports(source: str, package: str) -> str:
@@ -216,7 +220,11 @@ def build_all(out_dir: Path | None = None, force: bool = False, models: tuple[st
                 continue
             _check_archive(built, p)
             _hash_file(fmu).unlink(missing_ok=True)  # no stale hash beside a half-replaced FMU
-            os.replace(built, fmu) if _same_fs(built, fmu) else shutil.move(str(built), str(fmu))
+            if not _same_fs(built, fmu):  # copy next to the target first, so the replace is atomic
+                part = fmu.with_name(f".{fmu.name}.part")
+                shutil.move(str(built), str(part))
+                built = part
+            os.replace(built, fmu)
             _hash_file(fmu).write_text(p.digest + "\n", encoding="utf-8")
         if errors:
             raise BuildError("\n".join(errors))

@@ -27,6 +27,8 @@ from wmr_cosim.cosim import execution, scenario, system
 from wmr_cosim.cosim.ssp import export_ssp
 from wmr_cosim.interop import SIGNALS, run_peer
 
+pytestmark = pytest.mark.slow  # six third-party masters, 50 s of G1 each
+
 PEERS = ("ours", "libcosim", "libcosim_api", "ecos", "ecos_cli", "fmpy_ssp")
 GOAL = (2.0, 5.0)
 

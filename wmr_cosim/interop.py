@@ -84,7 +84,8 @@ def ecos_cli_env() -> tuple[list[str], dict[str, str]]:
     (the FMUs' loader takes the Python symbols from the host process), this environment's bin first on
     PATH (the embedded interpreter finds its prefix, hence its site-packages with numpy, from there),
     libtbb on LD_LIBRARY_PATH.  The wheel installs the program without its execute bit: a copy is made
-    executable in a temporary folder (the caller removes ``env['_ECOS_TMP']``)."""
+    executable in a temporary folder, which is also the program's TMPDIR (the caller removes
+    ``env['_ECOS_TMP']``)."""
     import importlib.util
     spec = importlib.util.find_spec("ecospy")  # located, not imported (that would load its library)
     if spec is None or not spec.submodule_search_locations:
@@ -107,6 +108,7 @@ def ecos_cli_env() -> tuple[list[str], dict[str, str]]:
     if tbb is not None:
         env["LD_LIBRARY_PATH"] = str(tbb.parent) + os.pathsep + env.get("LD_LIBRARY_PATH", "")
     env["_ECOS_TMP"] = str(tmp)
+    env["TMPDIR"] = str(tmp)  # the program's extraction folders (ecos_ssp_*, ecos_<model>_*) go there too
     return [str(exe)], env
 
 
@@ -337,9 +339,18 @@ def run_here(peer: str, ssp: Path, stop: float, step: float, signals=SIGNALS) ->
     if peer not in _RUNNERS:
         raise PeerError(f"unknown peer {peer!r}: one of {', '.join(PEERS)}")
     tmp = Path(tempfile.mkdtemp(prefix=f"wmr-peer-{peer}-"))
+    # every temporary file of the peer goes into tmp, removed afterwards: ecos leaves its ecos_ssp_* and
+    # ecos_<model>_* extraction folders in the temporary folder (TMPDIR) otherwise
+    saved = os.environ.get("TMPDIR"), tempfile.tempdir
+    os.environ["TMPDIR"] = tempfile.tempdir = str(tmp)
     try:
         return _RUNNERS[peer](Path(ssp).resolve(), float(stop), float(step), tuple(signals), tmp)
     finally:
+        if saved[0] is None:
+            os.environ.pop("TMPDIR", None)
+        else:
+            os.environ["TMPDIR"] = saved[0]
+        tempfile.tempdir = saved[1]
         shutil.rmtree(tmp, ignore_errors=True)
 
 
