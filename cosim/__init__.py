@@ -1,1 +1,1 @@
-"""The co-simulation master on FMPy: generic, knows nothing about robots (issue 4)."""
+"""The co-simulation master on FMPy: generic, knows nothing about robots."""

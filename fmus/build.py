@@ -5,7 +5,9 @@ fmus/fmi_base.py under a package name unique to the FMU and to the source versio
 ``wmrfmu_<component>_<hash8>``, and its slave script as ``wmr_<component>_slave_<hash8>.py`` with the
 two ``wmr_cosim`` imports rewritten to that package.  So the code inside an FMU never collides with the
 installed ``wmr_cosim``, with another of the three FMUs, or with another build of the same FMU loaded in
-the same process (traps 4 and 5 of shared/notes/fmi-stack-facts.md).
+the same process: a slave script's file name becomes a module name in the host process, so two FMUs whose
+scripts or helper packages share a name collide (the second fails to instantiate or silently runs the
+first one's code), and a rebuilt FMU loaded again in the same process would run the old, cached code.
 
 ``hash8`` is the start of a SHA-256 over everything that goes into the FMU: the slave script,
 fmi_base.py, every file of components/ (.py and .json), this build script and the pythonfmu version.
@@ -34,7 +36,8 @@ SLAVES: dict[str, tuple[str, str]] = {
     "WmrSensor": ("slave_sensor.py", "sensor"),
     "WmrController": ("slave_controller.py", "controller"),
 }
-#: Build options: state save/restore and serialisation declared (trap 7); never --interpolate-inputs (trap 8).
+#: Build options: state save/restore and serialisation declared (pythonfmu declares them only with these
+#: flags); never --interpolate-inputs (it declares a capability pythonfmu does not implement).
 BUILD_OPTIONS = ("--handle-state", "--serialize-state")
 _IMPORT_RE = re.compile(r"^\s*(from|import)\s+wmr_cosim\b", re.MULTILINE)
 

@@ -52,9 +52,11 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     if left:
         shown = ", ".join(left[:10]) + (f" and {len(left) - 10} more" if len(left) > 10 else "")
         reporter = session.config.pluginmanager.get_plugin("terminalreporter")
-        message = f"the tests left {len(left)} entries in the temporary folder: {shown}"
+        message = f"the tests left {len(left)} {'entry' if len(left) == 1 else 'entries'} in the temporary folder: {shown}"
         if reporter is not None:
-            reporter.write_line(f"FAILED (temporary folder): {message}", red=True, bold=True)
+            reporter.line("")  # end the progress line
+            reporter.write_sep("=", "temporary folder", red=True)
+            reporter.write_line(f"FAILED: {message}", red=True, bold=True)
         else:
             print(message)
         if session.exitstatus == pytest.ExitCode.OK:
