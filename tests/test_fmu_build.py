@@ -208,12 +208,12 @@ def test_rebuilt_fmu_runs_new_code(tmp_path):
 
 
 def test_interface_document_is_generated_from_the_model_descriptions(built_fmus):
-    """The README's interface section is what doc_tables generates from the FMUs (regenerate it after a
-    change: python -m wmr_cosim.fmus.doc_tables --readme README.md)."""
-    from wmr_cosim.fmus.doc_tables import document, readme_section
+    """docs/fmu-interfaces.md is what doc_tables generates from the FMUs (regenerate it after a change:
+    python -m wmr_cosim.fmus.doc_tables --out docs/fmu-interfaces.md)."""
+    from wmr_cosim.fmus.doc_tables import document
 
     text = document(built_fmus)
-    assert readme_section(text) in (ROOT / "README.md").read_text(encoding="utf-8")
+    assert (ROOT / "docs" / "fmu-interfaces.md").read_text(encoding="utf-8") == text
     for model in MODELS:
         md = read_model_description(str(built_fmus[model]))
         for v in md.modelVariables:
