@@ -149,7 +149,8 @@ def _free_port() -> int:
 def test_sweep_on_an_existing_scheduler_with_two_workers(tmp_path):
     port = _free_port()
     addr = f"tcp://127.0.0.1:{port}"
-    env = {**os.environ, "DASK_DISTRIBUTED__WORKER__DAEMON": "True"}
+    env = {**os.environ, "DASK_DISTRIBUTED__WORKER__DAEMON": "True",
+           "DASK_TEMPORARY_DIRECTORY": str(tmp_path / "dask")}  # the scheduler's scratch folder
     procs = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
                                "--port", str(port), "--no-dashboard"], stdout=subprocess.DEVNULL,
                               stderr=subprocess.DEVNULL, env=env)]

@@ -251,21 +251,35 @@ class Cluster:
 
         t0 = time.perf_counter()
         self.cluster = None
+        self.scratch: Path | None = None
         if address:
             try:
                 self.client = Client(address, timeout="10s")
             except Exception as exc:
                 raise CosimError(f"--scheduler {address}: cannot connect ({' '.join(str(exc).split())})") from None
         else:
-            self.cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
-                                        processes=True, dashboard_address=":0", silence_logs=logging.ERROR)
-            self.client = Client(self.cluster)
+            # the workers' scratch folder is this cluster's own, removed on close (Dask leaves its default,
+            # dask-scratch-space in the temporary folder, behind)
+            self.scratch = Path(tempfile.mkdtemp(prefix="wmr-dask-"))
+            try:
+                self.cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
+                                            processes=True, dashboard_address=":0", silence_logs=logging.ERROR,
+                                            local_directory=str(self.scratch),
+                                            scheduler_kwargs={"local_directory": str(self.scratch)})
+                self.client = Client(self.cluster)
+            except BaseException:
+                if self.cluster is not None:
+                    self.cluster.close()
+                shutil.rmtree(self.scratch, ignore_errors=True)
+                raise
         self.startup_s = time.perf_counter() - t0
 
     def close(self) -> None:
         self.client.close()
         if self.cluster is not None:
             self.cluster.close()
+        if self.scratch is not None:
+            shutil.rmtree(self.scratch, ignore_errors=True)
 
     def __enter__(self) -> "Cluster":
         return self
