@@ -114,7 +114,7 @@ def test_ecos_reproduces_ours_to_its_csv_precision(peer, peer_runs, jacobi_refer
 
 
 def test_the_ecos_command_line_needs_libpython_preloaded(jacobi_reference, tmp_path):
-    """What a non-Python host must do (README): without LD_PRELOAD of libpython it cannot load our FMUs."""
+    """What a non-Python host must do (docs/interop.md): without LD_PRELOAD of libpython it cannot load our FMUs."""
     import subprocess
 
     from wmr_cosim.interop import ecos_cli_env, libpython

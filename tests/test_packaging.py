@@ -161,20 +161,22 @@ def test_wheel_in_a_fresh_environment_runs_the_commands_from_any_folder(venv, tm
     version = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
     assert cli("--version").stdout.strip() == f"wmr-cosim {version}"
 
-    # build: into the per-user cache, not into the package nor the working folder
-    out = cli("build").stdout
+    # a shipped scenario by name: its own copy; its FMUs, named by model name, built on demand into the
+    # per-user cache (not into the package nor the working folder); results under --out
     fmus = tmp_path / "cache" / "wmr-cosim" / "fmus"
-    for model in ("WmrPlant", "WmrSensor", "WmrController"):
-        assert f"{model}: {fmus / (model + '.fmu')} (built)" in out
-    assert "(up to date)" in cli("build").stdout
-
-    # a shipped scenario by name: its own copy; results under --out
-    cli("check", "scenarios/g1_learn.toml")
+    assert not fmus.exists()
     cli("run", "example.toml", "--out", "example", "--quiet")
     sig = np.load(work / "example" / "signals.npy")
     summary = json.loads((work / "example" / "summary.json").read_text())
     assert summary["status"] == "ok" and sig["time"][-1] == pytest.approx(20.0)
     assert np.isfinite(sig["plant.x_A"]).all()
+    assert sorted(f.name for f in fmus.glob("*.fmu")) == ["WmrController.fmu", "WmrPlant.fmu", "WmrSensor.fmu"]
+    cli("check", "scenarios/g1_learn.toml")
+
+    # build: the same cache, already current
+    out = cli("build").stdout
+    for model in ("WmrPlant", "WmrSensor", "WmrController"):
+        assert f"{model}: {fmus / (model + '.fmu')} (up to date)" in out
 
     # the paper job with its shipped protocol (one variant)
     cli("paper", "--out", "paper", "--no-compare", "--quiet")
