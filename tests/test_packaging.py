@@ -186,3 +186,19 @@ def test_wheel_in_a_fresh_environment_runs_the_commands_from_any_folder(venv, tm
 
     assert sorted(p.name for p in work.iterdir()) == ["example", "paper"]  # nothing else in the folder
     assert _installed_files(venv) == before  # nothing written inside the installed package
+
+
+def test_a_scenario_name_that_is_not_a_file_here_is_the_shipped_one(tmp_path, monkeypatch):
+    from wmr_cosim import paper_job
+    from wmr_cosim.scenario_files import folder, scenario_path
+
+    shipped = folder()
+    assert (shipped / "paper.toml").is_file() and (shipped / paper_job.DEFAULT_MANIFEST).is_file()
+    monkeypatch.chdir(tmp_path)
+    assert scenario_path("example.toml") == shipped / "example.toml"
+    assert scenario_path("paper/g1.toml") == shipped / "paper" / "g1.toml"
+    assert scenario_path("scenarios/g1_learn.toml") == shipped / "g1_learn.toml"
+    for name in ("missing.toml", "../example.toml", "paper", str(tmp_path / "example.toml")):
+        assert scenario_path(name) == Path(name), name  # the command then reports it missing
+    (tmp_path / "example.toml").write_text("# mine\n")
+    assert scenario_path("example.toml") == Path("example.toml")  # a file here comes first
