@@ -1,1 +1,1 @@
-"""The three components as FMI 2.0 co-simulation FMUs built with pythonfmu (issue 3)."""
+"""The three components as FMI 2.0 co-simulation FMUs built with pythonfmu."""

@@ -5,7 +5,9 @@ fmus/fmi_base.py under a package name unique to the FMU and to the source versio
 ``wmrfmu_<component>_<hash8>``, and its slave script as ``wmr_<component>_slave_<hash8>.py`` with the
 two ``wmr_cosim`` imports rewritten to that package.  So the code inside an FMU never collides with the
 installed ``wmr_cosim``, with another of the three FMUs, or with another build of the same FMU loaded in
-the same process (traps 4 and 5 of shared/notes/fmi-stack-facts.md).
+the same process: a slave script's file name becomes a module name in the host process, so two FMUs whose
+scripts or helper packages share a name collide (the second fails to instantiate or silently runs the
+first one's code), and a rebuilt FMU loaded again in the same process would run the old, cached code.
 
 ``hash8`` is the start of a SHA-256 over everything that goes into the FMU: the slave script,
 fmi_base.py, every file of components/ (.py and .json), this build script and the pythonfmu version.
@@ -42,7 +44,8 @@ SLAVES: dict[str, tuple[str, str]] = {
     "WmrSensor": ("slave_sensor.py", "sensor"),
     "WmrController": ("slave_controller.py", "controller"),
 }
-#: Build options: state save/restore and serialisation declared (trap 7); never --interpolate-inputs (trap 8).
+#: Build options: state save/restore and serialisation declared (pythonfmu declares them only with these
+#: flags); never --interpolate-inputs (it declares a capability pythonfmu does not implement).
 BUILD_OPTIONS = ("--handle-state", "--serialize-state")
 _IMPORT_RE = re.compile(r"^\s*(from|import)\s+wmr_cosim\b", re.MULTILINE)
 #: The loader's C source and the name pythonfmu's own binary gets beside it.
@@ -238,11 +241,15 @@ def plan(model: str) -> Plan:
 
 
 def default_out_dir() -> Path:
-    """<repository>/build/fmus in a source checkout (build/ is git-ignored), else ./build/fmus."""
+    """Where FMUs named by model name are built: ``<checkout>/build/fmus`` in a source checkout or an
+    editable install (build/ is git-ignored); installed from a wheel, the per-user cache
+    ``$XDG_CACHE_HOME/wmr-cosim/fmus`` (``~/.cache/wmr-cosim/fmus``), never inside the installed package.
+    One cache serves every working folder; an FMU there is rebuilt when its inputs' hash differs."""
     root = _HERE.parent
     if (root / "pyproject.toml").is_file() and (root / "components").is_dir():
         return root / "build" / "fmus"
-    return Path.cwd() / "build" / "fmus"
+    cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(cache) / "wmr-cosim" / "fmus"
 
 
 def rewrite_imports(source: str, package: str) -> str:
@@ -350,7 +357,11 @@ def build_all(out_dir: Path | None = None, force: bool = False, models: tuple[st
             install_loader(built, p.model, loader, py)
             _check_archive(built, p)
             _hash_file(fmu).unlink(missing_ok=True)  # no stale hash beside a half-replaced FMU
-            os.replace(built, fmu) if _same_fs(built, fmu) else shutil.move(str(built), str(fmu))
+            if not _same_fs(built, fmu):  # copy next to the target first, so the replace is atomic
+                part = fmu.with_name(f".{fmu.name}.part")
+                shutil.move(str(built), str(part))
+                built = part
+            os.replace(built, fmu)
             _hash_file(fmu).write_text(p.digest + "\n", encoding="utf-8")
         if errors:
             raise BuildError("\n".join(errors))

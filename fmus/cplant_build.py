@@ -96,7 +96,7 @@ def default_out_dir() -> Path:
 def build_c_plant(out_dir: str | os.PathLike | None = None, force: bool = False) -> Path:
     """Build (if needed) ``<out_dir>/WmrCPlant.fmu`` from fmus/c_plant/; returns its path.
 
-    Default ``out_dir``: build/fmus of the source tree (git-ignored), like the Python FMUs."""
+    Default ``out_dir``: the Python FMUs' (:func:`wmr_cosim.fmus.build.default_out_dir`)."""
     out = Path(out_dir) if out_dir is not None else default_out_dir()
     out.mkdir(parents=True, exist_ok=True)
     fmu = out / f"{MODEL}.fmu"

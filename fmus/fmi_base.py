@@ -4,20 +4,25 @@ truthful ModelStructure, fast value-reference paths, complete state save/restore
 This module is bundled inside every FMU next to a copy of the components (see fmus/build.py), so it
 imports nothing of the project: only pythonfmu and the standard library.
 
-Design (each point answers a trap of the FMI notes, shared/notes/fmi-stack-facts.md):
+Design (each point answers a measured behaviour of pythonfmu 0.7 under FMPy):
 
 * Every value of the FMU lives in one list ``self._vals`` indexed by value reference; the overridden
   ``get_real``/``set_real``/... read and write it directly (no per-variable lambdas in the hot path).
-* Parameters are read in ``exit_initialization_mode``, where the component is built (trap 9); before
-  that, outputs hold the initial state of the default parameters and, inside initialization mode,
-  are recomputed from the current parameters and inputs whenever they are read (trap 10).
+* Parameters are read in ``exit_initialization_mode``, where the component is built: a master sets
+  parameter start values after ``__init__`` has run (the builder also runs ``__init__`` once, at build
+  time, to read start values).  Before that, outputs hold the initial state of the default parameters
+  (an output's value before the first step is whatever ``__init__`` set) and, inside initialization
+  mode, are recomputed from the current parameters and inputs whenever they are read.
 * Outputs are listed in ModelStructure/Outputs with their true direct-feedthrough ``dependencies``
-  and in InitialUnknowns (trap 2); Real variables carry unit, min and max, declared in UnitDefinitions
-  (trap 3).
+  and in InitialUnknowns: pythonfmu writes neither, so FMPy's validator rejects its FMUs and other tools
+  assume every output depends on every input (an algebraic loop for OMSimulator).  Real variables
+  carry unit, min and max, declared in UnitDefinitions (pythonfmu's ``Real`` takes none of them).
 * ``do_step`` never raises: a failure is logged with its cause and returned as fmi2Discard; later steps
-  are refused the same way (trap 6).  Initialisation can fail only as fmi2Fatal: the one-line cause is
-  logged first.
-* The FMU state holds every variable value and the component's own ``get_state()`` (trap 7).
+  are refused the same way.  (pythonfmu turns any exception into fmi2Fatal, after which freeing the
+  instance corrupts its heap and crashes the host.)  Initialisation can fail only as fmi2Fatal: the
+  one-line cause is logged first.
+* The FMU state holds every variable value and the component's own ``get_state()`` (pythonfmu's
+  default state saves only the registered variables, silently dropping integrator, filter and RLS states).
 * The communication step is whatever the master gives; a step or time within 1e-9 (relative) of the
   previous step or of a whole multiple of it is snapped to it, so that the rounding of other masters
   neither recomputes discretisations nor perturbs the results.
@@ -123,7 +128,7 @@ class Var:
 
 
 class RealU(Real):
-    """pythonfmu's Real with the attributes it lacks: unit, min, max (trap 3); start written exactly."""
+    """pythonfmu's Real with the attributes it lacks: unit, min, max; start written exactly."""
 
     def __init__(self, name: str, unit: str | None = None, min: float | None = None,
                  max: float | None = None, **kwargs: Any) -> None:
@@ -496,7 +501,7 @@ class WmrSlave(Fmi2Slave):
     def terminate(self) -> None:
         pass
 
-    # ------------------------------------------------------------------ FMU state (trap 7)
+    # ------------------------------------------------------------------ FMU state (every internal state too)
     def _get_fmu_state(self) -> dict[str, Any]:
         return {"vals": list(self._vals), "comp": None if self._comp is None else self._comp.get_state(),
                 "mode": self._mode, "failed": self._failed, "dirty": self._dirty, "stale": self._stale,

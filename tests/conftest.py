@@ -1,7 +1,9 @@
-"""Shared fixtures."""
+"""Shared fixtures; the session's own temporary folder, which must be empty at the end (tempdir_guard)."""
 from __future__ import annotations
 
 import pytest
+
+from tempdir_guard import pytest_configure, pytest_sessionfinish  # noqa: F401 (hooks of this session)
 
 
 @pytest.fixture(scope="session")

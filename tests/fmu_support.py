@@ -11,6 +11,7 @@ import math
 import shutil
 import sys
 import tempfile
+import weakref
 from ctypes import byref
 from pathlib import Path
 from typing import Any
@@ -38,6 +39,8 @@ class Fmu:
         self.md = read_model_description(str(path))
         self._own_dir = unzip_dir is None
         self.dir = extract(str(path), unzipdir=None if unzip_dir is None else str(unzip_dir))
+        if self._own_dir:  # removed when the instance goes, also one leaked after fmi2Fatal (at exit)
+            weakref.finalize(self, shutil.rmtree, self.dir, True)
         self.vars = {v.name: v for v in self.md.modelVariables}
         self.log: list[tuple[int, str, str]] = []
 
@@ -117,8 +120,6 @@ class Fmu:
             self.fmu.terminate()
             self.fmu.freeInstance()
             self.freed = True
-            if self._own_dir:
-                shutil.rmtree(self.dir, ignore_errors=True)
 
 
 def closed_loop(fmu_dir: Path, n: int, h: float = H) -> dict[str, list[float]]:

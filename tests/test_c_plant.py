@@ -48,6 +48,7 @@ def test_it_is_a_c_fmu_that_passes_fmpy_validation(c_plant):
     assert not {"alpha1", "u1", "x_A"} & set(units)            # other names than the Python plant's
 
 
+@pytest.mark.slow
 def test_rebuilt_only_when_its_sources_change(c_plant, tmp_path, monkeypatch):
     src = tmp_path / "c_plant"
     shutil.copytree(cplant_build.SRC, src)
@@ -64,13 +65,14 @@ def test_rebuilt_only_when_its_sources_change(c_plant, tmp_path, monkeypatch):
         cplant_build.build_c_plant(out)
 
 
-def _slave(c_plant, reals=None, ints=None, bools=None):
+def _slave(c_plant, unzip_dir, reals=None, ints=None, bools=None):
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
     md = read_model_description(str(c_plant))
     vr = {v.name: v.valueReference for v in md.modelVariables}
-    s = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(c_plant)), modelIdentifier="WmrCPlant", instanceName="p")
+    s = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(c_plant), unzipdir=str(unzip_dir)),
+                  modelIdentifier="WmrCPlant", instanceName="p")
     s.instantiate()
     s.setupExperiment(startTime=0.0)
     for values, setter in ((reals, s.setReal), (ints, s.setInteger), (bools, s.setBoolean)):
@@ -97,9 +99,9 @@ CASES = {
 
 
 @pytest.mark.parametrize("case", list(CASES))
-def test_bit_identical_to_the_python_plant_step_for_step(c_plant, case):
+def test_bit_identical_to_the_python_plant_step_for_step(c_plant, case, tmp_path):
     pp, reals, ints, bools = CASES[case]
-    s, vr = _slave(c_plant, reals, ints, bools)
+    s, vr = _slave(c_plant, tmp_path, reals, ints, bools)
     plant = Plant(PlantParams(**pp))
     outs = [vr[n] for n in ("phi_right", "phi_left", "omega_right", "omega_left", "pos_x", "pos_y", "heading",
                             "dist_total_right", "dist_total_left", "foam_lambda")]
@@ -124,13 +126,14 @@ def test_bit_identical_to_the_python_plant_step_for_step(c_plant, case):
         s.freeInstance()
 
 
-def test_bad_parameter_is_an_error_with_a_message(c_plant):
+def test_bad_parameter_is_an_error_with_a_message(c_plant, tmp_path):
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
     md = read_model_description(str(c_plant))
     vr = {v.name: v.valueReference for v in md.modelVariables}
-    s = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(c_plant)), modelIdentifier="WmrCPlant", instanceName="p")
+    s = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(c_plant), unzipdir=str(tmp_path)),
+                  modelIdentifier="WmrCPlant", instanceName="p")
     s.instantiate(loggingOn=True)
     s.setReal([vr["inertia_a1"], vr["inertia_a2"], vr["inertia_a3"]], [1.0, 0.0, -0.5])
     s.enterInitializationMode()
@@ -148,6 +151,7 @@ def python_plant_run(resolver, tmp_path_factory):
     return np.load(out / "signals.npy")
 
 
+@pytest.mark.slow
 def test_swapped_into_g1_with_a_name_map_it_gives_the_same_metrics(resolver, tmp_path, python_plant_run):
     plan = system.resolve(scenario.load(G1_C, resolver))
     conv = {c.spec.src: (c.factor, c.offset) for c in plan.connections}
@@ -199,8 +203,8 @@ def test_fmpy_default_logging_still_works_after_our_master_ran(c_plant, built_fm
         del res
         gc.collect()
         md = read_model_description({str(c_plant)!r})
-        s = FMU2Slave(guid=md.guid, unzipDirectory=extract({str(c_plant)!r}), modelIdentifier="WmrCPlant",
-                      instanceName="p")
+        s = FMU2Slave(guid=md.guid, unzipDirectory=extract({str(c_plant)!r}, unzipdir={str(tmp_path / "unz")!r}),
+                      modelIdentifier="WmrCPlant", instanceName="p")
         s.instantiate()
         s.setReal([0, 1, 2], [1.0, 0.0, -0.5])
         s.enterInitializationMode()

@@ -1,5 +1,5 @@
-"""Issue 3: the FMUs' model descriptions (validation, units, ranges, causality, structure) and their build
-(unique bundle names, idempotence, the stale-module trap)."""
+"""The FMUs' model descriptions (validation, units, ranges, causality, structure) and their build
+(unique bundle names, idempotence, a rebuilt FMU runs its new code)."""
 from __future__ import annotations
 
 import shutil
@@ -36,7 +36,7 @@ def test_variables_units_ranges_causality(built_fmus, model):
     assert md.modelName == model
     assert md.coSimulation.modelIdentifier == model
     assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
-    assert not md.coSimulation.canInterpolateInputs  # trap 8
+    assert not md.coSimulation.canInterpolateInputs  # pythonfmu does not implement it
     assert md.coSimulation.canHandleVariableCommunicationStepSize
     assert not md.coSimulation.canBeInstantiatedOnlyOncePerProcess
     de = md.defaultExperiment
@@ -167,8 +167,9 @@ for i, path in enumerate(sys.argv[1:]):
 
 
 def test_rebuilt_fmu_runs_new_code(tmp_path):
-    """Stale-module trap (5): after a source change the rebuilt FMU has new module names, so the next
-    process, even one that loaded the old build first, runs the new code."""
+    """A rebuilt FMU loaded in a process that loaded the old build would run the old code (module cache):
+    after a source change the rebuilt FMU has new module names, so the next process, even one that
+    loaded the old build first, runs the new code."""
     src = tmp_path / "src"
     shutil.copytree(ROOT / "components", src / "components", ignore=shutil.ignore_patterns("__pycache__"))
     shutil.copytree(ROOT / "fmus", src / "fmus", ignore=shutil.ignore_patterns("__pycache__"))
@@ -207,12 +208,12 @@ def test_rebuilt_fmu_runs_new_code(tmp_path):
 
 
 def test_interface_document_is_generated_from_the_model_descriptions(built_fmus):
-    """The README's interface section is what doc_tables generates from the FMUs (regenerate it after a
-    change: python -m wmr_cosim.fmus.doc_tables --readme README.md)."""
-    from wmr_cosim.fmus.doc_tables import document, readme_section
+    """docs/fmu-interfaces.md is what doc_tables generates from the FMUs (regenerate it after a change:
+    python -m wmr_cosim.fmus.doc_tables --out docs/fmu-interfaces.md)."""
+    from wmr_cosim.fmus.doc_tables import document
 
     text = document(built_fmus)
-    assert readme_section(text) in (ROOT / "README.md").read_text(encoding="utf-8")
+    assert (ROOT / "docs" / "fmu-interfaces.md").read_text(encoding="utf-8") == text
     for model in MODELS:
         md = read_model_description(str(built_fmus[model]))
         for v in md.modelVariables:

@@ -1,4 +1,4 @@
-"""Issue 3, trap 6: a failing step is logged with its cause and reported as fmi2Discard, after which the
+"""A failing step is logged with its cause and reported as fmi2Discard, after which the
 host can terminate and free the instance without crashing; a parameter out of range makes initialisation
 fail (fmi2Fatal, the only status pythonfmu has there) with a clear message in the FMU log, and its
 declared min/max would have let a master refuse it first.  Each runs in a child process, so that a
@@ -79,7 +79,7 @@ for path, name, value in json.loads(sys.argv[1]):
     except FMICallException as e:
         status = e.status
     res.append([status, f.log])
-    # after fmi2Fatal no further call on this instance (trap 6): it is leaked on purpose
+    # after fmi2Fatal no further call on this instance (FMI 2.0; freeing it crashes pythonfmu): leaked on purpose
 print(json.dumps(res))
 """
 

@@ -1,4 +1,4 @@
-"""Issue 3: each FMU driven under FMPy gives bit-identical outputs to its component; the closed loop of
+"""Each FMU driven under FMPy gives bit-identical outputs to its component; the closed loop of
 the three FMUs reproduces the direct loop; state save/restore and serialisation; independent instances;
 an FMU copied to a path with a space and run in a fresh process."""
 from __future__ import annotations
@@ -100,7 +100,7 @@ def test_fmu_alone_is_bit_identical_to_its_component(built_fmus, model, h):
     f = Fmu(built_fmus[model], "alone")
     try:
         ref0 = Reference(model, {}, at_rest=True)  # default parameters, inputs at their start values
-        assert same(f.outputs(), ref0.out)  # before initialisation: the default initial state (trap 10)
+        assert same(f.outputs(), ref0.out)  # before initialisation: the default initial state
         start(f, model)
         ref = Reference(model, PARAMS[model])
         assert same(f.outputs(), ref.out)

@@ -1,4 +1,4 @@
-"""Issue 3: the slave classes as plain Python objects (no FMI binary): declared dependencies checked
+"""The slave classes as plain Python objects (no FMI binary): declared dependencies checked
 against the components, initialization-mode outputs, tunable and fixed parameters, refused calls, and
 the tolerance to other masters' time and step rounding."""
 from __future__ import annotations

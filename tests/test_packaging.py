@@ -1,13 +1,45 @@
-"""The project installs as one distribution whose import names are all under wmr_cosim, and a
-non-editable install works (package data included) from any working directory."""
+"""The project installs as one distribution whose import names are all under wmr_cosim; a wheel installed
+into a fresh virtual environment runs the paper job, a shipped scenario and the FMU build from any folder,
+reading its own scenario files and writing only under the working folder, --out or the user's cache."""
+from __future__ import annotations
+
+import ast
+import json
 import os
+import re
+import shutil
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+#: what a wheel is built from: the build configuration, the README (the long description) and the
+#: folders mapped onto packages (pyproject.toml, [tool.setuptools] package-dir)
+WHEEL_SOURCES = ("pyproject.toml", "README.md", "wmr_cosim", "components", "fmus", "cosim", "scenarios")
+
+
+def _source_copy(dest: Path) -> Path:
+    """A clean copy of what the wheel is built from (no build/ or *.egg-info of earlier builds, whose
+    stale files setuptools would package, and nothing written into the checkout)."""
+    dest.mkdir(parents=True)
+    for name in WHEEL_SOURCES:
+        src = ROOT / name
+        if src.is_dir():
+            shutil.copytree(src, dest / name, ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.fmu"))
+        else:
+            shutil.copy2(src, dest / name)
+    return dest
+
+
+def _pip(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    p = subprocess.run([sys.executable, "-m", "pip", *args], capture_output=True, text=True, cwd=cwd)
+    if p.returncode != 0:
+        pytest.fail(f"pip {' '.join(args[:2])} failed (exit {p.returncode}): {p.stderr.strip()[-2000:]}")
+    return p
 
 
 def test_components_import_no_fmi():
@@ -21,15 +53,152 @@ def test_components_import_no_fmi():
 
 def test_non_editable_install_works(tmp_path):
     target = tmp_path / "site packages"
-    p = subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",
-                        "--target", str(target), str(ROOT)], capture_output=True, text=True)
-    if p.returncode != 0:
-        pytest.fail(f"pip install --target failed: {p.stderr[-2000:]}")
+    _pip("install", "--quiet", "--no-deps", "--no-build-isolation", "--target", str(target),
+         str(_source_copy(tmp_path / "src")))
     code = ("import wmr_cosim.components.plant as m, wmr_cosim.components.paper as p, wmr_cosim.cli;"
-            "print(m.__file__); print(p.table1()['gamma'])")
+            "import wmr_cosim.scenario_files as s;"
+            "print(m.__file__); print(p.table1()['gamma']); print(s.folder())")
     env = {**os.environ, "PYTHONPATH": str(target)}
     q = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, env=env)
     assert q.returncode == 0, q.stderr
     lines = q.stdout.split("\n")
     assert Path(lines[0]).is_relative_to(target), lines[0]
     assert lines[1] == "11.0"
+    shipped = Path(lines[2])
+    assert shipped.is_relative_to(target)
+    for f in (ROOT / "scenarios").rglob("*.toml"):  # every scenario file ships, byte for byte
+        assert (shipped / f.relative_to(ROOT / "scenarios")).read_bytes() == f.read_bytes(), f
+
+
+#: every third-party module the installed code imports -> the requirement that provides it, and where
+#: pyproject.toml declares it (dependencies, or the extra of the only commands that import it)
+IMPORTS = {
+    "fmpy": ("fmpy", None), "pythonfmu": ("pythonfmu", None), "numpy": ("numpy", None),
+    "matplotlib": ("matplotlib", None), "tqdm": ("tqdm", None), "pyssp_standard": ("pyssp-standard", None),
+    "lxml": ("lxml", None),
+    "pandas": ("pandas", "sweep"), "distributed": ("dask[distributed]", "sweep"),  # sweep, gamma-search
+    "libcosimpy": ("libcosimpy", "test"), "ecospy": ("ecospy", "test"),  # wmr_cosim.interop (other masters)
+}
+
+
+def _requirement_names(reqs: list[str]) -> set[str]:
+    return {re.split(r"[<>=!~; ]", r, maxsplit=1)[0].strip().lower() for r in reqs}
+
+
+def test_runtime_dependencies_are_what_the_code_imports():
+    """The installed code's third-party imports are exactly the declared ones; scipy (only the tests
+    use it) is a test dependency, not a run-time one."""
+    found: dict[str, set[str]] = {}
+    for d in ("wmr_cosim", "components", "fmus", "cosim"):
+        for f in (ROOT / d).rglob("*.py"):
+            for node in ast.walk(ast.parse(f.read_text(encoding="utf-8"))):
+                if isinstance(node, ast.Import):
+                    names = [a.name for a in node.names]
+                elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                    names = [node.module]
+                else:
+                    continue
+                for name in names:
+                    top = name.split(".")[0]
+                    if top not in sys.stdlib_module_names and top != "wmr_cosim":
+                        found.setdefault(top, set()).add(str(f.relative_to(ROOT)))
+    assert set(found) == set(IMPORTS), f"declare in pyproject.toml and in IMPORTS: {found}"
+    meta = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    runtime = _requirement_names(meta["dependencies"])
+    for module, (req, extra) in IMPORTS.items():
+        declared = runtime if extra is None else _requirement_names(meta["optional-dependencies"][extra])
+        assert req.lower() in declared, f"{module} (imported by {sorted(found[module])}): {req} not in {extra or 'dependencies'}"
+    assert "scipy" not in runtime and "scipy" in _requirement_names(meta["optional-dependencies"]["test"])
+
+
+@pytest.fixture(scope="module")
+def venv(tmp_path_factory):
+    """The wheel (built from a clean copy of the sources) installed with its declared dependencies into a
+    fresh virtual environment without the system's site-packages; removed afterwards (about 300 MB)."""
+    import pip
+
+    base = tmp_path_factory.mktemp("wheel")
+    src = _source_copy(base / "src")
+    _pip("wheel", "--quiet", "--no-deps", "--no-build-isolation", "--wheel-dir", str(base / "dist"), str(src))
+    wheels = list((base / "dist").glob("wmr_cosim-*.whl"))
+    assert len(wheels) == 1, wheels
+    env_dir = base / "venv"
+    if tuple(int(x) for x in pip.__version__.split(".")[:2]) >= (22, 3):  # this pip installs into it
+        subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(env_dir)], check=True)
+        _pip("--python", str(env_dir / "bin" / "python"), "install", "--quiet", str(wheels[0]))
+    else:
+        subprocess.run([sys.executable, "-m", "venv", str(env_dir)], check=True)
+        p = subprocess.run([str(env_dir / "bin" / "python"), "-m", "pip", "install", "--quiet", str(wheels[0])],
+                           capture_output=True, text=True)
+        assert p.returncode == 0, p.stderr[-2000:]
+    yield env_dir
+    shutil.rmtree(env_dir, ignore_errors=True)
+
+
+def _installed_files(env_dir: Path) -> set[Path]:
+    pkg = next((env_dir / "lib").glob("python3*/site-packages/wmr_cosim"))
+    return {p for p in pkg.rglob("*") if p.is_file() and "__pycache__" not in p.parts}
+
+
+@pytest.mark.slow
+def test_wheel_in_a_fresh_environment_runs_the_commands_from_any_folder(venv, tmp_path):
+    work = tmp_path / "work"
+    work.mkdir()
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    env.update(XDG_CACHE_HOME=str(tmp_path / "cache"), MPLCONFIGDIR=str(tmp_path / "mpl"))
+    exe = venv / "bin" / "wmr-cosim"
+    before = _installed_files(venv)
+
+    def cli(*args: str) -> subprocess.CompletedProcess:
+        p = subprocess.run([str(exe), *args], capture_output=True, text=True, cwd=work, env=env, timeout=900)
+        assert p.returncode == 0, f"wmr-cosim {' '.join(args)}: exit {p.returncode}\n{p.stdout}\n{p.stderr}"
+        return p
+
+    # the installed code, not a checkout or an editable install
+    q = subprocess.run([str(venv / "bin" / "python"), "-c", "import wmr_cosim; print(wmr_cosim.__file__)"],
+                       capture_output=True, text=True, cwd=work, env=env)
+    assert Path(q.stdout.strip()).is_relative_to(venv), q.stdout + q.stderr
+    version = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
+    assert cli("--version").stdout.strip() == f"wmr-cosim {version}"
+
+    # a shipped scenario by name: its own copy; its FMUs, named by model name, built on demand into the
+    # per-user cache (not into the package nor the working folder); results under --out
+    fmus = tmp_path / "cache" / "wmr-cosim" / "fmus"
+    assert not fmus.exists()
+    cli("run", "example.toml", "--out", "example", "--quiet")
+    sig = np.load(work / "example" / "signals.npy")
+    summary = json.loads((work / "example" / "summary.json").read_text())
+    assert summary["status"] == "ok" and sig["time"][-1] == pytest.approx(20.0)
+    assert np.isfinite(sig["plant.x_A"]).all()
+    assert sorted(f.name for f in fmus.glob("*.fmu")) == ["WmrController.fmu", "WmrPlant.fmu", "WmrSensor.fmu"]
+    cli("check", "scenarios/g1_learn.toml")
+
+    # build: the same cache, already current
+    out = cli("build").stdout
+    for model in ("WmrPlant", "WmrSensor", "WmrController"):
+        assert f"{model}: {fmus / (model + '.fmu')} (up to date)" in out
+
+    # the paper job with its shipped protocol (one variant)
+    cli("paper", "--out", "paper", "--no-compare", "--quiet")
+    metrics = json.loads((work / "paper" / "metrics.json").read_text())
+    assert metrics["diverged_runs"] == [] and sorted(metrics["tasks"]) == ["G1", "G2", "G3", "LINE"]
+    assert (work / "paper" / "report.html").is_file()
+
+    assert sorted(p.name for p in work.iterdir()) == ["example", "paper"]  # nothing else in the folder
+    assert _installed_files(venv) == before  # nothing written inside the installed package
+
+
+def test_a_scenario_name_that_is_not_a_file_here_is_the_shipped_one(tmp_path, monkeypatch):
+    from wmr_cosim import paper_job
+    from wmr_cosim.scenario_files import folder, scenario_path
+
+    shipped = folder()
+    assert (shipped / "paper.toml").is_file() and (shipped / paper_job.DEFAULT_MANIFEST).is_file()
+    monkeypatch.chdir(tmp_path)
+    assert scenario_path("example.toml") == shipped / "example.toml"
+    assert scenario_path("paper/g1.toml") == shipped / "paper" / "g1.toml"
+    assert scenario_path("scenarios/g1_learn.toml") == shipped / "g1_learn.toml"
+    for name in ("missing.toml", "../example.toml", "paper", str(tmp_path / "example.toml")):
+        assert scenario_path(name) == Path(name), name  # the command then reports it missing
+    (tmp_path / "example.toml").write_text("# mine\n")
+    assert scenario_path("example.toml") == Path("example.toml")  # a file here comes first

@@ -30,6 +30,7 @@ def monkeypatch_module():
     mp.undo()
 
 
+@pytest.mark.slow
 def test_no_run_diverges_in_the_default_variant(job):
     m = job["metrics"]
     assert m["variant"] == "freeze"
@@ -40,6 +41,7 @@ def test_no_run_diverges_in_the_default_variant(job):
             assert r["status"] == "ok" and r["samples"] == 25001, (task, run)
 
 
+@pytest.mark.slow
 def test_fidelity_to_tables_2_and_3(job):
     f = job["metrics"]["fidelity"]
     assert f["n_cells"] == 32
@@ -48,6 +50,7 @@ def test_fidelity_to_tables_2_and_3(job):
     assert f["rms_log_factor"] <= 1.4, f
 
 
+@pytest.mark.slow
 def test_learning_runs_reach_their_goals(job):
     eps = paper.table1()["eps_G"]
     for task in ("G1", "G2", "G3"):
@@ -58,6 +61,7 @@ def test_learning_runs_reach_their_goals(job):
         assert r["position_error_to_paper"] < 0.03   # the paper's final positions
 
 
+@pytest.mark.slow
 def test_cruising_control_and_foam_rise(job):
     for task in paper.TASKS:
         fr, fo = job["metrics"]["tasks"][task]["frozen"], job["metrics"]["tasks"][task]["foam"]
@@ -66,6 +70,7 @@ def test_cruising_control_and_foam_rise(job):
         assert all(abs(r - want) < 0.1 for r in fo["foam_rise"]), (task, fo["foam_rise"])
 
 
+@pytest.mark.slow
 def test_weights_carried_through_the_controller_parameters(job):
     """The frozen runs start from the learning run's final W (and P) given as FMU parameters, adapt no more."""
     out = job["out"]
@@ -82,6 +87,7 @@ def test_weights_carried_through_the_controller_parameters(job):
             assert params["W1_init"] == learn["controller.W1"][-1] and params["adapt"] is False
 
 
+@pytest.mark.slow
 def test_printed_variant_diverges_on_frozen_go_to_goal_runs(job):
     pr = job["variants"]["printed"]
     assert {"G1.frozen", "G1.foam"} <= set(pr["diverged_runs"])
@@ -89,6 +95,7 @@ def test_printed_variant_diverges_on_frozen_go_to_goal_runs(job):
     assert job["variants"]["freeze"]["fidelity"]["within_1_5"] > pr["fidelity"]["within_1_5"]
 
 
+@pytest.mark.slow
 def test_metrics_json_shape(job):
     m = json.loads((job["out"] / "metrics.json").read_text())
     assert m["variant"] == "freeze"
@@ -103,6 +110,7 @@ def test_metrics_json_shape(job):
     assert json.loads((job["out"] / "variants" / "printed" / "metrics.json").read_text())["variant"] == "printed"
 
 
+@pytest.mark.slow
 def test_report_and_figures(job):
     out = job["out"]
     md = (out / "report.md").read_text()

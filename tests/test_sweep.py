@@ -80,6 +80,7 @@ def test_bad_sweep_files(tmp_path, body, field, reason):
     assert exc.value.field == field and reason in str(exc.value), str(exc.value)
 
 
+@pytest.mark.slow
 def test_same_results_with_one_or_two_workers_and_after_a_restart(tmp_path, cluster2):
     f = _sweep_file(tmp_path, SMALL)
     with sweep.Cluster(workers=1) as one:
@@ -108,6 +109,7 @@ def test_same_results_with_one_or_two_workers_and_after_a_restart(tmp_path, clus
         sweep.run_sweep(g, tmp_path / "two", cluster=cluster2, progress=False)
 
 
+@pytest.mark.slow
 def test_a_failing_point_is_recorded_and_the_sweep_goes_on(tmp_path, cluster2):
     f = _sweep_file(tmp_path, 'runs = ["learn"]\n[grid]\n"sensor.phase2" = [0.5, 1.5]\n')
     df = sweep.run_sweep(f, tmp_path / "out", cluster=cluster2, progress=False)
@@ -118,6 +120,7 @@ def test_a_failing_point_is_recorded_and_the_sweep_goes_on(tmp_path, cluster2):
     assert df["status"][0] == "ok" and df["status"][1] in ("diverged", "failed") and df["reason"][1]
 
 
+@pytest.mark.slow
 def test_gamma_search_finds_the_crossing(tmp_path):
     from wmr_cosim.gamma_search import gamma_search
 
@@ -142,10 +145,12 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+@pytest.mark.slow
 def test_sweep_on_an_existing_scheduler_with_two_workers(tmp_path):
     port = _free_port()
     addr = f"tcp://127.0.0.1:{port}"
-    env = {**os.environ, "DASK_DISTRIBUTED__WORKER__DAEMON": "True"}
+    env = {**os.environ, "DASK_DISTRIBUTED__WORKER__DAEMON": "True",
+           "DASK_TEMPORARY_DIRECTORY": str(tmp_path / "dask")}  # the scheduler's scratch folder
     procs = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
                                "--port", str(port), "--no-dashboard"], stdout=subprocess.DEVNULL,
                               stderr=subprocess.DEVNULL, env=env)]
@@ -180,6 +185,7 @@ def test_sweep_on_an_existing_scheduler_with_two_workers(tmp_path):
                 pr.kill()
 
 
+@pytest.mark.slow
 def test_cli_sweep_errors_are_one_line(tmp_path):
     f = _sweep_file(tmp_path, "colour = 1\n")
     p = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "sweep", str(f)], capture_output=True, text=True)

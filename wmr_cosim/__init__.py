@@ -4,5 +4,17 @@ Sub-packages (each mapped from a top-level folder of the repository):
     wmr_cosim.components   the paper's models in plain Python (components/)
     wmr_cosim.fmus         the FMU slaves and their build (fmus/)
     wmr_cosim.cosim        the generic FMI master (cosim/)
+    wmr_cosim.scenarios    the shipped scenario files, package data only (scenarios/)
 """
-__version__ = "0.1.0"
+__version__ = "0.1.0"  # the fallback when the distribution's metadata is not installed
+
+
+def version() -> str:
+    """The installed distribution's version (its metadata), else :data:`__version__`."""
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as _version
+
+    try:
+        return _version("wmr-cosim")
+    except PackageNotFoundError:
+        return __version__

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from . import version
 from .components import paper
 from .components.controller import ControllerParams
 from .components.direct_loop import run_direct
@@ -20,6 +21,7 @@ from .components.sensor import SensorParams
 from .components.validation import ParameterError
 from .cosim.errors import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN_FAILED as EXIT_FAILED, CosimError
 from .cosim.scenario import parse_value
+from .scenario_files import scenario_path
 
 
 class UsageError(Exception):
@@ -266,6 +268,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="refuse FMU/SSP archives that unpack to more than SIZE (default 2 GiB; e.g. 8GiB)")
     ap.add_argument("--max-archive-ratio", metavar="RATIO", default=None,
                     help="refuse archives that unpack to more than RATIO times their size (default 200)")
+    ap.add_argument("--version", action="version", version=f"wmr-cosim {version()}")
     sub = ap.add_subparsers(dest="command", required=True)
     d = sub.add_parser("direct", help="run a task of the paper through the FMI-free direct loop",
                        description="Run one task of the paper (learning run: adaptation 0-39 s, reference floor) "
@@ -281,7 +284,8 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Build WmrPlant.fmu, WmrSensor.fmu and WmrController.fmu into DIR, rebuilding "
                                    "only those whose sources changed.")
     b.add_argument("--out", type=Path, default=None, metavar="DIR",
-                   help="output folder (default: build/fmus of the source tree, git-ignored)")
+                   help="output folder (default: build/fmus of the source tree, git-ignored; when installed from a "
+                        "wheel, the per-user cache ~/.cache/wmr-cosim/fmus)")
     b.add_argument("--force", action="store_true", help="rebuild even if up to date")
     b.add_argument("--c-plant", action="store_true",
                    help="also build WmrCPlant.fmu, the plant in C (needs cmake and a C compiler)")
@@ -289,10 +293,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("run", help="run a scenario (TOML) through the co-simulation master",
                        description="Run a scenario file: FMUs, parameters, connections, experiment, recording, events. "
-                                   "Results go to a folder: signals.npy (written as the run goes), signals.csv, "
-                                   "scenario.json, logs/, summary.json. Exit codes: 0 ok, 1 the run failed "
-                                   "(an FMU error, a non-finite value), 2 bad input, 130 interrupted.")
-    r.add_argument("scenario", type=Path, help="scenario file (.toml), SSP 1.0 archive (.ssp) or one FMU (.fmu)")
+                                   "A name that is not a file is looked up among the shipped scenarios (example.toml, "
+                                   "g1_learn.toml, paper/g1.toml, ...). Results go to a folder: signals.npy (written "
+                                   "as the run goes), signals.csv, scenario.json, logs/, summary.json. Exit codes: "
+                                   "0 ok, 1 the run failed (an FMU error, a non-finite value), 2 bad input, "
+                                   "130 interrupted.")
+    r.add_argument("scenario", type=scenario_path,
+                   help="scenario file (.toml), SSP 1.0 archive (.ssp) or one FMU (.fmu)")
     r.add_argument("--out", type=Path, default=None, metavar="DIR", help="results folder (default results/<scenario>)")
     r.add_argument("--set", nargs="+", action="extend", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
     r.add_argument("--variant", default=None, help="a variant the scenario declares ([variants.NAME])")
@@ -308,7 +315,8 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("check", help="check a scenario against its FMUs without running it",
                        description="Run every check of a scenario (files, variables, causality, types, units, "
                                    "steps, ranges, keys) without stepping. Exit code 0 if it would run, 2 if not.")
-    c.add_argument("scenario", type=Path, help="scenario file (.toml), SSP 1.0 archive (.ssp) or one FMU (.fmu)")
+    c.add_argument("scenario", type=scenario_path,
+                   help="scenario file (.toml), SSP 1.0 archive (.ssp) or one FMU (.fmu)")
     c.add_argument("--set", nargs="+", action="extend", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
     c.add_argument("--force", action="store_true", help="check as `run --force` would run")
     c.set_defaults(func=cmd_check)
@@ -318,7 +326,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "connectors, connections with linear transforms, units, default experiment with "
                                    "the step), the parameter values as an SSV parameter set named 'parameters'. "
                                    "Timed events cannot be expressed in SSP 1.0 and are refused.")
-    e.add_argument("scenario", type=Path, help="scenario file (.toml)")
+    e.add_argument("scenario", type=scenario_path, help="scenario file (.toml)")
     e.add_argument("--out", type=Path, required=True, metavar="FILE.ssp", help="the archive to write")
     e.add_argument("--set", nargs="+", action="extend", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
     e.set_defaults(func=cmd_export_ssp)
@@ -339,7 +347,8 @@ def build_parser() -> argparse.ArgumentParser:
     pp.add_argument("--no-compare", action="store_true",
                     help="do not also run the other variant (the report then cannot compare them)")
     pp.add_argument("--workers", type=int, default=None, help="worker processes (default: one per core)")
-    pp.add_argument("--manifest", type=Path, default=None, help="the tasks file (default scenarios/paper.toml)")
+    pp.add_argument("--manifest", type=Path, default=None,
+                    help="the tasks file (default: the shipped scenarios/paper.toml)")
     pp.add_argument("--quiet", action="store_true", help="no progress lines")
     pp.set_defaults(func=cmd_paper)
     sw = sub.add_parser("sweep", help="run a parameter sweep or Monte Carlo study on Dask",
@@ -348,7 +357,7 @@ def build_parser() -> argparse.ArgumentParser:
                                     "co-simulation (all the base's runs) in a Dask worker process; a local cluster by "
                                     "default, or an existing dask.distributed scheduler. Results: results.parquet, "
                                     "results.csv, figures/, points/ (a restarted sweep skips the points done).")
-    sw.add_argument("sweep", type=Path, help="sweep file (.toml)")
+    sw.add_argument("sweep", type=scenario_path, help="sweep file (.toml)")
     sw.add_argument("--out", type=Path, default=None, metavar="DIR", help="results folder (default results/<sweep>)")
     _dask_options(sw)
     sw.set_defaults(func=cmd_sweep)
@@ -357,7 +366,7 @@ def build_parser() -> argparse.ArgumentParser:
                                     "protocol at each gamma), then bisection where the grid shows a single crossing; "
                                     "reports the smallest gamma for which every run stays stable and gamma* <= gamma, "
                                     "and the whole curve.")
-    gs.add_argument("scenario", type=Path, help="a protocol with runs learn, frozen, foam (e.g. scenarios/paper/g1.toml)")
+    gs.add_argument("scenario", type=scenario_path, help="a protocol with runs learn, frozen, foam (e.g. scenarios/paper/g1.toml)")
     gs.add_argument("--out", type=Path, default=None, metavar="DIR")
     gs.add_argument("--grid", type=float, nargs="+", default=None, metavar="GAMMA", help="the gamma grid")
     gs.add_argument("--variant", default="freeze", help="a variant the protocol declares (default freeze)")

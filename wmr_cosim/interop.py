@@ -74,7 +74,8 @@ def ecos_cli_env() -> tuple[list[str], dict[str, str], Path]:
     The environment is empty but for ``LD_LIBRARY_PATH`` to ``libtbb.so.12``, which the program itself needs
     (the ``tbb`` wheel puts it where the loader does not look): no ``LD_PRELOAD``, no ``PATH`` or
     ``PYTHONHOME``, as a user's C host has it; our FMUs' loader finds their Python itself.  The wheel
-    installs the program without its execute bit: a copy is made executable in the temporary folder."""
+    installs the program without its execute bit: a copy is made executable in the temporary folder,
+    which is also the program's TMPDIR (its extraction folders, ecos_ssp_* and ecos_<model>_*, go there)."""
     import importlib.util
     spec = importlib.util.find_spec("ecospy")  # located, not imported (that would load its library)
     if spec is None or not spec.submodule_search_locations:
@@ -90,6 +91,7 @@ def ecos_cli_env() -> tuple[list[str], dict[str, str], Path]:
     tbb = tbb_library()
     if tbb is not None:
         env["LD_LIBRARY_PATH"] = str(tbb.parent)
+    env["TMPDIR"] = str(tmp)
     return [str(exe)], env, tmp
 
 
@@ -320,9 +322,18 @@ def run_here(peer: str, ssp: Path, stop: float, step: float, signals=SIGNALS) ->
     if peer not in _RUNNERS:
         raise PeerError(f"unknown peer {peer!r}: one of {', '.join(PEERS)}")
     tmp = Path(tempfile.mkdtemp(prefix=f"wmr-peer-{peer}-"))
+    # every temporary file of the peer goes into tmp, removed afterwards: ecos leaves its ecos_ssp_* and
+    # ecos_<model>_* extraction folders in the temporary folder (TMPDIR) otherwise
+    saved = os.environ.get("TMPDIR"), tempfile.tempdir
+    os.environ["TMPDIR"] = tempfile.tempdir = str(tmp)
     try:
         return _RUNNERS[peer](Path(ssp).resolve(), float(stop), float(step), tuple(signals), tmp)
     finally:
+        if saved[0] is None:
+            os.environ.pop("TMPDIR", None)
+        else:
+            os.environ["TMPDIR"] = saved[0]
+        tempfile.tempdir = saved[1]
         shutil.rmtree(tmp, ignore_errors=True)
 
 

@@ -1,7 +1,7 @@
 """``wmr-cosim paper``: every experiment of section 5 of the paper through the FMU co-simulation, the
 analysis, the figures and the report.
 
-The protocol is data: ``scenarios/paper.toml`` names one protocol file per task (``scenarios/paper/``),
+The protocol is data: ``scenarios/paper.toml`` (shipped with the package) names one protocol file per task (``scenarios/paper/``),
 each declaring its runs (learn, frozen, foam) and the variants.  Tasks run in parallel worker processes;
 each task's runs run in order (the frozen and foam runs start from the learning run's final W and P).
 """
@@ -17,12 +17,12 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
+from . import scenario_files
 from .analysis import (RUNS, disturbance_analysis, fidelity, load_signals, position_error, run_summary)
 from .components import paper
 from .report import fmt, to_html, to_markdown
 
-ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_MANIFEST = ROOT / "scenarios" / "paper.toml"
+DEFAULT_MANIFEST = "paper.toml"  # among the shipped scenario files (wmr_cosim.scenarios)
 VARIANTS = ("freeze", "printed")
 
 
@@ -115,7 +115,7 @@ def run_paper(out: str | os.PathLike = "results/paper", variant: str = "freeze",
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    tasks = _manifest(Path(manifest) if manifest else DEFAULT_MANIFEST)
+    tasks = _manifest(Path(manifest) if manifest else scenario_files.folder() / DEFAULT_MANIFEST)
     variants = [variant] + ([v for v in VARIANTS if v != variant] if compare else [])
     if progress is None:
         progress = sys.stderr.isatty()

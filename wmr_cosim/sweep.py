@@ -312,6 +312,7 @@ class Cluster:
 
         t0 = time.perf_counter()
         self.cluster = None
+        self.scratch: Path | None = None
         if address:
             warning = cleartext_warning(address)
             if warning:
@@ -325,13 +326,25 @@ class Cluster:
                 raise CosimError(f"--scheduler {address}: cannot connect ({' '.join(str(exc).split())}){hint}") from None
         else:
             # the scheduler's HTTP endpoint always runs: on the loopback address, at a free port, and it
-            # serves the dashboard only when asked for (":0" would listen on every interface)
-            self.cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
-                                        processes=True, host="127.0.0.1",
-                                        dashboard_address="127.0.0.1:0" if dashboard else None,
-                                        scheduler_kwargs=None if dashboard else {"dashboard_address": "127.0.0.1:0"},
-                                        silence_logs=logging.ERROR)
-            self.client = Client(self.cluster)
+            # serves the dashboard only when asked for (":0" would listen on every interface); the workers'
+            # scratch folder is this cluster's own, removed on close (Dask leaves its default,
+            # dask-scratch-space in the temporary folder, behind)
+            self.scratch = Path(tempfile.mkdtemp(prefix="wmr-dask-"))
+            try:
+                sched = {"local_directory": str(self.scratch)}
+                if not dashboard:
+                    sched["dashboard_address"] = "127.0.0.1:0"
+                self.cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
+                                            processes=True, host="127.0.0.1",
+                                            dashboard_address="127.0.0.1:0" if dashboard else None,
+                                            scheduler_kwargs=sched, local_directory=str(self.scratch),
+                                            silence_logs=logging.ERROR)
+                self.client = Client(self.cluster)
+            except BaseException:
+                if self.cluster is not None:
+                    self.cluster.close()
+                shutil.rmtree(self.scratch, ignore_errors=True)
+                raise
         self.dashboard = self.client.dashboard_link if dashboard else None
         if self.dashboard:
             print(f"dask dashboard: {self.dashboard}", file=sys.stderr)
@@ -341,6 +354,8 @@ class Cluster:
         self.client.close()
         if self.cluster is not None:
             self.cluster.close()
+        if self.scratch is not None:
+            shutil.rmtree(self.scratch, ignore_errors=True)
 
     def __enter__(self) -> "Cluster":
         return self
