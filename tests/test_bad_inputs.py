@@ -300,3 +300,16 @@ def test_the_csv_writer_needs_bounded_memory(sandbox):
         peaks[csv] = int(err.split("maxrss")[-1].split()[0])
     assert (work / "oTrue" / "signals.csv").stat().st_size > 50e6
     assert peaks[True] <= 1.5 * peaks[False], peaks
+
+
+def test_sweep_and_gamma_search_folders_are_locked_too(sandbox, capsys):
+    from wmr_cosim.cosim.recording import OutputLock
+
+    work, _ = sandbox
+    root = Path(__file__).resolve().parents[1] / "scenarios"
+    (work / "s").mkdir()
+    with OutputLock(work / "s"):   # another sweep holds the folder: refused before any cluster starts
+        _one_line(capsys, main(["sweep", str(root / "sweep-geometry.toml"), "--out", "s", "--quiet"]), 2,
+                  ["in use", f"process {os.getpid()}"])
+        _one_line(capsys, main(["gamma-search", str(root / "paper" / "g1.toml"), "--out", "s", "--quiet"]), 2,
+                  ["in use", f"process {os.getpid()}"])

@@ -35,7 +35,6 @@ def gamma_search(scenario: str | os.PathLike, out: str | os.PathLike, grid: list
                  security: Any = None, dashboard: bool = False) -> dict[str, Any]:
     """Grid, then bisection where the grid shows a single crossing; writes gamma_search.json, .csv and a
     figure into ``out``; returns the result.  ``security`` and ``dashboard``: see :class:`.sweep.Cluster`."""
-    import pandas as pd
 
     from .cosim.protocol import plan_runs
     from .cosim.errors import CosimError
@@ -54,8 +53,19 @@ def gamma_search(scenario: str | os.PathLike, out: str | os.PathLike, grid: list
     grid = sorted(set(float(g) for g in (grid or DEFAULT_GRID)))
     if not grid or grid[0] <= 0:
         raise CosimError("gamma-search: the grid must hold values > 0")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    from .cosim.recording import OutputLock, make_folder
+
+    out = make_folder(Path(out))
+    with OutputLock(out):  # a second search into the same folder is refused at once
+        return _search(scenario, out, runs, grid, variant, tol, max_bisections, workers, scheduler, progress,
+                       security, dashboard)
+
+
+def _search(scenario: str, out: Path, runs: list, grid: list[float], variant: str | None, tol: float,
+            max_bisections: int, workers: int | None, scheduler: str | None, progress: bool | None,
+            security: Any, dashboard: bool) -> dict[str, Any]:
+    import pandas as pd
+
     friction = {k: v for r in runs if r.name == "foam" for k, v in r.parameters.items() if k.startswith("plant.foam")}
     rows: list[dict[str, Any]] = []
     with Cluster(workers, scheduler, security, dashboard) as cl:

@@ -429,11 +429,18 @@ def run_sweep(path: str | os.PathLike, out: str | os.PathLike | None = None, wor
     """Run a sweep file; write results.parquet, results.csv, sweep.json and figures/ into ``out``.
     Returns the table (a pandas DataFrame, one row per point, ordered by point).  ``security`` and
     ``dashboard``: see :class:`Cluster`."""
-    import pandas as pd
+    from .cosim.recording import OutputLock, make_folder
 
     spec = load_sweep(path)
-    out = Path(out) if out is not None else Path("results") / Path(path).stem
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_folder(Path(out) if out is not None else Path("results") / Path(path).stem)
+    with OutputLock(out):  # a second sweep into the same folder is refused at once
+        return _run_sweep(spec, out, workers, scheduler, progress, cluster, security, dashboard)
+
+
+def _run_sweep(spec: "SweepSpec", out: Path, workers: int | None, scheduler: str | None, progress: bool | None,
+               cluster: "Cluster | None", security: Any, dashboard: bool):
+    import pandas as pd
+
     points = draw_points(spec)
     meta = {"spec": asdict(spec), "points": points}
     meta_file = out / "sweep.json"
@@ -450,8 +457,10 @@ def run_sweep(path: str | os.PathLike, out: str | os.PathLike | None = None, wor
         if own:
             cl.close()
     df = pd.DataFrame(rows).sort_values("point").reset_index(drop=True)
-    df.to_parquet(out / "results.parquet", index=False)
-    df.to_csv(out / "results.csv", index=False)
+    for name, write in (("results.parquet", df.to_parquet), ("results.csv", df.to_csv)):
+        part = out / f"{name}.part"   # written whole, then renamed: a file that exists is complete
+        write(part, index=False)
+        os.replace(part, out / name)
     plot_sweep(df, spec, out / "figures")
     return df
 
