@@ -33,6 +33,9 @@ NAME:
             sizes), check_verify_ms (also every entry decompressed and counted, as loading a model does),
             extract_ms (counted extraction), summed over the three FMUs, medians; lying_bomb_refused_ms (256 MiB
             of zeros whose directory declares 1 KiB, refused while extracting) and nothing_left.
+    isolation  G1 in process, with the plant in a child process and with all three FMUs in child processes
+            (isolate = true), interleaved: us_per_step of each, isolated_us_per_fmu_step_overhead (target
+            <= 15 us per isolated FMU and step), same_results.
     loader  what the FMUs' Python loader (binaries/linux64/<model>.so forwarding to pythonfmu's binary) costs:
             the sensor FMU stepped 25,000 times (setReal + doStep + getReal through ctypes, as a master does)
             once through the loader and once through pythonfmu's binary loaded directly, in one process,
@@ -450,6 +453,38 @@ def bench_archive(repeats: int) -> dict[str, float]:
     return figures
 
 
+def bench_isolation(repeats: int) -> dict[str, Any]:
+    """G1 (50 s, Gauss-Seidel, the analysis record) in process, with the plant isolated and with all three
+    FMUs isolated (each in a child process), interleaved, medians: isolated_us_per_fmu_step_overhead =
+    (isolated wall - in-process wall) / steps / isolated FMUs (target <= 15 us); same_results (bit for bit)."""
+
+    from wmr_cosim.cosim import execution, scenario, system
+    from wmr_cosim.runner import resolve_model
+
+    root = __import__("pathlib").Path(__file__).resolve().parents[1]
+    walls: dict[str, list[float]] = {"none": [], "plant": [], "all": []}
+    finals: dict[str, dict] = {}
+    for _ in range(max(1, repeats)):
+        for kind in walls:
+            sc = scenario.load(root / "scenarios" / "g1_learn.toml", resolve_model)
+            sc.record = ANALYSIS_RECORD
+            plan = system.resolve(sc)
+            for n, ip in plan.instances.items():
+                ip.spec.isolate = kind == "all" or (kind == "plant" and n == "plant")
+            r = execution.run(plan, None, progress=False)
+            if r.status != "ok":
+                raise SystemExit(f"{kind}: {r.message}")
+            walls[kind].append(r.wall_s)
+            finals[kind] = r.final
+    med = {k: statistics.median(v) for k, v in walls.items()}
+    steps = 25_000
+    return {"us_per_step": {k: round(v / steps * 1e6, 2) for k, v in med.items()},
+            "isolated_us_per_fmu_step_overhead": {
+                "plant": round((med["plant"] - med["none"]) / steps * 1e6, 2),
+                "all": round((med["all"] - med["none"]) / steps / 3 * 1e6, 2)},
+            "same_results": all(finals[k] == finals["none"] for k in finals), "repeats": max(1, repeats)}
+
+
 def bench_loader(repeats: int) -> dict[str, float]:
     """The same sensor FMU through our loader and through pythonfmu's binary itself, in one process."""
     import ctypes
@@ -511,7 +546,7 @@ def bench_loader(repeats: int) -> dict[str, float]:
 
 
 BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "paper": bench_paper, "sweep": bench_sweep,
-           "interop": bench_interop, "archive": bench_archive, "loader": bench_loader}
+           "interop": bench_interop, "archive": bench_archive, "loader": bench_loader, "isolation": bench_isolation}
 
 
 def main(argv: list[str] | None = None) -> int:

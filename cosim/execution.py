@@ -93,9 +93,14 @@ class Execution:
             p = ip.model.path.resolve()
             if p not in unz:
                 unz[p] = str(safe_extract(p, self.work / f"{len(unz)}_{p.stem}"))
-            cls = Instance3 if ip.model.fmi == 3 else Instance
-            self.instances[name] = cls(name, ip.model.md, unz[p], self.out / "logs" / f"{name}.log",
-                                       ip.spec.logging)
+            log = self.out / "logs" / f"{name}.log"
+            if ip.spec.isolate:
+                from .isolation import IsolatedInstance
+                self.instances[name] = IsolatedInstance(name, ip.model.md, unz[p], log, ip.spec.logging,
+                                                        ip.spec.step_timeout or 60.0)
+            else:
+                cls = Instance3 if ip.model.fmi == 3 else Instance
+                self.instances[name] = cls(name, ip.model.md, unz[p], log, ip.spec.logging)
 
     def initialise(self, check_inputs: bool) -> None:
         """Instantiate, set up, set start values, initialise with the inputs at their fixed point, and
@@ -123,14 +128,17 @@ class Execution:
     def _io(self, n: str) -> InstanceIO:
         """The loop's view of instance ``n``: raw entry points, input and output arrays, copies."""
         inst, lay, plan = self.instances[n], self.layout, self.plan
-        dll, fmi = inst.fmu.dll, self.plan.instances[n].model.fmi
+        dll, fmi = getattr(inst.fmu, "dll", None), self.plan.instances[n].model.fmi
         names = ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal") if fmi == 2 else \
             ("fmi3SetFloat64", "fmi3DoStep", "fmi3GetFloat64")
         vrs, nvals = self.wiring.vrs[n], len(self.wiring.values[n])
         n_out = sum(size for _, size in lay.reals[n])
+        if hasattr(inst, "entry_points"):   # isolated: the step slot in shared memory
+            *fns, in_val = inst.entry_points(vrs, nvals, [vr for vr, _ in lay.reals[n]], n_out)
+        else:
+            fns, in_val = [raw(dll, f) for f in names], (ctypes.c_double * max(1, nvals))()
         io = InstanceIO(
-            n, ctypes.c_void_p(inst.c), *(raw(dll, f) for f in names),
-            vr_array(vrs), (ctypes.c_double * max(1, nvals))(), ctypes.c_size_t(len(vrs)),
+            n, ctypes.c_void_p(inst.c), *fns, vr_array(vrs), in_val, ctypes.c_size_t(len(vrs)),
             vr_array([vr for vr, _ in lay.reals[n]]), lay.out_arr[n], ctypes.c_size_t(len(lay.reals[n])),
             self.wiring.copies(n), _extras(inst, [r for r in lay.extra if r.instance == n], lay),
             [discrete_copier(self.instances, c) for c in plan.connections if c.dst == n and not is_real(c)],
@@ -330,6 +338,8 @@ def _run(plan: Plan, out: Path, keep: bool, progress: bool | None, timing: bool,
         ex.status, ex.message = "interrupted", f"interrupted by the user at t = {ex.t0 + ex.k_done * ex.h:.6g} s"
     except CosimError as exc:
         ex.status, ex.message = "failed", str(exc)
+        if getattr(exc, "died", False) and exc.time is not None:  # an isolated FMU died inside a segment
+            ex.k_done = int(round((exc.time - ex.t0) / ex.h))
     finally:
         stop.restore()
         ex.close()

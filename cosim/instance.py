@@ -311,6 +311,8 @@ def accessor(inst: Instance, fmi_type: str, op: str) -> tuple[Any, Any]:
     """(call, ctype): ``call(vrs, n, buf, n_values)`` gets (``op`` "Get") or sets ("Set") values of
     ``fmi_type`` on the instance with one raw FMI call (FMI 2.0 ignores n_values); ctype is the element
     type of ``buf``."""
+    if hasattr(inst, "accessor"):   # an isolated instance: through its control channel
+        return inst.accessor(fmi_type, op)
     fmi = 3 if isinstance(inst, Instance3) else 2
     ctype, tname = _ACCESS[fmi][fmi_type]
     fn = raw(inst.fmu.dll, f"fmi{fmi}{op}{tname}")

@@ -42,7 +42,7 @@ def run_protocol(path: str | os.PathLike, out_dir: str | os.PathLike, resolver: 
                  variant: str | None = None, overrides: dict[str, Any] | None = None,
                  progress: bool | None = None, only: list[str] | None = None,
                  on_run: Callable[[str, execution.RunResult], None] | None = None,
-                 force: bool = False) -> dict[str, execution.RunResult]:
+                 force: bool = False, isolate: bool = False) -> dict[str, execution.RunResult]:
     """Run every run of the file in order into ``out_dir/<run>``; returns {run name: result}.
 
     A run whose carried source run failed is still run if the source recorded the value; a carried value
@@ -67,6 +67,8 @@ def run_protocol(path: str | os.PathLike, out_dir: str | os.PathLike, resolver: 
             params[ref] = final[col]
         params.update(overrides or {})
         plan = system.resolve(scenario.load(path, resolver, params), force)
+        for ip in plan.instances.values():
+            ip.spec.isolate = ip.spec.isolate or isolate
         res = execution.run(plan, out / run.name, progress=progress)
         results[run.name] = res
         if on_run is not None:

@@ -25,7 +25,7 @@ _TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "r
              "variants", "inputs", "limits"}
 _INPUTS_KEYS = {"file", "interpolation"}
 _EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps"}
-_INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "description", "logging"}
+_INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "description", "logging", "isolate", "step_timeout"}
 _CONNECTION_KEYS = {"from", "to", "factor", "offset", "convert", "threshold"}
 _RECORD_KEYS = {"variables", "decimation", "csv", "max_bytes"}
 _RUN_KEYS = {"name", "description", "parameters", "carry"}
@@ -46,6 +46,8 @@ class InstanceSpec:
     names: dict[str, str] = field(default_factory=dict)
     units: dict[str, str] = field(default_factory=dict)
     logging: str = "warning"
+    isolate: bool = False               # host the FMU in a child process (a crash or hang cannot take the run down)
+    step_timeout: float | None = None   # seconds a call may take before the instance is ended (isolated: 60)
 
 
 @dataclass
@@ -303,7 +305,14 @@ def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:
         logging = inst.get("logging", "warning")
         if logging not in LOGGING:
             raise ScenarioError(file, f"{fld}.logging", f"{logging!r}: must be one of {', '.join(LOGGING)}")
-        sc.instances[iname] = InstanceSpec(iname, fmu, path, dict(params), dict(names), dict(units), logging)
+        isolate = inst.get("isolate", False)
+        if not isinstance(isolate, bool):
+            raise ScenarioError(file, f"{fld}.isolate", f"{isolate!r}: must be true or false")
+        timeout = inst.get("step_timeout")
+        if timeout is not None:
+            timeout = _num(file, f"{fld}.step_timeout", timeout, positive=True)
+        sc.instances[iname] = InstanceSpec(iname, fmu, path, dict(params), dict(names), dict(units), logging,
+                                           isolate, timeout)
 
 
     exp = doc.get("experiment") or {}

@@ -114,7 +114,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             code = EXIT_OK
             for name, r in run_protocol(args.scenario, out, resolve_model, variant=args.variant,
                                         overrides=parse_set(args.set), progress=False if args.quiet else None,
-                                        force=args.force).items():
+                                        force=args.force, isolate=args.isolate).items():
                 if r.status == "ok":
                     print(f"{args.scenario} [{name}]: ok, {r.steps} steps in {r.wall_s:.2f} s; results in {out / name}")
                 else:
@@ -129,7 +129,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if any(v is not None for v in fmu_only) and not str(args.scenario).lower().endswith(".fmu"):
         raise UsageError("--input, --stop and --step apply to a single FMU (.fmu); a scenario file says them itself")
     res = run_scenario(args.scenario, out, parse_set(args.set), progress=False if args.quiet else None,
-                       inputs=args.input, stop=args.stop, step=args.step, force=args.force)
+                       inputs=args.input, stop=args.stop, step=args.step, force=args.force, isolate=args.isolate)
     per = f", {res.wall_s / res.steps * 1e6:.1f} us/step" if res.steps else ""
     if res.status in ("ok", "terminated"):
         how = "ok" if res.status == "ok" else res.message
@@ -311,6 +311,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="one FMU only: communication step [s] (default: its default experiment)")
     r.add_argument("--force", action="store_true",
                    help="run even beyond the limits of steps (experiment.max_steps) and recording size (record.max_bytes)")
+    r.add_argument("--isolate", action="store_true",
+                   help="host every FMU in a child process of its own: a crash or hang is reported, not fatal "
+                        "(instances can also say isolate = true)")
     r.set_defaults(func=cmd_run)
     c = sub.add_parser("check", help="check a scenario against its FMUs without running it",
                        description="Run every check of a scenario (files, variables, causality, types, units, "

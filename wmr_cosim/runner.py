@@ -106,16 +106,26 @@ def is_fmu(path: str | Path) -> bool:
 
 def run_scenario(path: str | Path, out: str | Path | None = None, overrides: dict[str, Any] | None = None,
                  progress: bool | None = None, inputs: str | Path | None = None, stop: float | None = None,
-                 step: float | None = None, force: bool = False) -> execution.RunResult:
-    """Run a scenario file (.toml), an SSP archive (.ssp) or one FMU alone (.fmu)."""
+                 step: float | None = None, force: bool = False, isolate: bool = False) -> execution.RunResult:
+    """Run a scenario file (.toml), an SSP archive (.ssp) or one FMU alone (.fmu); ``isolate`` hosts every
+    instance in a child process of its own."""
     out = out if out is not None else default_out(path)
     if is_fmu(path):
-        return execution.run(fmu_plan(path, overrides, inputs, stop, step, force), out, progress=progress)
+        return execution.run(isolated(fmu_plan(path, overrides, inputs, stop, step, force), isolate), out,
+                             progress=progress)
     if ssp.is_ssp(path):
         with ssp_plan(path, overrides, force) as plan:
-            return execution.run(plan, out, progress=progress)
+            return execution.run(isolated(plan, isolate), out, progress=progress)
     plan = load_plan(path, overrides, force)
-    return execution.run(plan, out, progress=progress)
+    return execution.run(isolated(plan, isolate), out, progress=progress)
+
+
+def isolated(plan: system.Plan, isolate: bool) -> system.Plan:
+    """The plan with every instance isolated (``--isolate``), or as it is."""
+    if isolate:
+        for ip in plan.instances.values():
+            ip.spec.isolate = True
+    return plan
 
 
 def describe_fmu(path: str | Path) -> str:

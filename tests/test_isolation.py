@@ -1,0 +1,112 @@
+"""Out-of-process instances: an FMU that crashes, aborts, exits or hangs inside a step, hosted in a child
+process (isolate = true), gives one line naming the instance, the time and how it died, exit code 1, and
+the recording complete up to the last finished step; the other instances are terminated and freed. The
+same FMUs in process take the master down: that is what isolation is for. Isolated runs are bit-identical
+to in-process runs."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from c_fmu_support import build_probe
+from cosim_support import write_scenario
+
+REF = Path(__file__).resolve().parent / "data" / "reference-fmus" / "fmi2"
+
+
+def _scenario(tmp: Path, fmu: Path, isolate: bool, extra: str = "") -> Path:
+    return write_scenario(tmp / f"iso_{isolate}.toml", f'''
+[experiment]
+stop = 0.5
+step = 0.01
+[instances.d]
+fmu = "{REF / 'Dahlquist.fmu'}"
+[instances.probe]
+fmu = "{fmu}"
+isolate = {"true" if isolate else "false"}
+{extra}
+[instances.f]
+fmu = "{REF / 'Feedthrough.fmu'}"
+[[connections]]
+from = "d.x"
+to = "probe.u"
+[[connections]]
+from = "probe.y"
+to = "f.Float64_continuous_input"
+[record]
+variables = ["d.x", "probe.y", "probe.n", "f.Float64_continuous_output"]
+''')
+
+
+def _run(path: Path, out: Path, timeout: float = 120) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "run", str(path), "--out", str(out), "--quiet"],
+                          capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.mark.parametrize("flag, how", [("SEGFAULT_AT", "killed by SIGSEGV"), ("ABORT_AT", "killed by SIGABRT"),
+                                       ("EXIT_AT", "exited with code 3")])
+def test_a_crash_in_an_isolated_fmu_is_one_line_and_keeps_the_recording(flag, how, tmp_path):
+    fmu = build_probe(tmp_path / "fmu", **{flag: 0.25})
+    p = _run(_scenario(tmp_path, fmu, True), tmp_path / "out")
+    assert p.returncode == 1 and "Traceback" not in p.stderr, p.stderr
+    first = p.stderr.strip().splitlines()[0]
+    assert "probe" in first and how in first and "t = 0.25 s" in first, first
+    d = np.load(tmp_path / "out" / "signals.npy")
+    assert len(d) == 26 and d["time"][-1] == pytest.approx(0.25)      # every step before the crash
+    assert d["probe.n"][-1] == 25
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert s["status"] == "failed" and s["steps"] == 25
+
+
+def test_a_hang_in_an_isolated_fmu_is_ended_after_its_step_timeout(tmp_path):
+    fmu = build_probe(tmp_path / "fmu", HANG_AT=0.25)
+    p = _run(_scenario(tmp_path, fmu, True, "step_timeout = 2.0"), tmp_path / "out")
+    assert p.returncode == 1 and "did not answer within 2 s" in p.stderr and "t = 0.25 s" in p.stderr, p.stderr
+    assert len(np.load(tmp_path / "out" / "signals.npy")) == 26
+
+
+def test_junk_on_stdout_from_an_isolated_fmu_goes_to_a_file(tmp_path):
+    fmu = build_probe(tmp_path / "fmu", JUNK_AT=0.25)
+    p = _run(_scenario(tmp_path, fmu, True), tmp_path / "out")
+    assert p.returncode == 0 and "junk from an FMU" not in p.stdout, p.stdout
+    assert b"junk from an FMU" in (tmp_path / "out" / "logs" / "probe.log.stdout").read_bytes()
+
+
+@pytest.mark.parametrize("flag", ["SEGFAULT_AT", "EXIT_AT"])
+def test_the_same_crash_in_process_takes_the_master_down(flag, tmp_path):
+    """What isolation is for: in process the master dies with the FMU (no summary is written)."""
+    fmu = build_probe(tmp_path / "fmu", **{flag: 0.25})
+    p = _run(_scenario(tmp_path, fmu, False), tmp_path / "out")
+    assert p.returncode in (-11, 3), (p.returncode, p.stderr)
+    assert not (tmp_path / "out" / "summary.json").exists()
+
+
+def test_isolated_runs_are_bit_identical_to_in_process_runs(tmp_path):
+    fmu = build_probe(tmp_path / "fmu")
+    for iso in (True, False):
+        p = _run(_scenario(tmp_path, fmu, iso, 'parameters = { p = 2.5 }'), tmp_path / f"out{iso}")
+        assert p.returncode == 0, p.stderr
+    a, b = (np.load(tmp_path / f"out{iso}" / "signals.npy") for iso in (True, False))
+    assert a.dtype == b.dtype and all(np.array_equal(a[n], b[n]) for n in a.dtype.names)
+    assert a["probe.y"][0] == 2.5   # the initialisation reached the child: y = p u with u = x(0) = 1
+
+
+def test_g1_with_every_instance_isolated_is_bit_identical(tmp_path):
+    """Our own (pythonfmu) FMUs, each in a child process (--isolate): the same recording bit for bit."""
+    from cosim_support import G1
+
+    path = write_scenario(tmp_path / "g1.toml", f'base = "{G1}"\n[experiment]\nstop = 1.0\n[record]\ncsv = false\n')
+    for iso in ([], ["--isolate"]):
+        p = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "run", str(path), "--out",
+                            str(tmp_path / f"o{bool(iso)}"), "--quiet", *iso], capture_output=True, text=True,
+                           timeout=300)
+        assert p.returncode == 0, p.stderr
+    a, b = (np.load(tmp_path / f"o{iso}" / "signals.npy") for iso in (True, False))
+    assert len(a) == 501 and all(np.array_equal(a[n], b[n]) for n in a.dtype.names)
+    assert all((tmp_path / "oTrue" / "logs" / f"{n}.log.stdout").exists() for n in ("plant", "sensor", "controller"))
+    assert not (tmp_path / "oFalse" / "logs" / "plant.log.stdout").exists()
