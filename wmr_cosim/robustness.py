@@ -25,7 +25,7 @@ from __future__ import annotations
 import json
 import math
 import shutil
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -52,12 +52,7 @@ class StudyGrid:
     freeze_mismatch: float = 0.05
     freeze: bool = True
     axes: tuple[str, ...] = ("mismatch", "heading", "noise")
-    extra: dict[str, Any] = field(default_factory=dict)
-
-
-#: a grid small enough for a test (two tasks, two values per axis, two readings)
-SMALL_GRID = StudyGrid(tasks=("LINE", "G3"), mismatch=(0.0, 0.1), heading_deg=(0.0, 30.0), noise_counts=(0.0, 0.5),
-                       p0=(5e-4, 2e-3), freeze_times=(8.0,))
+    manifest: str | None = None      # the tasks file (default scenarios/paper.toml)
 
 
 def mismatch_params(m: float) -> dict[str, float]:
@@ -99,7 +94,7 @@ def plan(grid: StudyGrid) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     value or reading, the point id of each task."""
     from .paper_job import DEFAULT_MANIFEST, _manifest
 
-    files = _manifest(DEFAULT_MANIFEST)
+    files = _manifest(Path(grid.manifest) if grid.manifest else DEFAULT_MANIFEST)
     points: list[dict[str, Any]] = []
     index: dict[str, int] = {}
 
