@@ -91,7 +91,7 @@ def test_reduced_study_runs_on_dask(built_fmus, tmp_path):
             # the true error is smaller than the measured one (the filter's lag)
             assert rob[axis][1]["rmse_e_true_max"]["G1"]["learn"] < rob[axis][1]["rmse_e_max"]["G1"]["learn"]
         fz = s["freeze_study"]
-        assert [r["label"] for r in fz["readings"]] == ["P0 = 0.0005 (default)", "fixed freeze at T = 8 s"]
+        assert [r["label"] for r in fz["readings"]] == ["P0 = 0.0005 (Table 1, the default)", "fixed freeze at T = 8 s"]
         assert len(list((tmp_path / "study" / "points").glob("*.json"))) == 6
         again = rb.run_study(tmp_path / "study", grid, workers=1, progress=False)   # all points saved: no run
         assert again["robustness"]["mismatch"] == rob["mismatch"]

@@ -85,7 +85,7 @@ def reading_params(kind: str, value: float) -> dict[str, Any]:
 
 
 def reading_label(kind: str, value: float) -> str:
-    default = " (default)" if kind == "P0" and value == _P0 else ""
+    default = " (Table 1, the default)" if kind == "P0" and value == _P0 else ""
     return f"P0 = {value:g}{default}" if kind == "P0" else f"fixed freeze at T = {value:g} s"
 
 
@@ -133,7 +133,8 @@ def _tasks_of(rows: dict[int, dict[str, Any]], ids: dict[str, int]) -> dict[str,
             ok = all(isinstance(v, (int, float)) and math.isfinite(v) for v in vals)
             out[task][run] = {"rmse_e": vals[:2] if ok else None, "rmse_edot": vals[2:] if ok else None,
                               "rmse_e_true": [r.get(f"{run}.rmse_e_true1"), r.get(f"{run}.rmse_e_true2")],
-                              "diverged": bool(r.get(f"{run}.diverged", True)) or r["status"] == "failed"}
+                              # a run that failed (a non-finite value stopped it) counts as diverged
+                              "diverged": bool(r.get(f"{run}.diverged", True))}
     return out
 
 
@@ -196,6 +197,17 @@ def _scores(r: dict[str, Any]) -> tuple[tuple, tuple, tuple]:
     rms = r["rms_log_factor"] if r["rms_log_factor"] is not None else math.inf
     return ((r["within_1_5"], -rms), (-len(r["diverged_runs"]),),
             (-len(r["mismatch_diverged_runs"]), r["mismatch_within_1_5"]))
+
+
+def compare(r: dict[str, Any], readings: list[dict[str, Any]]) -> str:
+    """'better / equal / worse' on each of the three scores against the default reading."""
+    default = next((d for d in readings if d["kind"] == "P0" and d["value"] == _P0), None)
+    if default is None:
+        return "-"
+    if r is default:
+        return "(the default)"
+    word = lambda a, b: "better" if a > b else "equal" if a == b else "worse"  # noqa: E731
+    return " / ".join(word(a, b) for a, b in zip(_scores(r), _scores(default)))
 
 
 def decide(readings: list[dict[str, Any]]) -> dict[str, Any]:
