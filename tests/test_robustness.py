@@ -78,10 +78,10 @@ def test_reduced_study_runs_on_dask(built_fmus, tmp_path):
         manifest = tmp_path / "tasks.toml"
         manifest.write_text(f'[tasks]\nG1 = "{DATA / "short_protocol.toml"}"\n')
         grid = rb.StudyGrid(tasks=("G1",), mismatch=(0.0, 0.1), heading_deg=(0.0, 30.0), noise_counts=(0.0, 1.0),
-                            p0=(paper.table1()["P0"],), freeze_times=(8.0,), freeze_mismatch=0.1,
-                            manifest=str(manifest))
+                            bump_Nm=(0.0, 3.4), p0=(paper.table1()["P0"],), freeze_times=(8.0,),
+                            freeze_mismatch=0.1, manifest=str(manifest))
         points, _ = rb.plan(grid)
-        assert len(points) == 6          # the nominal and the 10 % points are shared by the axes and the readings
+        assert len(points) == 7          # the nominal and the 10 % points are shared by the axes and the readings
         s = rb.run_study(tmp_path / "study", grid, workers=2, progress=False)
         rob = s["robustness"]
         base = rob["mismatch"][0]["rmse_e_max"]["G1"]["learn"]
@@ -90,9 +90,12 @@ def test_reduced_study_runs_on_dask(built_fmus, tmp_path):
             assert rob[axis][1]["rmse_e_max"]["G1"]["learn"] != base, axis
             # the true error is smaller than the measured one (the filter's lag)
             assert rob[axis][1]["rmse_e_true_max"]["G1"]["learn"] < rob[axis][1]["rmse_e_max"]["G1"]["learn"]
+        # the bump acts at the foam's edge only: learning run unchanged, the foam run's edge peak higher
+        assert rob["bump"][1]["rmse_e_max"]["G1"]["learn"] == base
+        assert rob["bump"][1]["edge_peak_u"]["G1"] > rob["bump"][0]["edge_peak_u"]["G1"] + 1.0
         fz = s["freeze_study"]
         assert [r["label"] for r in fz["readings"]] == ["P0 = 0.0005 (Table 1, the default)", "fixed freeze at T = 8 s"]
-        assert len(list((tmp_path / "study" / "points").glob("*.json"))) == 6
+        assert len(list((tmp_path / "study" / "points").glob("*.json"))) == 7
         again = rb.run_study(tmp_path / "study", grid, workers=1, progress=False)   # all points saved: no run
         assert again["robustness"]["mismatch"] == rob["mismatch"]
     finally:

@@ -211,7 +211,7 @@ CAPTIONS = {
     "fig13_line_gamma": "Fig. 13 redrawn, LINE: control without (a) and with (b) the foam, (c) the estimate (52) "
                         "and the injected dF, (d) gamma*(t) of (53) against gamma of Table 1.",
     "robustness": "Robustness study: the largest RMSE of e of the foam run per task against the swept mismatch, "
-                  "initial heading and encoder noise; crosses mark diverged points.",
+                  "initial heading, encoder noise and bump at the foam's edge; crosses mark diverged points.",
 }
 
 
@@ -224,13 +224,17 @@ def fig_robustness(rob: dict[str, Any], out: str | os.PathLike) -> Path | None:
     """The robustness study: per axis, the largest RMSE of e of the foam run (measured signal) per task
     against the swept value; a point where a run of the task diverged is a cross at the top."""
     axes = [(a, lab) for a, lab in (("mismatch", "left/right mismatch m [%]"), ("heading", "initial heading [deg]"),
-                                    ("noise", "encoder noise [counts, std]")) if rob.get(a)]
+                                    ("noise", "encoder noise [counts, std]"),
+                                    ("bump", "bump at the foam's edge [N.m]")) if rob.get(a)]
     if not axes:
         return None
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    fig, axs = plt.subplots(1, len(axes), figsize=(4.0 * len(axes), 3.8), squeeze=False)
-    top = 3.0
+    fig, axs = plt.subplots(1, len(axes), figsize=(3.4 * len(axes), 3.6), squeeze=False)
+    finite = [y for a, _ in axes for e in rob[a] for t in rob["tasks"]
+              if not any(r.startswith(t + ".") for r in e["diverged_runs"])
+              for y in [e["rmse_e_max"].get(t, {}).get("foam")] if y is not None and np.isfinite(y)]
+    top = 1.5 * max(finite + [0.1])     # diverged points are drawn at this height
     for ax, (name, label) in zip(axs[0], axes):
         scale = 100.0 if name == "mismatch" else 1.0
         for k, task in enumerate(rob["tasks"]):

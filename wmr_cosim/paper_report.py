@@ -114,7 +114,7 @@ def outside_cells(m: dict[str, Any], study: dict[str, Any] | None) -> tuple[list
         if study:
             name = f"{task}.{run}.{cell}"
             cands = []
-            for axis, unit in (("mismatch", ""), ("heading", " deg"), ("noise", " counts")):
+            for axis, unit in (("mismatch", ""), ("heading", " deg"), ("noise", " counts"), ("bump", " N.m")):
                 for e in study.get(axis) or []:
                     rr = e["fidelity_cells"].get(name)
                     diverged = any(r.startswith(task + ".") for r in e["diverged_runs"])
@@ -145,12 +145,15 @@ def robustness_blocks(study: dict[str, Any], figure: Path | None) -> list:
                    f"sweep machinery; each point's row is in `robustness/points/<id>.json`). One axis at a time: "
                    f"a left/right mismatch m of the rolling resistance (a5 = a (1 + m/2), a6 = a (1 - m/2), the "
                    f"controller keeps the nominal model), the initial heading beta0 (plant and odometry), and "
-                   f"encoder noise (a Gaussian jitter of the edge position, seeded). A run diverged if a value is "
+                   f"encoder noise (a Gaussian jitter of the edge position, seeded), and a bump at the foam's edge "
+                   f"(a5, a6 raised by a further amount for {study['robustness'].get('bump_time', 0.2):g} s from the "
+                   f"foam's onset; it acts on the foam runs only). A run diverged if a value is "
                    f"non-finite (the master then stops it: 'failed') or |e_i| > 1 rad at 50 s; a run after a "
                    f"diverged learning run starts from its weights."))
     names = {"mismatch": ("left/right mismatch m [-]", "max_mismatch_all_converge"),
              "heading": ("initial heading beta0 [deg]", "max_heading_deg_all_converge"),
-             "noise": ("encoder noise [counts, std]", "max_noise_counts_all_converge")}
+             "noise": ("encoder noise [counts, std]", "max_noise_counts_all_converge"),
+             "bump": ("bump at the foam's edge [N.m]", "max_bump_Nm_all_converge")}
     for axis, (label, key) in names.items():
         if axis not in rob:
             continue
@@ -161,15 +164,18 @@ def robustness_blocks(study: dict[str, Any], figure: Path | None) -> list:
                     f"{t} {fmt(e['rmse_e_max'][t]['foam'], 3)} / {fmt(e['rmse_e_true_max'][t]['foam'], 3)}"
                     for t in e["rmse_e_max"]]
             inside = sum(1 for r in e["fidelity_cells"].values() if r is not None and 1 / 1.5 <= r <= 1.5)
+            peaks = [f"{t} {fmt(v, 2)}" for t, v in (e.get("edge_peak_u") or {}).items() if t not in div]
             rows.append([f"{e['value']:g}", ", ".join(e["diverged_runs"]) or "none", "; ".join(foam),
-                         f"{inside} of {len(e['fidelity_cells'])}",
+                         "; ".join(peaks) or "-", f"{inside} of {len(e['fidelity_cells'])}",
                          ", ".join(f"{t}: {p}" for t, p in e["points"].items())])
         b.append(("h3", label))
         b.append(("table", [label, "diverged runs", "foam run: max RMSE e, measured / true [rad]",
-                            "cells within 1.5x", "points"], rows))
+                            "foam run: peak abs(u) within 2 s of t_F [N.m]", "cells within 1.5x", "points"], rows))
         last = rob.get(key)
+        edge = (" (the largest value swept: no divergence in the range)"
+                if last is not None and last == max(e["value"] for e in rob[axis]) else "")
         b.append(("p", f"Largest swept value up to which every run converges (`metrics.json` "
-                       f"robustness.{key}): **{'none' if last is None else f'{last:g}'}**."))
+                       f"robustness.{key}): **{'none' if last is None else f'{last:g}'}**{edge}."))
     if figure is not None:
         b.append(("img", figure, "Robustness: the largest RMSE of e of the foam run (measured signal, both "
                                  "wheels) per task against each swept axis; a cross marks a point where some "

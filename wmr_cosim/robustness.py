@@ -9,6 +9,8 @@ Axes (each alone, the others at their defaults):
 * ``heading``: the initial heading beta0 [deg] of the robot (plant and odometry alike; the paper gives
   only the start point).
 * ``noise``: encoder noise, a Gaussian jitter of the edge position of ``noise_std`` counts (seeded).
+* ``bump``: a bump at the foam's edge, a5 and a6 raised by a further ``foam_bump`` [N.m] for
+  ``foam_bump_time`` seconds from the foam's onset (the real robot's control peaked at the edge).
 
 The freeze study scores readings of when W stops adapting: the threshold P0 of the freeze rule (51)
 (smallest eigenvalue of P <= P0 stops W and P), and, as the alternative, a fixed freeze time T (W and P
@@ -43,15 +45,17 @@ class StudyGrid:
     heading [deg], noise [counts], P0 [-], freeze times [s]."""
 
     tasks: tuple[str, ...] = paper.TASKS
-    mismatch: tuple[float, ...] = (0.0, 0.025, 0.05, 0.075, 0.1)
+    mismatch: tuple[float, ...] = (0.0, 0.025, 0.05, 0.075, 0.1, 0.15, 0.2)
     heading_deg: tuple[float, ...] = (0.0, 10.0, 20.0, 30.0)
     noise_counts: tuple[float, ...] = (0.0, 0.25, 0.5, 1.0)
     noise_seed: int = 1
+    bump_Nm: tuple[float, ...] = (0.0, 1.7, 3.4)
+    bump_time: float = 0.2
     p0: tuple[float, ...] = (1e-4, 2e-4, 5e-4, 1e-3, 2e-3)
     freeze_times: tuple[float, ...] = (6.0, 8.0, 10.0)
     freeze_mismatch: float = 0.05
     freeze: bool = True
-    axes: tuple[str, ...] = ("mismatch", "heading", "noise")
+    axes: tuple[str, ...] = ("mismatch", "heading", "noise", "bump")
     manifest: str | None = None      # the tasks file (default scenarios/paper.toml)
 
 
@@ -75,6 +79,13 @@ def noise_params(std: float, seed: int) -> dict[str, Any]:
     if std == 0.0:
         return {}
     return {"sensor.noise_std": std, "sensor.noise_seed": seed}
+
+
+def bump_params(bump: float, duration: float) -> dict[str, float]:
+    """A bump of ``bump`` N.m at the foam's edge for ``duration`` seconds."""
+    if bump == 0.0:
+        return {}
+    return {"plant.foam_bump": bump, "plant.foam_bump_time": duration}
 
 
 def reading_params(kind: str, value: float) -> dict[str, Any]:
@@ -108,7 +119,8 @@ def plan(grid: StudyGrid) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     layout: dict[str, Any] = {}
     axes = {"mismatch": [(v, mismatch_params(v)) for v in grid.mismatch],
             "heading": [(v, heading_params(v)) for v in grid.heading_deg],
-            "noise": [(v, noise_params(v, grid.noise_seed)) for v in grid.noise_counts]}
+            "noise": [(v, noise_params(v, grid.noise_seed)) for v in grid.noise_counts],
+            "bump": [(v, bump_params(v, grid.bump_time)) for v in grid.bump_Nm]}
     for name in grid.axes:
         layout[name] = [{"value": v, "points": {t: point(t, p) for t in grid.tasks}} for v, p in axes[name]]
     if grid.freeze:
@@ -150,7 +162,7 @@ def _finite_max(xs: list[Any]) -> float | None:
 def summarise(rows: dict[int, dict[str, Any]], layout: dict[str, Any], grid: StudyGrid) -> dict[str, Any]:
     """metrics.json's ``robustness`` and ``freeze_study`` from the rows of the points."""
     out: dict[str, Any] = {"tasks": list(grid.tasks)}
-    for name in ("mismatch", "heading", "noise"):
+    for name in ("mismatch", "heading", "noise", "bump"):
         if name not in layout:
             continue
         entries = []
@@ -165,6 +177,8 @@ def summarise(rows: dict[int, dict[str, Any]], layout: dict[str, Any], grid: Stu
                                     for t in tasks},
                 "fidelity_cells": {(c["task"] + "." + c["run"] + "." + c["cell"]): c["ratio"]
                                    for c in fidelity(tasks)["cells"] if c["task"] in tasks},
+                # the foam run's peak |u| within 2 s of the foam's edge [N.m]
+                "edge_peak_u": {t: rows[pid].get("edge_peak_u") for t, pid in e["points"].items()},
                 "points": e["points"],
             })
         out[name] = entries
@@ -175,7 +189,7 @@ def summarise(rows: dict[int, dict[str, Any]], layout: dict[str, Any], grid: Stu
                 break
             last = e["value"]
         key = {"mismatch": "max_mismatch_all_converge", "heading": "max_heading_deg_all_converge",
-               "noise": "max_noise_counts_all_converge"}[name]
+               "noise": "max_noise_counts_all_converge", "bump": "max_bump_Nm_all_converge"}[name]
         out[key] = last
     freeze = None
     if "freeze" in layout:
@@ -248,5 +262,6 @@ def run_study(out: Path, grid: StudyGrid | None = None, workers: int | None = No
     rows = {r["point"]: r for r in rows_list}
     s = summarise(rows, layout, grid)
     s["robustness"]["n_points"] = len(points)
+    s["robustness"]["bump_time"] = grid.bump_time
     s["robustness"]["n_runs"] = len(points) * len(RUNS)
     return s
