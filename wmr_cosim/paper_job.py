@@ -218,9 +218,8 @@ def report_blocks(results: dict[str, Any], variant: str, figures: list[Path], ou
         b.append(("table", h, rows))
     else:
         b.append(("p", "None."))
-    b.append(("p", "'needs' says whether our value would have to be smaller or larger to match. The smooth model "
-                   "has no stiction and no bump at the foam's edge; both would add resistance, so neither is a "
-                   "measured cause of a cell that needs a smaller error. " + " ".join(notes)))
+    b.append(("p", "'needs' says whether our value would have to be smaller or larger to match. Stiction is not "
+                   "in the model and was not measured here. " + " ".join(notes)))
     # ---- positions
     b.append(("h2", "Final position of point A and time to reach eps_G"))
     fp = paper.results()["final_positions"]
@@ -303,7 +302,8 @@ def report_blocks(results: dict[str, Any], variant: str, figures: list[Path], ou
         cl["G1.static"]["text"] + ". The friction (36) is smooth (a tanh): the model has no stiction to hold "
         "the wheels against the control after braking, so our errors decay." if "G1.static" in cl else
         "G1 was not run.",
-        "The peak of the control at the foam's edge: see the edge-peak lines under 'Control levels'.",
+        "The peak of the control at the foam's edge: see the edge-peak lines under 'Control levels'"
+        + (" and the bump sweep of the robustness section." if study else "; `--robustness` measures an edge bump."),
         "The initial heading is not printed in the paper; we start at beta0 = 0. "
         + ("The robustness section measures how the results move with it." if study else
            "`--robustness` measures how the results move with it."),
