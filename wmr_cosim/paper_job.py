@@ -276,8 +276,8 @@ def report_blocks(results: dict[str, Any], variant: str, figures: list[Path], ou
     b.append(("p", "gamma* of (53) divides the whole cost of the foam run, int (s'Qs + u'Ru) dt, by the energy "
                    "int dF_hat'dF_hat dt of the disturbance estimate (52) (the difference of the controls with and "
                    "without the foam, zero before t_F), both from t = 0 to 50 s. Its denominator grows with the "
-                   "square of the assumed friction change (a5, a6 + 0.4 N.m; + 0.5 N.m on the line) while the cost "
-                   "changes little, so gamma* is a statement about that change, not about any. A simulation knows "
+                   "square of the assumed friction change (a5, a6 + 0.4 N.m; + 0.5 N.m on the line), so gamma* is a "
+                   "statement about that change, not about any. A simulation knows "
                    "the injected disturbance: '(53) with the injected dF' replaces the estimate by the truth, and the "
                    "incremental gain sqrt(int |z_foam - z_frozen|^2 / int |dF|^2), |z|^2 = s'Qs + u'Ru, is the L2 "
                    "gain from the friction change to the change of the controlled output."))
