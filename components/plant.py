@@ -10,6 +10,8 @@ Delta F_i = lambda(t) da_i 2 tanh(cF alpha_dot_i / 2), the shape of (36), where 
 linearly from 0 to 1 over ``foam_ramp`` seconds once the foam is reached: at time ``foam_t_on`` (if
 ``foam_on_time``) or at the first communication point at which point A is inside the rectangle
 [foam_x_min, foam_x_max] x [foam_y_min, foam_y_max] (if ``foam_on_region``), whichever comes first.
+An optional bump at the foam's edge (off by default): a5 and a6 rise by a further ``foam_bump`` for
+``foam_bump_time`` seconds from the moment the foam is reached (the wheels climbing its edge).
 
 Wheel 1 is the right wheel: by (23) its speed grows when the robot turns counter-clockwise.
 """
@@ -66,17 +68,19 @@ class PlantParams:
     foam_x_max: float = 0.0
     foam_y_min: float = 0.0
     foam_y_max: float = 0.0
+    foam_bump: float = 0.0
+    foam_bump_time: float = 0.2
 
     def __post_init__(self) -> None:
         o = "plant"
         for name in ("a1", "a2", "a3", "a4", "a5", "a6", "x0", "y0", "beta0", "foam_da1", "foam_da2",
-                     "foam_t_on", "foam_x_min", "foam_x_max", "foam_y_min", "foam_y_max"):
+                     "foam_t_on", "foam_x_min", "foam_x_max", "foam_y_min", "foam_y_max", "foam_bump"):
             setattr(self, name, finite(o, name, getattr(self, name)))
         for name in ("cF", "r", "l1"):
             setattr(self, name, positive(o, name, getattr(self, name)))
         for name in ("foam_on_time", "foam_on_region"):
             setattr(self, name, boolean(o, name, getattr(self, name)))
-        for name in ("a4", "a5", "a6", "foam_ramp"):
+        for name in ("a4", "a5", "a6", "foam_ramp", "foam_bump", "foam_bump_time"):
             setattr(self, name, non_negative(o, name, getattr(self, name)))
         self.substeps = positive_int(o, "substeps", self.substeps)
         shape_function(self.friction_form, o)
@@ -162,6 +166,19 @@ class Plant:
             return 1.0
         return (t - tf) / ramp
 
+    def bump_level(self, t: float) -> float:
+        """1 during the bump at the foam's edge (foam_bump_time seconds from the foam's onset), else 0."""
+        tf = self.t_foam
+        return 1.0 if tf <= t < tf + self.p.foam_bump_time else 0.0
+
+    def _forces(self, t: float) -> tuple[float, float]:
+        """2 (a5 + level da1 [+ bump]), 2 (a6 + level da2 [+ bump]) at time t [N.m]."""
+        p = self.p
+        lam = self.foam_level(t)
+        if p.foam_bump > 0.0 and self.bump_level(t):
+            return 2.0 * (p.a5 + lam * p.foam_da1 + p.foam_bump), 2.0 * (p.a6 + lam * p.foam_da2 + p.foam_bump)
+        return 2.0 * (p.a5 + lam * p.foam_da1), 2.0 * (p.a6 + lam * p.foam_da2)
+
     def derivatives(self, t: float, x: list[float], u1: float, u2: float,
                     tau1: float = 0.0, tau2: float = 0.0) -> list[float]:
         """dx/dt of the 7 states at time t [s] (the right-hand side integrated by :meth:`step`).
@@ -170,14 +187,14 @@ class Plant:
         (23)-(24): v_A = r (w1 + w2) / 2, beta_dot = r (w1 - w2) / (2 l1), x_dot = v_A cos beta, y_dot = v_A sin beta.
         """
         p = self.p
-        lam = self.foam_level(t)
+        f5, f6 = self._forces(t)
         w1, w2 = x[2], x[3]
         k = 0.5 * p.cF
         g1 = self._g(k * w1)
         g2 = self._g(k * w2)
         c = 2.0 * p.a4 * (w2 - w1)
-        r1 = u1 - c * w2 - 2.0 * (p.a5 + lam * p.foam_da1) * g1 - tau1
-        r2 = u2 + c * w1 - 2.0 * (p.a6 + lam * p.foam_da2) * g2 - tau2
+        r1 = u1 - c * w2 - f5 * g1 - tau1
+        r2 = u2 + c * w1 - f6 * g2 - tau2
         v = 0.5 * p.r * (w1 + w2)
         return [w1, w2, self._i11 * r1 + self._i12 * r2, self._i12 * r1 + self._i11 * r2,
                 v * math.cos(x[6]), v * math.sin(x[6]), 0.5 * p.r * (w1 - w2) / p.l1]
@@ -206,8 +223,10 @@ class Plant:
         hrl = hr / p.l1
         cos, sin = math.cos, math.sin
         level = self.foam_level
-        # the foam level is constant over the whole step before the foam and after its ramp
-        static = t + h < self.t_foam or t >= self.t_foam + p.foam_ramp
+        forces = self._forces
+        # the foam level is constant over the whole step before the foam and after its ramp (and bump)
+        end = max(p.foam_ramp, p.foam_bump_time) if p.foam_bump > 0.0 else p.foam_ramp
+        static = t + h < self.t_foam or t >= self.t_foam + end
         if static:
             lam = level(t)
             f5 = 2.0 * (a5 + lam * da1)
@@ -217,9 +236,7 @@ class Plant:
         for _ in range(n):
             # stage 1 at ts
             if not static:
-                lam = level(ts)
-                f5 = 2.0 * (a5 + lam * da1)
-                f6 = 2.0 * (a6 + lam * da2)
+                f5, f6 = forces(ts)
             c = a4x2 * (w2 - w1)
             r1 = u1 - c * w2 - f5 * g(k * w1) - tau1
             r2 = u2 + c * w1 - f6 * g(k * w2) - tau2
@@ -228,9 +245,7 @@ class Plant:
             kxa, kya, kba = v * cos(be), v * sin(be), hrl * (w1 - w2)
             # stage 2 at ts + dt/2
             if not static:
-                lam = level(ts + hdt)
-                f5 = 2.0 * (a5 + lam * da1)
-                f6 = 2.0 * (a6 + lam * da2)
+                f5, f6 = forces(ts + hdt)
             wb1 = w1 + hdt * kw1a
             wb2 = w2 + hdt * kw2a
             bb = be + hdt * kba
@@ -252,9 +267,7 @@ class Plant:
             kxc, kyc, kbc = v * cos(bc), v * sin(bc), hrl * (wc1 - wc2)
             # stage 4 at ts + dt
             if not static:
-                lam = level(ts + dt)
-                f5 = 2.0 * (a5 + lam * da1)
-                f6 = 2.0 * (a6 + lam * da2)
+                f5, f6 = forces(ts + dt)
             wd1 = w1 + dt * kw1c
             wd2 = w2 + dt * kw2c
             bd = be + dt * kbc
@@ -286,6 +299,7 @@ class Plant:
         p = self.p
         lam = self.foam_level(self.t)
         k = 0.5 * p.cF
-        df1 = 2.0 * lam * p.foam_da1 * self._g(k * w1) + self.tau1
-        df2 = 2.0 * lam * p.foam_da2 * self._g(k * w2) + self.tau2
+        bump = p.foam_bump if p.foam_bump > 0.0 and self.bump_level(self.t) else 0.0
+        df1 = 2.0 * (lam * p.foam_da1 + bump) * self._g(k * w1) + self.tau1
+        df2 = 2.0 * (lam * p.foam_da2 + bump) * self._g(k * w2) + self.tau2
         return (x1, x2, w1, w2, xa, ya, be, df1, df2, lam)

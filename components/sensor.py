@@ -11,6 +11,11 @@ second-order filter (43), wheel angle.
   the default is the normalised form 1/(0.0001 p^2 + 0.03 p + 1) (unit DC gain, poles at -38.2 and
   -261.8 rad/s; decision 10).  The filter is discretised exactly, holding the increment velocity over
   the step it is the mean of (zero-order hold).
+* Encoder noise (off by default): with ``noise_std`` > 0 every reading adds a Gaussian jitter of
+  ``noise_std`` counts (standard deviation) to the edge position before the floor, drawn from a
+  generator seeded with ``noise_seed`` at :meth:`Sensor.reset`, so a run is repeatable.  A jitter
+  near an edge flips the count by one, as a noisy encoder does.  With ``noise_std`` = 0 no number is
+  drawn and the chain is bit-identical to the noise-free one.
 * The wheel angle is the integral of the filtered velocity (default, Fig. 2; integrated exactly with
   the filter) or the count angle (count - count at start) q (decision 11).
 
@@ -20,12 +25,13 @@ the wheel angles at t + h and returns the measurements at t + h.
 from __future__ import annotations
 
 import math
+import random
 from dataclasses import asdict, dataclass
 from typing import Any
 
 from . import paper
 from .linalg import zoh
-from .validation import ParameterError, choice, finite, positive, step as check_step
+from .validation import ParameterError, choice, finite, non_negative, positive, step as check_step
 
 _ENC = paper.results()["encoder"]
 
@@ -46,7 +52,7 @@ SENSOR_OUTPUTS = (
 
 @dataclass
 class SensorParams:
-    """Parameters of the sensor chain.  ppr [1/rev], gear [-], phases [counts]."""
+    """Parameters of the sensor chain.  ppr [1/rev], gear [-], phases [counts], noise_std [counts]."""
 
     ppr: float = float(_ENC["ppr"])
     gear: float = float(_ENC["gear"])
@@ -54,6 +60,8 @@ class SensorParams:
     phase2: float = 0.5
     filter_form: str = "normalised"
     angle_source: str = "filtered"
+    noise_std: float = 0.0
+    noise_seed: int = 0
 
     def __post_init__(self) -> None:
         o = "sensor"
@@ -66,6 +74,11 @@ class SensorParams:
             setattr(self, name, v)
         choice(o, "filter_form", self.filter_form, FILTER_FORMS)
         choice(o, "angle_source", self.angle_source, ANGLE_SOURCES)
+        self.noise_std = non_negative(o, "noise_std", self.noise_std)
+        seed = finite(o, "noise_seed", self.noise_seed)
+        if seed != int(seed) or not 0 <= seed < 2**31:
+            raise ParameterError(f"sensor parameter noise_seed = {self.noise_seed!r}: must be an integer in [0, 2^31)")
+        self.noise_seed = int(seed)
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -121,11 +134,13 @@ class Sensor:
         self.z1 = [0.0, 0.0, 0.0]
         self.z2 = [0.0, 0.0, 0.0]
         self.v1 = self.v2 = 0.0
+        self._rng = random.Random(p.noise_seed) if p.noise_std > 0.0 else None
 
     def get_state(self) -> dict[str, Any]:
         """All internal state as JSON-serialisable plain values."""
         return {"c": [self.c1, self.c2], "c0": [self.c1_0, self.c2_0], "z1": list(self.z1),
-                "z2": list(self.z2), "v": [self.v1, self.v2]}
+                "z2": list(self.z2), "v": [self.v1, self.v2],
+                "rng": _rng_state(self._rng)}
 
     def set_state(self, s: dict[str, Any]) -> None:
         """Restore a state returned by :meth:`get_state`."""
@@ -134,6 +149,9 @@ class Sensor:
         self.z1 = [float(v) for v in s["z1"]]
         self.z2 = [float(v) for v in s["z2"]]
         self.v1, self.v2 = (float(v) for v in s["v"])
+        if self._rng is not None and s.get("rng") is not None:
+            st = s["rng"]
+            self._rng.setstate((int(st[0]), tuple(int(v) for v in st[1]), None if st[2] is None else float(st[2])))
 
     def _discretise(self, h: float) -> None:
         check_step("sensor", h)
@@ -155,8 +173,13 @@ class Sensor:
         a00, a01, a02, a10, a11, a12, a20, a21, a22 = self._ad
         b0, b1, b2 = self._bd
         # encoder counts and the increment velocity (42)
-        c1 = floor(alpha1 * iq + p.phase1)
-        c2 = floor(alpha2 * iq + p.phase2)
+        if self._rng is None:
+            c1 = floor(alpha1 * iq + p.phase1)
+            c2 = floor(alpha2 * iq + p.phase2)
+        else:  # encoder noise: a Gaussian jitter of the edge position [counts]
+            g, sd = self._rng.gauss, p.noise_std
+            c1 = floor(alpha1 * iq + p.phase1 + g(0.0, sd))
+            c2 = floor(alpha2 * iq + p.phase2 + g(0.0, sd))
         v1 = (c1 - self.c1) * vq
         v2 = (c2 - self.c2) * vq
         self.c1, self.c2, self.v1, self.v2 = c1, c2, v1, v2
@@ -178,3 +201,11 @@ class Sensor:
         else:
             am1, am2 = (self.c1 - self.c1_0) * self.q, (self.c2 - self.c2_0) * self.q
         return (am1, am2, self.z1[1], self.z2[1], self.v1, self.v2, self.c1, self.c2)
+
+
+def _rng_state(rng: random.Random | None) -> list[Any] | None:
+    """The generator's state as JSON values (None without noise)."""
+    if rng is None:
+        return None
+    version, internal, gauss_next = rng.getstate()
+    return [version, list(internal), gauss_next]

@@ -37,6 +37,8 @@ _P = {  # PlantParams field: (unit, (min, max), description) / ((min, max), desc
     "foam_x_max": ("m", FINITE, "foam rectangle: x max"),
     "foam_y_min": ("m", FINITE, "foam rectangle: y min"),
     "foam_y_max": ("m", FINITE, "foam rectangle: y max"),
+    "foam_bump": ("N.m", NON_NEGATIVE, "foam: further rise of a5 and a6 during the bump at the foam's edge (0 = off, the default)"),
+    "foam_bump_time": ("s", NON_NEGATIVE, "foam: duration of the bump from the moment the foam is reached"),
 }
 TUNABLE = ("foam_da1", "foam_da2")
 

@@ -12,7 +12,7 @@ rewrites the two ``wmr_cosim`` imports below to it.
 from __future__ import annotations
 
 from wmr_cosim.components.sensor import SENSOR_OUTPUTS, Sensor, SensorParams
-from wmr_cosim.fmus.fmi_base import POSITIVE, Var, WmrSlave, parameters_of
+from wmr_cosim.fmus.fmi_base import NON_NEGATIVE, POSITIVE, Var, WmrSlave, parameters_of
 
 _P = {
     "ppr": ("1", POSITIVE, "encoder pulses per motor revolution"),
@@ -21,6 +21,9 @@ _P = {
     "phase2": ("1", (0.0, 1.0), "encoder 2 edge phase in counts, 0 <= phase2 < 1"),
     "filter_form": ("filter (43): normalised (default, 1/(0.0001 p^2 + 0.03 p + 1)) or printed",),
     "angle_source": ("measured angle: filtered (default, integral of the filtered speed) or counts",),
+    "noise_std": ("1", NON_NEGATIVE, "encoder noise: standard deviation of a Gaussian jitter of the edge position "
+                  "in counts (0 = off, the default)"),
+    "noise_seed": ((0, 2**31 - 1), "encoder noise: seed of the jitter's generator (repeatable runs)"),
 }
 
 _INPUTS = [

@@ -158,3 +158,74 @@ def test_fidelity_counts():
     f = fidelity(tasks)
     assert f["within_1_5"] == 31 and f["within_2_5"] == 32
     assert f["rms_log_factor"] == pytest.approx(math.exp(math.sqrt(math.log(2) ** 2 / 32)))
+
+
+def test_every_statement_of_the_report_agrees_with_its_number(job):
+    """Each pass/fail line of the report is a claim re-read from metrics.json: value, verdict and wording."""
+    from wmr_cosim.claims import check_claims
+
+    out = job["out"]
+    m = json.loads((out / "metrics.json").read_text())
+    md = (out / "report.md").read_text()
+    assert len(m["claims"]) >= 20
+    assert check_claims(m, md) == []
+    # gamma* against gamma = 11: the line states the relation the numbers have
+    g1 = next(c for c in m["claims"] if c["id"] == "G1.gamma")
+    rel = "<=" if m["gamma_star"]["G1"] <= 11.0 else ">"
+    assert f"= {m['gamma_star']['G1']:.2f} {rel} 11.00" in g1["text"] and g1["text"] in md
+    assert "gamma* <= gamma" not in md and "below their learning rows" not in md
+    assert "G1, G2, G3 of G1, G2, G3" not in md and "max gamma* after" not in md
+    # a number that no longer matches its statement is caught, and so is a statement edited by hand
+    bad = json.loads(json.dumps(m))
+    bad["gamma_star"]["G1"] = 5.0
+    assert any(e.startswith("G1.gamma:") for e in check_claims(bad))
+    bad = json.loads(json.dumps(m))
+    g = next(c for c in bad["claims"] if c["id"] == "G1.gamma")
+    g["text"] = g["text"].replace(" > ", " <= ").replace(": no", ": yes")
+    assert any(e.startswith("G1.gamma:") for e in check_claims(bad))
+    assert any("not in the report" in e for e in check_claims(m, md.replace(g1["text"], "")))
+
+
+def test_true_tracking_error_from_the_plant_angles(job):
+    """The true RMSE uses the plant's angles: recomputed here from the recorded signals; the measured one
+    is larger (the filter (43) delays the measured angle)."""
+    out = job["out"]
+    for task in paper.TASKS:
+        for run in ("learn", "foam"):
+            d = np.load(out / "runs" / task / run / "signals.npy")
+            r = job["metrics"]["tasks"][task][run]
+            for i in (1, 2):
+                e = d[f"controller.alpha_d{i}"] - d[f"plant.alpha{i}"]
+                ed = d[f"controller.alpha_dot_d{i}"] - d[f"plant.alpha_dot{i}"]
+                assert r["rmse_e_true"][i - 1] == pytest.approx(math.sqrt(np.mean(e * e)), rel=1e-12)
+                assert r["rmse_edot_true"][i - 1] == pytest.approx(math.sqrt(np.mean(ed * ed)), rel=1e-12)
+                assert 0.5 * r["rmse_e"][i - 1] < r["rmse_e_true"][i - 1] < r["rmse_e"][i - 1]
+    md = (out / "report.md").read_text()
+    assert "G1 true" in md and "LINE true" in md
+
+
+def test_foam_edge_peak_is_measured_on_the_foam_run(job):
+    out = job["out"]
+    for task in paper.TASKS:
+        d = np.load(out / "runs" / task / "foam" / "signals.npy")
+        fo = job["metrics"]["tasks"][task]["foam"]
+        t = d["time"]
+        w = (t >= fo["t_F"]) & (t <= fo["t_F"] + 2.0)
+        want = max(np.max(np.abs(d["controller.u1"][w])), np.max(np.abs(d["controller.u2"][w])))
+        assert fo["edge_peak_u"] == pytest.approx(want)
+        assert fo["edge_peak_u"] > fo["edge_peak_u_frozen"]   # the friction change raises the control
+
+
+def test_claim_text_follows_the_number():
+    from wmr_cosim.claims import check_claims, make_claim
+
+    m = {"gamma_star": {"G1": 13.6}, "runs": [1, 2]}
+    c = make_claim(m, "g", "gamma_star.G1", "gamma*", "<=", 11.0, "gamma", 2)
+    assert c["text"] == "gamma* = 13.60 > 11.00 (gamma): no" and c["holds"] is False
+    m["gamma_star"]["G1"] = 9.0
+    c2 = make_claim(m, "g", "gamma_star.G1", "gamma*", "<=", 11.0, "gamma", 2)
+    assert c2["text"] == "gamma* = 9.00 <= 11.00 (gamma): yes"
+    assert make_claim(m, "n", "runs.#len", "runs", "==", 2, "two", 0)["holds"]
+    assert make_claim(m, "x", "missing.key", "x", "<", 1.0, "one")["text"].endswith(": no")
+    m["claims"] = [c]          # a claim written for 13.6, the metrics now say 9.0
+    assert check_claims(m) and not check_claims({**m, "claims": [c2]})

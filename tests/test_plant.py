@@ -176,3 +176,39 @@ def test_state_round_trip_is_exact():
     outs = [a.step(k * h, h, 4.2, 3.7) for k in range(300, 900)]
     a.set_state(s)
     assert [a.step(k * h, h, 4.2, 3.7) for k in range(300, 900)] == outs
+
+
+def test_bump_at_the_foam_edge_adds_to_a5_a6_for_its_duration():
+    """The bump raises a5, a6 by foam_bump in [t_F, t_F + foam_bump_time): the derivative then equals that
+    of a plant with a5, a6 raised by the level's da plus the bump, and dF reports it; afterwards it is gone."""
+    kw = dict(foam_on_time=True, foam_t_on=1.0, foam_da1=0.4, foam_da2=0.3, foam_ramp=0.0)
+    pl = Plant(foam_bump=2.0, foam_bump_time=0.2, **kw)
+    x = [0.0, 0.0, 9.0, 8.0, 0.0, 0.0, 0.0]
+    for t, extra in ((0.99, None), (1.0, 2.0), (1.19, 2.0), (1.2, 0.0)):
+        got = pl.derivatives(t, x, 4.0, 4.0)
+        if extra is None:
+            ref = Plant().derivatives(t, x, 4.0, 4.0)
+        else:
+            ref = Plant(a5=A[4] + 0.4 + extra, a6=A[5] + 0.3 + extra).derivatives(t, x, 4.0, 4.0)
+        assert got == pytest.approx(ref, rel=1e-13, abs=1e-13), t
+    h = 0.002
+    off = Plant(**kw)
+    for k in range(int(1.6 / h)):
+        a = pl.step(k * h, h, 4.0, 4.0)
+        b = off.step(k * h, h, 4.0, 4.0)
+        t1 = (k + 1) * h
+        if 1.0 + h < t1 < 1.2 - h:   # dF carries the bump during it
+            assert a[7] == pytest.approx(2.0 * (0.4 + 2.0) * math.tanh(CF * a[2] / 2), rel=1e-12)
+        elif t1 < 1.0:
+            assert a == b                # identical before the foam
+    assert a[2] < b[2]                   # the bump has slowed the wheels for good
+    with pytest.raises(ValueError, match="foam_bump"):
+        Plant(foam_bump=-1.0)
+
+
+def test_no_bump_is_bit_identical():
+    kw = dict(foam_on_time=True, foam_t_on=0.5, foam_da1=0.4, foam_da2=0.4, foam_ramp=0.1)
+    a, b = Plant(**kw), Plant(foam_bump=0.0, foam_bump_time=5.0, **kw)
+    h = 0.002
+    for k in range(500):
+        assert a.step(k * h, h, 4.0, 3.9) == b.step(k * h, h, 4.0, 3.9)

@@ -162,3 +162,42 @@ def test_sensor_components_need_no_numpy():
     ref = Sensor()
     ref.reset(0.0, 0.0)
     assert float(p.stdout) == ref.step(H, 0.01, 0.02)[2]
+
+def _drive(s: Sensor, n: int = 400, h: float = 0.002, w: float = 9.7) -> list[tuple[float, ...]]:
+    return [s.step(h, w * h * (k + 1), 0.9 * w * h * (k + 1)) for k in range(n)]
+
+
+def test_encoder_noise_is_off_by_default_and_bit_identical():
+    ref = _drive(Sensor())
+    assert _drive(Sensor(noise_std=0.0, noise_seed=7)) == ref
+
+
+def test_encoder_noise_is_seeded_and_flips_counts_with_the_gaussian_probability():
+    a, b = _drive(Sensor(noise_std=0.3, noise_seed=3)), _drive(Sensor(noise_std=0.3, noise_seed=3))
+    assert a == b and a != _drive(Sensor()) and a != _drive(Sensor(noise_std=0.3, noise_seed=4))
+    # a wheel at rest 0.3 counts below an edge: the count reads one more when the jitter exceeds 0.3 counts
+    s = Sensor(noise_std=0.5, noise_seed=11)
+    q = s.q
+    s.reset(0.0, 0.0)
+    alpha = (10.0 + 0.7) * q           # fractional position 0.7 of wheel 1 (phase1 = 0)
+    n = 20_000
+    up = sum(s.step(0.002, alpha, 0.0)[6] == 11 for _ in range(n)) / n
+    p = 0.5 * math.erfc(0.3 / (0.5 * math.sqrt(2.0)))      # P(N(0, 0.5) > 0.3)
+    assert up == pytest.approx(p, abs=4.0 * math.sqrt(p * (1 - p) / n))
+
+
+def test_encoder_noise_state_round_trips():
+    s = Sensor(noise_std=0.4, noise_seed=2)
+    _drive(s, 50)
+    st = s.get_state()
+    rest = _drive(s, 50)
+    s2 = Sensor(noise_std=0.4, noise_seed=2)
+    s2.set_state(st)
+    assert _drive(s2, 50) == rest
+
+
+@pytest.mark.parametrize("kw", [{"noise_std": -0.1}, {"noise_std": math.nan}, {"noise_seed": 1.5},
+                                {"noise_seed": -1}])
+def test_encoder_noise_parameters_are_checked(kw):
+    with pytest.raises(ValueError, match="sensor parameter noise_"):
+        SensorParams(**kw)

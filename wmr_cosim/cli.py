@@ -198,7 +198,7 @@ def cmd_paper(args: argparse.Namespace) -> int:
     from .paper_job import run_paper
 
     r = run_paper(args.out, variant=args.variant, compare=not args.no_compare, workers=args.workers,
-                  manifest=args.manifest, progress=False if args.quiet else None)
+                  manifest=args.manifest, progress=False if args.quiet else None, robustness=args.robustness)
     m = r["metrics"]
     f = m["fidelity"]
     print(f"report: {args.out / 'report.md'} (and report.html, metrics.json, figures/) in {r['wall_s']:.1f} s")
@@ -353,6 +353,9 @@ def build_parser() -> argparse.ArgumentParser:
     pp.add_argument("--manifest", type=Path, default=None,
                     help="the tasks file (default: the shipped scenarios/paper.toml)")
     pp.add_argument("--quiet", action="store_true", help="no progress lines")
+    pp.add_argument("--robustness", action="store_true",
+                    help="also the robustness study (mismatch, initial heading, encoder noise) and the study of when "
+                         "W stops adapting, on Dask (about 300 more runs; resumes in DIR/robustness)")
     pp.set_defaults(func=cmd_paper)
     sw = sub.add_parser("sweep", help="run a parameter sweep or Monte Carlo study on Dask",
                         description="Run a sweep file (scenarios/sweep-*.toml): a base scenario or protocol, grids "

@@ -22,10 +22,11 @@ WHEELS = (("1", "wheel 1", "C0"), ("2", "wheel 2", "C3"))
 DPI = 110
 
 
-def _wheels(ax, sig: Signals, name: str, ylabel: str, title: str, scale: float = 1.0, label: str = "") -> None:
+def _wheels(ax, sig: Signals, name: str, ylabel: str, title: str, scale: float = 1.0, label: str = "",
+            colours: tuple[str, str] | None = None, ls: str = "-") -> None:
     t = sig["time"]
-    for i, wl, col in WHEELS:
-        ax.plot(t, scale * sig[f"controller.{name}{i}"], color=col, lw=1.0, label=f"{label}{wl}")
+    for (i, wl, col), c in zip(WHEELS, colours or (None, None)):
+        ax.plot(t, scale * sig[f"controller.{name}{i}"], color=c or col, lw=1.0, ls=ls, label=f"{label}{wl}")
     ax.set_xlabel("t [s]")
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=9, loc="left")
@@ -80,7 +81,8 @@ def fig_learning(sig: Signals, out: Path, task: str, number: str) -> Path:
 
 def fig_value_and_paths(g1: Signals, learns: dict[str, Signals], out: Path) -> Path:
     """Fig. 6: the value function of G1 (a) and the paths of point A to G1-G3 (b)."""
-    fig, axs = plt.subplots(1, 2, figsize=(10, 4.2))
+    # (b) gets the width its tall, equal-aspect path plot needs
+    fig, axs = plt.subplots(1, 2, figsize=(10, 5.2), gridspec_kw={"width_ratios": [1.5, 1.0]})
     ax = axs[0]
     ax.plot(g1["time"], g1["controller.V_hat"], lw=1.0)
     ax.set_xlabel("t [s]")
@@ -95,7 +97,7 @@ def fig_value_and_paths(g1: Signals, learns: dict[str, Signals], out: Path) -> P
     ax.plot(0, 0, "ko", ms=4)
     ax.set_xlabel("x_A [m]")
     ax.set_ylabel("y_A [m]")
-    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_aspect("equal", adjustable="box")
     ax.set_title("(b) paths of point A (true pose), learning runs", fontsize=9, loc="left")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
@@ -179,10 +181,84 @@ def fig_line_learning(sig: Signals, out: Path) -> Path:
     _wheels(axs[0, 1], sig, "edot", "de/dt [rad/s]", "(b) velocity tracking error")
     _wheels(axs[1, 0], sig, "u", "u, 30 dF_hat [N.m]", "(c) control u and 30 x dF_hat", label="u ")
     _wheels(axs[1, 0], sig, "dF_hat", "u, 30 dF_hat [N.m]", "(c) control u and 30 x dF_hat", scale=30.0,
-            label="30 dF_hat ")
+            label="30 dF_hat ", colours=("C2", "C1"), ls="--")
     _weights(axs[1, 1], sig, "(d) critic weights W")
     fig.suptitle("Fig. 11 redrawn: LINE, learning run", fontsize=10)
     return _save(fig, out / "fig11_line_learn.png")
+
+
+#: what each figure shows, by file name (the report's captions)
+CAPTIONS = {
+    "fig5_g1_learn": "Fig. 5 redrawn, G1 learning run (adaptation 0-39 s, reference floor): (a) angle tracking "
+                     "error e of both wheels (measured signal), (b) velocity tracking error, (c) control u, (d) the "
+                     "maximising player dF_hat, (e) the kinematic controls u_v, u_beta and the speed profile v_A of "
+                     "(50), (f) the critic weights W, which change only in the acceleration phase.",
+    "fig6_value_paths": "Fig. 6 redrawn: (a) the value function V_hat (45) along the G1 learning run; (b) the paths "
+                        "of point A (true pose) of the three go-to-goal learning runs from (0, 0) to G1, G2, G3 "
+                        "(crosses).",
+    "fig7_g1_foam": "Fig. 7 redrawn, G1 with the learned weights frozen, foam from t_F (dotted line): tracking "
+                    "errors (a, b), control (c) and dF_hat (d); at t_F the control steps up by the friction change.",
+    "fig8_g1_gamma": "Fig. 8 redrawn, G1: (a) the disturbance estimate dF_hat of (52) (foam run minus frozen run) "
+                     "and the injected friction change (dashed); (b) gamma*(t) of (53) with the estimate and with "
+                     "the injected dF, against gamma of Table 1.",
+    "fig9_g2_g3_gamma": "Fig. 9 redrawn: gamma*(t) of (53) for G2 (a) and G3 (b), with the estimate (52) and with "
+                        "the injected dF, against gamma of Table 1.",
+    "fig11_line_learn": "Fig. 11 redrawn, LINE learning run: (a) angle and (b) velocity tracking errors; (c) the "
+                        "control u (solid, blue/red) and 30 x dF_hat (dashed, green/orange), scaled as in the "
+                        "paper; (d) the critic weights W.",
+    "fig12_line_foam": "Fig. 12 redrawn, LINE with frozen weights, foam from t_F (dotted line): tracking errors "
+                       "(a, b), control (c) and dF_hat (d).",
+    "fig13_line_gamma": "Fig. 13 redrawn, LINE: control without (a) and with (b) the foam, (c) the estimate (52) "
+                        "and the injected dF, (d) gamma*(t) of (53) against gamma of Table 1.",
+    "robustness": "Robustness study: the largest RMSE of e of the foam run per task against the swept mismatch, "
+                  "initial heading, encoder noise and bump at the foam's edge; crosses mark diverged points.",
+}
+
+
+def caption(path: str | os.PathLike) -> str:
+    """The caption of a figure file: what it shows."""
+    return CAPTIONS.get(Path(path).stem, Path(path).stem.replace("_", " "))
+
+
+def fig_robustness(rob: dict[str, Any], out: str | os.PathLike) -> Path | None:
+    """The robustness study: per axis, the largest RMSE of e of the foam run (measured signal) per task
+    against the swept value; a point where a run of the task diverged is a cross at the top."""
+    axes = [(a, lab) for a, lab in (("mismatch", "left/right mismatch m [%]"), ("heading", "initial heading [deg]"),
+                                    ("noise", "encoder noise [counts, std]"),
+                                    ("bump", "bump at the foam's edge [N.m]")) if rob.get(a)]
+    if not axes:
+        return None
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    fig, axs = plt.subplots(1, len(axes), figsize=(3.4 * len(axes), 3.6), squeeze=False)
+    finite = [y for a, _ in axes for e in rob[a] for t in rob["tasks"]
+              if not any(r.startswith(t + ".") for r in e["diverged_runs"])
+              for y in [e["rmse_e_max"].get(t, {}).get("foam")] if y is not None and np.isfinite(y)]
+    top = 1.5 * max(finite + [0.1])     # diverged points are drawn at this height
+    for ax, (name, label) in zip(axs[0], axes):
+        scale = 100.0 if name == "mismatch" else 1.0
+        for k, task in enumerate(rob["tasks"]):
+            xs, ys, xd = [], [], []
+            for e in rob[name]:
+                x = scale * e["value"]
+                div = any(r.startswith(task + ".") for r in e["diverged_runs"])
+                y = e["rmse_e_max"].get(task, {}).get("foam")
+                if div or y is None:
+                    xd.append(x)
+                else:
+                    xs.append(x)
+                    ys.append(y)
+            col = f"C{k}"
+            ax.plot(xs, ys, "o-", color=col, ms=4, lw=1.0, label=task)
+            if xd:
+                ax.plot(xd, [top] * len(xd), "x", color=col, ms=8)
+        ax.set_xlabel(label)
+        ax.set_ylabel("foam run: max RMSE e [rad]")
+        ax.set_ylim(0, top * 1.05)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle("Robustness beyond the paper (x at the top: a run of the task diverged)", fontsize=10)
+    return _save(fig, out / "robustness.png")
 
 
 def render_all(runs: dict[str, dict[str, Signals]], dist: dict[str, dict[str, Any]], out: str | os.PathLike

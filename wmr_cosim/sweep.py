@@ -204,6 +204,8 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
             for i in (0, 1):
                 row[f"{name}.rmse_e{i + 1}"] = s["rmse_e"][i] if s["rmse_e"] else math.nan
                 row[f"{name}.rmse_edot{i + 1}"] = s["rmse_edot"][i] if s["rmse_edot"] else math.nan
+                row[f"{name}.rmse_e_true{i + 1}"] = s["rmse_e_true"][i] if s.get("rmse_e_true") else math.nan
+                row[f"{name}.rmse_edot_true{i + 1}"] = s["rmse_edot_true"][i] if s.get("rmse_edot_true") else math.nan
             fp = s.get("final_position") or [math.nan, math.nan]
             row[f"{name}.final_x"], row[f"{name}.final_y"] = fp
             row[f"{name}.t_goal"] = s["t_goal"] if s.get("t_goal") is not None else math.nan
@@ -219,6 +221,7 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
             for k in ("gamma_star", "gamma_true", "gain_incremental"):
                 row[k] = d[k] if d[k] is not None else math.nan
             row["foam_rise1"], row["foam_rise2"] = [math.nan if r is None else r for r in d["foam_rise"]]
+            row["edge_peak_u"] = d["edge_peak_u"] if d["edge_peak_u"] is not None else math.nan
     except CosimError as exc:
         row["status"], row["reason"] = "failed", str(exc)
     except Exception as exc:  # a point must never take the sweep down
@@ -392,7 +395,8 @@ def run_points(points: list[dict[str, Any]], base: str, variant: str | None, run
     from .cosim.archive import command_line_limits
 
     limits = command_line_limits()
-    futures = [cluster.client.submit(run_point, p, base, variant, runs, fmus, str(out), keep_runs, limits,
+    # a point may name its own base (a study over several tasks in one submission)
+    futures = [cluster.client.submit(run_point, p, p.get("base", base), variant, runs, fmus, str(out), keep_runs, limits,
                                      key=f"{label}-{out.name}-{p['id']}-{_digest(p)}", pure=False) for p in todo]
     try:
         for fut in as_completed(futures):
