@@ -351,14 +351,9 @@ class IsolatedInstance:
 
     # ------------------------------------------------------------------ life cycle (control channel)
     def fail_status(self, what: str, status: int, t: float | None) -> Any:
-        from .errors import RunError
-        from .instance import FATAL, STATUS
+        from .instance import Instance
 
-        if status == FATAL:
-            self.fatal = True
-        at = f" at t = {t:.6g} s" if t is not None else ""
-        return RunError(f"{self.name}: {what} returned {STATUS[status] if 0 <= status < 6 else status}{at}; "
-                        f"last log: {self.last_log()}", self.name, t)
+        return Instance.fail_status(self, what, status, t)   # the same rule and message as in process
 
     def died(self, exc: ChildDied, what: str, t: float | None) -> Any:
         from .errors import RunError
