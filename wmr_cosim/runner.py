@@ -15,9 +15,10 @@ from .cosim.scenario import parse_set
 
 
 def resolve_model(name: str) -> Path | None:
-    """Our FMU for a model name (WmrPlant, WmrSensor, WmrController; WmrCPlant, the plant in C), built when
-    missing or when its sources changed; None for any other name."""
-    from .fmus.build import SLAVES, BuildError, build_all
+    """Our FMU for a model name (WmrPlant, WmrSensor, WmrController; their FMI 3.0 versions WmrPlant3,
+    WmrSensor3, WmrController3; WmrCPlant, the plant in C), built when missing or when its sources changed;
+    None for any other name."""
+    from .fmus.build import FMI_VERSION, BuildError, build_all
 
     if name == "WmrCPlant":
         from .fmus.cplant_build import CBuildError, build_c_plant
@@ -25,7 +26,7 @@ def resolve_model(name: str) -> Path | None:
             return build_c_plant()
         except CBuildError as exc:
             raise CosimError(f"building {name}: {' '.join(str(exc).split())}") from None
-    if name not in SLAVES:
+    if name not in FMI_VERSION:
         return None
     try:
         return build_all(models=(name,))[name]
