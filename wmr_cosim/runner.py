@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +32,19 @@ def resolve_model(name: str) -> Path | None:
         return build_all(models=(name,))[name]
     except BuildError as exc:
         raise CosimError(f"building {name}: {' '.join(str(exc).split())}") from None
+
+
+def resolver(fmi: int = 2) -> Callable[[str], Path | None]:
+    """A model-name resolver for FMI version ``fmi``: 2 is :func:`resolve_model`; 3 resolves our FMI 2.0
+    model names (WmrPlant, WmrSensor, WmrController) to their FMI 3.0 versions (WmrPlant3, ...), so a
+    scenario written for the FMI 2.0 FMUs runs through the FMI 3.0 ones unchanged."""
+    if fmi == 2:
+        return resolve_model
+    if fmi != 3:
+        raise CosimError(f"FMI version {fmi}: 2 or 3")
+    from .fmus.build import SLAVES3
+    to3 = {v: k for k, v in SLAVES3.items()}
+    return lambda name: resolve_model(to3.get(name, name))
 
 
 def fmu_document(fmu: str | Path, inputs: str | Path | None = None, stop: float | None = None,
