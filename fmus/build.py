@@ -364,10 +364,10 @@ def _check_archive(fmu: Path, p: Plan) -> None:
         raise BuildError(f"{fmu}: unexpected model description (model name or state capabilities)")
 
 
-def up_to_date(out_dir: Path | None = None) -> dict[str, bool]:
+def up_to_date(out_dir: Path | None = None, models: tuple[str, ...] | None = None) -> dict[str, bool]:
     """{model name: True if its FMU in ``out_dir`` is current} (what :func:`build_all` would skip)."""
     out = Path(out_dir) if out_dir is not None else default_out_dir()
-    return {m: is_current(out / f"{m}.fmu", plan(m)) for m in SLAVES}
+    return {m: is_current(out / f"{m}.fmu", plan(m)) for m in (models or tuple(SLAVES))}
 
 
 def models_for(fmi: int) -> tuple[str, ...]:

@@ -76,14 +76,16 @@ def cmd_direct(args: argparse.Namespace) -> int:
 
 def cmd_build(args: argparse.Namespace) -> int:
     """Build WmrPlant.fmu, WmrSensor.fmu and WmrController.fmu (only those whose sources changed)."""
-    from .fmus.build import BuildError, build_all, default_out_dir, up_to_date
+    from .fmus.build import BuildError, build_all, default_out_dir, models_for, up_to_date
 
     out = args.out if args.out is not None else default_out_dir()
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {str(out)!r}: exists and is not a directory")
     current = {} if args.force else up_to_date(out)
     try:
-        paths = build_all(out, force=args.force)
+        if args.fmi == 3:
+            current = {} if args.force else up_to_date(out, models_for(3))
+        paths = build_all(out, force=args.force, models=models_for(args.fmi))
     except BuildError as exc:
         print(f"wmr-cosim: build failed: {exc}", file=sys.stderr)
         return EXIT_FAILED
@@ -287,6 +289,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="output folder (default: build/fmus of the source tree, git-ignored; when installed from a "
                         "wheel, the per-user cache ~/.cache/wmr-cosim/fmus)")
     b.add_argument("--force", action="store_true", help="rebuild even if up to date")
+    b.add_argument("--fmi", type=int, choices=(2, 3), default=2,
+                   help="FMI version: 2 (default) builds WmrPlant/WmrSensor/WmrController with pythonfmu, 3 builds "
+                        "WmrPlant3/WmrSensor3/WmrController3 with pythonfmu3 (docs/fmu-interfaces-fmi3.md)")
     b.add_argument("--c-plant", action="store_true",
                    help="also build WmrCPlant.fmu, the plant in C (needs cmake and a C compiler)")
     b.set_defaults(func=cmd_build)
