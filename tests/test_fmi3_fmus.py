@@ -5,6 +5,7 @@ rules, and FMPy's simulate_fmu (another FMI 3.0 host) against our master."""
 from __future__ import annotations
 
 import re
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -253,3 +254,36 @@ def test_fmi3_interface_document_is_generated(fmus3):
     from wmr_cosim.fmus.doc_tables import document3
 
     assert (ROOT / "docs" / "fmu-interfaces-fmi3.md").read_text(encoding="utf-8") == document3(fmus3)
+
+
+def test_ssp_export_and_import_of_a_mixed_system_with_array_parameters(built_fmus, fmus3, tmp_path):
+    """A system of an FMI 2.0 plant and FMI 3.0 sensor and controller, W_init and P_init set as arrays,
+    exported as SSP 1.0 (an array as one parameter per element) and run from the archive: the same
+    results as from the scenario file."""
+    from wmr_cosim.cosim import ssp
+
+    p = [50.0, 1.0, 2.0, 1.0, 60.0, 3.0, 2.0, 3.0, 70.0]
+    text = (f"base = {toml_value(str(G1))}\n[experiment]\nstop = 1.0\n"
+            f"[instances.plant]\nfmu = {toml_value(str(built_fmus['WmrPlant']))}\n"
+            f"[instances.sensor]\nfmu = {toml_value(str(fmus3['WmrSensor3']))}\n"
+            f"[instances.controller]\nfmu = {toml_value(str(fmus3['WmrController3']))}\n"
+            f"[instances.controller.parameters]\nW_init = [0.02, 0.04, 0.06]\nP_init = {p}\n")
+    path = write_scenario(tmp_path / "mixed.toml", text)
+    plan = system.resolve(scenario.load(path))
+    res = execution.run(plan, tmp_path / "toml", progress=False)
+    assert res.status == "ok", res.message
+    archive = ssp.export_ssp(plan, tmp_path / "mixed.ssp")
+    with zipfile.ZipFile(archive) as zf:
+        ssv = zf.read("resources/controller.ssv").decode()
+    assert 'name="P_init[2,3]"' in ssv and 'name="W_init[3]"' in ssv
+    arch = ssp.load_ssp(archive)
+    try:
+        assert arch.scenario.instances["controller"].parameters["P_init"] == p
+        res = execution.run(system.resolve(arch.scenario), tmp_path / "ssp", progress=False)
+        assert res.status == "ok", res.message
+    finally:
+        arch.cleanup()
+    a, b = np.load(tmp_path / "toml" / "signals.npy"), np.load(tmp_path / "ssp" / "signals.npy")
+    for name in a.dtype.names:
+        assert np.array_equal(a[name], b[name]), name
+    assert a["controller.W[2]"][0] == 0.04
