@@ -95,7 +95,7 @@ of the component code under a package name unique to the build (`wmrfmu_<compone
 paper's constants (`paper_results.json`) and pythonfmu's Python part. Any FMI 2.0 host on Linux x86-64
 (the only platform built) loads it, Python or not, with nothing set up; the machine needs the Python
 version the FMUs were built with (its shared library and standard library only, no numpy), and the
-environment variable `WMR_FMU_LIBPYTHON` selects another: see [docs/hosts.md](docs/hosts.md).
+environment variable `WMR_FMU_LIBPYTHON` selects another: see [hosts.md](hosts.md).
 After an fmi2Fatal (only possible during initialisation, or on a refused call) the host must not call
 the instance again, not even to free it: leak it and stop. Two instances of the same FMU, or FMUs of
 different builds, can live in one process: every build's modules have their own names.
