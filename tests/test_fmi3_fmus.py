@@ -287,3 +287,45 @@ def test_ssp_export_and_import_of_a_mixed_system_with_array_parameters(built_fmu
     for name in a.dtype.names:
         assert np.array_equal(a[name], b[name]), name
     assert a["controller.W[2]"][0] == 0.04
+
+
+def test_protocol_carry_through_fmi3_fmus_equals_fmi2(built_fmus, fmus3, tmp_path):
+    """The paper's protocol (learn, then frozen with the learned W and P carried into W*_init, P*_init)
+    through the FMI 3.0 FMUs (the carry gathered into W_init, P_init by runner.carry_fmi3), as
+    ``wmr-cosim paper --fmi 3`` runs it: every final value equal to the FMI 2.0 run's."""
+    from wmr_cosim.cosim.protocol import run_protocol
+    from wmr_cosim.runner import carry_fmi3
+
+    text = (f"base = {toml_value(str(ROOT / 'scenarios' / 'paper' / 'g1.toml'))}\n"
+            "[experiment]\nstop = 4.0\n")  # the weights move from 3.7 s on
+    path = write_scenario(tmp_path / "proto.toml", text)
+    two = run_protocol(path, tmp_path / "two", lambda n: built_fmus.get(n), variant="freeze", progress=False)
+    three = run_protocol(path, tmp_path / "three", lambda n: fmus3.get(n + "3"), variant="freeze", progress=False,
+                         carry=carry_fmi3)
+    assert list(two) == list(three) == ["learn", "frozen", "foam"]
+    for run in two:
+        assert two[run].status == three[run].status == "ok"
+        f2, f3 = two[run].final, three[run].final
+        assert len(f2) > 30 and all(f2[c] == f3[_name3(c)] for c in f2), run
+    learned = [two["learn"].final[f"controller.W{i}"] for i in (1, 2, 3)]
+    assert learned != [0.05] * 3  # the weights moved, and the frozen run started from them
+    assert [np.load(tmp_path / "three" / "frozen" / "signals.npy")[f"controller.W[{i}]"][0] for i in (1, 2, 3)] == learned
+
+
+def test_carry_fmi3_gathers_elements_into_arrays():
+    from wmr_cosim.cosim.errors import CosimError
+    from wmr_cosim.runner import carry_fmi3
+
+    finals = {"learn": {"controller.W[1]": 1.0, "controller.W[2]": 2.0, "controller.W[3]": 3.0,
+                        "controller.P[1,1]": 11.0, "controller.P[1,2]": 12.0, "controller.P[1,3]": 13.0,
+                        "controller.P[2,2]": 22.0, "controller.P[2,3]": 23.0, "controller.P[3,3]": 33.0,
+                        "plant.x_A": 0.5}}
+    carry = {f"controller.W{i}_init": f"learn.controller.W{i}" for i in (1, 2, 3)}
+    carry.update({f"controller.P{ij}_init": f"learn.controller.P{ij}" for ij in ("11", "12", "13", "22", "23", "33")})
+    carry["controller.x0"] = "learn.plant.x_A"
+    out = carry_fmi3(carry, finals)
+    assert out == {"controller.x0": 0.5, "controller.W_init": [1.0, 2.0, 3.0],
+                   "controller.P_init": [11.0, 12.0, 13.0, 12.0, 22.0, 23.0, 13.0, 23.0, 33.0]}
+    del carry["controller.W2_init"]
+    with pytest.raises(CosimError, match="W_init: elements"):
+        carry_fmi3(carry, finals)

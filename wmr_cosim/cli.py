@@ -200,7 +200,7 @@ def cmd_paper(args: argparse.Namespace) -> int:
     from .paper_job import run_paper
 
     r = run_paper(args.out, variant=args.variant, compare=not args.no_compare, workers=args.workers,
-                  manifest=args.manifest, progress=False if args.quiet else None)
+                  manifest=args.manifest, progress=False if args.quiet else None, fmi=args.fmi)
     m = r["metrics"]
     f = m["fidelity"]
     print(f"report: {args.out / 'report.md'} (and report.html, metrics.json, figures/) in {r['wall_s']:.1f} s")
@@ -355,6 +355,8 @@ def build_parser() -> argparse.ArgumentParser:
     pp.add_argument("--manifest", type=Path, default=None,
                     help="the tasks file (default: the shipped scenarios/paper.toml)")
     pp.add_argument("--quiet", action="store_true", help="no progress lines")
+    pp.add_argument("--fmi", type=int, choices=(2, 3), default=2,
+                    help="run the FMI 2.0 FMUs (default) or their FMI 3.0 versions (WmrPlant3, ...): same numbers")
     pp.set_defaults(func=cmd_paper)
     sw = sub.add_parser("sweep", help="run a parameter sweep or Monte Carlo study on Dask",
                         description="Run a sweep file (scenarios/sweep-*.toml): a base scenario or protocol, grids "

@@ -47,6 +47,42 @@ def resolver(fmi: int = 2) -> Callable[[str], Path | None]:
     return lambda name: resolve_model(to3.get(name, name))
 
 
+def carry_fmi3(carry: dict[str, str], finals: dict[str, dict[str, float]]) -> dict[str, Any]:
+    """A protocol's carry written for our FMI 2.0 controller (``controller.W1_init`` = ``learn.controller.W1``,
+    ``P12_init`` = ``P12``, ...) applied to the FMI 3.0 one: sources read from the array columns
+    (``W[1]``, ``P[1,2]``), the element parameters gathered into the arrays ``W_init`` (3) and ``P_init``
+    (3 x 3, symmetric).  Other carried values pass as they are."""
+    import re
+
+    out: dict[str, Any] = {}
+    arrays: dict[str, dict[tuple[int, ...], float]] = {}
+    for ref, src in carry.items():
+        run, col = src.split(".", 1)
+        m = re.fullmatch(r"(.*\.)(W|P)(\d)(\d)?", col)
+        if m:
+            col = f"{m.group(1)}{m.group(2)}[{','.join(g for g in m.group(3, 4) if g)}]"
+        if col not in finals[run]:
+            raise CosimError(f"carry {ref} = {src!r}: {col!r} was not recorded by run {run!r}")
+        value = finals[run][col]
+        r = re.fullmatch(r"(.*\.)(W|P)(\d)(\d)?_init", ref)
+        if not r:
+            out[ref] = value
+            continue
+        idx = tuple(int(g) - 1 for g in r.group(3, 4) if g)
+        arrays.setdefault(f"{r.group(1)}{r.group(2)}_init", {})[idx] = value
+        if len(idx) == 2:
+            arrays[f"{r.group(1)}{r.group(2)}_init"].setdefault(idx[::-1], value)
+    for ref, elems in arrays.items():
+        shape = [max(i[d] for i in elems) + 1 for d in range(len(next(iter(elems))))]
+        idx = [(i,) for i in range(shape[0])] if len(shape) == 1 else \
+            [(i, j) for i in range(shape[0]) for j in range(shape[1])]
+        missing = [i for i in idx if i not in elems]
+        if missing:
+            raise CosimError(f"carry {ref}: elements {missing} (0-based) are not carried; carry every element")
+        out[ref] = [elems[i] for i in idx]
+    return out
+
+
 def fmu_document(fmu: str | Path, inputs: str | Path | None = None, stop: float | None = None,
                  step: float | None = None) -> dict[str, Any]:
     """The scenario document of one FMU run alone (as ``fmpy simulate`` runs it): one instance named after
