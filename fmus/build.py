@@ -4,6 +4,8 @@ WmrSensor3.fmu and WmrController3.fmu with pythonfmu3 (FMI 3.0), rebuilding only
 FMI 3.0: the same slave script, bundled in the package as ``slave_<component>.py`` with its ``fmi_base``
 import pointing at ``fmi3_base`` (the FMI 3.0 base with the same interface), and a two-line main script
 ``class WmrPlant3(WmrPlant, Fmi3Slave)``; no C loader (see docs/hosts.md: FMI 3.0 FMUs need a Python host).
+Its package is ``wmrfmu_<component>3_<hash8>``, the hash over the slave script, fmi3_base.py, fmi_decl.py,
+the components, this script and the pythonfmu3 version.
 
 Each FMU carries, in its resources, a copy of the components package (with paper_results.json) plus
 fmus/fmi_base.py under a package name unique to the FMU and to the source version,

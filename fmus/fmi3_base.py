@@ -132,8 +132,7 @@ class WmrSlave(Fmi3Slave):
         super().__init__(**kwargs)
         self.author = "wmr-cosim"
         self.default_experiment = type(self).default_experiment
-        self.description = type(self).description if isinstance(type(self).__dict__.get("description"), str) else \
-            getattr(type(self), "description", None)
+        self.description = getattr(type(self), "description", None)  # (pythonfmu3's __init__ set None)
         self._vals: list[Any] = []
         self._decl: list[Var] = []
         self._by_name: dict[str, Var] = {}
@@ -243,7 +242,6 @@ class WmrSlave(Fmi3Slave):
         for v in self._v3:
             variables.append(self._variable_xml(v))
         structure = SubElement(root, "ModelStructure")
-        by_name = self._v3_by_name
         group_of = {d.name: v for v in self._v3 for d in v.decl}
         inputs = [v for v in self._v3 if v.causality == "input" and v.name != "time"]
         params = [v.vr for v in self._v3 if v.causality == "parameter"]
@@ -261,7 +259,6 @@ class WmrSlave(Fmi3Slave):
             deps = sorted(set(params) | set(refs(v.init_deps)))
             SubElement(structure, "InitialUnknown", {"valueReference": str(v.vr),
                                                      "dependencies": " ".join(map(str, deps))})
-        del by_name
         return root
 
     def _variable_xml(self, v: Var3) -> Element:
@@ -426,9 +423,11 @@ class WmrSlave(Fmi3Slave):
         for i in vrs:
             if i not in self._settable[type_]:
                 name = self._name_of(i)
-                if i in self._types[type_]:
+                if i == 0:
+                    why = "the independent variable time"
+                elif i in self._types[type_]:
                     var = self._v3[i]
-                    why = (f"{var.causality} {name}" if var.causality in ("output", "input") or name == "time" else
+                    why = (f"output {name}" if var.causality == "output" else
                            f"{var.variability} parameter {name} after initialisation")
                 else:
                     why = f"{name} (not {type_})"

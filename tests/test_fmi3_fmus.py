@@ -213,6 +213,14 @@ def test_failure_rules_discard_then_refuse_and_asymmetric_p_refused(fmus3, tmp_p
     fmu.freeInstance()
 
     log.clear()
+    plant = _instance(fmus3["WmrPlant3"], tmp_path / "p", log)
+    plant.enterInitializationMode(startTime=0.0)
+    plant.exitInitializationMode()
+    with pytest.raises(FMICallException):
+        plant.setFloat64([_vr(plant, "a1")], [0.07])
+    assert any(st == 4 and "fixed parameter a1 after initialisation" in m for st, m in log)
+
+    log.clear()
     ctl = _instance(fmus3["WmrController3"], tmp_path / "c", log)
     p = [100.0, 1.0, 0.0, 2.0, 100.0, 0.0, 0.0, 0.0, 100.0]
     with pytest.raises(FMICallException):
