@@ -9,7 +9,10 @@ NAME:
               cosim_to_direct (target <= 1.8), and, from a separate run that times every FMI call of the
               loop, master_us_per_fmu_step = (loop time - time inside FMI calls) / steps / FMUs (target <= 1.5 us);
             - the same co-simulation with a plain loop over the instances in place of the generated one
-              (interleaved runs): cosim_plain_us_per_step, cosim_generated_us_per_step, generated_speedup.
+              (interleaved runs): cosim_plain_us_per_step, cosim_generated_us_per_step, generated_speedup;
+            - the same co-simulation through the FMI 3.0 FMUs (WmrPlant3, WmrSensor3, WmrController3),
+              interleaved with runs through the FMI 2.0 ones: cosim3_us_per_step, cosim2_us_per_step (the
+              FMI 2.0 figure of the same runs) and cosim3_to_cosim2 (target <= 1.10).
     paper   the whole `wmr-cosim paper` job (4 tasks x 3 runs x 2 variants, analysis, figures, report),
             once, the FMUs already built: paper_s (target < 60 s on 2 cores).
     sweep   a 16-run sweep (scenarios/sweep-geometry.toml) through the Dask path with 1 and with 2 worker
@@ -170,11 +173,37 @@ def bench_plain(repeats: int) -> dict[str, float]:
             "generated_speedup": round(p / g, 3)}
 
 
+def bench_fmi3(repeats: int) -> dict[str, float]:
+    """G1 through the FMI 3.0 FMUs and through the FMI 2.0 ones, runs interleaved (the machine's load
+    drifts): the stepping loop's time per step, median of the repeats."""
+    from wmr_cosim.cosim import execution, scenario, system
+    from wmr_cosim.runner import resolver
+
+    root = __import__("pathlib").Path(__file__).resolve().parents[1]
+    plans = {}
+    for fmi in (2, 3):
+        sc = scenario.load(root / "scenarios" / "g1_learn.toml", resolver(fmi))
+        sc.record = ANALYSIS_RECORD
+        plans[fmi] = system.resolve(sc)
+    walls: dict[int, list[float]] = {2: [], 3: []}
+    for _ in range(repeats):
+        for fmi in (2, 3):
+            res = execution.run(plans[fmi], None, progress=False)
+            if res.status != "ok":
+                raise SystemExit(f"co-simulation (FMI {fmi}) failed: {res.message}")
+            walls[fmi].append(res.wall_s)
+    w2, w3 = statistics.median(walls[2]), statistics.median(walls[3])
+    n = plans[2].n_steps
+    return {"cosim3_us_per_step": round(w3 / n * 1e6, 2), "cosim2_us_per_step": round(w2 / n * 1e6, 2),
+            "cosim3_to_cosim2": round(w3 / w2, 3)}
+
+
 def bench_loop_all(repeats: int) -> dict[str, float]:
     figures = bench_loop(repeats)
     figures.update(bench_cosim(repeats))
     figures["cosim_to_direct"] = round(figures["cosim_s"] / figures["direct_s"], 3)
     figures.update(bench_plain(repeats))
+    figures.update(bench_fmi3(repeats))
     return figures
 
 
@@ -546,8 +575,9 @@ def bench_loader(repeats: int) -> dict[str, float]:
             "loader_overhead": round(us["via_loader"] / us["direct"] - 1.0, 4)}
 
 
-BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "paper": bench_paper, "sweep": bench_sweep,
-           "interop": bench_interop, "archive": bench_archive, "loader": bench_loader, "isolation": bench_isolation}
+BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "fmi3": bench_fmi3, "paper": bench_paper,
+           "sweep": bench_sweep, "interop": bench_interop, "archive": bench_archive, "loader": bench_loader,
+           "isolation": bench_isolation}
 
 
 def main(argv: list[str] | None = None) -> int:

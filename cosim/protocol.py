@@ -22,6 +22,9 @@ from . import execution, scenario, system
 from .errors import ScenarioError
 
 Resolver = Callable[[str], "Path | None"]
+#: What a run's carry gives: (run's carry {parameter ref: "run.instance.variable"}, final values of the runs
+#: so far {run: {column: value}}) -> {parameter ref: value}.
+Carry = Callable[[dict[str, str], dict[str, dict[str, float]]], dict[str, Any]]
 
 
 def plan_runs(path: str | os.PathLike, resolver: Resolver | None = None, variant: str | None = None
@@ -42,12 +45,14 @@ def run_protocol(path: str | os.PathLike, out_dir: str | os.PathLike, resolver: 
                  variant: str | None = None, overrides: dict[str, Any] | None = None,
                  progress: bool | None = None, only: list[str] | None = None,
                  on_run: Callable[[str, execution.RunResult], None] | None = None,
-                 force: bool = False, isolate: bool = False) -> dict[str, execution.RunResult]:
+                 force: bool = False, isolate: bool = False, carry: Carry | None = None
+                 ) -> dict[str, execution.RunResult]:
     """Run every run of the file in order into ``out_dir/<run>``; returns {run name: result}.
 
     A run whose carried source run failed is still run if the source recorded the value; a carried value
     that was not recorded is a ScenarioError before that run starts.  ``overrides`` ("inst.param" ->
-    value) apply to every run, after the variant and the run's own parameters.
+    value) apply to every run, after the variant and the run's own parameters.  ``carry`` replaces the
+    plain lookup of carried values (a resolver to other FMUs may need the names translated).
     """
     sc, runs, vparams = plan_runs(path, resolver, variant)
     out = Path(out_dir)
@@ -60,11 +65,12 @@ def run_protocol(path: str | os.PathLike, out_dir: str | os.PathLike, resolver: 
             src_run, col = src.split(".", 1)
             if src_run not in results:
                 raise ScenarioError(sc.file, f"runs.{run.name}.carry.{ref}", f"run {src_run!r} has not been run")
-            final = results[src_run].final
-            if col not in final:
+            if carry is None and col not in results[src_run].final:
                 raise ScenarioError(sc.file, f"runs.{run.name}.carry.{ref}",
                                     f"{src!r} was not recorded by run {src_run!r}")
-            params[ref] = final[col]
+        finals = {n: r.final for n, r in results.items()}
+        params.update(carry(run.carry, finals) if carry is not None else
+                      {ref: finals[src.split(".", 1)[0]][src.split(".", 1)[1]] for ref, src in run.carry.items()})
         params.update(overrides or {})
         plan = system.resolve(scenario.load(path, resolver, params), force)
         for ip in plan.instances.values():

@@ -281,11 +281,15 @@ def _write_ssvs(plan: Plan, params: list[tuple[str, Any, Any]], tmp: Path, out: 
             ssv.ssv_elem.name = PARAMETER_SET  # (pyssp-standard 0.9's property setter drops it)
             ssv.ssv_elem.top_level_metadata.generationTool = "wmr-cosim"
             for var, value in mine:
-                typ, attrs = _ssv_value(var, value)
-                ssv.add_parameter(var.name, typ, value=attrs["value"], unit=attrs.get("unit"))
-                # pyssp-standard 0.9 keeps unit=None as an attribute of a Real and fails writing it
-                pt = ssv.parameters[-1]["type_value"]
-                pt.parameter = {k: v for k, v in dict(pt.parameter).items() if v is not None}
+                # SSP 1.0 has no array values: an FMI 3.0 array travels as one parameter per element,
+                # named as FMI 3.0 names them (x[1], A[1,2], ...); load_ssp joins them back
+                items = zip(var.element_names(), value) if var.shape else [(var.name, value)]
+                for name, x in items:
+                    typ, attrs = _ssv_value(var, x)
+                    ssv.add_parameter(name, typ, value=attrs["value"], unit=attrs.get("unit"))
+                    # pyssp-standard 0.9 keeps unit=None as an attribute of a Real and fails writing it
+                    pt = ssv.parameters[-1]["type_value"]
+                    pt.parameter = {k: v for k, v in dict(pt.parameter).items() if v is not None}
         ssvs[f"resources/{inst}.ssv"] = ssv_path.read_bytes()
         validate_xml(ssvs[f"resources/{inst}.ssv"], "ssv", f"{out}: resources/{inst}.ssv (as written)")
     return ssvs
@@ -433,6 +437,29 @@ def _bindings(owner, archive: Path, folder: Path, where: str, base: str) -> list
     return out
 
 
+def _join_array_elements(instances: dict[str, dict[str, Any]], where: str) -> None:
+    """Parameters named as elements of an FMI 3.0 array (x[1], A[1,2], ...: how export_ssp writes an array,
+    SSP 1.0 having no array values) joined into the array's list, row-major; every element must be given."""
+    from .model import load_model
+
+    for inst, d in instances.items():
+        params = d["parameters"]
+        bases = {n[:n.index("[")] for n in params if n.endswith("]") and "[" in n}
+        if not bases:
+            continue
+        model = load_model(d["fmu"])
+        for base in sorted(bases):
+            var = model.variables.get(base)
+            if var is None or not var.shape:
+                continue  # a scalar whose name has brackets (an FMI 2.0 x[1]): as it is
+            names = var.element_names()
+            missing = [n for n in names if n not in params]
+            if missing or base in params:
+                raise ScenarioError(where, f"parameter {inst}.{base}", "an array parameter is given either whole or "
+                                    f"as every element ({len(names)}); missing: {', '.join(missing) or 'none'}")
+            params[base] = [params.pop(n) for n in names]
+
+
 def _with_version(data: bytes, root) -> bytes:
     """The SSD with its version attribute set to 1.0 (for the schema check of an SSP 1.0 document)."""
     from lxml import etree as ET
@@ -554,6 +581,7 @@ def _document(root, system, path: Path, arch: Path, step: float | None, stop: fl
         comp_params.append((inst, var, value))
     for inst, var, value in comp_params:
         instances[inst]["parameters"][var] = value
+    _join_array_elements(instances, where)
     a_step, a_alg, a_order = _step_from_annotations(root)
     de = root.find("ssd:DefaultExperiment", NS)
     experiment: dict[str, Any] = {"algorithm": algorithm or a_alg or "jacobi"}

@@ -1,4 +1,11 @@
-"""Build WmrPlant.fmu, WmrSensor.fmu and WmrController.fmu with pythonfmu, rebuilding only what changed.
+"""Build WmrPlant.fmu, WmrSensor.fmu and WmrController.fmu with pythonfmu (FMI 2.0), and WmrPlant3.fmu,
+WmrSensor3.fmu and WmrController3.fmu with pythonfmu3 (FMI 3.0), rebuilding only what changed.
+
+FMI 3.0: the same slave script, bundled in the package as ``slave_<component>.py`` with its ``fmi_base``
+import pointing at ``fmi3_base`` (the FMI 3.0 base with the same interface), and a two-line main script
+``class WmrPlant3(WmrPlant, Fmi3Slave)``; no C loader (see docs/hosts.md: FMI 3.0 FMUs need a Python host).
+Its package is ``wmrfmu_<component>3_<hash8>``, the hash over the slave script, fmi3_base.py, fmi_decl.py,
+the components, this script and the pythonfmu3 version.
 
 Each FMU carries, in its resources, a copy of the components package (with paper_results.json) plus
 fmus/fmi_base.py under a package name unique to the FMU and to the source version,
@@ -44,6 +51,10 @@ SLAVES: dict[str, tuple[str, str]] = {
     "WmrSensor": ("slave_sensor.py", "sensor"),
     "WmrController": ("slave_controller.py", "controller"),
 }
+#: FMI 3.0 model name -> the FMI 2.0 model it exposes (same slave script and component).
+SLAVES3: dict[str, str] = {"WmrPlant3": "WmrPlant", "WmrSensor3": "WmrSensor", "WmrController3": "WmrController"}
+#: The FMI version of every model name build_all knows.
+FMI_VERSION: dict[str, int] = {**{m: 2 for m in SLAVES}, **{m: 3 for m in SLAVES3}}
 #: Build options: state save/restore and serialisation declared (pythonfmu declares them only with these
 #: flags); never --interpolate-inputs (it declares a capability pythonfmu does not implement).
 BUILD_OPTIONS = ("--handle-state", "--serialize-state")
@@ -67,6 +78,7 @@ class Plan:
     short: str
     script: Path
     digest: str
+    fmi: int = 2
 
     @property
     def hash8(self) -> str:
@@ -100,6 +112,14 @@ def _component_files() -> list[Path]:
 
 def _pythonfmu_version() -> str:
     from pythonfmu import __version__
+    return __version__
+
+
+def _pythonfmu3_version() -> str:
+    try:
+        from pythonfmu3 import __version__
+    except ImportError:
+        return "not installed"
     return __version__
 
 
@@ -219,6 +239,8 @@ def install_loader(fmu: Path, model: str, loader: Path, py: PythonRecord) -> Non
 
 def plan(model: str) -> Plan:
     """The inputs of one FMU and their hash."""
+    if model in SLAVES3:
+        return _plan3(model)
     script_name, short = SLAVES[model]
     script = _HERE / script_name
     h = hashlib.sha256()
@@ -232,12 +254,28 @@ def plan(model: str) -> Plan:
     add("build.py", Path(__file__).read_bytes())
     add("slave", script.read_bytes())
     add("fmi_base.py", (_HERE / "fmi_base.py").read_bytes())
+    add("fmi_decl.py", (_HERE / "fmi_decl.py").read_bytes())
     add("loader", LOADER_SOURCE.read_bytes())
     add("python", repr(build_python()).encode())
     add("compiler", _compiler_identity().encode())
     for f in _component_files():
         add(f"components/{f.name}", f.read_bytes())
     return Plan(model, short, script, h.hexdigest())
+
+
+def _plan3(model: str) -> Plan:
+    """The inputs of one FMI 3.0 FMU and their hash."""
+    script_name, short = SLAVES[SLAVES3[model]]
+    script = _HERE / script_name
+    h = hashlib.sha256()
+    for label, data in (("pythonfmu3", _pythonfmu3_version().encode()), ("options", " ".join(BUILD_OPTIONS).encode()),
+                        ("build.py", Path(__file__).read_bytes()), ("slave", script.read_bytes()),
+                        ("fmi3_base.py", (_HERE / "fmi3_base.py").read_bytes()),
+                        ("fmi_decl.py", (_HERE / "fmi_decl.py").read_bytes()),
+                        *((f"components/{f.name}", f.read_bytes()) for f in _component_files())):
+        h.update(f"{label}\0{len(data)}\0".encode())
+        h.update(data)
+    return Plan(model, short + "3", script, h.hexdigest(), 3)
 
 
 def default_out_dir() -> Path:
@@ -271,9 +309,21 @@ def _stage(p: Plan, stage: Path) -> Path:
         if f.suffix == ".py" and _IMPORT_RE.search(text.decode("utf-8")):
             raise BuildError(f"components/{f.name} imports wmr_cosim: components must use relative imports only")
         (pkg / f.name).write_bytes(text)
-    shutil.copyfile(_HERE / "fmi_base.py", pkg / "fmi_base.py")
+    shutil.copyfile(_HERE / "fmi_decl.py", pkg / "fmi_decl.py")
     script = stage / f"{p.module}.py"
-    script.write_text(rewrite_imports(p.script.read_text(encoding="utf-8"), p.package), encoding="utf-8")
+    source = rewrite_imports(p.script.read_text(encoding="utf-8"), p.package)
+    if p.fmi == 2:
+        shutil.copyfile(_HERE / "fmi_base.py", pkg / "fmi_base.py")
+        script.write_text(source, encoding="utf-8")
+        return script
+    shutil.copyfile(_HERE / "fmi3_base.py", pkg / "fmi3_base.py")
+    base = SLAVES3[p.model]
+    (pkg / p.script.name).write_text(source.replace(f"from {p.package}.fmi_base import",
+                                                    f"from {p.package}.fmi3_base import"), encoding="utf-8")
+    script.write_text(f'"""{p.model}: {base} as an FMI 3.0 co-simulation slave (same declarations and component)."""\n'
+                      f"from {p.package}.fmi3_base import Fmi3Slave\n"
+                      f"from {p.package}.{p.script.stem} import {base} as _Model\n\n\n"
+                      f"class {p.model}(_Model, Fmi3Slave):\n    pass\n", encoding="utf-8")
     return script
 
 
@@ -294,6 +344,17 @@ def _check_archive(fmu: Path, p: Plan) -> None:
     with zipfile.ZipFile(fmu) as zf:
         names = set(zf.namelist())
         md = zf.read("modelDescription.xml").decode("utf-8")
+    if p.fmi == 3:
+        need = {"modelDescription.xml", f"resources/{p.module}.py", f"resources/{p.package}/fmi3_base.py",
+                f"resources/{p.package}/fmi_decl.py", f"resources/{p.package}/{p.script.name}",
+                f"resources/{p.package}/paper_results.json", "resources/slavemodule.txt",
+                f"binaries/x86_64-linux/{p.model}.so"}
+        missing = sorted(need - names)
+        if missing:
+            raise BuildError(f"{fmu}: entries missing from the built FMU: {', '.join(missing)}")
+        if f'modelName="{p.model}"' not in md or 'canGetAndSetFMUState="true"' not in md:
+            raise BuildError(f"{fmu}: unexpected model description (model name or state capabilities)")
+        return
     need = {"modelDescription.xml", f"resources/{p.module}.py", f"resources/{p.package}/__init__.py",
             f"resources/{p.package}/fmi_base.py", f"resources/{p.package}/paper_results.json",
             "resources/slavemodule.txt", f"binaries/linux64/{p.model}.so", f"binaries/linux64/{REAL_BINARY}"}
@@ -305,10 +366,17 @@ def _check_archive(fmu: Path, p: Plan) -> None:
         raise BuildError(f"{fmu}: unexpected model description (model name or state capabilities)")
 
 
-def up_to_date(out_dir: Path | None = None) -> dict[str, bool]:
+def up_to_date(out_dir: Path | None = None, models: tuple[str, ...] | None = None) -> dict[str, bool]:
     """{model name: True if its FMU in ``out_dir`` is current} (what :func:`build_all` would skip)."""
     out = Path(out_dir) if out_dir is not None else default_out_dir()
-    return {m: is_current(out / f"{m}.fmu", plan(m)) for m in SLAVES}
+    return {m: is_current(out / f"{m}.fmu", plan(m)) for m in (models or tuple(SLAVES))}
+
+
+def models_for(fmi: int) -> tuple[str, ...]:
+    """The model names of FMI version ``fmi`` (2 or 3)."""
+    if fmi not in (2, 3):
+        raise BuildError(f"FMI version {fmi}: 2 or 3")
+    return tuple(SLAVES) if fmi == 2 else tuple(SLAVES3)
 
 
 def build_all(out_dir: Path | None = None, force: bool = False, models: tuple[str, ...] | None = None,
@@ -320,9 +388,9 @@ def build_all(out_dir: Path | None = None, force: bool = False, models: tuple[st
         raise BuildError(f"output {out} exists and is not a directory")
     out.mkdir(parents=True, exist_ok=True)
     models = tuple(SLAVES) if models is None else models
-    unknown = [m for m in models if m not in SLAVES]
+    unknown = [m for m in models if m not in FMI_VERSION]
     if unknown:
-        raise BuildError(f"unknown FMU {', '.join(unknown)}: one of {', '.join(SLAVES)}")
+        raise BuildError(f"unknown FMU {', '.join(unknown)}: one of {', '.join(FMI_VERSION)}")
     result: dict[str, Path] = {}
     todo: list[tuple[Plan, Path]] = []
     for m in models:
@@ -334,15 +402,17 @@ def build_all(out_dir: Path | None = None, force: bool = False, models: tuple[st
     if not todo:
         return result
     py = build_python()
+    if any(p.fmi == 3 for p, _ in todo) and _pythonfmu3_version() == "not installed":
+        raise BuildError("building the FMI 3.0 FMUs needs pythonfmu3: pip install pythonfmu3")
     with tempfile.TemporaryDirectory(prefix="wmr_fmu_build_") as tmp:
-        loader = compile_loader(Path(tmp) / "loader.so", py)
+        loader = compile_loader(Path(tmp) / "loader.so", py) if any(p.fmi == 2 for p, _ in todo) else None
         procs = []
         for p, fmu in todo:
             stage = Path(tmp) / p.model
             script = _stage(p, stage)
             dest = stage / "out"
-            cmd = [sys.executable, "-m", "pythonfmu", "build", "-f", str(script), "-d", str(dest),
-                   *BUILD_OPTIONS, str(stage / p.package)]
+            cmd = [sys.executable, "-m", "pythonfmu" if p.fmi == 2 else "pythonfmu3", "build", "-f", str(script),
+                   "-d", str(dest), *BUILD_OPTIONS, str(stage / p.package)]
             env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
             procs.append((p, fmu, dest, subprocess.Popen(cmd, cwd=stage, env=env, stdout=subprocess.PIPE,
                                                           stderr=subprocess.STDOUT, text=True)))
@@ -354,7 +424,8 @@ def build_all(out_dir: Path | None = None, force: bool = False, models: tuple[st
                 tail = "\n".join(log.strip().splitlines()[-15:])
                 errors.append(f"{p.model}: pythonfmu build failed (exit {proc.returncode})\n{tail}")
                 continue
-            install_loader(built, p.model, loader, py)
+            if p.fmi == 2:
+                install_loader(built, p.model, loader, py)
             _check_archive(built, p)
             _hash_file(fmu).unlink(missing_ok=True)  # no stale hash beside a half-replaced FMU
             if not _same_fs(built, fmu):  # copy next to the target first, so the replace is atomic
@@ -381,8 +452,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m wmr_cosim.fmus.build", description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=None)
     ap.add_argument("--force", action="store_true")
+    ap.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
     args = ap.parse_args(argv)
-    for model, path in build_all(args.out, args.force).items():
+    for model, path in build_all(args.out, args.force, models_for(args.fmi)).items():
         print(f"{model}: {path}")
     return 0
 

@@ -2,7 +2,8 @@
 from their model descriptions, and what a user needs to run the FMUs outside this project.
 
 ``python -m wmr_cosim.fmus.doc_tables --out docs/fmu-interfaces.md`` builds the FMUs if needed and writes
-the document (to stdout without ``--out``); a test checks that docs/fmu-interfaces.md is what it generates.
+the document (to stdout without ``--out``); ``--fmi 3 --out docs/fmu-interfaces-fmi3.md`` the same for the
+FMI 3.0 FMUs.  A test checks that both documents are what it generates.
 """
 from __future__ import annotations
 
@@ -52,6 +53,41 @@ Conventions:
 - Default experiment: 0 to 50 s, step 2 ms (a default, not a constant).
 """
 
+_INTRO3 = """# The FMI 3.0 FMUs' interfaces
+
+`wmr-cosim build --fmi 3 [--out DIR]` builds three FMI 3.0 co-simulation FMUs (pythonfmu3):
+`WmrPlant3.fmu`, `WmrSensor3.fmu`, `WmrController3.fmu`, beside the FMI 2.0 ones (same folder). A scenario
+names them by model name (`fmu = "WmrController3"`), alone or mixed with FMI 2.0 FMUs. They are built from
+the same slave scripts, declarations and components as the FMI 2.0 FMUs of
+[fmu-interfaces.md](fmu-interfaces.md), whose conventions hold here too; G1 through them is bit for bit
+G1 through the FMI 2.0 FMUs. The tables below are generated from their model descriptions
+(`python -m wmr_cosim.fmus.doc_tables --fmi 3 --out docs/fmu-interfaces-fmi3.md`).
+
+What differs from the FMI 2.0 FMUs:
+
+- Types: Real is **Float64**, Integer is **Int32**; Boolean and String as in FMI 2.0 (the choices stay
+  String parameters with the same values, so a scenario sets them alike).
+- Arrays: the controller's critic weights are one Float64 array `W_init` (3) instead of `W1_init`..
+  `W3_init`, and the RLS matrix one symmetric 3 x 3 array `P_init` instead of the six `P11_init`..
+  `P33_init`; the learned values are the outputs `W` (3) and `P` (3 x 3). A scenario gives an array
+  parameter as a TOML list in row-major order (`P_init = [100.0, 0, 0, 0, 100.0, 0, 0, 0, 100.0]`); the
+  master records arrays as columns `controller.W[1]`.. and `controller.P[1,1]`... Setting `P_init` with
+  P[i,j] != P[j,i] is refused (fmi3Fatal, with one line naming the elements).
+- Units as in FMI 2.0 (the same `UnitDefinitions`), with display units offered beside them: degrees for
+  rad (`deg`), deg/s and rpm for rad/s, deg/s2 for rad/s2.
+- The independent variable `time` [s] (value reference 0), which FMI 3.0 requires.
+- Dependencies: `Output` and `InitialUnknown` carry the same direct feedthrough as the FMI 2.0 FMUs (by
+  value reference; an array output depends on the union of its elements' inputs).
+- Failure rules as in FMI 2.0: a failed step returns fmi3Discard with its logged cause and every later
+  step is refused; a failure in initialisation, a refused set (an output, a fixed parameter after
+  initialisation, an asymmetric `P_init`) is fmi3Fatal (pythonfmu3 turns an exception in any call but a step into fmi3Fatal),
+  after which the instance must not be called again.
+- State: fmi3GetFMUState/SetFMUState and serialisation, with the component's whole internal state.
+- Hosts: FMI 3.0 FMUs built with pythonfmu3 load only in a **Python host** (FMPy, this project's master,
+  any tool embedding CPython): pythonfmu3's binary takes the Python C API from the process that loads it,
+  and the C loader of the FMI 2.0 FMUs (see [hosts.md](hosts.md)) is not provided for FMI 3.0.
+"""
+
 _OUTSIDE = """## Running the FMUs outside this project
 
 An FMU file is self-contained apart from Python itself: its `resources/` hold the slave script, a copy
@@ -83,7 +119,7 @@ def _range(v) -> str:
     def fmt(x: float | None) -> str:
         if x is None:
             return ""
-        return str(int(x)) if v.type == "Integer" else f"{x:g}"
+        return str(int(x)) if v.type in ("Integer", "Int32") else f"{x:g}"
 
     return f"[{fmt(lo)}, {fmt(hi)}]"
 
@@ -101,6 +137,7 @@ def interface_table(fmu: Path) -> str:
 
     md = read_model_description(str(fmu))
     deps = {u.variable.name: _deps(u) for u in md.outputs}
+    fmi3 = md.fmiVersion.startswith("3")
     lines = [f"## {md.modelName}", "", md.description or "", "",
              "| name | causality | type | unit | start | range | meaning |",
              "|---|---|---|---|---|---|---|"]
@@ -111,7 +148,12 @@ def interface_table(fmu: Path) -> str:
         if v.causality == "output":
             meaning += f" (direct feedthrough: {deps[v.name]})"
         start = "" if v.start is None else str(v.start)
-        lines.append(f"| `{v.name}` | {caus} | {v.type} | {v.unit or ''} | {start} | {_range(v)} | {meaning} |")
+        vtype = v.type
+        if fmi3 and v.dimensions:
+            vtype += "[" + ",".join(str(d.start) for d in v.dimensions) + "]"
+        if fmi3 and v.causality == "independent":
+            caus = "independent"
+        lines.append(f"| `{v.name}` | {caus} | {vtype} | {v.unit or ''} | {start} | {_range(v)} | {meaning} |")
     return "\n".join(lines) + "\n"
 
 
@@ -120,6 +162,14 @@ def document(fmus: dict[str, Path]) -> str:
     for model in ("WmrPlant", "WmrSensor", "WmrController"):
         parts.append(interface_table(fmus[model]))
     parts.append(_OUTSIDE)
+    return "\n".join(parts)
+
+
+def document3(fmus: dict[str, Path]) -> str:
+    """The FMI 3.0 FMUs' document (docs/fmu-interfaces-fmi3.md)."""
+    parts = [_INTRO3]
+    for model in ("WmrPlant3", "WmrSensor3", "WmrController3"):
+        parts.append(interface_table(fmus[model]))
     return "\n".join(parts)
 
 
@@ -132,8 +182,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="write the Markdown here, e.g. docs/fmu-interfaces.md "
                     "(default: stdout)")
     ap.add_argument("--fmus", type=Path, default=None, help="folder of the built FMUs (default: build/fmus)")
+    ap.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version of the FMUs (default 2)")
     args = ap.parse_args(argv)
-    text = document(build_all(args.fmus))
+    if args.fmi == 3:
+        from .build import SLAVES3
+        text = document3(build_all(args.fmus, models=tuple(SLAVES3)))
+    else:
+        text = document(build_all(args.fmus))
     if args.out is None:
         sys.stdout.write(text)
     else:

@@ -73,15 +73,24 @@ _P = {
 }
 TUNABLE = ("goal_x", "goal_y", "adapt", "adapt_t_start", "adapt_t_end")
 _P_NAMES = ("11", "12", "13", "22", "23", "33")
+#: FMI 3.0 arrays (see Var.array): the critic weights W (3) and the symmetric RLS matrix P (3 x 3).
+_W_DOC = "critic weights W of (45)"
+_P_DOC = "RLS matrix P of (51), symmetric positive definite"
+
+
+def _ij(name: str) -> tuple[int, int]:
+    return int(name[-2]) - 1, int(name[-1]) - 1
 
 
 def _weight_parameters() -> list[Var]:
     d = ControllerParams()
     out = [Var(f"W{i + 1}_init", "Real", "parameter", f"initial critic weight W{i + 1} of (45)", unit="1",
-               range=FINITE, start=float(d.W_init[i])) for i in range(3)]
+               range=FINITE, start=float(d.W_init[i]), array=("W_init", (i,), "initial " + _W_DOC))
+           for i in range(3)]
     out += [Var(f"P{ij}_init", "Real", "parameter",
                 f"initial RLS matrix entry P{ij} (P symmetric positive definite)", unit="1",
-                range=POSITIVE if ij[0] == ij[1] else FINITE, start=float(d.P_init[k]))
+                range=POSITIVE if ij[0] == ij[1] else FINITE, start=float(d.P_init[k]),
+                array=("P_init", _ij(ij), "initial " + _P_DOC))
             for k, ij in enumerate(_P_NAMES)]
     return out
 
@@ -155,7 +164,12 @@ class WmrController(WmrSlave):
             if n == "adapting":
                 outputs.append(Var(n, "Boolean", "output", desc, variability="discrete", deps=deps))
             else:
-                outputs.append(Var(n, "Real", "output", desc, unit=unit, variability="discrete", deps=deps))
+                array = (("W", (int(n[1]) - 1,), _W_DOC + " (learned; final value = start for a later run)")
+                         if n in ("W1", "W2", "W3") else
+                         ("P", _ij(n), _P_DOC + " (learned; final value = start for a later run)")
+                         if n[0] == "P" and n[1:] in _P_NAMES else None)
+                outputs.append(Var(n, "Real", "output", desc, unit=unit, variability="discrete", deps=deps,
+                                   array=array))
         self.declare(parameters_of(ControllerParams(), _P, TUNABLE) + _weight_parameters() + _INPUTS + outputs)
         self._build()
 

@@ -73,7 +73,8 @@ def test_non_editable_install_works(tmp_path):
 #: every third-party module the installed code imports -> the requirement that provides it, and where
 #: pyproject.toml declares it (dependencies, or the extra of the only commands that import it)
 IMPORTS = {
-    "fmpy": ("fmpy", None), "pythonfmu": ("pythonfmu", None), "numpy": ("numpy", None),
+    "fmpy": ("fmpy", None), "pythonfmu": ("pythonfmu", None), "pythonfmu3": ("pythonfmu3", None),
+    "numpy": ("numpy", None),
     "matplotlib": ("matplotlib", None), "tqdm": ("tqdm", None), "pyssp_standard": ("pyssp-standard", None),
     "lxml": ("lxml", None),
     "pandas": ("pandas", "sweep"), "distributed": ("dask[distributed]", "sweep"),  # sweep, gamma-search

@@ -427,7 +427,8 @@ def test_a_sweep_on_a_tls_scheduler(tmp_path):
     port = _free_port()
     addr = f"tls://127.0.0.1:{port}"
     env = {**{k: v for k, v in os.environ.items() if not k.startswith("DASK_")},
-           "DASK_DISTRIBUTED__WORKER__DAEMON": "True"}
+           "DASK_DISTRIBUTED__WORKER__DAEMON": "True",
+           "DASK_TEMPORARY_DIRECTORY": str(tmp_path / "dask")}  # the scheduler's dask-scratch-space, not in TMPDIR
     procs = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
                                "--port", str(port), "--protocol", "tls", "--no-dashboard", *tls],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)]

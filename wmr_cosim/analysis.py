@@ -33,7 +33,12 @@ def load_signals(folder: str | Path) -> Signals | None:
     data = np.load(f)
     if not len(data):
         return None
-    return {name: np.asarray(data[name]) for name in data.dtype.names}
+    sig = {name: np.asarray(data[name]) for name in data.dtype.names}
+    for name in data.dtype.names:  # FMI 3.0 array columns (W[1], P[1,2]) also under the FMI 2.0 names (W1, P12)
+        if name.endswith("]") and "[" in name:
+            alias = name[:name.index("[")] + name[name.index("[") + 1:-1].replace(",", "")
+            sig.setdefault(alias, sig[name])
+    return sig
 
 
 def cumulative_integral(f: np.ndarray, t: np.ndarray) -> np.ndarray:

@@ -76,14 +76,16 @@ def cmd_direct(args: argparse.Namespace) -> int:
 
 def cmd_build(args: argparse.Namespace) -> int:
     """Build WmrPlant.fmu, WmrSensor.fmu and WmrController.fmu (only those whose sources changed)."""
-    from .fmus.build import BuildError, build_all, default_out_dir, up_to_date
+    from .fmus.build import BuildError, build_all, default_out_dir, models_for, up_to_date
 
     out = args.out if args.out is not None else default_out_dir()
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {str(out)!r}: exists and is not a directory")
     current = {} if args.force else up_to_date(out)
     try:
-        paths = build_all(out, force=args.force)
+        if args.fmi == 3:
+            current = {} if args.force else up_to_date(out, models_for(3))
+        paths = build_all(out, force=args.force, models=models_for(args.fmi))
     except BuildError as exc:
         print(f"wmr-cosim: build failed: {exc}", file=sys.stderr)
         return EXIT_FAILED
@@ -198,7 +200,8 @@ def cmd_paper(args: argparse.Namespace) -> int:
     from .paper_job import run_paper
 
     r = run_paper(args.out, variant=args.variant, compare=not args.no_compare, workers=args.workers,
-                  manifest=args.manifest, progress=False if args.quiet else None, robustness=args.robustness)
+                  manifest=args.manifest, progress=False if args.quiet else None, robustness=args.robustness,
+                  fmi=args.fmi)
     m = r["metrics"]
     f = m["fidelity"]
     print(f"report: {args.out / 'report.md'} (and report.html, metrics.json, figures/) in {r['wall_s']:.1f} s")
@@ -287,6 +290,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="output folder (default: build/fmus of the source tree, git-ignored; when installed from a "
                         "wheel, the per-user cache ~/.cache/wmr-cosim/fmus)")
     b.add_argument("--force", action="store_true", help="rebuild even if up to date")
+    b.add_argument("--fmi", type=int, choices=(2, 3), default=2,
+                   help="FMI version: 2 (default) builds WmrPlant/WmrSensor/WmrController with pythonfmu, 3 builds "
+                        "WmrPlant3/WmrSensor3/WmrController3 with pythonfmu3 (docs/fmu-interfaces-fmi3.md)")
     b.add_argument("--c-plant", action="store_true",
                    help="also build WmrCPlant.fmu, the plant in C (needs cmake and a C compiler)")
     b.set_defaults(func=cmd_build)
@@ -356,6 +362,8 @@ def build_parser() -> argparse.ArgumentParser:
     pp.add_argument("--robustness", action="store_true",
                     help="also the robustness study (mismatch, initial heading, encoder noise) and the study of when "
                          "W stops adapting, on Dask (about 300 more runs; resumes in DIR/robustness)")
+    pp.add_argument("--fmi", type=int, choices=(2, 3), default=2,
+                    help="run the FMI 2.0 FMUs (default) or their FMI 3.0 versions (WmrPlant3, ...): same numbers")
     pp.set_defaults(func=cmd_paper)
     sw = sub.add_parser("sweep", help="run a parameter sweep or Monte Carlo study on Dask",
                         description="Run a sweep file (scenarios/sweep-*.toml): a base scenario or protocol, grids "

@@ -47,13 +47,15 @@ def _manifest(path: Path) -> dict[str, Path]:
     return out
 
 
-def _task_job(task: str, file: str, folder: str, variant: str) -> dict[str, Any]:
-    """One task's protocol in a worker process: {run: {status, message, wall_s, setup_s}}."""
+def _task_job(task: str, file: str, folder: str, variant: str, fmi: int = 2) -> dict[str, Any]:
+    """One task's protocol in a worker process: {run: {status, message, wall_s, setup_s}}; ``fmi`` 3 runs it
+    through the FMI 3.0 FMUs (runner.resolver, runner.carry_fmi3)."""
     from .cosim.protocol import run_protocol
-    from .runner import resolve_model
+    from .runner import carry_fmi3, resolver
 
     t0 = time.perf_counter()
-    results = run_protocol(file, folder, resolve_model, variant=variant, progress=False)
+    results = run_protocol(file, folder, resolver(fmi), variant=variant, progress=False,
+                           carry=carry_fmi3 if fmi == 3 else None)
     return {"task": task, "variant": variant, "wall_s": time.perf_counter() - t0,
             "runs": {n: {"status": r.status, "message": r.message, "wall_s": r.wall_s, "setup_s": r.setup_s,
                          "steps": r.steps} for n, r in results.items()}}
@@ -111,14 +113,16 @@ def _clean(x: Any) -> Any:
 def run_paper(out: str | os.PathLike = "results/paper", variant: str = "freeze", compare: bool = True,
               workers: int | None = None, manifest: str | os.PathLike | None = None,
               progress: bool | None = None, figures: bool = True, robustness: bool = False,
-              robustness_grid: Any = None) -> dict[str, Any]:
+              robustness_grid: Any = None, fmi: int = 2) -> dict[str, Any]:
     """Run every task of the manifest for ``variant`` (and, with ``compare``, the other variants too),
-    analyse, draw the figures and write report.md, report.html and metrics.json into ``out``.
+    analyse, draw the figures and write report.md, report.html and metrics.json into ``out``; ``fmi``
+    3 runs the FMI 3.0 versions of the FMUs (the same numbers).
 
     With ``robustness``, also the robustness study and the study of when W stops adapting
     (robustness.py; ``robustness_grid`` a StudyGrid, default the full one) into ``out/robustness``."""
-    from .runner import resolve_model
+    from .runner import resolver
 
+    resolve_model = resolver(fmi)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     tasks = _manifest(Path(manifest) if manifest else scenario_files.folder() / DEFAULT_MANIFEST)
@@ -129,7 +133,7 @@ def run_paper(out: str | os.PathLike = "results/paper", variant: str = "freeze",
     for model in ("WmrPlant", "WmrSensor", "WmrController"):  # build once, before the workers start
         resolve_model(model)
     folders = {v: out / "runs" if v == variant else out / "variants" / v / "runs" for v in variants}
-    jobs = [(task, str(f), str(folders[v] / task), v) for v in variants for task, f in tasks.items()]
+    jobs = [(task, str(f), str(folders[v] / task), v, fmi) for v in variants for task, f in tasks.items()]
     statuses: dict[str, dict[str, dict[str, Any]]] = {v: {} for v in variants}
     workers = workers or min(len(jobs), os.cpu_count() or 1)
     done = 0

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -15,9 +15,10 @@ from .cosim.scenario import parse_set
 
 
 def resolve_model(name: str) -> Path | None:
-    """Our FMU for a model name (WmrPlant, WmrSensor, WmrController; WmrCPlant, the plant in C), built when
-    missing or when its sources changed; None for any other name."""
-    from .fmus.build import SLAVES, BuildError, build_all
+    """Our FMU for a model name (WmrPlant, WmrSensor, WmrController; their FMI 3.0 versions WmrPlant3,
+    WmrSensor3, WmrController3; WmrCPlant, the plant in C), built when missing or when its sources changed;
+    None for any other name."""
+    from .fmus.build import FMI_VERSION, BuildError, build_all
 
     if name == "WmrCPlant":
         from .fmus.cplant_build import CBuildError, build_c_plant
@@ -25,12 +26,61 @@ def resolve_model(name: str) -> Path | None:
             return build_c_plant()
         except CBuildError as exc:
             raise CosimError(f"building {name}: {' '.join(str(exc).split())}") from None
-    if name not in SLAVES:
+    if name not in FMI_VERSION:
         return None
     try:
         return build_all(models=(name,))[name]
     except BuildError as exc:
         raise CosimError(f"building {name}: {' '.join(str(exc).split())}") from None
+
+
+def resolver(fmi: int = 2) -> Callable[[str], Path | None]:
+    """A model-name resolver for FMI version ``fmi``: 2 is :func:`resolve_model`; 3 resolves our FMI 2.0
+    model names (WmrPlant, WmrSensor, WmrController) to their FMI 3.0 versions (WmrPlant3, ...), so a
+    scenario written for the FMI 2.0 FMUs runs through the FMI 3.0 ones unchanged."""
+    if fmi == 2:
+        return resolve_model
+    if fmi != 3:
+        raise CosimError(f"FMI version {fmi}: 2 or 3")
+    from .fmus.build import SLAVES3
+    to3 = {v: k for k, v in SLAVES3.items()}
+    return lambda name: resolve_model(to3.get(name, name))
+
+
+def carry_fmi3(carry: dict[str, str], finals: dict[str, dict[str, float]]) -> dict[str, Any]:
+    """A protocol's carry written for our FMI 2.0 controller (``controller.W1_init`` = ``learn.controller.W1``,
+    ``P12_init`` = ``P12``, ...) applied to the FMI 3.0 one: sources read from the array columns
+    (``W[1]``, ``P[1,2]``), the element parameters gathered into the arrays ``W_init`` (3) and ``P_init``
+    (3 x 3, symmetric).  Other carried values pass as they are."""
+    import re
+
+    out: dict[str, Any] = {}
+    arrays: dict[str, dict[tuple[int, ...], float]] = {}
+    for ref, src in carry.items():
+        run, col = src.split(".", 1)
+        m = re.fullmatch(r"(.*\.)(W|P)(\d)(\d)?", col)
+        if m:
+            col = f"{m.group(1)}{m.group(2)}[{','.join(g for g in m.group(3, 4) if g)}]"
+        if col not in finals[run]:
+            raise CosimError(f"carry {ref} = {src!r}: {col!r} was not recorded by run {run!r}")
+        value = finals[run][col]
+        r = re.fullmatch(r"(.*\.)(W|P)(\d)(\d)?_init", ref)
+        if not r:
+            out[ref] = value
+            continue
+        idx = tuple(int(g) - 1 for g in r.group(3, 4) if g)
+        arrays.setdefault(f"{r.group(1)}{r.group(2)}_init", {})[idx] = value
+        if len(idx) == 2:
+            arrays[f"{r.group(1)}{r.group(2)}_init"].setdefault(idx[::-1], value)
+    for ref, elems in arrays.items():
+        shape = [max(i[d] for i in elems) + 1 for d in range(len(next(iter(elems))))]
+        idx = [(i,) for i in range(shape[0])] if len(shape) == 1 else \
+            [(i, j) for i in range(shape[0]) for j in range(shape[1])]
+        missing = [i for i in idx if i not in elems]
+        if missing:
+            raise CosimError(f"carry {ref}: elements {missing} (0-based) are not carried; carry every element")
+        out[ref] = [elems[i] for i in idx]
+    return out
 
 
 def fmu_document(fmu: str | Path, inputs: str | Path | None = None, stop: float | None = None,

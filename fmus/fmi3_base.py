@@ -1,0 +1,569 @@
+"""The FMI 3.0 side of the project's slaves (pythonfmu3): the same declarations, components and slave
+classes as the FMI 2.0 FMUs, exposed through FMI 3.0.
+
+fmus/build.py builds an FMI 3.0 FMU from the same slave script as the FMI 2.0 one: the script's import
+of ``fmi_base`` is rewritten to this module, whose :class:`WmrSlave` offers the slave script the same
+interface (``declare``, ``self._vals`` indexed by declaration position, ``_in0``/``_out0`` slices,
+``parameter_values``, ``_build``/``_step``/``_retune``), so a model's variables and equations have one
+source.  Bundled inside the FMU, this module imports only pythonfmu3, the standard library and the
+bundled fmi_decl.py.
+
+What FMI 3.0 adds, used here:
+
+* Float64 variables with units and display units (degrees beside radians, rpm beside rad/s);
+  Int32 for the integers; choices stay String parameters (same values as in FMI 2.0).
+* Arrays: scalars declared with ``Var.array`` become one Float64 array (the controller's W_init, W
+  (3) and the symmetric 3 x 3 P_init, P).  Setting a symmetric array with P[i, j] != P[j, i] is refused.
+* The independent variable ``time`` (value reference 0; FMI 3.0 requires one); every other variable
+  follows in declaration order, an array taking one value reference.
+* ModelStructure: every output with its true direct-feedthrough dependencies (value references of
+  inputs), and as InitialUnknown with its initialisation dependencies (inputs and parameters).
+* State: fmi3GetFMUState/SetFMUState and serialisation (JSON) save every variable and the component's
+  whole internal state.
+
+Failure rules (as in FMI 2.0): a failed step is logged with its cause and returned as fmi3Discard; later
+steps are refused the same way.  Initialisation and refused calls fail as fmi3Fatal (pythonfmu3 turns
+every exception into fmi3Fatal), after the one-line cause is logged.
+"""
+from __future__ import annotations
+
+import math
+from operator import itemgetter
+from typing import Any
+from xml.etree.ElementTree import Element, SubElement
+
+from pythonfmu3 import DefaultExperiment, Fmi3Slave
+from pythonfmu3.enums import Fmi3Status
+from pythonfmu3.fmi3slave import Fmi3StepResult
+
+from .fmi_decl import (DBL_MAX, DBL_MIN, DISPLAY_UNITS, FINITE, INT_MAX, NON_NEGATIVE, POSITIVE, SIGN,  # noqa: F401
+                       STEP_RTOL, UNITS, Var, _cause, _xml_number, parameters_of)
+
+#: FMI 2.0 kind of a declaration -> FMI 3.0 type.
+TYPE3 = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
+_CONV = {"Float64": float, "Int32": int, "Boolean": bool, "String": str}
+#: What do_step returns: pythonfmu3 reads the attributes status and terminateSimulation of the result; a
+#: bool lacks them, and each failed attribute lookup costs an exception inside pythonfmu3 (measured: the
+#: plant's step took 8 us longer with a bool).
+_OK = Fmi3StepResult(status=Fmi3Status.ok)
+_DISCARD = Fmi3StepResult(status=Fmi3Status.discard)
+
+
+class Var3:
+    """One FMI 3.0 variable: a scalar declaration, or an array over several (``slots``: the positions in
+    ``_vals`` of its elements in row-major order; a symmetric array lists a slot twice)."""
+
+    __slots__ = ("name", "type", "vr", "decl", "slots", "shape", "sym", "description", "deps", "init_deps",
+                 "range")
+
+    def __init__(self, name: str, type_: str, vr: int, decl: list[Var], slots: list[int], shape: tuple[int, ...],
+                 sym: bool, description: str) -> None:
+        self.name, self.type, self.vr, self.decl, self.slots = name, type_, vr, decl, slots
+        self.shape, self.sym, self.description = shape, sym, description
+        first = decl[0]
+        if first.deps is None:
+            self.deps = None
+        else:
+            self.deps = tuple(dict.fromkeys(d for v in decl for d in v.deps))
+        self.init_deps = None if first.init_deps is None else tuple(dict.fromkeys(d for v in decl for d in v.init_deps))
+        los = [v.range[0] for v in decl]
+        his = [v.range[1] for v in decl]
+        self.range = (None if None in los else min(los), None if None in his else max(his))
+
+    @property
+    def causality(self) -> str:
+        return self.decl[0].causality
+
+    @property
+    def variability(self) -> str:
+        return self.decl[0].variability
+
+    @property
+    def unit(self) -> str | None:
+        return self.decl[0].unit
+
+
+def _group(decl: list[Var], first_vr: int) -> list[Var3]:
+    """The FMI 3.0 variables of the scalar declarations (arrays from consecutive ``Var.array`` hints)."""
+    out: list[Var3] = []
+    i = 0
+    while i < len(decl):
+        v = decl[i]
+        vr = first_vr + len(out)
+        if v.array is None:
+            out.append(Var3(v.name, TYPE3[v.kind], vr, [v], [v.vr], (), False, v.description))
+            i += 1
+            continue
+        name, _, doc = v.array
+        members = []
+        while i < len(decl) and decl[i].array is not None and decl[i].array[0] == name:
+            members.append(decl[i])
+            i += 1
+        if any(m.kind != "Real" or (m.causality, m.variability, m.unit) != (v.causality, v.variability, v.unit)
+               for m in members):
+            raise ValueError(f"array {name}: elements must be Real of one causality, variability and unit")
+        index = {m.array[1]: m for m in members}
+        ndim = len(v.array[1])
+        shape = tuple(max(k[d] for k in index) + 1 for d in range(ndim))
+        sym = ndim == 2 and shape[0] == shape[1] and all(a <= b for a, b in index) and len(index) < shape[0] * shape[1]
+        slots = []
+        for pos in _positions(shape):
+            m = index.get(pos) or (index.get(pos[::-1]) if sym else None)
+            if m is None:
+                raise ValueError(f"array {name}: no element {pos}")
+            slots.append(m.vr)
+        out.append(Var3(name, "Float64", vr, members, slots, shape, sym, doc))
+    return out
+
+
+def _positions(shape: tuple[int, ...]) -> list[tuple[int, ...]]:
+    out: list[tuple[int, ...]] = [()]
+    for n in shape:
+        out = [p + (k,) for p in out for k in range(n)]
+    return out
+
+
+class WmrSlave(Fmi3Slave):
+    """Base of the project's FMI 3.0 slaves; the slave scripts' interface is that of the FMI 2.0 base."""
+
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=50.0, step_size=0.002)
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.author = "wmr-cosim"
+        self.default_experiment = type(self).default_experiment
+        self.description = getattr(type(self), "description", None)  # (pythonfmu3's __init__ set None)
+        self._vals: list[Any] = []
+        self._decl: list[Var] = []
+        self._by_name: dict[str, Var] = {}
+        self._comp: Any = None
+        self._mode = "instantiated"
+        self._failed = ""
+        self._dirty = False
+        self._stale = False
+        self._h = math.nan
+        self._t0 = 0.0
+
+    # ------------------------------------------------------------------ declaration
+    def declare(self, variables: list[Var]) -> None:
+        """Register the variables: position in ``_vals`` = declaration order (as in FMI 2.0); the FMI 3.0
+        value references are 0 for time, then one per variable or array."""
+        for var in variables:
+            if var.name in self._by_name:
+                raise ValueError(f"duplicate variable {var.name}")
+            var.vr = len(self._vals)
+            self._vals.append(var.start)
+            self._decl.append(var)
+            self._by_name[var.name] = var
+        self._tslot = len(self._vals)
+        self._vals.append(self._t0)        # the value of the independent variable time [s]
+        time = Var("time", "Real", "input", "simulation time", unit="s")
+        time.vr = self._tslot
+        tvar = Var3("time", "Float64", 0, [time], [self._tslot], (), False, "simulation time")
+        self._v3 = [tvar] + _group(self._decl, 1)
+        self._v3_by_name = {v.name: v for v in self._v3}
+        self._index()
+
+    def _index(self) -> None:
+        decl = self._decl
+        self._params = [v for v in decl if v.causality == "parameter"]
+        self._inputs = [v for v in decl if v.causality == "input"]
+        self._outputs = [v for v in decl if v.causality == "output"]
+        for group in (self._inputs, self._outputs):
+            vrs = [v.vr for v in group]
+            if vrs and vrs != list(range(vrs[0], vrs[0] + len(vrs))):
+                raise ValueError(f"{type(self).__name__}: declare the inputs, and the outputs, consecutively")
+        self._in0 = self._inputs[0].vr if self._inputs else 0
+        self._in1 = self._in0 + len(self._inputs)
+        self._out0 = self._outputs[0].vr if self._outputs else 0
+        self._out1 = self._out0 + len(self._outputs)
+        v3 = self._v3
+        self._types = {t: frozenset(v.vr for v in v3 if v.type == t) for t in _CONV}
+        params = {v.vr for v in v3 if v.causality == "parameter" and v.name != "time"}
+        inputs = {v.vr for v in v3 if v.causality == "input" and v.name != "time"}
+        tunable = {v.vr for v in v3 if v.causality == "parameter" and v.variability == "tunable"}
+        self._settable_before = {t: frozenset(vs & (params | inputs)) for t, vs in self._types.items()}
+        self._settable_running = {t: frozenset(vs & (tunable | inputs)) for t, vs in self._types.items()}
+        self._tunable = frozenset(tunable)
+        self._settable = self._settable_before
+        self._watch: frozenset[int] = frozenset()
+        self._input_vrs = frozenset(inputs)
+        self._gets: dict[tuple[int, ...], Any] = {}
+        self._get_key: list[int] = [-1]
+        self._get_items: Any = None
+        self._int_key: list[int] = [-1]
+        self._int_items: Any = None
+        self._bool_key: list[int] = [-1]
+        self._bool_items: Any = None
+        self._set_key: list[int] = [-1]
+        self._set_a = self._set_b = 0
+
+    def parameter_values(self) -> dict[str, Any]:
+        """The current parameter values by name (scalar names, the types of the declaration)."""
+        vals = self._vals
+        conv = {"Real": float, "Integer": int, "Boolean": bool, "String": str}
+        return {v.name: conv[v.kind](vals[v.vr]) for v in self._params}
+
+    def vr(self, name: str) -> int:
+        """FMI 3.0 value reference of a variable or array."""
+        return self._v3_by_name[name].vr
+
+    # ------------------------------------------------------------------ to be implemented
+    def _build(self) -> None:
+        raise NotImplementedError
+
+    def _step(self, t: float, h: float) -> None:
+        raise NotImplementedError
+
+    def _retune(self) -> None:
+        """Apply tunable parameters set since the last step (default: none are declared)."""
+
+    # ------------------------------------------------------------------ model description
+    def to_xml(self, model_options: dict[str, str] = dict()) -> Element:  # noqa: B006 (pythonfmu3's signature)
+        root = super().to_xml(model_options)
+        pkg = __name__.rpartition(".")[0]
+        root.set("version", "development" if pkg.startswith("wmr_cosim") else pkg.rpartition("_")[2])
+        cs = root.find("CoSimulation")
+        cs.set("canHandleVariableCommunicationStepSize", "true")
+        cs.set("canGetAndSetFMUState", "true")
+        cs.set("canSerializeFMUState", "true")
+        for tag in ("UnitDefinitions", "ModelVariables", "ModelStructure"):
+            for node in root.findall(tag):
+                root.remove(node)
+        used = sorted({v.unit for v in self._v3 if v.unit is not None})
+        units = Element("UnitDefinitions")
+        for name in used:
+            unit = SubElement(units, "Unit", {"name": name})
+            SubElement(unit, "BaseUnit", {k: str(e) for k, e in UNITS[name].items()})
+            for dname, factor in DISPLAY_UNITS.get(name, {}).items():
+                SubElement(unit, "DisplayUnit", {"name": dname, "factor": _xml_number(factor)})
+        root.insert(list(root).index(cs) + 1, units)
+        variables = SubElement(root, "ModelVariables")
+        for v in self._v3:
+            variables.append(self._variable_xml(v))
+        structure = SubElement(root, "ModelStructure")
+        group_of = {d.name: v for v in self._v3 for d in v.decl}
+        inputs = [v for v in self._v3 if v.causality == "input" and v.name != "time"]
+        params = [v.vr for v in self._v3 if v.causality == "parameter"]
+        outputs = [v for v in self._v3 if v.causality == "output"]
+
+        def refs(names: tuple[str, ...] | None) -> list[int]:
+            if names is None:
+                return [v.vr for v in inputs]
+            return sorted({group_of[n].vr for n in names})
+
+        for v in outputs:
+            SubElement(structure, "Output", {"valueReference": str(v.vr),
+                                             "dependencies": " ".join(map(str, refs(v.deps)))})
+        for v in outputs:
+            deps = sorted(set(params) | set(refs(v.init_deps)))
+            SubElement(structure, "InitialUnknown", {"valueReference": str(v.vr),
+                                                     "dependencies": " ".join(map(str, deps))})
+        return root
+
+    def _variable_xml(self, v: Var3) -> Element:
+        a: dict[str, str] = {"name": v.name, "valueReference": str(v.vr), "description": v.description}
+        if v.name == "time":
+            a.update(causality="independent", variability="continuous", unit="s")
+            return Element("Float64", a)
+        a["causality"] = v.causality
+        a["variability"] = v.variability
+        if v.causality == "parameter":
+            a["initial"] = "exact"
+        if v.unit is not None:
+            a["unit"] = v.unit
+        lo, hi = v.range
+        if v.type in ("Float64", "Int32"):
+            num = _xml_number if v.type == "Float64" else (lambda x: str(int(x)))
+            if lo is not None:
+                a["min"] = num(lo)
+            if hi is not None:
+                a["max"] = num(hi)
+        starts = [self._vals[s] for s in v.slots]
+        has_start = v.causality != "output" and all(x is not None for x in starts)
+        if has_start and v.type == "Float64":
+            a["start"] = " ".join(_xml_number(float(x)) for x in starts)
+        elif has_start and v.type == "Int32":
+            a["start"] = str(int(starts[0]))
+        elif has_start and v.type == "Boolean":
+            a["start"] = "true" if starts[0] else "false"
+        node = Element(v.type, a)
+        if has_start and v.type == "String":
+            SubElement(node, "Start", {"value": str(starts[0])})
+        for n in v.shape:
+            SubElement(node, "Dimension", {"start": str(n)})
+        return node
+
+    # ------------------------------------------------------------------ value access
+    def _slots_of(self, vrs: list[int], type_: str) -> list[int]:
+        if not self._types[type_].issuperset(vrs):
+            self._wrong_type(vrs, type_)
+        v3 = self._v3
+        out: list[int] = []
+        for i in vrs:
+            out += v3[i].slots
+        return out
+
+    def _getter(self, vrs: list[int], type_: str) -> Any:
+        key = (type_, *vrs)
+        g = self._gets.get(key)
+        if g is None:
+            slots = self._slots_of(vrs, type_)
+            conv = _CONV[type_]
+            if type_ == "Float64":
+                items = itemgetter(*slots) if len(slots) > 1 else (lambda v, i=slots[0]: (v[i],))
+                g = (lambda vals: list(items(vals)))
+            else:
+                g = (lambda vals: [conv(vals[i]) for i in slots])
+            self._gets[key] = g
+        return g
+
+    def get_float64(self, vrs: list[int]) -> list[float]:
+        # fast path: a master asks for the same value references every step
+        if vrs == self._get_key:
+            return list(self._get_items(self._vals))
+        g = self._getter(vrs, "Float64")
+        self._get_key, self._get_items = list(vrs), self._items(vrs, "Float64")
+        return g(self._vals)
+
+    def get_int32(self, vrs: list[int]) -> list[int]:
+        if vrs == self._int_key:
+            return [int(x) for x in self._int_items(self._vals)]
+        self._int_key, self._int_items = list(vrs), self._items(vrs, "Int32")
+        return self._getter(vrs, "Int32")(self._vals)
+
+    def get_boolean(self, vrs: list[int]) -> list[bool]:
+        if vrs == self._bool_key:
+            return [bool(x) for x in self._bool_items(self._vals)]
+        self._bool_key, self._bool_items = list(vrs), self._items(vrs, "Boolean")
+        return self._getter(vrs, "Boolean")(self._vals)
+
+    def _items(self, vrs: list[int], type_: str) -> Any:
+        slots = self._slots_of(vrs, type_)
+        return itemgetter(*slots) if len(slots) > 1 else (lambda v, i=slots[0]: (v[i],))
+
+    def get_string(self, vrs: list[int]) -> list[str]:
+        return self._getter(vrs, "String")(self._vals)
+
+    def get_int64(self, vrs: list[int]) -> list[int]:
+        self._wrong_type(vrs, "Int64")
+
+    def get_uint64(self, vrs: list[int]) -> list[int]:
+        self._wrong_type(vrs, "UInt64")
+
+    def set_float64(self, vrs: list[int], values: list[float]) -> None:
+        # fast path: the same input value references as last time (inputs: settable in every mode, unwatched)
+        if vrs == self._set_key:
+            self._vals[self._set_a:self._set_b] = values
+            return
+        self._set(vrs, values, "Float64")
+
+    def set_int32(self, vrs: list[int], values: list[int]) -> None:
+        self._set(vrs, values, "Int32")
+
+    def set_boolean(self, vrs: list[int], values: list[bool]) -> None:
+        self._set(vrs, values, "Boolean")
+
+    def set_string(self, vrs: list[int], values: list[str]) -> None:
+        self._set(vrs, values, "String")
+
+    def set_int64(self, vrs: list[int], values: list[int]) -> None:
+        self._wrong_type(vrs, "Int64")
+
+    def set_uint64(self, vrs: list[int], values: list[int]) -> None:
+        self._wrong_type(vrs, "UInt64")
+
+    def _set(self, vrs: list[int], values: list[Any], type_: str) -> None:
+        if not self._settable[type_].issuperset(vrs):
+            self._refuse_set(vrs, type_)
+        conv = _CONV[type_]
+        v3 = self._v3
+        vals = self._vals
+        k = 0
+        for i in vrs:
+            var = v3[i]
+            n = len(var.slots)
+            chunk = values[k:k + n]
+            k += n
+            if len(chunk) != n:
+                self._fatal(f"set{type_} of {var.name}: {len(chunk)} values for {n} elements")
+            if var.sym:
+                m = var.shape[0]
+                bad = [(a, b) for a in range(m) for b in range(a + 1, m) if chunk[a * m + b] != chunk[b * m + a]]
+                if bad:
+                    a, b = bad[0]
+                    self._fatal(f"set{type_} refused for {var.name}: not symmetric ({var.name}[{a + 1},{b + 1}] = "
+                                f"{chunk[a * m + b]!r}, {var.name}[{b + 1},{a + 1}] = {chunk[b * m + a]!r})")
+            for s, x in zip(var.slots, chunk):
+                vals[s] = conv(x)
+        if self._watch and not self._watch.isdisjoint(vrs):
+            self._dirty = True
+        elif type_ == "Float64" and self._input_vrs.issuperset(vrs) and self._mode == "run":
+            slots = self._slots_of(vrs, type_)
+            if slots == list(range(slots[0], slots[0] + len(slots))):  # contiguous inputs: one slice
+                self._set_key = list(vrs)
+                self._set_a, self._set_b = slots[0], slots[0] + len(slots)
+
+    def _name_of(self, vr: int) -> str:
+        return self._v3[vr].name if 0 <= vr < len(self._v3) else f"<unknown value reference {vr}>"
+
+    def _fatal(self, what: str) -> None:
+        msg = f"{self.modelName} instance {self.instance_name}: {what}"
+        self.log(msg, Fmi3Status.fatal)
+        raise ValueError(msg)
+
+    def _wrong_type(self, vrs: list[int], type_: str) -> None:
+        bad = [self._name_of(i) for i in vrs if i not in self._types.get(type_, ())]
+        msg = f"{self.modelName} instance {self.instance_name}: get/set{type_} on variables that are not {type_}: {', '.join(bad)}"
+        self.log(msg, Fmi3Status.fatal)
+        raise TypeError(msg)
+
+    def _refuse_set(self, vrs: list[int], type_: str) -> None:
+        bad = []
+        for i in vrs:
+            if i not in self._settable[type_]:
+                name = self._name_of(i)
+                if i == 0:
+                    why = "the independent variable time"
+                elif i in self._types[type_]:
+                    var = self._v3[i]
+                    why = (f"output {name}" if var.causality == "output" else
+                           f"{var.variability} parameter {name} after initialisation")
+                else:
+                    why = f"{name} (not {type_})"
+                bad.append(why)
+        self._fatal(f"set{type_} refused for {', '.join(bad)}")
+
+    # ------------------------------------------------------------------ life cycle
+    def setup_experiment(self, start_time: float = 0.0, *args: Any) -> None:
+        self._t0 = float(start_time)
+        self._vals[self._tslot] = self._t0
+
+    def enter_initialization_mode(self) -> None:
+        self._mode = "init"
+        self._stale = True
+        self._install_init_paths()
+
+    def exit_initialization_mode(self) -> None:
+        self._remove_init_paths()
+        self._build_logged()
+        self._mode = "run"
+        self._settable = self._settable_running
+        self._watch = self._tunable
+        self._dirty = False
+
+    def _build_logged(self) -> None:
+        """:meth:`_build`, logging the one-line cause of a failure before re-raising it (-> fmi3Fatal)."""
+        try:
+            self._build()
+        except Exception as exc:
+            self.log(f"{self.modelName} instance {self.instance_name}: initialisation failed: "
+                     f"{_cause(exc)}", Fmi3Status.fatal)
+            raise
+        self._stale = False
+
+    _ACCESS = ("get_float64", "get_int32", "get_boolean", "get_string")
+    _SETS = ("set_float64", "set_int32", "set_boolean", "set_string")
+
+    def _install_init_paths(self) -> None:
+        cls = type(self)
+        out = set(range(self._out0, self._out1))
+        for name in self._ACCESS:
+            fast = getattr(cls, name).__get__(self)
+            setattr(self, name, self._init_getter(fast, out))
+        for name in self._SETS:
+            fast = getattr(cls, name).__get__(self)
+            setattr(self, name, self._init_setter(fast))
+
+    def _remove_init_paths(self) -> None:
+        for name in self._ACCESS + self._SETS:
+            self.__dict__.pop(name, None)
+
+    def _init_getter(self, fast: Any, out: set[int]) -> Any:
+        def get(vrs: list[int]) -> list[Any]:
+            if self._stale and any(s in out for i in vrs if 0 <= i < len(self._v3) for s in self._v3[i].slots):
+                self._build_logged()
+            return fast(vrs)
+        return get
+
+    def _init_setter(self, fast: Any) -> Any:
+        def set_(vrs: list[int], values: list[Any]) -> None:
+            fast(vrs, values)
+            self._stale = True
+        return set_
+
+    def do_step(self, current_time: float, step_size: float) -> Fmi3StepResult:
+        h = step_size
+        try:
+            if h != self._h or self._dirty or self._failed:  # the rare cases, out of the hot path
+                h = self._before_step(current_time, h)
+                if h is None:
+                    return _DISCARD
+            t = current_time
+            tn = round(t / h) * h
+            if tn != t and abs(tn - t) <= STEP_RTOL * abs(t):
+                t = tn
+            self._step(t, h)
+            self._vals[self._tslot] = current_time + step_size
+            return _OK
+        except Exception as exc:
+            self._failed = _cause(exc)
+            self.log(f"{self.modelName} instance {self.instance_name}: step from t = {current_time!r} s "
+                     f"over h = {step_size!r} s failed: {self._failed}", Fmi3Status.discard)
+            return _DISCARD
+
+    def _before_step(self, current_time: float, h: float) -> float | None:
+        """Refuse a step after a failed one; snap or adopt a new step size; apply tunable parameters."""
+        if self._failed:
+            self.log(f"{self.modelName} instance {self.instance_name}: step at t = {current_time!r} s refused: "
+                     f"an earlier step failed ({self._failed})", Fmi3Status.discard)
+            return None
+        if h != self._h:
+            if abs(h - self._h) <= STEP_RTOL * self._h:
+                h = self._h
+            elif h > 0.0 and math.isfinite(h):
+                self._h = h
+            else:
+                raise ValueError(f"step size h = {h!r} s: must be finite and > 0")
+        if self._dirty:
+            self._dirty = False
+            self._retune()
+        return h
+
+    def terminate(self) -> None:
+        pass
+
+    # ------------------------------------------------------------------ FMU state (every internal state too)
+    def _get_fmu_state(self) -> dict[str, Any]:
+        return {"vals": list(self._vals), "comp": None if self._comp is None else self._comp.get_state(),
+                "mode": self._mode, "failed": self._failed, "dirty": self._dirty, "stale": self._stale,
+                "h": None if math.isnan(self._h) else self._h, "t0": self._t0}
+
+    def _set_fmu_state(self, state: dict[str, Any]) -> None:
+        vals = list(state["vals"])
+        if len(vals) != len(self._vals):
+            raise ValueError(f"{self.modelName}: FMU state of {len(vals)} values, expected {len(self._vals)}")
+        old = self._vals
+        same_params = self._comp is not None and all(old[v.vr] == vals[v.vr] for v in self._params)
+        self._vals = vals
+        self._t0 = float(state["t0"])
+        if state["comp"] is not None:
+            if not same_params:
+                self._build()
+            self._comp.set_state(state["comp"])
+            self._vals = list(state["vals"])
+        else:
+            self._comp = None
+        self._failed = state["failed"]
+        self._stale = bool(state["stale"])
+        self._h = math.nan if state["h"] is None else float(state["h"])
+        self._mode = state["mode"]
+        self._remove_init_paths()
+        if self._mode == "init":
+            self._install_init_paths()
+        running = self._mode == "run"
+        self._settable = self._settable_running if running else self._settable_before
+        self._watch = self._tunable if running else frozenset()
+        self._dirty = bool(state["dirty"]) or (running and bool(self._tunable))
+        self._get_key = [-1]
+        self._set_key = [-1]

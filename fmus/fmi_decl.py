@@ -1,0 +1,155 @@
+"""The declarations every slave of the project shares, whichever FMI version it is built for: variables
+(:class:`Var`) with unit, range and true dependencies, the units as SI base-unit exponents, the declared
+ranges, the step-snapping tolerance, and the parameters mirroring a component's parameter dataclass.
+
+Bundled inside every FMU beside fmi_base.py (FMI 2.0, pythonfmu) or fmi3_base.py (FMI 3.0, pythonfmu3);
+it imports only the standard library, so that neither FMU needs the other's pythonfmu.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from typing import Any
+
+DBL_MAX = sys.float_info.max
+DBL_MIN = sys.float_info.min  # smallest positive normal double: "min = DBL_MIN" encodes "> 0"
+INT_MAX = 2**31 - 1
+
+#: Declared ranges (min, max).  ``max = DBL_MAX`` excludes +inf, ``min = -DBL_MAX`` excludes -inf; NaN
+#: fails every range check, so FINITE encodes "a finite number".
+FINITE = (-DBL_MAX, DBL_MAX)
+POSITIVE = (DBL_MIN, DBL_MAX)
+NON_NEGATIVE = (0.0, DBL_MAX)
+SIGN = (-1.0, 1.0)
+
+#: Units of the FMUs as SI base-unit exponents (FMI 2.0 <BaseUnit>).  "1" is dimensionless.
+UNITS: dict[str, dict[str, int]] = {
+    "1": {},
+    "rad": {"rad": 1},
+    "rad/s": {"rad": 1, "s": -1},
+    "rad/s2": {"rad": 1, "s": -2},
+    "N.m": {"kg": 1, "m": 2, "s": -2},
+    "kg.m2": {"kg": 1, "m": 2},
+    "m": {"m": 1},
+    "m/s": {"m": 1, "s": -1},
+    "s": {"s": 1},
+    "1/s": {"s": -1},
+    "1/m": {"m": -1},
+    "1/rad": {"rad": -1},
+    "s/rad": {"s": 1, "rad": -1},
+}
+
+#: Display units (FMI 3.0 <DisplayUnit>) offered beside a unit: name -> factor, value in the display unit =
+#: factor * value in the unit.
+DISPLAY_UNITS: dict[str, dict[str, float]] = {
+    "rad": {"deg": 180.0 / math.pi},
+    "rad/s": {"deg/s": 180.0 / math.pi, "rpm": 30.0 / math.pi},
+    "rad/s2": {"deg/s2": 180.0 / math.pi},
+}
+
+#: Relative tolerance within which a step size equals the previous one, or a time a multiple of it.
+#: The snapping rule (inlined in do_step and the controller's step, both on the hot path): a time t
+#: within STEP_RTOL * |t| of round(t / h) * h is that multiple, so a master that accumulates time sees
+#: the times k h of the direct loop.
+STEP_RTOL = 1e-9
+
+
+_KINDS = ("Real", "Integer", "Boolean", "String")
+_CAUSALITIES = ("parameter", "input", "output")
+
+
+def _xml_number(v: float | int) -> str:
+    """Shortest text that reads back as the same double (pythonfmu's '%.16g' does not always)."""
+    if isinstance(v, bool):
+        raise TypeError("a boolean is not a number")
+    if isinstance(v, int):
+        return str(v)
+    v = float(v)
+    if math.isnan(v):
+        return "NaN"
+    if math.isinf(v):
+        return "INF" if v > 0 else "-INF"
+    return repr(v)
+
+
+class Var:
+    """One variable of an FMU: what the model description says about it.
+
+    ``kind`` Real, Integer, Boolean or String; ``causality`` parameter, input or output;
+    ``variability`` fixed or tunable for parameters, continuous or discrete for inputs and outputs;
+    ``unit`` a key of :data:`UNITS` (Real only); ``range`` (min, max), either may be None;
+    ``deps``: for an output, the names of the inputs it depends on directly (direct feedthrough) in a
+    step, None meaning all inputs; ``init_deps``: the inputs it depends on in initialization mode
+    (default ``deps``; every parameter is added, as a sound over-approximation).
+
+    ``array`` (name, index, description): in an FMI 3.0 FMU this scalar is the element ``index``
+    (0-based, one int per dimension) of the Float64 array ``name``, described by ``description``; the
+    elements of one array are declared consecutively.  A 2-d array whose elements are given only on and
+    above the diagonal is symmetric: element (j, i) is element (i, j).  FMI 2.0 FMUs ignore it.
+    """
+
+    __slots__ = ("name", "kind", "causality", "description", "unit", "range", "variability", "start",
+                 "deps", "init_deps", "vr", "array")
+
+    def __init__(self, name: str, kind: str, causality: str, description: str, unit: str | None = None,
+                 range: tuple[float | None, float | None] = (None, None), variability: str | None = None,
+                 start: Any = None, deps: tuple[str, ...] | None = None,
+                 init_deps: tuple[str, ...] | None = None,
+                 array: tuple[str, tuple[int, ...], str] | None = None) -> None:
+        if kind not in _KINDS:
+            raise ValueError(f"variable {name}: kind {kind!r}")
+        if causality not in _CAUSALITIES:
+            raise ValueError(f"variable {name}: causality {causality!r}")
+        if unit is not None and (kind != "Real" or unit not in UNITS):
+            raise ValueError(f"variable {name}: unit {unit!r} (only Real variables have units, from UNITS)")
+        if variability is None:
+            variability = "fixed" if causality == "parameter" else ("continuous" if kind == "Real" else "discrete")
+        self.name, self.kind, self.causality, self.description = name, kind, causality, description
+        self.unit, self.range, self.variability, self.start = unit, range, variability, start
+        self.deps = deps
+        self.init_deps = deps if init_deps is None else init_deps
+        self.vr = -1
+        self.array = array
+
+
+
+def parameters_of(defaults: Any, spec: dict[str, tuple], tunable: tuple[str, ...] = ()) -> list[Var]:
+    """FMU parameters mirroring the fields of a component's parameter dataclass instance ``defaults``:
+    same names, start values from the component's defaults, the kind from the default's type.
+
+    ``spec[name]`` is (unit, range, description) for a Real field, (range, description) for an
+    Integer field and (description,) for a Boolean or String field.  Every field of ``defaults`` must
+    be in ``spec`` or be expanded by the caller (``spec[name] = None``), so that a new component
+    parameter cannot be forgotten silently.
+    """
+    out: list[Var] = []
+    fields = list(defaults.__dataclass_fields__)
+    missing = [f for f in fields if f not in spec]
+    extra = [f for f in spec if f not in fields]
+    if missing or extra:
+        raise ValueError(f"{type(defaults).__name__}: no FMU declaration for {missing}, unknown {extra}")
+    for name in fields:
+        entry = spec[name]
+        if entry is None:
+            continue
+        value = getattr(defaults, name)
+        variability = "tunable" if name in tunable else "fixed"
+        if isinstance(value, bool):
+            out.append(Var(name, "Boolean", "parameter", entry[0], variability=variability, start=value))
+        elif isinstance(value, int):
+            out.append(Var(name, "Integer", "parameter", entry[1], range=entry[0], variability=variability,
+                           start=value))
+        elif isinstance(value, float):
+            out.append(Var(name, "Real", "parameter", entry[2], unit=entry[0], range=entry[1],
+                           variability=variability, start=value))
+        elif isinstance(value, str):
+            out.append(Var(name, "String", "parameter", entry[0], variability=variability, start=value))
+        else:
+            raise TypeError(f"{type(defaults).__name__}.{name}: no FMU type for {value!r}")
+    return out
+
+
+def _cause(exc: BaseException) -> str:
+    """One line: the exception's type and message."""
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0] if text else '(no message)'}"
