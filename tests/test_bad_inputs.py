@@ -302,7 +302,7 @@ def test_the_csv_writer_needs_bounded_memory(sandbox):
     assert peaks[True] <= 1.5 * peaks[False], peaks
 
 
-def test_sweep_and_gamma_search_folders_are_locked_too(sandbox, capsys):
+def test_sweep_gamma_search_and_paper_folders_are_locked_too(sandbox, capsys):
     from wmr_cosim.cosim.recording import OutputLock
 
     work, _ = sandbox
@@ -312,4 +312,6 @@ def test_sweep_and_gamma_search_folders_are_locked_too(sandbox, capsys):
         _one_line(capsys, main(["sweep", str(root / "sweep-geometry.toml"), "--out", "s", "--quiet"]), 2,
                   ["in use", f"process {os.getpid()}"])
         _one_line(capsys, main(["gamma-search", str(root / "paper" / "g1.toml"), "--out", "s", "--quiet"]), 2,
+                  ["in use", f"process {os.getpid()}"])
+        _one_line(capsys, main(["paper", "--out", "s", "--quiet", "--no-compare"]), 2,
                   ["in use", f"process {os.getpid()}"])

@@ -119,12 +119,22 @@ def run_paper(out: str | os.PathLike = "results/paper", variant: str = "freeze",
     3 runs the FMI 3.0 versions of the FMUs (the same numbers).
 
     With ``robustness``, also the robustness study and the study of when W stops adapting
-    (robustness.py; ``robustness_grid`` a StudyGrid, default the full one) into ``out/robustness``."""
+    (robustness.py; ``robustness_grid`` a StudyGrid, default the full one) into ``out/robustness``.
+    A second job into the same ``out`` is refused at once (a lock naming the holder's process)."""
+    from .cosim.recording import OutputLock, make_folder
+
+    out = make_folder(Path(out))
+    with OutputLock(out):
+        return _run_paper(out, variant, compare, workers, manifest, progress, figures, robustness,
+                          robustness_grid, fmi)
+
+
+def _run_paper(out: Path, variant: str, compare: bool, workers: int | None, manifest: str | os.PathLike | None,
+               progress: bool | None, figures: bool, robustness: bool, robustness_grid: Any, fmi: int
+               ) -> dict[str, Any]:
     from .runner import resolver
 
     resolve_model = resolver(fmi)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     tasks = _manifest(Path(manifest) if manifest else scenario_files.folder() / DEFAULT_MANIFEST)
     variants = [variant] + ([v for v in VARIANTS if v != variant] if compare else [])
     if progress is None:
