@@ -267,8 +267,8 @@ class Execution:
             self.k_done = kf
             raise _Stop(name, tf, recorded=True)
         if what == "fmi2DoStep" and int(val) == DISCARD and inst.n_errors == self._errors[name]:
-            # fmi2Terminated after a Discard with no error logged: the FMU ended the simulation (some
-            # exporters report every failed step as terminated; their error message tells them apart)
+            # fmi2Terminated after a Discard with nothing logged at Discard, Error or Fatal: the FMU ended the
+            # simulation (pythonfmu reports every failed step as terminated; its message tells them apart)
             t_end = inst.terminated_at()
             if t_end is not None:
                 raise _Stop(name, t_end if math.isfinite(t_end) else tf)

@@ -80,7 +80,7 @@ class Instance:
         self.md = md
         self.log: deque[str] = deque(maxlen=log_size)
         self.log_lines = 0
-        self.n_errors = 0          # messages of status Error or Fatal, kept or not
+        self.n_errors = 0          # messages of status Discard, Error or Fatal, kept or not
         self.received = 0          # messages the FMU sent, kept or not
         self.min_status = LOG_LEVELS[logging]
         self.logging = logging
@@ -108,7 +108,7 @@ class Instance:
     # ------------------------------------------------------------------ log
     def _logger(self, status, category, message) -> None:
         self.received += 1
-        if status >= 3:
+        if status >= 2:   # Discard, Error, Fatal: a failed step explains itself (see execution._failed)
             self.n_errors += 1
         if status < self.min_status:
             return

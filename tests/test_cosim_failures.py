@@ -176,3 +176,22 @@ def test_every_instance_terminated_and_freed_exactly_once(mode, built_fmus, fail
         assert calls.count(("free", name)) == 1, (name, calls)
     if mode == "fatal":
         assert not [c for c in calls if c[1] == "failer"]
+
+
+def test_a_failed_step_of_our_plant_is_a_failure_not_an_end(built_fmus, tmp_path):
+    """A torque so large the plant's state overflows: its step fails with Discard (pythonfmu says
+    fmi2Terminated too), and the message it logs at Discard makes this a failure, not the FMU ending the run."""
+    path = g1_with_paths(tmp_path, built_fmus, """
+[experiment]
+stop = 2.0
+[[events]]
+time = 0.2
+variable = "controller.u1"
+action = "override"
+value = 1e308
+""")
+    out = tmp_path / "out"
+    p = _cli("run", str(path), "--out", str(out), "--quiet")
+    summary = json.loads((out / "summary.json").read_text())
+    assert p.returncode == 1 and summary["status"] == "failed", (p.returncode, p.stderr, summary["status"])
+    assert "plant" in p.stderr and "Discard" in p.stderr
