@@ -102,18 +102,19 @@ def bench_cosim(repeats: int) -> dict[str, float]:
             "master_us_per_fmu_step": round(overhead, 3)}
 
 
-def plain_loop(ios, algorithm, t0, h, dec, n_steps, row, chunk, check_inputs=True):
+def plain_loop(ios, algorithm, t0, h, dec, n_steps, layout, chunk, check_inputs=True):
     """The stepping loop written as a plain loop over the instances, making the same raw ctypes calls as
     the generated one (Gauss-Seidel, Real connections only: what G1 needs): the yardstick that decides
     whether generating the loop pays for itself."""
     import ctypes
 
-    if algorithm != "gauss-seidel" or any(io.other or io.feed or io.rec_int or io.rec_bool for io in ios):
+    if algorithm != "gauss-seidel" or any(io.other or io.feed or io.extras or io.fmi != 2 for io in ios):
         raise ValueError("the plain loop covers Gauss-Seidel with Real connections only")
     T, H = ctypes.c_double(0.0), ctypes.c_double(h)
     items = [(io.name, io.c, io.set_real, io.do_step, io.get_real, io.in_vr, io.in_val, io.n_in, io.out_vr,
               io.out_val, io.n_out, io.copies, bool(io.n_out.value)) for io in ios]
     append = chunk.append
+    row, buf = layout.row, layout.buf
 
     def loop(k0, k1):
         for k in range(k0, k1):
@@ -137,7 +138,7 @@ def plain_loop(ios, algorithm, t0, h, dec, n_steps, row, chunk, check_inputs=Tru
                         return (k + 1, name, "fmi2GetReal", s)
             if (k + 1) % dec == 0 or k + 1 == n_steps:
                 row[0] = t0 + (k + 1) * h
-                append(bytes(row))
+                append(bytes(buf))
         return None
     return loop
 

@@ -153,7 +153,7 @@ def export_ssp(plan: Plan, out: str | os.PathLike, name: str | None = None) -> P
     """
     sc = plan.scenario
     out = Path(out)
-    if plan.events:
+    if plan.events or plan.conditions:
         raise ScenarioError(sc.file, "events", "timed events cannot be expressed in SSP 1.0: export a scenario "
                                                 "without [[events]]")
     name = name or Path(sc.file).stem or "system"
