@@ -195,6 +195,16 @@ def variables(node: Node) -> list[str]:
     return out
 
 
+def _show(operand: Node) -> str:
+    if operand[0] == "var":
+        return operand[1]
+    if operand[0] == "time":
+        return "t"
+    if operand[0] == "bool":
+        return "true" if operand[1] else "false"
+    return f"{operand[1]:g}"
+
+
 def _kind(operand: Node, types: dict[str, str]) -> str:
     """'number' or 'boolean' (a String or Binary variable cannot be compared)."""
     if operand[0] in ("num", "time"):
@@ -218,13 +228,13 @@ def check_types(node: Node, types: dict[str, str]) -> None:
         check_types(node[1], types)
     elif node[0] == "is":
         if _kind(node[1], types) != "boolean":
-            what = node[1][1] if node[1][0] == "var" else "t" if node[1][0] == "time" else repr(node[1][1])
+            what = _show(node[1])
             raise ConditionError(f"{what} is a number, not a condition: compare it (e.g. {what} > 0)")
     else:
         _, op, a, b = node
         ka, kb = _kind(a, types), _kind(b, types)
         if ka != kb:
-            names = [x[1] if x[0] == "var" else "t" if x[0] == "time" else repr(x[1]) for x in (a, b)]
+            names = [_show(x) for x in (a, b)]
             raise ConditionError(f"wrong type: {names[0]} {op} {names[1]} compares a {ka} with a {kb}")
         if ka == "boolean" and op not in ("==", "!="):
             raise ConditionError(f"booleans compare with == or != only, not {op}")

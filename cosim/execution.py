@@ -102,6 +102,8 @@ class Execution:
         self._conds: list[tuple[Any, Callable[[float], bool]]] = []
         self._pending: list[tuple[int, int, Any, float]] = []
         self._dirty = False                                # the copies changed outside an event (set())
+        self.stop_request = False                          # a callback asked to end the run after its step
+        self.in_step = False                               # inside advance() (callbacks run there)
         self._bar = None
 
     # ---------------------------------------------------------------- set-up
@@ -233,9 +235,10 @@ class Execution:
         block = FLUSH_ROWS * sc.decimation
         k_target = min(k_target, self.n_steps)
         wall0 = _time.perf_counter()
+        self.in_step = True
         try:
             k = self.k_done
-            while k < k_target:
+            while k < k_target and not self.stop_request:
                 changed = self._loop is None or self._dirty
                 self._dirty = False
                 changed = self._apply_due(k) or changed
@@ -266,6 +269,8 @@ class Execution:
                         self._evaluate(k)
                     for cb in self.callbacks:
                         cb()
+                    if self.stop_request:
+                        return
                     if self.pacer is not None:
                         self.pacer.wait(self.t0 + k * self.h)
         except KeyboardInterrupt:
@@ -274,6 +279,7 @@ class Execution:
                 self.k_done = max(self.k_done, int(round((last - self.t0) / self.h)))
             raise
         finally:
+            self.in_step = False
             self.wall_s += _time.perf_counter() - wall0
 
     def end(self) -> None:

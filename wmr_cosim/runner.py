@@ -106,16 +106,19 @@ def is_fmu(path: str | Path) -> bool:
 
 def run_scenario(path: str | Path, out: str | Path | None = None, overrides: dict[str, Any] | None = None,
                  progress: bool | None = None, inputs: str | Path | None = None, stop: float | None = None,
-                 step: float | None = None, force: bool = False) -> execution.RunResult:
-    """Run a scenario file (.toml), an SSP archive (.ssp) or one FMU alone (.fmu)."""
+                 step: float | None = None, force: bool = False, real_time: float | None = None
+                 ) -> execution.RunResult:
+    """Run a scenario file (.toml), an SSP archive (.ssp) or one FMU alone (.fmu); ``real_time=FACTOR``
+    paces the steps to the wall clock."""
     out = out if out is not None else default_out(path)
     if is_fmu(path):
-        return execution.run(fmu_plan(path, overrides, inputs, stop, step, force), out, progress=progress)
+        return execution.run(fmu_plan(path, overrides, inputs, stop, step, force), out, progress=progress,
+                             real_time=real_time)
     if ssp.is_ssp(path):
         with ssp_plan(path, overrides, force) as plan:
-            return execution.run(plan, out, progress=progress)
+            return execution.run(plan, out, progress=progress, real_time=real_time)
     plan = load_plan(path, overrides, force)
-    return execution.run(plan, out, progress=progress)
+    return execution.run(plan, out, progress=progress, real_time=real_time)
 
 
 def describe_fmu(path: str | Path) -> str:
