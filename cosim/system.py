@@ -308,7 +308,7 @@ def _events(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str
             raise ScenarioError(file, f"{fld}.variable", f"{e.variable} is an array: events act on scalars")
         if e.action == "set":
             if var.causality != "parameter" or var.variability != "tunable":
-                raise ScenarioError(file, f"{fld}.variable", f"{e.variable} is {var.variability} {var.causality}: "
+                raise ScenarioError(file, f"{fld}.variable", f"{e.variable} is a {var.variability} {var.causality}: "
                                                              "set changes a tunable parameter during the run "
                                                              "(override changes an input)")
             value = _value(file, f"{fld}.value", var, e.value)
