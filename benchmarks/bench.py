@@ -33,6 +33,10 @@ NAME:
             sizes), check_verify_ms (also every entry decompressed and counted, as loading a model does),
             extract_ms (counted extraction), summed over the three FMUs, medians; lying_bomb_refused_ms (256 MiB
             of zeros whose directory declares 1 KiB, refused while extracting) and nothing_left.
+    scripting what scripting costs per step on G1 through the Python API (wmr_cosim.Simulation): plain_us_per_step
+            (no hooks), noop_callback / get_callback (a per-step callback doing nothing / reading one
+            variable), condition (one condition event that never fires), each with *_overhead_us_per_step
+            over plain (medians of interleaved runs).
     loader  what the FMUs' Python loader (binaries/linux64/<model>.so forwarding to pythonfmu's binary) costs:
             the sensor FMU stepped 25,000 times (setReal + doStep + getReal through ctypes, as a master does)
             once through the loader and once through pythonfmu's binary loaded directly, in one process,
@@ -511,7 +515,34 @@ def bench_loader(repeats: int) -> dict[str, float]:
             "loader_overhead": round(us["via_loader"] / us["direct"] - 1.0, 4)}
 
 
-BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "paper": bench_paper, "sweep": bench_sweep,
+def bench_scripting(repeats: int) -> dict[str, float]:
+    """What scripting costs per step on G1 (25,000 steps, the analysis' recording), medians of interleaved
+    runs through the Python API: no hooks (the generated loop in long segments), a callback doing
+    nothing, a callback reading one variable with Run.get, a condition event that never fires."""
+    from wmr_cosim import Simulation
+
+    root = __import__("pathlib").Path(__file__).resolve().parents[1]
+    sim = Simulation.load(root / "scenarios" / "g1_learn.toml")
+    sim.document["record"] = {"variables": ANALYSIS_RECORD, "csv": False}
+    cond = Simulation(sim.document).event(when="plant.x_A < -100 and t > 1", action="stop")
+    kinds = {"plain": lambda: sim.run(), "noop_callback": lambda: sim.run(on_step=lambda r: None),
+             "get_callback": lambda: sim.run(on_step=lambda r: r.get("plant.x_A")),
+             "condition": lambda: cond.run()}
+    walls: dict[str, list[float]] = {k: [] for k in kinds}
+    steps = 0
+    for _ in range(repeats):
+        for k, fn in kinds.items():
+            r = fn()
+            walls[k].append(r.summary["wall_s"])
+            steps = r.steps
+    us = {k: statistics.median(v) / steps * 1e6 for k, v in walls.items()}
+    out = {f"{k}_us_per_step": round(v, 2) for k, v in us.items()}
+    out.update({f"{k}_overhead_us_per_step": round(us[k] - us["plain"], 2) for k in kinds if k != "plain"})
+    out["steps"] = steps
+    return out
+
+
+BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "scripting": bench_scripting, "paper": bench_paper, "sweep": bench_sweep,
            "interop": bench_interop, "archive": bench_archive, "loader": bench_loader}
 
 

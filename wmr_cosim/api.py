@@ -220,6 +220,7 @@ class Run:
         self._lock.acquire()
         self._ex: Execution | None = None
         self._vars: dict[str, tuple[str, Any]] = {}
+        self._readers: dict[str, Callable[[], Any]] = {}   # ref -> a function returning its current value
         try:
             _prepare(self._out, plan)
             ex = self._ex = Execution(plan, self._out)
@@ -309,9 +310,12 @@ class Run:
 
     def get(self, ref: str) -> Any:
         """The current value of ``"instance.variable"`` (any variable: an output, an input, a parameter)."""
-        self._alive()
-        inst, var = self._lookup(ref)
-        return self._ex.get(inst, var)
+        read = self._readers.get(ref)
+        if read is None or self.result is not None:
+            self._alive()
+            inst, var = self._lookup(ref)
+            read = self._readers[ref] = self._ex._reader(inst, var)
+        return read()
 
     def set(self, ref: str, value: Any) -> None:
         """Change ``"instance.variable"`` from the next step on: a tunable parameter; a Real input (its
