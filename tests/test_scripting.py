@@ -132,6 +132,17 @@ def test_set_of_the_adaptation_switch_equals_the_same_window_given_as_a_paramete
     assert np.array_equal(r.signals, ref.signals)
 
 
+def test_timed_set_and_stop(g1, quiet):
+    sim = Simulation(g1, file="g1").event(time=1.0, action="stop")
+    sim.event(time=0.5, variable="controller.goal_x", action="set", value=3.0)
+    r = sim.run()
+    assert r.status == "stopped" and r.message == "stopped by events[0] at t = 1 s" and r.steps == 500
+    assert [(e["time"], e["event"], e["action"]) for e in r.events] == [(0.5, 1, "set"), (1.0, 0, "stop")]
+    assert r["time"][-1] == 1.0 and len(r.signals) == 501
+    assert np.array_equal(r.signals[:251], quiet.signals[:251])            # the new goal acts after 0.5 s
+    assert not np.array_equal(r["controller.u1"][251:], quiet["controller.u1"][251:501])
+
+
 def test_a_condition_that_never_holds_changes_nothing(g1, quiet):
     """Conditions make the loop run one step per segment: the results stay bit for bit the same."""
     sim = Simulation(g1, file="g1").event(when="plant.x_A < -100 and t > 1", action="stop")
