@@ -306,6 +306,19 @@ def test_api_errors_are_the_command_lines(g1, tmp_path):
     assert r.status == "stopped" and r.message == "closed at t = 8 s"
 
 
+def test_a_callback_that_raises_ends_the_run_failed(g1):
+    def bad(run: Run) -> None:
+        if run.time >= 0.1:
+            raise ZeroDivisionError("oops")
+
+    with Simulation(g1, file="g1").start() as run:
+        run.on_step(bad)
+        with pytest.raises(ZeroDivisionError):
+            run.finish()
+        assert run.result.status == "failed" and run.result.message.startswith("a callback raised ZeroDivisionError")
+        assert run.result.t_end == pytest.approx(0.1)
+
+
 def test_a_failed_run_raises_run_error(g1):
     sim = Simulation(g1, file="g1").experiment(stop=2.0)
 

@@ -364,6 +364,11 @@ class Run:
             raise
         except CosimError as exc:
             ex.status, ex.message = "failed", str(exc)
+        except Exception as exc:   # a callback's own error: the run ends failed, the error goes to the script
+            ex.status, ex.message = "failed", f"a callback raised {type(exc).__name__}: {exc} at t = {self.time:.6g} s"
+            stop.restore()
+            self._end(raise_on_failure=False)
+            raise
         finally:
             stop.restore()
             ex._stop = None
