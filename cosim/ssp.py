@@ -154,8 +154,8 @@ def export_ssp(plan: Plan, out: str | os.PathLike, name: str | None = None) -> P
     sc = plan.scenario
     out = Path(out)
     if plan.events or plan.conditions:
-        raise ScenarioError(sc.file, "events", "timed events and events on conditions cannot be expressed in "
-                                                "SSP 1.0: export a scenario without [[events]]")
+        raise ScenarioError(sc.file, "events", "events cannot be expressed in SSP 1.0 (timed or on conditions): "
+                                                "export a scenario without [[events]]")
     name = name or Path(sc.file).stem or "system"
     resources = _resource_names(plan)
     conns, params = _connectors(plan)
