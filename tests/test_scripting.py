@@ -424,3 +424,18 @@ def test_notebook_runs(models):
             exec(compile(cell.source, "scripting.ipynb", "exec"), ns)
     assert ns["result"].status == "ok" and ns["stepped"]["plant.dF1"][-1] == 0.5
     assert [e["action"] for e in ns["pushed"].events] == ["override", "reset"]
+
+
+@pytest.mark.parametrize("fmi", ["fmi2", "fmi3"])
+def test_a_condition_on_a_reference_fmu_alone(fmi):
+    """The Reference FMU BouncingBall (FMI 2.0 and 3.0) run alone: a stop when h falls below 0.5 m acts at
+    the first recorded point below it; get reads an output and a parameter between steps."""
+    fmu = ROOT / "tests" / "data" / "reference-fmus" / fmi / "BouncingBall.fmu"
+    free = Simulation.load(fmu).run()
+    r = Simulation.load(fmu).event(when="BouncingBall.h < 0.5", action="stop").run()
+    k = int(np.argmax(free["BouncingBall.h"] < 0.5))
+    assert r.status == "stopped" and r.steps == k and np.array_equal(r.signals, free.signals[:k + 1])
+    with Simulation.load(fmu).start() as run:
+        run.step_to(0.1)
+        assert run.get("BouncingBall.h") == free["BouncingBall.h"][run.steps]
+        assert run.get("BouncingBall.g") == -9.81
