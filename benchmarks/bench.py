@@ -39,6 +39,10 @@ NAME:
     isolation  G1 in process, with the plant in a child process and with all three FMUs in child processes
             (isolate = true), interleaved: us_per_step of each, isolated_us_per_fmu_step_overhead (target
             <= 15 us per isolated FMU and step), same_results.
+    scripting what scripting costs per step on G1 through the Python API (wmr_cosim.Simulation): plain_us_per_step
+            (no hooks), noop_callback / get_callback (a per-step callback doing nothing / reading one
+            variable), condition (one condition event that never fires), each with *_overhead_us_per_step
+            over plain (medians of interleaved runs).
     loader  what the FMUs' Python loader (binaries/linux64/<model>.so forwarding to pythonfmu's binary) costs:
             the sensor FMU stepped 25,000 times (setReal + doStep + getReal through ctypes, as a master does)
             once through the loader and once through pythonfmu's binary loaded directly, in one process,
@@ -121,6 +125,7 @@ def plain_loop(ios, algorithm, t0, h, dec, n_steps, layout, chunk, check_inputs=
     items = [(io.name, io.c, io.set_real, io.do_step, io.get_real, io.in_vr, io.in_val, io.n_in, io.out_vr,
               io.out_val, io.n_out, io.copies, bool(io.n_out.value)) for io in ios]
     append = chunk.append
+    row, buf = layout.row, layout.buf
 
     def loop(k0, k1):
         for k in range(k0, k1):
@@ -575,9 +580,36 @@ def bench_loader(repeats: int) -> dict[str, float]:
             "loader_overhead": round(us["via_loader"] / us["direct"] - 1.0, 4)}
 
 
+def bench_scripting(repeats: int) -> dict[str, float]:
+    """What scripting costs per step on G1 (25,000 steps, the analysis' recording), medians of interleaved
+    runs through the Python API: no hooks (the generated loop in long segments), a callback doing
+    nothing, a callback reading one variable with Run.get, a condition event that never fires."""
+    from wmr_cosim import Simulation
+
+    root = __import__("pathlib").Path(__file__).resolve().parents[1]
+    sim = Simulation.load(root / "scenarios" / "g1_learn.toml")
+    sim.document["record"] = {"variables": ANALYSIS_RECORD, "csv": False}
+    cond = Simulation(sim.document).event(when="plant.x_A < -100 and t > 1", action="stop")
+    kinds = {"plain": lambda: sim.run(), "noop_callback": lambda: sim.run(on_step=lambda r: None),
+             "get_callback": lambda: sim.run(on_step=lambda r: r.get("plant.x_A")),
+             "condition": lambda: cond.run()}
+    walls: dict[str, list[float]] = {k: [] for k in kinds}
+    steps = 0
+    for _ in range(repeats):
+        for k, fn in kinds.items():
+            r = fn()
+            walls[k].append(r.summary["wall_s"])
+            steps = r.steps
+    us = {k: statistics.median(v) / steps * 1e6 for k, v in walls.items()}
+    out = {f"{k}_us_per_step": round(v, 2) for k, v in us.items()}
+    out.update({f"{k}_overhead_us_per_step": round(us[k] - us["plain"], 2) for k in kinds if k != "plain"})
+    out["steps"] = steps
+    return out
+
+
 BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "fmi3": bench_fmi3, "paper": bench_paper,
            "sweep": bench_sweep, "interop": bench_interop, "archive": bench_archive, "loader": bench_loader,
-           "isolation": bench_isolation}
+           "isolation": bench_isolation, "scripting": bench_scripting}
 
 
 def main(argv: list[str] | None = None) -> int:

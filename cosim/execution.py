@@ -14,6 +14,7 @@ ends the run cleanly at its last successful time.  What was recorded up to there
 from __future__ import annotations
 
 import ctypes
+import heapq
 import math
 import shutil
 import sys
@@ -21,14 +22,16 @@ import tempfile
 import time as _time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from .algorithm import InstanceIO, compile_loop
+from .condition import compile_condition
 from .archive import safe_extract
 from .errors import EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN_FAILED, CosimError, RunError
 from .instance import Instance, Instance3, accessor, raw, vr_array
+from .pacing import Pacer
 from .recording import NpyRecorder, OutputLock, RowBuffer, make_folder, write_csv, write_json
 from .system import Plan
 from .wiring import RowLayout, Wiring, discrete_copier, is_f64, is_real, table_feeder
@@ -50,11 +53,13 @@ class RunResult:
     columns: list[str]
     final: dict[str, float] = field(default_factory=dict)
     fmi_s: float | None = None  # time inside FMI calls (only with timing=True)
+    events: list[dict[str, Any]] = field(default_factory=list)   # the event log: time, event, action, ...
+    real_time: dict[str, Any] | None = None   # pacing: factor, steps, overruns, late_max_s, late_mean_s
 
     @property
     def exit_code(self) -> int:
-        return {"ok": EXIT_OK, "terminated": EXIT_OK, "interrupted": EXIT_INTERRUPTED}.get(self.status,
-                                                                                          EXIT_RUN_FAILED)
+        return {"ok": EXIT_OK, "terminated": EXIT_OK, "stopped": EXIT_OK,
+                "interrupted": EXIT_INTERRUPTED}.get(self.status, EXIT_RUN_FAILED)
 
 
 class _Stop(Exception):
@@ -62,6 +67,13 @@ class _Stop(Exception):
 
     def __init__(self, name: str, t: float, recorded: bool = False) -> None:
         self.name, self.t, self.recorded = name, t, recorded
+
+
+class _Stopped(Exception):
+    """A stop event (``events[index]``) ended the run before the step from ``t`` (step ``k``)."""
+
+    def __init__(self, index: int, t: float, k: int) -> None:
+        self.index, self.t, self.k = index, t, k
 
 
 class Execution:
@@ -84,6 +96,15 @@ class Execution:
         self.setup_s = self.wall_s = 0.0
         self.status, self.message = "ok", ""
         self._discrete: dict[tuple[str, int], Any] = {}   # values events have set on non-Real inputs
+        self.pacer: Pacer | None = None                    # real-time pacing (None: as fast as it goes)
+        self.callbacks: list[Callable[[], Any]] = []       # called after every step (the API's step hooks)
+        self.event_log: list[dict[str, Any]] = []          # every event that acted: time, event, action
+        self._conds: list[tuple[Any, Callable[[float], bool]]] = []
+        self._pending: list[tuple[int, int, Any, float]] = []
+        self._dirty = False                                # the copies changed outside an event (set())
+        self.stop_request = False                          # a callback asked to end the run after its step
+        self.in_step = False                               # inside advance() (callbacks run there)
+        self._bar = None
 
     # ---------------------------------------------------------------- set-up
     def load(self) -> None:
@@ -190,50 +211,183 @@ class Execution:
     # ---------------------------------------------------------------- stepping
     def simulate(self, progress: bool | None, check_inputs: bool, stop: "_Interrupt") -> None:
         """Step from the start to the stop time in segments that end at events and flushes."""
-        sc, rows, events = self.plan.scenario, self.rows, list(self.plan.events)
-        ev_i, loop = 0, None
-        block = FLUSH_ROWS * sc.decimation
-        bar = _progress(progress, self.n_steps)
-        wall0 = _time.perf_counter()
+        self.begin(progress, check_inputs, stop)
         try:
-            k = 0
-            while k < self.n_steps:
-                changed = loop is None
-                while ev_i < len(events) and events[ev_i].step <= k:
-                    if events[ev_i].var.type == "Real":
-                        self.wiring.apply(events[ev_i])
-                        changed = True
-                    else:
-                        self._set_discrete(events[ev_i])
-                    ev_i += 1
+            self.advance(self.n_steps)
+        finally:
+            self.end()
+
+    def begin(self, progress: bool | None, check_inputs: bool, stop: "_Interrupt | None" = None) -> None:
+        """Ready to step (after :meth:`initialise`): the progress bar, the conditions' predicates, the
+        conditions evaluated at the start time (an event whose condition holds there fires before the first
+        step), the pacer's clock."""
+        self._ev_i, self._loop, self._check_inputs, self._stop = 0, None, check_inputs, stop
+        self._bar = _progress(progress, self.n_steps)
+        self._conds = []
+        for ev in self.plan.conditions:
+            read = {ref: self._reader(inst, var) for ref, (inst, var) in ev.reads.items()}
+            self._conds.append((ev, compile_condition(ev.condition, read)))
+        self._cond_state = [False] * len(self._conds)
+        self._fired = [False] * len(self._conds)
+        self._pending: list[tuple[int, int, Any, float]] = []   # (step, sequence, event, time it fired)
+        self._seq = 0
+        self._evaluate(0)
+        if self.pacer is not None:
+            self.pacer.start(self.t0)
+
+    def advance(self, k_target: int) -> None:
+        """Step from ``k_done`` to step ``k_target`` (at most the last): the generated loop in segments that
+        end at events, flushes and ``k_target``; one step per segment while conditions, callbacks or
+        pacing need the time between steps.  Raises _Stop / _Stopped when the run ends early."""
+        rows, events, sc = self.rows, self.plan.events, self.plan.scenario
+        block = FLUSH_ROWS * sc.decimation
+        k_target = min(k_target, self.n_steps)
+        wall0 = _time.perf_counter()
+        self.in_step = True
+        try:
+            k = self.k_done
+            while k < k_target and not self.stop_request:
+                changed = self._loop is None or self._dirty
+                self._dirty = False
+                changed = self._apply_due(k) or changed
                 if changed:
                     for io in self.ios:
                         io.copies = self.wiring.copies(io.name)
-                    loop = compile_loop(self.ios, sc.algorithm, self.t0, self.h, sc.decimation, self.n_steps,
-                                        self.layout, rows.chunk, check_inputs)
-                k_end = min(self.n_steps, k + block - (k % block))
-                if ev_i < len(events):
-                    k_end = min(k_end, max(events[ev_i].step, k + 1))
+                    self._loop = compile_loop(self.ios, sc.algorithm, self.t0, self.h, sc.decimation, self.n_steps,
+                                              self.layout, rows.chunk, self._check_inputs)
+                per_step = self._conds or self.callbacks or self.pacer is not None
+                k_end = k + 1 if per_step else min(k_target, k + block - (k % block))
+                if self._ev_i < len(events):
+                    k_end = min(k_end, max(events[self._ev_i].step, k + 1))
+                if self._pending:
+                    k_end = min(k_end, max(self._pending[0][0], k + 1))
                 self._errors = {n: i.n_errors for n, i in self.instances.items()}
-                fail = loop(k, k_end)
-                if k_end < self.n_steps:  # a Ctrl-C after the last step interrupts nothing
-                    stop.check()
+                fail = self._loop(k, k_end)
+                if k_end < self.n_steps and self._stop is not None:  # a Ctrl-C after the last step interrupts nothing
+                    self._stop.check()
                 if fail is not None:
                     self._failed(*fail)
                 self.k_done = k = k_end
                 if len(rows) >= FLUSH_ROWS or k == self.n_steps:
                     self._flush()
-                if bar is not None:
-                    bar.update(self.k_done - bar.n)
+                if self._bar is not None:
+                    self._bar.update(self.k_done - self._bar.n)
+                if per_step:
+                    if self._conds:
+                        self._evaluate(k)
+                    for cb in self.callbacks:
+                        cb()
+                    if self.stop_request:
+                        return
+                    if self.pacer is not None:
+                        self.pacer.wait(self.t0 + k * self.h)
         except KeyboardInterrupt:
             last = rows.last_time()  # the steps completed inside the interrupted segment
             if last is not None:
                 self.k_done = max(self.k_done, int(round((last - self.t0) / self.h)))
             raise
         finally:
-            self.wall_s = _time.perf_counter() - wall0
-            if bar is not None:
-                bar.close()
+            self.in_step = False
+            self.wall_s += _time.perf_counter() - wall0
+
+    def end(self) -> None:
+        """Stepping is over: close the progress bar."""
+        if getattr(self, "_bar", None) is not None:
+            self._bar.close()
+            self._bar = None
+
+    def _apply_due(self, k: int) -> bool:
+        """Apply the timed events of step k and the condition events due at it; whether the copies changed."""
+        changed = False
+        events = self.plan.events
+        while self._ev_i < len(events) and events[self._ev_i].step <= k:
+            changed = self._act(events[self._ev_i], k, None) or changed
+            self._ev_i += 1
+        while self._pending and self._pending[0][0] <= k:
+            _, _, ev, fired = heapq.heappop(self._pending)
+            changed = self._act(ev, k, fired) or changed
+        return changed
+
+    def _act(self, ev: Any, k: int, fired: float | None) -> bool:
+        """One event's action before the step from t_k, written to the event log."""
+        t = self.t0 + k * self.h
+        entry: dict[str, Any] = {"time": t, "event": ev.index, "action": ev.action}
+        if ev.ref is not None:
+            entry["variable"] = ev.ref
+        if ev.value is not None:
+            entry["value"] = ev.value
+        if fired is not None:
+            entry["when"] = ev.when
+            entry["condition_time"] = fired
+        self.event_log.append(entry)
+        if ev.action == "stop":
+            raise _Stopped(ev.index, t, k)
+        if ev.action == "set":
+            self.instances[ev.instance].set_values([(ev.var, ev.value)])
+            return False
+        if ev.var.type == "Real":
+            return self.wiring.apply(ev)
+        self._set_discrete(ev)
+        return False
+
+    def _evaluate(self, k: int) -> None:
+        """The conditions at t_k (after the step that ends there): an event whose condition has become
+        true acts ``delay`` later, before the step from the first communication point at or after it."""
+        t = self.t0 + k * self.h
+        for j, (ev, pred) in enumerate(self._conds):
+            now = pred(t)
+            if now and not self._cond_state[j] and not (ev.trigger == "once" and self._fired[j]):
+                self._fired[j] = True
+                kd = k if ev.delay == 0 else int(math.ceil((t + ev.delay - self.t0) / self.h - 1e-9))
+                if kd < self.n_steps:
+                    self._seq += 1
+                    heapq.heappush(self._pending, (kd, self._seq, ev, t))
+            self._cond_state[j] = now
+
+    def _reader(self, inst: str, var: Any) -> Callable[[], Any]:
+        """A function returning a variable's current value: from the row buffer for a Float64 output it
+        holds (written by the loop at every step), else through an FMI get."""
+        lay = self.layout
+        if is_f64(var) and var.causality == "output" and any(vr == var.vr for vr, _ in lay.reals[inst]):
+            row, slot = lay.row, lay.offset[inst] + lay.index(inst, var.vr)
+            return lambda: row[slot]
+        instance = self.instances[inst]
+        return lambda: instance.get_value(var)
+
+    # ---------------------------------------------------------------- values between steps
+    def get(self, inst: str, var: Any) -> Any:
+        """The current value of a variable (``inst``, its Variable)."""
+        return self._reader(inst, var)()
+
+    def set(self, inst: str, var: Any, value: Any) -> None:
+        """Set a variable between steps (the value already checked against its type and range): a tunable
+        parameter; a Real input or an output feeding connections is overridden until :meth:`release`; an
+        input no connection or table drives is set on the FMU, which holds it."""
+        ref = f"{inst}.{self.plan.instances[inst].our_name(var)}"
+        if var.causality == "parameter":
+            if var.variability != "tunable":
+                raise CosimError(f"{ref} is a {var.variability} parameter: only tunable parameters change during "
+                                 "a run")
+            self.instances[inst].set_values([(var, value)])
+        elif is_f64(var) and var.causality in ("input", "output") and self.wiring.is_wired(inst, var.vr,
+                                                                                            var.causality):
+            self._dirty = self.wiring.act(inst, var.vr, var.causality, "override", value) or self._dirty
+        elif var.causality == "input":
+            if any(c.dst == inst and c.dst_var.vr == var.vr for c in self.plan.connections) or \
+                    any(ip.instance == inst and ip.var.vr == var.vr for ip in self.plan.inputs):
+                raise CosimError(f"{ref} is driven by a connection or a table: it cannot be set")
+            self.instances[inst].set_values([(var, value)])
+            self._discrete[(inst, var.vr)] = value
+        elif var.causality == "output":
+            raise CosimError(f"{ref} is an output that feeds no connection: setting it would change nothing")
+        else:
+            raise CosimError(f"{ref} is {var.causality}: only inputs, outputs feeding connections and tunable "
+                             "parameters can be set between steps")
+
+    def release(self, inst: str, var: Any) -> None:
+        """End an override set by :meth:`set` (the value follows its source again)."""
+        if is_f64(var) and self.wiring.is_wired(inst, var.vr, var.causality):
+            self._dirty = self.wiring.act(inst, var.vr, var.causality, "reset", None) or self._dirty
 
     def _set_discrete(self, ev: Any) -> None:
         """An event on an Integer, Enumeration, Boolean or String input: set now, held until the next."""
@@ -274,6 +428,20 @@ class Execution:
                 raise _Stop(name, t_end if math.isfinite(t_end) else tf)
         raise inst.fail_status(what, int(val), tf)
 
+    def ended(self, s: "_Stop | _Stopped") -> None:
+        """The run ended before its stop time: an FMU ended the simulation, or a stop event."""
+        if isinstance(s, _Stopped):
+            self.k_done = s.k
+            self.status, self.message = "stopped", f"stopped by events[{s.index}] at t = {s.t:.6g} s"
+            return
+        self.k_done = min(self.n_steps, int(math.floor((s.t - self.t0) / self.h + 1e-9)))
+        try:
+            if not s.recorded:
+                self.record_final(s.t)
+            self.status, self.message = "terminated", f"terminated by FMU {s.name} at t = {s.t:.6g} s"
+        except RunError as exc:
+            self.status, self.message = "failed", str(exc)
+
     def record_final(self, t: float) -> None:
         """The row at the time an FMU ended the simulation."""
         self._get_all(t)
@@ -304,20 +472,24 @@ class Execution:
 
 
 def run(plan: Plan, out_dir: str | Path | None, progress: bool | None = None,
-        timing: bool = False, check_inputs: bool = True) -> RunResult:
+        timing: bool = False, check_inputs: bool = True, real_time: float | None = None) -> RunResult:
     """Run the plan and write its results folder ``out_dir``: signals.npy (written as the run goes),
     signals.csv, scenario.json (the scenario as resolved), logs/<instance>.log and summary.json.
     ``out_dir=None`` runs in a temporary folder that is removed afterwards (the result keeps the
-    final values).  ``timing=True`` also measures the time spent inside the stepping FMI calls."""
+    final values).  ``timing=True`` also measures the time spent inside the stepping FMI calls.
+    ``real_time=FACTOR`` paces the steps to the wall clock at FACTOR x real time (cosim.pacing)."""
+    pacer = Pacer(real_time) if real_time is not None else None
     keep = out_dir is not None
     out = make_folder(Path(out_dir)) if keep else Path(tempfile.mkdtemp(prefix="wmr-cosim-out-"))
     with OutputLock(out):
-        return _run(plan, out, keep, progress, timing, check_inputs)
+        return _run(plan, out, keep, progress, timing, check_inputs, pacer)
 
 
-def _run(plan: Plan, out: Path, keep: bool, progress: bool | None, timing: bool, check_inputs: bool) -> RunResult:
+def _run(plan: Plan, out: Path, keep: bool, progress: bool | None, timing: bool, check_inputs: bool,
+         pacer: Pacer | None = None) -> RunResult:
     _prepare(out, plan)
     ex = Execution(plan, out, timing)
+    ex.pacer = pacer
     stop = _Interrupt()
     t_setup = _time.perf_counter()
     try:
@@ -326,14 +498,8 @@ def _run(plan: Plan, out: Path, keep: bool, progress: bool | None, timing: bool,
         ex.setup_s = _time.perf_counter() - t_setup
         stop.check()
         ex.simulate(progress, check_inputs, stop)
-    except _Stop as s:
-        ex.k_done = min(plan.n_steps, int(math.floor((s.t - ex.t0) / ex.h + 1e-9)))
-        try:
-            if not s.recorded:
-                ex.record_final(s.t)
-            ex.status, ex.message = "terminated", f"terminated by FMU {s.name} at t = {s.t:.6g} s"
-        except RunError as exc:
-            ex.status, ex.message = "failed", str(exc)
+    except (_Stop, _Stopped) as s:
+        ex.ended(s)
     except KeyboardInterrupt:
         ex.status, ex.message = "interrupted", f"interrupted by the user at t = {ex.t0 + ex.k_done * ex.h:.6g} s"
     except CosimError as exc:
@@ -372,7 +538,8 @@ def _results(ex: Execution, keep: bool) -> RunResult:
             write_csv(out / "signals.npy", out / "signals.csv")
     t_end = final.get("time", ex.t0 + ex.k_done * ex.h) if ex.status == "terminated" else ex.t0 + ex.k_done * ex.h
     res = RunResult(ex.status, ex.message, ex.k_done, t_end, ex.wall_s, ex.setup_s, out if keep else None,
-                    ex.columns, final, ex.fmi_acc[0] if ex.timing else None)
+                    ex.columns, final, ex.fmi_acc[0] if ex.timing else None, list(ex.event_log),
+                    ex.pacer.summary() if ex.pacer is not None else None)
     write_json(out / "summary.json", {
         "status": ex.status, "message": ex.message, "steps": ex.k_done, "n_steps": plan.n_steps,
         "t_end": res.t_end, "step": ex.h, "algorithm": sc.algorithm, "wall_s": round(ex.wall_s, 6),
@@ -385,6 +552,8 @@ def _results(ex: Execution, keep: bool) -> RunResult:
                       for n, ip in plan.instances.items()},
         "final": final,
         "not_recorded": plan.not_recorded,
+        "events": ex.event_log,
+        **({"real_time": res.real_time} if res.real_time is not None else {}),
     })
     return res
 
@@ -490,5 +659,7 @@ def _resolved(plan: Plan) -> dict[str, Any]:
             "connections": [{"from": c.spec.src, "to": c.spec.dst, "factor": c.factor, "offset": c.offset}
                             for c in plan.connections],
             "record": [r.column for r in plan.record], "decimation": sc.decimation,
-            "events": [{"time": e.time, "variable": e.ref, "action": e.action, "value": e.value} for e in plan.events],
+            "events": [{"time": e.time, "variable": e.ref, "action": e.action, "value": e.value,
+                        **({"when": e.when, "trigger": e.trigger, "delay": e.delay} if e.when else {})}
+                       for e in sorted(plan.events + plan.conditions, key=lambda e: e.index)],
             "document": sc.data}

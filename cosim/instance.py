@@ -178,6 +178,14 @@ class Instance:
             elif var.type == "String":
                 self.call(f"fmi2SetString({var.name})", self.fmu.setString, vr, [str(value)])
 
+    def get_value(self, var: Variable) -> Any:
+        """The current value of one scalar variable, as a Python value of its type."""
+        t = "Integer" if var.type == "Enumeration" else var.type
+        if t not in ("Real", "Integer", "Boolean", "String"):
+            raise RunError(f"{self.name}: variables of type {var.type} cannot be read", self.name)
+        value = self.call(f"fmi2Get{t}({var.name})", getattr(self.fmu, f"get{t}"), [var.vr])[0]
+        return value.decode("utf-8", "replace") if isinstance(value, bytes) else value
+
     def enter_initialization(self) -> None:
         self.call("fmi2EnterInitializationMode", self.fmu.enterInitializationMode)
 
@@ -266,6 +274,14 @@ class Instance3(Instance):
             elif var.type == "Binary":
                 values = [bytes.fromhex(v) for v in values]
             self.call(f"fmi3Set{t}({var.name})", getattr(self.fmu, f"set{t}"), [var.vr], values)
+
+    def get_value(self, var: Variable) -> Any:
+        t = var.fmi_type
+        if t == "Binary" or var.shape:
+            raise RunError(f"{self.name}: {var.name} ({t}{list(var.shape) if var.shape else ''}) cannot be read "
+                           "as one value", self.name)
+        value = self.call(f"fmi3Get{t}({var.name})", getattr(self.fmu, f"get{t}"), [var.vr])[0]
+        return value.decode("utf-8", "replace") if isinstance(value, bytes) else value
 
     def enter_initialization(self) -> None:
         start, stop, tol = self._experiment

@@ -18,7 +18,8 @@ from .archive import use_scenario_limits
 from .errors import ScenarioError
 
 ALGORITHMS = ("gauss-seidel", "jacobi")
-ACTIONS = ("override", "bias", "reset")
+ACTIONS = ("override", "bias", "reset", "set", "stop")
+TRIGGERS = ("once", "each")
 LOGGING = ("error", "warning", "info", "all")
 
 _TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "record", "events", "runs",
@@ -30,7 +31,7 @@ _CONNECTION_KEYS = {"from", "to", "factor", "offset", "convert", "threshold"}
 _RECORD_KEYS = {"variables", "decimation", "csv", "max_bytes"}
 _RUN_KEYS = {"name", "description", "parameters", "carry"}
 _VARIANT_KEYS = {"description", "parameters"}
-_EVENT_KEYS = {"time", "variable", "action", "value"}
+_EVENT_KEYS = {"time", "when", "trigger", "delay", "variable", "action", "value"}
 
 
 @dataclass
@@ -66,11 +67,18 @@ class ConnectionSpec:
 
 @dataclass
 class EventSpec:
-    time: float
-    variable: str
+    """An event: at ``time`` [s], or each time / the first time the condition ``when`` becomes true (then
+    ``delay`` [s] later); ``action`` override, bias, reset or set ``variable`` (``value``), or stop the run."""
+
+    time: float | None
+    variable: str | None
     action: str
     value: Any = None
     index: int = 0
+    when: str | None = None
+    condition: Any = None          # the parsed condition (cosim.condition syntax tree)
+    trigger: str = "once"
+    delay: float = 0.0
 
 
 @dataclass
@@ -425,7 +433,10 @@ def _parse_inputs(sc: Scenario, doc: dict[str, Any]) -> None:
 
 
 def _parse_events(sc: Scenario, doc: dict[str, Any]) -> None:
-    """[[events]]: timed override, bias or reset of a variable."""
+    """[[events]]: at a ``time`` or ``when`` a condition becomes true: override, bias, reset or set a
+    variable, or stop the run."""
+    from .condition import ConditionError, parse as parse_condition, variables as condition_variables
+
     file = sc.file
     evs = doc.get("events") or []
     if not isinstance(evs, list):
@@ -434,20 +445,51 @@ def _parse_events(sc: Scenario, doc: dict[str, Any]) -> None:
         fld = f"events[{i}]"
         e = _table(file, fld, e)
         _keys(file, fld, e, _EVENT_KEYS)
-        t = _num(file, f"{fld}.time", e.get("time"))
+        if ("time" in e) == ("when" in e):
+            raise ScenarioError(file, fld, "needs either a time or a when condition" if "time" not in e
+                                else "has both a time and a when condition: give one")
+        t, cond, when = None, None, None
+        trigger, delay = "once", 0.0
+        if "time" in e:
+            t = _num(file, f"{fld}.time", e.get("time"))
+            for key in ("trigger", "delay"):
+                if key in e:
+                    raise ScenarioError(file, f"{fld}.{key}", "only an event with a when condition takes one")
+        else:
+            when = e["when"]
+            try:
+                cond = parse_condition(when)
+            except ConditionError as exc:
+                raise ScenarioError(file, f"{fld}.when", str(exc)) from None
+            for ref in condition_variables(cond):
+                inst = ref.split(".", 1)[0]
+                if inst not in sc.instances:
+                    raise ScenarioError(file, f"{fld}.when", f"{ref}: unknown instance {inst!r}")
+            trigger = e.get("trigger", "once")
+            if trigger not in TRIGGERS:
+                raise ScenarioError(file, f"{fld}.trigger", f"{trigger!r}: must be one of {', '.join(TRIGGERS)}")
+            delay = _num(file, f"{fld}.delay", e.get("delay", 0.0))
+            if delay < 0:
+                raise ScenarioError(file, f"{fld}.delay", f"{delay!r}: must be >= 0 [s]")
+        action = e.get("action", "override")
+        if action not in ACTIONS:
+            raise ScenarioError(file, f"{fld}.action", f"{action!r}: must be one of {', '.join(ACTIONS)}")
+        if action == "stop":
+            for key in ("variable", "value"):
+                if key in e:
+                    raise ScenarioError(file, f"{fld}.{key}", "a stop takes no variable or value")
+            sc.events.append(EventSpec(t, None, action, None, i, when, cond, trigger, delay))
+            continue
         if "variable" not in e:
             raise ScenarioError(file, f"{fld}.variable", "missing")
         inst, _ = split_ref(file, f"{fld}.variable", e["variable"])
         if inst not in sc.instances:
             raise ScenarioError(file, f"{fld}.variable", f"unknown instance {inst!r}")
-        action = e.get("action", "override")
-        if action not in ACTIONS:
-            raise ScenarioError(file, f"{fld}.action", f"{action!r}: must be one of {', '.join(ACTIONS)}")
         if action != "reset" and "value" not in e:
             raise ScenarioError(file, f"{fld}.value", f"missing (needed by {action})")
         if action == "reset" and "value" in e:
             raise ScenarioError(file, f"{fld}.value", "a reset takes no value")
-        sc.events.append(EventSpec(t, e["variable"], action, e.get("value"), i))
+        sc.events.append(EventSpec(t, e["variable"], action, e.get("value"), i, when, cond, trigger, delay))
 
 
 def check_experiment(sc: Scenario, where: str = "experiment") -> None:

@@ -153,9 +153,9 @@ def export_ssp(plan: Plan, out: str | os.PathLike, name: str | None = None) -> P
     """
     sc = plan.scenario
     out = Path(out)
-    if plan.events:
-        raise ScenarioError(sc.file, "events", "timed events cannot be expressed in SSP 1.0: export a scenario "
-                                                "without [[events]]")
+    if plan.events or plan.conditions:
+        raise ScenarioError(sc.file, "events", "events cannot be expressed in SSP 1.0 (timed or on conditions): "
+                                                "export a scenario without [[events]]")
     name = name or Path(sc.file).stem or "system"
     resources = _resource_names(plan)
     conns, params = _connectors(plan)

@@ -60,13 +60,23 @@ class RecordPlan:
 
 @dataclass
 class EventPlan:
-    time: float
-    step: int          # applied before the step starting at t = start + step * h
-    instance: str
-    var: Variable
+    """A checked event.  A timed one acts before the step starting at t = start + step * h; a condition
+    event (``condition`` not None) acts ``delay`` [s] after its condition becomes true (``step`` unused).
+    A stop has no variable (``instance``, ``var`` and ``ref`` are None)."""
+
+    time: float | None
+    step: int
+    instance: str | None
+    var: Variable | None
     action: str
     value: Any
-    ref: str
+    ref: str | None
+    index: int = 0                       # its place in the scenario's [[events]]
+    when: str | None = None
+    condition: Any = None                # the syntax tree (cosim.condition)
+    trigger: str = "once"
+    delay: float = 0.0
+    reads: dict[str, tuple[str, Variable]] = field(default_factory=dict)  # condition name -> (instance, var)
 
 
 @dataclass
@@ -79,6 +89,17 @@ class Plan:
     n_steps: int
     inputs: list[InputPlan] = field(default_factory=list)
     not_recorded: list[str] = field(default_factory=list)   # String outputs a pattern matched
+    conditions: list[EventPlan] = field(default_factory=list)  # events on conditions, evaluated between steps
+
+    @property
+    def watched(self) -> list[tuple[str, Variable]]:
+        """The variables the conditions read (the Float64 outputs among them are kept in the row buffer)."""
+        out: list[tuple[str, Variable]] = []
+        for ev in self.conditions:
+            for pair in ev.reads.values():
+                if pair not in out:
+                    out.append(pair)
+        return out
 
     @property
     def output_bytes(self) -> int:
@@ -261,38 +282,77 @@ def _inputs(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str
 
 def _events(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str, str], int],
             inputs: list[InputPlan]) -> list[EventPlan]:
-    """The timed events: on a Real input or output (override, bias, reset: see the wiring), or on an
-    Integer, Enumeration, Boolean or String input that no connection or table drives (set at the event's
-    step; bias only on Integer)."""
+    """The events: override, bias or reset a Real input or output (see the wiring), or an Integer,
+    Enumeration, Boolean or String input that no connection or table drives (set at the event's step; bias
+    only on Integer); set a tunable parameter; stop the run.  At a time, or on a condition (its variables
+    and types checked here)."""
     file = sc.file
     tabled = {(ip.instance, ip.var.name) for ip in inputs}
     events: list[EventPlan] = []
     for e in sc.events:
         fld = f"events[{e.index}]"
+        k = 0
+        if e.time is not None:
+            if not sc.start <= e.time < sc.stop:
+                raise ScenarioError(file, f"{fld}.time", f"{e.time!r} is outside the run {sc.start!r}..{sc.stop!r} s "
+                                                         "(an event at the stop time would never act)")
+            k = int(math.ceil((e.time - sc.start) / sc.step - 1e-9))
+        reads = _condition_reads(file, f"{fld}.when", e, insts) if e.condition is not None else {}
+        if e.action == "stop":
+            events.append(EventPlan(e.time, k, None, None, "stop", None, None, e.index, e.when, e.condition,
+                                    e.trigger, e.delay, reads))
+            continue
         inst, vname = split_ref(file, f"{fld}.variable", e.variable)
         var = _var(file, f"{fld}.variable", insts[inst], vname)
-        if var.type == "Real":
-            if var.causality not in ("input", "output"):
-                raise ScenarioError(file, f"{fld}.variable", f"{e.variable} must be an input or output")
-        elif var.causality != "input" or (inst, var.name) in driven or (inst, var.name) in tabled:
-            raise ScenarioError(file, f"{fld}.variable", f"{e.variable}: an event on a {var.type} variable needs "
-                                                         "an input that no connection or table drives")
-        elif e.action == "bias" and var.type != "Integer":
-            raise ScenarioError(file, f"{fld}.action", f"a bias needs a Real or Integer variable, "
-                                                       f"{e.variable} is {var.type}")
-        if not sc.start <= e.time < sc.stop:
-            raise ScenarioError(file, f"{fld}.time", f"{e.time!r} is outside the run {sc.start!r}..{sc.stop!r} s "
-                                                     "(an event at the stop time would never act)")
-        k = int(math.ceil((e.time - sc.start) / sc.step - 1e-9))
-        if e.action == "reset":
-            value = None
-        elif e.action == "override" or var.type != "Real":
+        if var.shape:
+            raise ScenarioError(file, f"{fld}.variable", f"{e.variable} is an array: events act on scalars")
+        if e.action == "set":
+            if var.causality != "parameter" or var.variability != "tunable":
+                raise ScenarioError(file, f"{fld}.variable", f"{e.variable} is a {var.variability} {var.causality}: "
+                                                             "set changes a tunable parameter during the run "
+                                                             "(override changes an input)")
             value = _value(file, f"{fld}.value", var, e.value)
         else:
-            value = float(_value(file, f"{fld}.value", Variable(var.name, 0, "Real", "input", "", None, None, None,
-                                                                None), e.value))
-        events.append(EventPlan(e.time, k, inst, var, e.action, value, e.variable))
+            if var.type == "Real":
+                if var.causality not in ("input", "output"):
+                    hint = " (set changes a tunable parameter)" if var.variability == "tunable" else ""
+                    raise ScenarioError(file, f"{fld}.variable", f"{e.variable} must be an input or output{hint}")
+            elif var.causality != "input" or (inst, var.name) in driven or (inst, var.name) in tabled:
+                raise ScenarioError(file, f"{fld}.variable", f"{e.variable}: an event on a {var.type} variable "
+                                                             "needs an input that no connection or table drives")
+            elif e.action == "bias" and var.type != "Integer":
+                raise ScenarioError(file, f"{fld}.action", f"a bias needs a Real or Integer variable, "
+                                                           f"{e.variable} is {var.type}")
+            if e.action == "reset":
+                value = None
+            elif e.action == "override" or var.type != "Real":
+                value = _value(file, f"{fld}.value", var, e.value)
+            else:
+                value = float(_value(file, f"{fld}.value", Variable(var.name, 0, "Real", "input", "", None, None,
+                                                                    None, None), e.value))
+        events.append(EventPlan(e.time, k, inst, var, e.action, value, e.variable, e.index, e.when, e.condition,
+                                e.trigger, e.delay, reads))
     return events
+
+
+def _condition_reads(file: str, fld: str, e: Any, insts: dict[str, InstancePlan]) -> dict[str, tuple[str, Variable]]:
+    """The variables a condition reads (each must exist, be a scalar and not a String) and its type check."""
+    from .condition import ConditionError, check_types, variables
+
+    reads: dict[str, tuple[str, Variable]] = {}
+    for ref in variables(e.condition):
+        inst, vname = ref.split(".", 1)
+        var = _var(file, fld, insts[inst], vname)
+        if var.shape:
+            raise ScenarioError(file, fld, f"{ref} is an array: a condition reads scalars")
+        if var.causality == "independent":
+            raise ScenarioError(file, fld, f"{ref} is the independent variable: use t for the time")
+        reads[ref] = (inst, var)
+    try:
+        check_types(e.condition, {ref: var.type for ref, (_, var) in reads.items()})
+    except ConditionError as exc:
+        raise ScenarioError(file, fld, str(exc)) from None
+    return reads
 
 
 def resolve(sc: Scenario, force: bool | None = None) -> Plan:
@@ -350,9 +410,11 @@ def resolve(sc: Scenario, force: bool | None = None) -> Plan:
     inputs = _inputs(sc, insts, driven)
 
     n_steps = int(round((sc.stop - sc.start) / sc.step))
-    events = _events(sc, insts, driven, inputs)
-    events.sort(key=lambda ev: ev.step)  # stable: file order within a step
-    plan = Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs, not_recorded)
+    checked = _events(sc, insts, driven, inputs)
+    events = sorted((ev for ev in checked if ev.condition is None), key=lambda ev: ev.step)  # stable within a step
+    conditions = [ev for ev in checked if ev.condition is not None]
+    plan = Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs, not_recorded,
+                conditions)
     if plan.output_bytes > sc.max_bytes and not sc.force:
         raise ScenarioError(file, "record", f"the recording would take about {plan.output_bytes / 2 ** 20:.0f} MiB "
                                             f"(more than max_bytes = {sc.max_bytes}): record fewer variables, "

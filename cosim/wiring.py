@@ -60,6 +60,9 @@ class RowLayout:
             add(c.src, c.src_var)
         for r in plan.record:
             add(r.instance, r.var)
+        for inst, var in plan.watched:   # outputs the events' conditions read
+            if var.causality == "output":
+                add(inst, var)
         offset, pos = {}, 1
         for n in plan.order:
             offset[n] = pos
@@ -126,13 +129,21 @@ class Wiring:
                     pos = self._pos(inst, ip.var.vr)
                     self.base[(inst, pos)] = (pos, arr, j, 1.0, 0.0)
                 self.tables[inst] = (arr, np.ascontiguousarray(np.column_stack([ip.values for ip in cols])))
-        for ev in plan.events:  # an unconnected input driven by events holds its start value until overridden
-            if ev.var.causality != "input" or ev.var.type != "Real":
+        for ev in plan.events + plan.conditions:  # an unconnected input driven by events holds its start
+            if ev.var is None or ev.var.causality != "input" or ev.var.type != "Real" or ev.action == "set":
                 continue
             key = (ev.instance, self._pos(ev.instance, ev.var.vr))
             if key not in self.base:
                 self.base[key] = (key[1], real_array([float(_start(plan, ev))]), 0, 1.0, 0.0)
         self.overrides: dict[tuple[str, int, str], tuple[str, float]] = {}
+        self._held: dict[tuple[str, int, str], Any] = {}   # the array each override's copies read
+
+    def is_wired(self, inst: str, vr: int, causality: str) -> bool:
+        """Whether the copies can carry an override of this Real input (one the master sets) or output
+        (one feeding a connection); an input the master never sets is set on the FMU directly instead."""
+        if causality == "output":
+            return any(src == (inst, vr) for src in self.feeds.values())
+        return any(v == vr for v, _ in self.values[inst])
 
     def _pos(self, inst: str, vr: int, elem: int = 0) -> int:
         """The position of (vr, element) among the values the master sets on ``inst`` (an array's
@@ -144,33 +155,53 @@ class Wiring:
                 self.vrs[inst].append(vr)
         return vals.index((vr, elem))
 
-    def apply(self, ev: EventPlan) -> None:
-        """Put an event's action in force (override, bias on top of an earlier one, or reset)."""
-        key = (ev.instance, ev.var.vr, ev.var.causality)
-        if ev.action == "reset":
-            self.overrides.pop(key, None)
-            return
+    def apply(self, ev: EventPlan) -> bool:
+        """Put an event's action in force (override, bias on top of an earlier one, or reset).  Returns
+        whether the copies changed (False: a new value of an override already in force, written in place)."""
+        return self.act(ev.instance, ev.var.vr, ev.var.causality, ev.action, ev.value)
+
+    def act(self, inst: str, vr: int, causality: str, action: str, value: Any) -> bool:
+        """:meth:`apply` for one Real variable ``(inst, vr, causality)``."""
+        key = (inst, vr, causality)
+        if action == "reset":
+            return self.overrides.pop(key, None) is not None
         prev = self.overrides.get(key)
-        if ev.action == "bias" and prev is not None:   # on top of an earlier override or bias
-            self.overrides[key] = (prev[0], prev[1] + float(ev.value))
-        else:
-            self.overrides[key] = (ev.action, float(ev.value))
+        if action == "bias" and prev is not None:   # on top of an earlier override or bias
+            self.overrides[key] = (prev[0], prev[1] + float(value))
+            if prev[0] == "override":
+                self._held_value(key, prev[1] + float(value))
+                return False
+            return True
+        self.overrides[key] = (action, float(value))
+        if action == "override" and prev is not None and prev[0] == "override":
+            self._held_value(key, float(value))
+            return False
+        return True
+
+    def _held_value(self, key: tuple[str, int, str], value: float) -> Any:
+        arr = self._held.get(key)
+        if arr is None:
+            arr = self._held[key] = real_array([value])
+        arr[0] = value
+        return arr
 
     def copies(self, inst: str) -> list[Copy]:
         """The copies that set ``inst``'s Real inputs, with the overrides in force."""
         out = []
         for pos, (vr, _) in enumerate(self.values[inst]):
             _, arr, i, f, o = self.base[(inst, pos)]
-            ov = self.overrides.get((inst, vr, "input"))
+            key = (inst, vr, "input")
+            ov = self.overrides.get(key)
             if ov is None and (inst, pos) in self.feeds:
                 src, svr = self.feeds[(inst, pos)]
-                ov = self.overrides.get((src, svr, "output"))
+                key = (src, svr, "output")
+                ov = self.overrides.get(key)
                 if ov is not None and ov[0] == "bias":  # a bias on the output, before the connection's transform
                     ov = ("bias", ov[1] * f)
             if ov is None:
                 out.append((pos, arr, i, f, o))
-            elif ov[0] == "override":
-                out.append((pos, real_array([ov[1]]), 0, 1.0, 0.0))
+            elif ov[0] == "override":   # read from an array of its own, so a new value needs no new loop
+                out.append((pos, self._held_value(key, ov[1]), 0, 1.0, 0.0))
             else:
                 out.append((pos, arr, i, f, o + ov[1]))
         return out

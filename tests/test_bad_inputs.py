@@ -215,7 +215,7 @@ def test_a_second_run_into_the_same_folder_is_refused(sandbox, capsys):
 def test_an_fmu_with_a_range_and_units_refuses_bad_values(sandbox, capsys, tmp_path_factory):
     fmu = build_probe(tmp_path_factory.mktemp("probe"))
     work, _ = sandbox
-    for extra, words in ((f'[instances.p.parameters]\np = 11.0\n', ["parameters.p", "above the maximum"]),
+    for extra, words in (('[instances.p.parameters]\np = 11.0\n', ["parameters.p", "above the maximum"]),
                          (f'[instances.q]\nfmu = "{fmu}"\nunits = {{ y = "s" }}\n[[connections]]\nfrom = "q.y"\n'
                           f'to = "p.u"\n', ["connections[0]", "unit mismatch"])):
         path = work / "p.toml"

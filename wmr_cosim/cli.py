@@ -102,6 +102,17 @@ def cmd_build(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _real_time(text: str) -> float:
+    """--real-time FACTOR: a number > 0."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: a factor of real time (a number > 0)") from None
+    if not (v > 0 and v < float("inf")):
+        raise argparse.ArgumentTypeError(f"{text!r}: a factor of real time must be > 0 and finite")
+    return v
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     """Run a scenario through the co-simulation master."""
     from .runner import default_out, parse_set, run_scenario
@@ -113,6 +124,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         sc, runs, _ = plan_runs(args.scenario, resolve_model, args.variant)
         if sc.runs:  # a protocol: every run, in order, into OUT/<run>
+            if args.real_time is not None:
+                raise UsageError("--real-time paces a single run, not a protocol's runs")
             code = EXIT_OK
             for name, r in run_protocol(args.scenario, out, resolve_model, variant=args.variant,
                                         overrides=parse_set(args.set), progress=False if args.quiet else None,
@@ -131,9 +144,15 @@ def cmd_run(args: argparse.Namespace) -> int:
     if any(v is not None for v in fmu_only) and not str(args.scenario).lower().endswith(".fmu"):
         raise UsageError("--input, --stop and --step apply to a single FMU (.fmu); a scenario file says them itself")
     res = run_scenario(args.scenario, out, parse_set(args.set), progress=False if args.quiet else None,
-                       inputs=args.input, stop=args.stop, step=args.step, force=args.force, isolate=args.isolate)
+                       inputs=args.input, stop=args.stop, step=args.step, force=args.force, isolate=args.isolate,
+                       real_time=args.real_time)
     per = f", {res.wall_s / res.steps * 1e6:.1f} us/step" if res.steps else ""
-    if res.status in ("ok", "terminated"):
+    if res.real_time is not None:
+        rt = res.real_time
+        print(f"real time x{rt['factor']:g}: {rt['overruns']} of {rt['steps']} steps finished late"
+              + (f" (by up to {rt['late_max_s'] * 1e3:.3g} ms, {rt['late_mean_s'] * 1e3:.3g} ms on average)"
+                 if rt["overruns"] else ""))
+    if res.status in ("ok", "terminated", "stopped"):
         how = "ok" if res.status == "ok" else res.message
         print(f"{args.scenario}: {how}, {res.steps} steps to t = {res.t_end:g} s in {res.wall_s:.2f} s{per} "
               f"(set-up {res.setup_s:.2f} s); results in {out}")
@@ -160,7 +179,8 @@ def cmd_check(args: argparse.Namespace) -> int:
                                       else load_plan(args.scenario, overrides, f))) as plan:
         sc = plan.scenario
         print(f"{args.scenario}: ok: {len(plan.instances)} instances ({', '.join(plan.order)}), "
-              f"{len(plan.connections)} connections, {len(plan.record)} recorded variables, {len(plan.events)} events, "
+              f"{len(plan.connections)} connections, {len(plan.record)} recorded variables, "
+              f"{len(plan.events) + len(plan.conditions)} events, "
               f"{plan.n_steps} steps of {sc.step:g} s ({sc.algorithm}); signals.npy about "
               f"{_size(plan.output_bytes)}{' (and signals.csv about ' + _size(3 * plan.output_bytes) + ')' if sc.csv else ''}")
         if plan.not_recorded:
@@ -320,6 +340,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--isolate", action="store_true",
                    help="host every FMU in a child process of its own: a crash or hang is reported, not fatal "
                         "(instances can also say isolate = true)")
+    r.add_argument("--real-time", nargs="?", const=1.0, default=None, type=_real_time, metavar="FACTOR",
+                   help="pace the steps to the wall clock at FACTOR x real time (default 1); steps that finish "
+                        "late are counted and reported, never skipped")
     r.set_defaults(func=cmd_run)
     c = sub.add_parser("check", help="check a scenario against its FMUs without running it",
                        description="Run every check of a scenario (files, variables, causality, types, units, "

@@ -156,18 +156,19 @@ def is_fmu(path: str | Path) -> bool:
 
 def run_scenario(path: str | Path, out: str | Path | None = None, overrides: dict[str, Any] | None = None,
                  progress: bool | None = None, inputs: str | Path | None = None, stop: float | None = None,
-                 step: float | None = None, force: bool = False, isolate: bool = False) -> execution.RunResult:
+                 step: float | None = None, force: bool = False, isolate: bool = False,
+                 real_time: float | None = None) -> execution.RunResult:
     """Run a scenario file (.toml), an SSP archive (.ssp) or one FMU alone (.fmu); ``isolate`` hosts every
-    instance in a child process of its own."""
+    instance in a child process of its own; ``real_time=FACTOR`` paces the steps to the wall clock."""
     out = out if out is not None else default_out(path)
     if is_fmu(path):
         return execution.run(isolated(fmu_plan(path, overrides, inputs, stop, step, force), isolate), out,
-                             progress=progress)
+                             progress=progress, real_time=real_time)
     if ssp.is_ssp(path):
         with ssp_plan(path, overrides, force) as plan:
-            return execution.run(isolated(plan, isolate), out, progress=progress)
+            return execution.run(isolated(plan, isolate), out, progress=progress, real_time=real_time)
     plan = load_plan(path, overrides, force)
-    return execution.run(isolated(plan, isolate), out, progress=progress)
+    return execution.run(isolated(plan, isolate), out, progress=progress, real_time=real_time)
 
 
 def isolated(plan: system.Plan, isolate: bool) -> system.Plan:
