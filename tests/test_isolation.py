@@ -43,9 +43,14 @@ variables = ["d.x", "probe.y", "probe.n", "f.Float64_continuous_output"]
 ''')
 
 
-def _run(path: Path, out: Path, timeout: float = 120) -> subprocess.CompletedProcess:
+def _run(path: Path, out: Path, timeout: float = 120, tmp: Path | None = None) -> subprocess.CompletedProcess:
+    """The run in a fresh process; ``tmp`` its temporary folder (a master that dies leaves its extracted
+    FMUs there)."""
+    import os
+
+    env = dict(os.environ, TMPDIR=str(tmp)) if tmp is not None else None
     return subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "run", str(path), "--out", str(out), "--quiet"],
-                          capture_output=True, text=True, timeout=timeout)
+                          capture_output=True, text=True, timeout=timeout, env=env)
 
 
 @pytest.mark.parametrize("flag, how", [("SEGFAULT_AT", "killed by SIGSEGV"), ("ABORT_AT", "killed by SIGABRT"),
@@ -81,8 +86,10 @@ def test_junk_on_stdout_from_an_isolated_fmu_goes_to_a_file(tmp_path):
 def test_the_same_crash_in_process_takes_the_master_down(flag, tmp_path):
     """What isolation is for: in process the master dies with the FMU (no summary is written)."""
     fmu = build_probe(tmp_path / "fmu", **{flag: 0.25})
-    p = _run(_scenario(tmp_path, fmu, False), tmp_path / "out")
+    (tmp_path / "tmp").mkdir()
+    p = _run(_scenario(tmp_path, fmu, False), tmp_path / "out", tmp=tmp_path / "tmp")
     assert p.returncode in (-11, 3), (p.returncode, p.stderr)
+    assert list((tmp_path / "tmp").glob("wmr-cosim-fmus-*"))   # it could not even clean up
     assert not (tmp_path / "out" / "summary.json").exists()
 
 
