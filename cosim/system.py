@@ -48,6 +48,7 @@ class ConnectionPlan:
     factor: float
     offset: float
     spec: ConnectionSpec
+    src_elem: int | None = None   # one element of an FMI 3.0 array output (row-major), None for all
 
 
 @dataclass
@@ -148,6 +149,29 @@ def _var(file: str, fld: str, inst: InstancePlan, name: str) -> Variable:
     return var
 
 
+_ELEMENT = re.compile(r"^(.*)\[(\d+(?:,\d+)*)\]$")
+
+
+def _element(file: str, fld: str, inst: InstancePlan, name: str) -> tuple[Variable, int | None]:
+    """A variable, or one element of an FMI 3.0 array (``y[2]``, ``A[1,2]``: 1-based, row-major) with its
+    flat index; an FMI name that is itself spelled with brackets (FMI 2.0's ``x[1]``) is a variable."""
+    theirs = inst.ours_to_theirs.get(name, name)
+    if theirs in inst.model.variables:
+        return inst.model.variables[theirs], None
+    m = _ELEMENT.match(name)
+    if m:
+        base = inst.model.variables.get(inst.ours_to_theirs.get(m.group(1), m.group(1)))
+        if base is not None and base.shape:
+            idx = [int(i) for i in m.group(2).split(",")]
+            if len(idx) != len(base.shape) or not all(1 <= i <= d for i, d in zip(idx, base.shape)):
+                raise ScenarioError(file, fld, f"{name}: {base.name} has the shape {base.shape} (indices start at 1)")
+            flat = 0
+            for i, d in zip(idx, base.shape):
+                flat = flat * d + (i - 1)
+            return base, flat
+    return _var(file, fld, inst, name), None
+
+
 def _unit(inst: InstancePlan, var: Variable):
     declared = inst.spec.units.get(inst.our_name(var)) or inst.spec.units.get(var.name)
     if declared:
@@ -229,11 +253,17 @@ def _record(sc: Scenario, insts: dict[str, InstancePlan]) -> tuple[list[RecordPl
             hits = [(n, v) for n, v in hits if v.type not in ("String", "Binary")]  # reported, not recorded
             if not hits:
                 raise ScenarioError(file, fld, f"{pat!r} matches no output")
-        elif not hits:  # an explicit name may also be a non-output (a parameter, an input)
+        elif not hits:  # an explicit name may also be a non-output (a parameter, an input) or an element
             inst, var = split_ref(file, fld, pat)
             if inst not in insts:
                 raise ScenarioError(file, fld, f"unknown instance {inst!r}")
-            hits = [(inst, _var(file, fld, insts[inst], var))]
+            v, elem = _element(file, fld, insts[inst], var)
+            if elem is not None:
+                if (inst, v.name, elem) not in seen:
+                    seen.add((inst, v.name, elem))
+                    record.append(RecordPlan(inst, v, f"{inst}.{var}", elem))
+                continue
+            hits = [(inst, v)]
         for n, v in hits:
             if v.type == "String":
                 raise ScenarioError(file, fld, f"{n}.{insts[n].our_name(v)} is a String: String variables "
@@ -393,8 +423,16 @@ def resolve(sc: Scenario, force: bool | None = None) -> Plan:
         fld = f"connections[{c.index}]"
         si, sv = split_ref(file, f"{fld}.from", c.src)
         di, dv = split_ref(file, f"{fld}.to", c.dst)
-        svar = _var(file, f"{fld}.from", insts[si], sv)
-        dvar = _var(file, f"{fld}.to", insts[di], dv)
+        svar, src_elem = _element(file, f"{fld}.from", insts[si], sv)
+        dvar, dst_elem = _element(file, f"{fld}.to", insts[di], dv)
+        if dst_elem is not None:
+            raise ScenarioError(file, f"{fld}.to", f"{c.dst}: an element of an input array cannot be a target "
+                                                   f"(connect the whole array {dvar.name})")
+        if src_elem is not None and (dvar.size != 1 or svar.fmi_type != "Float64"):
+            raise ScenarioError(file, fld, f"{c.src} -> {c.dst}: an element of a Float64 array goes to a scalar")
+        if src_elem is None and svar.size != dvar.size:
+            raise ScenarioError(file, fld, f"{c.src} has {svar.size} values, {c.dst} {dvar.size}: arrays connect "
+                                           "whole, of one size (or one element to a scalar)")
         if svar.causality != "output":
             raise ScenarioError(file, f"{fld}.from", f"{c.src} is {svar.causality}, not an output")
         if dvar.causality != "input":
@@ -404,7 +442,7 @@ def resolve(sc: Scenario, force: bool | None = None) -> Plan:
             raise ScenarioError(file, f"{fld}.to", f"{c.dst} is already driven by connections[{driven[key]}]")
         driven[key] = c.index
         f, o = _connection_types(file, fld, c, svar, dvar, insts[si], insts[di])
-        conns.append(ConnectionPlan(si, svar, di, dvar, c.factor * f, c.factor * o + c.offset, c))
+        conns.append(ConnectionPlan(si, svar, di, dvar, c.factor * f, c.factor * o + c.offset, c, src_elem))
 
     record, not_recorded = _record(sc, insts)
     inputs = _inputs(sc, insts, driven)

@@ -115,9 +115,9 @@ class Wiring:
         for c in plan.connections:
             if not is_real(c):
                 continue
-            for e in range(c.dst_var.size):  # every element of an array
+            for e in range(c.dst_var.size):  # every element of an array (or the one element connected)
                 pos = self._pos(c.dst, c.dst_var.vr, e)
-                src = layout.out_arr[c.src], layout.index(c.src, c.src_var.vr, e)
+                src = layout.out_arr[c.src], layout.index(c.src, c.src_var.vr, e if c.src_elem is None else c.src_elem)
                 self.base[(c.dst, pos)] = (pos, *src, c.factor, c.offset)
                 self.feeds[(c.dst, pos)] = (c.src, c.src_var.vr)
         self.tables: dict[str, tuple[Any, np.ndarray]] = {}   # instance -> (array the copies read, values)

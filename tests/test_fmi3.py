@@ -146,3 +146,37 @@ def test_an_fmu_with_clocks_is_refused_at_check(tmp_path):
     with pytest.raises(ScenarioError, match="scheduled execution only") as exc:
         system.resolve(scenario.load(path))
     assert exc.value.field == "instances.c.fmu"
+
+
+def test_one_element_of_an_fmi3_array_connected_and_recorded(tmp_path):
+    """a.y[2] (an element of a Float64 array output) drives a scalar input; b.y[3] is recorded alone; an
+    element of an input array as a target, and arrays of different sizes, are refused in one line."""
+    path = write_scenario(tmp_path / "el.toml", f'''
+[experiment]
+stop = 0.1
+step = 0.01
+[instances.a]
+fmu = "{FMI3 / 'StateSpace.fmu'}"
+[instances.f]
+fmu = "{FMI3 / 'Feedthrough.fmu'}"
+[[connections]]
+from = "a.y[2]"
+to = "f.Float64_continuous_input"
+factor = 10.0
+[record]
+variables = ["a.y[2]", "f.Float64_continuous_output"]
+''')
+    plan = system.resolve(scenario.load(path))
+    assert [r.column for r in plan.record] == ["a.y[2]", "f.Float64_continuous_output"]
+    res = execution.run(plan, tmp_path / "out", progress=False)
+    assert res.status == "ok", res.message
+    d = np.load(tmp_path / "out" / "signals.npy")
+    assert np.array_equal(d["f.Float64_continuous_output"], 10.0 * d["a.y[2]"]) and d["a.y[2]"][0] == 2.0
+    bad = path.read_text().replace('to = "f.Float64_continuous_input"', 'to = "a.u[1]"')
+    (tmp_path / "bad.toml").write_text(bad)
+    with pytest.raises(ScenarioError, match="an element of an input array cannot be a target"):
+        system.resolve(scenario.load(tmp_path / "bad.toml"))
+    bad2 = path.read_text().replace('from = "a.y[2]"', 'from = "a.y"')
+    (tmp_path / "bad2.toml").write_text(bad2)
+    with pytest.raises(ScenarioError, match="arrays connect whole"):
+        system.resolve(scenario.load(tmp_path / "bad2.toml"))
