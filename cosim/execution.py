@@ -116,9 +116,10 @@ class Execution:
                 unz[p] = str(safe_extract(p, self.work / f"{len(unz)}_{p.stem}"))
             log = self.out / "logs" / f"{name}.log"
             if ip.spec.isolate:
-                from .isolation import IsolatedInstance
+                from .isolation import IsolatedInstance, spin_for
+                spin = spin_for(sum(q.spec.isolate for q in self.plan.instances.values()))
                 self.instances[name] = IsolatedInstance(name, ip.model.md, unz[p], log, ip.spec.logging,
-                                                        ip.spec.step_timeout or 60.0)
+                                                        ip.spec.step_timeout or 60.0, spin)
             else:
                 cls = Instance3 if ip.model.fmi == 3 else Instance
                 self.instances[name] = cls(name, ip.model.md, unz[p], log, ip.spec.logging)
