@@ -429,7 +429,11 @@ class IsolatedInstance:
         self._call("set-up", "setup_experiment", start, stop, tolerance, t=start)
 
     def set_values(self, pairs: list) -> None:
-        self._call("setting start values", "set_values", pairs)
+        self._call("setting values", "set_values", pairs)
+
+    def get_value(self, var: Any) -> Any:
+        """The current value of one variable (through the control channel)."""
+        return self._call(f"reading {var.name}", "get_value", var)
 
     def enter_initialization(self) -> None:
         self._call("initialisation", "enter_initialization", t=self._experiment[0])

@@ -117,3 +117,35 @@ def test_g1_with_every_instance_isolated_is_bit_identical(tmp_path):
     assert len(a) == 501 and all(np.array_equal(a[n], b[n]) for n in a.dtype.names)
     assert all((tmp_path / "oTrue" / "logs" / f"{n}.log.stdout").exists() for n in ("plant", "sensor", "controller"))
     assert not (tmp_path / "oFalse" / "logs" / "plant.log.stdout").exists()
+
+
+def test_the_python_api_steps_and_reads_an_isolated_instance(tmp_path):
+    """Stepwise control over an isolated FMU: read a value between steps, the same as in process."""
+    from wmr_cosim import Simulation
+
+    fmu = build_probe(tmp_path / "fmu")
+    values = {}
+    for iso in (True, False):
+        sim = Simulation.load(_scenario(tmp_path, fmu, iso))
+        run = sim.start(out=tmp_path / f"api{iso}")
+        try:
+            run.step_to(0.2)
+            values[iso] = (run.get("probe.n"), run.get("probe.y"), run.get("d.x"))
+        finally:
+            run.close()
+    assert values[True] == values[False] and values[True][0] == 20
+
+
+@pytest.mark.slow
+def test_a_sweep_point_whose_isolated_fmu_crashes_is_a_failed_row(tmp_path):
+    """The crash ends that point's run, not the Dask worker: the other points run and the table has the
+    failed row with its reason."""
+    from wmr_cosim.sweep import run_sweep
+
+    fmu = build_probe(tmp_path / "fmu", SEGFAULT_AT=0.25)
+    base = _scenario(tmp_path, fmu, True)
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(f'base = "{base}"\nmetrics = []\n[grid]\n"probe.p" = [1.0, 2.0]\n')
+    df = run_sweep(sweep, tmp_path / "out", workers=1, progress=False)
+    assert len(df) == 2 and set(df["status"]) == {"failed"}, df[["status", "reason"]]
+    assert all("killed by SIGSEGV" in r for r in df["reason"]), list(df["reason"])

@@ -197,6 +197,10 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
                                variant=variant, overrides=point["params"], progress=False, only=runs)
         sigs = {}
         for name, res in results.items():
+            if res.status != "ok" and row["status"] == "ok":   # the first failed run's message is the reason
+                row["status"], row["reason"] = "failed", f"{name}: {res.message}"
+                if not (work / name / "signals.npy").is_file():
+                    continue
             sig = load_signals(work / name)
             sigs[name] = sig
             goal = _goal(work / name)
@@ -211,9 +215,7 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
             row[f"{name}.t_goal"] = s["t_goal"] if s.get("t_goal") is not None else math.nan
             row[f"{name}.goal_distance"] = s.get("goal_distance", math.nan)
             row[f"{name}.diverged"] = bool(s["diverged"])
-            if res.status != "ok":
-                row["status"], row["reason"] = "failed", f"{name}: {res.message}"
-            elif s["diverged"] and row["status"] == "ok":
+            if s["diverged"] and row["status"] == "ok":
                 row["status"], row["reason"] = "diverged", f"{name}: |e| = {max(map(abs, s['final_e'])):.3g} rad at the end"
         if sigs.get("frozen") is not None and sigs.get("foam") is not None:
             t1 = paper.table1()
@@ -224,6 +226,9 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
             row["edge_peak_u"] = d["edge_peak_u"] if d["edge_peak_u"] is not None else math.nan
     except CosimError as exc:
         row["status"], row["reason"] = "failed", str(exc)
+    except KeyError as exc:    # a failed run that did not record what the metrics need: keep its reason
+        if row["status"] == "ok":
+            row["status"], row["reason"] = "failed", f"KeyError: {exc}"
     except Exception as exc:  # a point must never take the sweep down
         row["status"], row["reason"] = "failed", f"{type(exc).__name__}: {' '.join(str(exc).split())}"
     finally:
