@@ -436,5 +436,17 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_INTERRUPTED
 
 
+def entry() -> None:
+    """The ``wmr-cosim`` command: :func:`main`, then exit without the interpreter's finalisation (a process
+    that has hosted many pythonfmu FMUs sometimes aborts while the interpreter tears down, after every
+    result is written; its exit code would then hide the command's own)."""
+    import os
+
+    code = main()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()
