@@ -193,6 +193,14 @@ class Controller:
         self._kf = 0.5 * p.cF
         self.reset(0.0, 0.0, 0.0, 0.0, 0.0)
 
+    def retune(self, params: ControllerParams) -> None:
+        """New values of the parameters that may change during a run (the goal, the adaptation switch and
+        window, and gamma): the gains of the players (46) and the weights of the Hamiltonian (49), which
+        depend on gamma, are recomputed; the state (W, P, odometry) is kept."""
+        p = self.p = params
+        self._ku, self._kd = player_gains(p.R, p.gamma, p.player_form, p.player_gamma_power)
+        self._hq, self._hg = hamiltonian_weights(p.Q, p.gamma, p.h_state_cost_sign, p.h_gamma_power)
+
     # ------------------------------------------------------------------ state
     def reset(self, t: float, am1: float, am2: float, wm1: float, wm2: float,
               xt: float = 0.0, yt: float = 0.0, bt: float = 0.0) -> tuple[float, ...]:

@@ -71,7 +71,7 @@ _P = {
     "p_norm": ("norm of P compared with P0: min_eig (default), frobenius or max_eig (decision 17)",),
     "freeze_w_with_p": ("stop adapting W when P stops (decision 18)",),
 }
-TUNABLE = ("goal_x", "goal_y", "adapt", "adapt_t_start", "adapt_t_end")
+TUNABLE = ("goal_x", "goal_y", "adapt", "adapt_t_start", "adapt_t_end", "gamma")
 _P_NAMES = ("11", "12", "13", "22", "23", "33")
 #: FMI 3.0 arrays (see Var.array): the critic weights W (3) and the symmetric RLS matrix P (3 x 3).
 _W_DOC = "critic weights W of (45)"
@@ -187,7 +187,7 @@ class WmrController(WmrSlave):
         v[self._out0:self._out1] = ctrl.reset(self._t0, *v[self._in0:self._in1])
 
     def _retune(self):
-        self._comp.p = self._controller_params()  # goal and adaptation window are read at every sample
+        self._comp.retune(self._controller_params())  # goal, adaptation window and gamma act from the next sample
 
     def _step(self, t, h):
         v = self._vals

@@ -163,7 +163,7 @@ def test_a_condition_that_never_holds_changes_nothing(g1, quiet):
     ({"when": "t > 1", "trigger": "twice", "action": "stop"}, "events[0].trigger", "once, each"),
     ({"when": "t > 1", "delay": -1, "action": "stop"}, "events[0].delay", ">= 0"),
     ({"when": "t > 1", "action": "stop", "variable": "plant.u1"}, "events[0].variable", "no variable or value"),
-    ({"when": "t > 1", "action": "set", "variable": "controller.gamma", "value": 8.0}, "events[0].variable",
+    ({"when": "t > 1", "action": "set", "variable": "controller.R", "value": 8.0}, "events[0].variable",
      "fixed parameter"),
     ({"time": 1.0, "action": "set", "variable": "plant.foam_da1", "value": "x"}, "events[0].value", "type mismatch"),
     ({"time": 1.0, "action": "override", "variable": "plant.foam_da1", "value": 1.0}, "events[0].variable",
@@ -294,7 +294,7 @@ def test_api_errors_are_the_command_lines(g1, tmp_path):
         with pytest.raises(ScenarioError, match="has no variable 'nothing'"):
             run.get("plant.nothing")
         with pytest.raises(CosimError, match="fixed parameter: only tunable"):
-            run.set("controller.gamma", 5.0)
+            run.set("controller.R", 5.0)
         with pytest.raises(ScenarioError, match="not finite"):
             run.set("plant.u1", math.nan)
         with pytest.raises(CosimError, match="feeds no connection"):
@@ -390,8 +390,14 @@ def test_example_supervisor(models):
 
 def test_example_change_during_run(models):
     out = runpy.run_path(str(EXAMPLES / "change_during_run.py"))["main"]()
-    r, refused = out["result"], out["refused"]
+    r, refused, g = out["result"], out["refused"], out["gamma"]
     assert refused.field == "events[1].variable" and "fixed parameter" in refused.reason
+    # gamma changed at 5 s: the worst-case disturbance player (46) scales as 1/gamma^2, so dF_hat / u
+    # changes by (11 / 8)^2 from the next sample; before it, the two runs are identical
+    before, after = g["time"] < 5.0 - 1e-9, g["time"] > 5.0 + 2 * H
+    assert np.array_equal(g["with"][before], g["without"][before])
+    ratio = g["with"][after] / g["without"][after]
+    assert np.allclose(ratio[np.isfinite(ratio)][:5], (11.0 / 8.0) ** 2, rtol=1e-6)
     t_off = r.events[0]["time"]
     frozen = r["time"] > t_off + H + 1e-9
     for i in (1, 2, 3):
