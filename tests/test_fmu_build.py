@@ -73,7 +73,7 @@ def test_variables_units_ranges_causality(built_fmus, model):
         assert float(by["W2_init"].start) == d.W_init[1] and float(by["P33_init"].start) == d.P_init[5]
         assert by["adapting"].type == "Boolean"
         tunable = {v.name for v in md.modelVariables if v.variability == "tunable"}
-        assert tunable == {"goal_x", "goal_y", "adapt", "adapt_t_start", "adapt_t_end"}
+        assert tunable == {"goal_x", "goal_y", "adapt", "adapt_t_start", "adapt_t_end", "gamma"}
     if model == "WmrSensor":
         assert by["count1"].type == by["count2"].type == "Integer"
         assert (float(by["phase1"].min), float(by["phase1"].max)) == (0.0, 1.0)
