@@ -303,10 +303,14 @@ GENERIC_H = 1e-4
 
 
 def _generic_scenario(tmp: str) -> Any:
-    """Dahlquist -> Feedthrough -> Feedthrough (Reference FMUs, C, FMI 2.0), Gauss-Seidel, 100,000 steps."""
+    """Dahlquist -> Feedthrough -> Feedthrough (Reference FMUs, C, FMI 2.0, built from their sources by
+    tests/reference_fmus.py), Gauss-Seidel, 100,000 steps."""
     from pathlib import Path
 
-    ref = Path(__file__).resolve().parents[1] / "tests" / "data" / "reference-fmus" / "fmi2"
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from reference_fmus import REF
+
+    ref = REF / "fmi2"
     path = Path(tmp) / "chain.toml"
     path.write_text(f"""
 [experiment]

@@ -12,7 +12,7 @@ import pytest
 from c_fmu_support import build_probe
 from wmr_cosim.cli import main
 
-REF = Path(__file__).resolve().parent / "data" / "reference-fmus"
+from reference_fmus import REF
 FT, DQ = REF / "fmi2" / "Feedthrough.fmu", REF / "fmi2" / "Dahlquist.fmu"
 
 HEAD = f'[experiment]\nstop = 0.1\nstep = 0.01\n[instances.a]\nfmu = "{FT}"\n[instances.d]\nfmu = "{DQ}"\n'

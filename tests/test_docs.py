@@ -31,10 +31,17 @@ def test_relative_links_point_at_files():
             assert (doc.parent / path).exists(), f"{doc.relative_to(ROOT)}: broken link {target}"
 
 
+#: What a citation of something outside the repository looks like: a notes folder, a numbered tracker
+#: item or trap, an absolute path of the machine the code was written on (composed here, so that this file
+#: does not match itself).
+_OUTSIDE = [r"shared/" + "notes", r"\bno" + "tes/", r"\b" + "iss" + r"ue \d+", r"\b" + "tr" + r"ap \d+",
+            "/" + "work/"]
+
+
 def test_nothing_outside_the_repository_is_cited():
     files = DOCS + [p for d in ("wmr_cosim", "components", "fmus", "cosim", "tests", "benchmarks", "scenarios")
-                    for p in (ROOT / d).rglob("*") if p.suffix in (".py", ".toml", ".md") and p.name != "test_docs.py"]
+                    for p in (ROOT / d).rglob("*") if p.suffix in (".py", ".toml", ".md")]
     for f in files:
         text = f.read_text(encoding="utf-8")
-        for pattern in (r"shared/notes", r"\bnotes/", r"\bissue \d+", r"\btrap \d+", r"/work/"):
+        for pattern in _OUTSIDE:
             assert not re.search(pattern, text, flags=re.IGNORECASE), f"{f.relative_to(ROOT)}: {pattern}"

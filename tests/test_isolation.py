@@ -16,7 +16,9 @@ import pytest
 from c_fmu_support import build_probe
 from cosim_support import write_scenario
 
-REF = Path(__file__).resolve().parent / "data" / "reference-fmus" / "fmi2"
+from reference_fmus import REF as _REF
+
+REF = _REF / "fmi2"
 
 
 def _scenario(tmp: Path, fmu: Path, isolate: bool, extra: str = "") -> Path:

@@ -20,7 +20,7 @@ from wmr_cosim.cosim import execution, scenario, system
 from wmr_cosim.cosim.errors import ScenarioError
 from wmr_cosim.runner import fmu_plan
 
-REF = Path(__file__).resolve().parent / "data" / "reference-fmus"
+from reference_fmus import REF
 FMI2 = REF / "fmi2"
 
 

@@ -1,0 +1,74 @@
+"""The Modelica Association's Reference FMUs, built from their sources (not a test module).
+
+``tests/data/reference-fmus/fmi2|fmi3/<Model>/`` holds each model as its FMU unpacked without binaries
+(modelDescription.xml, sources/, resources/, extra/), beside its reference result ``<Model>_ref.csv``.
+:func:`fmu` compiles the sources with the system C compiler against the FMI headers FMPy ships and zips
+the FMU into ``build/reference-fmus/`` of the checkout (git-ignored), once: the repository holds no
+built FMU.
+"""
+from __future__ import annotations
+
+import shutil
+import subprocess
+import zipfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "tests" / "data" / "reference-fmus"
+BUILD = ROOT / "build" / "reference-fmus"
+PLATFORM = {"fmi2": "linux64", "fmi3": "x86_64-linux"}
+
+
+def fmu(version: str, model: str) -> Path:
+    """``build/reference-fmus/<version>/<model>.fmu``, built from its sources when missing."""
+    out = BUILD / version / f"{model}.fmu"
+    if out.is_file():
+        return out
+    import fmpy
+
+    src = DATA / version / model
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        raise RuntimeError("building the Reference FMUs needs a C compiler (cc or gcc)")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    so = out.parent / f".{model}.so"
+    c_files = sorted(str(p) for p in (src / "sources").glob("*.c") if p.name != "all.c")
+    flags = [f"-DFMI_VERSION={version[-1]}", "-DDISABLE_PREFIX",   # a binary FMU: unprefixed FMI functions
+             f"-I{Path(fmpy.__file__).parent / 'c-code'}", f"-I{src / 'sources'}"]
+    p = subprocess.run([cc, "-shared", "-fPIC", "-O2", *flags, *c_files, "-o", str(so), "-lm"],
+                       capture_output=True, text=True)
+    if p.returncode:
+        raise RuntimeError(f"building {version}/{model}: {p.stderr[-2000:]}")
+    part = out.parent / f".{model}.fmu.part"
+    with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as zf:
+        for f in sorted(src.rglob("*")):
+            if f.is_file():
+                zf.write(f, f.relative_to(src).as_posix())
+        zf.write(so, f"binaries/{PLATFORM[version]}/{model}.so")
+    so.unlink()
+    part.replace(out)
+    return out
+
+
+def fmi2(model: str) -> Path:
+    return fmu("fmi2", model)
+
+
+def fmi3(model: str) -> Path:
+    return fmu("fmi3", model)
+
+
+class _Folder:
+    """``REF / "fmi2" / "Dahlquist.fmu"`` is the built FMU; any other name is the data file itself."""
+
+    def __init__(self, path: Path, version: str | None = None) -> None:
+        self.path, self.version = path, version
+
+    def __truediv__(self, name: str):
+        if self.version is None:
+            return _Folder(self.path / name, name) if name in PLATFORM else self.path / name
+        return fmu(self.version, name[:-4]) if name.endswith(".fmu") else self.path / name
+
+
+#: The Reference FMUs' data folder, with built FMUs in place of ``<Model>.fmu``.
+REF = _Folder(DATA)
