@@ -36,7 +36,7 @@ from pythonfmu3 import DefaultExperiment, Fmi3Slave
 from pythonfmu3.enums import Fmi3Status
 from pythonfmu3.fmi3slave import Fmi3StepResult
 
-from .fmi_decl import (DBL_MAX, DBL_MIN, DISPLAY_UNITS, FINITE, INT_MAX, NON_NEGATIVE, POSITIVE, SIGN,  # noqa: F401
+from .fmi_decl import (SlaveCore, DBL_MAX, DBL_MIN, DISPLAY_UNITS, FINITE, INT_MAX, NON_NEGATIVE, POSITIVE, SIGN,  # noqa: F401
                        STEP_RTOL, UNITS, Var, _cause, _xml_number, parameters_of)
 
 #: FMI 2.0 kind of a declaration -> FMI 3.0 type.
@@ -123,10 +123,12 @@ def _positions(shape: tuple[int, ...]) -> list[tuple[int, ...]]:
     return out
 
 
-class WmrSlave(Fmi3Slave):
+class WmrSlave(SlaveCore, Fmi3Slave):
     """Base of the project's FMI 3.0 slaves; the slave scripts' interface is that of the FMI 2.0 base."""
 
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=50.0, step_size=0.002)
+
+    _DISCARD = Fmi3Status.discard   # the status of a refused or failed step (see SlaveCore)
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
@@ -512,58 +514,6 @@ class WmrSlave(Fmi3Slave):
                      f"over h = {step_size!r} s failed: {self._failed}", Fmi3Status.discard)
             return _DISCARD
 
-    def _before_step(self, current_time: float, h: float) -> float | None:
-        """Refuse a step after a failed one; snap or adopt a new step size; apply tunable parameters."""
-        if self._failed:
-            self.log(f"{self.modelName} instance {self.instance_name}: step at t = {current_time!r} s refused: "
-                     f"an earlier step failed ({self._failed})", Fmi3Status.discard)
-            return None
-        if h != self._h:
-            if abs(h - self._h) <= STEP_RTOL * self._h:
-                h = self._h
-            elif h > 0.0 and math.isfinite(h):
-                self._h = h
-            else:
-                raise ValueError(f"step size h = {h!r} s: must be finite and > 0")
-        if self._dirty:
-            self._dirty = False
-            self._retune()
-        return h
-
-    def terminate(self) -> None:
-        pass
-
-    # ------------------------------------------------------------------ FMU state (every internal state too)
-    def _get_fmu_state(self) -> dict[str, Any]:
-        return {"vals": list(self._vals), "comp": None if self._comp is None else self._comp.get_state(),
-                "mode": self._mode, "failed": self._failed, "dirty": self._dirty, "stale": self._stale,
-                "h": None if math.isnan(self._h) else self._h, "t0": self._t0}
-
-    def _set_fmu_state(self, state: dict[str, Any]) -> None:
-        vals = list(state["vals"])
-        if len(vals) != len(self._vals):
-            raise ValueError(f"{self.modelName}: FMU state of {len(vals)} values, expected {len(self._vals)}")
-        old = self._vals
-        same_params = self._comp is not None and all(old[v.vr] == vals[v.vr] for v in self._params)
-        self._vals = vals
-        self._t0 = float(state["t0"])
-        if state["comp"] is not None:
-            if not same_params:
-                self._build()
-            self._comp.set_state(state["comp"])
-            self._vals = list(state["vals"])
-        else:
-            self._comp = None
-        self._failed = state["failed"]
-        self._stale = bool(state["stale"])
-        self._h = math.nan if state["h"] is None else float(state["h"])
-        self._mode = state["mode"]
-        self._remove_init_paths()
-        if self._mode == "init":
-            self._install_init_paths()
-        running = self._mode == "run"
-        self._settable = self._settable_running if running else self._settable_before
-        self._watch = self._tunable if running else frozenset()
-        self._dirty = bool(state["dirty"]) or (running and bool(self._tunable))
+    def _after_restore(self) -> None:
         self._get_key = [-1]
         self._set_key = [-1]

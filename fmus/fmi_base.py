@@ -39,7 +39,7 @@ from pythonfmu import Boolean, DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 from pythonfmu.variables import ScalarVariable
 
-from .fmi_decl import (DBL_MAX, DBL_MIN, FINITE, INT_MAX, NON_NEGATIVE, POSITIVE, SIGN, STEP_RTOL, UNITS,  # noqa: F401
+from .fmi_decl import (SlaveCore, DBL_MAX, DBL_MIN, FINITE, INT_MAX, NON_NEGATIVE, POSITIVE, SIGN, STEP_RTOL, UNITS,  # noqa: F401
                        Var, _cause, _xml_number, parameters_of)
 
 _CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input,
@@ -92,13 +92,15 @@ class IntegerR(Integer):
         return node
 
 
-class WmrSlave(Fmi2Slave):
+class WmrSlave(SlaveCore, Fmi2Slave):
     """Base of the project's slaves.  A subclass declares its variables with :meth:`declare` in
     ``__init__`` and implements :meth:`_build` (component from the parameters, initial outputs),
     :meth:`_step` and optionally :meth:`_retune`."""
 
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=50.0, step_size=0.002)
     author = "wmr-cosim"
+
+    _DISCARD = Fmi2Status.discard   # the status of a refused or failed step (see SlaveCore)
 
     # ------------------------------------------------------------------ declaration
     def __init__(self, **kwargs: Any) -> None:
@@ -402,57 +404,3 @@ class WmrSlave(Fmi2Slave):
                      f"over h = {step_size!r} s failed: {self._failed}", Fmi2Status.discard)
             return False
 
-    def _before_step(self, current_time: float, h: float) -> float | None:
-        """Refuse a step after a failed one; snap or adopt a new step size; apply tunable parameters."""
-        if self._failed:
-            self.log(f"{self.modelName} instance {self.instance_name}: step at t = {current_time!r} s refused: "
-                     f"an earlier step failed ({self._failed})", Fmi2Status.discard)
-            return None
-        if h != self._h:
-            if abs(h - self._h) <= STEP_RTOL * self._h:
-                h = self._h
-            elif h > 0.0 and math.isfinite(h):
-                self._h = h
-            else:
-                raise ValueError(f"step size h = {h!r} s: must be finite and > 0")
-        if self._dirty:
-            self._dirty = False
-            self._retune()
-        return h
-
-    def terminate(self) -> None:
-        pass
-
-    # ------------------------------------------------------------------ FMU state (every internal state too)
-    def _get_fmu_state(self) -> dict[str, Any]:
-        return {"vals": list(self._vals), "comp": None if self._comp is None else self._comp.get_state(),
-                "mode": self._mode, "failed": self._failed, "dirty": self._dirty, "stale": self._stale,
-                "h": None if math.isnan(self._h) else self._h, "t0": self._t0}
-
-    def _set_fmu_state(self, state: dict[str, Any]) -> None:
-        vals = list(state["vals"])
-        if len(vals) != len(self._vals):
-            raise ValueError(f"{self.modelName}: FMU state of {len(vals)} variables, expected {len(self._vals)}")
-        old = self._vals
-        same_params = self._comp is not None and all(old[v.vr] == vals[v.vr] for v in self._params)
-        self._vals = vals
-        self._t0 = float(state["t0"])
-        if state["comp"] is not None:
-            if not same_params:
-                self._build()  # the component of the saved parameters; its state is then overwritten
-            self._comp.set_state(state["comp"])
-            self._vals = list(state["vals"])  # _build wrote initial outputs: restore the saved ones
-        else:
-            self._comp = None
-        self._failed = state["failed"]
-        self._stale = bool(state["stale"])
-        self._h = math.nan if state["h"] is None else float(state["h"])
-        self._mode = state["mode"]
-        self._remove_init_paths()
-        if self._mode == "init":
-            self._install_init_paths()
-        running = self._mode == "run"
-        self._settable = self._settable_running if running else self._settable_before
-        self._watch = self._tunable if running else frozenset()
-        # re-apply the tunable parameters of the restored values at the next step (idempotent)
-        self._dirty = bool(state["dirty"]) or (running and bool(self._tunable))

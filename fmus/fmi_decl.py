@@ -153,3 +153,71 @@ def _cause(exc: BaseException) -> str:
     """One line: the exception's type and message."""
     text = str(exc).strip().splitlines()
     return f"{type(exc).__name__}: {text[0] if text else '(no message)'}"
+
+
+class SlaveCore:
+    """What the FMI 2.0 and FMI 3.0 slave bases (fmi_base.WmrSlave, fmi3_base.WmrSlave) do alike, free of
+    pythonfmu: refusing a step after a failed one, snapping or adopting the step size, applying tunable
+    parameters, and saving and restoring the FMU state with every internal state.  A base sets
+    ``_DISCARD`` to its pythonfmu's Discard status and may extend :meth:`_after_restore`."""
+
+    _DISCARD: Any = None
+
+    def _before_step(self, current_time: float, h: float) -> float | None:
+        """Refuse a step after a failed one; snap or adopt a new step size; apply tunable parameters."""
+        if self._failed:
+            self.log(f"{self.modelName} instance {self.instance_name}: step at t = {current_time!r} s refused: "
+                     f"an earlier step failed ({self._failed})", self._DISCARD)
+            return None
+        if h != self._h:
+            if abs(h - self._h) <= STEP_RTOL * self._h:
+                h = self._h
+            elif h > 0.0 and math.isfinite(h):
+                self._h = h
+            else:
+                raise ValueError(f"step size h = {h!r} s: must be finite and > 0")
+        if self._dirty:
+            self._dirty = False
+            self._retune()
+        return h
+
+    def terminate(self) -> None:
+        pass
+
+    # ------------------------------------------------------------------ FMU state (every internal state too)
+    def _get_fmu_state(self) -> dict[str, Any]:
+        return {"vals": list(self._vals), "comp": None if self._comp is None else self._comp.get_state(),
+                "mode": self._mode, "failed": self._failed, "dirty": self._dirty, "stale": self._stale,
+                "h": None if math.isnan(self._h) else self._h, "t0": self._t0}
+
+    def _set_fmu_state(self, state: dict[str, Any]) -> None:
+        vals = list(state["vals"])
+        if len(vals) != len(self._vals):
+            raise ValueError(f"{self.modelName}: FMU state of {len(vals)} variables, expected {len(self._vals)}")
+        old = self._vals
+        same_params = self._comp is not None and all(old[v.vr] == vals[v.vr] for v in self._params)
+        self._vals = vals
+        self._t0 = float(state["t0"])
+        if state["comp"] is not None:
+            if not same_params:
+                self._build()  # the component of the saved parameters; its state is then overwritten
+            self._comp.set_state(state["comp"])
+            self._vals = list(state["vals"])  # _build wrote initial outputs: restore the saved ones
+        else:
+            self._comp = None
+        self._failed = state["failed"]
+        self._stale = bool(state["stale"])
+        self._h = math.nan if state["h"] is None else float(state["h"])
+        self._mode = state["mode"]
+        self._remove_init_paths()
+        if self._mode == "init":
+            self._install_init_paths()
+        running = self._mode == "run"
+        self._settable = self._settable_running if running else self._settable_before
+        self._watch = self._tunable if running else frozenset()
+        # re-apply the tunable parameters of the restored values at the next step (idempotent)
+        self._dirty = bool(state["dirty"]) or (running and bool(self._tunable))
+        self._after_restore()
+
+    def _after_restore(self) -> None:
+        """Called at the end of :meth:`_set_fmu_state`."""
