@@ -1,10 +1,12 @@
 """The Modelica Association's Reference FMUs, built from their sources (not a test module).
 
 ``tests/data/reference-fmus/fmi2|fmi3/<Model>/`` holds each model as its FMU unpacked without binaries
-(modelDescription.xml, sources/, resources/, extra/), beside its reference result ``<Model>_ref.csv``.
-:func:`fmu` compiles the sources with the system C compiler against the FMI headers FMPy ships and zips
-the FMU into ``build/reference-fmus/`` of the checkout (git-ignored), once: the repository holds no
-built FMU.
+and sources (modelDescription.xml, resources/, extra/, and for FMI 3.0 sources/buildDescription.xml),
+beside its reference result ``<Model>_ref.csv``; the C sources are kept once: ``models/<Model>/``
+(model.c, config.h, the same for both FMI versions) and ``common/`` (the code every model shares).
+:func:`fmu` compiles them with the system C compiler against the FMI headers FMPy ships and zips the FMU,
+its sources included, into ``build/reference-fmus/`` of the checkout (git-ignored), once: the repository
+holds no built FMU.
 """
 from __future__ import annotations
 
@@ -26,15 +28,17 @@ def fmu(version: str, model: str) -> Path:
         return out
     import fmpy
 
-    src = DATA / version / model
+    src, own, common = DATA / version / model, DATA / "models" / model, DATA / "common"
+    sources = [own / "model.c", own / "config.h"] + [
+        common / f for f in ("cosimulation.c", "cosimulation.h", "model.h", f"fmi{version[-1]}Functions.c")]
     cc = shutil.which("cc") or shutil.which("gcc")
     if cc is None:
         raise RuntimeError("building the Reference FMUs needs a C compiler (cc or gcc)")
     out.parent.mkdir(parents=True, exist_ok=True)
     so = out.parent / f".{model}.so"
-    c_files = sorted(str(p) for p in (src / "sources").glob("*.c") if p.name != "all.c")
+    c_files = [str(p) for p in sources if p.suffix == ".c"]
     flags = [f"-DFMI_VERSION={version[-1]}", "-DDISABLE_PREFIX",   # a binary FMU: unprefixed FMI functions
-             f"-I{Path(fmpy.__file__).parent / 'c-code'}", f"-I{src / 'sources'}"]
+             f"-I{Path(fmpy.__file__).parent / 'c-code'}", f"-I{own}", f"-I{common}"]
     p = subprocess.run([cc, "-shared", "-fPIC", "-O2", *flags, *c_files, "-o", str(so), "-lm"],
                        capture_output=True, text=True)
     if p.returncode:
@@ -44,6 +48,8 @@ def fmu(version: str, model: str) -> Path:
         for f in sorted(src.rglob("*")):
             if f.is_file():
                 zf.write(f, f.relative_to(src).as_posix())
+        for f in sources:
+            zf.write(f, f"sources/{f.name}")
         zf.write(so, f"binaries/{PLATFORM[version]}/{model}.so")
     so.unlink()
     part.replace(out)
