@@ -435,7 +435,9 @@ def test_notebook_runs(models):
 def test_a_condition_on_a_reference_fmu_alone(fmi):
     """The Reference FMU BouncingBall (FMI 2.0 and 3.0) run alone: a stop when h falls below 0.5 m acts at
     the first recorded point below it; get reads an output and a parameter between steps."""
-    fmu = ROOT / "tests" / "data" / "reference-fmus" / fmi / "BouncingBall.fmu"
+    from reference_fmus import fmu as reference_fmu
+
+    fmu = reference_fmu(fmi, "BouncingBall")
     free = Simulation.load(fmu).run()
     r = Simulation.load(fmu).event(when="BouncingBall.h < 0.5", action="stop").run()
     k = int(np.argmax(free["BouncingBall.h"] < 0.5))
