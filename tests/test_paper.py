@@ -149,6 +149,27 @@ def test_gamma_star_of_53_on_a_known_case():
     assert d["foam_rise"] == [pytest.approx(0.3), pytest.approx(0.3)]
 
 
+def test_gamma_star_of_the_paper_job_weighs_s_by_Q_and_u_by_R():
+    """The paper job's and the sweep's (53) use Table 1's weights where they belong: with s = 1 and u = 2
+    held, the cost rate is Q (1 + 1) + R (4 + 4) = 2 + 4 = 6 (Q = 1, R = 0.5); swapped it would be 9.
+    A disturbance estimate of 0.3 on each wheel from t_F = 5 s gives gamma*(10 s) = sqrt(6 * 10 / (0.18 * 5))."""
+    from wmr_cosim.analysis import table1_disturbance_analysis
+
+    t = np.arange(0, 10.0 + 1e-9, 0.002)
+    one, zero = np.ones_like(t), np.zeros_like(t)
+    frozen = {"time": t, "controller.s1": one, "controller.s2": one, "controller.u1": 2 * one,
+              "controller.u2": 2 * one, "plant.dF1": zero, "plant.dF2": zero, "plant.foam_level": zero}
+    on = t > 5.0
+    foam = dict(frozen, **{"controller.u1": np.where(on, 2.3, 2.0), "controller.u2": np.where(on, 2.3, 2.0),
+                           "plant.dF1": np.where(on, 0.3, 0.0), "plant.dF2": np.where(on, 0.3, 0.0),
+                           "plant.foam_level": on.astype(float)})
+    d = table1_disturbance_analysis(frozen, foam)
+    cost = cumulative_integral(1.0 * 2 + 0.5 * (foam["controller.u1"] ** 2 + foam["controller.u2"] ** 2), t)[-1]
+    assert cost == pytest.approx(6 * 10 + 0.5 * 2 * (2.3 ** 2 - 4) * 5, rel=1e-3)
+    assert d["gamma_star"] == pytest.approx(math.sqrt(cost / (0.18 * 5.0)), rel=2e-3)
+    assert d["gamma_true"] == pytest.approx(d["gamma_star"], rel=1e-9)
+
+
 def test_fidelity_counts():
     tasks = {t: {r: {"rmse_e": [v[0], v[1]], "rmse_edot": [v[2], v[3]]} for r, v in paper.rmse_table(t).items()}
              for t in paper.TASKS}

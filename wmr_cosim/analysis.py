@@ -127,6 +127,13 @@ def disturbance_analysis(frozen: Signals, foam: Signals, Q: float, R: float, gam
         return _disturbance_analysis(frozen, foam, Q, R, gamma, ramp)
 
 
+def table1_disturbance_analysis(frozen: Signals, foam: Signals) -> dict[str, Any]:
+    """:func:`disturbance_analysis` with the weights of Table 1 (Q = 1, R = 0.5, gamma = 11): the
+    (52)/(53) figures of the paper job and of a sweep's rows."""
+    t1 = paper.table1()
+    return disturbance_analysis(frozen, foam, Q=t1["Q"], R=t1["R"], gamma=t1["gamma"])
+
+
 def _disturbance_analysis(frozen: Signals, foam: Signals, Q: float, R: float, gamma: float,
                           ramp: float) -> dict[str, Any]:
     n = min(len(frozen["time"]), len(foam["time"]))

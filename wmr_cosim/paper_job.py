@@ -18,7 +18,8 @@ from pathlib import Path
 from typing import Any
 
 from . import scenario_files
-from .analysis import (RUNS, disturbance_analysis, fidelity, load_signals, position_error, run_summary)
+from .analysis import (RUNS, fidelity, load_signals, position_error, run_summary,
+                       table1_disturbance_analysis)
 from .components import paper
 from .paper_report import claims
 from .report import fmt, to_html, to_markdown
@@ -63,7 +64,6 @@ def _task_job(task: str, file: str, folder: str, variant: str, fmi: int = 2) -> 
 
 def analyse(folder: Path, statuses: dict[str, dict[str, dict[str, Any]]]) -> tuple[dict[str, Any], dict, dict]:
     """metrics.json content of one variant from its run folders; also the signals and the (52)/(53) curves."""
-    t1 = paper.table1()
     signals: dict[str, dict[str, Any]] = {}
     tasks: dict[str, Any] = {}
     dist: dict[str, Any] = {}
@@ -83,7 +83,7 @@ def analyse(folder: Path, statuses: dict[str, dict[str, dict[str, Any]]]) -> tup
             tasks[task][run] = summ
         fr, fo = signals[task].get("frozen"), signals[task].get("foam")
         if fr is not None and fo is not None:
-            d = disturbance_analysis(fr, fo, t1["Q"], t1["R"], t1["gamma"])
+            d = table1_disturbance_analysis(fr, fo)
             dist[task] = d
             out["gamma_star"][task] = d["gamma_star"]
             out["gamma_true"][task] = d["gamma_true"]

@@ -178,8 +178,7 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
     """Run one point (the base's runs with the point's parameters) and return its row: id, parameters,
     status ('ok', 'diverged', 'failed'), reason and metrics.  Never raises: a failure is a row.
     ``archive_limits``: the submitting process's command-line archive limits (a worker may be elsewhere)."""
-    from .analysis import disturbance_analysis, load_signals, run_summary
-    from .components import paper
+    from .analysis import load_signals, run_summary, table1_disturbance_analysis
     from .cosim.archive import ENV_RATIO, ENV_SIZE
     from .cosim.protocol import run_protocol
 
@@ -218,8 +217,7 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
             if s["diverged"] and row["status"] == "ok":
                 row["status"], row["reason"] = "diverged", f"{name}: |e| = {max(map(abs, s['final_e'])):.3g} rad at the end"
         if sigs.get("frozen") is not None and sigs.get("foam") is not None:
-            t1 = paper.table1()
-            d = disturbance_analysis(sigs["frozen"], sigs["foam"], t1["Q"], t1["R"], t1["gamma"])
+            d = table1_disturbance_analysis(sigs["frozen"], sigs["foam"])
             for k in ("gamma_star", "gamma_true", "gain_incremental"):
                 row[k] = d[k] if d[k] is not None else math.nan
             row["foam_rise1"], row["foam_rise2"] = [math.nan if r is None else r for r in d["foam_rise"]]
