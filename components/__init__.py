@@ -3,6 +3,7 @@
 Modules:
     paper        the paper's printed constants and results (Tables 1-3), loaded from paper_results.json
     validation   one-line parameter errors
+    params       each parameter's facts (unit, check, meaning, tunable) declared once, in its dataclass field
     friction     the friction law (36) and the foam's friction change
     plant        Maggi dynamics (34)-(36) of the drive wheels and the pose of point A (23)-(24), RK4
     sensor       quantised encoders, increment velocity (42), filter (43), wheel angle

@@ -19,10 +19,12 @@ from typing import Any
 from . import paper
 from .critic import (eig_sym3, hamiltonian, hamiltonian_weights, p_norm, player_gains, players, regressor,
                      rls_step, s_rate_model, value)
-from .friction import shape_function
+from .friction import FRICTION_FORMS, shape_function
 from .planner import goal_control, polar_error, profile, profile_integral, profile_rate, wheel_rates
 from .plant import mass_matrix_inverse
-from .validation import ParameterError, boolean, choice, finite, mass_matrix_pd, non_negative, not_nan, positive
+from .params import (boolean, choice, finite, finite_or_inf, non_negative, one_of_int, param, positive, sign, validate,
+                     vector)
+from .validation import ParameterError, mass_matrix_pd
 
 _T1 = paper.table1()
 _LINE = paper.results()["line_task"]
@@ -61,106 +63,97 @@ CONTROLLER_OUTPUTS = (
 
 @dataclass
 class ControllerParams:
-    """Parameters of the controller (Table 1 defaults).
-
-    Units: a1-a4 [kg m^2], a5, a6 [N.m], cF [s/rad], r, l1 [m], positions [m], angles [rad], times [s],
-    v_star [m/s], omega_star [rad/s], Lambda [1/s], Q, R, gamma, xi, xi_P, nu, P0 dimensionless as printed.
-    """
+    """Parameters of the controller (Table 1 defaults): each field's unit, accepted values and meaning are in
+    its declaration.  The tunable ones (the goal, the adaptation switch and window, gamma) may change
+    during a run (:meth:`Controller.retune`)."""
 
     # nominal model used by the critic's drift f(s) and M^-1
-    a1: float = _T1["a"][0]
-    a2: float = _T1["a"][1]
-    a3: float = _T1["a"][2]
-    a4: float = _T1["a"][3]
-    a5: float = _T1["a"][4]
-    a6: float = _T1["a"][5]
-    cF: float = _T1["cF"]
-    r: float = paper.WHEEL_RADIUS_M
-    l1: float = paper.HALF_AXLE_M
-    friction_form: str = "tanh"
+    a1: float = param(_T1["a"][0], unit="kg.m2", check=finite,
+                      doc="nominal Maggi parameter a1 used by the critic; a1..a3 must make M positive definite")
+    a2: float = param(_T1["a"][1], unit="kg.m2", check=finite, doc="nominal Maggi parameter a2")
+    a3: float = param(_T1["a"][2], unit="kg.m2", check=finite, doc="nominal Maggi parameter a3")
+    a4: float = param(_T1["a"][3], unit="kg.m2", check=non_negative, doc="nominal Maggi parameter a4")
+    a5: float = param(_T1["a"][4], unit="N.m", check=non_negative, doc="nominal rolling resistance a5 (wheel 1)")
+    a6: float = param(_T1["a"][5], unit="N.m", check=non_negative, doc="nominal rolling resistance a6 (wheel 2)")
+    cF: float = param(_T1["cF"], unit="s/rad", check=positive, doc="nominal friction slope cF")
+    r: float = param(paper.WHEEL_RADIUS_M, unit="m", check=positive, doc="wheel radius r")
+    l1: float = param(paper.HALF_AXLE_M, unit="m", check=positive, doc="half axle length l1")
+    friction_form: str = param("tanh", check=choice(*FRICTION_FORMS),
+                               doc="nominal friction shape: tanh (default) or printed")
     # task
-    task: str = "goal"
-    x0: float = _T1["start"][0]
-    y0: float = _T1["start"][1]
-    beta0: float = 0.0
-    goal_x: float = _T1["goals"]["G1"][0]
-    goal_y: float = _T1["goals"]["G1"][1]
-    v_star: float = _T1["v_star"]
-    omega_star: float = _T1["omega_star"]
-    eps_G: float = _T1["eps_G"]
-    k1: float = _T1["k1"]
-    k2: float = _T1["k2"]
-    c: float = _T1["c"]
-    b1: float = _T1["b1"]
-    line_b2: float = _LINE["b2"]
-    clip_kinematic: bool = True        # decision 13
-    profile_on_turn: bool = True       # decision 12
-    pose_source: str = "odometry"      # decision 14
+    task: str = param("goal", check=choice(*TASKS),
+                      doc="task: goal (go to the goal point, Fig. 4) or line (straight line generated offline, "
+                          "Fig. 10)")
+    x0: float = param(_T1["start"][0], unit="m", check=finite, doc="start x of point A assumed by odometry")
+    y0: float = param(_T1["start"][1], unit="m", check=finite, doc="start y of point A assumed by odometry")
+    beta0: float = param(0.0, unit="rad", check=finite, doc="start frame angle assumed by odometry")
+    goal_x: float = param(_T1["goals"]["G1"][0], unit="m", check=finite, tunable=True,
+                          doc="goal G, x (task goal; tunable)")
+    goal_y: float = param(_T1["goals"]["G1"][1], unit="m", check=finite, tunable=True,
+                          doc="goal G, y (task goal; tunable)")
+    v_star: float = param(_T1["v_star"], unit="m/s", check=positive, doc="maximum speed v* of point A")
+    omega_star: float = param(_T1["omega_star"], unit="rad/s", check=positive,
+                              doc="maximum turn rate omega* (beta* of Table 1)")
+    eps_G: float = param(_T1["eps_G"], unit="m", check=positive, doc="goal radius eps_G")
+    k1: float = param(_T1["k1"], unit="1/m", check=positive, doc="kinematic gain k1 of (31)-(32)")
+    k2: float = param(_T1["k2"], unit="1/rad", check=positive, doc="kinematic gain k2 of (32)")
+    c: float = param(_T1["c"], unit="1/s", check=positive, doc="steepness c of the velocity profile (50)")
+    b1: float = param(_T1["b1"], unit="s", check=finite, doc="start time b1 of the velocity profile (50)")
+    line_b2: float = param(_LINE["b2"], unit="s", check=finite,
+                           doc="stop time b2 of the velocity profile (50), task line")
+    clip_kinematic: bool = param(True, check=boolean, doc="clip u_v, u_beta to [-1, 1] (decision 13)")
+    profile_on_turn: bool = param(True, check=boolean, doc="scale the turn rate by the profile too (decision 12)")
+    pose_source: str = param("odometry", check=choice(*POSE_SOURCES),
+                             doc="pose used by the planner: odometry (default) or true (the x/y/beta_true "
+                                 "inputs; decision 14)")
     # critic
-    Lambda: float = _T1["Lambda"]
-    Q: float = _T1["Q"]
-    R: float = _T1["R"]
-    gamma: float = _T1["gamma"]
-    W_init: tuple[float, float, float] = tuple(_T1["W0"])  # type: ignore[assignment]
-    P_init: tuple[float, ...] = (_T1["P_init"], 0.0, 0.0, _T1["P_init"], 0.0, _T1["P_init"])  # p11 p12 p13 p22 p23 p33
-    xi: float = _T1["xi"]
-    xi_P: float = _T1["xi_P"]
-    nu: float = _T1["nu"]
-    P0: float = _T1["P0"]
-    adapt: bool = True
-    adapt_t_start: float = _T1["adaptation_window"][0]
-    adapt_t_end: float = _T1["adaptation_window"][1]
-    # decisions of docs/decisions.md
-    player_form: str = "eq13"            # 1
-    player_gamma_power: int = 2          # 2
-    h_state_cost_sign: float = 1.0       # 3
-    h_gamma_power: int = 2               # 4
-    w_update_sign: float = 1.0           # 5
-    p_update_sign: float = -1.0          # 6
-    p_integration: str = "exact"         # 7
-    sigma1: str = "sigma"                # 8
-    drift: str = "full"                  # 9
-    p_norm: str = "min_eig"              # 17
-    freeze_w_with_p: bool = True         # 18
+    Lambda: float = param(_T1["Lambda"], unit="1/s", check=positive,
+                          doc="Lambda of the generalised error s = e_dot + Lambda e (38)")
+    Q: float = param(_T1["Q"], unit="1", check=non_negative, doc="state weight Q (multiple of I2)")
+    R: float = param(_T1["R"], unit="1", check=positive, doc="control weight R (multiple of I2)")
+    gamma: float = param(_T1["gamma"], unit="1", check=positive, tunable=True,
+                         doc="disturbance attenuation gamma")
+    W_init: tuple[float, float, float] = param(tuple(_T1["W0"]), unit="1", check=vector(3, finite),  # type: ignore[assignment]
+                                               doc="initial critic weights W of (45)")
+    P_init: tuple[float, ...] = param((_T1["P_init"], 0.0, 0.0, _T1["P_init"], 0.0, _T1["P_init"]), unit="1",
+                                      check=vector(6, finite, "p11 p12 p13 p22 p23 p33"),
+                                      doc="initial RLS matrix P of (51), symmetric positive definite")
+    xi: float = param(_T1["xi"], unit="1", check=positive, doc="adaptation gain xi of (47)")
+    xi_P: float = param(_T1["xi_P"], unit="1", check=positive, doc="adaptation gain xi_P of (51)")
+    nu: float = param(_T1["nu"], unit="1", check=positive, doc="normalisation nu of (47), (51)")
+    P0: float = param(_T1["P0"], unit="1", check=non_negative,
+                      doc="P0 of (51): P adapts while the norm of P exceeds it")
+    adapt: bool = param(True, check=boolean, tunable=True,
+                        doc="adapt the critic weights inside the adaptation window (tunable)")
+    adapt_t_start: float = param(_T1["adaptation_window"][0], unit="s", check=finite, tunable=True,
+                                 doc="adaptation window start (tunable)")
+    adapt_t_end: float = param(_T1["adaptation_window"][1], unit="s", check=finite_or_inf, tunable=True,
+                               doc="adaptation window end, may be +inf (tunable)")
+    # the decisions of docs/decisions.md (numbered in the docs)
+    player_form: str = param("eq13", check=choice(*PLAYER_FORMS),
+                             doc="players: eq13 (default, decision 1) or printed (46)")
+    player_gamma_power: int = param(2, check=one_of_int(1, 2),
+                                    doc="power of gamma in the maximising player: 2 (default) or 1 (decision 2)")
+    h_state_cost_sign: float = param(1.0, unit="1", check=sign,
+                                     doc="sign of the state cost in the Hamiltonian (49): +1 or -1 (decision 3)")
+    h_gamma_power: int = param(2, check=one_of_int(1, 2), doc="power of gamma in the Hamiltonian (49): 2 or 1 (decision 4)")
+    w_update_sign: float = param(1.0, unit="1", check=sign, doc="sign of the W update (47): +1 or -1 (decision 5)")
+    p_update_sign: float = param(-1.0, unit="1", check=sign, doc="sign of the P update (51): +1 or -1 (decision 6)")
+    p_integration: str = param("exact", check=choice(*P_INTEGRATIONS),
+                               doc="P update integration: exact (default) or euler (decision 7)")
+    sigma1: str = param("sigma", check=choice(*SIGMA1_FORMS),
+                        doc="regressor: sigma (default) or normalised (decision 8)")
+    drift: str = param("full", check=choice(*DRIFTS),
+                       doc="drift model in s_dot: full (default), no_friction or none (decision 9)")
+    p_norm: str = param("min_eig", check=choice(*P_NORMS),
+                        doc="norm of P compared with P0: min_eig (default), frobenius or max_eig (decision 17)")
+    freeze_w_with_p: bool = param(True, check=boolean, doc="stop adapting W when P stops (decision 18)")
 
     def __post_init__(self) -> None:
-        o = "controller"
-        for name in ("cF", "r", "l1", "v_star", "omega_star", "eps_G", "k1", "k2", "c",
-                     "Lambda", "R", "gamma", "xi", "xi_P", "nu"):
-            setattr(self, name, positive(o, name, getattr(self, name)))
-        for name in ("a4", "a5", "a6", "Q", "P0"):
-            setattr(self, name, non_negative(o, name, getattr(self, name)))
-        for name in ("a1", "a2", "a3", "x0", "y0", "beta0", "goal_x", "goal_y", "b1", "adapt_t_start"):
-            setattr(self, name, finite(o, name, getattr(self, name)))
-        self.adapt_t_end = not_nan(o, "adapt_t_end", self.adapt_t_end)
-        self.line_b2 = finite(o, "line_b2", self.line_b2)
-        shape_function(self.friction_form, o)
-        choice(o, "task", self.task, TASKS)
-        choice(o, "pose_source", self.pose_source, POSE_SOURCES)
-        choice(o, "player_form", self.player_form, PLAYER_FORMS)
-        choice(o, "p_integration", self.p_integration, P_INTEGRATIONS)
-        choice(o, "sigma1", self.sigma1, SIGMA1_FORMS)
-        choice(o, "drift", self.drift, DRIFTS)
-        choice(o, "p_norm", self.p_norm, P_NORMS)
-        for name in ("player_gamma_power", "h_gamma_power"):
-            if getattr(self, name) not in (1, 2):
-                raise ParameterError(f"controller parameter {name} = {getattr(self, name)!r}: must be 1 or 2")
-            setattr(self, name, int(getattr(self, name)))
-        for name in ("h_state_cost_sign", "w_update_sign", "p_update_sign"):
-            if getattr(self, name) not in (1, -1):
-                raise ParameterError(f"controller parameter {name} = {getattr(self, name)!r}: must be +1 or -1")
-            setattr(self, name, float(getattr(self, name)))
-        if len(self.W_init) != 3:
-            raise ParameterError(f"controller parameter W_init = {self.W_init!r}: needs 3 values")
-        self.W_init = tuple(finite(o, f"W_init[{i}]", v) for i, v in enumerate(self.W_init))  # type: ignore[assignment]
-        if len(self.P_init) != 6:
-            raise ParameterError(f"controller parameter P_init = {self.P_init!r}: needs 6 values (p11 p12 p13 p22 p23 p33)")
-        self.P_init = tuple(finite(o, f"P_init[{i}]", v) for i, v in enumerate(self.P_init))
+        validate(self, "controller")
         if eig_sym3(*self.P_init)[2] <= 0.0:
             raise ParameterError(f"controller parameter P_init = {self.P_init!r}: must be positive definite")
-        mass_matrix_pd(o, self.a1, self.a2, self.a3)
-        for name in ("clip_kinematic", "profile_on_turn", "adapt", "freeze_w_with_p"):
-            setattr(self, name, boolean(o, name, getattr(self, name)))
+        mass_matrix_pd("controller", self.a1, self.a2, self.a3)
         if self.adapt_t_end < self.adapt_t_start:
             raise ParameterError(
                 f"controller parameter adapt_t_end = {self.adapt_t_end!r}: before adapt_t_start = {self.adapt_t_start!r}")

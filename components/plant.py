@@ -22,8 +22,9 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from . import paper
-from .friction import shape_function
-from .validation import ParameterError, boolean, finite, mass_matrix_pd, non_negative, positive, positive_int
+from .friction import FRICTION_FORMS, shape_function
+from .params import boolean, choice, finite, non_negative, param, positive, positive_int, validate
+from .validation import ParameterError, mass_matrix_pd
 
 _A = paper.table1()["a"]
 _CF = paper.table1()["cF"]
@@ -40,51 +41,51 @@ PLANT_OUTPUTS = (
 
 @dataclass
 class PlantParams:
-    """Parameters of the plant.  Units: a1-a4 [kg m^2], a5, a6 [N.m], cF [s/rad], r, l1 [m], times [s]."""
+    """Parameters of the plant: each field's unit, accepted values and meaning are in its declaration."""
 
-    a1: float = _A[0]
-    a2: float = _A[1]
-    a3: float = _A[2]
-    a4: float = _A[3]
-    a5: float = _A[4]
-    a6: float = _A[5]
-    cF: float = _CF
-    r: float = paper.WHEEL_RADIUS_M
-    l1: float = paper.HALF_AXLE_M
-    substeps: int = 2
-    friction_form: str = "tanh"
+    a1: float = param(_A[0], unit="kg.m2", check=finite,
+                      doc="Maggi parameter a1 of M (35); a1..a3 must make M positive definite")
+    a2: float = param(_A[1], unit="kg.m2", check=finite, doc="Maggi parameter a2 of M (35)")
+    a3: float = param(_A[2], unit="kg.m2", check=finite, doc="Maggi parameter a3 of M (35)")
+    a4: float = param(_A[3], unit="kg.m2", check=non_negative, doc="Maggi parameter a4 of C (35)")
+    a5: float = param(_A[4], unit="N.m", check=non_negative,
+                      doc="rolling-resistance parameter a5 of friction (36), wheel 1")
+    a6: float = param(_A[5], unit="N.m", check=non_negative,
+                      doc="rolling-resistance parameter a6 of friction (36), wheel 2")
+    cF: float = param(_CF, unit="s/rad", check=positive, doc="slope cF of friction (36)")
+    r: float = param(paper.WHEEL_RADIUS_M, unit="m", check=positive, doc="wheel radius r")
+    l1: float = param(paper.HALF_AXLE_M, unit="m", check=positive, doc="half axle length l1")
+    substeps: int = param(2, check=positive_int(1_000_000), doc="RK4 substeps per communication step")
+    friction_form: str = param("tanh", check=choice(*FRICTION_FORMS),
+                               doc="shape of friction (36): tanh (default, 2 a tanh(cF w/2)) or printed "
+                                   "(the paper's exp form)")
     # initial state
-    x0: float = 0.0
-    y0: float = 0.0
-    beta0: float = 0.0
+    x0: float = param(0.0, unit="m", check=finite, doc="initial x of point A")
+    y0: float = param(0.0, unit="m", check=finite, doc="initial y of point A")
+    beta0: float = param(0.0, unit="rad", check=finite, doc="initial frame angle beta")
     # foam: friction change of the rolling-resistance parameters a5, a6
-    foam_da1: float = 0.0
-    foam_da2: float = 0.0
-    foam_ramp: float = 0.1
-    foam_on_time: bool = False
-    foam_t_on: float = 0.0
-    foam_on_region: bool = False
-    foam_x_min: float = 0.0
-    foam_x_max: float = 0.0
-    foam_y_min: float = 0.0
-    foam_y_max: float = 0.0
-    foam_bump: float = 0.0
-    foam_bump_time: float = 0.2
+    foam_da1: float = param(0.0, unit="N.m", check=finite, tunable=True,
+                            doc="foam: rise of a5 (wheel 1) at full foam level (friction change; tunable)")
+    foam_da2: float = param(0.0, unit="N.m", check=finite, tunable=True,
+                            doc="foam: rise of a6 (wheel 2) at full foam level (friction change; tunable)")
+    foam_ramp: float = param(0.1, unit="s", check=non_negative, doc="foam: time the foam level ramps from 0 to 1")
+    foam_on_time: bool = param(False, check=boolean, doc="foam: reached at time foam_t_on")
+    foam_t_on: float = param(0.0, unit="s", check=finite, doc="foam: time it is reached (if foam_on_time)")
+    foam_on_region: bool = param(False, check=boolean,
+                                 doc="foam: reached when point A enters the rectangle foam_x/y_min..max")
+    foam_x_min: float = param(0.0, unit="m", check=finite, doc="foam rectangle: x min")
+    foam_x_max: float = param(0.0, unit="m", check=finite, doc="foam rectangle: x max")
+    foam_y_min: float = param(0.0, unit="m", check=finite, doc="foam rectangle: y min")
+    foam_y_max: float = param(0.0, unit="m", check=finite, doc="foam rectangle: y max")
+    foam_bump: float = param(0.0, unit="N.m", check=non_negative,
+                             doc="foam: further rise of a5 and a6 during the bump at the foam's edge "
+                                 "(0 = off, the default)")
+    foam_bump_time: float = param(0.2, unit="s", check=non_negative,
+                                  doc="foam: duration of the bump from the moment the foam is reached")
 
     def __post_init__(self) -> None:
-        o = "plant"
-        for name in ("a1", "a2", "a3", "a4", "a5", "a6", "x0", "y0", "beta0", "foam_da1", "foam_da2",
-                     "foam_t_on", "foam_x_min", "foam_x_max", "foam_y_min", "foam_y_max", "foam_bump"):
-            setattr(self, name, finite(o, name, getattr(self, name)))
-        for name in ("cF", "r", "l1"):
-            setattr(self, name, positive(o, name, getattr(self, name)))
-        for name in ("foam_on_time", "foam_on_region"):
-            setattr(self, name, boolean(o, name, getattr(self, name)))
-        for name in ("a4", "a5", "a6", "foam_ramp", "foam_bump", "foam_bump_time"):
-            setattr(self, name, non_negative(o, name, getattr(self, name)))
-        self.substeps = positive_int(o, "substeps", self.substeps)
-        shape_function(self.friction_form, o)
-        mass_matrix_pd(o, self.a1, self.a2, self.a3)
+        validate(self, "plant")
+        mass_matrix_pd("plant", self.a1, self.a2, self.a3)
         if self.foam_on_region and not (self.foam_x_min < self.foam_x_max and self.foam_y_min < self.foam_y_max):
             raise ParameterError(
                 f"plant parameter foam region [{self.foam_x_min}, {self.foam_x_max}] x "

@@ -31,7 +31,8 @@ from typing import Any
 
 from . import paper
 from .linalg import zoh
-from .validation import ParameterError, choice, finite, non_negative, positive, step as check_step
+from .params import choice, half_open, integer, non_negative, param, positive, validate
+from .validation import step as check_step
 
 _ENC = paper.results()["encoder"]
 
@@ -52,33 +53,26 @@ SENSOR_OUTPUTS = (
 
 @dataclass
 class SensorParams:
-    """Parameters of the sensor chain.  ppr [1/rev], gear [-], phases [counts], noise_std [counts]."""
+    """Parameters of the sensor chain: each field's unit, accepted values and meaning are in its declaration."""
 
-    ppr: float = float(_ENC["ppr"])
-    gear: float = float(_ENC["gear"])
-    phase1: float = 0.0
-    phase2: float = 0.5
-    filter_form: str = "normalised"
-    angle_source: str = "filtered"
-    noise_std: float = 0.0
-    noise_seed: int = 0
+    ppr: float = param(float(_ENC["ppr"]), unit="1", check=positive, doc="encoder pulses per motor revolution")
+    gear: float = param(float(_ENC["gear"]), unit="1", check=positive, doc="gear reduction motor : wheel")
+    phase1: float = param(0.0, unit="1", check=half_open(0.0, 1.0, "counts"),
+                          doc="encoder 1 edge phase in counts, 0 <= phase1 < 1")
+    phase2: float = param(0.5, unit="1", check=half_open(0.0, 1.0, "counts"),
+                          doc="encoder 2 edge phase in counts, 0 <= phase2 < 1")
+    filter_form: str = param("normalised", check=choice(*FILTER_FORMS),
+                             doc="filter (43): normalised (default, 1/(0.0001 p^2 + 0.03 p + 1)) or printed")
+    angle_source: str = param("filtered", check=choice(*ANGLE_SOURCES),
+                              doc="measured angle: filtered (default, integral of the filtered speed) or counts")
+    noise_std: float = param(0.0, unit="1", check=non_negative,
+                             doc="encoder noise: standard deviation of a Gaussian jitter of the edge position "
+                                 "in counts (0 = off, the default)")
+    noise_seed: int = param(0, check=integer(0, 2**31 - 1, "an integer in [0, 2^31)"),
+                            doc="encoder noise: seed of the jitter's generator (repeatable runs)")
 
     def __post_init__(self) -> None:
-        o = "sensor"
-        self.ppr = positive(o, "ppr", self.ppr)
-        self.gear = positive(o, "gear", self.gear)
-        for name in ("phase1", "phase2"):
-            v = finite(o, name, getattr(self, name))
-            if not 0.0 <= v < 1.0:
-                raise ParameterError(f"sensor parameter {name} = {v!r}: must be in [0, 1) counts")
-            setattr(self, name, v)
-        choice(o, "filter_form", self.filter_form, FILTER_FORMS)
-        choice(o, "angle_source", self.angle_source, ANGLE_SOURCES)
-        self.noise_std = non_negative(o, "noise_std", self.noise_std)
-        seed = finite(o, "noise_seed", self.noise_seed)
-        if seed != int(seed) or not 0 <= seed < 2**31:
-            raise ParameterError(f"sensor parameter noise_seed = {self.noise_seed!r}: must be an integer in [0, 2^31)")
-        self.noise_seed = int(seed)
+        validate(self, "sensor")
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from typing import Any
 
 
 class ParameterError(ValueError):
@@ -47,12 +48,45 @@ def non_negative(owner: str, name: str, value: float) -> float:
     return v
 
 
-def positive_int(owner: str, name: str, value: int) -> int:
-    """An integer >= 1 (a float with an integral value is accepted)."""
+def positive_int(owner: str, name: str, value: int, hi: int | None = None) -> int:
+    """An integer >= 1, and <= ``hi`` if given (a float with an integral value is accepted)."""
     v = finite(owner, name, value)
     if v != int(v) or v < 1:
         raise ParameterError(f"{owner} parameter {name} = {value!r}: must be an integer >= 1")
+    if hi is not None and v > hi:
+        raise ParameterError(f"{owner} parameter {name} = {value!r}: must be an integer <= {hi}")
     return int(v)
+
+
+def integer_in(owner: str, name: str, value: int, lo: int, hi: int, text: str) -> int:
+    """An integer in [lo, hi] (a float with an integral value is accepted); ``text`` says so in the message."""
+    v = finite(owner, name, value)
+    if v != int(v) or not lo <= v <= hi:
+        raise ParameterError(f"{owner} parameter {name} = {value!r}: must be {text}")
+    return int(v)
+
+
+def finite_or_inf(owner: str, name: str, value: float) -> float:
+    """A finite value or +inf (e.g. 'never'); NaN and -inf are refused."""
+    v = not_nan(owner, name, value)
+    if v == -math.inf:
+        raise ParameterError(f"{owner} parameter {name} = {value!r}: must be finite or +inf")
+    return v
+
+
+def interval(owner: str, name: str, value: float, lo: float, hi: float, text: str) -> float:
+    """A finite value with lo <= value < hi; ``text`` says so in the message (e.g. 'in [0, 1) counts')."""
+    v = finite(owner, name, value)
+    if not lo <= v < hi:
+        raise ParameterError(f"{owner} parameter {name} = {v!r}: must be {text}")
+    return v
+
+
+def one_of(owner: str, name: str, value: Any, allowed: tuple[Any, ...], text: str) -> Any:
+    """One of a few numbers (compared by value); ``text`` lists them in the message (e.g. '1 or 2')."""
+    if value not in allowed:
+        raise ParameterError(f"{owner} parameter {name} = {value!r}: must be {text}")
+    return value
 
 
 def boolean(owner: str, name: str, value: bool) -> bool:

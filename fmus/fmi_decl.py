@@ -1,12 +1,14 @@
 """The declarations every slave of the project shares, whichever FMI version it is built for: variables
 (:class:`Var`) with unit, range and true dependencies, the units as SI base-unit exponents, the declared
-ranges, the step-snapping tolerance, and the parameters mirroring a component's parameter dataclass.
+ranges, the step-snapping tolerance, and the parameters mirroring a component's parameter dataclass
+(read from its fields' metadata, declared with components/params.py).
 
 Bundled inside every FMU beside fmi_base.py (FMI 2.0, pythonfmu) or fmi3_base.py (FMI 3.0, pythonfmu3);
 it imports only the standard library, so that neither FMU needs the other's pythonfmu.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 from typing import Any
@@ -113,39 +115,41 @@ class Var:
 
 
 
-def parameters_of(defaults: Any, spec: dict[str, tuple], tunable: tuple[str, ...] = ()) -> list[Var]:
+def parameters_of(defaults: Any, expanded: tuple[str, ...] = ()) -> list[Var]:
     """FMU parameters mirroring the fields of a component's parameter dataclass instance ``defaults``:
-    same names, start values from the component's defaults, the kind from the default's type.
+    same names, start values from the component's defaults, the kind from the default's type, and the
+    rest from each field's metadata (components/params.py): ``unit``, ``doc`` (the description),
+    ``tunable`` and ``check``, whose ``bounds`` are the declared range (min, max).
 
-    ``spec[name]`` is (unit, range, description) for a Real field, (range, description) for an
-    Integer field and (description,) for a Boolean or String field.  Every field of ``defaults`` must
-    be in ``spec`` or be expanded by the caller (``spec[name] = None``), so that a new component
-    parameter cannot be forgotten silently.
+    Every field must carry that metadata, or be listed in ``expanded`` (the caller declares it itself,
+    e.g. a tuple as several scalars), so that a new component parameter cannot be forgotten silently.
     """
     out: list[Var] = []
-    fields = list(defaults.__dataclass_fields__)
-    missing = [f for f in fields if f not in spec]
-    extra = [f for f in spec if f not in fields]
-    if missing or extra:
-        raise ValueError(f"{type(defaults).__name__}: no FMU declaration for {missing}, unknown {extra}")
-    for name in fields:
-        entry = spec[name]
-        if entry is None:
+    owner = type(defaults).__name__
+    fields = dataclasses.fields(defaults)
+    unknown = [n for n in expanded if n not in {f.name for f in fields}]
+    bare = [f.name for f in fields if f.name not in expanded and "check" not in f.metadata]
+    if unknown or bare:
+        raise ValueError(f"{owner}: no parameter metadata for {bare}, unknown expanded fields {unknown}")
+    for f in fields:
+        name, meta = f.name, f.metadata
+        if name in expanded:
             continue
         value = getattr(defaults, name)
-        variability = "tunable" if name in tunable else "fixed"
+        variability = "tunable" if meta["tunable"] else "fixed"
+        doc = meta["doc"]
+        bounds = tuple(meta["check"].bounds)
         if isinstance(value, bool):
-            out.append(Var(name, "Boolean", "parameter", entry[0], variability=variability, start=value))
+            out.append(Var(name, "Boolean", "parameter", doc, variability=variability, start=value))
         elif isinstance(value, int):
-            out.append(Var(name, "Integer", "parameter", entry[1], range=entry[0], variability=variability,
-                           start=value))
+            out.append(Var(name, "Integer", "parameter", doc, range=bounds, variability=variability, start=value))
         elif isinstance(value, float):
-            out.append(Var(name, "Real", "parameter", entry[2], unit=entry[0], range=entry[1],
+            out.append(Var(name, "Real", "parameter", doc, unit=meta["unit"], range=bounds,
                            variability=variability, start=value))
         elif isinstance(value, str):
-            out.append(Var(name, "String", "parameter", entry[0], variability=variability, start=value))
+            out.append(Var(name, "String", "parameter", doc, variability=variability, start=value))
         else:
-            raise TypeError(f"{type(defaults).__name__}.{name}: no FMU type for {value!r}")
+            raise TypeError(f"{owner}.{name}: no FMU type for {value!r}")
     return out
 
 

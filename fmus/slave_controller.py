@@ -15,63 +15,8 @@ rewrites the two ``wmr_cosim`` imports below to it.
 from __future__ import annotations
 
 from wmr_cosim.components.controller import CONTROLLER_OUTPUTS, Controller, ControllerParams
-from wmr_cosim.fmus.fmi_base import (DBL_MAX, FINITE, NON_NEGATIVE, POSITIVE, SIGN, STEP_RTOL, Var, WmrSlave,
-                                     parameters_of)
+from wmr_cosim.fmus.fmi_base import POSITIVE, STEP_RTOL, Var, WmrSlave, parameters_of
 
-_P = {
-    "a1": ("kg.m2", FINITE, "nominal Maggi parameter a1 used by the critic; a1..a3 must make M positive definite"),
-    "a2": ("kg.m2", FINITE, "nominal Maggi parameter a2"),
-    "a3": ("kg.m2", FINITE, "nominal Maggi parameter a3"),
-    "a4": ("kg.m2", NON_NEGATIVE, "nominal Maggi parameter a4"),
-    "a5": ("N.m", NON_NEGATIVE, "nominal rolling resistance a5 (wheel 1)"),
-    "a6": ("N.m", NON_NEGATIVE, "nominal rolling resistance a6 (wheel 2)"),
-    "cF": ("s/rad", POSITIVE, "nominal friction slope cF"),
-    "r": ("m", POSITIVE, "wheel radius r"),
-    "l1": ("m", POSITIVE, "half axle length l1"),
-    "friction_form": ("nominal friction shape: tanh (default) or printed",),
-    "task": ("task: goal (go to the goal point, Fig. 4) or line (straight line generated offline, Fig. 10)",),
-    "x0": ("m", FINITE, "start x of point A assumed by odometry"),
-    "y0": ("m", FINITE, "start y of point A assumed by odometry"),
-    "beta0": ("rad", FINITE, "start frame angle assumed by odometry"),
-    "goal_x": ("m", FINITE, "goal G, x (task goal; tunable)"),
-    "goal_y": ("m", FINITE, "goal G, y (task goal; tunable)"),
-    "v_star": ("m/s", POSITIVE, "maximum speed v* of point A"),
-    "omega_star": ("rad/s", POSITIVE, "maximum turn rate omega* (beta* of Table 1)"),
-    "eps_G": ("m", POSITIVE, "goal radius eps_G"),
-    "k1": ("1/m", POSITIVE, "kinematic gain k1 of (31)-(32)"),
-    "k2": ("1/rad", POSITIVE, "kinematic gain k2 of (32)"),
-    "c": ("1/s", POSITIVE, "steepness c of the velocity profile (50)"),
-    "b1": ("s", FINITE, "start time b1 of the velocity profile (50)"),
-    "line_b2": ("s", FINITE, "stop time b2 of the velocity profile (50), task line"),
-    "clip_kinematic": ("clip u_v, u_beta to [-1, 1] (decision 13)",),
-    "profile_on_turn": ("scale the turn rate by the profile too (decision 12)",),
-    "pose_source": ("pose used by the planner: odometry (default) or true (the x/y/beta_true inputs; decision 14)",),
-    "Lambda": ("1/s", POSITIVE, "Lambda of the generalised error s = e_dot + Lambda e (38)"),
-    "Q": ("1", NON_NEGATIVE, "state weight Q (multiple of I2)"),
-    "R": ("1", POSITIVE, "control weight R (multiple of I2)"),
-    "gamma": ("1", POSITIVE, "disturbance attenuation gamma"),
-    "W_init": None,
-    "P_init": None,
-    "xi": ("1", POSITIVE, "adaptation gain xi of (47)"),
-    "xi_P": ("1", POSITIVE, "adaptation gain xi_P of (51)"),
-    "nu": ("1", POSITIVE, "normalisation nu of (47), (51)"),
-    "P0": ("1", NON_NEGATIVE, "P0 of (51): P adapts while the norm of P exceeds it"),
-    "adapt": ("adapt the critic weights inside the adaptation window (tunable)",),
-    "adapt_t_start": ("s", FINITE, "adaptation window start (tunable)"),
-    "adapt_t_end": ("s", (-DBL_MAX, None), "adaptation window end, may be +inf (tunable)"),
-    "player_form": ("players: eq13 (default, decision 1) or printed (46)",),
-    "player_gamma_power": ((1, 2), "power of gamma in the maximising player: 2 (default) or 1 (decision 2)"),
-    "h_state_cost_sign": ("1", SIGN, "sign of the state cost in the Hamiltonian (49): +1 or -1 (decision 3)"),
-    "h_gamma_power": ((1, 2), "power of gamma in the Hamiltonian (49): 2 or 1 (decision 4)"),
-    "w_update_sign": ("1", SIGN, "sign of the W update (47): +1 or -1 (decision 5)"),
-    "p_update_sign": ("1", SIGN, "sign of the P update (51): +1 or -1 (decision 6)"),
-    "p_integration": ("P update integration: exact (default) or euler (decision 7)",),
-    "sigma1": ("regressor: sigma (default) or normalised (decision 8)",),
-    "drift": ("drift model in s_dot: full (default), no_friction or none (decision 9)",),
-    "p_norm": ("norm of P compared with P0: min_eig (default), frobenius or max_eig (decision 17)",),
-    "freeze_w_with_p": ("stop adapting W when P stops (decision 18)",),
-}
-TUNABLE = ("goal_x", "goal_y", "adapt", "adapt_t_start", "adapt_t_end", "gamma")
 _P_NAMES = ("11", "12", "13", "22", "23", "33")
 #: FMI 3.0 arrays (see Var.array): the critic weights W (3) and the symmetric RLS matrix P (3 x 3).
 _W_DOC = "critic weights W of (45)"
@@ -83,14 +28,17 @@ def _ij(name: str) -> tuple[int, int]:
 
 
 def _weight_parameters() -> list[Var]:
+    """The tuples W_init, P_init as scalars (FMI 3.0: as arrays); unit, element range and the array's
+    description from their field declarations, a positive range for P's diagonal (P positive definite)."""
     d = ControllerParams()
-    out = [Var(f"W{i + 1}_init", "Real", "parameter", f"initial critic weight W{i + 1} of (45)", unit="1",
-               range=FINITE, start=float(d.W_init[i]), array=("W_init", (i,), "initial " + _W_DOC))
+    w, p = (ControllerParams.__dataclass_fields__[n].metadata for n in ("W_init", "P_init"))
+    out = [Var(f"W{i + 1}_init", "Real", "parameter", f"initial critic weight W{i + 1} of (45)", unit=w["unit"],
+               range=w["check"].bounds, start=float(d.W_init[i]), array=("W_init", (i,), w["doc"]))
            for i in range(3)]
     out += [Var(f"P{ij}_init", "Real", "parameter",
-                f"initial RLS matrix entry P{ij} (P symmetric positive definite)", unit="1",
-                range=POSITIVE if ij[0] == ij[1] else FINITE, start=float(d.P_init[k]),
-                array=("P_init", _ij(ij), "initial " + _P_DOC))
+                f"initial RLS matrix entry P{ij} (P symmetric positive definite)", unit=p["unit"],
+                range=POSITIVE if ij[0] == ij[1] else p["check"].bounds, start=float(d.P_init[k]),
+                array=("P_init", _ij(ij), p["doc"]))
             for k, ij in enumerate(_P_NAMES)]
     return out
 
@@ -170,7 +118,7 @@ class WmrController(WmrSlave):
                          if n[0] == "P" and n[1:] in _P_NAMES else None)
                 outputs.append(Var(n, "Real", "output", desc, unit=unit, variability="discrete", deps=deps,
                                    array=array))
-        self.declare(parameters_of(ControllerParams(), _P, TUNABLE) + _weight_parameters() + _INPUTS + outputs)
+        self.declare(parameters_of(ControllerParams(), expanded=("W_init", "P_init")) + _weight_parameters() + _INPUTS + outputs)
         self._build()
 
     def _controller_params(self) -> ControllerParams:

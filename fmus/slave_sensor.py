@@ -12,19 +12,7 @@ rewrites the two ``wmr_cosim`` imports below to it.
 from __future__ import annotations
 
 from wmr_cosim.components.sensor import SENSOR_OUTPUTS, Sensor, SensorParams
-from wmr_cosim.fmus.fmi_base import NON_NEGATIVE, POSITIVE, Var, WmrSlave, parameters_of
-
-_P = {
-    "ppr": ("1", POSITIVE, "encoder pulses per motor revolution"),
-    "gear": ("1", POSITIVE, "gear reduction motor : wheel"),
-    "phase1": ("1", (0.0, 1.0), "encoder 1 edge phase in counts, 0 <= phase1 < 1"),
-    "phase2": ("1", (0.0, 1.0), "encoder 2 edge phase in counts, 0 <= phase2 < 1"),
-    "filter_form": ("filter (43): normalised (default, 1/(0.0001 p^2 + 0.03 p + 1)) or printed",),
-    "angle_source": ("measured angle: filtered (default, integral of the filtered speed) or counts",),
-    "noise_std": ("1", NON_NEGATIVE, "encoder noise: standard deviation of a Gaussian jitter of the edge position "
-                  "in counts (0 = off, the default)"),
-    "noise_seed": ((0, 2**31 - 1), "encoder noise: seed of the jitter's generator (repeatable runs)"),
-}
+from wmr_cosim.fmus.fmi_base import Var, WmrSlave, parameters_of
 
 _INPUTS = [
     Var("alpha1", "Real", "input", "true wheel angle alpha1 at the end of the step", unit="rad", start=0.0),
@@ -53,7 +41,7 @@ class WmrSensor(WmrSlave):
             own = (f"alpha{wheel}",)
             outputs.append(Var(n, kind, "output", desc, unit=unit, variability="discrete", deps=own,
                                init_deps=own if kind == "Integer" else ()))
-        self.declare(parameters_of(SensorParams(), _P) + _INPUTS + outputs)
+        self.declare(parameters_of(SensorParams()) + _INPUTS + outputs)
         self._build()
 
     def _build(self):
