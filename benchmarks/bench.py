@@ -48,6 +48,11 @@ NAME:
             once through the loader and once through pythonfmu's binary loaded directly, in one process,
             interleaved, best of the rounds: via_loader_us_per_step, direct_us_per_step, loader_overhead
             (ratio - 1; target <= 0.05).
+    mutation  mutation testing with mutmut of components/, cosim/ and the analysis code against the fast
+            tests covering each mutant (benchmarks/mutation.py says how): mutants, killed, kill_rate (also
+            per area; target >= 0.90 on components and cosim), equivalent (listed with their reasons in
+            benchmarks/mutation-equivalents.toml), minutes, survivors.  Results are kept in build/mutation/,
+            so a second run re-tests only what changed.
 """
 from __future__ import annotations
 
@@ -611,9 +616,16 @@ def bench_scripting(repeats: int) -> dict[str, float]:
     return out
 
 
+def bench_mutation(repeats: int) -> dict:
+    """Mutation testing of components/, cosim/ and the analysis code (benchmarks/mutation.py)."""
+    import mutation
+
+    return mutation.run()
+
+
 BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "fmi3": bench_fmi3, "paper": bench_paper,
            "sweep": bench_sweep, "interop": bench_interop, "archive": bench_archive, "loader": bench_loader,
-           "isolation": bench_isolation, "scripting": bench_scripting}
+           "isolation": bench_isolation, "scripting": bench_scripting, "mutation": bench_mutation}
 
 
 def main(argv: list[str] | None = None) -> int:

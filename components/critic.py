@@ -13,11 +13,6 @@ import math
 _TWO_PI_3 = 2.0 * math.pi / 3.0
 
 
-def basis(s1: float, s2: float) -> tuple[float, float, float]:
-    """Psi(s) of (45)."""
-    return s1 * s1, s1 * s2, s2 * s2
-
-
 def value(w1: float, w2: float, w3: float, s1: float, s2: float) -> float:
     """V_hat = W^T Psi(s) of (45)."""
     return w1 * s1 * s1 + w2 * s1 * s2 + w3 * s2 * s2

@@ -167,16 +167,16 @@ class Plant:
             return 1.0
         return (t - tf) / ramp
 
-    def bump_level(self, t: float) -> float:
-        """1 during the bump at the foam's edge (foam_bump_time seconds from the foam's onset), else 0."""
+    def in_bump(self, t: float) -> bool:
+        """Whether time t [s] is in the bump at the foam's edge (foam_bump_time seconds from the onset)."""
         tf = self.t_foam
-        return 1.0 if tf <= t < tf + self.p.foam_bump_time else 0.0
+        return tf <= t < tf + self.p.foam_bump_time
 
     def _forces(self, t: float) -> tuple[float, float]:
         """2 (a5 + level da1 [+ bump]), 2 (a6 + level da2 [+ bump]) at time t [N.m]."""
         p = self.p
         lam = self.foam_level(t)
-        if p.foam_bump > 0.0 and self.bump_level(t):
+        if p.foam_bump > 0.0 and self.in_bump(t):
             return 2.0 * (p.a5 + lam * p.foam_da1 + p.foam_bump), 2.0 * (p.a6 + lam * p.foam_da2 + p.foam_bump)
         return 2.0 * (p.a5 + lam * p.foam_da1), 2.0 * (p.a6 + lam * p.foam_da2)
 
@@ -300,7 +300,7 @@ class Plant:
         p = self.p
         lam = self.foam_level(self.t)
         k = 0.5 * p.cF
-        bump = p.foam_bump if p.foam_bump > 0.0 and self.bump_level(self.t) else 0.0
+        bump = p.foam_bump if p.foam_bump > 0.0 and self.in_bump(self.t) else 0.0
         df1 = 2.0 * (lam * p.foam_da1 + bump) * self._g(k * w1) + self.tau1
         df2 = 2.0 * (lam * p.foam_da2 + bump) * self._g(k * w2) + self.tau2
         return (x1, x2, w1, w2, xa, ya, be, df1, df2, lam)

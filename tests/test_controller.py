@@ -131,3 +131,37 @@ def test_adaptation_stops_when_the_norm_of_P_equals_P0():
     W0 = ControllerParams().W_init
     for i in (1, 2, 3):
         assert np.all(at.signals[f"controller.W{i}"] == W0[i - 1])
+
+
+@pytest.mark.parametrize("form", [dict(), dict(player_form="printed", player_gamma_power=1),
+                                  dict(h_state_cost_sign=-1.0, h_gamma_power=1, Q=2.0, R=0.25)])
+def test_retune_equals_a_controller_built_with_the_new_parameters(form):
+    """retune recomputes the gains of the players (46) and the Hamiltonian's weights (49) from every
+    parameter they depend on (R, Q, gamma, the forms and powers), as a new controller would have them."""
+    base = ControllerParams(**form)
+    new = ControllerParams(**{**base.as_dict(), "gamma": 8.0})
+    c = Controller(base)
+    before = (c._ku, c._kd, c._hq, c._hg)
+    c.retune(new)
+    fresh = Controller(new)
+    assert (c._ku, c._kd, c._hq, c._hg) == (fresh._ku, fresh._kd, fresh._hq, fresh._hg)
+    assert (c._ku, c._kd, c._hq, c._hg) != before and c.p is new
+
+
+def test_state_restored_into_a_new_controller_continues_the_run_on_the_line():
+    """A state taken while the LINE profile (50) runs (its stop time b2 is finite) restored into a fresh
+    controller continues exactly as the original, past b2."""
+    p = ControllerParams(task="line", b1=0.1, line_b2=0.5, c=10.0)
+    h = 0.002
+    meas = [(0.01 * k * k * h, 0.009 * k * k * h, 0.02 * k * h, 0.018 * k * h) for k in range(600)]
+    c = Controller(p)
+    c.reset(0.0, 0.0, 0.0, 0.0, 0.0)
+    for k in range(1, 150):
+        c.step(k * h, h, *meas[k])
+    s = c.get_state()
+    rest = [c.step(k * h, h, *meas[k]) for k in range(150, 600)]
+    other = Controller(p)
+    other.reset(0.0, 1.0, 1.0, 1.0, 1.0)
+    other.set_state(s)
+    assert list(other.outputs()) == s["out"]
+    assert [other.step(k * h, h, *meas[k]) for k in range(150, 600)] == rest

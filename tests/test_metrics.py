@@ -22,3 +22,23 @@ def test_run_metrics_by_hand():
     assert m["rmse_e"] == [math.sqrt(4.25 / 5), 0.0] and m["rmse_edot"] == [math.sqrt(4.0 / 5), 1.0]
     assert m["final_position"] == [2.0, 4.0] and m["goal_distance"] == 0.0 and m["t_goal"] == 3.5
     assert m["final_W"] == [1.0, 2.0, 3.0] and not m["diverged"]
+
+
+def _signals(e1, e2):
+    n = len(e1)
+    z = np.zeros(n)
+    return {"controller.e1": np.array(e1), "controller.e2": np.array(e2), "controller.edot1": z,
+            "controller.edot2": z, "controller.t_goal": -np.ones(n), "plant.x_A": z, "plant.y_A": z,
+            "controller.W1": z, "controller.W2": z, "controller.W3": z}
+
+
+def test_diverged_reads_the_last_sample_of_each_error():
+    """'diverged' is |e_i| > 1 rad at the end: large errors before the last sample do not count, a large
+    last sample of either wheel does; a non-finite value anywhere does."""
+    big_early = [0.0, 3.0, 0.0, 3.0, 0.2]
+    assert not run_metrics(_signals(big_early, [0.0] * 5))["diverged"]
+    assert not run_metrics(_signals([0.0] * 5, big_early))["diverged"]
+    assert run_metrics(_signals([0.0, 0.0, 0.0, 0.0, -1.5], [0.0] * 5))["diverged"]
+    assert run_metrics(_signals([0.0] * 5, [0.0, 0.0, 0.0, 0.0, 1.01]))["diverged"]
+    assert not run_metrics(_signals([0.0] * 5, [0.0, 0.0, 0.0, 0.0, 1.0]))["diverged"]
+    assert run_metrics(_signals([0.0, math.nan, 0.0, 0.0, 0.0], [0.0] * 5))["diverged"]

@@ -212,3 +212,26 @@ def test_no_bump_is_bit_identical():
     h = 0.002
     for k in range(500):
         assert a.step(k * h, h, 4.0, 3.9) == b.step(k * h, h, 4.0, 3.9)
+
+
+def test_state_restored_into_a_new_plant_after_the_foam_region_was_hit():
+    """A state taken on the foam (entered by region) restored into a fresh plant gives the same outputs at
+    once and the same run afterwards: the time, the region hit and the foam onset are part of the state."""
+    kw = dict(foam_on_region=True, foam_x_min=0.02, foam_x_max=5, foam_y_min=-1, foam_y_max=1,
+              foam_da1=0.4, foam_da2=0.2, foam_ramp=0.3)
+    a = Plant(**kw)
+    h = 0.002
+    k = 0
+    while a.outputs()[9] == 0.0:     # until the foam level rises
+        a.step(k * h, h, 4.0, 3.9)
+        k += 1
+    for _ in range(20):
+        a.step(k * h, h, 4.0, 3.9)
+        k += 1
+    s = a.get_state()
+    assert s["region_hit"] is True and 0.0 < a.outputs()[9] < 1.0
+    b = Plant(**kw)
+    b.set_state(s)
+    assert b.outputs() == a.outputs()
+    assert [b.step(j * h, h, 4.2, 3.7) for j in range(k, k + 300)] == \
+        [a.step(j * h, h, 4.2, 3.7) for j in range(k, k + 300)]

@@ -248,3 +248,17 @@ def test_components_import_no_fmi_code():
     for py in root.glob("*.py"):
         src = py.read_text(encoding="utf-8")
         assert not re.search(r"^\s*(from|import)\s+(pythonfmu|pythonfmu3|fmpy|wmr_cosim|\.\.)", src, re.MULTILINE), py.name
+
+
+def test_as_dict_gives_every_parameter_and_rebuilds_an_equal_instance():
+    from wmr_cosim.components.controller import ControllerParams
+    from wmr_cosim.components.plant import PlantParams
+    from wmr_cosim.components.sensor import SensorParams
+
+    for cls, change in ((PlantParams, {"a5": 0.7}), (SensorParams, {"noise_std": 0.1}),
+                        (ControllerParams, {"gamma": 9.0})):
+        p = cls(**change)
+        d = p.as_dict()
+        assert set(d) == {f.name for f in dataclasses.fields(cls)}
+        assert all(d[k] == v for k, v in change.items())
+        assert cls(**d) == p and cls(**d) != cls()

@@ -1,0 +1,269 @@
+"""Mutation testing of the core with mutmut: are there bugs the tests would let through?
+
+``python benchmarks/bench.py mutation`` (or ``python benchmarks/mutation.py [--only GLOB ...]``) plants
+every mutant mutmut makes in ``components/``, ``cosim/`` and the analysis code (``wmr_cosim/analysis.py``,
+``wmr_cosim/claims.py``), one at a time, and runs against each the fast tests that cover the function it
+sits in (mutmut records which tests call which function in one instrumented run of the fast suite, then
+forks a worker per mutant).  The last line printed is one JSON object:
+``{"mutants", "killed", "kill_rate", "survivors", ...}``, with the kill rate per area.
+
+How it is laid out: mutmut names a mutant after its file's path and finds it again through the module's
+import name, so the project is staged in ``build/mutation/`` (git-ignored) as the installed package is laid
+out (``wmr_cosim/components``, ``wmr_cosim/cosim``, ...), with the tests, the scenarios and the examples
+beside it.  mutmut keeps its results in ``build/mutation/mutants/``: a second run re-tests only the
+mutants of changed functions (``--fresh`` starts over).
+
+Equivalent mutants (those no test can tell from the original) are listed, each with its one-line reason,
+in ``benchmarks/mutation-equivalents.toml``.  An entry names the mutant and the mutated line as mutmut
+shows it; if the code has moved so that the named mutant no longer changes that line, the entry is
+reported as stale and the mutant counts as a survivor again.  Equivalent mutants are left out of the
+kill rate and counted apart.
+
+Timeouts count as killed (a mutant that makes a test hang is caught by the step watchdogs' absence of
+progress); "no tests" (code no fast test runs) counts as a survivor.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+import tomllib
+from collections import Counter
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+STAGE = ROOT / "build" / "mutation"
+EQUIVALENTS = ROOT / "benchmarks" / "mutation-equivalents.toml"
+
+#: Folders of the repository and where the installed package has them.
+PACKAGE_DIRS = {"wmr_cosim": "wmr_cosim", "components": "wmr_cosim/components", "cosim": "wmr_cosim/cosim",
+                "fmus": "wmr_cosim/fmus", "scenarios": "wmr_cosim/scenarios"}
+#: Copied beside the package: what the tests read by path.
+ALSO = ("tests", "scenarios", "examples", "docs")
+#: What is mutated (globs on the staged paths) and the area each belongs to.
+AREAS = {"components": "wmr_cosim/components/*.py", "cosim": "wmr_cosim/cosim/*.py",
+         "analysis": "wmr_cosim/analysis.py", "claims": "wmr_cosim/claims.py"}
+#: The tests the mutants run against: the fast suite, without the tests of the repository's own files
+#: (documentation, packaging, the FMU build from the source folders) and the ones that run other programs
+#: (C hosts, interop peers).
+TEST_SELECTION = ["tests", "-m", "not slow",
+                  "--ignore=tests/test_docs.py", "--ignore=tests/test_packaging.py",
+                  "--ignore=tests/test_interop.py", "--ignore=tests/test_hosts.py",
+                  "--ignore=tests/test_tempdir_guard.py", "--ignore=tests/test_fmu_build.py",
+                  # Dask's dashboard, once started, stays registered in the process, and mutmut runs
+                  # the tests more than once in its process: the "no dashboard" case would fail
+                  "--deselect=tests/test_security.py::test_a_local_cluster_listens_on_the_loopback_address_only"]
+KILLED = {"killed", "timeout", "segfault"}
+
+
+def _sync(src: Path, dst: Path, keep: frozenset[str] = frozenset()) -> None:
+    """Make ``dst`` a copy of ``src`` (files compared by size and mtime, so mutmut sees unchanged files as
+    unchanged); build products and caches are left out, entries of ``dst`` named in ``keep`` are kept."""
+    skip = {"__pycache__", ".pytest_cache", "build", "mutants", ".ipynb_checkpoints"}
+    dst.mkdir(parents=True, exist_ok=True)
+    wanted = set()
+    for entry in src.iterdir():
+        if entry.name in skip or entry.suffix in (".fmu", ".pyc"):
+            continue
+        wanted.add(entry.name)
+        target = dst / entry.name
+        if entry.is_dir():
+            _sync(entry, target)
+        else:
+            st = entry.stat()
+            if not target.exists() or target.stat().st_size != st.st_size or target.stat().st_mtime != st.st_mtime:
+                shutil.copy2(entry, target)
+    for stale in dst.iterdir():
+        if stale.name not in wanted and stale.name not in skip and stale.name not in keep:
+            shutil.rmtree(stale) if stale.is_dir() else stale.unlink()
+
+
+def stage(only: list[str]) -> None:
+    """Lay the project out in STAGE as the installed package is, with mutmut's configuration."""
+    STAGE.mkdir(parents=True, exist_ok=True)
+    inner = frozenset(place.split("/", 1)[1] for place in PACKAGE_DIRS.values() if "/" in place)
+    for folder, place in PACKAGE_DIRS.items():
+        _sync(ROOT / folder, STAGE / place, keep=inner if place == "wmr_cosim" else frozenset())
+    for name in ALSO:
+        _sync(ROOT / name, STAGE / name)
+    _pristine_fmu_components()
+    pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
+    markers = pyproject["tool"]["pytest"]["ini_options"]["markers"]
+    config = "\n".join([
+        "[tool.pytest.ini_options]",
+        f"markers = {json.dumps(markers)}",
+        "",
+        "[tool.mutmut]",
+        'source_paths = ["wmr_cosim"]',
+        f"only_mutate = {json.dumps(only)}",
+        f"also_copy = {json.dumps(list(ALSO))}",
+        f"pytest_add_cli_args_test_selection = {json.dumps(TEST_SELECTION)}",
+        'pytest_add_cli_args = ["-p", "no:cacheprovider"]',
+        "timeout_multiplier = 10.0",
+        "timeout_constant = 5.0",
+        "use_git_change_detection = false",
+        "",
+    ])
+    path = STAGE / "pyproject.toml"
+    if not path.exists() or path.read_text(encoding="utf-8") != config:
+        path.write_text(config, encoding="utf-8")
+
+
+#: In the staged fmus/build.py: where an FMU's bundled copy of the components comes from.
+_COMPONENTS_LINE = 'here = _HERE.parent / "components"'
+
+
+def _pristine_fmu_components() -> None:
+    """The FMUs the tests build bundle the staged, unmutated components, not mutmut's copy: mutmut's
+    instrumented code cannot run in the FMU build's child process, and a mutant is planted in the
+    process under test only.  (So a component mutant is killed by the tests of the component and of the
+    direct loop, never through an FMU.)"""
+    build = STAGE / "wmr_cosim" / "fmus" / "build.py"
+    text = build.read_text(encoding="utf-8")
+    if _COMPONENTS_LINE not in text:
+        raise SystemExit(f"mutation: {build} no longer has the line `{_COMPONENTS_LINE}`; update "
+                         "benchmarks/mutation.py to point the FMU build at the unmutated components")
+    stat = (ROOT / "fmus" / "build.py").stat()
+    build.write_text(text.replace(_COMPONENTS_LINE, f"here = Path({str(STAGE / 'wmr_cosim' / 'components')!r})"),
+                     encoding="utf-8")
+    os.utime(build, ns=(stat.st_atime_ns, stat.st_mtime_ns))  # unchanged for _sync's comparison
+
+
+def _staged_package_dirs_intact() -> None:
+    """_sync of wmr_cosim/ skips nothing of the sub-packages (they are other sources): check they exist."""
+    for place in PACKAGE_DIRS.values():
+        if not (STAGE / place / "__init__.py").exists() and place != "wmr_cosim/scenarios":
+            raise SystemExit(f"mutation: staging failed, {STAGE / place} has no __init__.py")
+
+
+def results() -> dict[str, str]:
+    """{mutant name: status} from mutmut's result files."""
+    sys.path.insert(0, str(STAGE))
+    from mutmut.stats import status_by_exit_code
+
+    out: dict[str, str] = {}
+    for meta in sorted((STAGE / "mutants").rglob("*.py.meta")):
+        data = json.loads(meta.read_text(encoding="utf-8"))
+        for name, code in data.get("exit_code_by_key", {}).items():
+            out[name] = status_by_exit_code[code]
+    return out
+
+
+def mutant_diff(name: str) -> str:
+    """The mutated line(s) of one mutant, as mutmut shows them (``+`` lines of its diff)."""
+    proc = subprocess.run([sys.executable, "-m", "mutmut", "show", name], cwd=STAGE, capture_output=True,
+                          text=True, check=False)
+    plus = [ln[1:].strip() for ln in proc.stdout.splitlines() if ln.startswith("+") and not ln.startswith("+++")]
+    return "\n".join(plus)
+
+
+def load_equivalents() -> dict[str, dict[str, str]]:
+    """{mutant name: {"line": ..., "reason": ...}} from the equivalents file."""
+    if not EQUIVALENTS.exists():
+        return {}
+    data = tomllib.loads(EQUIVALENTS.read_text(encoding="utf-8"))
+    return {e["mutant"]: e for e in data.get("equivalent", [])}
+
+
+def _in_scope(name: str, only: list[str]) -> bool:
+    """Whether mutant ``name`` sits in a file matched by one of the ``only`` globs."""
+    import fnmatch
+
+    module = name.split(".x_")[0].split(".xǁ")[0]
+    path = module.replace(".", "/") + ".py"
+    return any(fnmatch.fnmatch(path, g) for g in only)
+
+
+def area_of(name: str) -> str:
+    for area in ("components", "cosim"):
+        if name.startswith(f"wmr_cosim.{area}."):
+            return area
+    return "analysis"
+
+
+def summarise(status: dict[str, str], equivalents: dict[str, dict[str, str]], minutes: float) -> dict:
+    """The figures: counts, kill rate overall and per area, survivors, equivalents (and stale ones)."""
+    stale = []
+    equivalent = set()
+    for name, entry in equivalents.items():
+        if name not in status:
+            stale.append(name)
+            continue
+        if status[name] in KILLED:
+            continue  # a test kills it now: no longer needs the entry, harmless
+        if entry["line"].strip() not in mutant_diff(name):
+            stale.append(name)
+            continue
+        equivalent.add(name)
+    counted = {n: s for n, s in status.items() if n not in equivalent and s != "not checked"}
+    per_area: dict[str, dict[str, float]] = {}
+    for area in ("components", "cosim", "analysis"):
+        names = [n for n in counted if area_of(n) == area]
+        k = sum(counted[n] in KILLED for n in names)
+        per_area[area] = {"mutants": len(names), "killed": k,
+                          "kill_rate": round(k / len(names), 4) if names else None}
+    killed = sum(s in KILLED for s in counted.values())
+    survivors = sorted(n for n, s in counted.items() if s not in KILLED)
+    return {
+        "mutants": len(counted),
+        "killed": killed,
+        "kill_rate": round(killed / len(counted), 4) if counted else None,
+        "per_area": per_area,
+        "equivalent": len(equivalent),
+        "stale_equivalents": sorted(stale),
+        "not_checked": sum(s == "not checked" for s in status.values()),
+        "statuses": dict(Counter(status.values())),
+        "minutes": round(minutes, 1),
+        "survivors": survivors,
+    }
+
+
+def run(only: list[str] | None = None, fresh: bool = False, max_children: int | None = None,
+        log: Path | None = None) -> dict:
+    """Stage, run mutmut, summarise.  ``only``: globs on the staged paths (default: every area)."""
+    only = only or list(AREAS.values())
+    if fresh and (STAGE / "mutants").exists():
+        shutil.rmtree(STAGE / "mutants")
+    stage(only)
+    _staged_package_dirs_intact()
+    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
+    cmd = [sys.executable, "-c", "import sys; from mutmut.__main__ import cli; sys.exit(cli())", "run",
+           "--max-children", str(max_children or os.cpu_count() or 2)]
+    t0 = time.monotonic()
+    with open(log or STAGE / "mutmut.log", "w", encoding="utf-8") as out:
+        proc = subprocess.run(cmd, cwd=STAGE, env=env, stdout=out, stderr=subprocess.STDOUT, check=False)
+    minutes = (time.monotonic() - t0) / 60
+    status = results()
+    unchecked = [n for n, st in status.items() if st == "not checked" and _in_scope(n, only)]
+    if proc.returncode != 0 and (unchecked or not status):
+        # (a process that hosted pythonfmu FMUs may abort while the interpreter tears down, after every
+        # result was saved: only a run that left mutants unchecked failed)
+        tail = (log or STAGE / "mutmut.log").read_text(encoding="utf-8", errors="replace")
+        print("\n".join(tail.replace("\r", "\n").splitlines()[-15:]), file=sys.stderr)
+        raise SystemExit(f"mutation: mutmut exited with {proc.returncode}, {len(unchecked)} mutants unchecked "
+                         f"(log: {log or STAGE / 'mutmut.log'})")
+    return summarise(status, load_equivalents(), minutes)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--only", action="append", help="mutate only these staged paths (glob, repeatable), "
+                    "e.g. 'wmr_cosim/cosim/wiring.py'")
+    ap.add_argument("--fresh", action="store_true", help="forget mutmut's earlier results")
+    ap.add_argument("--max-children", type=int, default=None)
+    ap.add_argument("--summary-only", action="store_true", help="summarise the last run without running")
+    args = ap.parse_args(argv)
+    if args.summary_only:
+        figures = summarise(results(), load_equivalents(), 0.0)
+    else:
+        figures = run(args.only, args.fresh, args.max_children)
+    print(json.dumps({"bench": "mutation", **figures}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
