@@ -10,8 +10,10 @@ forks a worker per mutant).  The last line printed is one JSON object:
 How it is laid out: mutmut names a mutant after its file's path and finds it again through the module's
 import name, so the project is staged in ``build/mutation/`` (git-ignored) as the installed package is laid
 out (``wmr_cosim/components``, ``wmr_cosim/cosim``, ...), with the tests, the scenarios and the examples
-beside it.  mutmut keeps its results in ``build/mutation/mutants/``: a second run re-tests only the
-mutants of changed functions (``--fresh`` starts over).
+beside it.  mutmut keeps its results in ``build/mutation/mutants/``: a second run tests the mutants of
+changed functions and, again, those that survived (``--keep-survivors`` skips those, ``--fresh`` starts
+over).  The FMUs the tests build are kept in ``build/mutation/fmu-cache/`` between mutmut's many short
+test sessions.
 
 Equivalent mutants (those no test can tell from the original) are listed, each with its one-line reason,
 in ``benchmarks/mutation-equivalents.toml``.  An entry names the mutant and the mutated line as mutmut
@@ -222,15 +224,46 @@ def summarise(status: dict[str, str], equivalents: dict[str, dict[str, str]], mi
     }
 
 
+def _regenerate_newly_in_scope(only: list[str]) -> None:
+    """A file copied unmutated by an earlier run with a narrower ``--only`` has no mutants: mutmut sees
+    its copy as current, so the copy is removed and mutmut makes the file's mutants."""
+    import fnmatch
+
+    for src in (STAGE / "wmr_cosim").rglob("*.py"):
+        rel = src.relative_to(STAGE).as_posix()
+        copy = STAGE / "mutants" / rel
+        if any(fnmatch.fnmatch(rel, g) for g in only) and copy.exists() and not Path(f"{copy}.meta").exists():
+            copy.unlink()
+
+
+def forget_survivors() -> int:
+    """Mark every mutant that survived (or had no test) as unchecked, so that mutmut tests it again
+    against today's tests (mutmut keeps a result until the function's code changes)."""
+    n = 0
+    for meta in (STAGE / "mutants").rglob("*.py.meta"):
+        data = json.loads(meta.read_text(encoding="utf-8"))
+        codes = data.get("exit_code_by_key", {})
+        for name, code in codes.items():
+            if code in (0, 5, 33):
+                codes[name] = None
+                n += 1
+        meta.write_text(json.dumps(data), encoding="utf-8")
+    return n
+
+
 def run(only: list[str] | None = None, fresh: bool = False, max_children: int | None = None,
-        log: Path | None = None) -> dict:
+        log: Path | None = None, retest: bool = True) -> dict:
     """Stage, run mutmut, summarise.  ``only``: globs on the staged paths (default: every area)."""
     only = only or list(AREAS.values())
     if fresh and (STAGE / "mutants").exists():
         shutil.rmtree(STAGE / "mutants")
     stage(only)
     _staged_package_dirs_intact()
-    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
+    _regenerate_newly_in_scope(only)
+    if retest:
+        forget_survivors()
+    # the FMUs the tests build are kept between mutmut's test sessions (tests/conftest.py reads this)
+    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1", "WMR_TEST_FMU_CACHE": str(STAGE / "fmu-cache")}
     cmd = [sys.executable, "-c", "import sys; from mutmut.__main__ import cli; sys.exit(cli())", "run",
            "--max-children", str(max_children or os.cpu_count() or 2)]
     t0 = time.monotonic()
@@ -254,13 +287,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--only", action="append", help="mutate only these staged paths (glob, repeatable), "
                     "e.g. 'wmr_cosim/cosim/wiring.py'")
     ap.add_argument("--fresh", action="store_true", help="forget mutmut's earlier results")
+    ap.add_argument("--keep-survivors", action="store_true",
+                    help="do not test again the mutants that survived the last run")
     ap.add_argument("--max-children", type=int, default=None)
     ap.add_argument("--summary-only", action="store_true", help="summarise the last run without running")
     args = ap.parse_args(argv)
     if args.summary_only:
         figures = summarise(results(), load_equivalents(), 0.0)
     else:
-        figures = run(args.only, args.fresh, args.max_children)
+        figures = run(args.only, args.fresh, args.max_children, retest=not args.keep_survivors)
     print(json.dumps({"bench": "mutation", **figures}))
     return 0
 

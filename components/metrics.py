@@ -11,7 +11,7 @@ import numpy as np
 def rmse(x: np.ndarray) -> float:
     """RMSE (54): sqrt(1/N sum x_i^2) over all N samples."""
     x = np.asarray(x, dtype=float)
-    with np.errstate(over="ignore", invalid="ignore"):  # a diverged run's RMSE is inf, not a warning
+    with np.errstate(over="ignore"):  # a diverged run's RMSE is inf, not a warning
         return float(np.sqrt(np.mean(x * x)))
 
 

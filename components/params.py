@@ -90,11 +90,7 @@ def vector(size: int, element: Check, labels: str = "") -> Check:
     need = f"needs {size} values" + (f" ({labels})" if labels else "")
 
     def apply(owner: str, name: str, value: Any) -> tuple[Any, ...]:
-        try:
-            n = len(value)
-        except TypeError:
-            n = -1
-        if n != size:
+        if not hasattr(value, "__len__") or len(value) != size:
             raise ParameterError(f"{owner} parameter {name} = {value!r}: {need}")
         return tuple(element.apply(owner, f"{name}[{i}]", x) for i, x in enumerate(value))
 

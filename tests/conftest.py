@@ -6,12 +6,27 @@ import pytest
 from tempdir_guard import pytest_configure, pytest_sessionfinish  # noqa: F401 (hooks of this session)
 
 
+def fmu_cache(tmp_path_factory, name: str):
+    """Where a session builds its FMUs: a temporary folder, or, when the environment variable
+    WMR_TEST_FMU_CACHE names a folder, its subfolder ``name``, kept between sessions (the mutation
+    testing runs hundreds of short sessions; the build skips an FMU whose sources have not changed)."""
+    import os
+    from pathlib import Path
+
+    cache = os.environ.get("WMR_TEST_FMU_CACHE")
+    if not cache:
+        return tmp_path_factory.mktemp(name)
+    folder = Path(cache) / name
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
 @pytest.fixture(scope="session")
 def built_fmus(tmp_path_factory):
-    """The three FMUs built once per test session into a temporary folder: {model name: path}."""
+    """The three FMUs built once per test session: {model name: path}."""
     from wmr_cosim.fmus.build import build_all
 
-    return build_all(tmp_path_factory.mktemp("fmus"))
+    return build_all(fmu_cache(tmp_path_factory, "fmus"))
 
 
 @pytest.hookimpl(trylast=True)

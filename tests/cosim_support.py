@@ -42,8 +42,35 @@ def g1_with_paths(tmp: Path, fmus: dict[str, Path], extra: str = "", name: str =
 
 
 def build_test_fmu(script: str, out: Path) -> Path:
-    """Build tests/slaves/<script> with pythonfmu into ``out``; returns the .fmu."""
+    """Build tests/slaves/<script> with pythonfmu into ``out``; returns the .fmu.  With the environment
+    variable WMR_TEST_FMU_CACHE set, an FMU built earlier from the same script is reused from there."""
+    import hashlib
+    import os
+    import shutil
+    import tempfile
+
     src = ROOT / "tests" / "slaves" / script
+    cache = os.environ.get("WMR_TEST_FMU_CACHE")
+    if cache:
+        key = hashlib.sha256(src.read_bytes()).hexdigest()[:16]
+        done = Path(cache) / "test-fmus" / f"{src.stem}-{key}"
+        if not done.is_dir():
+            done.parent.mkdir(parents=True, exist_ok=True)
+            tmp = Path(tempfile.mkdtemp(prefix=done.name, dir=done.parent))
+            build_test_fmu_uncached(src, tmp)
+            try:
+                tmp.rename(done)          # atomic: a concurrent session may have built it first
+            except OSError:
+                shutil.rmtree(tmp, ignore_errors=True)
+        fmu = sorted(done.glob("*.fmu"))[-1]
+        out.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(fmu, out / fmu.name)
+        return out / fmu.name
+    return build_test_fmu_uncached(src, out)
+
+
+def build_test_fmu_uncached(src: Path, out: Path) -> Path:
+    """Build the pythonfmu script ``src`` into ``out``; returns the .fmu."""
     p = subprocess.run([sys.executable, "-m", "pythonfmu", "build", "-f", str(src), "-d", str(out)],
                        capture_output=True, text=True)
     if p.returncode != 0:

@@ -165,3 +165,22 @@ def test_state_restored_into_a_new_controller_continues_the_run_on_the_line():
     other.set_state(s)
     assert list(other.outputs()) == s["out"]
     assert [other.step(k * h, h, *meas[k]) for k in range(150, 600)] == rest
+
+
+def test_task_controller_gives_each_goal_of_table1_and_refuses_an_unknown_task():
+    goals = paper.table1()["goals"]
+    for task in ("G1", "G2", "G3"):
+        assert paper.task_controller(task) == {"task": "goal", "goal_x": float(goals[task][0]),
+                                               "goal_y": float(goals[task][1])}
+        assert ControllerParams(**paper.task_controller(task)).goal_x == float(goals[task][0])
+    assert paper.task_controller("LINE")["task"] == "line"
+    with pytest.raises(KeyError, match="unknown task 'G4': one of G1, G2, G3, LINE"):
+        paper.task_controller("G4")
+
+
+def test_direct_loop_defaults_to_the_papers_50_s_and_names_itself_in_a_bad_step():
+    from wmr_cosim.components.validation import ParameterError
+
+    assert run_direct(record=False).steps == 25_000
+    with pytest.raises(ParameterError, match=r"^direct loop: step size h = 0\.0 s: must be finite and > 0$"):
+        run_direct(h=0.0)

@@ -27,7 +27,9 @@ def fmus3(tmp_path_factory):
     """The three FMI 3.0 FMUs built once per session: {model name: path}."""
     from wmr_cosim.fmus.build import SLAVES3, build_all
 
-    return build_all(tmp_path_factory.mktemp("fmus3"), models=tuple(SLAVES3))
+    from conftest import fmu_cache
+
+    return build_all(fmu_cache(tmp_path_factory, "fmus3"), models=tuple(SLAVES3))
 
 
 def _name3(column: str) -> str:

@@ -71,6 +71,8 @@ def test_vector_of_checked_values():
     refused(c, (1.0, -1.0), "q[1] = -1.0: must be > 0")
     refused(c, (-1.0, 1.0), "q[0] = -1.0: must be > 0")
     refused(P.vector(3, P.finite), (1.0,), "q = (1.0,): needs 3 values")
+    refused(P.vector(1, P.finite), 2.0, "q = 2.0: needs 1 values")      # not a sequence at all
+    assert P.vector(1, P.finite).apply("plant", "q", [2]) == (2.0,)
 
 
 def test_sign_and_the_named_ranges():
@@ -87,3 +89,12 @@ def test_param_carries_its_facts_into_the_field():
     assert dict(f.metadata) == {"check": P.non_negative, "doc": "a time", "unit": "s", "tunable": True}
     g = P.param(False, check=P.boolean, doc="a flag")
     assert g.metadata["unit"] is None and g.metadata["tunable"] is False
+
+
+def test_facts_of_a_class_and_of_an_instance():
+    from wmr_cosim.components.plant import PlantParams
+
+    f = P.facts(PlantParams)
+    assert f["cF"] == {"check": P.positive, "doc": "slope cF of friction (36)", "unit": "s/rad", "tunable": False}
+    assert f["foam_da1"]["tunable"] is True and list(f)[:3] == ["a1", "a2", "a3"]
+    assert P.facts(PlantParams(a5=1.0)) == f
