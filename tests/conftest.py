@@ -29,6 +29,31 @@ def built_fmus(tmp_path_factory):
     return build_all(fmu_cache(tmp_path_factory, "fmus"))
 
 
+#: Tests that start pools of worker processes (the paper job, Dask clusters).  Under mutation testing
+#: they are skipped: mutmut ends a mutant that overruns its time by killing its worker process, which
+#: leaves that worker's own children running and loading the machine, and what these tests check of the
+#: master is checked by faster tests in process.
+STARTS_WORKER_PROCESSES = (
+    "tests/test_paper.py::test_every_statement_of_the_report_agrees_with_its_number",
+    "tests/test_robustness.py::test_reduced_study_runs_on_dask",
+    "tests/test_security.py::test_a_sweep_on_a_tls_scheduler",
+    "tests/test_security.py::test_the_sweep_command_listens_on_the_loopback_address_only",
+    "tests/test_security.py::test_a_local_cluster_listens_on_the_loopback_address_only",
+    "tests/test_sweep.py",
+)
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    import os
+
+    if "MUTANT_UNDER_TEST" not in os.environ:
+        return
+    skip = pytest.mark.skip(reason="starts worker processes: not run under mutation testing")
+    for item in items:
+        if item.nodeid.startswith(STARTS_WORKER_PROCESSES):
+            item.add_marker(skip)
+
+
 @pytest.hookimpl(trylast=True)
 def pytest_unconfigure(config: pytest.Config) -> None:
     """End the test process without the interpreter's finalisation. Known issue, not yet fixed: a process

@@ -59,6 +59,16 @@ def test_booleans_numbers_and_names():
     assert [tk.kind for tk in tokenize("a.x<=1")] == ["name", "op", "number", "end"]
 
 
+def test_a_syntax_error_names_the_token_and_its_position_or_the_end():
+    for text, message in [
+            ("plant.x_A > 1 2", "expected and, or or the end, found '2' at character 15 of 'plant.x_A > 1 2'"),
+            ("plant.x_A >", "expected a variable, a number, true, false, t or '(', found at the end of 'plant.x_A >'"),
+            ("(a.b > 1", "expected ')', found at the end of '(a.b > 1'")]:
+        with pytest.raises(ConditionError) as info:
+            parse(text)
+        assert str(info.value) == message
+
+
 @pytest.mark.parametrize("text, words", [
     ("", "empty"),
     ("plant.x_A >", "expected a variable"),
@@ -135,7 +145,17 @@ def test_pacer_sleeps_to_each_due_time_and_counts_the_late_steps(monkeypatch):
     s = p.summary()
     assert s["steps"] == 6 and s["overruns"] == 2
     assert s["late_max_s"] == pytest.approx(0.07) and s["late_mean_s"] == pytest.approx(0.05)
-    assert "2 of 6 steps finished late" in p.describe()
+    assert p.describe() == "real time x2: 2 of 6 steps finished late (by up to 70 ms, 50 ms on average)"
+
+
+def test_pacer_without_overruns_says_so(monkeypatch):
+    clock = FakeClock()
+    monkeypatch.setattr(pacing.time, "sleep", clock.sleep)
+    p = pacing.Pacer(0.5, _clock=clock)     # half real time: the step of 0.1 s is due after 0.2 s
+    p.start(0.0)
+    clock.now += 0.1
+    p.wait(0.1)
+    assert p.describe() == "real time x0.5: no overruns in 1 steps" and p.summary()["late_mean_s"] == 0.0
 
 
 @pytest.mark.parametrize("factor", [0, -1, float("nan"), float("inf")])
