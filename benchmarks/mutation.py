@@ -171,6 +171,15 @@ def load_equivalents() -> dict[str, dict[str, str]]:
     return {e["mutant"]: e for e in data.get("equivalent", [])}
 
 
+def load_unreachable() -> dict[str, str]:
+    """{function (mutmut's name, without the mutant number): reason} of the code no test session of
+    mutmut's can run (it runs in a child process started by the code under test)."""
+    if not EQUIVALENTS.exists():
+        return {}
+    data = tomllib.loads(EQUIVALENTS.read_text(encoding="utf-8"))
+    return {e["function"]: e["reason"] for e in data.get("unreachable", [])}
+
+
 def _in_scope(name: str, only: list[str]) -> bool:
     """Whether mutant ``name`` sits in a file matched by one of the ``only`` globs."""
     import fnmatch
@@ -187,21 +196,27 @@ def area_of(name: str) -> str:
     return "analysis"
 
 
-def summarise(status: dict[str, str], equivalents: dict[str, dict[str, str]], minutes: float) -> dict:
-    """The figures: counts, kill rate overall and per area, survivors, equivalents (and stale ones)."""
+def summarise(status: dict[str, str], equivalents: dict[str, dict[str, str]], minutes: float,
+              unreachable: dict[str, str] | None = None) -> dict:
+    """The figures: counts, kill rate overall and per area, survivors, equivalents (and stale ones),
+    and the mutants of code only a child process runs (``unreachable``, when no test reached them)."""
+    unreachable = load_unreachable() if unreachable is None else unreachable
+    out_of_reach = {n for n, st in status.items()
+                    if st == "no tests" and n.partition("__mutmut_")[0] in unreachable}
     stale = []
     equivalent = set()
     for name, entry in equivalents.items():
         if name not in status:
             stale.append(name)
             continue
-        if status[name] in KILLED:
-            continue  # a test kills it now: no longer needs the entry, harmless
+        if status[name] not in ("survived", "no tests"):
+            continue  # not run yet, or a test kills it now (the entry is harmless)
         if entry["line"].strip() not in mutant_diff(name):
             stale.append(name)
             continue
         equivalent.add(name)
-    counted = {n: s for n, s in status.items() if n not in equivalent and s != "not checked"}
+    counted = {n: s for n, s in status.items()
+               if n not in equivalent and n not in out_of_reach and s != "not checked"}
     per_area: dict[str, dict[str, float]] = {}
     for area in ("components", "cosim", "analysis"):
         names = [n for n in counted if area_of(n) == area]
@@ -216,6 +231,7 @@ def summarise(status: dict[str, str], equivalents: dict[str, dict[str, str]], mi
         "kill_rate": round(killed / len(counted), 4) if counted else None,
         "per_area": per_area,
         "equivalent": len(equivalent),
+        "unreachable": len(out_of_reach),
         "stale_equivalents": sorted(stale),
         "not_checked": sum(s == "not checked" for s in status.values()),
         "statuses": dict(Counter(status.values())),
