@@ -27,6 +27,7 @@ progress); "no tests" (code no fast test runs) counts as a survivor.
 from __future__ import annotations
 
 import argparse
+import fnmatch
 import json
 import os
 import shutil
@@ -92,6 +93,9 @@ def stage(only: list[str]) -> None:
         _sync(ROOT / folder, STAGE / place, keep=inner if place == "wmr_cosim" else frozenset())
     for name in ALSO:
         _sync(ROOT / name, STAGE / name)
+    for place in ("wmr_cosim", "wmr_cosim/components", "wmr_cosim/cosim", "wmr_cosim/fmus"):
+        if not (STAGE / place / "__init__.py").exists():
+            raise SystemExit(f"mutation: staging failed, {STAGE / place} has no __init__.py")
     _pristine_fmu_components()
     pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
     markers = pyproject["tool"]["pytest"]["ini_options"]["markers"]
@@ -135,16 +139,8 @@ def _pristine_fmu_components() -> None:
     os.utime(build, ns=(stat.st_atime_ns, stat.st_mtime_ns))  # unchanged for _sync's comparison
 
 
-def _staged_package_dirs_intact() -> None:
-    """_sync of wmr_cosim/ skips nothing of the sub-packages (they are other sources): check they exist."""
-    for place in PACKAGE_DIRS.values():
-        if not (STAGE / place / "__init__.py").exists() and place != "wmr_cosim/scenarios":
-            raise SystemExit(f"mutation: staging failed, {STAGE / place} has no __init__.py")
-
-
 def results() -> dict[str, str]:
     """{mutant name: status} from mutmut's result files."""
-    sys.path.insert(0, str(STAGE))
     from mutmut.stats import status_by_exit_code
 
     out: dict[str, str] = {}
@@ -163,27 +159,26 @@ def mutant_diff(name: str) -> str:
     return "\n".join(plus)
 
 
+def _equivalents_file(section: str) -> list[dict[str, str]]:
+    """The entries of one section of the equivalents file."""
+    if not EQUIVALENTS.exists():
+        return []
+    return tomllib.loads(EQUIVALENTS.read_text(encoding="utf-8")).get(section, [])
+
+
 def load_equivalents() -> dict[str, dict[str, str]]:
     """{mutant name: {"line": ..., "reason": ...}} from the equivalents file."""
-    if not EQUIVALENTS.exists():
-        return {}
-    data = tomllib.loads(EQUIVALENTS.read_text(encoding="utf-8"))
-    return {e["mutant"]: e for e in data.get("equivalent", [])}
+    return {e["mutant"]: e for e in _equivalents_file("equivalent")}
 
 
 def load_unreachable() -> dict[str, str]:
     """{function (mutmut's name, without the mutant number): reason} of the code no test session of
     mutmut's can run (it runs in a child process started by the code under test)."""
-    if not EQUIVALENTS.exists():
-        return {}
-    data = tomllib.loads(EQUIVALENTS.read_text(encoding="utf-8"))
-    return {e["function"]: e["reason"] for e in data.get("unreachable", [])}
+    return {e["function"]: e["reason"] for e in _equivalents_file("unreachable")}
 
 
 def _in_scope(name: str, only: list[str]) -> bool:
     """Whether mutant ``name`` sits in a file matched by one of the ``only`` globs."""
-    import fnmatch
-
     module = name.split(".x_")[0].split(".xǁ")[0]
     path = module.replace(".", "/") + ".py"
     return any(fnmatch.fnmatch(path, g) for g in only)
@@ -243,8 +238,6 @@ def summarise(status: dict[str, str], equivalents: dict[str, dict[str, str]], mi
 def _regenerate_newly_in_scope(only: list[str]) -> None:
     """A file copied unmutated by an earlier run with a narrower ``--only`` has no mutants: mutmut sees
     its copy as current, so the copy is removed and mutmut makes the file's mutants."""
-    import fnmatch
-
     for src in (STAGE / "wmr_cosim").rglob("*.py"):
         rel = src.relative_to(STAGE).as_posix()
         copy = STAGE / "mutants" / rel
@@ -268,13 +261,12 @@ def forget_survivors() -> int:
 
 
 def run(only: list[str] | None = None, fresh: bool = False, max_children: int | None = None,
-        log: Path | None = None, retest: bool = True) -> dict:
+        retest: bool = True) -> dict:
     """Stage, run mutmut, summarise.  ``only``: globs on the staged paths (default: every area)."""
     only = only or list(AREAS.values())
     if fresh and (STAGE / "mutants").exists():
         shutil.rmtree(STAGE / "mutants")
     stage(only)
-    _staged_package_dirs_intact()
     _regenerate_newly_in_scope(only)
     if retest:
         forget_survivors()
@@ -282,8 +274,9 @@ def run(only: list[str] | None = None, fresh: bool = False, max_children: int | 
     env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1", "WMR_TEST_FMU_CACHE": str(STAGE / "fmu-cache")}
     cmd = [sys.executable, "-c", "import sys; from mutmut.__main__ import cli; sys.exit(cli())", "run",
            "--max-children", str(max_children or os.cpu_count() or 2)]
+    log = STAGE / "mutmut.log"
     t0 = time.monotonic()
-    with open(log or STAGE / "mutmut.log", "w", encoding="utf-8") as out:
+    with open(log, "w", encoding="utf-8") as out:
         proc = subprocess.run(cmd, cwd=STAGE, env=env, stdout=out, stderr=subprocess.STDOUT, check=False)
     minutes = (time.monotonic() - t0) / 60
     status = results()
@@ -291,10 +284,10 @@ def run(only: list[str] | None = None, fresh: bool = False, max_children: int | 
     if proc.returncode != 0 and (unchecked or not status):
         # (a process that hosted pythonfmu FMUs may abort while the interpreter tears down, after every
         # result was saved: only a run that left mutants unchecked failed)
-        tail = (log or STAGE / "mutmut.log").read_text(encoding="utf-8", errors="replace")
+        tail = log.read_text(encoding="utf-8", errors="replace")
         print("\n".join(tail.replace("\r", "\n").splitlines()[-15:]), file=sys.stderr)
         raise SystemExit(f"mutation: mutmut exited with {proc.returncode}, {len(unchecked)} mutants unchecked "
-                         f"(log: {log or STAGE / 'mutmut.log'})")
+                         f"(log: {log})")
     return summarise(status, load_equivalents(), minutes)
 
 

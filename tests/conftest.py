@@ -7,18 +7,12 @@ from tempdir_guard import pytest_configure, pytest_sessionfinish  # noqa: F401 (
 
 
 def fmu_cache(tmp_path_factory, name: str):
-    """Where a session builds its FMUs: a temporary folder, or, when the environment variable
-    WMR_TEST_FMU_CACHE names a folder, its subfolder ``name``, kept between sessions (the mutation
-    testing runs hundreds of short sessions; the build skips an FMU whose sources have not changed)."""
-    import os
-    from pathlib import Path
+    """Where a session builds its FMUs: the FMU cache's folder ``name`` if there is a cache
+    (cosim_support.fmu_cache_dir; the build skips an FMU whose sources have not changed), else a
+    temporary folder."""
+    from cosim_support import fmu_cache_dir
 
-    cache = os.environ.get("WMR_TEST_FMU_CACHE")
-    if not cache:
-        return tmp_path_factory.mktemp(name)
-    folder = Path(cache) / name
-    folder.mkdir(parents=True, exist_ok=True)
-    return folder
+    return fmu_cache_dir(name) or tmp_path_factory.mktemp(name)
 
 
 @pytest.fixture(scope="session")

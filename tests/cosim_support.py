@@ -41,32 +41,43 @@ def g1_with_paths(tmp: Path, fmus: dict[str, Path], extra: str = "", name: str =
     return write_scenario(tmp / name, text + extra)
 
 
-def build_test_fmu(script: str, out: Path) -> Path:
-    """Build tests/slaves/<script> with pythonfmu into ``out``; returns the .fmu.  With the environment
-    variable WMR_TEST_FMU_CACHE set, an FMU built earlier from the same script is reused from there."""
-    import hashlib
+def fmu_cache_dir(name: str) -> Path | None:
+    """The folder ``name`` in the FMU cache that the environment variable WMR_TEST_FMU_CACHE names (made if
+    missing), or None when it is unset: the mutation testing runs hundreds of short test sessions, which
+    then share the FMUs they build."""
     import os
+
+    cache = os.environ.get("WMR_TEST_FMU_CACHE")
+    if not cache:
+        return None
+    folder = Path(cache) / name
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+def build_test_fmu(script: str, out: Path) -> Path:
+    """Build tests/slaves/<script> with pythonfmu into ``out``; returns the .fmu.  With an FMU cache
+    (:func:`fmu_cache_dir`), an FMU built earlier from the same script is reused from there."""
+    import hashlib
     import shutil
     import tempfile
 
     src = ROOT / "tests" / "slaves" / script
-    cache = os.environ.get("WMR_TEST_FMU_CACHE")
-    if cache:
-        key = hashlib.sha256(src.read_bytes()).hexdigest()[:16]
-        done = Path(cache) / "test-fmus" / f"{src.stem}-{key}"
-        if not done.is_dir():
-            done.parent.mkdir(parents=True, exist_ok=True)
-            tmp = Path(tempfile.mkdtemp(prefix=done.name, dir=done.parent))
-            build_test_fmu_uncached(src, tmp)
-            try:
-                tmp.rename(done)          # atomic: a concurrent session may have built it first
-            except OSError:
-                shutil.rmtree(tmp, ignore_errors=True)
-        fmu = sorted(done.glob("*.fmu"))[-1]
-        out.mkdir(parents=True, exist_ok=True)
-        shutil.copy2(fmu, out / fmu.name)
-        return out / fmu.name
-    return build_test_fmu_uncached(src, out)
+    cache = fmu_cache_dir("test-fmus")
+    if cache is None:
+        return build_test_fmu_uncached(src, out)
+    done = cache / f"{src.stem}-{hashlib.sha256(src.read_bytes()).hexdigest()[:16]}"
+    if not done.is_dir():
+        tmp = Path(tempfile.mkdtemp(prefix=done.name, dir=cache))
+        build_test_fmu_uncached(src, tmp)
+        try:
+            tmp.rename(done)          # atomic: a concurrent session may have built it first
+        except OSError:
+            shutil.rmtree(tmp, ignore_errors=True)
+    fmu = sorted(done.glob("*.fmu"))[-1]
+    out.mkdir(parents=True, exist_ok=True)
+    shutil.copy2(fmu, out / fmu.name)
+    return out / fmu.name
 
 
 def build_test_fmu_uncached(src: Path, out: Path) -> Path:
