@@ -57,6 +57,8 @@ TEST_SELECTION = ["tests", "-m", "not slow",
                   "--ignore=tests/test_docs.py", "--ignore=tests/test_packaging.py",
                   "--ignore=tests/test_interop.py", "--ignore=tests/test_hosts.py",
                   "--ignore=tests/test_tempdir_guard.py", "--ignore=tests/test_fmu_build.py",
+                  # (the harness's own tests read benchmarks/, which is not staged)
+                  "--ignore=tests/test_mutation_harness.py",
                   # Dask's dashboard, once started, stays registered in the process, and mutmut runs
                   # the tests more than once in its process: the "no dashboard" case would fail
                   "--deselect=tests/test_security.py::test_a_local_cluster_listens_on_the_loopback_address_only"]
@@ -157,6 +159,67 @@ def mutant_diff(name: str) -> str:
                           text=True, check=False)
     plus = [ln[1:].strip() for ln in proc.stdout.splitlines() if ln.startswith("+") and not ln.startswith("+++")]
     return "\n".join(plus)
+
+
+def survivor_diffs(names: list[str]) -> str:
+    """The diff of each named mutant against the original function, read from mutmut's mutated copies
+    (one ``ast`` parse per file instead of one ``mutmut show`` process per mutant), grouped by file."""
+    import ast
+    import difflib
+
+    by_module: dict[str, list[str]] = {}
+    for name in names:
+        by_module.setdefault(name.split(".x_")[0].split(".xǁ")[0], []).append(name)
+    out: list[str] = []
+    for module, members in sorted(by_module.items()):
+        path = STAGE / "mutants" / (module.replace(".", "/") + ".py")
+        text = path.read_text(encoding="utf-8")
+        lines = text.splitlines()
+        funcs = {node.name: lines[node.lineno - 1:node.end_lineno]
+                 for node in ast.walk(ast.parse(text)) if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))}
+        out.append(f"=== {path.relative_to(STAGE / 'mutants')}")
+        for name in sorted(members, key=lambda n: (n.partition("__mutmut_")[0], int(n.rpartition("_")[2]))):
+            local = name[len(module) + 1:]
+            orig = funcs.get(local.partition("__mutmut_")[0] + "__mutmut_orig")
+            mutant = funcs.get(local)
+            if orig is None or mutant is None:
+                out.append(f"--- {local}: not found in {path.name}")
+                continue
+            diff = [ln for ln in difflib.unified_diff(orig[1:], mutant[1:], lineterm="", n=0)
+                    if ln[:1] in "+-" and not ln.startswith(("+++", "---"))]
+            out.append(f"--- {local}")
+            out.extend("  " + ln for ln in diff)
+    return "\n".join(out) + "\n"
+
+
+def check(names: list[str], test_files: list[Path], log: Path | None = None) -> dict[str, str]:
+    """Whether the given test files kill each named mutant: the files are copied beside mutmut's copy of
+    the tests (``build/mutation/mutants/tests``, named ``_check_*``, removed afterwards) and run there
+    with the mutant active, one pytest process per mutant.  {name: "killed" | "survived"}."""
+    tests = STAGE / "mutants" / "tests"
+    if not tests.is_dir():
+        raise SystemExit("mutation: no mutants yet (run python benchmarks/mutation.py first)")
+    copies = []
+    for f in test_files:
+        copy = tests / f"_check_{os.getpid()}_{Path(f).name}"
+        shutil.copyfile(f, copy)
+        copies.append(copy)
+    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1", "WMR_TEST_FMU_CACHE": str(STAGE / "fmu-cache")}
+    out: dict[str, str] = {}
+    try:
+        for name in names:
+            proc = subprocess.run([sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider",
+                                   *[c.relative_to(STAGE / "mutants").as_posix() for c in copies]],
+                                  cwd=STAGE / "mutants", env={**env, "MUTANT_UNDER_TEST": name},
+                                  capture_output=True, text=True, check=False)
+            out[name] = "survived" if proc.returncode == 0 else "killed"
+            if log is not None:
+                with open(log, "a", encoding="utf-8") as fh:
+                    fh.write(f"### {name}: {out[name]} (pytest exit {proc.returncode})\n{proc.stdout[-3000:]}\n")
+    finally:
+        for c in copies:
+            c.unlink(missing_ok=True)
+    return out
 
 
 def _equivalents_file(section: str) -> list[dict[str, str]]:
@@ -300,9 +363,22 @@ def main(argv: list[str] | None = None) -> int:
                     help="do not test again the mutants that survived the last run")
     ap.add_argument("--max-children", type=int, default=None)
     ap.add_argument("--summary-only", action="store_true", help="summarise the last run without running")
+    ap.add_argument("--diffs", metavar="FILE", help="with --summary-only: write the diff of every survivor "
+                    "(of the --only files) to FILE")
+    ap.add_argument("--check", nargs="+", metavar="MUTANT", help="run only --tests against these mutants "
+                    "(names as in the survivors list) and print which the tests kill")
+    ap.add_argument("--tests", nargs="+", type=Path, default=[], help="test files for --check")
     args = ap.parse_args(argv)
+    if args.check:
+        verdicts = check(args.check, args.tests)
+        print(json.dumps({"killed": sorted(n for n, v in verdicts.items() if v == "killed"),
+                          "survived": sorted(n for n, v in verdicts.items() if v == "survived")}))
+        return 0
     if args.summary_only:
         figures = summarise(results(), load_equivalents(), 0.0)
+        if args.diffs:
+            chosen = [n for n in figures["survivors"] if _in_scope(n, args.only or list(AREAS.values()))]
+            Path(args.diffs).write_text(survivor_diffs(chosen), encoding="utf-8")
     else:
         figures = run(args.only, args.fresh, args.max_children, retest=not args.keep_survivors)
     print(json.dumps({"bench": "mutation", **figures}))
