@@ -237,7 +237,8 @@ def load_model(path: str | os.PathLike) -> FmuModel:
         if kind == "Clock":
             raise FmuLoadError(f"{path}: clock {v.name!r}: FMUs with clocks (event mode, scheduled execution) "
                                "are not supported")
-        shape = _shape(v, by_vr) if fmi == 3 else ()
+        # FMPy sizes each FMI 3.0 array (fixed dimensions, start values of structural parameters)
+        shape = tuple(v.shape or ()) if fmi == 3 else ()
         unit_name = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
         vmin = v.min if v.min is not None else (v.declaredType.min if v.declaredType is not None else None)
         vmax = v.max if v.max is not None else (v.declaredType.max if v.declaredType is not None else None)
@@ -249,13 +250,3 @@ def load_model(path: str | os.PathLike) -> FmuModel:
     return model
 
 
-def _shape(v: Any, by_vr: dict[int, Any]) -> tuple[int, ...]:
-    """The dimensions of an FMI 3.0 array: fixed, or the start value of a structural parameter."""
-    dims = []
-    for d in getattr(v, "dimensions", None) or []:
-        if d.start is not None:
-            dims.append(int(d.start))
-        else:
-            sp = by_vr.get(int(d.valueReference))
-            dims.append(int(sp.start) if sp is not None and sp.start is not None else 0)
-    return tuple(dims)

@@ -81,6 +81,22 @@ def test_bad_sweep_files(tmp_path, body, field, reason):
 
 
 @pytest.mark.slow
+def test_a_point_that_changes_q_and_r_gets_gamma_star_with_its_own_weights(tmp_path):
+    """(53) weighs s and u with the run's own Q and R: a point setting controller.Q = 3 and R = 0.2 gets
+    gamma* computed from its signals with those weights, not with Table 1's."""
+    from wmr_cosim.analysis import disturbance_analysis, load_signals, table1_disturbance_analysis
+
+    point = {"id": 0, "params": {"controller.Q": 3.0, "controller.R": 0.2}}
+    row = sweep.run_point(point, str(DATA / "short_protocol.toml"), None, None,
+                          sweep.fmu_paths(), str(tmp_path), keep_runs=True)
+    assert row["status"] == "ok", row["reason"]
+    runs = tmp_path / "runs" / "00000"
+    frozen, foam = load_signals(runs / "frozen"), load_signals(runs / "foam")
+    own = disturbance_analysis(frozen, foam, Q=3.0, R=0.2, gamma=11.0)
+    assert row["gamma_star"] == own["gamma_star"] and row["gain_incremental"] == own["gain_incremental"]
+    assert row["gamma_star"] != table1_disturbance_analysis(frozen, foam)["gamma_star"]
+
+
 def test_same_results_with_one_or_two_workers_and_after_a_restart(tmp_path, cluster2):
     f = _sweep_file(tmp_path, SMALL)
     with sweep.Cluster(workers=1) as one:

@@ -129,7 +129,7 @@ def disturbance_analysis(frozen: Signals, foam: Signals, Q: float, R: float, gam
 
 def table1_disturbance_analysis(frozen: Signals, foam: Signals) -> dict[str, Any]:
     """:func:`disturbance_analysis` with the weights of Table 1 (Q = 1, R = 0.5, gamma = 11): the
-    (52)/(53) figures of the paper job and of a sweep's rows."""
+    (52)/(53) figures of the paper job, whose runs all use them (a sweep uses each point's own weights)."""
     t1 = paper.table1()
     return disturbance_analysis(frozen, foam, Q=t1["Q"], R=t1["R"], gamma=t1["gamma"])
 

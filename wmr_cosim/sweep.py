@@ -178,7 +178,7 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
     """Run one point (the base's runs with the point's parameters) and return its row: id, parameters,
     status ('ok', 'diverged', 'failed'), reason and metrics.  Never raises: a failure is a row.
     ``archive_limits``: the submitting process's command-line archive limits (a worker may be elsewhere)."""
-    from .analysis import load_signals, run_summary, table1_disturbance_analysis
+    from .analysis import disturbance_analysis, load_signals, run_summary
     from .cosim.archive import ENV_RATIO, ENV_SIZE
     from .cosim.protocol import run_protocol
 
@@ -217,7 +217,7 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
             if s["diverged"] and row["status"] == "ok":
                 row["status"], row["reason"] = "diverged", f"{name}: |e| = {max(map(abs, s['final_e'])):.3g} rad at the end"
         if sigs.get("frozen") is not None and sigs.get("foam") is not None:
-            d = table1_disturbance_analysis(sigs["frozen"], sigs["foam"])
+            d = disturbance_analysis(sigs["frozen"], sigs["foam"], **_weights(work / "foam"))
             for k in ("gamma_star", "gamma_true", "gain_incremental"):
                 row[k] = d[k] if d[k] is not None else math.nan
             row["foam_rise1"], row["foam_rise2"] = [math.nan if r is None else r for r in d["foam_rise"]]
@@ -245,6 +245,20 @@ def _goal(run_dir: Path) -> tuple[float, float] | None:
         return float(p["goal_x"]), float(p["goal_y"])
     except (OSError, KeyError, ValueError, TypeError):
         return None
+
+
+def _weights(run_dir: Path) -> dict[str, float]:
+    """Q, R and gamma of a run's controller, for (53): the values its scenario set (``scenario.json``), the
+    controller's defaults (Table 1) for the others."""
+    from .components.controller import ControllerParams
+
+    defaults = ControllerParams()
+    w = {"Q": defaults.Q, "R": defaults.R, "gamma": defaults.gamma}
+    try:
+        p = json.loads((run_dir / "scenario.json").read_text())["instances"]["controller"]["parameters"]
+    except (OSError, KeyError, ValueError, TypeError):
+        return w
+    return {k: float(p.get(k, v)) for k, v in w.items()}
 
 
 # ---------------------------------------------------------------------- the sweep (in the parent)

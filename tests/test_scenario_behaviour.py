@@ -1,0 +1,194 @@
+"""The scenario parser's and the resolver's small contracts, one by one: counts, tables of parameters,
+values given on the command line, condition variables, array sizes of FMI 3.0 models, the archive limits
+of the command line.  Each message is compared in full: it is what the user reads."""
+from __future__ import annotations
+
+import os
+import shutil
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from c_fmu_support import build_probe
+from reference_fmus import REF
+from wmr_cosim.cosim import archive
+from wmr_cosim.cosim.errors import CosimError, FmuLoadError, ScenarioError
+from wmr_cosim.cosim.model import load_model
+from wmr_cosim.cosim.scenario import parse, parse_set, parse_value
+from wmr_cosim.cosim.system import resolve
+
+FT = REF / "fmi2" / "Feedthrough.fmu"
+
+
+def _doc(**extra: object) -> dict:
+    doc = {"experiment": {"stop": 0.1, "step": 0.01}, "instances": {"a": {"fmu": str(FT)}}}
+    doc.update(extra)
+    return doc
+
+
+def _refused(doc: dict) -> ScenarioError:
+    with pytest.raises(ScenarioError) as info:
+        parse(doc, "s.toml")
+    return info.value
+
+
+# ---------------------------------------------------------------------------------- counts
+@pytest.mark.parametrize("value", [0, -3, True, 1.5, "2"])
+def test_a_count_below_one_or_not_an_integer_is_refused(value):
+    err = _refused(_doc(experiment={"stop": 0.1, "step": 0.01, "max_steps": value}))
+    assert str(err) == f"s.toml: experiment.max_steps: {value!r}: must be an integer >= 1"
+    assert (err.file, err.field) == ("s.toml", "experiment.max_steps")
+
+
+def test_a_count_of_one_is_accepted():
+    sc = parse(_doc(experiment={"stop": 0.1, "step": 0.01, "max_steps": 1}, record={"max_bytes": 1}), "s.toml")
+    assert sc.max_steps == 1 and sc.max_bytes == 1
+
+
+# ---------------------------------------------------------------------------------- parameters of runs
+def test_a_run_parameter_of_an_unknown_instance_names_its_field():
+    err = _refused(_doc(runs=[{"name": "r", "parameters": {"b.k": 1.0}}]))
+    assert str(err) == "s.toml: runs[0].parameters.b.k: unknown instance 'b'"
+
+
+def test_a_run_parameter_without_an_instance_names_its_field():
+    err = _refused(_doc(runs=[{"name": "r", "parameters": {"k": 1.0}}]))
+    assert str(err) == "s.toml: runs[0].parameters.k: 'k' is not of the form \"instance.variable\""
+
+
+def test_run_parameters_that_are_not_a_table_name_their_field():
+    err = _refused(_doc(runs=[{"name": "r", "parameters": 3}]))
+    assert str(err) == "s.toml: runs[0].parameters: must be a table"
+
+
+# ---------------------------------------------------------------------------------- --set
+def test_set_values_keep_everything_after_the_first_equals_sign():
+    assert parse_set(["a.s=x=1", "a.t= true ", "a.u=[1, 2]", "a.v=\"q\""]) == {
+        "a.s": "x=1", "a.t": True, "a.u": [1, 2], "a.v": "q"}
+
+
+@pytest.mark.parametrize("item", ["a.b", "ab=1"])
+def test_a_malformed_set_names_the_option_and_the_item(item):
+    with pytest.raises(ScenarioError) as info:
+        parse_set([item], form="I.P=V")
+    assert str(info.value) == f"--set: {item}: expected I.P=V"
+    assert (info.value.file, info.value.field) == ("--set", item)
+
+
+@pytest.mark.parametrize("text, value", [("true", True), ("True", True), (" TRUE ", True), ("false", False),
+                                         ("False", False), ("fAlSe", False), ("1e3", 1000.0), ("abc", "abc"),
+                                         ("\"true\"", "true")])
+def test_command_line_values_read_booleans_in_any_case(text, value):
+    got = parse_value(text)
+    assert got == value and type(got) is type(value)
+
+
+# ---------------------------------------------------------------------------------- conditions
+def _probe_with_dotted_names(tmp: Path) -> Path:
+    """The C probe FMU with its local ``c`` renamed ``body.c`` (names with dots, as Modelica tools write)."""
+    fmu = build_probe(tmp / "src")
+    out = tmp / "Probe.fmu"
+    with zipfile.ZipFile(fmu) as src, zipfile.ZipFile(out, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b'name="c"', b'name="body.c"')
+            dst.writestr(item, data)
+    shutil.rmtree(tmp / "src")
+    return out
+
+
+def test_a_condition_reads_a_variable_whose_name_has_dots(tmp_path):
+    fmu = _probe_with_dotted_names(tmp_path)
+    sc = parse({"experiment": {"stop": 0.1, "step": 0.01}, "instances": {"p": {"fmu": str(fmu)}},
+                "events": [{"when": "p.body.c > 0.5", "action": "stop"}]}, "s.toml")
+    plan = resolve(sc)
+    (event,) = plan.conditions
+    assert event.reads["p.body.c"][0] == "p" and event.reads["p.body.c"][1].name == "body.c"
+
+
+def test_a_condition_on_an_array_or_on_time_is_refused_in_one_line():
+    ss = REF / "fmi3" / "StateSpace.fmu"
+    for when, reason in (("s.x > 1", "s.x is an array: a condition reads scalars"),
+                         ("s.time > 1", "s.time is the independent variable: use t for the time")):
+        sc = parse({"experiment": {"stop": 0.1, "step": 0.01}, "instances": {"s": {"fmu": str(ss)}},
+                    "events": [{"when": when, "action": "stop"}]}, "s.toml")
+        with pytest.raises(ScenarioError) as info:
+            resolve(sc)
+        assert str(info.value) == f"s.toml: events[0].when: {reason}"
+
+
+# ---------------------------------------------------------------------------------- FMI 3.0 array sizes
+def _with_description(src: Path, out: Path, edit) -> Path:
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(out, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                data = edit(data.decode()).encode()
+            zout.writestr(item, data)
+    return out
+
+
+def test_array_sizes_come_from_fixed_dimensions_and_structural_parameters():
+    model = load_model(REF / "fmi3" / "StateSpace.fmu")
+    shapes = {name: v.shape for name, v in model.variables.items() if v.shape}
+    assert shapes == {"A": (3, 3), "B": (3, 3), "C": (3, 3), "D": (3, 3), "x0": (3,), "u": (3,), "y": (3,),
+                      "x": (3,), "der(x)": (3,)}
+
+
+def test_a_dimension_whose_structural_parameter_has_no_start_is_refused(tmp_path):
+    """StateSpace's arrays are sized by the structural parameter n (value reference 2); without its start
+    value the size is unknown, and the load refuses the FMU rather than making an empty array."""
+    n = 'name="n" valueReference="2" description="Number of states" causality="structuralParameter" ' \
+        'variability="tunable" start="3"'
+
+    def edit(xml: str) -> str:
+        assert n in xml
+        return xml.replace(n, n.replace(' start="3"', ""))
+
+    fmu = _with_description(REF / "fmi3" / "StateSpace.fmu", tmp_path / "StateSpace.fmu", edit)
+    with pytest.raises(FmuLoadError) as info:
+        load_model(fmu)
+    assert str(info.value).startswith(f"{fmu}: cannot read modelDescription.xml (")
+
+
+# ---------------------------------------------------------------------------------- archive limits
+@pytest.fixture
+def no_limits_in_env(monkeypatch):
+    """No limit in the environment, and whatever a test sets there is removed afterwards (setting first
+    makes monkeypatch remember the variable's absence)."""
+    for name in (archive.ENV_SIZE, archive.ENV_RATIO):
+        monkeypatch.setenv(name, "")
+        monkeypatch.delenv(name)
+
+
+def test_command_line_limits_are_kept_in_the_environment(no_limits_in_env):
+    assert archive.command_line_limits() == {}
+    archive.set_command_line_limits(max_size="2 KiB")
+    assert archive.command_line_limits() == {archive.ENV_SIZE: "2048"}
+    archive.set_command_line_limits(max_ratio=50)
+    assert archive.command_line_limits() == {archive.ENV_SIZE: "2048", archive.ENV_RATIO: "50.0"}
+    assert archive.current_limits().max_size == 2048 and archive.current_limits().max_ratio == 50.0
+    archive.set_command_line_limits()  # nothing given: nothing changes
+    assert archive.command_line_limits() == {archive.ENV_SIZE: "2048", archive.ENV_RATIO: "50.0"}
+
+
+@pytest.mark.parametrize("kw, message", [
+    ({"max_size": "lots"}, "--max-archive-size: 'lots' is not a size (a number of bytes, or e.g. '4 GiB', "
+                           "'500 MB')"),
+    ({"max_ratio": 0.5}, "--max-archive-ratio: 0.5: a ratio limit must be a number >= 1"),
+])
+def test_a_bad_command_line_limit_names_the_option(no_limits_in_env, kw, message):
+    with pytest.raises(CosimError) as info:
+        archive.set_command_line_limits(**kw)
+    assert str(info.value) == message and info.value.exit_code == 2
+    assert archive.command_line_limits() == {}
+    assert os.environ.get(archive.ENV_SIZE) is None
+
+
+@pytest.mark.parametrize("n, text", [(0, "0 B"), (1023, "1023 B"), (1023.7, "1023 B"), (1024, "1 KiB"),
+                                     (1536, "1.5 KiB"), (5 * 1024**2, "5 MiB"), (2 * 1024**3, "2 GiB"),
+                                     (3 * 1024**4, "3 TiB"), (1024**5, "1024 TiB")])
+def test_sizes_are_printed_with_binary_units(n, text):
+    assert archive.fmt_size(n) == text
