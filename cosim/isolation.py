@@ -13,7 +13,10 @@ The child (``python -m wmr_cosim.cosim.isolation``) loads the FMU with FMPy and 
 
 A child that dies is seen at once (end of file on its pipe): the master reports the instance, the time
 and how it died (the signal's name, or the exit code). A step that takes longer than ``step_timeout``
-seconds ends the child (SIGKILL) and is reported the same way. The child's standard output and error go
+seconds ends the child (SIGKILL) and is reported the same way; the child's first answer (its interpreter
+starting, its imports, the FMU loaded) may take up to ``STARTUP_TIMEOUT`` seconds whatever the step
+timeout, so that a short step timeout does not end a child that a loaded machine starts slowly. The
+child's standard output and error go
 to a file beside the instance's log, so an FMU writing junk to stdout cannot disturb anything.
 """
 from __future__ import annotations
@@ -69,12 +72,18 @@ def _how(code: int | None) -> str:
     return f"exited with code {code}"
 
 
+#: Seconds the child may take to give its first answer (start, imports, FMU loaded) when the step timeout
+#: is shorter.
+STARTUP_TIMEOUT = 60.0
+
+
 class Child:
     """The master's side of one child process."""
 
     def __init__(self, name: str, fmu_dir: str, log_path: Path | None, logging: str, step_timeout: float | None,
                  slot_values: int = 4096, spin: int = 0) -> None:
         self.name, self.step_timeout, self.spin = name, step_timeout, spin
+        self.started = False      # the child has answered once
         self.shm = shared_memory.SharedMemory(create=True, size=_HEAD + 16 * slot_values)
         self.cap = slot_values
         c_r, p_w = os.pipe()      # control: master -> child
@@ -108,9 +117,13 @@ class Child:
             os.write(self.ctl_w, struct.pack("<q", len(data)) + data)
         except BrokenPipeError:
             raise ChildDied(self._died()) from None
-        head = self._read(self.ctl_r, 8, self.step_timeout)
+        timeout = self.step_timeout
+        if not self.started and timeout is not None:
+            timeout = max(timeout, STARTUP_TIMEOUT)
+        head = self._read(self.ctl_r, 8, timeout)
         (n,) = struct.unpack("<q", head)
-        kind, value = pickle.loads(self._read(self.ctl_r, n, self.step_timeout))
+        kind, value = pickle.loads(self._read(self.ctl_r, n, timeout))
+        self.started = True
         if kind == "error":
             raise RuntimeError(value)
         return value

@@ -6,6 +6,7 @@ to in-process runs."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -75,6 +76,22 @@ def test_a_hang_in_an_isolated_fmu_is_ended_after_its_step_timeout(tmp_path):
     p = _run(_scenario(tmp_path, fmu, True, "step_timeout = 2.0"), tmp_path / "out")
     assert p.returncode == 1 and "did not answer within 2 s" in p.stderr and "t = 0.25 s" in p.stderr, p.stderr
     assert len(np.load(tmp_path / "out" / "signals.npy")) == 26
+
+
+def test_a_child_slower_to_start_than_the_step_timeout_is_not_ended(tmp_path, monkeypatch):
+    """The child's start (here made 1.5 s slower by a sitecustomize on its path) is not held to a step
+    timeout of 1 s: the run completes, bit-identical to the run in process."""
+    fmu = build_probe(tmp_path / "fmu")
+    slow = tmp_path / "slow"
+    slow.mkdir()
+    (slow / "sitecustomize.py").write_text("import time\ntime.sleep(1.5)\n")
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(filter(None, [str(slow), os.environ.get("PYTHONPATH")])))
+    p = _run(_scenario(tmp_path, fmu, True, "step_timeout = 1.0"), tmp_path / "iso")
+    assert p.returncode == 0, p.stderr
+    monkeypatch.delenv("PYTHONPATH")
+    q = _run(_scenario(tmp_path, fmu, False), tmp_path / "inproc")
+    assert q.returncode == 0, q.stderr
+    assert np.array_equal(np.load(tmp_path / "iso" / "signals.npy"), np.load(tmp_path / "inproc" / "signals.npy"))
 
 
 def test_junk_on_stdout_from_an_isolated_fmu_goes_to_a_file(tmp_path):
