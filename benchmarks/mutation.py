@@ -192,10 +192,42 @@ def survivor_diffs(names: list[str]) -> str:
     return "\n".join(out) + "\n"
 
 
-def check(names: list[str], test_files: list[Path], log: Path | None = None) -> dict[str, str]:
+#: Run in mutmut's mutated tree by :func:`check`: imports the project and pytest once, then forks one
+#: child per mutant that runs the test files with that mutant active (as mutmut does) and exits with
+#: pytest's status; a child that runs longer than the limit is killed and counts as killed (a hang).
+_CHECK_DRIVER = r"""
+import json, os, sys, time
+import numpy, fmpy, pytest
+import wmr_cosim.cosim.execution, wmr_cosim.cosim.ssp, wmr_cosim.cosim.isolation, wmr_cosim.api
+names, files, limit = json.loads(sys.argv[1]), json.loads(sys.argv[2]), float(sys.argv[3])
+for name in names:
+    pid = os.fork()
+    if pid == 0:
+        os.environ["MUTANT_UNDER_TEST"] = name
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, 1)
+        os.dup2(null, 2)
+        os._exit(int(pytest.main(["-x", "-q", "-p", "no:cacheprovider", *files])))
+    end = time.monotonic() + limit
+    while True:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            code = os.waitstatus_to_exitcode(status)
+            break
+        if time.monotonic() > end:
+            os.kill(pid, 9)
+            os.waitpid(pid, 0)
+            code = "timeout"
+            break
+        time.sleep(0.02)
+    print(json.dumps([name, code]), flush=True)
+"""
+
+
+def check(names: list[str], test_files: list[Path], limit_s: float = 120.0) -> dict[str, str]:
     """Whether the given test files kill each named mutant: the files are copied beside mutmut's copy of
     the tests (``build/mutation/mutants/tests``, named ``_check_*``, removed afterwards) and run there
-    with the mutant active, one pytest process per mutant.  {name: "killed" | "survived"}."""
+    with the mutant active, one forked pytest session per mutant.  {name: "killed" | "survived"}."""
     tests = STAGE / "mutants" / "tests"
     if not tests.is_dir():
         raise SystemExit("mutation: no mutants yet (run python benchmarks/mutation.py first)")
@@ -204,22 +236,44 @@ def check(names: list[str], test_files: list[Path], log: Path | None = None) -> 
         copy = tests / f"_check_{os.getpid()}_{Path(f).name}"
         shutil.copyfile(f, copy)
         copies.append(copy)
-    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1", "WMR_TEST_FMU_CACHE": str(STAGE / "fmu-cache")}
+    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1", "WMR_TEST_FMU_CACHE": str(STAGE / "fmu-cache"),
+           "WMR_MUTATION_CHECK": "1"}     # (tests/conftest.py collects the copies only then)
+    env.pop("MUTANT_UNDER_TEST", None)
     out: dict[str, str] = {}
     try:
-        for name in names:
-            proc = subprocess.run([sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider",
-                                   *[c.relative_to(STAGE / "mutants").as_posix() for c in copies]],
-                                  cwd=STAGE / "mutants", env={**env, "MUTANT_UNDER_TEST": name},
-                                  capture_output=True, text=True, check=False)
-            out[name] = "survived" if proc.returncode == 0 else "killed"
-            if log is not None:
-                with open(log, "a", encoding="utf-8") as fh:
-                    fh.write(f"### {name}: {out[name]} (pytest exit {proc.returncode})\n{proc.stdout[-3000:]}\n")
+        files = [c.relative_to(STAGE / "mutants").as_posix() for c in copies]
+        proc = subprocess.run([sys.executable, "-c", _CHECK_DRIVER, json.dumps(names), json.dumps(files),
+                               str(limit_s)], cwd=STAGE / "mutants", env=env, capture_output=True, text=True,
+                              check=False)
+        for line in proc.stdout.splitlines():
+            if line.startswith("["):
+                name, code = json.loads(line)
+                out[name] = "survived" if code == 0 else "killed"
+        missing = [n for n in names if n not in out]
+        if missing:
+            raise SystemExit(f"mutation: the check stopped before {missing[0]} ({proc.stderr.strip()[-500:]})")
     finally:
         for c in copies:
             c.unlink(missing_ok=True)
     return out
+
+
+def record_kills(killed: list[str]) -> int:
+    """Write "killed" into mutmut's results for these mutants (checked by :func:`check` with tests that
+    are now in the suite), as mutmut would after testing them; returns how many changed.  Only while no
+    mutmut run is going (it writes the same files)."""
+    want = set(killed)
+    n = 0
+    for meta in (STAGE / "mutants").rglob("*.py.meta"):
+        data = json.loads(meta.read_text(encoding="utf-8"))
+        codes = data.get("exit_code_by_key", {})
+        hit = [k for k in codes if k in want and codes[k] not in (1, 3)]
+        for k in hit:
+            codes[k] = 1
+        if hit:
+            meta.write_text(json.dumps(data), encoding="utf-8")
+            n += len(hit)
+    return n
 
 
 def _equivalents_file(section: str) -> list[dict[str, str]]:
@@ -368,9 +422,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--check", nargs="+", metavar="MUTANT", help="run only --tests against these mutants "
                     "(names as in the survivors list) and print which the tests kill")
     ap.add_argument("--tests", nargs="+", type=Path, default=[], help="test files for --check")
+    ap.add_argument("--record", action="store_true", help="with --check: write the kills into mutmut's "
+                    "results (only for tests that are in the suite, and while no mutmut run is going)")
     args = ap.parse_args(argv)
     if args.check:
         verdicts = check(args.check, args.tests)
+        if args.record:
+            record_kills([n for n, v in verdicts.items() if v == "killed"])
         print(json.dumps({"killed": sorted(n for n, v in verdicts.items() if v == "killed"),
                           "survived": sorted(n for n, v in verdicts.items() if v == "survived")}))
         return 0

@@ -1,9 +1,15 @@
 """Shared fixtures; the session's own temporary folder, which must be empty at the end (tempdir_guard)."""
 from __future__ import annotations
 
+import os
+
 import pytest
 
 from tempdir_guard import pytest_configure, pytest_sessionfinish  # noqa: F401 (hooks of this session)
+
+#: Copies of test files that the mutation harness's --check runs in mutmut's tree (benchmarks/mutation.py)
+#: belong to that check only: no other session (mutmut's own) collects them.
+collect_ignore_glob = [] if os.environ.get("WMR_MUTATION_CHECK") else ["_check_*"]
 
 
 def fmu_cache(tmp_path_factory, name: str):
