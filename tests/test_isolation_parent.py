@@ -614,3 +614,14 @@ def test_the_instances_child_writes_beside_its_log(fake, tmp_path, monkeypatch):
     quiet.instantiate()
     quiet.shutdown()
     assert os.listdir(tmp_path / "cwd") == []
+
+
+def test_a_death_before_the_first_step_is_at_the_start_time(fake):
+    """A value of another type set during initialisation, at the start time 2.5 s: the child's death
+    is reported at 2.5 s."""
+    inst = fake.instance({"replies": {"set_typed": ["exit", 3]}})
+    inst.setup_experiment(2.5, 3.0, None)
+    call, ctype = inst.accessor("Integer", "Set")
+    with pytest.raises(RunError) as exc:
+        call((ctypes.c_uint * 1)(3), ctypes.c_size_t(1), (ctype * 1)(7), ctypes.c_size_t(1))
+    assert str(exc.value) == f"d: the FMU's process exited with code 3 during fmiSetInteger at t = 2.5 s {TAIL}"
