@@ -234,14 +234,20 @@ def test_the_childs_output_goes_to_a_file_beside_its_log(fake, tmp_path, capfd):
     c.close()
     out = (tmp_path / "d.log.stdout").read_text()
     assert "stdout of d" in out and "stderr of d" in out
-    assert "of d" not in capfd.readouterr().out + capfd.readouterr().err
+    captured = capfd.readouterr()
+    assert "of d" not in captured.out + captured.err
     assert _lines(log)[0] == "start d warning 0"
 
 
 def test_without_a_log_the_child_writes_no_file(fake, tmp_path, monkeypatch, capfd):
+    """No file, no output and no warning on the master's side (a user would see a warning on stderr)."""
+    import warnings
+
     (tmp_path / "cwd").mkdir()
     monkeypatch.chdir(tmp_path / "cwd")
-    c = fake.child(log=None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        c = fake.child(log=None)
     assert c.call("echo", "x") == ("x",)
     c.close()
     assert os.listdir(tmp_path / "cwd") == []
