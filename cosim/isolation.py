@@ -92,7 +92,7 @@ class Child:
             os.close(fd)
         self.ctl_w, self.ctl_r, self.step_w, self.done_r = p_w, p_r, m_s, m_d
         os.set_blocking(m_d, False)
-        self.t = 0.0
+        self.t = 0.0   # the time of the last step (the instance sets the start time at its set-up)
         self.addr = _address(self.shm)
         self.status = ctypes.c_int64.from_address(self.addr)
         self.time = ctypes.c_double.from_address(self.addr + 8)
