@@ -14,12 +14,10 @@ import json
 import os
 import signal
 import subprocess
-import sys
 from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
-
 from wmr_cosim.cosim import isolation
 from wmr_cosim.cosim.errors import RunError
 from wmr_cosim.cosim.isolation import Child, ChildDied, IsolatedInstance, spin_for

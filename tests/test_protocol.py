@@ -7,7 +7,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from cosim_support import write_scenario
 from reference_fmus import REF as _REF
 from wmr_cosim.cosim.errors import EXIT_RUN_FAILED, RunError, ScenarioError
@@ -48,7 +47,7 @@ name = "c"
 
 def test_a_file_without_runs_is_one_run_named_run(tmp_path):
     path = _protocol(tmp_path)
-    sc, runs, vparams = plan_runs(path)
+    _, runs, vparams = plan_runs(path)
     assert [r.name for r in runs] == ["run"] and vparams == {}
     results = run_protocol(path, tmp_path / "out", progress=False)
     assert list(results) == ["run"] and results["run"].status == "ok"
