@@ -81,7 +81,7 @@ class Child:
     """The master's side of one child process."""
 
     def __init__(self, name: str, fmu_dir: str, log_path: Path | None, logging: str, step_timeout: float | None,
-                 slot_values: int = 4096, spin: int = 0) -> None:
+                 spin: int, slot_values: int = 4096) -> None:
         self.name, self.step_timeout, self.spin = name, step_timeout, spin
         self.started = False      # the child has answered once
         self.shm = shared_memory.SharedMemory(create=True, size=_HEAD + 16 * slot_values)
@@ -101,7 +101,7 @@ class Child:
             os.close(fd)
         self.ctl_w, self.ctl_r, self.step_w, self.done_r = p_w, p_r, m_s, m_d
         os.set_blocking(m_d, False)
-        self.t = 0.0
+        self.t = 0.0   # the time of the last step (the instance sets the start time at its set-up)
         self.addr = _address(self.shm)
         self.status = ctypes.c_int64.from_address(self.addr)
         self.time = ctypes.c_double.from_address(self.addr + 8)
@@ -377,29 +377,24 @@ class IsolatedInstance:
     execution drives it through the same calls, and the generated loop through the entry points of
     :meth:`entry_points`, which work on the step slot."""
 
-    def __init__(self, name: str, md: Any, unzipdir: str, log_path: str | os.PathLike | None = None,
-                 logging: str = "warning", step_timeout: float | None = 60.0, spin: int = 0) -> None:
-        from collections import deque
-
+    def __init__(self, name: str, md: Any, unzipdir: str, log_path: str | os.PathLike | None, logging: str,
+                 step_timeout: float | None, spin: int) -> None:
         self.name, self.md, self.logging = name, md, logging
         self.fmi = 3 if md.fmiVersion.startswith("3") else 2
-        self.log: Any = deque(maxlen=200)
+        self.log: list[str] = []   # the child's last log lines (its instance keeps at most 200)
         self.log_lines = self.received = self.n_errors = 0
-        self.fatal = self.initialised = self.freed = False
+        self.fatal = self.freed = False
         self.dead = ""
-        self.child = Child(name, unzipdir, Path(log_path) if log_path else None, logging, step_timeout, spin=spin)
+        self.child = Child(name, unzipdir, Path(log_path) if log_path else None, logging, step_timeout, spin)
         self.c = 0
         self.fmu = None
-        self._experiment: tuple = (0.0, None, None)
 
     # ------------------------------------------------------------------ log
     def _sync_log(self) -> None:
         if self.dead:
             return
         try:
-            self.log_lines, self.received, self.n_errors, lines = self.child.call("log_state")
-            self.log.clear()
-            self.log.extend(lines)
+            self.log_lines, self.received, self.n_errors, self.log = self.child.call("log_state")
         except (ChildDied, RuntimeError):
             pass
 
@@ -441,7 +436,7 @@ class IsolatedInstance:
         self._call("instantiate", "instantiate")
 
     def setup_experiment(self, start: float, stop: float | None, tolerance: float | None) -> None:
-        self._experiment = (start, stop, tolerance)
+        self.child.t = start   # the time of a failure before the first step
         self._call("set-up", "setup_experiment", start, stop, tolerance, t=start)
 
     def set_values(self, pairs: list) -> None:
@@ -452,11 +447,10 @@ class IsolatedInstance:
         return self._call(f"reading {var.name}", "get_value", var)
 
     def enter_initialization(self) -> None:
-        self._call("initialisation", "enter_initialization", t=self._experiment[0])
+        self._call("initialisation", "enter_initialization", t=self.child.t)
 
     def exit_initialization(self) -> None:
-        self._call("initialisation", "exit_initialization", t=self._experiment[0])
-        self.initialised = True
+        self._call("initialisation", "exit_initialization", t=self.child.t)
 
     def terminated_at(self) -> float | None:
         if self.fmi == 3:

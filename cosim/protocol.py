@@ -61,16 +61,19 @@ def run_protocol(path: str | os.PathLike, out_dir: str | os.PathLike, resolver: 
         if only is not None and run.name not in only:
             continue
         params = {**vparams, **run.parameters}
+        carried: dict[str, Any] = {}
         for ref, src in run.carry.items():
             src_run, col = src.split(".", 1)
             if src_run not in results:
                 raise ScenarioError(sc.file, f"runs.{run.name}.carry.{ref}", f"run {src_run!r} has not been run")
-            if carry is None and col not in results[src_run].final:
-                raise ScenarioError(sc.file, f"runs.{run.name}.carry.{ref}",
-                                    f"{src!r} was not recorded by run {src_run!r}")
-        finals = {n: r.final for n, r in results.items()}
-        params.update(carry(run.carry, finals) if carry is not None else
-                      {ref: finals[src.split(".", 1)[0]][src.split(".", 1)[1]] for ref, src in run.carry.items()})
+            if carry is None:
+                if col not in results[src_run].final:
+                    raise ScenarioError(sc.file, f"runs.{run.name}.carry.{ref}",
+                                        f"{src!r} was not recorded by run {src_run!r}")
+                carried[ref] = results[src_run].final[col]
+        if carry is not None:
+            carried = carry(run.carry, {n: r.final for n, r in results.items()})
+        params.update(carried)
         params.update(overrides or {})
         plan = system.resolve(scenario.load(path, resolver, params), force)
         for ip in plan.instances.values():

@@ -1,0 +1,161 @@
+"""Protocols (several runs in one scenario file): which runs run, in which order, into which folders, with
+which parameters (variants, carried values, overrides), and the exact one-line errors of a bad protocol.
+The FMU is the Reference FMUs' Dahlquist (dx/dt = -k x, x(0) = 1)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from cosim_support import write_scenario
+from reference_fmus import REF as _REF
+from wmr_cosim.cosim.errors import EXIT_RUN_FAILED, RunError, ScenarioError
+from wmr_cosim.cosim.protocol import plan_runs, run_protocol
+
+DAHLQUIST = _REF / "fmi2" / "Dahlquist.fmu"
+
+
+def _protocol(tmp: Path, runs: str = "", extra: str = "", isolate: bool = False, name: str = "protocol") -> Path:
+    return write_scenario(tmp / f"{name}.toml", f'''
+[experiment]
+stop = 0.1
+step = 0.05
+{extra}
+[instances.d]
+fmu = "{DAHLQUIST}"
+isolate = {"true" if isolate else "false"}
+[record]
+variables = ["d.x", "d.k"]
+{runs}''')
+
+
+RUNS = '''
+[variants.slow]
+parameters = { "d.k" = 0.5 }
+[variants.fast]
+parameters = { "d.k" = 4.0 }
+[[runs]]
+name = "a"
+parameters = { "d.k" = 2.0 }
+[[runs]]
+name = "b"
+carry = { "d.k" = "a.d.x" }
+[[runs]]
+name = "c"
+'''
+
+
+def test_a_file_without_runs_is_one_run_named_run(tmp_path):
+    path = _protocol(tmp_path)
+    _, runs, vparams = plan_runs(path)
+    assert [r.name for r in runs] == ["run"] and vparams == {}
+    results = run_protocol(path, tmp_path / "out", progress=False)
+    assert list(results) == ["run"] and results["run"].status == "ok"
+    assert (tmp_path / "out" / "run" / "signals.npy").is_file()
+
+
+def test_an_unknown_variant_names_the_file_and_the_declared_ones(tmp_path):
+    path = _protocol(tmp_path, RUNS)
+    with pytest.raises(ScenarioError) as exc:
+        plan_runs(path, None, "nope")
+    assert str(exc.value) == f"{path}: --variant nope: not declared by this file (declared: slow, fast)"
+    bare = _protocol(tmp_path, name="bare")
+    with pytest.raises(ScenarioError) as exc:
+        plan_runs(bare, None, "nope")
+    assert str(exc.value) == f"{bare}: --variant nope: not declared by this file (declared: none)"
+    assert plan_runs(path, None, "fast")[2] == {"d.k": 4.0}
+
+
+def test_runs_in_order_with_variant_carry_and_overrides(tmp_path):
+    """The variant sets every run's parameters, a run's own parameters win over it, a carried value is the
+    source run's final recorded value, and overrides win over all; each run in its own folder."""
+    path = _protocol(tmp_path, RUNS)
+    seen: list[tuple[str, str]] = []
+    results = run_protocol(path, tmp_path / "out", variant="slow", progress=False,
+                           on_run=lambda name, res: seen.append((name, res.status)))
+    assert list(results) == ["a", "b", "c"]
+    assert seen == [("a", "ok"), ("b", "ok"), ("c", "ok")]
+    k = {n: results[n].final["d.k"] for n in results}
+    assert k["a"] == 2.0 and k["c"] == 0.5                    # the run's own value; the variant's
+    assert k["b"] == results["a"].final["d.x"] and 0.5 < k["b"] < 1.0   # carried from run a
+    for n in "abc":
+        d = np.load(tmp_path / "out" / n / "signals.npy")
+        assert d["d.k"][-1] == k[n] and d["d.x"][-1] == results[n].final["d.x"]
+    over = run_protocol(path, tmp_path / "over", variant="slow", overrides={"d.k": 3.0}, progress=False)
+    assert {n: r.final["d.k"] for n, r in over.items()} == {"a": 3.0, "b": 3.0, "c": 3.0}
+
+
+def test_on_run_gets_each_runs_name_and_result(tmp_path):
+    path = _protocol(tmp_path, RUNS)
+    seen: dict[str, object] = {}
+    results = run_protocol(path, tmp_path / "out", progress=False, on_run=seen.__setitem__)
+    assert seen == results and all(r.out_dir == tmp_path / "out" / n for n, r in seen.items())
+
+
+def test_only_runs_the_named_runs(tmp_path):
+    path = _protocol(tmp_path, RUNS)
+    results = run_protocol(path, tmp_path / "out", progress=False, only=["c"])
+    assert list(results) == ["c"] and not (tmp_path / "out" / "a").exists()
+    results = run_protocol(path, tmp_path / "out2", progress=False, only=["a", "c"])
+    assert list(results) == ["a", "c"] and not (tmp_path / "out2" / "b").exists()
+
+
+def test_a_carry_from_a_run_that_was_left_out(tmp_path):
+    path = _protocol(tmp_path, RUNS)
+    with pytest.raises(ScenarioError) as exc:
+        run_protocol(path, tmp_path / "out", progress=False, only=["b"])
+    assert str(exc.value) == f"{path}: runs.b.carry.d.k: run 'a' has not been run"
+    assert exc.value.file == str(path) and exc.value.field == "runs.b.carry.d.k"
+
+
+def test_a_carry_of_a_value_that_was_not_recorded(tmp_path):
+    path = _protocol(tmp_path, RUNS.replace('"a.d.x"', '"a.d.der(x)"'))
+    with pytest.raises(ScenarioError) as exc:
+        run_protocol(path, tmp_path / "out", progress=False)
+    assert str(exc.value) == f"{path}: runs.b.carry.d.k: 'a.d.der(x)' was not recorded by run 'a'"
+
+
+def test_a_carry_function_replaces_the_lookup(tmp_path):
+    path = _protocol(tmp_path, RUNS.replace('"a.d.x"', '"a.d.der(x)"'))
+    calls = []
+
+    def carry(spec, finals):
+        calls.append((dict(spec), sorted(finals)))
+        return {ref: 1.5 for ref in spec}
+    results = run_protocol(path, tmp_path / "out", progress=False, carry=carry)
+    assert results["b"].final["d.k"] == 1.5
+    assert calls == [({}, []), ({"d.k": "a.d.der(x)"}, ["a"]), ({}, ["a", "b"])]
+
+
+def test_force_lifts_the_step_limit(tmp_path):
+    path = _protocol(tmp_path, extra="max_steps = 1")
+    with pytest.raises(ScenarioError, match="more than max_steps = 1"):
+        run_protocol(path, tmp_path / "out", progress=False)
+    assert run_protocol(path, tmp_path / "forced", progress=False, force=True)["run"].steps == 2
+
+
+def test_the_progress_bar_is_passed_on(tmp_path, capfd):
+    path = _protocol(tmp_path)
+    run_protocol(path, tmp_path / "quiet", progress=False)
+    assert capfd.readouterr().err == ""
+    run_protocol(path, tmp_path / "bar", progress=True)
+    assert "step" in capfd.readouterr().err
+
+
+def test_isolate_hosts_every_instance_in_a_child_process(tmp_path):
+    """isolate=True isolates every instance; isolate=False leaves a scenario's own isolate = true."""
+    path = _protocol(tmp_path)
+    run_protocol(path, tmp_path / "plain", progress=False)
+    assert not (tmp_path / "plain" / "run" / "logs" / "d.log.stdout").exists()
+    run_protocol(path, tmp_path / "iso", progress=False, isolate=True)
+    assert (tmp_path / "iso" / "run" / "logs" / "d.log.stdout").exists()
+    own = _protocol(tmp_path, isolate=True, name="own")
+    run_protocol(own, tmp_path / "own", progress=False, isolate=False)
+    assert (tmp_path / "own" / "run" / "logs" / "d.log.stdout").exists()
+
+
+def test_a_run_error_without_an_instance():
+    """A RunError not tied to an instance (the API's failed run) has no instance and no time."""
+    err = RunError("the run  failed\n at the end")
+    assert (str(err), err.instance, err.time, err.exit_code) == ("the run failed at the end", "", None,
+                                                                 EXIT_RUN_FAILED)
