@@ -50,9 +50,10 @@ KNOWN: dict[str, Unit] = {u.name: u for u in (
 
 
 def units_of(model_description) -> dict[str, Unit]:
-    """The UnitDefinitions of an FMPy model description, by name."""
+    """The UnitDefinitions of an FMPy model description (FMI 2.0 or 3.0), by name; a definition without
+    BaseUnit is the common unit of that name, or left out when there is none (then known by name only)."""
     out: dict[str, Unit] = {}
-    for ud in getattr(model_description, "unitDefinitions", None) or []:
+    for ud in model_description.unitDefinitions:   # (FMPy: an empty list when there are none)
         bu = ud.baseUnit
         if bu is None:
             if ud.name in KNOWN:
@@ -72,7 +73,7 @@ def lookup(name: str | None, defined: dict[str, Unit]) -> Unit | None:
         return defined[name]
     if name in KNOWN:
         return KNOWN[name]
-    return Unit(name, (), 1.0, 0.0)
+    return Unit(name, ())
 
 
 def conversion(src: Unit | None, dst: Unit | None) -> tuple[float, float]:

@@ -76,11 +76,11 @@ _MD = """<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription fmiVersion="2.0" modelName="u" guid="{{u}}">
   <CoSimulation modelIdentifier="u"/>
   <UnitDefinitions>
+    <Unit name="furlong"/>
     <Unit name="degF"><BaseUnit K="1" factor="{f}" offset="{o}"/></Unit>
     <Unit name="N.m"><BaseUnit kg="1" m="2" s="-2"/></Unit>
     <Unit name="mol/cd/A"><BaseUnit mol="1" cd="-1" A="-1" rad="2"/></Unit>
     <Unit name="deg"/>
-    <Unit name="furlong"/>
   </UnitDefinitions>
   <ModelVariables>
     <ScalarVariable name="T" valueReference="0" causality="output"><Real unit="degF"/></ScalarVariable>
@@ -101,6 +101,8 @@ def test_units_of_reads_the_unit_definitions(tmp_path):
     assert defined["N.m"] == KNOWN["N.m"]
     assert _convert("degF", "degC", 212.0, defined) == pytest.approx(100.0, abs=1e-9)
     assert _convert("degF", "K", 32.0, defined) == pytest.approx(273.15, abs=1e-9)
+    assert _convert("K", "degF", 373.15, defined) == pytest.approx(212.0, abs=1e-9)
+    assert _convert("degC", "degF", -40.0, defined) == pytest.approx(-40.0, abs=1e-9)
     assert lookup("furlong", defined) == Unit("furlong", (), 1.0, 0.0)
 
 
