@@ -154,6 +154,34 @@ def test_a_message_from_an_fmu_the_master_did_not_make_is_printed(fake, monkeypa
     assert inst.received == 0
 
 
+@pytest.mark.parametrize("tool, level, expected", [
+    ("Some Tool 1.0", "all", [("setDebugLogging", (True, []))]),
+    ("Some Tool 1.0", "warning", [("setDebugLogging", (True, ["logStatusWarning", "WarnMore", "logStatusError"]))]),
+    ("Some Tool 1.0", "error", [("setDebugLogging", (True, ["logStatusError"]))]),
+    ("Some Tool 1.0", "info", []),
+    # pythonfmu reports exceptions without a category: it gets no list, the level applies on this side
+    ("PythonFMU 0.6.5", "warning", []),
+    ("pythonfmu", "all", [("setDebugLogging", (True, []))]),
+])
+def test_fmi2_debug_logging_asks_for_the_categories_of_the_level(fake, tool, level, expected):
+    md = _md(("logEvents", "logStatusWarning", "WarnMore", "logStatusError"), tool=tool)
+    inst, fmu = fake(md=md, logging=level)
+    inst.instantiate()
+    visible, callbacks, logging_on = fmu.instantiate_args
+    assert (visible, logging_on) == (False, True)
+    assert fmu.calls[1:] == expected
+
+
+def test_fmi2_debug_logging_failure_is_named(fake):
+    inst, fmu = fake(logging="all")
+    fmu.fail["setDebugLogging"] = ERROR
+    with pytest.raises(RunError, match=r"^A: fmi2SetDebugLogging returned Error; "):
+        inst.instantiate()
+    inst, fmu = fake(name="B", md=_md(("logEvents",)), logging="error")
+    inst.instantiate()
+    assert fmu.calls[1:] == [("setDebugLogging", (False, []))]
+
+
 # ---------------------------------------------------------------- last log and failure messages
 def test_last_log_gives_the_last_three_lines_with_their_whitespace_collapsed(fake):
     inst, fmu = fake()
