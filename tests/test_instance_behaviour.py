@@ -173,10 +173,11 @@ def test_fmi2_debug_logging_asks_for_the_categories_of_the_level(fake, tool, lev
 
 
 def test_fmi2_debug_logging_failure_is_named(fake):
-    inst, fmu = fake(logging="all")
-    fmu.fail["setDebugLogging"] = ERROR
-    with pytest.raises(RunError, match=r"^A: fmi2SetDebugLogging returned Error; "):
-        inst.instantiate()
+    for level in ("all", "warning"):
+        inst, fmu = fake(name=level, logging=level)
+        fmu.fail["setDebugLogging"] = ERROR
+        with pytest.raises(RunError, match=rf"^{level}: fmi2SetDebugLogging returned Error; "):
+            inst.instantiate()
     inst, fmu = fake(name="B", md=_md(("logEvents",)), logging="error")
     inst.instantiate()
     assert fmu.calls[1:] == [("setDebugLogging", (False, []))]
@@ -333,6 +334,30 @@ def test_fmi3_failures_name_the_fmi3_call(fake):
         inst.set_values([(var("x", 3, "Real", "Float64"), 1.0)])
 
 
+def test_fmi3_initialisation_without_an_experiment_starts_at_zero_without_stop_or_tolerance(fake):
+    inst, fmu = fake(Instance3)
+    inst.instantiate()
+    inst.enter_initialization()
+    assert fmu.calls[-1] == ("enterInitializationMode", (None, 0.0, None))
+
+
+def test_both_versions_load_the_fmu_by_its_description_under_the_instance_name(fake):
+    for cls in (Instance, Instance3):
+        inst, fmu = fake(cls, name=f"x{cls.__name__}")
+        assert fmu.kwargs == {"guid": "{g}", "unzipDirectory": "/nowhere", "modelIdentifier": "M",
+                              "instanceName": f"x{cls.__name__}"}
+
+
+def test_fmi3_array_values_are_set_as_one_flat_call(fake):
+    inst, fmu = fake(Instance3)
+    inst.instantiate()
+    inst.set_values([(var("x0", 5, "Real", "Float64", shape=(2,)), [1, 2]),
+                     (var("k", 6, "Integer", "Int32", shape=(3,)), (4, 5, 6)),
+                     (var("on", 7, "Boolean", "Boolean"), 1)])
+    assert fmu.calls[2:] == [("setFloat64", ([5], [1.0, 2.0])), ("setInt32", ([6], [4, 5, 6])),
+                             ("setBoolean", ([7], [1]))]
+
+
 def test_fmi3_exit_initialization_marks_the_instance_for_termination(fake):
     inst, fmu = fake(Instance3)
     inst.instantiate()
@@ -400,3 +425,19 @@ def test_fmi3_fmu_errors_arrive_in_the_log(feedthrough):
     assert msg.startswith("ft: fmi3SetFloat64(bogus) returned Error; last log: [Error] logStatusError: ")
     assert "999" in msg
     assert (inst.received, inst.n_errors, inst.log_lines) == (1, 1, 1)
+
+
+# ---------------------------------------------------------------- a real FMI 2.0 FMU
+def test_fmi2_fmu_messages_arrive_formatted_in_the_log(tmp_path):
+    """The C FMU's message has printf arguments: FMPy's logger proxy formats them before the master sees it."""
+    model = load_model(REF / "fmi2" / "Feedthrough.fmu")
+    inst = Instance("ft2", model.md, fmpy.extract(str(model.path), str(tmp_path / "unz")))
+    try:
+        inst.instantiate()
+        inst.setup_experiment(0.0, 1.0, None)
+        with pytest.raises(RunError) as exc:
+            inst.set_values([(var("bogus", 999, "Real"), 1.0)])
+        assert str(exc.value).startswith("ft2: fmi2SetReal(bogus) returned Error; last log: [Error] logStatusError: ")
+        assert "999" in str(exc.value) and "%" not in str(exc.value)
+    finally:
+        inst.shutdown()
