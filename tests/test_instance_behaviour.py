@@ -162,6 +162,7 @@ def test_a_message_from_an_fmu_the_master_did_not_make_is_printed(fake, monkeypa
     # pythonfmu reports exceptions without a category: it gets no list, the level applies on this side
     ("PythonFMU 0.6.5", "warning", []),
     ("pythonfmu", "all", [("setDebugLogging", (True, []))]),
+    (None, "error", [("setDebugLogging", (True, ["logStatusError"]))]),   # no generationTool attribute value
 ])
 def test_fmi2_debug_logging_asks_for_the_categories_of_the_level(fake, tool, level, expected):
     md = _md(("logEvents", "logStatusWarning", "WarnMore", "logStatusError"), tool=tool)
@@ -439,5 +440,20 @@ def test_fmi2_fmu_messages_arrive_formatted_in_the_log(tmp_path):
             inst.set_values([(var("bogus", 999, "Real"), 1.0)])
         assert str(exc.value).startswith("ft2: fmi2SetReal(bogus) returned Error; last log: [Error] logStatusError: ")
         assert "999" in str(exc.value) and "%" not in str(exc.value)
+    finally:
+        inst.shutdown()
+
+
+def test_variadic_fmi2_messages_are_formatted_before_they_are_logged(tmp_path):
+    """The probe FMU logs with a format and arguments ("%s", message), as most C FMUs do: FMPy's logger
+    proxy, registered for each instance, formats them."""
+    from c_fmu_support import build_probe
+
+    path = build_probe(tmp_path / "fmu", "LogProbe")
+    model = load_model(path)
+    inst = Instance("probe", model.md, fmpy.extract(str(path), str(tmp_path / "unz")), logging="all")
+    try:
+        inst.instantiate()
+        assert list(inst.log) == ["[OK] logAll: instantiated"]
     finally:
         inst.shutdown()
