@@ -41,6 +41,9 @@ class FakeSlave:
             raise FMICallException(name, self.fail[name])
 
     def instantiate(self, *args):
+        if self.fail.get("instantiate") == "NULL":     # fmiInstantiate returned NULL: FMPy raises this
+            self.calls.append(("instantiate", args))
+            raise Exception("Failed to instantiate model")
         self._record("instantiate", args)
         self.instantiate_args = args
         self.component = 0x1234
@@ -357,6 +360,27 @@ def test_fmi3_array_values_are_set_as_one_flat_call(fake):
                      (var("on", 7, "Boolean", "Boolean"), 1)])
     assert fmu.calls[2:] == [("setFloat64", ([5], [1.0, 2.0])), ("setInt32", ([6], [4, 5, 6])),
                              ("setBoolean", ([7], [1]))]
+
+
+def test_an_instance_the_fmu_refused_to_create_is_reported_and_never_freed(fake):
+    for cls, shown in ((Instance, "fmi2Instantiate"), (Instance3, "fmi3InstantiateCoSimulation")):
+        inst, fmu = fake(cls, name=f"n{cls.__name__}")
+        fmu.fail["instantiate"] = "NULL"
+        with pytest.raises(RunError) as exc:
+            inst.instantiate()
+        assert str(exc.value) == (f"n{cls.__name__}: {shown} failed: Failed to instantiate model; "
+                                  "last log: (the FMU logged nothing)")
+        inst.shutdown()
+        assert fmu.names() == ["instantiate"]
+
+
+def test_an_fmi2_instance_never_initialised_is_freed_without_terminate(fake):
+    inst, fmu = fake()
+    inst.instantiate()
+    inst.enter_initialization()
+    inst.shutdown()
+    inst.shutdown()                        # exactly once
+    assert fmu.names()[-2:] == ["enterInitializationMode", "freeInstance"]
 
 
 def test_fmi3_exit_initialization_marks_the_instance_for_termination(fake):
