@@ -226,6 +226,41 @@ def test_fatal_makes_the_instance_untouchable(fake):
     assert len(fmu.calls) == n
 
 
+def test_fmi2_life_cycle_calls_and_their_failures(fake):
+    inst, fmu = fake()
+    inst.instantiate()
+    inst.setup_experiment(0.5, 2.0, 1e-6)
+    inst.enter_initialization()
+    inst.exit_initialization()
+    inst.shutdown()
+    assert fmu.calls[1:] == [("setDebugLogging", (True, ["logStatusError"])),
+                             ("setupExperiment", (1e-6, 0.5, 2.0)), ("enterInitializationMode", ()),
+                             ("exitInitializationMode", ()), ("terminate", ()), ("freeInstance", ())]
+    steps = [("setupExperiment", "fmi2SetupExperiment", lambda i: i.setup_experiment(0.0, None, None)),
+             ("enterInitializationMode", "fmi2EnterInitializationMode", lambda i: i.enter_initialization()),
+             ("exitInitializationMode", "fmi2ExitInitializationMode", lambda i: i.exit_initialization())]
+    for k, (method, shown, action) in enumerate(steps):
+        inst, fmu = fake(name=f"F{k}")
+        inst.instantiate()
+        fmu.fail[method] = ERROR
+        with pytest.raises(RunError, match=rf"^F{k}: {shown} returned Error; last log: "):
+            action(inst)
+        assert not inst.initialised
+
+
+def test_an_exception_in_a_call_names_instance_call_and_time(fake):
+    inst, fmu = fake(name="P")
+    inst.instantiate()
+    fmu.say2(WARNING, b"c", b"before")
+
+    def broken(x):
+        raise ValueError(f"bad\n   value {x}")
+    with pytest.raises(RunError) as exc:
+        inst.call("fmi2DoStep", broken, 3, t=0.25)
+    assert str(exc.value) == "P: fmi2DoStep failed: bad value 3; last log: [Warning] c: before"
+    assert (exc.value.instance, exc.value.time) == ("P", 0.25)
+
+
 # ---------------------------------------------------------------- reading values (FMI 2.0)
 def test_fmi2_get_value_reads_each_type_with_its_fmi_call(fake):
     inst, fmu = fake()
