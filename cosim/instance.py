@@ -57,15 +57,25 @@ LOG_LEVELS = {"all": 0, "info": 0, "warning": 1, "error": 3}
 _LEVEL_WORDS = {"warning": ("warn", "discard", "error", "fatal", "pending"), "error": ("error", "fatal")}
 
 
+def _label(status: int) -> str:
+    """The FMI name of a status ("OK" ... "Pending"), or its number when it is none of them."""
+    return STATUS[status] if 0 <= status < len(STATUS) else str(status)
+
+
+def _text(raw: bytes | None) -> str:
+    """A C string from an FMU as text: UTF-8, undecodable bytes replaced (an FMU may log in another
+    encoding), "" for NULL."""
+    return (raw or b"").decode("utf-8", "replace")
+
+
 def _dispatch(env, instance_name, status, category, message) -> None:
     # some tools' FMUs (20-sim) pass back a componentEnvironment other than the one they were given:
     # then the instance name routes the message
-    inst = _LIVE.get(env or 0) or _BY_NAME.get(instance_name or b"")
+    inst = _LIVE.get(env) or _BY_NAME.get(instance_name)
     if inst is not None:
         inst._logger(status, category, message)
     else:  # an FMU this master did not instantiate (FMPy's own defaults): print as FMPy does
-        label = STATUS[status] if 0 <= status < len(STATUS) else status
-        print(f"[{label}] {(message or b'').decode('utf-8', 'replace')}")
+        print(f"[{_label(status)}] {_text(message)}")
 
 
 _DISPATCH = fmi2CallbackLoggerTYPE(_dispatch)
@@ -88,12 +98,17 @@ class Instance:
         self.fatal = False
         self.initialised = False
         self.freed = False
-        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir,
-                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+        self.c = None
+        self.fmu = self._slave(md, unzipdir)
+
+    def _slave(self, md: Any, unzipdir: str) -> Any:
+        """The FMPy slave of the FMU, its callbacks registered with the logger dispatcher."""
+        fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir,
+                        modelIdentifier=md.coSimulation.modelIdentifier, instanceName=self.name)
         self._callbacks = fmi2CallbackFunctions()
         self._env = next(_IDS)
         _LIVE[self._env] = self
-        _BY_NAME[name.encode("utf-8")] = self
+        _BY_NAME[self.name.encode("utf-8")] = self
         self._callbacks.componentEnvironment = self._env
         self._callbacks.logger = _DISPATCH
         self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
@@ -103,7 +118,7 @@ class Instance:
             addLoggerProxy(ctypes.byref(self._callbacks))
         except Exception:  # pragma: no cover
             pass
-        self.c = None
+        return fmu
 
     # ------------------------------------------------------------------ log
     def _logger(self, status, category, message) -> None:
@@ -112,8 +127,7 @@ class Instance:
             self.n_errors += 1
         if status < self.min_status:
             return
-        line = f"[{STATUS[status] if 0 <= status < len(STATUS) else status}] " \
-               f"{(category or b'').decode('utf-8', 'replace')}: {(message or b'').decode('utf-8', 'replace')}"
+        line = f"[{_label(status)}] {_text(category)}: {_text(message)}"
         self.log.append(line)
         self.log_lines += 1
         if self._log_fh is not None:
@@ -132,7 +146,7 @@ class Instance:
         if status == FATAL:
             self.fatal = True
         at = f" at t = {t:.6g} s" if t is not None else ""
-        return RunError(f"{self.name}: {what} returned {STATUS[status] if 0 <= status < 6 else status}{at}; "
+        return RunError(f"{self.name}: {what} returned {_label(status)}{at}; "
                         f"last log: {self.last_log()}", self.name, t)
 
     def call(self, what: str, fn, *args, t: float | None = None) -> Any:
@@ -151,16 +165,21 @@ class Instance:
         """fmi2Instantiate (logging on), then fmi2SetDebugLogging with the categories of the level."""
         self.call("fmi2Instantiate", self.fmu.instantiate, False, self._callbacks, True)
         self.c = self.fmu.component  # the stepping loop calls the library through raw()
-        words = _LEVEL_WORDS.get(self.logging)
-        cats = [c.name for c in getattr(self.md, "logCategories", None) or []]
         # pythonfmu FMUs report exceptions with no category, which a category list filters out: they
         # get no list (they do not log at every step anyway), and the level is applied on this side
         pythonfmu = (self.md.generationTool or "").lower().startswith("pythonfmu")
+        self._debug_logging("fmi2SetDebugLogging", lists_categories=not pythonfmu)
+
+    def _debug_logging(self, what: str, lists_categories: bool = True) -> None:
+        """Ask the FMU for the log categories it declares that the level keeps (all of them for "all";
+        with ``lists_categories`` False, only "all" asks for anything)."""
+        words = _LEVEL_WORDS.get(self.logging)
+        cats = [c.name for c in getattr(self.md, "logCategories", None) or []]
         if self.logging == "all" and cats:
-            self.call("fmi2SetDebugLogging", self.fmu.setDebugLogging, True, [])
-        elif words and cats and not pythonfmu:
+            self.call(what, self.fmu.setDebugLogging, True, [])
+        elif words and cats and lists_categories:
             chosen = [c for c in cats if any(w in c.lower() for w in words)]
-            self.call("fmi2SetDebugLogging", self.fmu.setDebugLogging, bool(chosen), chosen)
+            self.call(what, self.fmu.setDebugLogging, bool(chosen), chosen)
 
     def setup_experiment(self, start: float, stop: float | None, tolerance: float | None) -> None:
         self.call("fmi2SetupExperiment", self.fmu.setupExperiment, tolerance, start, stop)
@@ -184,7 +203,7 @@ class Instance:
         if t not in ("Real", "Integer", "Boolean", "String"):
             raise RunError(f"{self.name}: variables of type {var.type} cannot be read", self.name)
         value = self.call(f"fmi2Get{t}({var.name})", getattr(self.fmu, f"get{t}"), [var.vr])[0]
-        return value.decode("utf-8", "replace") if isinstance(value, bytes) else value
+        return _text(value) if isinstance(value, bytes) else value
 
     def enter_initialization(self) -> None:
         self.call("fmi2EnterInitializationMode", self.fmu.enterInitializationMode)
@@ -226,25 +245,20 @@ class Instance:
 _PYDLLS: dict[int, Any] = {}
 
 
+def _fmi3_call_type(var: Variable) -> str:
+    """The type in the name of the FMI 3.0 get/set function of a variable: an Enumeration is an Int64."""
+    return "Int64" if var.fmi_type == "Enumeration" else var.fmi_type
+
+
 class Instance3(Instance):
     """An instantiated FMI 3.0 co-simulation FMU (no event mode, no early return) with its log."""
 
-    def __init__(self, name: str, md: Any, unzipdir: str, log_path: str | os.PathLike | None = None,
-                 logging: str = "warning", log_size: int = 200) -> None:
+    def _slave(self, md: Any, unzipdir: str) -> Any:
         from fmpy.fmi3 import FMU3Slave
 
-        self.name = name
-        self.md = md
-        self.log = deque(maxlen=log_size)
-        self.log_lines = self.n_errors = self.received = 0
-        self.min_status = LOG_LEVELS[logging]
-        self.logging = logging
-        self._log_fh = open(log_path, "w", encoding="utf-8") if log_path is not None else None
-        self.fatal = self.initialised = self.freed = False
-        self.fmu = FMU3Slave(guid=md.guid, unzipDirectory=unzipdir,
-                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
-        self.c = None
         self._experiment: tuple[float, float | None, float | None] = (0.0, None, None)
+        return FMU3Slave(guid=md.guid, unzipDirectory=unzipdir,
+                         modelIdentifier=md.coSimulation.modelIdentifier, instanceName=self.name)
 
     def _log3(self, env, status, category, message) -> None:  # fmi3LogMessageCallback: no variadic arguments
         self._logger(status, category, message)
@@ -252,36 +266,30 @@ class Instance3(Instance):
     def instantiate(self) -> None:
         self.call("fmi3InstantiateCoSimulation", self.fmu.instantiate, False, True, False, False, self._log3)
         self.c = self.fmu.component
-        cats = [c.name for c in getattr(self.md, "logCategories", None) or []]
-        words = _LEVEL_WORDS.get(self.logging)
-        if self.logging == "all" and cats:
-            self.call("fmi3SetDebugLogging", self.fmu.setDebugLogging, True, [])
-        elif words and cats:
-            chosen = [c for c in cats if any(w in c.lower() for w in words)]
-            self.call("fmi3SetDebugLogging", self.fmu.setDebugLogging, bool(chosen), chosen)
+        self._debug_logging("fmi3SetDebugLogging")
 
     def setup_experiment(self, start: float, stop: float | None, tolerance: float | None) -> None:
         self._experiment = (start, stop, tolerance)   # FMI 3.0 takes them at fmi3EnterInitializationMode
 
     def set_values(self, pairs: list[tuple[Variable, Any]]) -> None:
+        """Set start values / parameters (an array variable takes a list); Booleans need no conversion:
+        FMPy hands them to ctypes' fmi3Boolean, which takes any value's truth."""
         for var, value in pairs:
             values = list(value) if isinstance(value, (list, tuple)) else [value]
-            t = var.fmi_type
+            t = _fmi3_call_type(var)
             if var.type == "Real":
                 values = [float(v) for v in values]
-            elif var.type == "Boolean":
-                values = [bool(v) for v in values]
             elif var.type == "Binary":
                 values = [bytes.fromhex(v) for v in values]
             self.call(f"fmi3Set{t}({var.name})", getattr(self.fmu, f"set{t}"), [var.vr], values)
 
     def get_value(self, var: Variable) -> Any:
-        t = var.fmi_type
-        if t == "Binary" or var.shape:
-            raise RunError(f"{self.name}: {var.name} ({t}{list(var.shape) if var.shape else ''}) cannot be read "
-                           "as one value", self.name)
-        value = self.call(f"fmi3Get{t}({var.name})", getattr(self.fmu, f"get{t}"), [var.vr])[0]
-        return value.decode("utf-8", "replace") if isinstance(value, bytes) else value
+        if var.fmi_type == "Binary" or var.shape:
+            raise RunError(f"{self.name}: {var.name} ({var.fmi_type}{list(var.shape) if var.shape else ''}) cannot "
+                           "be read as one value", self.name)
+        t = _fmi3_call_type(var)
+        # (FMPy decodes an FMI 3.0 string itself)
+        return self.call(f"fmi3Get{t}({var.name})", getattr(self.fmu, f"get{t}"), [var.vr])[0]
 
     def enter_initialization(self) -> None:
         start, stop, tol = self._experiment

@@ -25,32 +25,35 @@ class Unit:
     offset: float = 0.0
 
 
-def _u(name: str, factor: float = 1.0, offset: float = 0.0, **exps: int) -> Unit:
+def unit(name: str, factor: float = 1.0, offset: float = 0.0, **exps: int) -> Unit:
+    """The Unit ``name`` with the exponents given by base unit name (``unit("N", kg=1, m=1, s=-2)``; the
+    bases not given have exponent 0): value in base units = factor * value + offset."""
     return Unit(name, tuple(exps.get(b, 0) for b in _BASES), factor, offset)
 
 
 _DEG = math.pi / 180.0
 #: Common units, used when an FMU names a unit it does not define.
 KNOWN: dict[str, Unit] = {u.name: u for u in (
-    _u("1"), _u("-"), _u("rad", rad=1), _u("deg", _DEG, rad=1), _u("rev", 2 * math.pi, rad=1),
-    _u("rad/s", rad=1, s=-1), _u("deg/s", _DEG, rad=1, s=-1), _u("rpm", 2 * math.pi / 60, rad=1, s=-1),
-    _u("rad/s2", rad=1, s=-2), _u("rad/s^2", rad=1, s=-2), _u("deg/s2", _DEG, rad=1, s=-2),
-    _u("m", m=1), _u("mm", 1e-3, m=1), _u("cm", 1e-2, m=1), _u("km", 1e3, m=1),
-    _u("m/s", m=1, s=-1), _u("km/h", 1 / 3.6, m=1, s=-1), _u("mm/s", 1e-3, m=1, s=-1),
-    _u("m/s2", m=1, s=-2), _u("s", s=1), _u("ms", 1e-3, s=1), _u("min", 60.0, s=1), _u("h", 3600.0, s=1),
-    _u("1/s", s=-1), _u("Hz", s=-1), _u("kg", kg=1), _u("g", 1e-3, kg=1),
-    _u("N", kg=1, m=1, s=-2), _u("N.m", kg=1, m=2, s=-2), _u("Nm", kg=1, m=2, s=-2),
-    _u("N*m", kg=1, m=2, s=-2), _u("mN.m", 1e-3, kg=1, m=2, s=-2), _u("kg.m2", kg=1, m=2),
-    _u("kg.m^2", kg=1, m=2), _u("N.m.s/rad", kg=1, m=2, s=-1, rad=-1), _u("s/rad", s=1, rad=-1),
-    _u("W", kg=1, m=2, s=-3), _u("V", kg=1, m=2, s=-3, A=-1), _u("A", A=1), _u("K", K=1),
-    _u("degC", 1.0, 273.15, K=1),
+    unit("1"), unit("-"), unit("rad", rad=1), unit("deg", _DEG, rad=1), unit("rev", 2 * math.pi, rad=1),
+    unit("rad/s", rad=1, s=-1), unit("deg/s", _DEG, rad=1, s=-1), unit("rpm", 2 * math.pi / 60, rad=1, s=-1),
+    unit("rad/s2", rad=1, s=-2), unit("rad/s^2", rad=1, s=-2), unit("deg/s2", _DEG, rad=1, s=-2),
+    unit("m", m=1), unit("mm", 1e-3, m=1), unit("cm", 1e-2, m=1), unit("km", 1e3, m=1),
+    unit("m/s", m=1, s=-1), unit("km/h", 1 / 3.6, m=1, s=-1), unit("mm/s", 1e-3, m=1, s=-1),
+    unit("m/s2", m=1, s=-2), unit("s", s=1), unit("ms", 1e-3, s=1), unit("min", 60.0, s=1), unit("h", 3600.0, s=1),
+    unit("1/s", s=-1), unit("Hz", s=-1), unit("kg", kg=1), unit("g", 1e-3, kg=1),
+    unit("N", kg=1, m=1, s=-2), unit("N.m", kg=1, m=2, s=-2), unit("Nm", kg=1, m=2, s=-2),
+    unit("N*m", kg=1, m=2, s=-2), unit("mN.m", 1e-3, kg=1, m=2, s=-2), unit("kg.m2", kg=1, m=2),
+    unit("kg.m^2", kg=1, m=2), unit("N.m.s/rad", kg=1, m=2, s=-1, rad=-1), unit("s/rad", s=1, rad=-1),
+    unit("W", kg=1, m=2, s=-3), unit("V", kg=1, m=2, s=-3, A=-1), unit("A", A=1), unit("K", K=1),
+    unit("degC", 1.0, 273.15, K=1),
 )}
 
 
 def units_of(model_description) -> dict[str, Unit]:
-    """The UnitDefinitions of an FMPy model description, by name."""
+    """The UnitDefinitions of an FMPy model description (FMI 2.0 or 3.0), by name; a definition without
+    BaseUnit is the common unit of that name, or left out when there is none (then known by name only)."""
     out: dict[str, Unit] = {}
-    for ud in getattr(model_description, "unitDefinitions", None) or []:
+    for ud in model_description.unitDefinitions:   # (FMPy: an empty list when there are none)
         bu = ud.baseUnit
         if bu is None:
             if ud.name in KNOWN:
@@ -70,7 +73,7 @@ def lookup(name: str | None, defined: dict[str, Unit]) -> Unit | None:
         return defined[name]
     if name in KNOWN:
         return KNOWN[name]
-    return Unit(name, (), 1.0, 0.0)
+    return Unit(name, ())
 
 
 def conversion(src: Unit | None, dst: Unit | None) -> tuple[float, float]:
