@@ -195,4 +195,4 @@ def test_linear_and_hold_compare_times_with_a_relative_tolerance():
     grid = np.array([0.1 + 0.2, 0.6 * (1 - 5e-8), 0.6 * (1 - 5e-10)])   # 0.30000000000000004, ...
     assert sample_hold(t, v, grid).tolist() == [3.0, 3.0, 6.0]
     lin = sample_linear(t, v, grid)
-    assert lin[0] == 3.0 and lin[1] == pytest.approx(6.0 * (1 - 5e-8), rel=1e-12) and lin[2] == 6.0
+    assert lin[0] == pytest.approx(3.0, rel=1e-12) and lin[1] == pytest.approx(6.0 * (1 - 5e-8), rel=1e-12) and lin[2] == 6.0
