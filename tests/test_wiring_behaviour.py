@@ -186,15 +186,17 @@ class FakeFmu:
 
         def call(vrs, n, buf, nv) -> int:
             count = nv.value                              # a None here is a crash in C
-            vr = vrs[0]
+            per = count // n.value                        # values per value reference
             size = ctypes.sizeof(ctype) * count
             if op == "Get":
-                raw = (ctype * count)(*self.values[vr])
+                raw = (ctype * count)(*[x for vr in vrs[:n.value] for x in self.values[vr]])
                 ctypes.memmove(buf, raw, size)
             else:
                 have = min(size, ctypes.sizeof(buf))
                 raw = ctypes.string_at(ctypes.addressof(buf), have) + b"\0" * (size - have)
-                self.values[vr] = list((ctype * count).from_buffer_copy(raw))
+                got = list((ctype * count).from_buffer_copy(raw))
+                for j, vr in enumerate(vrs[:n.value]):
+                    self.values[vr] = got[j * per:(j + 1) * per]
             self.calls.append(f"{op}{fmi_type}")
             return 0
         return call, ctype
@@ -262,3 +264,114 @@ def test_strings_are_copied():
     got, _ = _copy(_v("s", 1, "output", "String"), _v("t", 2, "input", "String"), [b"hello"])
     assert got == [b"hello"]
 
+
+
+# --- the row layout ---------------------------------------------------------------------------------------
+
+def _rec(inst: str, var: Variable, elem: int = 0):
+    from wmr_cosim.cosim.system import RecordPlan
+    return RecordPlan(inst, var, f"{inst}.{var.name}", elem)
+
+
+def test_the_row_holds_time_then_each_instances_float64_outputs_then_the_other_reals_then_integers():
+    a_y, a_z = _v("y", 1, "output"), _arr(_v("z", 3, "output"), 3)
+    a_f = _v("f", 4, "output", "Float32")
+    a_n, b_flag = _v("n", 6, "output", "Int16"), _v("flag", 8, "output", "Boolean")
+    b_out, b_watch = _v("out", 11, "output"), _v("watch", 12, "output")
+    b_in = _v("u", 5, "input")
+    conn = ConnectionPlan("a", a_y, "b", b_in, 1.0, 0.0, _spec())
+    record = [_rec("b", b_out), _rec("a", a_n), _rec("a", a_z, 2), _rec("a", a_f), _rec("b", b_flag),
+              _rec("a", a_y), _rec("a", a_z, 0)]
+    cond = SimpleNamespace(reads={"b.watch": ("b", b_watch), "b.u": ("b", b_in)})
+    plan = SimpleNamespace(order=["a", "b"], connections=[conn], record=record, conditions=[cond],
+                           watched=[("b", b_watch), ("b", b_in)])
+    lay = RowLayout.of(plan)
+    # a: y (1 value) and z (3 values) at slots 1..4; b: out and watch at 5, 6 (the watched input is not kept)
+    assert lay.reals == {"a": [(1, 1), (3, 3)], "b": [(11, 1), (12, 1)]}
+    assert lay.offset == {"a": 1, "b": 5} and lay.n_real == 7
+    assert [lay.slot(r) for r in record] == [5, 8, 4, 7, 9, 1, 2]    # Float32 after the doubles, then integers
+    assert (lay.n_double, lay.n_int) == (8, 2)
+    assert lay.index("a", 3, 2) == 3 and lay.index("b", 12) == 1
+    with pytest.raises(KeyError):
+        lay.index("b", 99)
+    # one buffer: the doubles, then the integers; the instances' views are windows on it
+    assert ctypes.sizeof(lay.buf) == 8 * 10 and len(lay.row) == 8 and len(lay.irow) == 2
+    lay.out_arr["a"][3] = 2.5
+    lay.out_arr["b"][0] = -1.0
+    assert lay.row[4] == 2.5 and lay.row[5] == -1.0
+    lay.write(8, 42)
+    lay.write(9, 1)
+    lay.write(7, 0.25)
+    assert list(lay.irow) == [42, 1] and lay.row[7] == 0.25
+    assert ctypes.c_int64.from_buffer(lay.buf, 8 * 8).value == 42
+
+
+def test_a_row_without_integers_still_has_an_integer_view():
+    a_y = _v("y", 1, "output")
+    plan = SimpleNamespace(order=["a"], connections=[], record=[_rec("a", a_y)], watched=[])
+    lay = RowLayout.of(plan)
+    assert (lay.n_real, lay.n_double, lay.n_int) == (2, 2, 0)
+    assert ctypes.sizeof(lay.buf) == 16 and len(lay.irow) == 1 and len(lay.out_arr["a"]) == 1
+
+
+# --- tabulated inputs -------------------------------------------------------------------------------------
+
+def _plan_input(inst: str, var: Variable, values):
+    import numpy as np
+    from wmr_cosim.cosim.inputs import InputPlan
+    return InputPlan(inst, var, f"{inst}.{var.name}", "hold", np.asarray(values))
+
+
+def test_tabulated_real_inputs_are_copied_from_the_table_row_of_each_step():
+    import numpy as np
+    from wmr_cosim.cosim.wiring import table_feeder
+    b_u, b_q = B_VARS["u"], B_VARS["q"]
+    b_f, b_n, b_s = _v("f", 21, "input", "Float32"), _v("n", 22, "input", "Int16"), _v("s", 23, "input", "String")
+    b_k = _v("k", 24, "input", "Int16")
+    inputs = [_plan_input("b", b_q, [1.0, 2.0, 3.0]), _plan_input("b", b_f, [0.5, 1.5, 2.5]),
+              _plan_input("b", b_n, [7, 8, 9]), _plan_input("b", b_s, np.array(["x", "y", "z"], dtype=object)),
+              _plan_input("b", b_k, [-1, -2, -3])]
+    conn = ConnectionPlan("a", A_VARS["y"], "b", b_u, 2.0, 0.5, _spec())
+    instances = {"a": InstancePlan("a", None, SimpleNamespace(variables=A_VARS)),
+                 "b": InstancePlan("b", None, SimpleNamespace(variables=B_VARS))}
+    plan = SimpleNamespace(order=["a", "b"], instances=instances, connections=[conn], record=[], watched=[],
+                           inputs=inputs, events=[], conditions=[])
+    lay = RowLayout.of(plan)
+    w = Wiring(plan, lay)
+    assert "a" not in w.tables
+    fmu = FakeFmu({})
+    feed = table_feeder(fmu, w.tables.get("b"), [ip for ip in inputs if ip.var.fmi_type != "Float64"])
+    lay.out_arr["a"][0] = 10.0
+    assert feed(2) == 0
+    assert _received(w.copies("b")) == {0: 20.5, 1: 3.0}            # b.u from a.y; b.q from the table
+    assert fmu.values == {21: [2.5], 22: [9], 24: [-3], 23: [b"z"]}
+    assert fmu.calls == ["SetFloat32", "SetInt16", "SetString"]     # one call per FMI type, sorted
+    assert feed(0) == 0 and fmu.values == {21: [0.5], 22: [7], 24: [-1], 23: [b"x"]}
+    assert _received(w.copies("b")) == {0: 20.5, 1: 1.0}
+
+
+def test_a_feeder_of_reals_only_and_none_without_tabulated_inputs():
+    from wmr_cosim.cosim.wiring import table_feeder
+    import numpy as np
+    arr = (ctypes.c_double * 2)()
+    feed = table_feeder(FakeFmu({}), (arr, np.array([[1.0, 2.0], [3.0, 4.0]])), [])
+    assert feed(1) == 0 and list(arr) == [3.0, 4.0]
+    assert table_feeder(FakeFmu({}), None, []) is None
+
+
+def test_a_feeder_stops_at_the_first_failing_set():
+    from wmr_cosim.cosim.wiring import table_feeder
+    fmu = FakeFmu({})
+    inputs = [_plan_input("b", _v("f", 21, "input", "Float32"), [0.5]), _plan_input("b", _v("n", 22, "input", "Int16"), [7])]
+    calls = []
+
+    def accessor(fmi_type, op):
+        def call(vrs, n, buf, nv):
+            calls.append(fmi_type)
+            return 3 if fmi_type == "Float32" else 0
+        return call, CTYPES[fmi_type]
+    fmu.accessor = accessor
+    import numpy as np
+    arr = (ctypes.c_double * 1)()
+    feed = table_feeder(fmu, (arr, np.array([[1.0]])), inputs)
+    assert feed(0) == 3 and calls == ["Float32"] and list(arr) == [1.0]
