@@ -375,3 +375,48 @@ def test_a_feeder_stops_at_the_first_failing_set():
     arr = (ctypes.c_double * 1)()
     feed = table_feeder(fmu, (arr, np.array([[1.0]])), inputs)
     assert feed(0) == 3 and calls == ["Float32"] and list(arr) == [1.0]
+
+
+def test_a_row_with_one_integer():
+    plan = SimpleNamespace(order=["a"], connections=[], record=[_rec("a", _v("n", 6, "output", "Int16"))],
+                           watched=[])
+    lay = RowLayout.of(plan)
+    assert (lay.n_double, lay.n_int) == (1, 1) and ctypes.sizeof(lay.buf) == 16 and len(lay.irow) == 1
+    lay.write(1, -7)
+    assert ctypes.c_int64.from_buffer(lay.buf, 8).value == -7
+
+
+def test_array_connections_copy_every_element_or_the_one_named():
+    a_z = _arr(_v("z", 3, "output"), 3)
+    b_v, b_s = _arr(_v("v", 30, "input"), 3), _v("s", 31, "input")
+    conns = [ConnectionPlan("a", a_z, "b", b_v, 1.0, 0.0, _spec()),
+             ConnectionPlan("a", a_z, "b", b_s, 10.0, 0.0, _spec(), src_elem=1)]
+    instances = {"a": InstancePlan("a", None, SimpleNamespace(variables={"z": a_z})),
+                 "b": InstancePlan("b", None, SimpleNamespace(variables={"v": b_v, "s": b_s}))}
+    plan = SimpleNamespace(order=["a", "b"], instances=instances, connections=conns, record=[], watched=[],
+                           inputs=[], events=[], conditions=[])
+    lay = RowLayout.of(plan)
+    w = Wiring(plan, lay)
+    lay.out_arr["a"][:] = [1.0, 2.0, 3.0]
+    assert _received(w.copies("b")) == {0: 1.0, 1: 2.0, 2: 3.0, 3: 20.0}
+    assert w.values["b"] == [(30, 0), (30, 1), (30, 2), (31, 0)]
+    assert w.vrs == {"a": [], "b": [30, 31]}                   # an array's value reference once
+    assert w.is_wired("a", 3, "output") and w.is_wired("b", 30, "input")
+
+
+def test_only_events_acting_on_an_unconnected_real_input_give_it_a_start_value():
+    b_n = _v("n", 40, "input", "Integer")
+    events = [EventPlan(time=2.0, step=2, instance=None, var=None, action="stop", value=None, ref=None),
+              _event("b", B_VARS["q"], "set", 1.0),              # a set: on the FMU directly
+              _event("b", B_VARS["out"], "override", 1.0),       # an output: not an input the master sets
+              _event("b", b_n, "override", 1),                  # not Real
+              _event("b", B_VARS["u"], "override", 9.0),         # connected: keeps its connection
+              _event("b", B_VARS["w"], "bias", 1.0)]
+    w, src = _system(events=events[:3])
+    w2, src2 = _system(events=events[3:])
+    src[0] = src2[0] = 1.0
+    assert _received(w.copies("b")) == {0: 2.5} and w.vrs["b"] == [5]
+    assert _received(w2.copies("b")) == {0: 2.5, 1: 2.5} and w2.vrs["b"] == [5, 7]
+    w3, _ = _system(events=[])
+    w3.plan.conditions = [events[5]]
+    assert _received(Wiring(w3.plan, RowLayout.of(w3.plan)).copies("b"))[1] == 2.5   # condition events too
