@@ -196,3 +196,11 @@ def test_linear_and_hold_compare_times_with_a_relative_tolerance():
     assert sample_hold(t, v, grid).tolist() == [3.0, 3.0, 6.0]
     lin = sample_linear(t, v, grid)
     assert lin[0] == pytest.approx(3.0, rel=1e-12) and lin[1] == pytest.approx(6.0 * (1 - 5e-8), rel=1e-12) and lin[2] == 6.0
+
+
+def test_two_columns_driving_one_input_are_refused(tmp_path):
+    u = _var("u")
+    # "u" and "plant.u" name the same input (the resolver maps both), as would a column named twice
+    assert _error(tmp_path, "time,u,v,plant.u\n0,1,2,3\n", {"u": u, "v": _var("v"), "plant.u": u}) == \
+        f"{WHERE}: inputs.plant.u: {tmp_path / 'in.csv'}: column 'plant.u' drives plant.u, as column 'u' does"
+    assert "column 'u' drives plant.u, as column 'u' does" in _error(tmp_path, "time,u,u\n0,1,2\n", {"u": u})
