@@ -420,3 +420,13 @@ def test_only_events_acting_on_an_unconnected_real_input_give_it_a_start_value()
     w3, _ = _system(events=[])
     w3.plan.conditions = [events[5]]
     assert _received(Wiring(w3.plan, RowLayout.of(w3.plan)).copies("b"))[1] == 2.5   # condition events too
+
+
+def test_apply_puts_an_events_action_in_force():
+    w, src = _system()
+    src[0] = 10.0
+    assert w.apply(_event("b", B_VARS["u"], "override", 3.0)) is True
+    assert _received(w.copies("b")) == {0: 3.0}
+    assert w.apply(_event("a", A_VARS["y"], "reset", None)) is False
+    assert w.apply(_event("b", B_VARS["u"], "reset", None)) is True
+    assert _received(w.copies("b")) == {0: 20.5}
