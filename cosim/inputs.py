@@ -1,7 +1,7 @@
 """Tabulated inputs: input signals read from a CSV file and sampled at the communication points.
 
 The file has a time column first and one column per input, named ``instance.variable`` (or just
-``variable`` when the system has one instance).  Values are read as the variable's type: Real as float,
+``variable`` when the system has one instance); two columns naming one input are refused.  Values are read as the variable's type: Real as float,
 Integer and Enumeration as integers (exactly: a 64-bit value is never passed through a float), Boolean
 as true/false/1/0, String as text.
 
@@ -125,9 +125,14 @@ def read_inputs(file: Path, where: str, interpolation: dict[str, str], resolve_v
         if mode not in INTERPOLATIONS:
             raise ScenarioError(where, f"inputs.interpolation.{ref}", f"{mode!r}: must be linear or hold")
     plans = []
+    first: dict[tuple[str, str], str] = {}   # (instance, variable) -> the column that drives it
     for j, col in enumerate(header[1:], start=1):
         inst, var = resolve_var(col)
         cfld = f"inputs.{col}"
+        if (inst, var.name) in first:
+            raise ScenarioError(where, cfld, f"{file}: column {col!r} drives {inst}.{var.name}, "
+                                             f"as column {first[(inst, var.name)]!r} does")
+        first[(inst, var.name)] = col
         vals = [_convert(r[j], var, where, cfld) for r in rows[1:]]
         continuous = var.type == "Real" and var.variability == "continuous"
         mode = interpolation.get(col, "linear" if continuous else "hold")

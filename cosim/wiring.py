@@ -213,7 +213,7 @@ class Wiring:
         by_vr = {v.vr: v for v in ip.model.variables.values()}
         vrs = [vr for vr, _ in self.values[name]]
         for pos, arr, i, f, o in copies:
-            v = arr[i] * f + o if (f != 1.0 or o != 0.0) else arr[i]
+            v = arr[i] * f + o   # non-finite exactly when the value set is (x * 1.0 + 0.0 keeps inf, nan)
             if v - v != 0.0:
                 var = by_vr.get(vrs[pos])
                 label = f"{name}.{ip.our_name(var)}" if var is not None else f"{name} input {vrs[pos]}"
