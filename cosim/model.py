@@ -231,7 +231,6 @@ def load_model(path: str | os.PathLike) -> FmuModel:
     _check_binary(path, md.coSimulation.modelIdentifier, fmi)
     model = FmuModel(path, md, fmi=fmi)
     defined = units_of(md)
-    by_vr = {int(v.valueReference): v for v in md.modelVariables}
     for v in md.modelVariables:
         kind = KINDS.get(v.type, v.type) if fmi == 3 else v.type
         if kind == "Clock":
