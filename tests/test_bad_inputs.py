@@ -270,21 +270,40 @@ def test_two_concurrent_runs_into_one_folder(sandbox):
     assert len(d) == 300_001 and np.all(np.diff(d["time"]) > 0)
 
 
+#: The command line, stopped (SIGSTOP) at the moment it would give the written CSV its name: the test
+#: kills it there, deterministically, however fast the machine writes.
+_STOP_BEFORE_THE_CSV_IS_NAMED = r"""
+import os, signal, sys
+_replace = os.replace
+def _stop_first(src, dst, *args, **kwargs):
+    if str(dst).endswith("signals.csv"):
+        os.kill(os.getpid(), signal.SIGSTOP)
+    return _replace(src, dst, *args, **kwargs)
+os.replace = _stop_first
+from wmr_cosim.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
 @pytest.mark.slow
 def test_a_kill_while_the_csv_is_written_leaves_no_partial_csv(sandbox):
     work, _ = sandbox
-    path = _long(work, 400_000, columns=8)
-    p = _start(["run", str(path), "--out", "o", "--quiet"], work)
+    path = _long(work, 100_000, columns=8)
+    p = subprocess.Popen([sys.executable, "-c", _STOP_BEFORE_THE_CSV_IS_NAMED, "run", str(path), "--out", "o",
+                          "--quiet"], cwd=work, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     part = work / "o" / "signals.csv.part"
-    deadline = time.time() + 60
-    while not part.exists() and time.time() < deadline and p.poll() is None:
-        time.sleep(0.005)
-    assert part.exists(), "the CSV was written too fast to interrupt"
+    deadline = time.time() + 120
+    stopped = False
+    while time.time() < deadline and p.poll() is None and not stopped:
+        time.sleep(0.01)
+        stopped = Path(f"/proc/{p.pid}/stat").read_text().split(")")[-1].split()[0] == "T"
+    assert stopped, f"the run did not stop before naming its CSV: {p.communicate()}"
+    assert part.stat().st_size > 0
     p.send_signal(signal.SIGKILL)
-    p.wait(timeout=30)
+    p.communicate(timeout=30)
     assert not (work / "o" / "signals.csv").exists()      # no truncated file under the result's name
     import numpy as np
-    assert len(np.load(work / "o" / "signals.npy")) == 400_001   # the recording is whole
+    assert len(np.load(work / "o" / "signals.npy")) == 100_001   # the recording is whole
     part.unlink()
 
 
