@@ -485,3 +485,123 @@ def test_the_schemas_come_from_pyssp_standard(monkeypatch, tmp_path):
     with pytest.raises(CosimError) as ei:
         validate_xml(ssd, "ssd", "x")
     assert str(ei.value) == "pyssp-standard is not installed (pip install pyssp-standard): it provides the SSP schemas"
+
+
+# ------------------------------------------------------------------------------- components and bindings
+def _comp(name: str = "a", attrs: str = 'source="resources/Gain.fmu"', inner: str = "") -> str:
+    return f'<ssd:Component name="{name}" type="application/x-fmu-sharedlibrary" {attrs}>{inner}</ssd:Component>'
+
+
+@pytest.mark.parametrize("components, where, reason", [
+    (_comp() + _comp(), "Component a", "two components with this name"),
+    (_comp(attrs='source="resources/Gain.fmu" type="application/x-other"').replace(
+        'type="application/x-fmu-sharedlibrary" ', ""),
+     "Component a", "type 'application/x-other': only FMUs (application/x-fmu-sharedlibrary) are supported"),
+    (_comp(attrs='source="resources/Gain.fmu" implementation="ModelExchange"'),
+     "Component a", "implementation 'ModelExchange': only co-simulation is supported"),
+    (_comp(attrs='source="https://example.org/Gain.fmu"'), "Component a.source",
+     "'https://example.org/Gain.fmu': only FMUs inside the archive are supported"),
+    (_comp(attrs='source="/resources/Gain.fmu"'), "Component a.source",
+     "'/resources/Gain.fmu': only FMUs inside the archive are supported"),
+    (_comp(attrs='source="resources/../../Gain.fmu"'), "Component a.source",
+     "'resources/../../Gain.fmu': only FMUs inside the archive are supported"),
+    (_comp(attrs='source="resources/Gain.fmu#a"'), "Component a.source",
+     "'resources/Gain.fmu#a': only FMUs inside the archive are supported"),
+    (_comp(attrs='source="resources/Other.fmu"'), "Component a.source",
+     "resource 'resources/Other.fmu' is missing from the archive"),
+    (_comp(attrs='source="resources"'), "Component a.source", "resource 'resources' is missing from the archive"),
+])
+def test_a_component_the_master_cannot_load_is_named_in_one_line(tmp_path, components, where, reason):
+    path = _archive(tmp_path, components=components)
+    assert _error(path) == f"{path}: {where}: {reason}"
+
+
+def test_a_component_may_be_any_implementation_and_its_source_relative(tmp_path):
+    comps = (_comp("a", 'source="./resources/Gain.fmu" implementation="any"')
+             + _comp("b", 'source="resources/Gain.fmu" implementation="CoSimulation"'))
+    sc = _load(_archive(tmp_path, components=comps))
+    assert list(sc.instances) == ["a", "b"] and sc.instances["a"].fmu_path.name == "Gain.fmu"
+    assert sc.record == ["*.*"]                      # no output connectors: everything is recorded
+
+
+def _binding(attrs: str = "", inner: str = "") -> str:
+    return f"<ssd:ParameterBindings><ssd:ParameterBinding {attrs}>{inner}</ssd:ParameterBinding></ssd:ParameterBindings>"
+
+
+SSV_FILE = (f'<?xml version="1.0" encoding="UTF-8"?>\n<ssv:ParameterSet xmlns:ssv="{NS["ssv"]}" version="1.0" '
+            'name="s"><ssv:Parameters>{}</ssv:Parameters></ssv:ParameterSet>')
+
+
+@pytest.mark.parametrize("binding, reason", [
+    (_binding('type="application/x-other" source="resources/a.ssv"'),
+     "type 'application/x-other' is not supported (only application/x-ssp-parameter-set)"),
+    (_binding('source="resources/a.ssv"', '<ssd:ParameterMapping source="resources/a.ssm"/>'),
+     "parameter mappings (.ssm) are not supported"),
+    (_binding('source="resources/a.ssv" sourceBase="component"'),
+     'resources/a.ssv: sourceBase="component" is not supported'),
+    (_binding('source="resources/none.ssv"'), "parameter file 'resources/none.ssv' is missing from the archive"),
+    (_binding('source="resources"'), "parameter file 'resources' is missing from the archive"),
+    (_binding('source="../in.ssp"'), "parameter file '../in.ssp' is missing from the archive"),
+])
+def test_a_parameter_binding_the_master_cannot_read_is_named_in_one_line(tmp_path, binding, reason):
+    ssv = SSV_FILE.format(_param("k", "Real", "1")).encode()
+    path = _archive(tmp_path, components=_comp(inner=binding), extra={"resources/a.ssv": ssv})
+    assert _error(path) == f"{path}: ParameterBinding: {reason}"
+
+
+def test_parameter_bindings_on_the_system_and_components_with_prefixes(tmp_path):
+    ssv = SSV_FILE.format(_param("k", "Real", "1") + _param("r", "Real", "2")).encode()
+    ssv_pre = SSV_FILE.format(_param("pre.num", "Integer", "4") + _param("other.num", "Integer", "5")).encode()
+    comps = (_comp("a", inner=_binding('source="resources/a.ssv" sourceBase="SSD"'))
+             + _comp("b", inner=_binding('source="resources/b.ssv" prefix="pre."')))
+    system = _inline(_param("sys.a.r", "Real", "7") + _param("b.k", "Real", "8") + _param("x.b.k", "Real", "9"),
+                     prefix="sys.")
+    path = _archive(tmp_path, components=comps, system=system,
+                    extra={"resources/a.ssv": ssv, "resources/b.ssv": ssv_pre})
+    sc = _load(path)
+    # the system's values come after the components' own (the later binding wins)
+    assert sc.instances["a"].parameters == {"k": 1.0, "r": 7.0}
+    assert sc.instances["b"].parameters == {"num": 4}
+    sc = _load(path, overrides={"b.num": 6})
+    assert sc.instances["b"].parameters == {"num": 6}
+
+
+@pytest.mark.parametrize("pname", ["k", "zz.k"])
+def test_a_system_parameter_naming_no_component_is_named_in_one_line(tmp_path, pname):
+    path = _archive(tmp_path, system=_inline(_param(pname, "Real", "1")))
+    assert _error(path) == (f'{path}: parameter {pname}: names no component of the system (expected '
+                            '"component.variable")')
+
+
+# ------------------------------------------------------------------------------- the archive and its SSD
+def test_an_archive_that_is_missing_or_whose_system_is_nested_is_named_in_one_line(tmp_path):
+    assert _error(tmp_path / "none.ssp") == f"{tmp_path / 'none.ssp'}: file not found"
+    nested = _archive(tmp_path, components=_comp() + '<ssd:System name="sub"/>')
+    assert _error(nested) == f"{nested}: System: nested systems are not supported"
+    sigdict = _archive(tmp_path, components=_comp() + '<ssd:SignalDictionaryReference name="s" dictionary="d"/>',
+                       name="sd.ssp")
+    assert _error(sigdict) == f"{sigdict}: System: signal dictionaries are not supported"
+
+
+def _with_ssd(tmp_path: Path, ssd: bytes) -> Path:
+    path = tmp_path / "raw.ssp"
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("SystemStructure.ssd", ssd)
+    return path
+
+
+def test_an_ssd_that_is_not_well_formed_or_declares_entities_is_refused_in_one_line(tmp_path):
+    path = _with_ssd(tmp_path, b"<ssd:SystemStructureDescription")
+    msg = _error(path)
+    assert msg.startswith(f"{path}: SystemStructure.ssd: not well-formed XML (") and "\n" not in msg
+    path = _with_ssd(tmp_path, b'<?xml version="1.0"?>\n<!DOCTYPE x [<!ENTITY e "boom">]>\n<x>&e;</x>')
+    assert _error(path) == (f"{path}: SystemStructure.ssd: declares the XML entity 'e': refused (entities can "
+                            "read local files or expand without bound)")
+
+
+def test_the_experiment_times_and_an_order_that_does_not_fit(tmp_path):
+    path = _archive(tmp_path, experiment=_experiment(OWN.format('order="a"'), start="0.5", stop="2.5"))
+    sc = _load(path)
+    assert (sc.start, sc.stop, sc.order) == (0.5, 2.5, ["a", "b"])     # an order that misses b is ignored
+    sc = _load(_archive(tmp_path, experiment="", name="nodefault.ssp"))
+    assert (sc.start, sc.stop, sc.step, sc.algorithm) == (None, None, None, "jacobi")
