@@ -605,3 +605,45 @@ def test_the_experiment_times_and_an_order_that_does_not_fit(tmp_path):
     assert (sc.start, sc.stop, sc.order) == (0.5, 2.5, ["a", "b"])     # an order that misses b is ignored
     sc = _load(_archive(tmp_path, experiment="", name="nodefault.ssp"))
     assert (sc.start, sc.stop, sc.step, sc.algorithm) == (None, None, None, "jacobi")
+
+
+def test_an_archive_that_is_not_an_ssp_is_named_in_one_line(tmp_path):
+    path = tmp_path / "nossd.ssp"
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("resources/SystemStructure.ssd", "<x/>")
+    assert _error(path) == f"{path}: no SystemStructure.ssd at the top of the archive: not an SSP file"
+    path = tmp_path / "text.ssp"
+    path.write_text("not an archive")
+    assert _error(path).startswith(f"{path}: ") and "not a zip archive" in _error(path)
+    assert str(path) not in _error(path)[len(str(path)):]           # the file is named once
+    bad_fmu = _archive(tmp_path, extra={"resources/Bad.fmu": b"not a zip"}, name="badfmu.ssp")
+    assert _error(bad_fmu) == f"{bad_fmu}: resources/Bad.fmu: not a zip archive (File is not a zip file)"
+
+
+@pytest.mark.parametrize("root, found", [
+    ('<x:SystemStructureDescription xmlns:x="urn:other" name="t" version="1.0"/>', "in urn:other"),
+    ('<SystemStructureDescription name="t" version="1.0"/>', "in no namespace"),
+])
+def test_an_ssd_of_another_standard_is_named_in_one_line(tmp_path, root, found):
+    path = _with_ssd(tmp_path, root.encode())
+    assert _error(path) == (f"{path}: SystemStructure.ssd: root element SystemStructureDescription {found}: not an "
+                            "SSP 1.0 system structure (only SSP 1.0 is supported)")
+
+
+def test_an_ssd_saying_another_version_is_read_as_ssp_1_with_a_warning(tmp_path):
+    src = _archive(tmp_path, experiment=_experiment(OWN.format('step="0.25"')))
+    path = tmp_path / "oms.ssp"
+    with zipfile.ZipFile(src) as zi, zipfile.ZipFile(path, "w") as zo:
+        for info in zi.infolist():
+            data = zi.read(info)
+            if info.filename == "SystemStructure.ssd":
+                data = data.replace(b'name="t" version="1.0"', b'name="t" version="2.0"', 1)
+            zo.writestr(info, data)
+    arch = load_ssp(path)
+    arch.cleanup()
+    assert arch.warnings == [f"{path}: the SSD says version '2.0' but uses the SSP 1.0 namespaces: read as SSP 1.0"]
+    assert (list(arch.scenario.instances), arch.scenario.step) == (["a", "b"], 0.25)
+    assert _load(src).step == 0.25
+    arch = load_ssp(src)
+    arch.cleanup()
+    assert arch.warnings == []
