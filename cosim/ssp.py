@@ -408,7 +408,7 @@ def _bindings(owner, archive: Path, folder: Path, where: str, base: str) -> list
         src = b.get("source")
         sets = []
         if src is not None:
-            if b.get("sourceBase", "SSD") == "component":
+            if b.get("sourceBase") == "component":  # (the default, "SSD", is the one supported)
                 raise ScenarioError(where, "ParameterBinding", f"{src}: sourceBase=\"component\" is not supported")
             entry = (PurePosixPath(base) / src).as_posix() if base else src
             f = folder / entry

@@ -284,7 +284,7 @@ def _archive(tmp_path: Path, *, system: str = "", components: str | None = None,
     ssd = (f'<?xml version="1.0" encoding="UTF-8"?>\n<ssd:SystemStructureDescription xmlns:ssd="{NS["ssd"]}" '
            f'xmlns:ssc="{NS["ssc"]}" xmlns:ssv="{NS["ssv"]}" xmlns:osp="{OSP_NS}" xmlns:wmr="{OWN_NS}" '
            f'xmlns:o="urn:other" name="t" version="1.0"><ssd:System name="root">{system}'
-           f'<ssd:Elements>{components}</ssd:Elements>{conns}</ssd:System>{experiment}'
+           f'{f"<ssd:Elements>{components}</ssd:Elements>" if components else ""}{conns}</ssd:System>{experiment}'
            '</ssd:SystemStructureDescription>')
     path = tmp_path / name
     with zipfile.ZipFile(path, "w") as zf:
@@ -581,6 +581,11 @@ def test_an_archive_that_is_missing_or_whose_system_is_nested_is_named_in_one_li
     sigdict = _archive(tmp_path, components=_comp() + '<ssd:SignalDictionaryReference name="s" dictionary="d"/>',
                        name="sd.ssp")
     assert _error(sigdict) == f"{sigdict}: System: signal dictionaries are not supported"
+
+
+def test_a_system_without_components_is_named_in_one_line(tmp_path):
+    path = _archive(tmp_path, components="")
+    assert _error(path) == f"{path}: System: no components"
 
 
 def _with_ssd(tmp_path: Path, ssd: bytes) -> Path:
