@@ -40,7 +40,7 @@ from typing import Any
 from .archive import check_archive, check_entries, check_sizes, safe_extract
 from .errors import CosimError, FmuLoadError, ScenarioError
 from .scenario import Scenario, apply_overrides, parse
-from .system import Plan
+from .system import Plan, _unit
 
 SSP_VERSION = "1.0"
 FMU_MIME = "application/x-fmu-sharedlibrary"
@@ -201,16 +201,6 @@ def _connectors(plan: Plan) -> tuple[dict[str, dict[str, tuple[str, Any]]], list
     return conns, params
 
 
-def _unit_of(plan: Plan, inst: str, var) -> Any:
-    """The unit of a variable as the scenario declares it, else as its FMU does."""
-    ip = plan.instances[inst]
-    declared = ip.spec.units.get(ip.our_name(var)) or ip.spec.units.get(var.name)
-    if declared:
-        from .units import lookup, units_of
-        return lookup(declared, units_of(ip.model.md))
-    return var.unit
-
-
 def _write_ssd(plan: Plan, name: str, resources: dict[Path, str], conns, with_params: set[str], path: Path) -> None:
     """SystemStructure.ssd: components with their connectors, connections, units, default experiment."""
     from pyssp_standard.common_content_ssc import TypeBoolean, TypeInteger, TypeReal, TypeString
@@ -227,7 +217,7 @@ def _write_ssd(plan: Plan, name: str, resources: dict[Path, str], conns, with_pa
             comp.name, comp.component_type, comp.source = inst, FMU_MIME, resources[ip.model.path.resolve()]
             for vname, (kind, var) in conns[inst].items():
                 if var.type == "Real":
-                    u = _unit_of(plan, inst, var)
+                    u = _unit(ip, var)  # as the scenario declares it, else as the FMU does
                     typ = TypeReal(u.name if u is not None and u.exps else None)
                     if u is not None and u.exps:
                         units[u.name] = u
@@ -271,15 +261,19 @@ def _write_ssvs(plan: Plan, params: list[tuple[str, Any, Any]], tmp: Path, out: 
     """One parameter set per component with parameters: archive entry -> the validated SSV document."""
     from pyssp_standard import SSV
 
+    class _SSV(SSV):
+        def __write__(self):  # pyssp-standard 0.9 never writes the top-level metadata of an SSV
+            super().__write__()
+            self.root.set("generationTool", "wmr-cosim")
+
     ssvs: dict[str, bytes] = {}
     for inst in plan.order:
         mine = [(var, value) for i, var, value in params if i == inst]
         if not mine:
             continue
         ssv_path = tmp / f"{inst}.ssv"
-        with SSV(ssv_path, mode="w") as ssv:
+        with _SSV(ssv_path, mode="w") as ssv:
             ssv.ssv_elem.name = PARAMETER_SET  # (pyssp-standard 0.9's property setter drops it)
-            ssv.ssv_elem.top_level_metadata.generationTool = "wmr-cosim"
             for var, value in mine:
                 # SSP 1.0 has no array values: an FMI 3.0 array travels as one parameter per element,
                 # named as FMI 3.0 names them (x[1], A[1,2], ...); load_ssp joins them back
@@ -372,9 +366,7 @@ def _typed(elem, where: str, fld: str) -> Any:
     from lxml import etree as ET
 
     kind = ET.QName(elem).localname
-    v = elem.get("value")
-    if v is None:
-        raise ScenarioError(where, fld, f"{kind} without a value")
+    v = elem.get("value")  # required by the schema, for every type
     try:
         if kind == "Real":
             return float(v)
@@ -382,7 +374,7 @@ def _typed(elem, where: str, fld: str) -> Any:
             return int(v)
         if kind == "Boolean":
             if v.strip() not in ("true", "false", "1", "0"):
-                raise ValueError(v)
+                raise ValueError
             return v.strip() in ("true", "1")
         if kind == "String":
             return v
@@ -395,10 +387,10 @@ def _parameter_set(root, where: str) -> list[tuple[str, Any]]:
     out = []
     for p in root.findall("ssv:Parameters/ssv:Parameter", NS):
         pname = p.get("name")
-        kids = [k for k in p if isinstance(k.tag, str)]
-        if not pname or not kids:
-            raise ScenarioError(where, f"Parameter {pname!r}", "a parameter needs a name and a value")
-        out.append((pname, _typed(kids[0], where, f"Parameter {pname}")))
+        if not pname:
+            raise ScenarioError(where, f"Parameter {pname!r}", "a parameter needs a name")
+        value = next(k for k in p if isinstance(k.tag, str))  # the schema requires one
+        out.append((pname, _typed(value, where, f"Parameter {pname}")))
     return out
 
 
@@ -416,7 +408,7 @@ def _bindings(owner, archive: Path, folder: Path, where: str, base: str) -> list
         src = b.get("source")
         sets = []
         if src is not None:
-            if b.get("sourceBase", "SSD") == "component":
+            if b.get("sourceBase") == "component":  # (the default, "SSD", is the one supported)
                 raise ScenarioError(where, "ParameterBinding", f"{src}: sourceBase=\"component\" is not supported")
             entry = (PurePosixPath(base) / src).as_posix() if base else src
             f = folder / entry
@@ -444,7 +436,7 @@ def _join_array_elements(instances: dict[str, dict[str, Any]], where: str) -> No
 
     for inst, d in instances.items():
         params = d["parameters"]
-        bases = {n[:n.index("[")] for n in params if n.endswith("]") and "[" in n}
+        bases = {n[:n.rindex("[")] for n in params if n.endswith("]") and "[" in n}
         if not bases:
             continue
         model = load_model(d["fmu"])
@@ -460,12 +452,12 @@ def _join_array_elements(instances: dict[str, dict[str, Any]], where: str) -> No
             params[base] = [params.pop(n) for n in names]
 
 
-def _with_version(data: bytes, root) -> bytes:
+def _with_version(root) -> bytes:
     """The SSD with its version attribute set to 1.0 (for the schema check of an SSP 1.0 document)."""
     from lxml import etree as ET
 
     root.set("version", SSP_VERSION)
-    return ET.tostring(root, xml_declaration=True, encoding="UTF-8")
+    return ET.tostring(root)
 
 
 def _step_from_annotations(root) -> tuple[float | None, str | None, list[str] | None]:
@@ -477,7 +469,7 @@ def _step_from_annotations(root) -> tuple[float | None, str | None, list[str] | 
             except (TypeError, ValueError):
                 pass
             algorithm = a.get("algorithm")
-            order = (a.get("order") or "").split() or None
+            order = a.get("order", "").split() or None
         if step is None:
             for a in de.iter(f"{{{OSP_NS}}}FixedStepAlgorithm"):
                 try:
@@ -560,7 +552,7 @@ def _read_ssd(path: Path) -> tuple[Any, list[str]]:
     if root.get("version") != SSP_VERSION:  # OMSimulator writes version "2.0" with the SSP 1.0 namespaces
         warnings.append(f"{where}: the SSD says version {root.get('version')!r} but uses the SSP {SSP_VERSION} "
                         f"namespaces: read as SSP {SSP_VERSION}")
-        ssd_bytes = _with_version(ssd_bytes, root)
+        ssd_bytes = _with_version(root)
         root = _parse_xml(ssd_bytes, f"{where}: SystemStructure.ssd")
     validate_xml(ssd_bytes, "ssd", f"{where}: SystemStructure.ssd")
     return root, warnings
@@ -667,14 +659,11 @@ def _connections(system, instances: dict[str, Any], connectors: dict[tuple[str, 
                 raise ScenarioError(where, fld, f"unknown connector {el}.{cn} (not declared by the component)")
         conn: dict[str, Any] = {"from": f"{se}.{scn}", "to": f"{ee}.{ecn}"}
         lt = c.find("ssc:LinearTransformation", NS)
-        if lt is not None:
-            try:
-                conn["factor"], conn["offset"] = float(lt.get("factor", 1.0)), float(lt.get("offset", 0.0))
-            except ValueError:
-                raise ScenarioError(where, fld, "LinearTransformation: factor and offset must be numbers") from None
+        if lt is not None:  # (factor and offset are xs:double: the schema check made sure they are numbers)
+            conn["factor"], conn["offset"] = float(lt.get("factor", 1.0)), float(lt.get("offset", 0.0))
         elif len([k for k in c if isinstance(k.tag, str) and ET.QName(k).localname.endswith("Transformation")]):
             raise ScenarioError(where, fld, "only LinearTransformation is supported")
-        if c.get("suppressUnitConversion") == "true":
+        if c.get("suppressUnitConversion", "").strip() in ("true", "1"):  # an xs:boolean
             raise ScenarioError(where, fld, "suppressUnitConversion is not supported")
         out.append(conn)
     return out
