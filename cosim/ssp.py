@@ -40,7 +40,7 @@ from typing import Any
 from .archive import check_archive, check_entries, check_sizes, safe_extract
 from .errors import CosimError, FmuLoadError, ScenarioError
 from .scenario import Scenario, apply_overrides, parse
-from .system import Plan, _unit
+from .system import Plan, unit_of
 
 SSP_VERSION = "1.0"
 FMU_MIME = "application/x-fmu-sharedlibrary"
@@ -217,7 +217,7 @@ def _write_ssd(plan: Plan, name: str, resources: dict[Path, str], conns, with_pa
             comp.name, comp.component_type, comp.source = inst, FMU_MIME, resources[ip.model.path.resolve()]
             for vname, (kind, var) in conns[inst].items():
                 if var.type == "Real":
-                    u = _unit(ip, var)  # as the scenario declares it, else as the FMU does
+                    u = unit_of(ip, var)
                     typ = TypeReal(u.name if u is not None and u.exps else None)
                     if u is not None and u.exps:
                         units[u.name] = u

@@ -172,7 +172,8 @@ def _element(file: str, fld: str, inst: InstancePlan, name: str) -> tuple[Variab
     return _var(file, fld, inst, name), None
 
 
-def _unit(inst: InstancePlan, var: Variable):
+def unit_of(inst: InstancePlan, var: Variable):
+    """The unit of a variable as the scenario declares it (``units``), else as its FMU does (None if none)."""
     declared = inst.spec.units.get(inst.our_name(var)) or inst.spec.units.get(var.name)
     if declared:
         return lookup(declared, units_of(inst.model.md))
@@ -195,7 +196,7 @@ def _connection_types(file: str, fld: str, c: ConnectionSpec, svar: Variable, dv
         raise ScenarioError(file, fld, f"type mismatch: {c.src} is {svar.type}, {c.dst} is {dvar.type}{hint}")
     if svar.type == "Real":
         try:
-            return conversion(_unit(si, svar), _unit(di, dvar))
+            return conversion(unit_of(si, svar), unit_of(di, dvar))
         except CosimError as exc:
             raise ScenarioError(file, fld, f"unit mismatch: {c.src} -> {c.dst}: {exc}") from None
     if c.factor != 1.0 or c.offset != 0.0:
