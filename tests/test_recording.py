@@ -1,0 +1,161 @@
+"""The recording's files as a user reads them: signals.csv (header, quoting, full precision, integer and
+boolean columns, chunking, written whole under a temporary name), the results folder's one-line errors,
+and the row buffer's last recorded time."""
+from __future__ import annotations
+
+import csv
+import io
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from wmr_cosim.cosim import recording
+from wmr_cosim.cosim.errors import OutputError
+from wmr_cosim.cosim.recording import NpyRecorder, RowBuffer, make_folder, write_csv
+
+COLUMNS = ["time", "a,b", 'say "hi"', "two\nlines", "plant.X", "n", "flag"]
+TYPES = ["Real", "Real", "Real", "Real", "Real", "Integer", "Boolean"]
+
+
+def _recording(path: Path, rows: int = 2) -> Path:
+    """A recording of ``rows`` rows (1, 2 or 5) with every kind of column and name."""
+    rec = NpyRecorder(path, COLUMNS, TYPES)
+    cols = [np.array([0.0, 0.1, 0.2, 0.3, 0.4]), np.array([1 / 3, -2.5, 1e300, 0.0, 7.0]),
+            np.array([1e-300, 2.0, -0.0, 3.0, 4.0]), np.array([7.0, 8.0, 9.0, 10.0, 11.0]),
+            np.array([0.5, 1.5, 2.5, 3.5, 4.5]), np.array([3, -4, 5, 2 ** 31 - 1, -2 ** 31], dtype=np.int64),
+            np.array([1, 0, 1, 1, 0], dtype=np.int64)]
+    rec.append([c[:rows] for c in cols])
+    rec.close()
+    return path
+
+
+HEADER = 'time,"a,b","say ""hi""","two\nlines",plant.X,n,flag\n'
+ROWS = ["0.0,0.3333333333333333,1e-300,7.0,0.5,3,1\n",
+        "0.1,-2.5,2.0,8.0,1.5,-4,0\n",
+        "0.2,1e+300,-0.0,9.0,2.5,5,1\n",
+        "0.3,0.0,3.0,10.0,3.5,2147483647,1\n",
+        "0.4,7.0,4.0,11.0,4.5,-2147483648,0\n"]
+
+
+def test_csv_header_quoting_full_precision_integers_and_booleans(tmp_path):
+    """Names with a comma, a quote or a newline are quoted (quotes doubled), others are not; floats are
+    written at full precision (repr), integers as integers, booleans as 0/1; the csv module reads back
+    the names and values."""
+    npy = _recording(tmp_path / "signals.npy")
+    write_csv(npy, tmp_path / "signals.csv")
+    text = (tmp_path / "signals.csv").read_text()
+    assert text == HEADER + "".join(ROWS[:2])
+    rows = list(csv.reader(io.StringIO(text)))
+    assert rows[0] == COLUMNS
+    assert float(rows[1][1]) == 1 / 3 and int(rows[2][5]) == -4
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["signals.csv", "signals.npy"]
+
+
+def test_csv_writes_64_bit_integers_in_full(tmp_path):
+    """FMI 3.0 UInt64 and Int64 columns: every value exactly as numpy.load gives it (2^64 - 1 is not -1)."""
+    rec = NpyRecorder(tmp_path / "signals.npy", ["time", "u", "i", "f"], ["Real", "UInt64", "Int64", "Float32"])
+    rec.append([np.array([0.0, 1.0]), np.array([-1, 2 ** 62 + 1], dtype=np.int64),
+                np.array([-2 ** 63, 2 ** 63 - 1], dtype=np.int64), np.array([0.1, 2.0])])
+    rec.close()
+    write_csv(tmp_path / "signals.npy", tmp_path / "signals.csv")
+    data = np.load(tmp_path / "signals.npy")
+    assert data["u"].tolist() == [2 ** 64 - 1, 2 ** 62 + 1]
+    assert (tmp_path / "signals.csv").read_text() == (
+        f"time,u,i,f\n0.0,{2 ** 64 - 1},{-2 ** 63},{float(np.float32(0.1))!r}\n"
+        f"1.0,{2 ** 62 + 1},{2 ** 63 - 1},2.0\n")
+
+
+@pytest.mark.parametrize("chunk", [1, 2, 3, 5, 20000])
+def test_csv_written_in_chunks_has_every_row_once(tmp_path, chunk):
+    npy = _recording(tmp_path / "signals.npy", rows=5)
+    write_csv(npy, tmp_path / "signals.csv", chunk=chunk)
+    assert (tmp_path / "signals.csv").read_text() == HEADER + "".join(ROWS)
+
+
+def test_csv_of_one_row_with_the_default_chunk(tmp_path):
+    npy = _recording(tmp_path / "signals.npy", rows=1)
+    write_csv(npy, tmp_path / "signals.csv")
+    assert (tmp_path / "signals.csv").read_text() == HEADER + ROWS[0]
+
+
+def test_csv_is_written_under_a_part_name_and_renamed_when_whole(tmp_path, monkeypatch):
+    """While it is written the file is ``signals.csv.part`` (a kill leaves no truncated signals.csv);
+    the rename moves the complete file into place."""
+    npy = _recording(tmp_path / "signals.npy", rows=5)
+    real = os.replace
+    seen = []
+
+    def replace(src, dst):
+        seen.append((Path(src).name, Path(dst).name, Path(src).read_text()))
+        real(src, dst)
+    monkeypatch.setattr(recording.os, "replace", replace)
+    write_csv(npy, tmp_path / "signals.csv", chunk=2)
+    assert seen == [("signals.csv.part", "signals.csv", HEADER + "".join(ROWS))]
+
+
+def test_an_interrupted_csv_leaves_no_file_behind(tmp_path, monkeypatch):
+    npy = _recording(tmp_path / "signals.npy")
+
+    def replace(src, dst):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(recording.os, "replace", replace)
+    with pytest.raises(KeyboardInterrupt):
+        write_csv(npy, tmp_path / "signals.csv")
+    assert [p.name for p in tmp_path.iterdir()] == ["signals.npy"]
+
+
+def test_a_csv_that_cannot_be_created_raises_that_error_alone(tmp_path):
+    """The clean-up of the partial file adds nothing when there is none: the error is the one from
+    creating the file (no second error chained to it)."""
+    npy = _recording(tmp_path / "signals.npy")
+    with pytest.raises(FileNotFoundError) as err:
+        write_csv(npy, tmp_path / "missing" / "signals.csv")
+    assert err.value.filename == str(tmp_path / "missing" / "signals.csv.part")
+    assert err.value.__context__ is None
+
+
+# ---------------------------------------------------------------------- the results folder
+def test_make_folder_on_a_file_names_the_option_and_the_folder(tmp_path):
+    f = tmp_path / "f"
+    f.write_text("x")
+    with pytest.raises(OutputError) as err:
+        make_folder(f)
+    assert str(err.value) == f"--out {f}: exists and is not a folder"
+    with pytest.raises(OutputError) as err:
+        make_folder(f, "[runs] out")
+    assert str(err.value) == f"[runs] out {f}: exists and is not a folder"
+
+
+def test_make_folder_under_a_file_says_why_in_words(tmp_path):
+    f = tmp_path / "f"
+    f.write_text("x")
+    with pytest.raises(OutputError) as err:
+        make_folder(f / "sub")
+    assert str(err.value) == f"--out {f / 'sub'}: cannot write there (Not a directory)"
+
+
+def test_make_folder_creates_parents_and_leaves_no_probe(tmp_path):
+    got = make_folder(tmp_path / "a" / "b")
+    assert got == tmp_path / "a" / "b" and got.is_dir()
+    assert list(got.iterdir()) == []
+
+
+# ---------------------------------------------------------------------- the row buffer
+def _row(t: float, *more: float) -> bytes:
+    return np.array([t, *more], dtype="<f8").tobytes()
+
+
+@pytest.mark.parametrize("extra", [(), (2.5, 3.5)])
+def test_last_time_is_the_time_of_the_last_buffered_row(tmp_path, extra):
+    rec = NpyRecorder(tmp_path / "s.npy", ["time"] + [f"x{i}" for i in range(len(extra))])
+    rows = RowBuffer(rec, list(range(1 + len(extra))), 1 + len(extra))
+    assert rows.last_time() is None
+    for t in (0.25, 0.5, 0.75):
+        rows.chunk.append(_row(t, *extra))
+        assert rows.last_time() == t
+    rows.flush()
+    assert rows.last_time() is None
+    rec.close()
+    assert np.load(tmp_path / "s.npy")["time"].tolist() == [0.25, 0.5, 0.75]
