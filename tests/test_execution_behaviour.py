@@ -1,0 +1,283 @@
+"""The execution as a user sees it: the status, message, steps and files of a run that ends at its stop
+time, is interrupted (Ctrl-C), fails (a status, a non-finite input, an FMU's process dying) or is ended
+by its FMU; the event log; values read and set between steps through the Python API.
+
+The FMUs are the C probe (tests/c_fmus/probe.c: y = p u + c, c and n count the steps) compiled with a
+few extra behaviours inserted here, and the Reference FMU Feedthrough."""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import shutil
+import subprocess
+import tempfile
+import time as _time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from c_fmu_support import MODEL_DESCRIPTION, SRC
+from reference_fmus import REF
+from wmr_cosim import Simulation
+from wmr_cosim.cosim import execution
+from wmr_cosim.cosim.errors import CosimError, RunError
+
+FEEDTHROUGH = REF / "fmi2" / "Feedthrough.fmu"
+
+#: Behaviours added to the probe, each compiled in with -D<NAME>=<value>: (function, code).
+HOOKS = {
+    "SIGINT_AT": ("fmi2DoStep", "if (t > SIGINT_AT - 1e-6 && t < SIGINT_AT + 1e-6) raise(SIGINT);"),
+    "GET_FAILS_AT": ("fmi2GetReal", "if (s->time >= GET_FAILS_AT - 1e-9) return fmi2Error;"),
+    "GET_FAILS_TERMINATED": ("fmi2GetReal", "if (s->terminated) return fmi2Error;"),
+    "NO_LAST_TIME": ("fmi2GetRealStatus", "return fmi2Error;"),
+    "ENDS_HALFWAY_AT": ("fmi2DoStep", "if (t >= ENDS_HALFWAY_AT - 1e-9) { s->terminated = 1; s->n += 1; "
+                                      "s->time = s->last_ok = t + h / 2; return fmi2Discard; }"),
+}
+
+
+def _source() -> str:
+    """probe.c with every hook inserted at the top of its function, each inside #ifdef NAME."""
+    src = SRC.read_text()
+    for name, (fn, code) in HOOKS.items():
+        head = src.index(f"fmi2Status {fn}(")
+        at = src.index("Probe *s = (Probe *)c;\n", head) + len("Probe *s = (Probe *)c;\n")
+        src = src[:at] + f"#ifdef {name}\n    {code}\n#endif\n" + src[at:]
+    return src
+
+
+@pytest.fixture(scope="module")
+def probe(tmp_path_factory):
+    """probe(**defines) -> the probe FMU compiled with those defines (once per set of defines)."""
+    import fmpy
+
+    from cosim_support import fmu_cache_dir
+
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        pytest.skip("no C compiler on this machine")
+    folder = fmu_cache_dir("execution-probes") or tmp_path_factory.mktemp("probes")
+    src = _source()
+
+    def build(**defines: object) -> Path:
+        flags = sorted(f"-D{k}" if v is True else f"-D{k}={v}" for k, v in defines.items())
+        key = hashlib.sha256((src + " ".join(flags)).encode()).hexdigest()[:16]
+        fmu = folder / f"Probe-{key}.fmu"
+        if fmu.is_file():
+            return fmu
+        work = Path(tempfile.mkdtemp(dir=folder))
+        try:
+            (work / "probe.c").write_text(src)
+            so = work / "Probe.so"
+            p = subprocess.run([cc, "-shared", "-fPIC", "-O1", f"-I{Path(fmpy.__file__).parent / 'c-code'}", *flags,
+                                str(work / "probe.c"), "-o", str(so)], capture_output=True, text=True)
+            assert p.returncode == 0, p.stderr
+            with zipfile.ZipFile(work / "Probe.fmu", "w") as zf:
+                zf.writestr("modelDescription.xml", MODEL_DESCRIPTION.format(name="Probe"))
+                zf.write(so, "binaries/linux64/Probe.so")
+            (work / "Probe.fmu").replace(fmu)
+        finally:
+            shutil.rmtree(work, ignore_errors=True)
+        return fmu
+    return build
+
+
+def _sim(fmu: Path, start: float = 0.0, stop: float = 0.5, step: float = 0.01, record=("probe.y",),
+         **parameters) -> Simulation:
+    sim = Simulation(file="t.toml").experiment(start=start, stop=stop, step=step)
+    sim.instance("probe", fmu, **parameters)
+    return sim.record(*record, csv=False)
+
+
+def _run(sim: Simulation, out: Path | None, **kw) -> execution.RunResult:
+    return execution.run(sim.check(), out, progress=False, **kw)
+
+
+def _summary(out: Path) -> dict:
+    return json.loads((out / "summary.json").read_text())
+
+
+# ---------------------------------------------------------------------- runs that end early
+def test_ctrl_c_ends_the_run_at_the_next_segment_with_the_steps_done(probe, tmp_path):
+    """The first SIGINT (here raised inside an FMU's step at t = 1.25 s) only sets a flag; the run stops
+    where the segment that was running ends (2500 steps from the start: t = 3.5 s), interrupted, and
+    keeps every row up to there."""
+    res = _run(_sim(probe(SIGINT_AT=1.25), start=1.0, stop=3.6, step=0.001), tmp_path / "out")
+    assert (res.status, res.message) == ("interrupted", "interrupted by the user at t = 3.5 s")
+    assert res.exit_code == 130 and res.steps == 2500 and res.t_end == pytest.approx(3.5)
+    d = np.load(tmp_path / "out" / "signals.npy")
+    assert len(d) == 2501 and d["time"][-1] == pytest.approx(3.5)
+    assert _summary(tmp_path / "out")["status"] == "interrupted"
+
+
+def test_a_failed_get_after_a_step_names_its_time_and_keeps_the_steps_recorded(probe, tmp_path):
+    """fmi2GetReal fails after the step to t = 1.3 s: that step's row is not recorded, so the run did 29
+    steps (rows from 1.0 to 1.29 s), and the message names the call and the time it failed at."""
+    res = _run(_sim(probe(GET_FAILS_AT=1.3), start=1.0, stop=1.5), tmp_path / "out")
+    assert res.status == "failed" and res.exit_code == 1
+    assert res.message == "probe: fmi2GetReal returned Error at t = 1.3 s; last log: (the FMU logged nothing)"
+    assert res.steps == 29 and res.t_end == pytest.approx(1.29)
+    d = np.load(tmp_path / "out" / "signals.npy")
+    assert len(d) == 30 and d["time"][-1] == pytest.approx(1.29)
+    s = _summary(tmp_path / "out")
+    assert (s["status"], s["steps"], s["message"]) == ("failed", 29, res.message)
+
+
+@pytest.mark.parametrize("last_time", [True, False])
+def test_an_fmu_ending_the_simulation_ends_the_run_at_its_time(probe, tmp_path, last_time):
+    """Discard with fmi2Terminated from the step at t = 1.25 s: terminated (not failed) at 1.25 s, 25 steps,
+    the row at 1.25 s recorded; when the FMU cannot say its last successful time, the time of the step."""
+    fmu = probe(TERMINATE_AT=1.25) if last_time else probe(TERMINATE_AT=1.25, NO_LAST_TIME=True)
+    res = _run(_sim(fmu, start=1.0, stop=1.5, record=("probe.y", "probe.n")), tmp_path / "out")
+    assert (res.status, res.message) == ("terminated", "terminated by FMU probe at t = 1.25 s")
+    assert res.exit_code == 0 and res.steps == 25 and res.t_end == 1.25
+    d = np.load(tmp_path / "out" / "signals.npy")   # the row at 1.25 s once
+    assert len(d) == 26 and d["time"][-1] == 1.25 and d["probe.n"][-1] == 25 and np.all(np.diff(d["time"]) > 0)
+
+
+def test_an_fmu_ending_the_simulation_inside_a_step_adds_the_row_at_its_time(probe, tmp_path):
+    """The step from 1.25 s ends the simulation halfway, at 1.255 s: 25 steps done, and a last row at the
+    FMU's time with its outputs there."""
+    res = _run(_sim(probe(ENDS_HALFWAY_AT=1.25), start=1.0, stop=1.5, record=("probe.n",)), tmp_path / "out")
+    assert (res.status, res.message) == ("terminated", "terminated by FMU probe at t = 1.255 s")
+    assert res.steps == 25 and res.t_end == 1.255 and res.final == {"time": 1.255, "probe.n": 26}
+    d = np.load(tmp_path / "out" / "signals.npy")
+    assert len(d) == 27 and d["time"][-2:].tolist() == [1.25, 1.255] and d["probe.n"][-2:].tolist() == [25, 26]
+
+
+def test_an_fmu_that_ends_and_then_fails_to_give_its_outputs_is_a_failure(probe, tmp_path):
+    res = _run(_sim(probe(ENDS_HALFWAY_AT=1.25, GET_FAILS_TERMINATED=True), start=1.0, stop=1.5), tmp_path / "out")
+    assert res.status == "failed" and res.exit_code == 1
+    assert res.message == "probe: get outputs returned Error at t = 1.255 s; last log: (the FMU logged nothing)"
+    assert _summary(tmp_path / "out")["message"] == res.message
+
+
+def test_an_isolated_fmu_dying_mid_run_keeps_the_steps_before_it(probe, tmp_path):
+    sim = _sim(probe(SEGFAULT_AT=1.25), start=1.0, stop=1.5)
+    sim.document["instances"]["probe"]["isolate"] = True
+    res = _run(sim, tmp_path / "out")
+    assert res.status == "failed" and res.steps == 25 and res.t_end == pytest.approx(1.25)
+    assert "killed by SIGSEGV during fmi2DoStep at t = 1.25 s" in res.message, res.message
+    assert len(np.load(tmp_path / "out" / "signals.npy")) == 26
+
+
+@pytest.mark.parametrize("label, steps", [("fmi2GetReal", 6), ("fmi3GetReal", 6), ("fmi2Get (recorded)", 6),
+                                          ("fmi3Get (recorded)", 6), ("fmi2DoStep", 7), ("fmi3DoStep", 7),
+                                          ("fmi2SetReal", 7), ("fmi2Get/Set (a connection)", 7)])
+def test_a_failure_reported_by_the_loop_counts_the_steps_whose_rows_are_recorded(probe, tmp_path, label, steps):
+    """The loop reports a failure at step k = 7 (t = 1.07 s): a get after the step to t_7 means 6 steps
+    done (the row at t_7 is missing); a failure before or in the step from t_7 means 7 (rows up to t_7).
+    The message names the call, its status and t_7 in both FMI versions."""
+    run = _sim(probe(), start=1.0, stop=1.5).start(tmp_path / "out")
+    try:
+        with pytest.raises(RunError) as err:
+            run._ex._failed(7, "probe", label, 3)
+        assert run._ex.k_done == steps
+        assert str(err.value) == f"probe: {label} returned Error at t = 1.07 s; last log: (the FMU logged nothing)"
+    finally:
+        run.close()
+
+
+# ---------------------------------------------------------------------- non-finite inputs
+def _pair(fmu: Path, u: float, factor: float = 1e300, **event) -> Simulation:
+    """a.y = a.u + c feeds b.u through ``factor``; only a.y is recorded."""
+    sim = Simulation(file="t.toml").experiment(start=1.0, stop=1.2, step=0.01)
+    sim.instance("a", fmu, u=u).instance("b", fmu).connect("a.y", "b.u", factor=factor)
+    if event:
+        sim.event(**event)
+    return sim.record("a.y", csv=False)
+
+
+def test_a_non_finite_input_at_the_start_fails_before_anything_is_recorded(probe, tmp_path):
+    res = _run(_pair(probe(), 1e300), tmp_path / "out")
+    assert (res.status, res.steps) == ("failed", 0)
+    assert res.message == "a.y produced 1e+300; b.u would receive the non-finite value inf at t = 1 s"
+    assert not (tmp_path / "out" / "signals.npy").exists() and _summary(tmp_path / "out")["rows"] == 0
+
+
+def test_a_non_finite_input_mid_run_stops_at_the_step_it_would_enter(probe, tmp_path):
+    res = _run(_pair(probe(), 1.0, time=1.05, variable="a.u", action="override", value=1e300), tmp_path / "out")
+    assert (res.status, res.steps) == ("failed", 5)
+    assert res.message == "a.y produced 1e+300; b.u would receive the non-finite value inf at t = 1.05 s"
+    assert len(np.load(tmp_path / "out" / "signals.npy")) == 6
+
+
+def test_without_input_checks_non_finite_inputs_reach_the_fmu(probe, tmp_path):
+    for sim in (_pair(probe(), 1e300), _pair(probe(), 1.0, time=1.05, variable="a.u", action="override",
+                                              value=1e300)):
+        res = _run(sim, tmp_path / "out", check_inputs=False)
+        assert (res.status, res.steps) == ("ok", 20), res.message
+
+
+# ---------------------------------------------------------------------- options of run()
+def test_timing_measures_the_time_inside_the_fmi_calls(probe, tmp_path):
+    sim = _sim(probe(), stop=0.2)
+    assert _run(sim, tmp_path / "a").fmi_s is None                 # not measured by default
+    res = _run(sim, tmp_path / "b", timing=True)
+    assert isinstance(res.fmi_s, float) and 0.0 < res.fmi_s <= res.wall_s
+
+
+def test_timed_calls_add_up_each_calls_duration(monkeypatch):
+    clock = iter(range(100))
+    monkeypatch.setattr(execution._time, "perf_counter", lambda: float(next(clock)))
+    acc = [0.5]
+    fn = execution._timed(lambda *a: sum(a), acc)
+    assert [fn(1, 2), fn(3), fn()] == [3, 3, 0]
+    assert acc == [3.5]                  # three calls of one tick each, added to what was there
+
+
+def test_set_up_time_is_measured_from_load_to_initialised(probe, tmp_path):
+    t0 = _time.perf_counter()
+    res = _run(_sim(probe()), tmp_path / "out")
+    elapsed = _time.perf_counter() - t0
+    assert 0.0 < res.setup_s < elapsed and 0.0 < res.wall_s < elapsed
+    assert _summary(tmp_path / "out")["setup_s"] == round(res.setup_s, 6)
+
+
+def test_progress_bar_only_when_asked(probe, tmp_path, capsys):
+    pytest.importorskip("tqdm")
+    sim = _sim(probe(), stop=0.2)
+    execution.run(sim.check(), tmp_path / "a", progress=True)
+    assert "step" in capsys.readouterr().err
+    execution.run(sim.check(), tmp_path / "b")                     # default: only on a terminal, long runs
+    execution.run(sim.check(), tmp_path / "c", progress=False)
+    assert capsys.readouterr().err == ""
+
+
+def test_a_run_without_a_results_folder_works_in_a_temporary_one_and_removes_it(probe, tmp_path, monkeypatch):
+    """``out_dir=None``: the results are written to a wmr-cosim-out-* folder in the temporary folder,
+    removed afterwards; the result keeps the final values."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
+    seen = []
+    real = execution._results
+
+    def spy(ex, keep):
+        res = real(ex, keep)
+        seen.append((ex.out, sorted(p.name for p in ex.out.iterdir())))
+        return res
+    monkeypatch.setattr(execution, "_results", spy)
+    res = execution.run(_sim(probe(), stop=0.1).check(), None, progress=False)
+    assert res.status == "ok" and res.out_dir is None and res.final["probe.y"] == 10.0
+    (out, files), = seen
+    assert out.parent == tmp and out.name.startswith("wmr-cosim-out-")
+    assert files == [".wmr-cosim.lock", "logs", "scenario.json", "signals.npy", "summary.json"]
+    assert list(tmp.iterdir()) == []
+
+
+# ---------------------------------------------------------------------- the event log
+def test_the_event_log_names_variable_and_value_when_the_event_has_them(probe, tmp_path):
+    sim = _sim(probe(), start=1.0, stop=1.5)
+    sim.event(time=1.1, variable="probe.u", action="override", value=2.0)
+    sim.event(time=1.2, variable="probe.u", action="reset")
+    sim.event(time=1.3, action="stop")
+    res = _run(sim, tmp_path / "out")
+    assert (res.status, res.message, res.steps) == ("stopped", "stopped by events[2] at t = 1.3 s", 30)
+    assert res.events == [{"time": pytest.approx(1.1), "event": 0, "action": "override", "variable": "probe.u",
+                           "value": 2.0},
+                          {"time": pytest.approx(1.2), "event": 1, "action": "reset", "variable": "probe.u"},
+                          {"time": pytest.approx(1.3), "event": 2, "action": "stop"}]
+    assert _summary(tmp_path / "out")["events"] == res.events
