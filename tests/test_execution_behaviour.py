@@ -281,3 +281,89 @@ def test_the_event_log_names_variable_and_value_when_the_event_has_them(probe, t
                           {"time": pytest.approx(1.2), "event": 1, "action": "reset", "variable": "probe.u"},
                           {"time": pytest.approx(1.3), "event": 2, "action": "stop"}]
     assert _summary(tmp_path / "out")["events"] == res.events
+
+
+# ---------------------------------------------------------------------- events on discrete inputs
+def test_events_on_integer_enumeration_and_boolean_inputs(tmp_path):
+    """Override, bias and reset on non-Real inputs act before the step from their time: a bias adds to
+    the value in force (an earlier event's, else the start value: the scenario's parameter or the
+    declared start), a reset restores the start value, each input keeps its own value."""
+    sim = Simulation(file="t.toml").experiment(start=0.0, stop=0.1, step=0.01)
+    sim.instance("a", FEEDTHROUGH, Int32_input=5, Float64_continuous_input=1.5).instance("b", FEEDTHROUGH)
+    sim.record("a.Int32_output", "a.Enumeration_output", "b.Int32_output", "b.Boolean_output", csv=False)
+    for t, ref, action, value in [(0.01, "b.Boolean_input", "reset", None),      # never set: to its start
+                                  (0.02, "a.Int32_input", "bias", 2), (0.02, "b.Int32_input", "bias", 2),
+                                  (0.03, "a.Enumeration_input", "override", 2),
+                                  (0.04, "a.Int32_input", "bias", 3), (0.04, "b.Boolean_input", "override", True),
+                                  (0.05, "a.Int32_input", "reset", None), (0.05, "a.Enumeration_input", "reset", None),
+                                  (0.05, "b.Int32_input", "reset", None),
+                                  (0.06, "a.Int32_input", "bias", 1)]:
+        sim.event(time=t, variable=ref, action=action, **({} if value is None else {"value": value}))
+    res = _run(sim, tmp_path / "out")
+    assert res.status == "ok", res.message
+    d = np.load(tmp_path / "out" / "signals.npy")
+    assert d["a.Int32_output"].tolist() == [5, 5, 5, 7, 7, 10, 5, 6, 6, 6, 6]
+    assert d["a.Enumeration_output"].tolist() == [1, 1, 1, 1, 2, 2, 1, 1, 1, 1, 1]
+    assert d["b.Int32_output"].tolist() == [0, 0, 0, 2, 2, 2, 0, 0, 0, 0, 0]
+    assert d["b.Boolean_output"].tolist() == [False] * 5 + [True] * 6
+
+
+# ---------------------------------------------------------------------- the Python API between steps
+@pytest.fixture()
+def pair(tmp_path):
+    """Feedthrough a feeds b (a Real and an Integer connection); a table drives a.Boolean_input."""
+    (tmp_path / "in.csv").write_text("time,a.Boolean_input\n0.0,0\n1.0,1\n")
+    sim = Simulation(file=str(tmp_path / "t.toml")).experiment(start=0.0, stop=0.1, step=0.01)
+    sim.instance("a", FEEDTHROUGH, Float64_continuous_input=1.5).instance("b", FEEDTHROUGH)
+    sim.connect("a.Float64_continuous_output", "b.Float64_continuous_input")
+    sim.connect("a.Int32_output", "b.Int32_input")
+    sim.document["inputs"] = {"file": str(tmp_path / "in.csv")}
+    return sim.record("b.Float64_continuous_output", "a.Int32_output", "b.Boolean_output", csv=False)
+
+
+def test_set_refuses_what_cannot_change_during_a_run_in_one_line(pair):
+    with pair.start() as run:
+        run.step_to(0.02)
+        for ref, value, message in [
+                ("a.Float64_fixed_parameter", 1.0, "a.Float64_fixed_parameter is a fixed parameter: only tunable "
+                                                   "parameters change during a run"),
+                ("b.Int32_input", 3, "b.Int32_input is driven by a connection or a table: it cannot be set"),
+                ("a.Boolean_input", True, "a.Boolean_input is driven by a connection or a table: it cannot be set"),
+                ("b.Float64_continuous_output", 1.0, "b.Float64_continuous_output is an output that feeds no "
+                                                     "connection: setting it would change nothing"),
+                ("a.time", 1.0, "a.time is independent: only inputs, outputs feeding connections and tunable "
+                                "parameters can be set between steps")]:
+            with pytest.raises(CosimError) as err:
+                run.set(ref, value)
+            assert str(err.value) == message
+        res = run.finish()
+    assert res.status == "ok"
+
+
+def test_set_and_release_between_steps(pair):
+    """An override of a connected input or of an output feeding one acts from the next step until it
+    is released; an input nothing drives is set on the FMU and held (an event's bias adds to it)."""
+    pair.event(time=0.08, variable="a.Int32_input", action="bias", value=1)
+    with pair.start() as run:
+        run.step_to(0.02)
+        run.set("a.Int32_input", 4)                  # drives b.Int32_input through the connection
+        run.set("b.Boolean_input", True)             # the table drives a's, not b's
+        run.set("a.Float64_tunable_parameter", 2.0)
+        run.set("b.Float64_continuous_input", 7.0)
+        run.step()
+        assert run.get("b.Float64_continuous_output") == 7.0
+        run.release("b.Float64_continuous_input")
+        run.step()
+        assert run.get("b.Float64_continuous_output") == 1.5
+        run.set("a.Float64_continuous_output", 9.0)
+        run.step()
+        assert run.get("b.Float64_continuous_output") == 9.0
+        run.release("a.Float64_continuous_output")
+        run.step()
+        assert run.get("a.Float64_discrete_output") == 0.0      # not in the row: read from the FMU
+        assert run.get("a.Float64_tunable_parameter") == 2.0
+        res = run.finish()
+    assert res.status == "ok", res.message
+    assert res["b.Float64_continuous_output"].tolist() == [1.5] * 3 + [7.0, 1.5, 9.0] + [1.5] * 5
+    assert res["a.Int32_output"].tolist() == [0] * 3 + [4] * 6 + [5] * 2
+    assert res["b.Boolean_output"].tolist() == [False] * 3 + [True] * 8

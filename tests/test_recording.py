@@ -159,3 +159,24 @@ def test_last_time_is_the_time_of_the_last_buffered_row(tmp_path, extra):
     assert rows.last_time() is None
     rec.close()
     assert np.load(tmp_path / "s.npy")["time"].tolist() == [0.25, 0.5, 0.75]
+
+
+def test_the_csv_writer_reads_the_recording_a_chunk_at_a_time(tmp_path):
+    """Memory for the CSV is bounded by the chunk, not by the recording: 10,000 rows of 4 columns
+    (320 kB of data) are written 100 rows at a time with less than 200 kB allocated at the peak
+    (numpy's allocations are traced by tracemalloc)."""
+    import tracemalloc
+
+    rec = NpyRecorder(tmp_path / "signals.npy", ["time", "a", "b", "c"])
+    t = np.arange(10_000) * 1e-3
+    rec.append([t, np.sin(t), np.cos(t), t * t])
+    rec.close()
+    del rec, t
+    tracemalloc.start()
+    try:
+        write_csv(tmp_path / "signals.npy", tmp_path / "signals.csv", chunk=100)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 200_000, peak
+    assert (tmp_path / "signals.csv").read_text().count("\n") == 10_001
