@@ -367,3 +367,62 @@ def test_set_and_release_between_steps(pair):
     assert res["b.Float64_continuous_output"].tolist() == [1.5] * 3 + [7.0, 1.5, 9.0] + [1.5] * 5
     assert res["a.Int32_output"].tolist() == [0] * 3 + [4] * 6 + [5] * 2
     assert res["b.Boolean_output"].tolist() == [False] * 3 + [True] * 8
+
+
+# ---------------------------------------------------------------------- the results folder
+def _feedthrough_pair(csv: bool) -> Simulation:
+    sim = Simulation(file="t.toml").experiment(start=1.0, stop=1.1, step=0.02)
+    sim.instance("a", FEEDTHROUGH, Float64_continuous_input=1.5).instance("b", FEEDTHROUGH)
+    sim.connect("a.Float64_continuous_output", "b.Float64_continuous_input", factor=2.0, offset=0.5)
+    sim.record("b.Float64_continuous_output", "a.Int32_output", csv=csv)
+    sim.event(time=1.04, variable="a.Int32_input", action="override", value=3)
+    sim.event(when="b.Float64_continuous_output > 3", delay=0.02, variable="a.Int32_input", action="bias", value=1)
+    return sim
+
+
+def test_scenario_and_summary_files_of_a_run(tmp_path):
+    out = tmp_path / "out"
+    res = _run(_feedthrough_pair(True), out)
+    fmu = str(FEEDTHROUGH)
+    scen = json.loads((out / "scenario.json").read_text())
+    assert scen.pop("document")["events"][1] == {"when": "b.Float64_continuous_output > 3", "delay": 0.02,
+                                                 "variable": "a.Int32_input", "action": "bias", "value": 1}
+    inst = {"fmu": fmu, "model": "Feedthrough", "names": {}, "units": {}, "logging": "warning"}
+    assert scen == {
+        "file": "t.toml",
+        "experiment": {"start": 1.0, "stop": 1.1, "step": 0.02, "algorithm": "gauss-seidel", "order": ["a", "b"],
+                       "tolerance": None},
+        "instances": {"a": {**inst, "parameters": {"Float64_continuous_input": 1.5}}, "b": {**inst, "parameters": {}}},
+        "connections": [{"from": "a.Float64_continuous_output", "to": "b.Float64_continuous_input", "factor": 2.0,
+                         "offset": 0.5}],
+        "record": ["b.Float64_continuous_output", "a.Int32_output"], "decimation": 1,
+        "events": [{"time": 1.04, "variable": "a.Int32_input", "action": "override", "value": 3},
+                   {"time": None, "variable": "a.Int32_input", "action": "bias", "value": 1,
+                    "when": "b.Float64_continuous_output > 3", "trigger": "once", "delay": 0.02}]}
+    summary = json.loads((out / "summary.json").read_text())
+    wall, setup, per_step = summary.pop("wall_s"), summary.pop("setup_s"), summary.pop("us_per_step")
+    assert wall == round(res.wall_s, 6) and setup == round(res.setup_s, 6)
+    assert per_step == round(res.wall_s / 5 * 1e6, 3) and per_step > 0
+    events = [{"time": 1.02, "event": 1, "action": "bias", "variable": "a.Int32_input", "value": 1,
+               "when": "b.Float64_continuous_output > 3", "condition_time": 1.0},
+              {"time": 1.04, "event": 0, "action": "override", "variable": "a.Int32_input", "value": 3}]
+    final = {"time": 1.1, "b.Float64_continuous_output": 3.5, "a.Int32_output": 3}
+    counts = {"fmu": fmu, "model": "Feedthrough", "log_lines": 0, "log_received": 0}
+    assert summary == {"status": "ok", "message": "", "steps": 5, "n_steps": 5, "t_end": 1.1, "step": 0.02,
+                       "algorithm": "gauss-seidel", "rows": 6, "instances": {"a": counts, "b": counts},
+                       "final": final, "not_recorded": [], "events": events}
+    assert (res.status, res.steps, res.t_end, res.final, res.events, res.out_dir) == ("ok", 5, 1.1, final, events, out)
+    assert res.columns == ["time", "b.Float64_continuous_output", "a.Int32_output"] and res.real_time is None
+    assert (out / "signals.csv").read_text().splitlines()[-1] == "1.1,3.5,3"
+
+
+def test_a_second_run_into_a_folder_leaves_nothing_of_the_first(tmp_path):
+    out = tmp_path / "out"
+    _run(_feedthrough_pair(True), out)
+    (out / "logs" / "old.log").write_text("from an earlier run\n")
+    (out / "mine.txt").write_text("kept\n")
+    res = _run(_feedthrough_pair(False), out)
+    assert res.status == "ok"
+    assert sorted(p.name for p in out.iterdir()) == ["logs", "mine.txt", "scenario.json", "signals.npy",
+                                                     "summary.json"]
+    assert sorted(p.name for p in (out / "logs").iterdir()) == ["a.log", "b.log"]
