@@ -275,7 +275,7 @@ def test_the_event_log_names_variable_and_value_when_the_event_has_them(probe, t
     sim.event(time=1.2, variable="probe.u", action="reset")
     sim.event(time=1.3, action="stop")
     res = _run(sim, tmp_path / "out")
-    assert (res.status, res.message, res.steps) == ("stopped", "stopped by events[2] at t = 1.3 s", 30)
+    assert (res.status, res.message, res.steps, res.exit_code) == ("stopped", "stopped by events[2] at t = 1.3 s", 30, 0)
     assert res.events == [{"time": pytest.approx(1.1), "event": 0, "action": "override", "variable": "probe.u",
                            "value": 2.0},
                           {"time": pytest.approx(1.2), "event": 1, "action": "reset", "variable": "probe.u"},
@@ -426,3 +426,71 @@ def test_a_second_run_into_a_folder_leaves_nothing_of_the_first(tmp_path):
     assert sorted(p.name for p in out.iterdir()) == ["logs", "mine.txt", "scenario.json", "signals.npy",
                                                      "summary.json"]
     assert sorted(p.name for p in (out / "logs").iterdir()) == ["a.log", "b.log"]
+
+
+# ---------------------------------------------------------------------- non-finite outputs, Ctrl-C, progress
+def test_a_non_finite_recorded_output_fails_the_run_at_its_time(probe, tmp_path):
+    """y = 10 u + c with u overridden to 1e308 from t = 1.05 s: y is inf at 1.06 s; the run fails there
+    (6 steps), the rows up to and with the non-finite value are on disk."""
+    sim = _sim(probe(), start=1.0, stop=1.2, p=10.0)
+    sim.event(time=1.05, variable="probe.u", action="override", value=1e308)
+    res = _run(sim, tmp_path / "out")
+    assert (res.status, res.steps, res.exit_code) == ("failed", 6, 1)
+    assert res.message == "probe.y is inf at t = 1.06 s (a non-finite output)"
+    d = np.load(tmp_path / "out" / "signals.npy")
+    assert len(d) == 7 and d["probe.y"][-1] == math.inf and np.all(np.isfinite(d["probe.y"][:-1]))
+
+
+def test_ctrl_c_handling_sets_a_flag_first_and_interrupts_at_the_second():
+    import signal
+
+    before = signal.getsignal(signal.SIGINT)
+    stop = execution._Interrupt()
+    try:
+        assert signal.getsignal(signal.SIGINT) == stop._handler
+        stop.check()                                   # nothing pending
+        stop._handler(signal.SIGINT, None)             # the first: only noted
+        with pytest.raises(KeyboardInterrupt):
+            stop.check()
+        with pytest.raises(KeyboardInterrupt):
+            stop._handler(signal.SIGINT, None)         # the second: at once
+    finally:
+        stop.restore()
+    assert signal.getsignal(signal.SIGINT) == before
+    stop.restore()                                     # a second restore changes nothing
+    assert signal.getsignal(signal.SIGINT) == before
+
+
+def test_the_default_progress_bar_is_for_long_runs_on_a_terminal(monkeypatch):
+    pytest.importorskip("tqdm")
+    import sys
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    assert execution._progress(None, 5000) is None
+    bar = execution._progress(None, 5001)
+    try:
+        assert bar is not None and bar.total == 5001
+    finally:
+        bar.close()
+    assert execution._progress(False, 10 ** 6) is None
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False, raising=False)
+    assert execution._progress(None, 10 ** 6) is None
+    bar = execution._progress(True, 3)
+    try:
+        assert bar is not None and bar.total == 3
+    finally:
+        bar.close()
+
+
+def test_the_initial_exchange_settles_a_chain_against_its_order(probe, tmp_path):
+    """a -> b -> c stepped in the order c, b, a: at the start time every input already has the value of
+    the output feeding it (the exchange repeats until nothing changes), so the first row is the fixed
+    point: y = p u (c = 0)."""
+    sim = Simulation(file="t.toml").experiment(start=0.0, stop=0.02, step=0.01, order=["c", "b", "a"])
+    fmu = probe()
+    sim.instance("a", fmu, u=2.0, p=3.0).instance("b", fmu, p=2.0).instance("c", fmu, p=0.5)
+    sim.connect("a.y", "b.u").connect("b.y", "c.u")
+    res = _run(sim.record("a.y", "b.y", "c.y", csv=False), tmp_path / "out")
+    assert res.status == "ok", res.message
+    d = np.load(tmp_path / "out" / "signals.npy")
+    assert (d["a.y"][0], d["b.y"][0], d["c.y"][0]) == (6.0, 12.0, 6.0)
