@@ -61,9 +61,14 @@ def probe(tmp_path_factory):
     folder = fmu_cache_dir("execution-probes") or tmp_path_factory.mktemp("probes")
     src = _source()
 
-    def build(**defines: object) -> Path:
+    def build(*, aliased: bool = False, **defines: object) -> Path:
+        """``aliased``: the model description gives the Boolean input b the value reference of the Real
+        input u (FMI 2.0 numbers value references per type)."""
         flags = sorted(f"-D{k}" if v is True else f"-D{k}={v}" for k, v in defines.items())
-        key = hashlib.sha256((src + " ".join(flags)).encode()).hexdigest()[:16]
+        md = MODEL_DESCRIPTION.format(name="Probe")
+        if aliased:
+            md = md.replace('name="b" valueReference="4"', 'name="b" valueReference="1"')
+        key = hashlib.sha256((src + md + " ".join(flags)).encode()).hexdigest()[:16]
         fmu = folder / f"Probe-{key}.fmu"
         if fmu.is_file():
             return fmu
@@ -75,7 +80,7 @@ def probe(tmp_path_factory):
                                 str(work / "probe.c"), "-o", str(so)], capture_output=True, text=True)
             assert p.returncode == 0, p.stderr
             with zipfile.ZipFile(work / "Probe.fmu", "w") as zf:
-                zf.writestr("modelDescription.xml", MODEL_DESCRIPTION.format(name="Probe"))
+                zf.writestr("modelDescription.xml", md)
                 zf.write(so, "binaries/linux64/Probe.so")
             (work / "Probe.fmu").replace(fmu)
         finally:
@@ -494,3 +499,18 @@ def test_the_initial_exchange_settles_a_chain_against_its_order(probe, tmp_path)
     assert res.status == "ok", res.message
     d = np.load(tmp_path / "out" / "signals.npy")
     assert (d["a.y"][0], d["b.y"][0], d["c.y"][0]) == (6.0, 12.0, 6.0)
+
+
+def test_release_ends_the_override_of_that_variable_only(probe, tmp_path):
+    """b.b (Boolean) and b.u (Real) share a value reference: releasing b.b leaves b.u's override alone."""
+    sim = Simulation(file="t.toml").experiment(start=0.0, stop=0.05, step=0.01)
+    sim.instance("a", probe(), u=1.0).instance("b", probe(aliased=True)).connect("a.y", "b.u")
+    with sim.record("b.y", csv=False).start(tmp_path / "out") as run:
+        run.set("b.u", 100.0)
+        run.step()
+        run.release("b.b")
+        run.step()
+        run.release("b.u")
+        run.step()
+        res = run.finish()
+    assert res["b.y"].tolist() == [1.0, 101.0, 102.0, 7.0, 9.0, 11.0]   # b.y = b.u + steps; b.u = a.y = 1 + steps
