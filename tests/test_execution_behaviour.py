@@ -514,3 +514,14 @@ def test_release_ends_the_override_of_that_variable_only(probe, tmp_path):
         run.step()
         res = run.finish()
     assert res["b.y"].tolist() == [1.0, 101.0, 102.0, 7.0, 9.0, 11.0]   # b.y = b.u + steps; b.u = a.y = 1 + steps
+
+
+def test_a_non_finite_output_before_a_stop_event_fails_the_run(probe, tmp_path):
+    """The recording is checked when it is flushed: a stop event at 1.1 s ends the run, and the flush
+    that follows finds y = inf at 1.06 s: the run failed there, not stopped."""
+    sim = _sim(probe(), start=1.0, stop=1.2, p=10.0)
+    sim.event(time=1.05, variable="probe.u", action="override", value=1e308)
+    sim.event(time=1.1, action="stop")
+    res = _run(sim, tmp_path / "out")
+    assert (res.status, res.steps, res.message) == ("failed", 6, "probe.y is inf at t = 1.06 s (a non-finite output)")
+    assert len(np.load(tmp_path / "out" / "signals.npy")) == 7
