@@ -416,7 +416,6 @@ class Execution:
             io = self.ios[self.plan.order.index(name)]
             raise self.wiring.bad_input(name, io.in_vr, io.copies, tf)
         if what == "fmi3Terminated":  # the step's row is recorded already
-            self.k_done = kf
             raise _Stop(name, tf, recorded=True)
         if what == "fmi2DoStep" and int(val) == DISCARD and inst.n_errors == self._errors[name]:
             # fmi2Terminated after a Discard with nothing logged at Discard, Error or Fatal: the FMU ended the

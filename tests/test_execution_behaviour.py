@@ -185,6 +185,23 @@ def test_a_failure_reported_by_the_loop_counts_the_steps_whose_rows_are_recorded
         run.close()
 
 
+def test_an_fmi3_fmu_ending_the_simulation_in_a_step_ends_the_run_after_that_steps_row(probe, tmp_path):
+    """The loop reports fmi3Terminated at k = 7 after recording the row at t_7: the run ends there,
+    terminated by that FMU, with 7 steps and no row added."""
+    run = _sim(probe(), start=1.0, stop=1.5).start(tmp_path / "out")
+    try:
+        ex = run._ex
+        with pytest.raises(execution._Stop) as stop:
+            ex._failed(7, "probe", "fmi3Terminated", 0)
+        assert (stop.value.name, stop.value.t, stop.value.recorded) == ("probe", 1.07, True)
+        n = len(ex.rows)
+        ex.ended(stop.value)
+        assert (ex.status, ex.message, ex.k_done, len(ex.rows)) == ("terminated", "terminated by FMU probe at "
+                                                                    "t = 1.07 s", 7, n)
+    finally:
+        run.close()
+
+
 # ---------------------------------------------------------------------- non-finite inputs
 def _pair(fmu: Path, u: float, factor: float = 1e300, **event) -> Simulation:
     """a.y = a.u + c feeds b.u through ``factor``; only a.y is recorded."""
