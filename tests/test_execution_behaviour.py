@@ -216,7 +216,8 @@ def test_a_non_finite_input_at_the_start_fails_before_anything_is_recorded(probe
     res = _run(_pair(probe(), 1e300), tmp_path / "out")
     assert (res.status, res.steps) == ("failed", 0)
     assert res.message == "a.y produced 1e+300; b.u would receive the non-finite value inf at t = 1 s"
-    assert not (tmp_path / "out" / "signals.npy").exists() and _summary(tmp_path / "out")["rows"] == 0
+    summary = _summary(tmp_path / "out")
+    assert not (tmp_path / "out" / "signals.npy").exists() and (summary["rows"], summary["us_per_step"]) == (0, None)
 
 
 def test_a_non_finite_input_mid_run_stops_at_the_step_it_would_enter(probe, tmp_path):
@@ -542,3 +543,33 @@ def test_a_non_finite_output_before_a_stop_event_fails_the_run(probe, tmp_path):
     res = _run(sim, tmp_path / "out")
     assert (res.status, res.steps, res.message) == ("failed", 6, "probe.y is inf at t = 1.06 s (a non-finite output)")
     assert len(np.load(tmp_path / "out" / "signals.npy")) == 7
+
+
+# ---------------------------------------------------------------------- events on conditions
+def test_condition_events_fire_on_rising_edges_with_their_delay(probe, tmp_path):
+    """a.u is switched 1, 0, 1 by timed events; conditions are evaluated after every step (and at the
+    start): 'each' acts at every rising edge, 'once' at the first only, a delay acts at the first
+    communication point at or after it, a condition true at the start acts before the first step, and
+    an action due after the last step never acts."""
+    fmu = probe()
+    sim = Simulation(file="t.toml").experiment(start=1.0, stop=1.1, step=0.01)
+    sim.instance("a", fmu).instance("b", fmu)
+    for t, v in ((1.02, 1.0), (1.04, 0.0), (1.06, 1.0)):
+        sim.event(time=t, variable="a.u", action="override", value=v)
+    sim.event(when="a.u > 0.5", trigger="each", variable="b.u", action="bias", value=1.0)
+    sim.event(when="a.u > 0.5", trigger="once", delay=0.015, variable="b.u", action="bias", value=10.0)
+    sim.event(when="t >= 1.0", variable="b.u", action="bias", value=100.0)
+    sim.event(when="t > 1.085", delay=0.01, variable="b.u", action="bias", value=1000.0)
+    res = _run(sim.record("b.y", csv=False), tmp_path / "out")
+    assert res.status == "ok", res.message
+    assert np.load(tmp_path / "out" / "signals.npy")["b.y"].tolist() == [0.0, 101.0, 102.0, 103.0, 105.0, 106.0,
+                                                                         117.0, 118.0, 120.0, 121.0, 122.0]
+    bias = {"action": "bias", "variable": "b.u"}
+    assert res.events == [
+        {"time": 1.0, "event": 5, **bias, "value": 100.0, "when": "t >= 1.0", "condition_time": 1.0},
+        {"time": 1.02, "event": 0, "action": "override", "variable": "a.u", "value": 1.0},
+        {"time": 1.03, "event": 3, **bias, "value": 1.0, "when": "a.u > 0.5", "condition_time": 1.03},
+        {"time": 1.04, "event": 1, "action": "override", "variable": "a.u", "value": 0.0},
+        {"time": 1.05, "event": 4, **bias, "value": 10.0, "when": "a.u > 0.5", "condition_time": 1.03},
+        {"time": 1.06, "event": 2, "action": "override", "variable": "a.u", "value": 1.0},
+        {"time": 1.07, "event": 3, **bias, "value": 1.0, "when": "a.u > 0.5", "condition_time": 1.07}]
