@@ -573,3 +573,21 @@ def test_condition_events_fire_on_rising_edges_with_their_delay(probe, tmp_path)
         {"time": 1.05, "event": 4, **bias, "value": 10.0, "when": "a.u > 0.5", "condition_time": 1.03},
         {"time": 1.06, "event": 2, "action": "override", "variable": "a.u", "value": 1.0},
         {"time": 1.07, "event": 3, **bias, "value": 1.0, "when": "a.u > 0.5", "condition_time": 1.07}]
+
+
+def test_decimation_records_every_nth_step_and_the_last(probe, tmp_path):
+    sim = _sim(probe(), start=1.0, stop=1.1, record=("probe.n",))
+    sim.document["record"]["decimation"] = 3
+    res = _run(sim, tmp_path / "out")
+    d = np.load(tmp_path / "out" / "signals.npy")
+    assert d["probe.n"].tolist() == [0, 3, 6, 9, 10] and res.steps == 10
+    assert _summary(tmp_path / "out")["rows"] == 5
+
+
+def test_real_time_pacing_reports_its_figures(probe, tmp_path):
+    res = _run(_sim(probe(), stop=0.05), tmp_path / "out", real_time=1000.0)
+    assert res.status == "ok" and res.real_time is not None and res.real_time["factor"] == 1000.0
+    assert res.real_time["steps"] == 5
+    assert _summary(tmp_path / "out")["real_time"] == res.real_time
+    assert _run(_sim(probe(), stop=0.05), tmp_path / "b").real_time is None      # not paced by default
+    assert "real_time" not in _summary(tmp_path / "b")
