@@ -4,6 +4,7 @@ and the row buffer's last recorded time."""
 from __future__ import annotations
 
 import csv
+import math
 import io
 import os
 from pathlib import Path
@@ -180,3 +181,121 @@ def test_the_csv_writer_reads_the_recording_a_chunk_at_a_time(tmp_path):
         tracemalloc.stop()
     assert peak < 200_000, peak
     assert (tmp_path / "signals.csv").read_text().count("\n") == 10_001
+
+
+# ---------------------------------------------------------------------- the output lock
+def test_the_output_lock_refuses_a_second_run_naming_the_holder(tmp_path):
+    from wmr_cosim.cosim.recording import OutputLock
+
+    with OutputLock(tmp_path) as lock:
+        assert (tmp_path / ".wmr-cosim.lock").read_text() == f"{os.getpid()}\n"
+        with pytest.raises(OutputError) as err:
+            OutputLock(tmp_path).acquire()
+        assert str(err.value) == (f"{tmp_path}: in use by another run (process {os.getpid()}): choose another --out "
+                                  "or wait for it to finish")
+        assert lock.path == tmp_path / ".wmr-cosim.lock"
+    assert not (tmp_path / ".wmr-cosim.lock").exists()        # released: removed, and free again
+    second = OutputLock(tmp_path).acquire()
+    second.release()
+    second.release()                                           # a second release does nothing
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_lock_file_left_by_a_killed_run_is_taken_over(tmp_path):
+    from wmr_cosim.cosim.recording import OutputLock
+
+    (tmp_path / ".wmr-cosim.lock").write_text("999999999\nstale\n")   # no process holds its flock
+    with OutputLock(tmp_path):
+        assert (tmp_path / ".wmr-cosim.lock").read_text() == f"{os.getpid()}\n"
+
+
+# ---------------------------------------------------------------------- the .npy recording
+def test_the_npy_file_loads_after_every_append_with_a_header_of_fixed_length(tmp_path):
+    path = tmp_path / "s.npy"
+    rec = NpyRecorder(path, ["time", "x"])
+    assert np.load(path).dtype == np.dtype([("time", "<f8"), ("x", "<f8")]) and len(np.load(path)) == 0
+    header = path.stat().st_size
+    assert header % 64 == 0
+    rec.append([np.array([]), np.array([])])                  # nothing to add
+    assert rec.rows == 0 and path.stat().st_size == header
+    for n in (1, 3, 1000):
+        rec.append([np.arange(n, dtype=float), np.full(n, 0.5)])
+        assert path.stat().st_size == header + 16 * rec.rows
+        assert len(np.load(path)) == rec.rows
+    rec.close()
+    rec.close()
+    d = np.load(path)
+    assert rec.rows == 1004 and d["time"][-1] == 999.0 and np.all(d["x"] == 0.5)
+
+
+def test_column_names_outside_latin1_use_the_utf8_header(tmp_path):
+    path = tmp_path / "s.npy"
+    rec = NpyRecorder(path, ["time", "plant.α₁"], ["Real", "Real"])
+    rec.append([np.array([0.0, 0.1]), np.array([1.0, 2.0])])
+    rec.close()
+    assert path.read_bytes()[6:8] == b"\x03\x00"
+    assert np.load(path)["plant.α₁"].tolist() == [1.0, 2.0]
+    latin = NpyRecorder(tmp_path / "l.npy", ["time", "é"])
+    latin.close()
+    assert (tmp_path / "l.npy").read_bytes()[6:8] == b"\x01\x00" and np.load(tmp_path / "l.npy").dtype.names == ("time", "é")
+
+
+def test_append_converts_each_column_to_its_type(tmp_path):
+    rec = NpyRecorder(tmp_path / "s.npy", ["time", "i", "b", "u8", "f4"], ["Real", "Integer", "Boolean", "UInt8", "Float32"])
+    rec.append([np.array([0.0, 1.0]), np.array([-3, 7], dtype=np.int64), np.array([0, 1], dtype=np.int64),
+                np.array([255, 1], dtype=np.int64), np.array([0.5, 1.5])])
+    with pytest.raises(ValueError) as err:
+        rec.append([np.array([0.0])])
+    assert str(err.value) == "1 columns for 5"
+    rec.close()
+    d = np.load(tmp_path / "s.npy")
+    assert [d.dtype[n].str for n in d.dtype.names] == ["<f8", "<i4", "|b1", "|u1", "<f4"]
+    assert d["i"].tolist() == [-3, 7] and d["b"].tolist() == [False, True] and d["u8"].tolist() == [255, 1]
+
+
+# ---------------------------------------------------------------------- the row buffer's check
+def test_a_non_finite_recorded_real_stops_at_its_row(tmp_path):
+    """Rows are [time, x, y] as float64 then [n] as int64; the recording takes time, y, n, x (slots 0, 2, 3
+    and 1): the first non-finite real (in time order, then column order) names its column, value and time,
+    and the rows up to it are written."""
+    from wmr_cosim.cosim.errors import RunError
+
+    rec = NpyRecorder(tmp_path / "s.npy", ["time", "plant.y", "count", "ctrl.x"], ["Real", "Real", "Integer", "Real"])
+    rows = RowBuffer(rec, [0, 2, 3, 1], 3, 1)
+    for t, x, y, n in ((0.0, 1.0, 2.0, 7), (0.5, 1.5, 2.5, 8), (1.0, math.inf, math.nan, 9), (1.5, 0.0, 0.0, 10)):
+        rows.chunk.append(np.array([t, x, y], "<f8").tobytes() + np.array([n], "<i8").tobytes())
+    assert len(rows) == 4
+    with pytest.raises(RunError) as err:
+        rows.flush()
+    assert str(err.value) == "plant.y is nan at t = 1 s (a non-finite output)"
+    assert (err.value.instance, err.value.time) == ("plant", 1.0)
+    assert len(rows) == 0
+    rec.close()
+    d = np.load(tmp_path / "s.npy")
+    assert d["time"].tolist() == [0.0, 0.5, 1.0] and d["count"].tolist() == [7, 8, 9]
+    assert d["ctrl.x"][:2].tolist() == [1.0, 1.5] and math.isinf(d["ctrl.x"][2])
+
+
+def test_a_flush_of_finite_rows_writes_them_all(tmp_path):
+    rec = NpyRecorder(tmp_path / "s.npy", ["time", "n"], ["Real", "Integer"])
+    rows = RowBuffer(rec, [0, 1], 1, 1)
+    rows.flush()                                              # nothing buffered: nothing written
+    assert rec.rows == 0
+    for t in range(3):
+        rows.chunk.append(np.array([t / 2], "<f8").tobytes() + np.array([-t], "<i8").tobytes())
+    rows.flush()
+    rec.close()
+    d = np.load(tmp_path / "s.npy")
+    assert d["time"].tolist() == [0.0, 0.5, 1.0] and d["n"].tolist() == [0, -1, -2]
+
+
+# ---------------------------------------------------------------------- whole files
+def test_atomic_write_and_write_json_leave_whole_files_only(tmp_path):
+    from wmr_cosim.cosim.recording import atomic_write, write_json
+
+    atomic_write(tmp_path / "a.txt", "text")
+    atomic_write(tmp_path / "b.bin", b"\x00\x01")
+    write_json(tmp_path / "c.json", {"path": tmp_path, "x": [1, 2]})
+    assert (tmp_path / "a.txt").read_text() == "text" and (tmp_path / "b.bin").read_bytes() == b"\x00\x01"
+    assert (tmp_path / "c.json").read_text() == '{\n  "path": "%s",\n  "x": [\n    1,\n    2\n  ]\n}\n' % tmp_path
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.bin", "c.json"]
