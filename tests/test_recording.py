@@ -241,16 +241,18 @@ def test_column_names_outside_latin1_use_the_utf8_header(tmp_path):
 
 
 def test_append_converts_each_column_to_its_type(tmp_path):
-    rec = NpyRecorder(tmp_path / "s.npy", ["time", "i", "b", "u8", "f4"], ["Real", "Integer", "Boolean", "UInt8", "Float32"])
+    rec = NpyRecorder(tmp_path / "s.npy", ["time", "i", "b", "u8", "f4", "u64"],
+                      ["Real", "Integer", "Boolean", "UInt8", "Float32", "UInt64"])
     rec.append([np.array([0.0, 1.0]), np.array([-3, 7], dtype=np.int64), np.array([0, 1], dtype=np.int64),
-                np.array([255, 1], dtype=np.int64), np.array([0.5, 1.5])])
+                np.array([255, 1], dtype=np.int64), np.array([0.5, 1.5]), np.array([-1, 3], dtype=np.int64)])
     with pytest.raises(ValueError) as err:
         rec.append([np.array([0.0])])
-    assert str(err.value) == "1 columns for 5"
+    assert str(err.value) == "1 columns for 6"
     rec.close()
     d = np.load(tmp_path / "s.npy")
-    assert [d.dtype[n].str for n in d.dtype.names] == ["<f8", "<i4", "|b1", "|u1", "<f4"]
+    assert [d.dtype[n].str for n in d.dtype.names] == ["<f8", "<i4", "|b1", "|u1", "<f4", "<u8"]
     assert d["i"].tolist() == [-3, 7] and d["b"].tolist() == [False, True] and d["u8"].tolist() == [255, 1]
+    assert d["u64"].tolist() == [2 ** 64 - 1, 3]          # an int64 column of UInt64 bits: reinterpreted
 
 
 # ---------------------------------------------------------------------- the row buffer's check
