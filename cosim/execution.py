@@ -356,10 +356,6 @@ class Execution:
         return lambda: instance.get_value(var)
 
     # ---------------------------------------------------------------- values between steps
-    def get(self, inst: str, var: Any) -> Any:
-        """The current value of a variable (``inst``, its Variable)."""
-        return self._reader(inst, var)()
-
     def set(self, inst: str, var: Any, value: Any) -> None:
         """Set a variable between steps (the value already checked against its type and range): a tunable
         parameter; a Real input or an output feeding connections is overridden until :meth:`release`; an
@@ -413,13 +409,13 @@ class Execution:
     def _failed(self, kf: int, name: str, what: str, val: Any) -> None:
         """A segment stopped at step ``kf``: an FMU that ended the simulation, or an error."""
         tf = self.t0 + kf * self.h
-        self.k_done = kf if not what.startswith("fmi2Get") else kf - 1
+        # a get after the step to t_kf failed: that step's row is not recorded, the steps done are kf - 1
+        self.k_done = kf - 1 if what.endswith(("GetReal", "Get (recorded)")) else kf
         inst = self.instances[name]
         if what == "inputs":
             io = self.ios[self.plan.order.index(name)]
             raise self.wiring.bad_input(name, io.in_vr, io.copies, tf)
         if what == "fmi3Terminated":  # the step's row is recorded already
-            self.k_done = kf
             raise _Stop(name, tf, recorded=True)
         if what == "fmi2DoStep" and int(val) == DISCARD and inst.n_errors == self._errors[name]:
             # fmi2Terminated after a Discard with nothing logged at Discard, Error or Fatal: the FMU ended the
@@ -437,7 +433,9 @@ class Execution:
             return
         self.k_done = min(self.n_steps, int(math.floor((s.t - self.t0) / self.h + 1e-9)))
         try:
-            if not s.recorded:
+            # the row at the FMU's last time, unless it is the last row recorded (the FMU ended the
+            # simulation at a communication point without advancing)
+            if not s.recorded and (s.t - self.layout.row[0]) / self.h > 1e-9:
                 self.record_final(s.t)
             self.status, self.message = "terminated", f"terminated by FMU {s.name} at t = {s.t:.6g} s"
         except RunError as exc:

@@ -201,13 +201,14 @@ def write_csv(npy_path: str | os.PathLike, csv_path: str | os.PathLike, chunk: i
     names = data.dtype.names or ()
     csv_path = Path(csv_path)
     tmp = csv_path.with_name(csv_path.name + ".part")
-    line = ",".join("%r" if data.dtype[n].kind == "f" else "%d" for n in names)
+    line = ",".join(["%r"] * len(names))   # Python floats and ints: repr is full precision
     try:
         with open(tmp, "w", newline="") as fh:
             fh.write(",".join(_csv_name(n) for n in names) + "\n")
             for i in range(0, len(data), chunk):
                 part = data[i:i + chunk]
-                cols = [part[n].tolist() if data.dtype[n].kind == "f" else part[n].astype(np.int64).tolist()
+                # booleans as 0/1; integers as Python ints (an unsigned 64-bit value in full)
+                cols = [part[n].astype(np.int64).tolist() if data.dtype[n].kind == "b" else part[n].tolist()
                         for n in names]
                 fh.writelines(line % row + "\n" for row in zip(*cols))
         os.replace(tmp, csv_path)
