@@ -309,7 +309,10 @@ class Run:
         return got
 
     def get(self, ref: str) -> Any:
-        """The current value of ``"instance.variable"`` (any variable: an output, an input, a parameter)."""
+        """The current value of ``"instance.variable"`` (any variable: an output, an input, a parameter).
+        A Float64 output the loop reads at every step gives its value at the last communication point (as
+        recorded, and as conditions see it); any other variable is asked of the FMU, so an output with
+        direct feedthrough already reflects an input :meth:`set` since that point."""
         read = self._readers.get(ref)
         if read is None or self.result is not None:
             self._alive()
