@@ -88,3 +88,19 @@ def build_test_fmu_uncached(src: Path, out: Path) -> Path:
         raise RuntimeError(p.stdout + p.stderr)
     fmus = sorted(out.glob("*.fmu"), key=lambda f: f.stat().st_mtime)
     return fmus[-1]
+
+
+class FakeClock:
+    """A wall clock [s] for the real-time pacer's tests: it advances only when slept on (``sleep``) or
+    when a test moves ``now``; ``slept`` lists every sleep asked for."""
+
+    def __init__(self, now: float = 100.0) -> None:
+        self.now = now
+        self.slept: list[float] = []
+
+    def __call__(self) -> float:
+        return self.now
+
+    def sleep(self, dt: float) -> None:
+        self.slept.append(dt)
+        self.now += dt

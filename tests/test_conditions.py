@@ -8,6 +8,7 @@ import random
 
 import pytest
 
+from cosim_support import FakeClock
 from wmr_cosim.cosim import pacing
 from wmr_cosim.cosim.condition import ConditionError, check_types, compile_condition, parse, tokenize, variables
 
@@ -108,21 +109,6 @@ def test_type_check(text, words):
 def test_type_check_accepts_numbers_and_booleans():
     check_types(parse("p.x > p.n and p.flag != false or not p.flag and t < 3"),
                 {"p.x": "Real", "p.n": "Integer", "p.flag": "Boolean"})
-
-
-class FakeClock:
-    """A wall clock that advances only when slept on, or by ``work`` seconds per step."""
-
-    def __init__(self) -> None:
-        self.now = 100.0
-        self.slept: list[float] = []
-
-    def __call__(self) -> float:
-        return self.now
-
-    def sleep(self, dt: float) -> None:
-        self.slept.append(dt)
-        self.now += dt
 
 
 def test_pacer_sleeps_to_each_due_time_and_counts_the_late_steps(monkeypatch):

@@ -4,27 +4,13 @@ from __future__ import annotations
 
 import pytest
 
+from cosim_support import FakeClock
 from wmr_cosim.cosim import pacing
 
 
-class Clock:
-    """A wall clock [s] that advances only when slept on or set by the test."""
-
-    def __init__(self, now: float) -> None:
-        self.now = now
-        self.slept: list[float] = []
-
-    def __call__(self) -> float:
-        return self.now
-
-    def sleep(self, dt: float) -> None:
-        self.slept.append(dt)
-        self.now += dt
-
-
 @pytest.fixture
-def clock(monkeypatch) -> Clock:
-    c = Clock(0.0)
+def clock(monkeypatch) -> FakeClock:
+    c = FakeClock(0.0)
     monkeypatch.setattr(pacing.time, "sleep", c.sleep)
     return c
 
