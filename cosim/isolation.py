@@ -484,7 +484,7 @@ class IsolatedInstance:
         except ChildDied as exc:
             raise self.died(exc, "set-up", None) from None
         except RuntimeError as exc:
-            raise RunError(f"{self.name}: {exc}", self.name, None) from None
+            raise RunError(f"{self.name}: {exc}", self.name) from None
         child, size = self.child, 8 * n_out
         mode = {"stepping": False}   # before the first step (initialisation), set and get are requests
 

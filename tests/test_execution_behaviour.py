@@ -35,6 +35,8 @@ HOOKS = {
     "NO_LAST_TIME": ("fmi2GetRealStatus", "return fmi2Error;"),
     "ENDS_HALFWAY_AT": ("fmi2DoStep", "if (t >= ENDS_HALFWAY_AT - 1e-9) { s->terminated = 1; s->n += 1; "
                                       "s->time = s->last_ok = t + h / 2; return fmi2Discard; }"),
+    "ENDS_10NS_INTO_AT": ("fmi2DoStep", "if (t >= ENDS_10NS_INTO_AT - 1e-9) { s->terminated = 1; s->n += 1; "
+                                        "s->time = s->last_ok = t + 1e-8; return fmi2Discard; }"),
 }
 
 
@@ -150,6 +152,17 @@ def test_an_fmu_ending_the_simulation_inside_a_step_adds_the_row_at_its_time(pro
     assert res.steps == 25 and res.t_end == 1.255 and res.final == {"time": 1.255, "probe.n": 26}
     d = np.load(tmp_path / "out" / "signals.npy")
     assert len(d) == 27 and d["time"][-2:].tolist() == [1.25, 1.255] and d["probe.n"][-2:].tolist() == [25, 26]
+
+
+def test_an_fmu_ending_the_simulation_10_ns_into_a_step_gets_a_row_of_its_own(probe, tmp_path):
+    """An end 10 ns after the communication point at 1.25 s (an event a hair past it) is a time of its own:
+    the row there is added after the row at 1.25 s (only an end within a billionth of a step of the last
+    row is that row)."""
+    res = _run(_sim(probe(ENDS_10NS_INTO_AT=1.25), start=1.0, stop=1.5, step=0.01, record=("probe.n",)),
+               tmp_path / "out")
+    assert res.status == "terminated" and res.steps == 25 and res.t_end == 1.25 + 1e-8
+    d = np.load(tmp_path / "out" / "signals.npy")
+    assert len(d) == 27 and d["time"][-1] == 1.25 + 1e-8 and d["probe.n"][-2:].tolist() == [25, 26]
 
 
 def test_an_fmu_that_ends_and_then_fails_to_give_its_outputs_is_a_failure(probe, tmp_path):

@@ -14,6 +14,7 @@ import json
 import os
 import signal
 import subprocess
+import time
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -109,10 +110,18 @@ def handle(op, args):
     raise KeyError(op)
 
 
+SENT = [0]
+
+
 def send(reply):
     data = pickle.dumps(reply)
     data = struct.pack("<q", len(data)) + data
-    if mode.get("piecewise"):
+    SENT[0] += 1
+    if mode.get("stall_body") and SENT[0] > 1:   # after the first answer: the length, then nothing for a while
+        os.write(c_w, data[:8])
+        time.sleep(mode["stall_body"])
+        os.write(c_w, data[8:])
+    elif mode.get("piecewise"):
         for a, b in ((0, 3), (3, 11), (11, len(data))):
             os.write(c_w, data[a:b])
             time.sleep(0.01)
@@ -364,6 +373,33 @@ def test_a_hang_is_ended_after_the_timeout(fake, tmp_path, where, spin):
         c.call("instantiate") if where == "request" else c.step(0.0, 0.1)
     assert str(exc.value) == "did not answer within 1 s (ended)"
     assert c.proc.poll() == -signal.SIGKILL
+
+
+def test_the_first_answer_may_take_the_startup_time_and_later_ones_the_step_timeout(fake, tmp_path, monkeypatch):
+    """The child's first answer (its start) is held to STARTUP_TIMEOUT when that is longer than the step
+    timeout; every later answer to the step timeout; a child that never answers is ended after the
+    startup time, not waited for."""
+    monkeypatch.setattr(isolation, "STARTUP_TIMEOUT", 3.0)
+    c = fake.child({"replies": {"configure": ["slow", 1.5], "instantiate": ["hang", 5.0]}}, timeout=0.5)
+    c.configure([], 0, [], 0)                               # 1.5 s: more than the step timeout, answered
+    assert c.started
+    with pytest.raises(ChildDied) as exc:
+        c.call("instantiate")
+    assert str(exc.value) == "did not answer within 0.5 s (ended)"
+    silent = fake.child({"replies": {"configure": ["hang", 30.0]}}, timeout=0.5)
+    t0 = time.monotonic()
+    with pytest.raises(ChildDied) as exc:
+        silent.configure([], 0, [], 0)
+    assert str(exc.value) == "did not answer within 3 s (ended)" and time.monotonic() - t0 < 20
+
+
+def test_an_answer_whose_body_does_not_follow_its_length_is_ended_after_the_timeout(fake):
+    c = fake.child({"stall_body": 30.0}, timeout=0.5)
+    c.configure([], 0, [], 0)    # (the first answer comes whole)
+    t0 = time.monotonic()
+    with pytest.raises(ChildDied) as exc:
+        c.call("echo", 1)
+    assert str(exc.value) == "did not answer within 0.5 s (ended)" and time.monotonic() - t0 < 20
 
 
 @pytest.mark.parametrize("spin", [0, 10 ** 7])
