@@ -653,3 +653,12 @@ def test_an_ssd_saying_another_version_is_read_as_ssp_1_with_a_warning(tmp_path)
     arch = load_ssp(src)
     arch.cleanup()
     assert arch.warnings == []
+
+
+def test_the_document_an_ssp_becomes_names_its_archive_and_its_ssd(tmp_path):
+    """The scenario read from an SSP keeps the archive's path and the SSD's name (they go into scenario.json's
+    document, which says what was run)."""
+    path = _archive(tmp_path)
+    sc = _load(path)
+    assert sc.data["ssp"] == str(path) and sc.data["name"] == "t"
+
