@@ -1,9 +1,9 @@
 """Tabulated inputs: input signals read from a CSV file and sampled at the communication points.
 
 The file has a time column first and one column per input, named ``instance.variable`` (or just
-``variable`` when the system has one instance); two columns naming one input are refused.  Values are read as the variable's type: Real as float,
-Integer and Enumeration as integers (exactly: a 64-bit value is never passed through a float), Boolean
-as true/false/1/0, String as text.
+``variable`` when the system has one instance); two columns naming one input are refused.  Values are
+read as the variable's type: Real as float, Integer and Enumeration as integers (exactly: a 64-bit value
+is never passed through a float), Boolean as true/false/1/0, String as text.
 
 Timing (the convention of FMPy's ``simulate_fmu(input=...)``): before the step from t_k, each input is set
 to the table's value at t_k.  Real inputs of continuous variability are interpolated linearly by default

@@ -236,14 +236,21 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
     return row
 
 
-def _goal(run_dir: Path) -> tuple[float, float] | None:
+def _controller_parameters(run_dir: Path) -> dict[str, Any] | None:
+    """The parameters a run's scenario set on its controller (its ``scenario.json``), None if unreadable."""
     try:
-        resolved = json.loads((run_dir / "scenario.json").read_text())
-        p = resolved["instances"]["controller"]["parameters"]
-        if p.get("task", "goal") == "line":
+        return json.loads((run_dir / "scenario.json").read_text())["instances"]["controller"]["parameters"]
+    except (OSError, KeyError, ValueError, TypeError):
+        return None
+
+
+def _goal(run_dir: Path) -> tuple[float, float] | None:
+    p = _controller_parameters(run_dir)
+    try:
+        if p is None or p.get("task", "goal") == "line":
             return None
         return float(p["goal_x"]), float(p["goal_y"])
-    except (OSError, KeyError, ValueError, TypeError):
+    except (KeyError, ValueError, TypeError):
         return None
 
 
@@ -254,10 +261,7 @@ def _weights(run_dir: Path) -> dict[str, float]:
 
     defaults = ControllerParams()
     w = {"Q": defaults.Q, "R": defaults.R, "gamma": defaults.gamma}
-    try:
-        p = json.loads((run_dir / "scenario.json").read_text())["instances"]["controller"]["parameters"]
-    except (OSError, KeyError, ValueError, TypeError):
-        return w
+    p = _controller_parameters(run_dir) or {}
     return {k: float(p.get(k, v)) for k, v in w.items()}
 
 
