@@ -169,7 +169,7 @@ def survivor_diffs(names: list[str]) -> str:
 
     by_module: dict[str, list[str]] = {}
     for name in names:
-        by_module.setdefault(name.split(".x_")[0].split(".xǁ")[0], []).append(name)
+        by_module.setdefault(_module_of(name), []).append(name)
     out: list[str] = []
     for module, members in sorted(by_module.items()):
         path = STAGE / "mutants" / (module.replace(".", "/") + ".py")
@@ -236,8 +236,7 @@ def check(names: list[str], test_files: list[Path], limit_s: float = 120.0) -> d
         copy = tests / f"_check_{os.getpid()}_{Path(f).name}"
         shutil.copyfile(f, copy)
         copies.append(copy)
-    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1", "WMR_TEST_FMU_CACHE": str(STAGE / "fmu-cache"),
-           "WMR_MUTATION_CHECK": "1"}     # (tests/conftest.py collects the copies only then)
+    env = {**_test_env(), "WMR_MUTATION_CHECK": "1"}     # (tests/conftest.py collects the copies only then)
     env.pop("MUTANT_UNDER_TEST", None)
     out: dict[str, str] = {}
     try:
@@ -294,10 +293,20 @@ def load_unreachable() -> dict[str, str]:
     return {e["function"]: e["reason"] for e in _equivalents_file("unreachable")}
 
 
+def _module_of(name: str) -> str:
+    """The module of a mutant's name (``wmr_cosim.cosim.ssp.x__typed__mutmut_9`` -> ``wmr_cosim.cosim.ssp``)."""
+    return name.split(".x_")[0].split(".xǁ")[0]
+
+
+def _test_env() -> dict[str, str]:
+    """The environment of mutmut's test sessions: no bytecode files, the built FMUs kept between sessions
+    (tests/conftest.py reads WMR_TEST_FMU_CACHE)."""
+    return {**os.environ, "PYTHONDONTWRITEBYTECODE": "1", "WMR_TEST_FMU_CACHE": str(STAGE / "fmu-cache")}
+
+
 def _in_scope(name: str, only: list[str]) -> bool:
     """Whether mutant ``name`` sits in a file matched by one of the ``only`` globs."""
-    module = name.split(".x_")[0].split(".xǁ")[0]
-    path = module.replace(".", "/") + ".py"
+    path = _module_of(name).replace(".", "/") + ".py"
     return any(fnmatch.fnmatch(path, g) for g in only)
 
 
@@ -387,8 +396,7 @@ def run(only: list[str] | None = None, fresh: bool = False, max_children: int | 
     _regenerate_newly_in_scope(only)
     if retest:
         forget_survivors()
-    # the FMUs the tests build are kept between mutmut's test sessions (tests/conftest.py reads this)
-    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1", "WMR_TEST_FMU_CACHE": str(STAGE / "fmu-cache")}
+    env = _test_env()
     cmd = [sys.executable, "-c", "import sys; from mutmut.__main__ import cli; sys.exit(cli())", "run",
            "--max-children", str(max_children or os.cpu_count() or 2)]
     log = STAGE / "mutmut.log"
