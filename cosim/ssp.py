@@ -394,9 +394,10 @@ def _parameter_set(root, where: str) -> list[tuple[str, Any]]:
     return out
 
 
-def _bindings(owner, archive: Path, folder: Path, where: str, base: str) -> list[tuple[str, Any]]:
+def _bindings(owner, folder: Path, where: str) -> list[tuple[str, Any]]:
     """(name, value) of every ParameterBinding of a System or Component; names with the binding's prefix
-    removed.  ``base`` is the folder of the SSD inside the archive (sourceBase="SSD")."""
+    removed.  ``folder``: the extracted archive; a source is relative to the SSD (sourceBase="SSD"),
+    which is at the archive's top.  ``where``: the archive, as errors name it."""
     out: list[tuple[str, Any]] = []
     for b in owner.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
         typ = b.get("type", SSV_MIME)
@@ -410,13 +411,12 @@ def _bindings(owner, archive: Path, folder: Path, where: str, base: str) -> list
         if src is not None:
             if b.get("sourceBase") == "component":  # (the default, "SSD", is the one supported)
                 raise ScenarioError(where, "ParameterBinding", f"{src}: sourceBase=\"component\" is not supported")
-            entry = (PurePosixPath(base) / src).as_posix() if base else src
-            f = folder / entry
-            if ".." in PurePosixPath(entry).parts or not f.is_file():
+            f = folder / src
+            if ".." in PurePosixPath(src).parts or not f.is_file():
                 raise ScenarioError(where, "ParameterBinding", f"parameter file {src!r} is missing from the archive")
             data = f.read_bytes()
-            validate_xml(data, "ssv", f"{archive}: {entry}")
-            sets.append((_parse_xml(data, f"{archive}: {entry}"), f"{archive}: {entry}"))
+            validate_xml(data, "ssv", f"{where}: {src}")
+            sets.append((_parse_xml(data, f"{where}: {src}"), f"{where}: {src}"))
         for inline in b.findall("ssd:ParameterValues/ssv:ParameterSet", NS):
             sets.append((inline, where))
         for root, w in sets:
@@ -565,7 +565,7 @@ def _document(root, system, path: Path, arch: Path, step: float | None, stop: fl
     where = str(path)
     instances, connectors, comp_params = _components(system, path, arch)
     # parameters: system-level bindings address "component.variable"; component-level ones the variable
-    for pname, value in _bindings(system, path, arch, where, ""):
+    for pname, value in _bindings(system, arch, where):
         inst, dot, var = pname.partition(".")
         if not dot or inst not in instances:
             raise ScenarioError(where, f"parameter {pname}", "names no component of the system (expected "
@@ -637,7 +637,7 @@ def _components(system, path: Path, arch: Path) -> tuple[dict[str, Any], dict[tu
             if real is not None and real.get("unit"):
                 units[cn] = real.get("unit")
         instances[cname] = {"fmu": str(fmu), "parameters": {}, "units": units}
-        comp_params += [(cname, p, v) for p, v in _bindings(comp, path, arch, where, "")]
+        comp_params += [(cname, p, v) for p, v in _bindings(comp, arch, where)]
 
     return instances, connectors, comp_params
 

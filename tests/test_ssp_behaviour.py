@@ -422,6 +422,15 @@ def test_the_step_stop_and_algorithm_given_override_the_archive(tmp_path):
     assert (sc.step, sc.stop, sc.algorithm) == (0.5, 3.0, "jacobi")
 
 
+
+def test_a_step_or_stop_given_that_is_not_a_number_is_named_in_one_line(tmp_path):
+    """From Python, load_ssp(step="fast"): the value given is checked like the archive's own (the schema
+    check already makes the archive's times numbers)."""
+    path = _archive(tmp_path)
+    assert _error(path, step="fast") == f"{path}: DefaultExperiment.step: 'fast' is not a number"
+    assert _error(path, stop="1 s") == f"{path}: DefaultExperiment.stop: '1 s' is not a number"
+    assert _load(path, step="0.25", stop="2").step == 0.25
+
 # ------------------------------------------------------------------------------- FMI 3.0 arrays as elements
 ARRAY = [("x", "Float64", "parameter", "fixed", 'start="1 2 3 4 5 6"|<Dimension start="2"/><Dimension start="3"/>'),
          ("s[1].v", "Float64", "parameter", "fixed", 'start="1 2"|<Dimension start="2"/>'),
