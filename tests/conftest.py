@@ -34,13 +34,16 @@ def built_fmus(tmp_path_factory):
 #: leaves that worker's own children running and loading the machine, and what these tests check of the
 #: master is checked by faster tests in process.
 STARTS_WORKER_PROCESSES = (
-    "tests/test_paper.py::test_every_statement_of_the_report_agrees_with_its_number",
     "tests/test_robustness.py::test_reduced_study_runs_on_dask",
     "tests/test_security.py::test_a_sweep_on_a_tls_scheduler",
     "tests/test_security.py::test_the_sweep_command_listens_on_the_loopback_address_only",
     "tests/test_security.py::test_a_local_cluster_listens_on_the_loopback_address_only",
     "tests/test_sweep.py",
 )
+
+
+#: The fixture of tests/test_paper.py that runs the whole paper job in a pool of worker processes.
+USES_THE_PAPER_JOB = "job"
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -50,7 +53,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         return
     skip = pytest.mark.skip(reason="starts worker processes: not run under mutation testing")
     for item in items:
-        if item.nodeid.startswith(STARTS_WORKER_PROCESSES):
+        if item.nodeid.startswith(STARTS_WORKER_PROCESSES) or USES_THE_PAPER_JOB in getattr(item, "fixturenames", ()):
             item.add_marker(skip)
 
 
