@@ -53,8 +53,6 @@ def task_controller(task: str) -> dict[str, Any]:
 
 
 def task_goal(task: str) -> tuple[float, float] | None:
-    """The goal point G [m] of a go-to-goal task, None for the LINE."""
-    if task == "LINE":
-        return None
-    gx, gy = table1()["goals"][task]
-    return float(gx), float(gy)
+    """The goal point G [m] of a go-to-goal task, None for the LINE (KeyError for an unknown task)."""
+    c = task_controller(task)
+    return (c["goal_x"], c["goal_y"]) if c["task"] == "goal" else None

@@ -98,10 +98,13 @@ def test_run_summary_figures():
     u2 = -2.0 * np.arange(n, dtype=float)  # 0 .. -20
     e1 = np.full(n, 0.1)
     e1[-1] = -0.7
+    e2 = np.full(n, -0.2)
+    e2[1], e2[-2] = 0.9, -0.8                    # (only the last sample is final)
     sig = _run(n, **{"controller.v_A_d": v, "controller.u1": u1, "controller.u2": u2, "controller.e1": e1,
-                     "controller.t_goal": np.full(n, 0.016)})
+                     "controller.e2": e2, "controller.t_goal": np.full(n, 0.016)})
     s = run_summary(sig, (4.0, 6.0))
-    assert s["rmse_e"] == [pytest.approx(math.sqrt((10 * 0.01 + 0.49) / 11), rel=1e-12), pytest.approx(0.2)]
+    assert s["rmse_e"] == [pytest.approx(math.sqrt((10 * 0.01 + 0.49) / 11), rel=1e-12),
+                           pytest.approx(math.sqrt((9 * 0.04 + 0.81 + 0.64) / 11), rel=1e-12)]
     assert s["rmse_edot"] == [pytest.approx(0.3), pytest.approx(0.4)]
     assert s["rmse_e_true"] is None and s["rmse_edot_true"] is None   # no plant angles recorded
     assert s["final_position"] == [1.0, 2.0]
@@ -139,12 +142,12 @@ def test_run_summary_true_rmse_from_the_plant_angles():
 
 # --- (52), (53) and the gains ------------------------------------------------------------------------
 
-def _pair(n: int = 5001, t_on: float = 5.0, du: float = 0.3, dF: float = 0.3):
-    """A frozen run and a foam run on 10 s: s = 1 and u = 2 held on the frozen one; from t_on the foam
-    run's control is higher by du and the plant's disturbance is dF (both wheels)."""
+def _pair(n: int = 5001, t_on: float = 5.0, du: float = 0.3, dF: float = 0.3, s: tuple[float, float] = (1.0, 1.0)):
+    """A frozen run and a foam run on 10 s: s = ``s`` and u = 2 held on the frozen one; from t_on the
+    foam run's control is higher by du and the plant's disturbance is dF (both wheels)."""
     t = np.arange(n) * H
     one, zero = np.ones(n), np.zeros(n)
-    frozen = {"time": t, "controller.s1": one, "controller.s2": one, "controller.u1": 2 * one,
+    frozen = {"time": t, "controller.s1": s[0] * one, "controller.s2": s[1] * one, "controller.u1": 2 * one,
               "controller.u2": 2 * one, "plant.dF1": zero, "plant.dF2": zero, "plant.foam_level": zero}
     on = t > t_on
     foam = dict(frozen, **{"controller.u1": np.where(on, 2 + du, 2.0), "controller.u2": np.where(on, 2 + du, 2.0),
@@ -155,7 +158,7 @@ def _pair(n: int = 5001, t_on: float = 5.0, du: float = 0.3, dF: float = 0.3):
 
 def test_disturbance_estimate_52_is_zero_before_the_onset():
     frozen, foam = _pair()
-    d = disturbance_analysis(frozen, foam, Q=1.0, R=0.5, gamma=11.0)
+    d = disturbance_analysis(frozen, foam, Q=1.0, R=0.5)
     t = d["time"]
     assert d["t_F"] == pytest.approx(5.0)
     for du in d["dF_hat"]:
@@ -167,15 +170,24 @@ def test_disturbance_estimate_52_is_zero_before_the_onset():
         assert np.all(np.isnan(d[key][t <= 5.0])) and np.all(np.isfinite(d[key][t > 5.002])), key
 
 
+def test_no_gain_before_the_disturbance_even_where_the_runs_differ():
+    """The incremental gain is undefined (nan, not inf) while no disturbance has acted, even where the foam
+    run's output already differs from the frozen one's."""
+    frozen, foam = _pair()
+    foam["controller.s1"] = foam["controller.s1"] + 0.1
+    d = disturbance_analysis(frozen, foam, Q=1.0, R=0.5)
+    assert np.all(np.isnan(d["gain_incremental_curve"][d["time"] <= 5.0]))
+
+
 def test_the_gains_53_on_two_different_disturbances():
     """The estimate (from the control, 0.3) and the injected disturbance (0.6) differ: gamma* and
     gamma_true have the same numerator and denominators in the ratio 0.3^2 : 0.6^2."""
-    frozen, foam = _pair(du=0.3, dF=0.6)
+    frozen, foam = _pair(du=0.3, dF=0.6, s=(0.5, 1.5))
     Q, R = 2.0, 0.25
-    d = disturbance_analysis(frozen, foam, Q=Q, R=R, gamma=11.0)
+    d = disturbance_analysis(frozen, foam, Q=Q, R=R)
     t = d["time"]
     u = foam["controller.u1"]
-    cost = cumulative_integral(Q * 2 + R * 2 * u * u, t)
+    cost = cumulative_integral(Q * (0.25 + 2.25) + R * 2 * u * u, t)
     den_hat = cumulative_integral(np.where(t > 5.0, 2 * 0.09, 0.0), t)
     den_true = cumulative_integral(2 * foam["plant.dF1"] ** 2, t)
     assert d["gamma_star"] == pytest.approx(math.sqrt(cost[-1] / den_hat[-1]), rel=1e-12)
@@ -187,44 +199,55 @@ def test_the_gains_53_on_two_different_disturbances():
 
 def test_incremental_gain_weighs_the_change_of_s_by_Q():
     frozen, foam = _pair(du=0.0, dF=0.5)
-    foam["controller.s1"] = np.where(foam["time"] > 5.0, 1.4, 1.0)      # s1 changes by 0.4, u not at all
-    d = disturbance_analysis(frozen, foam, Q=3.0, R=0.5, gamma=11.0)
-    assert d["gain_incremental"] == pytest.approx(math.sqrt(3.0 * 0.16 / (2 * 0.25)), rel=2e-3)
+    on = foam["time"] > 5.0
+    foam["controller.s1"] = np.where(on, 1.4, 1.0)      # s1 changes by 0.4, s2 by -0.3, u not at all
+    foam["controller.s2"] = np.where(on, 0.7, 1.0)
+    d = disturbance_analysis(frozen, foam, Q=3.0, R=0.5)
+    assert d["gain_incremental"] == pytest.approx(math.sqrt(3.0 * (0.16 + 0.09) / (2 * 0.25)), rel=2e-3)
     assert d["gamma_star"] is None and d["dF_hat_rms"] == 0.0          # no control change: no estimate
 
 
-def test_the_foam_rise_and_the_edge_peak_windows():
-    """The rise is the mean control change over (t_F + ramp + 0.5, t_F + ramp + 2.5]; the edge peak the
-    largest |u| within [t_F, t_F + 2 s], on the foam run and on the frozen one over the same samples."""
-    frozen, foam = _pair(n=5001, du=0.0)
-    t = foam["time"]
-    tF = 2.0
-    foam["plant.foam_level"] = (t > tF).astype(float)
-    bump = np.zeros_like(t)
-    bump[(t > tF + 0.6 + 1e-9) & (t <= tF + 2.6 + 1e-9)] = 1.0      # the rise window with ramp = 0.1
-    foam["controller.u1"] = 2.0 + bump
-    foam["controller.u2"] = 2.0 - 0.5 * bump
-    d = disturbance_analysis(frozen, foam, Q=1.0, R=0.5, gamma=11.0)
-    assert d["t_F"] == pytest.approx(tF)
-    assert d["foam_rise"] == [pytest.approx(1.0), pytest.approx(-0.5)]
-    # the edge: spikes just outside its window on one wheel, one inside on the other
-    spiky = dict(foam)
-    spiky["controller.u1"] = np.where(np.isclose(t, tF - H) | np.isclose(t, tF + 2.0 + H), 50.0, 2.0)
-    spiky["controller.u2"] = np.where(np.isclose(t, tF + 1.0), -7.0, 2.0)
-    frozen_spiky = dict(frozen, **{"controller.u2": np.where(np.isclose(t, tF), -4.0, 2.0)})
-    e = disturbance_analysis(frozen_spiky, spiky, Q=1.0, R=0.5, gamma=11.0)
-    assert e["edge_peak_u"] == 7.0
-    assert e["edge_peak_u_frozen"] == 4.0
-    spiky["controller.u1"] = np.where(np.isclose(t, tF) | np.isclose(t, tF + 2.0), 9.0, 2.0)
-    assert disturbance_analysis(frozen, spiky, Q=1.0, R=0.5, gamma=11.0)["edge_peak_u"] == 9.0   # both ends in
-    # a longer ramp moves the rise window past the bump's start
-    d2 = disturbance_analysis(frozen, foam, Q=1.0, R=0.5, gamma=11.0, ramp=1.1)
-    assert d2["foam_rise"][0] == pytest.approx(0.5, abs=2e-3)      # half of the window is still on the bump
+def _quarter_pair(tF: float = 2.0):
+    """Runs sampled every 0.25 s (exact in binary, so the windows' ends fall on samples), foam from tF."""
+    t = np.arange(41) * 0.25
+    frozen = {"time": t, "controller.s1": np.ones(41), "controller.s2": np.ones(41),
+              "controller.u1": np.full(41, 2.0), "controller.u2": np.full(41, 2.0),
+              "plant.dF1": np.zeros(41), "plant.dF2": np.zeros(41), "plant.foam_level": np.zeros(41)}
+    foam = dict(frozen, **{"plant.foam_level": (t > tF).astype(float)})
+    return t, frozen, foam
+
+
+def test_the_foam_rise_window_is_open_at_its_start_and_closed_at_its_end():
+    """The rise is the mean control change over (t_F + ramp + 0.5, t_F + ramp + 2.5]: with t_F = 2 s and
+    ramp = 0.5 s, over (3, 5] s: the samples 3.25 .. 5.0."""
+    t, frozen, foam = _quarter_pair()
+    change = np.zeros_like(t)
+    change[(t > 3.0) & (t <= 5.0)] = 1.0
+    change[t == 5.0] = 9.0                               # the window's last sample
+    change[t == 3.0] = 100.0                             # just before it
+    change[t == 5.25] = 100.0                            # just after it
+    foam["controller.u1"] = 2.0 + change
+    foam["controller.u2"] = 2.0 - 0.5 * change
+    d = disturbance_analysis(frozen, foam, Q=1.0, R=0.5, ramp=0.5)
+    assert d["t_F"] == 2.0
+    assert d["foam_rise"] == [pytest.approx((7 * 1.0 + 9.0) / 8), pytest.approx(-0.5 * 16.0 / 8)]
+
+
+def test_the_edge_peak_window_is_closed_at_both_ends():
+    """The edge peak is the largest |u| of either wheel within [t_F, t_F + 2 s], on the foam run and on
+    the frozen one over the same samples."""
+    t, frozen, foam = _quarter_pair()
+    for at, want in ((2.0, 7.0), (4.0, 7.0), (3.0, 7.0), (1.75, 2.0), (4.25, 2.0)):
+        u = np.where(t == at, -7.0, 2.0)
+        d = disturbance_analysis(frozen, dict(foam, **{"controller.u2": u}), Q=1.0, R=0.5)
+        assert d["edge_peak_u"] == want, at
+        e = disturbance_analysis(dict(frozen, **{"controller.u1": u}), foam, Q=1.0, R=0.5)
+        assert (e["edge_peak_u"], e["edge_peak_u_frozen"]) == (2.0, want), at
 
 
 def test_no_foam_gives_no_onset_and_no_windows():
     frozen, _ = _pair(n=101)
-    d = disturbance_analysis(frozen, dict(frozen), Q=1.0, R=0.5, gamma=11.0)
+    d = disturbance_analysis(frozen, dict(frozen), Q=1.0, R=0.5)
     assert d["t_F"] == math.inf
     assert d["foam_rise"] == [None, None] and d["edge_peak_u"] is None and d["edge_peak_u_frozen"] is None
     assert d["dF_hat_rms"] is None and d["gamma_star"] is None and d["gamma_true"] is None
@@ -233,9 +256,9 @@ def test_no_foam_gives_no_onset_and_no_windows():
 def test_runs_of_different_lengths_are_compared_over_the_shorter():
     frozen, foam = _pair(n=5001)
     short = {k: v[:4001] for k, v in frozen.items()}
-    d = disturbance_analysis(short, foam, Q=1.0, R=0.5, gamma=11.0)
+    d = disturbance_analysis(short, foam, Q=1.0, R=0.5)
     assert len(d["time"]) == 4001 and d["time"][-1] == pytest.approx(8.0)
-    d2 = disturbance_analysis(frozen, {k: v[:4001] for k, v in foam.items()}, Q=1.0, R=0.5, gamma=11.0)
+    d2 = disturbance_analysis(frozen, {k: v[:4001] for k, v in foam.items()}, Q=1.0, R=0.5)
     assert d2["gamma_star"] == pytest.approx(d["gamma_star"], rel=1e-12)
 
 
@@ -243,7 +266,7 @@ def test_a_diverged_run_gives_inf_without_warnings():
     frozen, foam = _pair(n=2001, t_on=1.0)
     foam["controller.u1"] = np.where(foam["time"] > 3.0, 1e300, foam["controller.u1"])
     with np.errstate(all="raise"):
-        d = disturbance_analysis(frozen, foam, Q=1.0, R=0.5, gamma=11.0)
+        d = disturbance_analysis(frozen, foam, Q=1.0, R=0.5)
     assert d["gain_incremental"] is not None        # the last finite value, from before the overflow
     assert not np.all(np.isfinite(d["gamma_star_curve"][1:]))
 
@@ -290,6 +313,15 @@ def test_fidelity_bounds_are_inclusive_both_ways():
             assert (f["within_1_5"], f["within_2_5"]) == (in15, in25), scale
 
 
+def test_fidelity_of_a_zero_rmse_is_a_cell_without_a_log_factor():
+    tasks = _paper_tasks()
+    tasks["G2"]["learn"]["rmse_edot"][1] = 0.0
+    f = fidelity(tasks)
+    zero = [c for c in f["cells"] if c["ratio"] == 0.0]
+    assert len(zero) == 1 and zero[0]["cell"] == "e_dot_2"
+    assert f["within_1_5"] == 31 and f["within_2_5"] == 31 and f["rms_log_factor"] is None
+
+
 def test_fidelity_of_missing_or_diverged_runs():
     tasks = _paper_tasks()
     del tasks["G3"]["foam"]                                      # a run that is missing
@@ -319,6 +351,14 @@ def test_load_signals_reads_the_recording_and_names_fmi3_arrays_as_fmi2(tmp_path
                         "controller.P12"}
     assert sig["controller.W1"].tolist() == [1.0, 2.0, 3.0] and sig["controller.P12"].tolist() == [4.0, 5.0, 6.0]
     assert load_signals(str(tmp_path))["time"].tolist() == [0.0, 0.002, 0.004]
+
+
+def test_load_signals_aliases_only_names_that_end_in_an_index(tmp_path):
+    """s[2].v[1] (an array element of an array of records) becomes s[2].v1; a name with a bracket that
+    does not end in one gets no alias."""
+    dt = np.dtype([("time", float), ("c.s[2].v[1,3]", float), ("c.x[1].y", float)])
+    np.save(tmp_path / "signals.npy", np.zeros(2, dtype=dt))
+    assert set(load_signals(tmp_path)) == {"time", "c.s[2].v[1,3]", "c.x[1].y", "c.s[2].v13"}
 
 
 def test_load_signals_keeps_a_recorded_fmi2_name_over_the_alias(tmp_path):

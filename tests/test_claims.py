@@ -85,8 +85,8 @@ def test_claims_that_agree_with_the_metrics_and_the_report():
 def test_a_claim_whose_number_changed():
     a = make_claim(METRICS, "a", "tasks.G1.foam.edge_peak_u", "edge", ">", 5.0, "five", 1)
     changed = _claims(a)
-    changed["tasks"] = {"G1": {"foam": {"edge_peak_u": 8.4 * (1 + 1e-9)}}}
-    assert check_claims(changed) == [f"a: the claim says 8.4, metrics.tasks.G1.foam.edge_peak_u is {8.4 * (1 + 1e-9)!r}"]
+    changed["tasks"] = {"G1": {"foam": {"edge_peak_u": 8.4 * (1 + 1e-10)}}}
+    assert check_claims(changed) == [f"a: the claim says 8.4, metrics.tasks.G1.foam.edge_peak_u is {8.4 * (1 + 1e-10)!r}"]
     changed["tasks"]["G1"]["foam"]["edge_peak_u"] = 8.4 * (1 + 1e-13)     # rounding is not a change
     assert check_claims(changed) == []
     gone = _claims(a)
@@ -122,6 +122,11 @@ def test_a_claim_missing_from_the_report():
     a = make_claim(METRICS, "a", "gamma_star.G1", "gamma*", "<=", 11.0, "gamma")
     b = make_claim(METRICS, "b", "runs.#len", "runs", "==", 3, "three", 0)
     assert check_claims(_claims(a, b), a["text"]) == ["b: not in the report: 'runs = 3 == 3 (three): yes'"]
+    # every claim is checked, after a wrong one too
+    wrong = dict(a, value=1.0)
+    assert check_claims(_claims(wrong, b), b["text"]) == ["a: the claim says 1.0, metrics.gamma_star.G1 is 13.6"]
+    assert check_claims(_claims(wrong, b), "") == ["a: the claim says 1.0, metrics.gamma_star.G1 is 13.6",
+                                                   "b: not in the report: 'runs = 3 == 3 (three): yes'"]
     # a claim that is wrong is named for that, not also for its absence
     moved = dict(b, value=4)
     assert check_claims(_claims(a, moved), "") == ["a: not in the report: 'gamma* = 13.60 > 11.00 (gamma): no'",

@@ -178,6 +178,14 @@ def test_task_controller_gives_each_goal_of_table1_and_refuses_an_unknown_task()
         paper.task_controller("G4")
 
 
+def test_task_goal_is_the_goal_of_table1_and_none_for_the_line():
+    assert paper.task_goal("G1") == (2.0, 5.0) and paper.task_goal("G2") == (2.0, -3.0)
+    assert paper.task_goal("G3") == (4.0, 0.0) and all(type(v) is float for v in paper.task_goal("G3"))
+    assert paper.task_goal("LINE") is None
+    with pytest.raises(KeyError, match="unknown task 'line'"):
+        paper.task_goal("line")
+
+
 def test_direct_loop_defaults_to_the_papers_50_s_and_names_itself_in_a_bad_step():
     from wmr_cosim.components.validation import ParameterError
 

@@ -139,7 +139,7 @@ def test_gamma_star_of_53_on_a_known_case():
     foam["plant.dF1"] = np.where(on, 0.3, 0.0)
     foam["plant.dF2"] = np.where(on, 0.3, 0.0)
     foam["plant.foam_level"] = on.astype(float)
-    d = disturbance_analysis(base, foam, Q=1.0, R=0.5, gamma=11.0)
+    d = disturbance_analysis(base, foam, Q=1.0, R=0.5)
     assert d["t_F"] == pytest.approx(5.0)
     cost = cumulative_integral(0.5 * (foam["controller.u1"] ** 2 + foam["controller.u2"] ** 2), t)[-1]
     assert d["gamma_star"] == pytest.approx(math.sqrt(cost / (2 * 0.09 * 5.0)), rel=2e-3)

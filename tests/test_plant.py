@@ -232,6 +232,7 @@ def test_state_restored_into_a_new_plant_after_the_foam_region_was_hit():
     assert s["region_hit"] is True and 0.0 < a.outputs()[9] < 1.0
     b = Plant(**kw)
     b.set_state(s)
+    assert b.get_state() == s          # every part of the state, the region's flag too
     assert b.outputs() == a.outputs()
     assert [b.step(j * h, h, 4.2, 3.7) for j in range(k, k + 300)] == \
         [a.step(j * h, h, 4.2, 3.7) for j in range(k, k + 300)]

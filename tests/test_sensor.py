@@ -219,6 +219,20 @@ def test_state_restored_into_a_new_sensor_carries_the_noise_generator_exactly():
     assert _drive(s2, 40) == _drive(s, 40)
 
 
+def test_a_state_with_or_without_a_noise_generator_restores_the_counts_of_any_sensor():
+    """A sensor's state carries its generator only when it has noise; restored into a sensor of the other
+    kind it sets the counts and the filter, and the generator (or its absence) stays the receiver's own."""
+    noisy, quiet = Sensor(noise_std=0.4, noise_seed=2), Sensor()
+    _drive(noisy, 30)
+    _drive(quiet, 20)
+    other_quiet, other_noisy = Sensor(), Sensor(noise_std=0.4, noise_seed=5)
+    before = other_noisy._rng.getstate()
+    other_quiet.set_state(noisy.get_state())
+    other_noisy.set_state(quiet.get_state())
+    assert other_quiet._rng is None and other_quiet.outputs() == noisy.outputs()
+    assert other_noisy._rng.getstate() == before and other_noisy.outputs() == quiet.outputs()
+
+
 def test_state_restored_into_a_new_sensor_before_its_first_step():
     """Restoring a state taken right after reset into a sensor that has already run makes its first step
     the same as the original's (the first step only initialises the filter)."""

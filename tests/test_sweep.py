@@ -92,7 +92,7 @@ def test_a_point_that_changes_q_and_r_gets_gamma_star_with_its_own_weights(tmp_p
     assert row["status"] == "ok", row["reason"]
     runs = tmp_path / "runs" / "00000"
     frozen, foam = load_signals(runs / "frozen"), load_signals(runs / "foam")
-    own = disturbance_analysis(frozen, foam, Q=3.0, R=0.2, gamma=11.0)
+    own = disturbance_analysis(frozen, foam, Q=3.0, R=0.2)
     assert row["gamma_star"] == own["gamma_star"] and row["gain_incremental"] == own["gain_incremental"]
     assert row["gamma_star"] != table1_disturbance_analysis(frozen, foam)["gamma_star"]
 

@@ -36,16 +36,15 @@ def load_signals(folder: str | Path) -> Signals | None:
     sig = {name: np.asarray(data[name]) for name in data.dtype.names}
     for name in data.dtype.names:  # FMI 3.0 array columns (W[1], P[1,2]) also under the FMI 2.0 names (W1, P12)
         if name.endswith("]") and "[" in name:
-            alias = name[:name.index("[")] + name[name.index("[") + 1:-1].replace(",", "")
-            sig.setdefault(alias, sig[name])
+            i = name.rindex("[")  # the element's own index (s[2].v[1] is s[2].v1)
+            sig.setdefault(name[:i] + name[i + 1:-1].replace(",", ""), sig[name])
     return sig
 
 
 def cumulative_integral(f: np.ndarray, t: np.ndarray) -> np.ndarray:
     """The trapezoidal integral of f from t[0] to every t[k]."""
     out = np.zeros_like(f, dtype=float)
-    if len(f) > 1:
-        out[1:] = np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(t))
+    out[1:] = np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(t))
     return out
 
 
@@ -114,28 +113,29 @@ def foam_onset(foam: Signals) -> float:
     return float(foam["time"][max(on[0] - 1, 0)])
 
 
-def disturbance_analysis(frozen: Signals, foam: Signals, Q: float, R: float, gamma: float,
-                         ramp: float = 0.1) -> dict[str, Any]:
+def disturbance_analysis(frozen: Signals, foam: Signals, Q: float, R: float, ramp: float = 0.1) -> dict[str, Any]:
     """(52), (53) and the gains a simulation can add.
 
     dF_hat_i = u_foam_i - u_frozen_i for t > t_F, 0 before (52); gamma*(t) = sqrt(int_0^t [s'Qs + u'Ru] /
     int_0^t dF_hat'dF_hat) on the foam run (53); gamma_true(t): (53) with the injected dF (the plant's
     output) in the denominator; gain_incremental = sqrt(int |z_foam - z_frozen|^2 / int |dF|^2) with
     |z|^2 = s'Qs + u'Ru (9): the gain from the injected disturbance to the change of the controlled output.
+    Q, R: the weights of (9) (multiples of the identity); ramp [s]: the foam's ramp, before the window
+    of the control's rise.  gamma is not an argument: (53) measures the gain, it does not use gamma.
     """
-    with np.errstate(over="ignore", invalid="ignore"):  # diverged runs give inf, not warnings
-        return _disturbance_analysis(frozen, foam, Q, R, gamma, ramp)
+    # a diverged run gives inf, and every gain is 0/0 or c/0 before the disturbance starts: nan, no warnings
+    with np.errstate(all="ignore"):
+        return _disturbance_analysis(frozen, foam, Q, R, ramp)
 
 
 def table1_disturbance_analysis(frozen: Signals, foam: Signals) -> dict[str, Any]:
-    """:func:`disturbance_analysis` with the weights of Table 1 (Q = 1, R = 0.5, gamma = 11): the
-    (52)/(53) figures of the paper job, whose runs all use them (a sweep uses each point's own weights)."""
+    """:func:`disturbance_analysis` with the weights of Table 1 (Q = 1, R = 0.5): the (52)/(53) figures
+    of the paper job, whose runs all use them (a sweep uses each point's own weights)."""
     t1 = paper.table1()
-    return disturbance_analysis(frozen, foam, Q=t1["Q"], R=t1["R"], gamma=t1["gamma"])
+    return disturbance_analysis(frozen, foam, Q=t1["Q"], R=t1["R"])
 
 
-def _disturbance_analysis(frozen: Signals, foam: Signals, Q: float, R: float, gamma: float,
-                          ramp: float) -> dict[str, Any]:
+def _disturbance_analysis(frozen: Signals, foam: Signals, Q: float, R: float, ramp: float) -> dict[str, Any]:
     n = min(len(frozen["time"]), len(foam["time"]))
     t = foam["time"][:n]
     tF = foam_onset(foam)
@@ -148,14 +148,12 @@ def _disturbance_analysis(frozen: Signals, foam: Signals, Q: float, R: float, ga
     den_hat = cumulative_integral(du1 * du1 + du2 * du2, t)
     d1, d2 = foam["plant.dF1"][:n], foam["plant.dF2"][:n]
     den_true = cumulative_integral(d1 * d1 + d2 * d2, t)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        g_star = np.where(den_hat > 0, np.sqrt(cost / den_hat), np.nan)
-        g_true = np.where(den_true > 0, np.sqrt(cost / den_true), np.nan)
+    g_star = np.where(den_hat > 0, np.sqrt(cost / den_hat), np.nan)
+    g_true = np.where(den_true > 0, np.sqrt(cost / den_true), np.nan)
     dz = (Q * ((s1 - frozen["controller.s1"][:n]) ** 2 + (s2 - frozen["controller.s2"][:n]) ** 2)
           + R * ((u1 - frozen["controller.u1"][:n]) ** 2 + (u2 - frozen["controller.u2"][:n]) ** 2))
     num_inc = cumulative_integral(dz, t)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        g_inc = np.where(den_true > 0, np.sqrt(num_inc / den_true), np.nan)
+    g_inc = np.where(den_true > 0, np.sqrt(num_inc / den_true), np.nan)
     # the rise of the control on the foam: its mean over the 2 s after the edge (the ramp and 0.5 s over),
     # where the robot still moves at about its speed at the edge
     settled = (t > tF + ramp + 0.5) & (t <= tF + ramp + 2.5)
@@ -194,11 +192,11 @@ def fidelity(tasks: dict[str, dict[str, Any]]) -> dict[str, Any]:
         for run, row in TABLE_ROWS.items():
             m = tasks.get(task, {}).get(run)
             names = ("e_1", "e_2", "e_dot_1", "e_dot_2")
-            ours = (m["rmse_e"] + m["rmse_edot"]) if m and m.get("rmse_e") else [None] * 4
+            ours = (m["rmse_e"] + m["rmse_edot"]) if m and m.get("rmse_e") else [None] * len(names)
             for name, o, p in zip(names, ours, ref[row]):
                 ratio = (o / p) if (o is not None and math.isfinite(o)) else None
                 cells.append({"task": task, "run": run, "cell": name, "ours": o, "paper": p, "ratio": ratio})
-    logs = [math.log(c["ratio"]) for c in cells if c["ratio"] and c["ratio"] > 0]
+    logs = [math.log(c["ratio"]) for c in cells if c["ratio"] is not None and c["ratio"] > 0]
     complete = len(logs) == len(cells)
     return {
         "cells": cells,

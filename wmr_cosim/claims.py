@@ -74,7 +74,7 @@ def check_claims(metrics: dict[str, Any], report_text: str | None = None) -> lis
         if isinstance(value, bool):
             value = int(value)
         same = (value is None and c["value"] is None) or (
-            value is not None and c["value"] is not None and math.isclose(value, c["value"], rel_tol=1e-12, abs_tol=0.0))
+            value is not None and c["value"] is not None and math.isclose(value, c["value"], rel_tol=1e-12))
         if not same:
             errors.append(f"{c['id']}: the claim says {c['value']!r}, metrics.{c['path']} is {value!r}")
             continue

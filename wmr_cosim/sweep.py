@@ -255,12 +255,12 @@ def _goal(run_dir: Path) -> tuple[float, float] | None:
 
 
 def _weights(run_dir: Path) -> dict[str, float]:
-    """Q, R and gamma of a run's controller, for (53): the values its scenario set (``scenario.json``), the
-    controller's defaults (Table 1) for the others."""
+    """Q and R of a run's controller, the weights of (53): the values its scenario set (``scenario.json``),
+    the controller's defaults (Table 1) for the others."""
     from .components.controller import ControllerParams
 
     defaults = ControllerParams()
-    w = {"Q": defaults.Q, "R": defaults.R, "gamma": defaults.gamma}
+    w = {"Q": defaults.Q, "R": defaults.R}
     p = _controller_parameters(run_dir) or {}
     return {k: float(p.get(k, v)) for k, v in w.items()}
 
