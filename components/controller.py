@@ -218,7 +218,7 @@ class Controller:
         return {"W": list(self.W), "P": list(self.P), "pn": self.pn, "pose": list(self.pose),
                 "am_prev": list(self.am_prev), "ad": list(self.ad), "add_prev": list(self.add_prev),
                 "b2": self.b2 if math.isfinite(self.b2) else None, "t_goal": self.t_goal,
-                "pending": list(self.pending), "first": self.first, "out": list(self.out)}
+                "pending": list(self.pending), "out": list(self.out)}
 
     def set_state(self, s: dict[str, Any]) -> None:
         """Restore a state returned by :meth:`get_state`."""
@@ -232,7 +232,7 @@ class Controller:
         self.b2 = math.inf if s["b2"] is None else float(s["b2"])
         self.t_goal = float(s["t_goal"])
         self.pending = [float(v) for v in s["pending"]]
-        self.first = bool(s["first"])
+        self.first = False   # (True only inside reset's own first step: never in a state)
         self.out = tuple(float(v) for v in s["out"])
 
     # ------------------------------------------------------------------ one sample

@@ -176,9 +176,8 @@ class Plant:
         """2 (a5 + level da1 [+ bump]), 2 (a6 + level da2 [+ bump]) at time t [N.m]."""
         p = self.p
         lam = self.foam_level(t)
-        if p.foam_bump > 0.0 and self.in_bump(t):
-            return 2.0 * (p.a5 + lam * p.foam_da1 + p.foam_bump), 2.0 * (p.a6 + lam * p.foam_da2 + p.foam_bump)
-        return 2.0 * (p.a5 + lam * p.foam_da1), 2.0 * (p.a6 + lam * p.foam_da2)
+        bump = p.foam_bump if self.in_bump(t) else 0.0   # (x + 0.0 is x: no bump, no change)
+        return 2.0 * (p.a5 + lam * p.foam_da1 + bump), 2.0 * (p.a6 + lam * p.foam_da2 + bump)
 
     def derivatives(self, t: float, x: list[float], u1: float, u2: float,
                     tau1: float = 0.0, tau2: float = 0.0) -> list[float]:

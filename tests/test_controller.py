@@ -167,6 +167,29 @@ def test_state_restored_into_a_new_controller_continues_the_run_on_the_line():
     assert [other.step(k * h, h, *meas[k]) for k in range(150, 600)] == rest
 
 
+def test_state_before_the_first_step_restored_into_a_controller_that_has_run():
+    """The state of a go-to-goal controller right after reset (no profile stop time: b2 = inf, kept as
+    None so the state is plain JSON) restored into one that has run continues as the original."""
+    import json
+
+    p = ControllerParams(**paper.task_controller("G1"))
+    h = 0.002
+    meas = [(0.01 * k * k * h, 0.009 * k * k * h, 0.02 * k * h, 0.018 * k * h) for k in range(200)]
+    c = Controller(p)
+    c.reset(0.0, 0.0, 0.0, 0.0, 0.0)
+    s = c.get_state()
+    assert s["b2"] is None
+    assert json.loads(json.dumps(s, allow_nan=False)) == s
+    rest = [c.step(k * h, h, *meas[k]) for k in range(1, 200)]
+    other = Controller(p)
+    other.reset(0.0, 0.0, 0.0, 0.0, 0.0)
+    for k in range(1, 50):
+        other.step(k * h, h, *meas[k])
+    other.set_state(json.loads(json.dumps(s)))
+    assert other.get_state() == s
+    assert [other.step(k * h, h, *meas[k]) for k in range(1, 200)] == rest
+
+
 def test_task_controller_gives_each_goal_of_table1_and_refuses_an_unknown_task():
     goals = paper.table1()["goals"]
     for task in ("G1", "G2", "G3"):

@@ -182,15 +182,17 @@ def test_bump_at_the_foam_edge_adds_to_a5_a6_for_its_duration():
     """The bump raises a5, a6 by foam_bump in [t_F, t_F + foam_bump_time): the derivative then equals that
     of a plant with a5, a6 raised by the level's da plus the bump, and dF reports it; afterwards it is gone."""
     kw = dict(foam_on_time=True, foam_t_on=1.0, foam_da1=0.4, foam_da2=0.3, foam_ramp=0.0)
-    pl = Plant(foam_bump=2.0, foam_bump_time=0.2, **kw)
     x = [0.0, 0.0, 9.0, 8.0, 0.0, 0.0, 0.0]
-    for t, extra in ((0.99, None), (1.0, 2.0), (1.19, 2.0), (1.2, 0.0)):
-        got = pl.derivatives(t, x, 4.0, 4.0)
-        if extra is None:
-            ref = Plant().derivatives(t, x, 4.0, 4.0)
-        else:
-            ref = Plant(a5=A[4] + 0.4 + extra, a6=A[5] + 0.3 + extra).derivatives(t, x, 4.0, 4.0)
-        assert got == pytest.approx(ref, rel=1e-13, abs=1e-13), t
+    for bump in (2.0, 0.5):
+        pl = Plant(foam_bump=bump, foam_bump_time=0.2, **kw)
+        for t, extra in ((0.99, None), (1.0, bump), (1.19, bump), (1.2, 0.0)):
+            got = pl.derivatives(t, x, 4.0, 4.0)
+            if extra is None:
+                ref = Plant().derivatives(t, x, 4.0, 4.0)
+            else:
+                ref = Plant(a5=A[4] + 0.4 + extra, a6=A[5] + 0.3 + extra).derivatives(t, x, 4.0, 4.0)
+            assert got == pytest.approx(ref, rel=1e-13, abs=1e-13), (bump, t)
+    pl = Plant(foam_bump=2.0, foam_bump_time=0.2, **kw)
     h = 0.002
     off = Plant(**kw)
     for k in range(int(1.6 / h)):
