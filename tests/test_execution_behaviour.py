@@ -376,6 +376,22 @@ def test_set_refuses_what_cannot_change_during_a_run_in_one_line(pair):
     assert res.status == "ok"
 
 
+def test_get_reads_outputs_from_the_last_communication_point_and_other_variables_from_the_fmu(pair):
+    """A recorded Float64 output is read from the row of the last communication point; a recorded input
+    (or anything else) through an FMI get, so a value set between steps reads back at once. (The
+    feedthrough FMU's output would already follow the new input: the row keeps the step's value.)"""
+    pair.record("a.Float64_continuous_input", "a.Float64_continuous_output")
+    with pair.start() as run:
+        run.step_to(0.02)
+        run.set("a.Float64_continuous_input", 4.0)
+        assert run.get("a.Float64_continuous_input") == 4.0
+        assert run.get("a.Float64_continuous_output") == 1.5
+        run.step()
+        assert run.get("a.Float64_continuous_output") == 4.0
+        res = run.finish()
+    assert res.status == "ok", res.message
+
+
 def test_set_and_release_between_steps(pair):
     """An override of a connected input or of an output feeding one acts from the next step until it
     is released; an input nothing drives is set on the FMU and held (an event's bias adds to it)."""
