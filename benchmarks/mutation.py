@@ -37,6 +37,7 @@ import time
 import tomllib
 from collections import Counter
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 STAGE = ROOT / "build" / "mutation"
@@ -318,10 +319,13 @@ def area_of(name: str) -> str:
 
 
 def summarise(status: dict[str, str], equivalents: dict[str, dict[str, str]], minutes: float,
-              unreachable: dict[str, str] | None = None) -> dict:
+              unreachable: dict[str, str] | None = None, sample: dict[str, Any] | None = None) -> dict:
     """The figures: counts, kill rate overall and per area, survivors, equivalents (and stale ones),
-    and the mutants of code only a child process runs (``unreachable``, when no test reached them)."""
+    and the mutants of code only a child process runs (``unreachable``, when no test reached them);
+    with a ``sample`` (default: the one in SAMPLE, if any), the estimate over every mutant."""
     unreachable = load_unreachable() if unreachable is None else unreachable
+    if sample is None and SAMPLE.exists():
+        sample = json.loads(SAMPLE.read_text(encoding="utf-8"))
     out_of_reach = {n for n, st in status.items()
                     if st == "no tests" and n.partition("__mutmut_")[0] in unreachable}
     stale = []
@@ -346,6 +350,12 @@ def summarise(status: dict[str, str], equivalents: dict[str, dict[str, str]], mi
                           "kill_rate": round(k / len(names), 4) if names else None}
     killed = sum(s in KILLED for s in counted.values())
     survivors = sorted(n for n, s in counted.items() if s not in KILLED)
+    extra = {}
+    if sample is not None:
+        extra["estimate"] = estimate(status, counted, sample)
+        extra["sample"] = {"fraction": sample["fraction"], "seed": sample["seed"], "drawn": len(sample["sample"]),
+                           "checked": sum(status.get(n, "not checked") != "not checked" for n in sample["sample"]),
+                           "population": sum(sample["population"].values())}
     return {
         "mutants": len(counted),
         "killed": killed,
@@ -357,8 +367,103 @@ def summarise(status: dict[str, str], equivalents: dict[str, dict[str, str]], mi
         "not_checked": sum(s == "not checked" for s in status.values()),
         "statuses": dict(Counter(status.values())),
         "minutes": round(minutes, 1),
+        **extra,
         "survivors": survivors,
     }
+
+
+#: The sample of the mutants not checked when it was drawn (see :func:`draw_sample`).
+SAMPLE = STAGE / "sample.json"
+
+#: Runs mutmut with the tests that cover a mutant ordered fastest first (mutmut hands them over in no
+#: particular order and stops at the first failure): a killed mutant costs its cheapest killing test.
+_MUTMUT_FASTEST_FIRST = r"""
+import sys
+from mutmut.runners.harness import PytestRunner
+from mutmut.state import state
+_args = PytestRunner._pytest_args_regular_run
+def _fastest_first(self, tests):
+    d = state().duration_by_test
+    return _args(self, sorted(tests, key=lambda t: (d.get(t, 0.0), t)))
+PytestRunner._pytest_args_regular_run = _fastest_first
+from mutmut.__main__ import cli
+sys.exit(cli())
+"""
+
+#: Makes (or brings up to date) mutmut's mutants without running anything, so that a sample can be drawn.
+_MUTMUT_GENERATE = r"""
+from mutmut.__main__ import copy_also_copy_files, copy_src_dir, create_mutants, setup_source_paths
+copy_src_dir()
+copy_also_copy_files()
+setup_source_paths()
+create_mutants(2)
+"""
+
+
+def generate_mutants() -> None:
+    """mutmut's mutated copies and result files, made or brought up to date (changed functions' results
+    reset) as ``mutmut run`` would before testing."""
+    proc = subprocess.run([sys.executable, "-c", _MUTMUT_GENERATE], cwd=STAGE, env=_test_env(),
+                          capture_output=True, text=True, check=False)
+    if proc.returncode != 0:
+        raise SystemExit(f"mutation: making the mutants failed: {proc.stderr.strip().splitlines()[-1:]}")
+
+
+def draw_sample(status: dict[str, str], fraction: float, seed: int) -> list[str]:
+    """A sample of the mutants not checked yet, stratified by file: ceil(fraction x n) of each file's n,
+    drawn with ``seed``; kept in SAMPLE with the population it was drawn from, so that an interrupted run
+    goes on with the same sample and :func:`estimate` can weigh it.  A sample already drawn with the same
+    fraction and seed is kept (the mutants it names and those not yet checked outside it are its
+    population); another fraction or seed draws a new one."""
+    import math
+    import random
+
+    if SAMPLE.exists():
+        old = json.loads(SAMPLE.read_text(encoding="utf-8"))
+        if old["fraction"] == fraction and old["seed"] == seed:
+            return old["sample"]
+    by_file: dict[str, list[str]] = {}
+    for name, st in sorted(status.items()):
+        if st == "not checked":
+            by_file.setdefault(_module_of(name), []).append(name)
+    rng = random.Random(seed)
+    drawn = [n for members in by_file.values()
+             for n in rng.sample(members, min(len(members), math.ceil(fraction * len(members))))]
+    SAMPLE.write_text(json.dumps({"fraction": fraction, "seed": seed, "sample": sorted(drawn),
+                                  "population": {f: len(m) for f, m in by_file.items()}}), encoding="utf-8")
+    return sorted(drawn)
+
+
+def estimate(status: dict[str, str], counted: dict[str, str], sample: dict[str, Any]) -> dict[str, Any]:
+    """The kill rate per area over every mutant, from the census (the mutants checked before the sample
+    was drawn) and the sample (each file's checked sample members standing for that file's population):
+    {"components": {"mutants": estimated count, "killed": estimated, "kill_rate", "ci95"}, ...}.
+    ``counted``: {name: status} of the mutants that count (equivalents and unreachable ones left out);
+    ``ci95``: the half-width of the 95 % interval of the kill rate from the sample's binomial spread."""
+    import math
+
+    members = set(sample["sample"])
+    out: dict[str, Any] = {}
+    for area in ("components", "cosim", "analysis"):
+        est_n = est_k = var = 0.0
+        files = {_module_of(n) for n in status if area_of(n) == area}
+        for f in files:
+            census = [s for n, s in counted.items() if _module_of(n) == f and n not in members]
+            drawn = [n for n in members if _module_of(n) == f and status.get(n, "not checked") != "not checked"]
+            est_n += len(census)
+            est_k += sum(s in KILLED for s in census)
+            pop = sample["population"].get(f, 0)
+            if drawn and pop:
+                kept = [counted[n] for n in drawn if n in counted]     # (equivalent ones stand for theirs)
+                k = sum(s in KILLED for s in kept)
+                est_n += pop * len(kept) / len(drawn)
+                est_k += pop * k / len(drawn)
+                p = k / len(drawn)
+                var += pop * pop * p * (1 - p) / len(drawn) * max(0.0, 1 - len(drawn) / pop)
+        out[area] = {"mutants": round(est_n), "killed": round(est_k),
+                     "kill_rate": round(est_k / est_n, 4) if est_n else None,
+                     "ci95": round(1.96 * math.sqrt(var) / est_n, 4) if est_n else None}
+    return out
 
 
 def _regenerate_newly_in_scope(only: list[str]) -> None:
@@ -387,25 +492,40 @@ def forget_survivors() -> int:
 
 
 def run(only: list[str] | None = None, fresh: bool = False, max_children: int | None = None,
-        retest: bool = True) -> dict:
-    """Stage, run mutmut, summarise.  ``only``: globs on the staged paths (default: every area)."""
+        retest: bool = True, sample: float | None = None, seed: int = 1) -> dict:
+    """Stage, run mutmut, summarise.  ``only``: globs on the staged paths (default: every area).
+    ``sample``: test only that fraction of the mutants not checked yet (see :func:`draw_sample`)."""
     only = only or list(AREAS.values())
     if fresh and (STAGE / "mutants").exists():
         shutil.rmtree(STAGE / "mutants")
+    if fresh or sample is None:   # (a run of every mutant leaves no population for a sample to stand for)
+        SAMPLE.unlink(missing_ok=True)
     stage(only)
     _regenerate_newly_in_scope(only)
-    if retest:
+    names: list[str] = []
+    if sample is not None:
+        generate_mutants()
+        before = results()
+        drawn = draw_sample({n: st for n, st in before.items() if _in_scope(n, only)}, sample, seed)
+        listed = load_equivalents()   # (a survivor listed as equivalent would only survive again)
+        again = [n for n, st in before.items() if st in ("survived", "no tests") and _in_scope(n, only)
+                 and n not in listed] if retest else []
+        names = sorted({n for n in drawn if before.get(n) == "not checked"} | set(again))
+        if not names:
+            return summarise(results(), load_equivalents(), 0.0)
+    elif retest:
         forget_survivors()
     env = _test_env()
-    cmd = [sys.executable, "-c", "import sys; from mutmut.__main__ import cli; sys.exit(cli())", "run",
-           "--max-children", str(max_children or os.cpu_count() or 2)]
+    cmd = [sys.executable, "-c", _MUTMUT_FASTEST_FIRST, "run", "--max-children", str(max_children or os.cpu_count() or 2),
+           *names]
     log = STAGE / "mutmut.log"
     t0 = time.monotonic()
     with open(log, "w", encoding="utf-8") as out:
         proc = subprocess.run(cmd, cwd=STAGE, env=env, stdout=out, stderr=subprocess.STDOUT, check=False)
     minutes = (time.monotonic() - t0) / 60
     status = results()
-    unchecked = [n for n, st in status.items() if st == "not checked" and _in_scope(n, only)]
+    unchecked = [n for n, st in status.items() if st == "not checked" and _in_scope(n, only)
+                 and (not names or n in names)]
     if proc.returncode != 0 and (unchecked or not status):
         # (a process that hosted pythonfmu FMUs may abort while the interpreter tears down, after every
         # result was saved: only a run that left mutants unchecked failed)
@@ -424,6 +544,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--keep-survivors", action="store_true",
                     help="do not test again the mutants that survived the last run")
     ap.add_argument("--max-children", type=int, default=None)
+    ap.add_argument("--sample", type=float, metavar="FRACTION", help="test only this fraction of the mutants "
+                    "not checked yet (drawn per file, kept for the next run) and estimate the kill rate over all")
+    ap.add_argument("--seed", type=int, default=1, help="with --sample: the seed of the draw")
     ap.add_argument("--summary-only", action="store_true", help="summarise the last run without running")
     ap.add_argument("--diffs", metavar="FILE", help="with --summary-only: write the diff of every survivor "
                     "(of the --only files) to FILE")
@@ -446,7 +569,10 @@ def main(argv: list[str] | None = None) -> int:
             chosen = [n for n in figures["survivors"] if _in_scope(n, args.only or list(AREAS.values()))]
             Path(args.diffs).write_text(survivor_diffs(chosen), encoding="utf-8")
     else:
-        figures = run(args.only, args.fresh, args.max_children, retest=not args.keep_survivors)
+        if args.sample is not None and not 0.0 < args.sample <= 1.0:
+            raise SystemExit(f"mutation: --sample {args.sample}: a fraction in (0, 1]")
+        figures = run(args.only, args.fresh, args.max_children, retest=not args.keep_survivors,
+                      sample=args.sample, seed=args.seed)
     print(json.dumps({"bench": "mutation", **figures}))
     return 0
 

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import importlib.util
+import json
 from pathlib import Path
 
 import pytest
@@ -10,10 +11,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture
-def harness(monkeypatch):
+def harness(monkeypatch, tmp_path):
     spec = importlib.util.spec_from_file_location("mutation_harness", ROOT / "benchmarks" / "mutation.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
+    monkeypatch.setattr(mod, "SAMPLE", tmp_path / "sample.json")
     diffs = {"wmr_cosim.cosim.a.x_f__mutmut_2": "x = g(1, )", "wmr_cosim.cosim.a.x_f__mutmut_3": "moved elsewhere"}
     monkeypatch.setattr(mod, "mutant_diff", lambda name: diffs[name])
     return mod
@@ -49,3 +51,43 @@ def test_the_equivalents_file_gives_a_reason_for_each_entry(harness):
         assert name.startswith("wmr_cosim.") and "__mutmut_" in name and entry["line"] and entry["reason"]
     for function, reason in harness.load_unreachable().items():
         assert function.startswith("wmr_cosim.") and "__mutmut_" not in function and reason
+
+
+def test_a_sample_is_drawn_per_file_and_kept(harness):
+    """ceil(fraction x n) of each file's unchecked mutants; the same fraction and seed give the kept sample
+    back (an interrupted run goes on with it), another seed draws again."""
+    status = {f"wmr_cosim.cosim.a.x_f__mutmut_{i}": "not checked" for i in range(10)}
+    status.update({f"wmr_cosim.cosim.a.x_g__mutmut_{i}": "killed" for i in range(5)})
+    status.update({f"wmr_cosim.components.b.x_h__mutmut_{i}": "not checked" for i in range(3)})
+    drawn = harness.draw_sample(status, 0.25, seed=7)
+    assert len([n for n in drawn if ".cosim.a." in n]) == 3 and len([n for n in drawn if ".b." in n]) == 1
+    assert all(status[n] == "not checked" for n in drawn)
+    saved = json.loads(harness.SAMPLE.read_text())
+    assert saved["population"] == {"wmr_cosim.cosim.a": 10, "wmr_cosim.components.b": 3}
+    assert harness.draw_sample({}, 0.25, seed=7) == drawn            # kept, whatever the status says now
+    harness.SAMPLE.unlink()
+    assert harness.draw_sample(status, 0.25, seed=7) == drawn        # the seed fixes the draw
+    others = {tuple(harness.draw_sample(status, 0.25, seed=s)) for s in range(8, 16)}
+    assert len(others) > 1
+
+
+def test_the_estimate_weighs_each_file_sample_by_its_population(harness):
+    """File a: a census of 10 (9 killed) and a sample of 10 from 100 unchecked mutants (8 killed, 1 survived,
+    1 equivalent): 10 + 100 x 9/10 = 100 mutants, 9 + 100 x 8/10 = 89 killed; the interval from the
+    sample's spread, sqrt(100^2 x 0.8 x 0.2 / 10 x (1 - 10/100)) = 12 mutants, x 1.96 / 100."""
+    status = {f"wmr_cosim.cosim.a.x_c__mutmut_{i}": "killed" for i in range(9)}
+    status["wmr_cosim.cosim.a.x_c__mutmut_9"] = "survived"
+    drawn = [f"wmr_cosim.cosim.a.x_s__mutmut_{i}" for i in range(10)]
+    status.update({n: "killed" for n in drawn[:8]})
+    status[drawn[8]] = "survived"
+    status[drawn[9]] = "survived"
+    status.update({f"wmr_cosim.cosim.a.x_s__mutmut_{i}": "not checked" for i in range(10, 100)})
+    equivalents = {drawn[9]: {"line": "x = g(1, )", "reason": "r"}}
+    harness.mutant_diff = lambda name: "x = g(1, )"
+    sample = {"fraction": 0.1, "seed": 1, "sample": drawn, "population": {"wmr_cosim.cosim.a": 100}}
+    s = harness.summarise(status, equivalents, 1.0, unreachable={}, sample=sample)
+    assert s["estimate"]["cosim"] == {"mutants": 100, "killed": 89, "kill_rate": 0.89, "ci95": 0.2352}
+    assert s["sample"] == {"fraction": 0.1, "seed": 1, "drawn": 10, "checked": 10, "population": 100}
+    assert s["estimate"]["components"]["mutants"] == 0
+    # measured alone (no sample): the 19 checked mutants that count
+    assert (s["mutants"], s["killed"]) == (19, 17)
