@@ -355,7 +355,7 @@ def summarise(status: dict[str, str], equivalents: dict[str, dict[str, str]], mi
         extra["estimate"] = estimate(status, counted, sample)
         extra["sample"] = {"fraction": sample["fraction"], "seed": sample["seed"], "drawn": len(sample["sample"]),
                            "checked": sum(status.get(n, "not checked") != "not checked" for n in sample["sample"]),
-                           "population": sum(sample["population"].values())}
+                           "population": sum(len(m) for m in sample["population"].values())}
     return {
         "mutants": len(counted),
         "killed": killed,
@@ -411,10 +411,9 @@ def generate_mutants() -> None:
 
 def draw_sample(status: dict[str, str], fraction: float, seed: int) -> list[str]:
     """A sample of the mutants not checked yet, stratified by file: ceil(fraction x n) of each file's n,
-    drawn with ``seed``; kept in SAMPLE with the population it was drawn from, so that an interrupted run
-    goes on with the same sample and :func:`estimate` can weigh it.  A sample already drawn with the same
-    fraction and seed is kept (the mutants it names and those not yet checked outside it are its
-    population); another fraction or seed draws a new one."""
+    drawn with ``seed``; kept in SAMPLE with the population it was drawn from (the names, per file), so
+    that an interrupted run goes on with the same sample and :func:`estimate` can weigh it.  A sample
+    already drawn with the same fraction and seed is kept; another fraction or seed draws a new one."""
     import math
     import random
 
@@ -430,36 +429,44 @@ def draw_sample(status: dict[str, str], fraction: float, seed: int) -> list[str]
     drawn = [n for members in by_file.values()
              for n in rng.sample(members, min(len(members), math.ceil(fraction * len(members))))]
     SAMPLE.write_text(json.dumps({"fraction": fraction, "seed": seed, "sample": sorted(drawn),
-                                  "population": {f: len(m) for f, m in by_file.items()}}), encoding="utf-8")
+                                  "population": by_file}), encoding="utf-8")
     return sorted(drawn)
 
 
 def estimate(status: dict[str, str], counted: dict[str, str], sample: dict[str, Any]) -> dict[str, Any]:
     """The kill rate per area over every mutant, from the census (the mutants checked before the sample
-    was drawn) and the sample (each file's checked sample members standing for that file's population):
+    was drawn, and any file whose whole population has been checked since) and the sample (each file's
+    checked sample members standing for the rest of that file's population):
     {"components": {"mutants": estimated count, "killed": estimated, "kill_rate", "ci95"}, ...}.
     ``counted``: {name: status} of the mutants that count (equivalents and unreachable ones left out);
     ``ci95``: the half-width of the 95 % interval of the kill rate from the sample's binomial spread."""
     import math
 
     members = set(sample["sample"])
+    population = sample["population"]
+    in_population = {n for names in population.values() for n in names}
     out: dict[str, Any] = {}
     for area in ("components", "cosim", "analysis"):
-        est_n = est_k = var = 0.0
-        files = {_module_of(n) for n in status if area_of(n) == area}
-        for f in files:
-            census = [s for n, s in counted.items() if _module_of(n) == f and n not in members]
-            drawn = [n for n in members if _module_of(n) == f and status.get(n, "not checked") != "not checked"]
-            est_n += len(census)
-            est_k += sum(s in KILLED for s in census)
-            pop = sample["population"].get(f, 0)
-            if drawn and pop:
-                kept = [counted[n] for n in drawn if n in counted]     # (equivalent ones stand for theirs)
-                k = sum(s in KILLED for s in kept)
-                est_n += pop * len(kept) / len(drawn)
-                est_k += pop * k / len(drawn)
-                p = k / len(drawn)
-                var += pop * pop * p * (1 - p) / len(drawn) * max(0.0, 1 - len(drawn) / pop)
+        census = [s for n, s in counted.items() if area_of(n) == area and n not in in_population]
+        est_n, est_k, var = float(len(census)), float(sum(s in KILLED for s in census)), 0.0
+        for f, names in population.items():
+            if area_of(f"{f}.x_") != area:
+                continue
+            if all(status.get(n, "not checked") != "not checked" for n in names):   # checked whole
+                whole = [counted[n] for n in names if n in counted]
+                est_n += len(whole)
+                est_k += sum(s in KILLED for s in whole)
+                continue
+            drawn = [n for n in names if n in members and status.get(n, "not checked") != "not checked"]
+            if not drawn:
+                continue
+            kept = [counted[n] for n in drawn if n in counted]     # (equivalent ones stand for theirs)
+            k = sum(s in KILLED for s in kept)
+            pop = len(names)
+            est_n += pop * len(kept) / len(drawn)
+            est_k += pop * k / len(drawn)
+            p = k / len(drawn)
+            var += pop * pop * p * (1 - p) / len(drawn) * (1 - len(drawn) / pop)
         out[area] = {"mutants": round(est_n), "killed": round(est_k),
                      "kill_rate": round(est_k / est_n, 4) if est_n else None,
                      "ci95": round(1.96 * math.sqrt(var) / est_n, 4) if est_n else None}

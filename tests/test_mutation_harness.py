@@ -63,7 +63,9 @@ def test_a_sample_is_drawn_per_file_and_kept(harness):
     assert len([n for n in drawn if ".cosim.a." in n]) == 3 and len([n for n in drawn if ".b." in n]) == 1
     assert all(status[n] == "not checked" for n in drawn)
     saved = json.loads(harness.SAMPLE.read_text())
-    assert saved["population"] == {"wmr_cosim.cosim.a": 10, "wmr_cosim.components.b": 3}
+    assert saved["population"] == {"wmr_cosim.cosim.a": [f"wmr_cosim.cosim.a.x_f__mutmut_{i}" for i in range(10)],
+                                   "wmr_cosim.components.b": [f"wmr_cosim.components.b.x_h__mutmut_{i}"
+                                                              for i in range(3)]}
     assert harness.draw_sample({}, 0.25, seed=7) == drawn            # kept, whatever the status says now
     harness.SAMPLE.unlink()
     assert harness.draw_sample(status, 0.25, seed=7) == drawn        # the seed fixes the draw
@@ -84,10 +86,15 @@ def test_the_estimate_weighs_each_file_sample_by_its_population(harness):
     status.update({f"wmr_cosim.cosim.a.x_s__mutmut_{i}": "not checked" for i in range(10, 100)})
     equivalents = {drawn[9]: {"line": "x = g(1, )", "reason": "r"}}
     harness.mutant_diff = lambda name: "x = g(1, )"
-    sample = {"fraction": 0.1, "seed": 1, "sample": drawn, "population": {"wmr_cosim.cosim.a": 100}}
+    population = [f"wmr_cosim.cosim.a.x_s__mutmut_{i}" for i in range(100)]
+    sample = {"fraction": 0.1, "seed": 1, "sample": drawn, "population": {"wmr_cosim.cosim.a": population}}
     s = harness.summarise(status, equivalents, 1.0, unreachable={}, sample=sample)
     assert s["estimate"]["cosim"] == {"mutants": 100, "killed": 89, "kill_rate": 0.89, "ci95": 0.2352}
     assert s["sample"] == {"fraction": 0.1, "seed": 1, "drawn": 10, "checked": 10, "population": 100}
     assert s["estimate"]["components"]["mutants"] == 0
     # measured alone (no sample): the 19 checked mutants that count
     assert (s["mutants"], s["killed"]) == (19, 17)
+    # once the whole population is checked it is counted as it is, not estimated
+    status.update({n: "killed" for n in population[10:]})
+    s = harness.summarise(status, equivalents, 1.0, unreachable={}, sample=sample)
+    assert s["estimate"]["cosim"] == {"mutants": 109, "killed": 107, "kill_rate": round(107 / 109, 4), "ci95": 0.0}
