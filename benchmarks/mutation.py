@@ -499,25 +499,26 @@ def forget_survivors() -> int:
 
 
 def run(only: list[str] | None = None, fresh: bool = False, max_children: int | None = None,
-        retest: bool = True, sample: float | None = None, seed: int = 1) -> dict:
+        retest: bool = True, sample: float | None = None, seed: int = 1, complete: list[str] | None = None) -> dict:
     """Stage, run mutmut, summarise.  ``only``: globs on the staged paths (default: every area).
-    ``sample``: test only that fraction of the mutants not checked yet (see :func:`draw_sample`)."""
+    ``sample``: test only that fraction of the mutants not checked yet (see :func:`draw_sample`);
+    ``complete``: globs of files whose every unchecked mutant is tested, keeping a sample drawn before."""
     only = only or list(AREAS.values())
     if fresh and (STAGE / "mutants").exists():
         shutil.rmtree(STAGE / "mutants")
-    if fresh or sample is None:   # (a run of every mutant leaves no population for a sample to stand for)
+    if fresh or (sample is None and not complete):   # (a run of every mutant leaves nothing to estimate)
         SAMPLE.unlink(missing_ok=True)
     stage(only)
     _regenerate_newly_in_scope(only)
     names: list[str] = []
-    if sample is not None:
+    if sample is not None or complete:
         generate_mutants()
-        before = results()
-        drawn = draw_sample({n: st for n, st in before.items() if _in_scope(n, only)}, sample, seed)
+        before = {n: st for n, st in results().items() if _in_scope(n, only)}
+        drawn = draw_sample(before, sample, seed) if sample is not None else []
+        whole = [n for n, st in before.items() if st == "not checked" and _in_scope(n, complete or [])]
         listed = load_equivalents()   # (a survivor listed as equivalent would only survive again)
-        again = [n for n, st in before.items() if st in ("survived", "no tests") and _in_scope(n, only)
-                 and n not in listed] if retest else []
-        names = sorted({n for n in drawn if before.get(n) == "not checked"} | set(again))
+        again = [n for n, st in before.items() if st in ("survived", "no tests") and n not in listed] if retest else []
+        names = sorted({n for n in drawn if before.get(n) == "not checked"} | set(whole) | set(again))
         if not names:
             return summarise(results(), load_equivalents(), 0.0)
     elif retest:
@@ -554,6 +555,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sample", type=float, metavar="FRACTION", help="test only this fraction of the mutants "
                     "not checked yet (drawn per file, kept for the next run) and estimate the kill rate over all")
     ap.add_argument("--seed", type=int, default=1, help="with --sample: the seed of the draw")
+    ap.add_argument("--complete", action="append", metavar="GLOB", help="test every unchecked mutant of these "
+                    "staged files, keeping the sample drawn before (their figures are then measured, not estimated)")
     ap.add_argument("--summary-only", action="store_true", help="summarise the last run without running")
     ap.add_argument("--diffs", metavar="FILE", help="with --summary-only: write the diff of every survivor "
                     "(of the --only files) to FILE")
@@ -579,7 +582,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.sample is not None and not 0.0 < args.sample <= 1.0:
             raise SystemExit(f"mutation: --sample {args.sample}: a fraction in (0, 1]")
         figures = run(args.only, args.fresh, args.max_children, retest=not args.keep_survivors,
-                      sample=args.sample, seed=args.seed)
+                      sample=args.sample, seed=args.seed, complete=args.complete)
     print(json.dumps({"bench": "mutation", **figures}))
     return 0
 
