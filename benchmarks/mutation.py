@@ -516,6 +516,10 @@ def run(only: list[str] | None = None, fresh: bool = False, max_children: int | 
         before = {n: st for n, st in results().items() if _in_scope(n, only)}
         drawn = draw_sample(before, sample, seed) if sample is not None else []
         whole = [n for n, st in before.items() if st == "not checked" and _in_scope(n, complete or [])]
+        if SAMPLE.exists():   # mutants made since the draw (code changed or added) are measured, not sampled
+            population = {n for names in json.loads(SAMPLE.read_text(encoding="utf-8"))["population"].values()
+                          for n in names}
+            whole += [n for n, st in before.items() if st == "not checked" and n not in population]
         listed = load_equivalents()   # (a survivor listed as equivalent would only survive again)
         again = [n for n, st in before.items() if st in ("survived", "no tests") and n not in listed] if retest else []
         names = sorted({n for n in drawn if before.get(n) == "not checked"} | set(whole) | set(again))

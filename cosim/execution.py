@@ -293,9 +293,9 @@ class Execution:
 
     def end(self) -> None:
         """Stepping is over: close the progress bar."""
-        if getattr(self, "_bar", None) is not None:
-            self._bar.close()
-            self._bar = None
+        bar = getattr(self, "_bar", None)
+        if bar is not None:
+            bar.close()   # (tqdm's close may be called again)
 
     def _apply_due(self, k: int) -> bool:
         """Apply the timed events of step k and the condition events due at it; whether the copies changed."""

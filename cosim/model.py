@@ -50,6 +50,10 @@ class Variable:
     fmi_type: str = ""                 # the FMI type as declared (Float64, Int8, ...; FMI 2.0: = type)
     shape: tuple[int, ...] = ()        # FMI 3.0 arrays: the dimensions; () for a scalar
 
+    def __post_init__(self) -> None:
+        if not self.fmi_type:          # (FMI 2.0, and a variable made by hand: the FMI type is the type)
+            self.fmi_type = self.type
+
     @property
     def size(self) -> int:
         n = 1
@@ -84,9 +88,9 @@ class Variable:
         """None if value is within [min, max] (and the range of its integer type), else the reason."""
         if self.type not in ("Real", "Integer", "Enumeration") or isinstance(value, bool):
             return None
-        lo, hi = INT_RANGES.get(self.fmi_type or self.type, (None, None))
+        lo, hi = INT_RANGES.get(self.fmi_type, (None, None))
         if lo is not None and not lo <= value <= hi:
-            return f"value {value!r} does not fit the {self.fmi_type or self.type} range {lo}..{hi}"
+            return f"value {value!r} does not fit the {self.fmi_type} range {lo}..{hi}"
         if self.min is not None and value < self.min:
             return f"value {value!r} is below the minimum {self.min!r} declared by the FMU"
         if self.max is not None and value > self.max:

@@ -616,12 +616,11 @@ def _components(system, path: Path, arch: Path) -> tuple[dict[str, Any], dict[tu
         if comp.get("implementation", "CoSimulation") not in ("CoSimulation", "any"):
             raise ScenarioError(where, fld, f"implementation {comp.get('implementation')!r}: only co-simulation "
                                             "is supported")
-        src = comp.get("source") or ""
-        entry = src[2:] if src.startswith("./") else src
-        if "://" in entry or entry.startswith("/") or ".." in PurePosixPath(entry).parts or "#" in entry:
+        src = comp.get("source") or ""     # (relative to the archive's top; "./" is dropped by the path)
+        if "://" in src or src.startswith("/") or ".." in PurePosixPath(src).parts or "#" in src:
             raise ScenarioError(where, f"{fld}.source", f"{src!r}: only FMUs inside the archive are supported")
-        fmu = arch / entry
-        if not entry or not fmu.is_file():
+        fmu = arch / src
+        if not src or not fmu.is_file():
             raise ScenarioError(where, f"{fld}.source", f"resource {src!r} is missing from the archive")
         try:
             model = load_model(fmu)

@@ -201,6 +201,24 @@ def test_task_controller_gives_each_goal_of_table1_and_refuses_an_unknown_task()
         paper.task_controller("G4")
 
 
+def test_a_normalised_regressor_is_divided_by_one_plus_its_squared_norm():
+    """sigma1 = 'normalised': sigma / (1 + sigma' sigma) goes to (51) instead of sigma."""
+    h = 0.002
+    meas = [(0.01 * k * k * h, 0.009 * k * k * h, 0.02 * k * h, 0.018 * k * h) for k in range(40)]
+    pending = {}
+    for form in ("sigma", "normalised"):
+        c = Controller(ControllerParams(sigma1=form, adapt=False))   # (the same W: the same sigma)
+        c.reset(0.0, 0.0, 0.0, 0.0, 0.0)
+        for k in range(1, 40):
+            c.step(k * h, h, *meas[k])
+        pending[form] = c.pending
+    sg = pending["sigma"][:3]
+    nn = 1.0 + sum(v * v for v in sg)
+    assert abs(sg[1]) > 1e-6 and abs(sg[0]) > 1e-6 and abs(sg[2]) > 1e-6
+    assert pending["normalised"][:3] == pytest.approx([v / nn for v in sg], rel=1e-12)
+    assert pending["normalised"][3:] == pending["sigma"][3:]
+
+
 def test_task_goal_is_the_goal_of_table1_and_none_for_the_line():
     assert paper.task_goal("G1") == (2.0, 5.0) and paper.task_goal("G2") == (2.0, -3.0)
     assert paper.task_goal("G3") == (4.0, 0.0) and all(type(v) is float for v in paper.task_goal("G3"))

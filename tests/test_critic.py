@@ -56,6 +56,11 @@ def test_s_rate_is_40_41():
     assert np.allclose(got, sdot, rtol=1e-12)
     none = critic.s_rate_model(*add, *ed, *w, *u, *dF, lam, I11, I12, a4, *F, drift="none")
     assert np.allclose(none, Minv @ (dF - u))
+    # without the friction model: (40)-(41) with F = 0
+    fwmr0 = M @ (add + lam * ed) + C @ (ad_dot + lam * e)
+    no_f = critic.s_rate_model(*add, *ed, *w, *u, *dF, lam, I11, I12, a4, *F, drift="no_friction")
+    assert np.allclose(no_f, Minv @ (-C @ s + fwmr0) - Minv @ u + Minv @ dF, rtol=1e-12)
+    assert not np.allclose(no_f, got)
 
 
 def test_regressor_and_hamiltonian_49():

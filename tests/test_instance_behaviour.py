@@ -516,3 +516,26 @@ def test_variadic_fmi2_messages_are_formatted_before_they_are_logged(tmp_path):
         assert list(inst.log) == ["[OK] logAll: instantiated"]
     finally:
         inst.shutdown()
+
+
+def test_a_new_instance_is_not_freed(fake):
+    inst, _ = fake()
+    assert inst.freed is False
+    inst.instantiate()
+    assert inst.freed is False
+    inst.shutdown()
+    assert inst.freed is True
+
+
+def test_the_python_view_of_a_library_is_made_once():
+    """The GIL-holding view (ctypes.PyDLL) of a loaded library is cached by its handle: a second function
+    from it comes from the same view."""
+    import ctypes
+    import ctypes.util
+
+    libc = ctypes.CDLL(ctypes.util.find_library("c"))
+    f = instance_mod.raw(libc, "abs")
+    view = instance_mod._PYDLLS[libc._handle]
+    g = instance_mod.raw(libc, "labs")
+    assert instance_mod._PYDLLS[libc._handle] is view
+    assert f(-3) == 3 and g(-4) == 4 and f.restype is ctypes.c_int

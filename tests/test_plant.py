@@ -146,6 +146,17 @@ def test_foam_switches_on_at_region_entry():
     assert pl.region_hit
 
 
+@pytest.mark.parametrize("x0, y0, inside", [(0.5, -1.0, True), (2.0, 1.0, True), (1.0, 0.0, True),
+                                          (0.5 - 1e-12, 0.0, False), (2.0 + 1e-12, 0.0, False),
+                                          (1.0, -1.0 - 1e-12, False), (1.0, 1.0 + 1e-12, False)])
+def test_the_foam_rectangle_includes_its_edges(x0, y0, inside):
+    """A robot starting on the rectangle's edge (or corner) is on the foam from t = 0; just outside, not."""
+    pl = Plant(x0=x0, y0=y0, foam_on_region=True, foam_x_min=0.5, foam_x_max=2.0, foam_y_min=-1.0, foam_y_max=1.0,
+               foam_da1=0.4, foam_da2=0.4)
+    assert pl.region_hit is inside
+    assert pl.t_foam == (0.0 if inside else math.inf)
+
+
 def test_no_foam_when_region_never_entered():
     pl = Plant(foam_on_region=True, foam_x_min=5, foam_x_max=6, foam_y_min=5, foam_y_max=6, foam_da1=1, foam_da2=1)
     for k in range(1000):

@@ -387,6 +387,26 @@ def test_type_rules_of_connections_and_events(text, reason, tmp_path):
         system.resolve(scenario.load(path))
 
 
+def test_a_real_to_boolean_connection_with_a_factor_is_named_in_one_line(tmp_path):
+    fmu = FMI2 / "Feedthrough.fmu"
+    path = write_scenario(tmp_path / "bad.toml", f'[experiment]\nstop = 0.2\nstep = 0.01\n[instances.a]\nfmu = "{fmu}"\n'
+                          f'[instances.b]\nfmu = "{fmu}"\n[[connections]]\nfrom = "a.Float64_continuous_output"\n'
+                          'to = "b.Boolean_input"\nconvert = true\nfactor = 2.0\n')
+    with pytest.raises(ScenarioError) as err:
+        system.resolve(scenario.load(path))
+    assert str(err.value) == (f"{path}: connections[0]: a Real -> Boolean conversion takes a threshold, not a "
+                              "factor or offset")
+
+
+def test_an_array_parameter_given_a_scalar_is_named_in_one_line(tmp_path):
+    fmu = REF / "fmi3" / "StateSpace.fmu"
+    path = write_scenario(tmp_path / "bad.toml", f'[experiment]\nstop = 0.2\nstep = 0.01\n[instances.s]\nfmu = "{fmu}"\n'
+                          '[instances.s.parameters]\nx0 = 1.0\n')
+    with pytest.raises(ScenarioError) as err:
+        system.resolve(scenario.load(path))
+    assert str(err.value) == f"{path}: instances.s.parameters.x0: x0 is an array of 3 values (3,): give a list of 3"
+
+
 def test_a_ctrl_c_after_the_last_step_interrupts_nothing(tmp_path, monkeypatch):
     import os
     import signal

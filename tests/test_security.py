@@ -459,3 +459,23 @@ def test_a_sweep_on_a_tls_scheduler(tmp_path):
                 pr.wait(timeout=10)
             except subprocess.TimeoutExpired:
                 pr.kill()
+
+
+@pytest.mark.parametrize("value, message", [
+    (True, "True is not a size"),
+    ("lots", "'lots' is not a size (a number of bytes, or e.g. '4 GiB', '500 MB')"),
+    ("4 GB/s", "'4 GB/s' is not a size (a number of bytes, or e.g. '4 GiB', '500 MB')"),
+    ("0", "'0': a size must be at least 1 byte"),
+    (0.5, "0.5: a size must be at least 1 byte")])
+def test_a_size_limit_that_is_not_a_size_is_named_in_one_line(value, message):
+    with pytest.raises(ValueError) as err:
+        archive.parse_size(value)
+    assert str(err.value) == message
+
+
+def test_a_ratio_limit_is_a_number_of_at_least_one():
+    assert archive.parse_ratio(1) == 1.0 and archive.parse_ratio("2.5") == 2.5
+    for bad in (1 - 1e-12, 0, True, "x", None, float("inf"), float("nan")):
+        with pytest.raises(ValueError) as err:
+            archive.parse_ratio(bad)
+        assert str(err.value) == f"{bad!r}: a ratio limit must be a number >= 1"

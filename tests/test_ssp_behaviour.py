@@ -575,6 +575,23 @@ def test_parameter_bindings_on_the_system_and_components_with_prefixes(tmp_path)
     assert sc.instances["b"].parameters == {"num": 6}
 
 
+def test_a_system_binding_may_read_a_parameter_file(tmp_path):
+    ssv = SSV_FILE.format(_param("a.k", "Real", "3") + _param("b.r", "Real", "4")).encode()
+    path = _archive(tmp_path, system=_binding('source="resources/sys.ssv"'), extra={"resources/sys.ssv": ssv})
+    sc = _load(path)
+    assert sc.instances["a"].parameters == {"k": 3.0} and sc.instances["b"].parameters == {"r": 4.0}
+
+
+def test_a_component_fmu_that_does_not_load_is_named_by_its_source(tmp_path):
+    """The reason is the FMU loader's, without the temporary folder the archive was extracted to."""
+    bad = tmp_path / "Bad.fmu"
+    with zipfile.ZipFile(bad, "w") as zf:
+        zf.writestr("binaries/readme.txt", "no model description")
+    path = _archive(tmp_path, components=_comp(attrs='source="resources/Bad.fmu"'),
+                    extra={"resources/Bad.fmu": bad.read_bytes()})
+    assert _error(path) == f"{path}: Component a.source: resources/Bad.fmu: no modelDescription.xml: not an FMU"
+
+
 @pytest.mark.parametrize("pname", ["k", "zz.k"])
 def test_a_system_parameter_naming_no_component_is_named_in_one_line(tmp_path, pname):
     path = _archive(tmp_path, system=_inline(_param(pname, "Real", "1")))

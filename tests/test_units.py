@@ -113,3 +113,18 @@ def test_units_of_a_real_fmu_and_of_one_without_definitions():
     assert defined["m/s2"].exps == KNOWN["m/s2"].exps and defined["m/s2"].factor == 1.0
     md.unitDefinitions = []
     assert units_of(md) == {}
+
+
+@pytest.mark.parametrize("fmi_type, value, reason", [
+    ("Int8", 128, "value 128 does not fit the Int8 range -128..127"),
+    ("UInt16", -1, "value -1 does not fit the UInt16 range 0..65535"),
+    ("", 2 ** 31, "value 2147483648 does not fit the Integer range -2147483648..2147483647"),
+    ("Int64", 2 ** 40, None)])
+def test_an_integer_out_of_the_range_of_its_fmi_type_is_named(fmi_type, value, reason):
+    """The range is the declared FMI type's (an FMI 3.0 Int8 is an Integer of 8 bits); a variable without
+    one (FMI 2.0, or made by hand) has its type's."""
+    from wmr_cosim.cosim.model import Variable
+
+    v = Variable("n", 1, "Integer", "parameter", "tunable", None, None, None, 0, fmi_type=fmi_type)
+    assert v.fmi_type == (fmi_type or "Integer")
+    assert v.check_range(value) == reason
