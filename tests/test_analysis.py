@@ -373,3 +373,17 @@ def test_load_signals_of_an_empty_or_missing_recording(tmp_path):
     assert load_signals(tmp_path) is None
     np.save(tmp_path / "signals.npy", np.zeros(0, dtype=[("time", float)]))
     assert load_signals(tmp_path) is None
+
+
+def test_the_rise_window_follows_the_plants_default_ramp_unless_told():
+    """Without ``ramp`` the window starts 0.5 s after the plant's default foam ramp (0.1 s) ends."""
+    from wmr_cosim.components.plant import PlantParams
+
+    frozen, foam = _pair(n=5001, t_on=2.0, du=0.0)
+    t = foam["time"]
+    step_up = np.where(t > 2.0 + 0.1 + 0.5 + 0.3, 1.0, 0.0)      # the control rises 0.3 s into the window
+    foam["controller.u1"] = 2.0 + step_up
+    default = disturbance_analysis(frozen, foam, Q=1.0, R=0.5)
+    assert PlantParams().foam_ramp == 0.1
+    assert default["foam_rise"] == disturbance_analysis(frozen, foam, Q=1.0, R=0.5, ramp=0.1)["foam_rise"]
+    assert default["foam_rise"][0] == pytest.approx(1.7 / 2.0, abs=2e-3)   # on for 1.7 s of the 2 s window

@@ -32,6 +32,7 @@ HOOKS = {
     "SIGINT_AT": ("fmi2DoStep", "if (t > SIGINT_AT - 1e-6 && t < SIGINT_AT + 1e-6) raise(SIGINT);"),
     "GET_FAILS_AT": ("fmi2GetReal", "if (s->time >= GET_FAILS_AT - 1e-9) return fmi2Error;"),
     "GET_FAILS_TERMINATED": ("fmi2GetReal", "if (s->terminated) return fmi2Error;"),
+    "TOL_TO_P": ("fmi2SetupExperiment", "s->p = tolDef ? tol : -1.0;"),
     "NO_LAST_TIME": ("fmi2GetRealStatus", "return fmi2Error;"),
     "ENDS_HALFWAY_AT": ("fmi2DoStep", "if (t >= ENDS_HALFWAY_AT - 1e-9) { s->terminated = 1; s->n += 1; "
                                       "s->time = s->last_ok = t + h / 2; return fmi2Discard; }"),
@@ -130,6 +131,24 @@ def test_a_failed_get_after_a_step_names_its_time_and_keeps_the_steps_recorded(p
     assert len(d) == 30 and d["time"][-1] == pytest.approx(1.29)
     s = _summary(tmp_path / "out")
     assert (s["status"], s["steps"], s["message"]) == ("failed", 29, res.message)
+
+
+def test_a_failed_get_before_the_first_step_names_the_start_time(probe, tmp_path):
+    res = _run(_sim(probe(GET_FAILS_AT=1.0), start=1.0, stop=1.5), tmp_path / "out")
+    assert res.status == "failed" and res.steps == 0
+    assert res.message == "probe: get outputs returned Error at t = 1 s; last log: (the FMU logged nothing)"
+
+
+@pytest.mark.parametrize("tolerance, seen", [(1e-5, 1e-5), (None, -1.0)])
+def test_the_experiment_tolerance_reaches_the_fmu(probe, tmp_path, tolerance, seen):
+    """fmi2SetupExperiment gets the scenario's tolerance (toleranceDefined false without one); the probe
+    copies what it got into p."""
+    sim = _sim(probe(TOL_TO_P=True), stop=0.02, record=("probe.p",))
+    if tolerance is not None:
+        sim.experiment(tolerance=tolerance)
+    res = _run(sim, tmp_path / "out")
+    assert res.status == "ok", res.message
+    assert np.load(tmp_path / "out" / "signals.npy")["probe.p"][0] == seen
 
 
 @pytest.mark.parametrize("last_time", [True, False])
@@ -276,7 +295,8 @@ def test_progress_bar_only_when_asked(probe, tmp_path, capsys):
     pytest.importorskip("tqdm")
     sim = _sim(probe(), stop=0.2)
     execution.run(sim.check(), tmp_path / "a", progress=True)
-    assert "step" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "step" in err and not err.endswith("\n")      # the bar is cleared at the end, no line left
     execution.run(sim.check(), tmp_path / "b")                     # default: only on a terminal, long runs
     execution.run(sim.check(), tmp_path / "c", progress=False)
     assert capsys.readouterr().err == ""
@@ -390,6 +410,16 @@ def test_get_reads_outputs_from_the_last_communication_point_and_other_variables
         assert run.get("a.Float64_continuous_output") == 4.0
         res = run.finish()
     assert res.status == "ok", res.message
+
+
+def test_a_real_connection_listed_after_an_integer_one_is_made(tmp_path):
+    sim = Simulation(file=str(tmp_path / "t.toml")).experiment(start=0.0, stop=0.03, step=0.01)
+    sim.instance("a", FEEDTHROUGH, Float64_continuous_input=2.5, Int32_input=3).instance("b", FEEDTHROUGH)
+    sim.connect("a.Int32_output", "b.Int32_input")
+    sim.connect("a.Float64_continuous_output", "b.Float64_continuous_input")
+    res = sim.record("b.Float64_continuous_output", "b.Int32_output", csv=False).run()
+    assert res["b.Float64_continuous_output"].tolist()[1:] == [2.5] * 3
+    assert res["b.Int32_output"].tolist()[1:] == [3] * 3
 
 
 def test_set_and_release_between_steps(pair):

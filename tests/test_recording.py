@@ -255,6 +255,14 @@ def test_append_converts_each_column_to_its_type(tmp_path):
     assert d["u64"].tolist() == [2 ** 64 - 1, 3]          # an int64 column of UInt64 bits: reinterpreted
 
 
+def test_a_float64_column_of_an_unsigned_type_is_converted_by_value(tmp_path):
+    rec = NpyRecorder(tmp_path / "s.npy", ["time", "u64", "u8"], ["Real", "UInt64", "UInt8"])
+    rec.append([np.array([0.0, 1.0]), np.array([5.0, 2.0 ** 40]), np.array([7.0, 200.0])])
+    rec.close()
+    d = np.load(tmp_path / "s.npy")
+    assert d["u64"].tolist() == [5, 2 ** 40] and d["u8"].tolist() == [7, 200]
+
+
 # ---------------------------------------------------------------------- the row buffer's check
 def test_a_non_finite_recorded_real_stops_at_its_row(tmp_path):
     """Rows are [time, x, y] as float64 then [n] as int64; the recording takes time, y, n, x (slots 0, 2, 3

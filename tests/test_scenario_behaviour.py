@@ -192,3 +192,50 @@ def test_a_bad_command_line_limit_names_the_option(no_limits_in_env, kw, message
                                      (3 * 1024**4, "3 TiB"), (1024**5, "1024 TiB")])
 def test_sizes_are_printed_with_binary_units(n, text):
     assert archive.fmt_size(n) == text
+
+
+# ---------------------------------------------------------------------------------- the resolver's messages
+FT3 = REF / "fmi3" / "Feedthrough.fmu"
+
+
+def _unresolved(doc: dict) -> str:
+    with pytest.raises(ScenarioError) as info:
+        resolve(parse(doc, "s.toml"))
+    return str(info.value)
+
+
+def test_a_step_no_one_gives_is_named():
+    """The Feedthrough FMU's default experiment has a stop time but no step."""
+    assert resolve(parse({"experiment": {"step": 0.01}, "instances": {"a": {"fmu": str(FT)}}}, "s.toml")).scenario.stop == 2.0
+    assert _unresolved({"experiment": {"stop": 0.1}, "instances": {"a": {"fmu": str(FT)}}}) == \
+        "s.toml: experiment.step: not given, and no FMU's default experiment gives one"
+
+
+def test_a_binary_variable_cannot_be_recorded():
+    doc = _doc(instances={"a": {"fmu": str(FT3)}}, record={"variables": ["a.Binary_output"]})
+    assert _unresolved(doc) == ("s.toml: record.variables[0]: a.Binary_output is Binary: Binary variables cannot "
+                                "be recorded")
+
+
+def test_a_connection_to_an_unknown_variable_names_its_end():
+    doc = _doc(instances={"a": {"fmu": str(FT)}, "b": {"fmu": str(FT)}},
+               connections=[{"from": "a.Float64_continuous_output", "to": "b.nope"}])
+    assert _unresolved(doc) == "s.toml: connections[0].to: b (Feedthrough.fmu) has no variable 'nope'"
+
+
+def test_an_input_table_column_of_an_unknown_variable_names_the_file_and_column(tmp_path):
+    table = tmp_path / "in.csv"
+    table.write_text("time,a.nope\n0,1\n1,2\n")
+    assert _unresolved(_doc(inputs={"file": str(table)})) == \
+        f"s.toml: inputs.a.nope: a (Feedthrough.fmu) has no variable 'nope' (a column of {table})"
+
+
+def test_an_event_keeps_the_type_of_its_variable():
+    """An Integer set to 3 is set to the integer 3; a Real's bias is a float, and a value that is not a
+    number names the variable."""
+    plan = resolve(parse(_doc(events=[{"time": 0.05, "variable": "a.Int32_input", "value": 3},
+                                      {"time": 0.05, "variable": "a.Float64_continuous_input", "action": "bias",
+                                       "value": 2}]), "s.toml"))
+    assert [(e.value, type(e.value)) for e in plan.events] == [(3, int), (2.0, float)]
+    doc = _doc(events=[{"time": 0.05, "variable": "a.Float64_continuous_input", "action": "bias", "value": "x"}])
+    assert _unresolved(doc) == "s.toml: events[0].value: type mismatch: Float64_continuous_input is Real, got str 'x'"
