@@ -491,9 +491,7 @@ def load_ssp(path: str | os.PathLike, *, step: float | None = None, stop: float 
     where = str(path)
     root, warnings = _read_ssd(path)
 
-    system = root.find("ssd:System", NS)
-    if system is None:
-        raise ScenarioError(where, "System", "no System element")
+    system = root.find("ssd:System", NS)   # (the schema check made sure there is one)
     if system.find("ssd:Elements/ssd:System", NS) is not None:
         raise ScenarioError(where, "System", "nested systems are not supported")
     if system.find("ssd:Elements/ssd:SignalDictionaryReference", NS) is not None:

@@ -239,3 +239,29 @@ def test_an_event_keeps_the_type_of_its_variable():
     assert [(e.value, type(e.value)) for e in plan.events] == [(3, int), (2.0, float)]
     doc = _doc(events=[{"time": 0.05, "variable": "a.Float64_continuous_input", "action": "bias", "value": "x"}])
     assert _unresolved(doc) == "s.toml: events[0].value: type mismatch: Float64_continuous_input is Real, got str 'x'"
+
+
+@pytest.mark.parametrize("conn, message", [
+    ({"from": "s.y[1]", "to": "t.u"}, "s.y[1] -> t.u: an element of a Float64 array goes to a scalar"),
+    ({"from": "s.y", "to": "f.Float64_continuous_input"},
+     "s.y has 3 values, f.Float64_continuous_input 1: arrays connect whole, of one size (or one element to a scalar)")])
+def test_an_array_connection_of_the_wrong_shape_is_named(conn, message):
+    ss = REF / "fmi3" / "StateSpace.fmu"
+    doc = _doc(instances={"s": {"fmu": str(ss)}, "t": {"fmu": str(ss)}, "f": {"fmu": str(FT3)}}, connections=[conn])
+    assert _unresolved(doc) == f"s.toml: connections[0]: {message}"
+
+
+@pytest.mark.parametrize("error, reason", [(PermissionError(13, "Permission denied"), "Permission denied"),
+                                           (OSError("the disk went away"), "the disk went away")])
+def test_a_scenario_file_that_cannot_be_read_is_named(tmp_path, monkeypatch, error, reason):
+    from wmr_cosim.cosim import scenario
+
+    path = tmp_path / "s.toml"
+    path.write_text("[experiment]\nstop = 1\n")
+
+    def refuse(self, *a, **k):
+        raise error
+    monkeypatch.setattr(Path, "open", refuse)
+    with pytest.raises(ScenarioError) as info:
+        scenario.load(path)
+    assert str(info.value) == f"{path}: cannot be read ({reason})"

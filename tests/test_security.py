@@ -479,3 +479,20 @@ def test_a_ratio_limit_is_a_number_of_at_least_one():
         with pytest.raises(ValueError) as err:
             archive.parse_ratio(bad)
         assert str(err.value) == f"{bad!r}: a ratio limit must be a number >= 1"
+
+
+def test_a_failed_extraction_into_an_existing_folder_removes_the_folders_it_made(tmp_path):
+    """Directory entries made before a member fails (here its CRC does not match) are removed again; the
+    folder that was there before stays, with what it held."""
+    src = tmp_path / "bad.zip"
+    with zipfile.ZipFile(src, "w", zipfile.ZIP_STORED) as zf:
+        zf.writestr(zipfile.ZipInfo("docs/"), b"")
+        zf.writestr(zipfile.ZipInfo("docs/sub/"), b"")
+        zf.writestr("resources/a.txt", b"hello world")
+    src.write_bytes(src.read_bytes().replace(b"hello world", b"HELLO WORLD"))
+    dest = tmp_path / "dest"
+    dest.mkdir()
+    (dest / "mine.txt").write_text("kept")
+    with pytest.raises(Exception):
+        archive.safe_extract(src, dest)
+    assert sorted(p.name for p in dest.iterdir()) == ["mine.txt"]
