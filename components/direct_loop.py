@@ -79,8 +79,7 @@ def run_direct(plant: PlantParams | None = None, sensor: SensorParams | None = N
     status, message = "ok", ""
     pstep, sstep, cstep = pl.step, se.step, co_.step
     wall = _time.perf_counter()
-    k = 0
-    for k in range(n):
+    for k in range(n):   # (n >= 1: k is set here, or by the else clause)
         t = k * h
         tn = (k + 1) * h
         if disturbance is not None:

@@ -13,7 +13,7 @@ from wmr_cosim.components.validation import ParameterError
 H = 0.002
 
 
-def _by_hand(plant: PlantParams, sensor: SensorParams, controller: ControllerParams, n: int):
+def _by_hand(plant: PlantParams, sensor: SensorParams, controller: ControllerParams, n: int, disturbance=None):
     """Plant -> sensor -> controller, each step: the plant integrates over [t_k, t_k+1] with the torques of
     t_k, the sensor samples at t_k+1, the controller answers at t_k+1 (and starts from the first samples)."""
     pl, se, co_ = Plant(plant), Sensor(sensor), Controller(controller)
@@ -23,7 +23,8 @@ def _by_hand(plant: PlantParams, sensor: SensorParams, controller: ControllerPar
     co = co_.reset(0.0, so[0], so[1], so[2], so[3], po[4], po[5], po[6])
     rows = [(po, so, co)]
     for k in range(n):
-        po = pl.step(k * H, H, co[0], co[1], 0.0, 0.0)
+        tau = disturbance(k * H) if disturbance else (0.0, 0.0)
+        po = pl.step(k * H, H, co[0], co[1], *tau)
         so = se.step(H, po[0], po[1])
         co = co_.step((k + 1) * H, H, so[0], so[1], so[2], so[3], po[4], po[5], po[6])
         rows.append((po, so, co))
@@ -37,9 +38,12 @@ def test_the_loop_is_the_documented_exchange_order_with_each_components_paramete
     sensor = SensorParams(ppr=100.0, phase1=0.3)
     controller = ControllerParams(task="goal", goal_x=3.0, goal_y=1.0, pose_source="true", b1=0.05)
     n = 400
-    r = run_direct(plant, sensor, controller, t_stop=n * H, h=H)
-    assert r.status == "ok" and r.steps == n and len(r["time"]) == n + 1
-    rows = _by_hand(plant, sensor, controller, n)
+
+    def disturbance(t: float) -> tuple[float, float]:   # on the left wheel only, from 0.3 s
+        return (0.0, 0.2) if t >= 0.3 else (0.0, 0.0)
+    r = run_direct(plant, sensor, controller, t_stop=n * H, h=H, disturbance=disturbance)
+    assert r.status == "ok" and r.message == "" and r.steps == n and len(r["time"]) == n + 1
+    rows = _by_hand(plant, sensor, controller, n, disturbance)
     for part, (names, j) in {"plant": (PLANT_OUTPUTS, 0), "sensor": (SENSOR_OUTPUTS, 1),
                              "controller": (CONTROLLER_OUTPUTS, 2)}.items():
         for i, name in enumerate(names):
