@@ -387,3 +387,17 @@ def test_the_rise_window_follows_the_plants_default_ramp_unless_told():
     assert PlantParams().foam_ramp == 0.1
     assert default["foam_rise"] == disturbance_analysis(frozen, foam, Q=1.0, R=0.5, ramp=0.1)["foam_rise"]
     assert default["foam_rise"][0] == pytest.approx(1.7 / 2.0, abs=2e-3)   # on for 1.7 s of the 2 s window
+
+
+def test_table1_analysis_uses_table1s_weights():
+    frozen, foam = _pair(du=0.3, dF=0.6, s=(0.5, 1.5))
+    t1 = paper.table1()
+    want = disturbance_analysis(frozen, foam, Q=t1["Q"], R=t1["R"])
+    got = analysis.table1_disturbance_analysis(frozen, foam)
+    assert got["gamma_star"] == want["gamma_star"] and got["gain_incremental"] == want["gain_incremental"]
+    assert got["gamma_star"] != disturbance_analysis(frozen, foam, Q=t1["R"], R=t1["Q"])["gamma_star"]
+
+
+def test_fidelity_of_a_perfect_or_uniformly_smaller_reproduction():
+    assert fidelity(_paper_tasks(1.0))["rms_log_factor"] == 1.0
+    assert fidelity(_paper_tasks(0.5))["rms_log_factor"] == pytest.approx(2.0)

@@ -79,3 +79,12 @@ def test_a_time_span_within_rounding_of_whole_steps_is_run():
     """A relative mismatch up to 1e-9 of t_stop is rounding: 10 s + 5 ns is 5000 steps."""
     r = run_direct(t_stop=10.0 + 5e-9, h=H, record=False)
     assert r.steps == 5000 and r["time"].tolist() == [5000 * H]
+
+
+def test_a_state_that_is_no_longer_finite_ends_the_run_after_the_last_finite_step():
+    """A NaN disturbance from t = 0.1 s: the step into 0.102 s fails in a component, so 50 steps were
+    done and the run is diverged, saying when."""
+    r = run_direct(t_stop=0.2, h=H, disturbance=lambda t: (float("nan"), 0.0) if t >= 0.1 else (0.0, 0.0))
+    assert r.status == "diverged" and r.steps == 50
+    assert r.message.startswith("the state is no longer finite at t = 0.102 s (")
+    assert len(r["time"]) == 51 and r["time"][-1] == pytest.approx(0.1)

@@ -128,3 +128,31 @@ def test_an_integer_out_of_the_range_of_its_fmi_type_is_named(fmi_type, value, r
     v = Variable("n", 1, "Integer", "parameter", "tunable", None, None, None, 0, fmi_type=fmi_type)
     assert v.fmi_type == (fmi_type or "Integer")
     assert v.check_range(value) == reason
+
+
+@pytest.mark.parametrize("text, kind, value", [
+    ("3", "Integer", 3), ("2", "Enumeration", 2), ("1.5", "Real", 1.5), ("x", "Real", None), ("x", "Integer", None),
+    ("true", "Boolean", True), ("1", "Boolean", True), ("false", "Boolean", False), ("0", "Boolean", False),
+    ("abc", "String", "abc")])
+def test_a_start_value_is_read_as_its_type(text, kind, value):
+    from wmr_cosim.cosim.model import _scalar
+
+    got = _scalar(text, kind)
+    assert got == value and type(got) is type(value)
+
+
+@pytest.mark.parametrize("causality, variability, initial, start, want", [
+    ("parameter", "fixed", None, "1", "exact"), ("local", "constant", None, "1", "exact"),
+    ("calculatedParameter", "fixed", None, None, "calculated"), ("output", "continuous", None, None, "calculated"),
+    ("output", "continuous", None, "0", "exact"), ("local", "continuous", None, None, "calculated"),
+    ("local", "discrete", None, "2", "exact"), ("input", "continuous", None, "0", None),
+    ("independent", "continuous", None, None, None), ("output", "continuous", "approx", "0", "approx")])
+def test_the_default_initial_of_fmi2_follows_causality_and_variability(causality, variability, initial, start, want):
+    """FMI 2.0 (2.2.7): an explicit initial stands; else parameters and constants are exact, calculated
+    parameters calculated, outputs and locals exact with a start value and calculated without."""
+    from types import SimpleNamespace
+
+    from wmr_cosim.cosim.model import _initial
+
+    v = SimpleNamespace(causality=causality, variability=variability, initial=initial, start=start)
+    assert _initial(v) == want
