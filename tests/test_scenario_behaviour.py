@@ -234,9 +234,10 @@ def test_an_event_keeps_the_type_of_its_variable():
     """An Integer set to 3 is set to the integer 3; a Real's bias is a float, and a value that is not a
     number names the variable."""
     plan = resolve(parse(_doc(events=[{"time": 0.05, "variable": "a.Int32_input", "value": 3},
+                                      {"time": 0.05, "variable": "a.Int32_input", "action": "bias", "value": 1},
                                       {"time": 0.05, "variable": "a.Float64_continuous_input", "action": "bias",
                                        "value": 2}]), "s.toml"))
-    assert [(e.value, type(e.value)) for e in plan.events] == [(3, int), (2.0, float)]
+    assert [(e.value, type(e.value)) for e in plan.events] == [(3, int), (1, int), (2.0, float)]
     doc = _doc(events=[{"time": 0.05, "variable": "a.Float64_continuous_input", "action": "bias", "value": "x"}])
     assert _unresolved(doc) == "s.toml: events[0].value: type mismatch: Float64_continuous_input is Real, got str 'x'"
 
