@@ -461,12 +461,15 @@ def estimate(status: dict[str, str], counted: dict[str, str], sample: dict[str, 
             if not drawn:
                 continue
             kept = [counted[n] for n in drawn if n in counted]     # (equivalent ones stand for theirs)
+            if not kept:
+                continue
             k = sum(s in KILLED for s in kept)
             pop = len(names)
-            est_n += pop * len(kept) / len(drawn)
-            est_k += pop * k / len(drawn)
-            p = k / len(drawn)
-            var += pop * pop * p * (1 - p) / len(drawn) * (1 - len(drawn) / pop)
+            share = pop * len(kept) / len(drawn)        # the population's mutants that count
+            est_n += share
+            est_k += share * k / len(kept)
+            p = k / len(kept)
+            var += share * share * p * (1 - p) / len(kept) * max(0.0, 1 - len(drawn) / pop)
         out[area] = {"mutants": round(est_n), "killed": round(est_k),
                      "kill_rate": round(est_k / est_n, 4) if est_n else None,
                      "ci95": round(1.96 * math.sqrt(var) / est_n, 4) if est_n else None}
