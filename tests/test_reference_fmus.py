@@ -243,6 +243,20 @@ def test_a_missing_binary_is_found_by_check(kind, reason, tmp_path):
         assert len(p.stderr.strip().splitlines()) == 1 and reason in p.stderr, p.stderr
 
 
+@pytest.mark.parametrize("rename, platforms", [
+    (lambda n: n.replace("linux64", "win64").replace(".so", ".dll"), "win64"),
+    (lambda n: n.replace("binaries/linux64/", "sources/"), "no platform")])
+def test_an_fmu_without_a_binary_for_this_platform_names_the_ones_it_has(rename, platforms, tmp_path):
+    from wmr_cosim.cosim.errors import FmuLoadError
+    from wmr_cosim.cosim.model import load_model
+
+    fmu = _rebinary(FMI2 / "Dahlquist.fmu", tmp_path / "D.fmu", rename)
+    with pytest.raises(FmuLoadError) as err:
+        load_model(fmu)
+    assert str(err.value) == (f"{fmu}: no binary for this platform (linux64): the FMU has binaries for {platforms} "
+                              "(a source-only or other-platform FMU cannot run here)")
+
+
 def test_defaults_come_from_the_fmus_and_must_agree(tmp_path):
     a, b = FMI2 / "Dahlquist.fmu", FMI2 / "VanDerPol.fmu"
     path = write_scenario(tmp_path / "d.toml", f'[instances.a]\nfmu = "{a}"\n[instances.b]\nfmu = "{b}"\n')

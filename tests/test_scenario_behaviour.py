@@ -266,3 +266,33 @@ def test_a_scenario_file_that_cannot_be_read_is_named(tmp_path, monkeypatch, err
     with pytest.raises(ScenarioError) as info:
         scenario.load(path)
     assert str(info.value) == f"{path}: cannot be read ({reason})"
+
+
+# ---------------------------------------------------------------------------------- the parser's fields
+@pytest.mark.parametrize("extra, message", [
+    ({"events": [3]}, "events[0]: must be a table"),
+    ({"events": [{"time": 0.1, "value": 1}]}, "events[0].variable: missing"),
+    ({"instances": 3}, "instances: must be a table"),
+    ({"record": {"variables": ["a.y"], "colour": 1}},
+     "record.colour: unknown key (allowed: csv, decimation, max_bytes, variables)")])
+def test_a_malformed_table_is_named_by_its_field(extra, message):
+    assert str(_refused(_doc(**extra))) == f"s.toml: {message}"
+
+
+def test_the_interpolation_of_input_columns_is_linear_or_hold(tmp_path):
+    table = tmp_path / "in.csv"
+    table.write_text("time,a.u\n0,1\n")
+    sc = parse(_doc(inputs={"file": str(table), "interpolation": {"a.u": "linear", "a.v": "hold"}}), "s.toml")
+    assert sc.interpolation == {"a.u": "linear", "a.v": "hold"}
+    assert str(_refused(_doc(inputs={"file": str(table), "interpolation": 3}))) == \
+        "s.toml: inputs.interpolation: must be a table"
+    assert str(_refused(_doc(inputs={"file": str(table), "interpolation": {"a.u": "Linear"}}))) == \
+        "s.toml: inputs.interpolation.a.u: 'Linear': must be linear or hold"
+
+
+def test_a_value_given_on_the_command_line_names_its_option():
+    from wmr_cosim.cosim.scenario import apply_overrides
+
+    with pytest.raises(ScenarioError) as info:
+        apply_overrides(_doc(), {"nodot": 1}, "s.toml")
+    assert str(info.value) == 's.toml: --set nodot: \'nodot\' is not of the form "instance.variable"'
