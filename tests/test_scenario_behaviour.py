@@ -274,6 +274,7 @@ def test_a_scenario_file_that_cannot_be_read_is_named(tmp_path, monkeypatch, err
     ({"events": [{"time": 0.1, "value": 1}]}, "events[0].variable: missing"),
     ({"instances": 3}, "instances: must be a table"),
     ({"limits": 3}, "limits: must be a table (archive_size, archive_ratio)"),
+    ({"instances": {"a": {"fmu": str(FT), "isolate": "yes"}}}, "instances.a.isolate: 'yes': must be true or false"),
     ({"record": {"variables": ["a.y"], "colour": 1}},
      "record.colour: unknown key (allowed: csv, decimation, max_bytes, variables)")])
 def test_a_malformed_table_is_named_by_its_field(extra, message):

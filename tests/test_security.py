@@ -496,3 +496,13 @@ def test_a_failed_extraction_into_an_existing_folder_removes_the_folders_it_made
     with pytest.raises(Exception):
         archive.safe_extract(src, dest)
     assert sorted(p.name for p in dest.iterdir()) == ["mine.txt"]
+
+
+def test_a_lying_directory_is_named_with_its_archive_by_the_check(tmp_path):
+    """check_archive decompresses every entry (nothing written): an entry that inflates past the size the
+    directory declares is refused, the message naming the archive and the entry."""
+    liar = _bomb(_stub(tmp_path / "stub.fmu"), tmp_path / "liar.fmu", lying=True)
+    with pytest.raises(FmuLoadError) as err:
+        check_archive(liar)
+    assert str(err.value) == (f"{liar}: refused: entry 'resources/zeros.bin' inflates past the 1 KiB the archive's "
+                              "directory declares (a decompression bomb?)")
