@@ -433,22 +433,30 @@ def draw_sample(status: dict[str, str], fraction: float, seed: int) -> list[str]
     return sorted(drawn)
 
 
+def wilson_low(k: int, n: int, z: float = 1.96) -> float:
+    """The lower end of the Wilson score interval (95 % with z = 1.96) of a proportion k / n: unlike the
+    normal approximation it does not shrink to nothing when no sampled mutant survived."""
+    import math
+
+    p = k / n
+    return (p + z * z / (2 * n) - z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))) / (1 + z * z / n)
+
+
 def estimate(status: dict[str, str], counted: dict[str, str], sample: dict[str, Any]) -> dict[str, Any]:
     """The kill rate per area over every mutant, from the census (the mutants checked before the sample
     was drawn, and any file whose whole population has been checked since) and the sample (each file's
     checked sample members standing for the rest of that file's population):
-    {"components": {"mutants": estimated count, "killed": estimated, "kill_rate", "ci95"}, ...}.
+    {"components": {"mutants": estimated count, "killed": estimated, "kill_rate", "low95"}, ...}.
     ``counted``: {name: status} of the mutants that count (equivalents and unreachable ones left out);
-    ``ci95``: the half-width of the 95 % interval of the kill rate from the sample's binomial spread."""
-    import math
-
+    ``low95``: the kill rate with each file's sampled rate at the lower end of its 95 % Wilson interval."""
     members = set(sample["sample"])
     population = sample["population"]
     in_population = {n for names in population.values() for n in names}
     out: dict[str, Any] = {}
     for area in ("components", "cosim", "analysis"):
         census = [s for n, s in counted.items() if area_of(n) == area and n not in in_population]
-        est_n, est_k, var = float(len(census)), float(sum(s in KILLED for s in census)), 0.0
+        est_n = float(len(census))
+        est_k = low_k = float(sum(s in KILLED for s in census))
         for f, names in population.items():
             if area_of(f"{f}.x_") != area:
                 continue
@@ -456,23 +464,20 @@ def estimate(status: dict[str, str], counted: dict[str, str], sample: dict[str, 
                 whole = [counted[n] for n in names if n in counted]
                 est_n += len(whole)
                 est_k += sum(s in KILLED for s in whole)
+                low_k += sum(s in KILLED for s in whole)
                 continue
             drawn = [n for n in names if n in members and status.get(n, "not checked") != "not checked"]
-            if not drawn:
-                continue
             kept = [counted[n] for n in drawn if n in counted]     # (equivalent ones stand for theirs)
             if not kept:
                 continue
             k = sum(s in KILLED for s in kept)
-            pop = len(names)
-            share = pop * len(kept) / len(drawn)        # the population's mutants that count
+            share = len(names) * len(kept) / len(drawn)            # the population's mutants that count
             est_n += share
             est_k += share * k / len(kept)
-            p = k / len(kept)
-            var += share * share * p * (1 - p) / len(kept) * max(0.0, 1 - len(drawn) / pop)
+            low_k += share * wilson_low(k, len(kept))
         out[area] = {"mutants": round(est_n), "killed": round(est_k),
                      "kill_rate": round(est_k / est_n, 4) if est_n else None,
-                     "ci95": round(1.96 * math.sqrt(var) / est_n, 4) if est_n else None}
+                     "low95": round(low_k / est_n, 4) if est_n else None}
     return out
 
 

@@ -75,8 +75,8 @@ def test_a_sample_is_drawn_per_file_and_kept(harness):
 
 def test_the_estimate_weighs_each_file_sample_by_its_population(harness):
     """File a: a census of 10 (9 killed) and a sample of 10 from 100 unchecked mutants (8 killed, 1 survived,
-    1 equivalent): 10 + 100 x 9/10 = 100 mutants, 9 + 90 x 8/9 = 89 killed; the interval from the
-    spread of the 9 that count, sqrt(90^2 x (8/9) (1/9) / 9 x (1 - 10/100)) = 8.94 mutants, x 1.96 / 100."""
+    1 equivalent): 10 + 100 x 9/10 = 100 mutants, 9 + 90 x 8/9 = 89 killed; the lower bound with the 8 of 9
+    at the low end of their Wilson interval, 0.5650: (9 + 90 x 0.5650) / 100."""
     status = {f"wmr_cosim.cosim.a.x_c__mutmut_{i}": "killed" for i in range(9)}
     status["wmr_cosim.cosim.a.x_c__mutmut_9"] = "survived"
     drawn = [f"wmr_cosim.cosim.a.x_s__mutmut_{i}" for i in range(10)]
@@ -89,7 +89,7 @@ def test_the_estimate_weighs_each_file_sample_by_its_population(harness):
     population = [f"wmr_cosim.cosim.a.x_s__mutmut_{i}" for i in range(100)]
     sample = {"fraction": 0.1, "seed": 1, "sample": drawn, "population": {"wmr_cosim.cosim.a": population}}
     s = harness.summarise(status, equivalents, 1.0, unreachable={}, sample=sample)
-    assert s["estimate"]["cosim"] == {"mutants": 100, "killed": 89, "kill_rate": 0.89, "ci95": 0.1753}
+    assert s["estimate"]["cosim"] == {"mutants": 100, "killed": 89, "kill_rate": 0.89, "low95": 0.5985}
     assert s["sample"] == {"fraction": 0.1, "seed": 1, "drawn": 10, "checked": 10, "population": 100}
     assert s["estimate"]["components"]["mutants"] == 0
     # measured alone (no sample): the 19 checked mutants that count
@@ -97,4 +97,11 @@ def test_the_estimate_weighs_each_file_sample_by_its_population(harness):
     # once the whole population is checked it is counted as it is, not estimated
     status.update({n: "killed" for n in population[10:]})
     s = harness.summarise(status, equivalents, 1.0, unreachable={}, sample=sample)
-    assert s["estimate"]["cosim"] == {"mutants": 109, "killed": 107, "kill_rate": round(107 / 109, 4), "ci95": 0.0}
+    assert s["estimate"]["cosim"] == {"mutants": 109, "killed": 107, "kill_rate": round(107 / 109, 4),
+                                          "low95": round(107 / 109, 4)}
+
+
+def test_the_wilson_bound_of_a_sample_without_survivors_is_below_one(harness):
+    """20 of 20 killed: the 95 % lower bound is 1 / (1 + 1.96^2 / 20) = 0.839, not 1."""
+    assert harness.wilson_low(20, 20) == pytest.approx(1 / (1 + 1.96 ** 2 / 20))
+    assert harness.wilson_low(8, 9) == pytest.approx(0.5650, abs=1e-4)
