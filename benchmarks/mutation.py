@@ -448,7 +448,8 @@ def estimate(status: dict[str, str], counted: dict[str, str], sample: dict[str, 
     checked sample members standing for the rest of that file's population):
     {"components": {"mutants": estimated count, "killed": estimated, "kill_rate", "low95"}, ...}.
     ``counted``: {name: status} of the mutants that count (equivalents and unreachable ones left out);
-    ``low95``: the kill rate with each file's sampled rate at the lower end of its 95 % Wilson interval."""
+    ``low95``: the kill rate with the sampled part at the lower end of the 95 % Wilson interval of the
+    area's sample (pooled: every file is sampled at the same fraction)."""
     members = set(sample["sample"])
     population = sample["population"]
     in_population = {n for names in population.values() for n in names}
@@ -457,6 +458,7 @@ def estimate(status: dict[str, str], counted: dict[str, str], sample: dict[str, 
         census = [s for n, s in counted.items() if area_of(n) == area and n not in in_population]
         est_n = float(len(census))
         est_k = low_k = float(sum(s in KILLED for s in census))
+        share_all = k_all = n_all = 0.0
         for f, names in population.items():
             if area_of(f"{f}.x_") != area:
                 continue
@@ -474,7 +476,9 @@ def estimate(status: dict[str, str], counted: dict[str, str], sample: dict[str, 
             share = len(names) * len(kept) / len(drawn)            # the population's mutants that count
             est_n += share
             est_k += share * k / len(kept)
-            low_k += share * wilson_low(k, len(kept))
+            share_all, k_all, n_all = share_all + share, k_all + k, n_all + len(kept)
+        if n_all:
+            low_k += share_all * wilson_low(int(k_all), int(n_all))
         out[area] = {"mutants": round(est_n), "killed": round(est_k),
                      "kill_rate": round(est_k / est_n, 4) if est_n else None,
                      "low95": round(low_k / est_n, 4) if est_n else None}
