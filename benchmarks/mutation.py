@@ -462,6 +462,7 @@ def estimate(status: dict[str, str], counted: dict[str, str], sample: dict[str, 
         for f, names in population.items():
             if area_of(f"{f}.x_") != area:
                 continue
+            names = [n for n in names if n in status]     # (a mutant gone with changed code is no longer one)
             if all(status.get(n, "not checked") != "not checked" for n in names):   # checked whole
                 whole = [counted[n] for n in names if n in counted]
                 est_n += len(whole)
