@@ -29,7 +29,9 @@ from __future__ import annotations
 import argparse
 import fnmatch
 import json
+import math
 import os
+import random
 import shutil
 import subprocess
 import sys
@@ -324,8 +326,7 @@ def summarise(status: dict[str, str], equivalents: dict[str, dict[str, str]], mi
     and the mutants of code only a child process runs (``unreachable``, when no test reached them);
     with a ``sample`` (default: the one in SAMPLE, if any), the estimate over every mutant."""
     unreachable = load_unreachable() if unreachable is None else unreachable
-    if sample is None and SAMPLE.exists():
-        sample = json.loads(SAMPLE.read_text(encoding="utf-8"))
+    sample = load_sample() if sample is None else sample
     out_of_reach = {n for n, st in status.items()
                     if st == "no tests" and n.partition("__mutmut_")[0] in unreachable}
     stale = []
@@ -375,6 +376,16 @@ def summarise(status: dict[str, str], equivalents: dict[str, dict[str, str]], mi
 #: The sample of the mutants not checked when it was drawn (see :func:`draw_sample`).
 SAMPLE = STAGE / "sample.json"
 
+
+def load_sample() -> dict[str, Any] | None:
+    """The sample kept in SAMPLE: {"fraction", "seed", "sample": names, "population": {file: names}}."""
+    return json.loads(SAMPLE.read_text(encoding="utf-8")) if SAMPLE.exists() else None
+
+
+def population_of(sample: dict[str, Any]) -> set[str]:
+    """Every mutant a sample was drawn from."""
+    return {n for names in sample["population"].values() for n in names}
+
 #: Runs mutmut with the tests that cover a mutant ordered fastest first (mutmut hands them over in no
 #: particular order and stops at the first failure): a killed mutant costs its cheapest killing test.
 _MUTMUT_FASTEST_FIRST = r"""
@@ -414,13 +425,9 @@ def draw_sample(status: dict[str, str], fraction: float, seed: int) -> list[str]
     drawn with ``seed``; kept in SAMPLE with the population it was drawn from (the names, per file), so
     that an interrupted run goes on with the same sample and :func:`estimate` can weigh it.  A sample
     already drawn with the same fraction and seed is kept; another fraction or seed draws a new one."""
-    import math
-    import random
-
-    if SAMPLE.exists():
-        old = json.loads(SAMPLE.read_text(encoding="utf-8"))
-        if old["fraction"] == fraction and old["seed"] == seed:
-            return old["sample"]
+    old = load_sample()
+    if old is not None and old["fraction"] == fraction and old["seed"] == seed:
+        return old["sample"]
     by_file: dict[str, list[str]] = {}
     for name, st in sorted(status.items()):
         if st == "not checked":
@@ -436,8 +443,6 @@ def draw_sample(status: dict[str, str], fraction: float, seed: int) -> list[str]
 def wilson_low(k: int, n: int, z: float = 1.96) -> float:
     """The lower end of the Wilson score interval (95 % with z = 1.96) of a proportion k / n: unlike the
     normal approximation it does not shrink to nothing when no sampled mutant survived."""
-    import math
-
     p = k / n
     return (p + z * z / (2 * n) - z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))) / (1 + z * z / n)
 
@@ -451,25 +456,24 @@ def estimate(status: dict[str, str], counted: dict[str, str], sample: dict[str, 
     ``low95``: the kill rate with the sampled part at the lower end of the 95 % Wilson interval of the
     area's sample (pooled: every file is sampled at the same fraction)."""
     members = set(sample["sample"])
-    population = sample["population"]
-    in_population = {n for names in population.values() for n in names}
+    in_population = population_of(sample)
     out: dict[str, Any] = {}
     for area in ("components", "cosim", "analysis"):
         census = [s for n, s in counted.items() if area_of(n) == area and n not in in_population]
         est_n = float(len(census))
         est_k = low_k = float(sum(s in KILLED for s in census))
         share_all = k_all = n_all = 0.0
-        for f, names in population.items():
-            if area_of(f"{f}.x_") != area:
+        for f, names in sample["population"].items():
+            if area_of(f) != area:
                 continue
             names = [n for n in names if n in status]     # (a mutant gone with changed code is no longer one)
-            if all(status.get(n, "not checked") != "not checked" for n in names):   # checked whole
+            if all(status[n] != "not checked" for n in names):   # checked whole
                 whole = [counted[n] for n in names if n in counted]
                 est_n += len(whole)
                 est_k += sum(s in KILLED for s in whole)
                 low_k += sum(s in KILLED for s in whole)
                 continue
-            drawn = [n for n in names if n in members and status.get(n, "not checked") != "not checked"]
+            drawn = [n for n in names if n in members and status[n] != "not checked"]
             kept = [counted[n] for n in drawn if n in counted]     # (equivalent ones stand for theirs)
             if not kept:
                 continue
@@ -529,9 +533,9 @@ def run(only: list[str] | None = None, fresh: bool = False, max_children: int | 
         before = {n: st for n, st in results().items() if _in_scope(n, only)}
         drawn = draw_sample(before, sample, seed) if sample is not None else []
         whole = [n for n, st in before.items() if st == "not checked" and _in_scope(n, complete or [])]
-        if SAMPLE.exists():   # mutants made since the draw (code changed or added) are measured, not sampled
-            population = {n for names in json.loads(SAMPLE.read_text(encoding="utf-8"))["population"].values()
-                          for n in names}
+        kept = load_sample()
+        if kept is not None:   # mutants made since the draw (code changed or added) are measured, not sampled
+            population = population_of(kept)
             whole += [n for n, st in before.items() if st == "not checked" and n not in population]
         listed = load_equivalents()   # (a survivor listed as equivalent would only survive again)
         again = [n for n, st in before.items() if st in ("survived", "no tests") and n not in listed] if retest else []

@@ -142,10 +142,11 @@ def test_run_summary_true_rmse_from_the_plant_angles():
 
 # --- (52), (53) and the gains ------------------------------------------------------------------------
 
-def _pair(n: int = 5001, t_on: float = 5.0, du: float = 0.3, dF: float = 0.3, s: tuple[float, float] = (1.0, 1.0)):
-    """A frozen run and a foam run on 10 s: s = ``s`` and u = 2 held on the frozen one; from t_on the
-    foam run's control is higher by du and the plant's disturbance is dF (both wheels)."""
-    t = np.arange(n) * H
+def _pair(n: int = 5001, t_on: float = 5.0, du: float = 0.3, dF: float = 0.3, s: tuple[float, float] = (1.0, 1.0),
+          dt: float = H):
+    """A frozen run and a foam run of n samples every dt: s = ``s`` and u = 2 held on the frozen one; from
+    t_on the foam run's control is higher by du and the plant's disturbance is dF (both wheels)."""
+    t = np.arange(n) * dt
     one, zero = np.ones(n), np.zeros(n)
     frozen = {"time": t, "controller.s1": s[0] * one, "controller.s2": s[1] * one, "controller.u1": 2 * one,
               "controller.u2": 2 * one, "plant.dF1": zero, "plant.dF2": zero, "plant.foam_level": zero}
@@ -207,14 +208,10 @@ def test_incremental_gain_weighs_the_change_of_s_by_Q():
     assert d["gamma_star"] is None and d["dF_hat_rms"] == 0.0          # no control change: no estimate
 
 
-def _quarter_pair(tF: float = 2.0):
-    """Runs sampled every 0.25 s (exact in binary, so the windows' ends fall on samples), foam from tF."""
-    t = np.arange(41) * 0.25
-    frozen = {"time": t, "controller.s1": np.ones(41), "controller.s2": np.ones(41),
-              "controller.u1": np.full(41, 2.0), "controller.u2": np.full(41, 2.0),
-              "plant.dF1": np.zeros(41), "plant.dF2": np.zeros(41), "plant.foam_level": np.zeros(41)}
-    foam = dict(frozen, **{"plant.foam_level": (t > tF).astype(float)})
-    return t, frozen, foam
+def _quarter_pair() -> tuple[np.ndarray, dict, dict]:
+    """Runs sampled every 0.25 s (exact in binary, so the windows' ends fall on samples), foam from 2 s."""
+    frozen, foam = _pair(n=41, t_on=2.0, du=0.0, dF=0.0, dt=0.25)
+    return foam["time"], frozen, foam
 
 
 def test_the_foam_rise_window_is_open_at_its_start_and_closed_at_its_end():
