@@ -26,7 +26,8 @@ _TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "r
              "variants", "inputs", "limits"}
 _INPUTS_KEYS = {"file", "interpolation"}
 _EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps"}
-_INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "description", "logging", "isolate", "step_timeout"}
+_INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "override_declared_units", "description", "logging", "isolate",
+                  "step_timeout"}
 _CONNECTION_KEYS = {"from", "to", "factor", "offset", "convert", "threshold"}
 _RECORD_KEYS = {"variables", "decimation", "csv", "max_bytes"}
 _RUN_KEYS = {"name", "description", "parameters", "carry"}
@@ -37,7 +38,8 @@ _EVENT_KEYS = {"time", "when", "trigger", "delay", "variable", "action", "value"
 @dataclass
 class InstanceSpec:
     """One FMU instance.  ``names`` maps the FMU's own variable names to the names the scenario uses
-    (their -> ours); ``units`` declares units for variables whose FMU does not (scenario name -> unit);
+    (their -> ours); ``units`` declares units for variables whose FMU does not (scenario name -> unit; a unit
+    that contradicts a declared one is refused unless ``override_declared_units``);
     ``logging`` is the level of the FMU's messages kept in its log ("error", "warning", "info", "all")."""
 
     name: str
@@ -49,6 +51,7 @@ class InstanceSpec:
     logging: str = "warning"
     isolate: bool = False               # host the FMU in a child process (a crash or hang cannot take the run down)
     step_timeout: float | None = None   # seconds a call may take before the instance is ended (isolated: 60)
+    override_declared_units: bool = False   # ``units`` may replace a unit the model description declares
 
 
 @dataclass
@@ -319,8 +322,11 @@ def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:
         timeout = inst.get("step_timeout")
         if timeout is not None:
             timeout = _num(file, f"{fld}.step_timeout", timeout, positive=True)
+        override = inst.get("override_declared_units", False)
+        if not isinstance(override, bool):
+            raise ScenarioError(file, f"{fld}.override_declared_units", f"{override!r}: must be true or false")
         sc.instances[iname] = InstanceSpec(iname, fmu, path, dict(params), dict(names), dict(units), logging,
-                                           isolate, timeout)
+                                           isolate, timeout, override)
 
 
     exp = doc.get("experiment") or {}

@@ -19,7 +19,7 @@ from .errors import CosimError, FmuLoadError, ScenarioError
 from .inputs import InputPlan, read_inputs
 from .model import PY_TYPES, FmuModel, Variable, load_model
 from .scenario import ConnectionSpec, InstanceSpec, Scenario, check_experiment, split_ref
-from .units import conversion, lookup, units_of
+from .units import conversion, lookup, same_unit, units_of
 
 
 @dataclass
@@ -91,6 +91,7 @@ class Plan:
     inputs: list[InputPlan] = field(default_factory=list)
     not_recorded: list[str] = field(default_factory=list)   # String outputs a pattern matched
     conditions: list[EventPlan] = field(default_factory=list)  # events on conditions, evaluated between steps
+    notes: list[str] = field(default_factory=list)   # what check prints beside its verdict (declared units overridden)
 
     @property
     def watched(self) -> list[tuple[str, Variable]]:
@@ -178,6 +179,27 @@ def unit_of(inst: InstancePlan, var: Variable):
     if declared:
         return lookup(declared, units_of(inst.model.md))
     return var.unit
+
+
+def _declared_unit(file: str, fld: str, inst: InstancePlan, name: str, unit_name: str) -> str | None:
+    """Check a ``units`` entry against the model description.  A unit for a variable that declares none, or
+    the one it declares (under any name of the same unit), is accepted silently; one that contradicts the
+    declared unit is refused, unless the instance sets ``override_declared_units`` (then the note that
+    ``check`` prints is returned)."""
+    var = _var(file, fld, inst, name)
+    if var.type != "Real":
+        raise ScenarioError(file, fld, f"{var.name} is {var.type}: units apply to Real variables")
+    given = lookup(unit_name, units_of(inst.model.md))
+    declared = var.unit
+    if declared is None or same_unit(declared, given):
+        return None
+    if not inst.spec.override_declared_units:
+        raise ScenarioError(file, fld, f"{unit_name!r} contradicts the unit {declared.name!r} that "
+                                       f"{inst.model.path.name} declares for {var.name} (units are for variables "
+                                       f"that declare none; to override it, set instances.{inst.name}."
+                                       "override_declared_units = true)")
+    return (f"{fld}: {unit_name!r} overrides the unit {declared.name!r} that {inst.model.path.name} declares "
+            f"for {var.name}")
 
 
 def _connection_types(file: str, fld: str, c: ConnectionSpec, svar: Variable, dvar: Variable,
@@ -393,6 +415,7 @@ def resolve(sc: Scenario, force: bool | None = None) -> Plan:
         sc.force = force
     file = sc.file
     insts: dict[str, InstancePlan] = {}
+    notes: list[str] = []
     for name, spec in sc.instances.items():
         try:
             model = load_model(spec.fmu_path)
@@ -406,8 +429,10 @@ def resolve(sc: Scenario, force: bool | None = None) -> Plan:
             if ours != their and ours in model.variables and ours not in spec.names:
                 raise ScenarioError(file, f"instances.{name}.names.{their}",
                                     f"{ours!r} is already the name of another variable of {model.path.name}")
-        for var_name in spec.units:
-            _var(file, f"instances.{name}.units.{var_name}", ip, var_name)
+        for var_name, unit_name in spec.units.items():
+            note = _declared_unit(file, f"instances.{name}.units.{var_name}", ip, var_name, unit_name)
+            if note:
+                notes.append(note)
         for pname, value in spec.parameters.items():
             fld = f"instances.{name}.parameters.{pname}"
             var = _var(file, fld, ip, pname)
@@ -453,7 +478,7 @@ def resolve(sc: Scenario, force: bool | None = None) -> Plan:
     events = sorted((ev for ev in checked if ev.condition is None), key=lambda ev: ev.step)  # stable within a step
     conditions = [ev for ev in checked if ev.condition is not None]
     plan = Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs, not_recorded,
-                conditions)
+                conditions, notes)
     if plan.output_bytes > sc.max_bytes and not sc.force:
         raise ScenarioError(file, "record", f"the recording would take about {plan.output_bytes / 2 ** 20:.0f} MiB "
                                             f"(more than max_bytes = {sc.max_bytes}): record fewer variables, "

@@ -76,6 +76,16 @@ def lookup(name: str | None, defined: dict[str, Unit]) -> Unit | None:
     return Unit(name, ())
 
 
+def same_unit(a: Unit, b: Unit | None) -> bool:
+    """Whether two units are the same unit: the same name, or the same known base, factor and offset
+    (``N.m`` and ``Nm``)."""
+    if b is None:
+        return False
+    if a.name == b.name:
+        return True
+    return bool(a.exps) and a.exps == b.exps and a.factor == b.factor and a.offset == b.offset
+
+
 def conversion(src: Unit | None, dst: Unit | None) -> tuple[float, float]:
     """(factor, offset) such that value_in_dst = factor * value_in_src + offset.
 

@@ -185,6 +185,8 @@ def cmd_check(args: argparse.Namespace) -> int:
               f"{_size(plan.output_bytes)}{' (and signals.csv about ' + _size(3 * plan.output_bytes) + ')' if sc.csv else ''}")
         if plan.not_recorded:
             print(f"note: String outputs are not recorded: {', '.join(plan.not_recorded)}")
+        for note in plan.notes:
+            print(f"note: {note}")
     return EXIT_OK
 
 
