@@ -28,6 +28,9 @@ here with the system C compiler): it uses the interpreter already in the process
 this build ran on (recorded in the loader; the environment variable :data:`LIBPYTHON_ENV` names another),
 and forwards every FMI call to pythonfmu's binary, shipped beside it as ``libpythonfmu-export.so``.  The
 model description records the Python version, library and variable in its VendorAnnotations.
+
+Platforms: only the binaries built and tested here ship (``binaries/linux64``; FMI 3.0
+``binaries/x86_64-linux``); the stock Windows DLLs pythonfmu and pythonfmu3 add are removed.
 """
 from __future__ import annotations
 
@@ -237,6 +240,34 @@ def install_loader(fmu: Path, model: str, loader: Path, py: PythonRecord) -> Non
     os.replace(part, fmu)
 
 
+#: The one platform folder shipped by FMI version: the binaries that are built and tested here.  pythonfmu
+#: and pythonfmu3 also put their stock Windows DLLs (binaries/win64, binaries/x86_64-windows) into the
+#: archives; those are not built by us, not tested, and removed.
+SHIPPED_PLATFORM = {2: "linux64", 3: "x86_64-linux"}
+
+
+def _platforms(names: list[str] | set[str]) -> set[str]:
+    """The platform folders under binaries/ that hold a file."""
+    return {n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") >= 2 and not n.endswith("/")}
+
+
+def ship_only_tested_binaries(fmu: Path, fmi: int) -> None:
+    """Rewrite ``fmu`` in place without the binaries of any platform but :data:`SHIPPED_PLATFORM` (and
+    without the empty folders of those platforms)."""
+    keep = SHIPPED_PLATFORM[fmi]
+    with zipfile.ZipFile(fmu) as src:
+        if _platforms(src.namelist()) <= {keep}:
+            return
+        part = fmu.with_name(fmu.name + ".part")
+        with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as dst:
+            for info in src.infolist():
+                parts = info.filename.split("/")
+                if parts[0] == "binaries" and len(parts) >= 2 and parts[1] not in ("", keep):
+                    continue
+                dst.writestr(info, src.read(info))
+    os.replace(part, fmu)
+
+
 def plan(model: str) -> Plan:
     """The inputs of one FMU and their hash."""
     if model in SLAVES3:
@@ -344,6 +375,10 @@ def _check_archive(fmu: Path, p: Plan) -> None:
     with zipfile.ZipFile(fmu) as zf:
         names = set(zf.namelist())
         md = zf.read("modelDescription.xml").decode("utf-8")
+    other = sorted(_platforms(names) - {SHIPPED_PLATFORM[p.fmi]})
+    if other:
+        raise BuildError(f"{fmu}: binaries for {', '.join(other)} in the built FMU: only "
+                         f"{SHIPPED_PLATFORM[p.fmi]} is built and tested")
     if p.fmi == 3:
         need = {"modelDescription.xml", f"resources/{p.module}.py", f"resources/{p.package}/fmi3_base.py",
                 f"resources/{p.package}/fmi_decl.py", f"resources/{p.package}/{p.script.name}",
@@ -426,6 +461,7 @@ def build_all(out_dir: Path | None = None, force: bool = False, models: tuple[st
                 continue
             if p.fmi == 2:
                 install_loader(built, p.model, loader, py)
+            ship_only_tested_binaries(built, p.fmi)
             _check_archive(built, p)
             _hash_file(fmu).unlink(missing_ok=True)  # no stale hash beside a half-replaced FMU
             if not _same_fs(built, fmu):  # copy next to the target first, so the replace is atomic
