@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from . import execution, scenario, system
-from .errors import ScenarioError
+from .errors import CosimError, ScenarioError
 
 Resolver = Callable[[str], "Path | None"]
 #: What a run's carry gives: (run's carry {parameter ref: "run.instance.variable"}, final values of the runs
@@ -41,6 +41,66 @@ def plan_runs(path: str | os.PathLike, resolver: Resolver | None = None, variant
     return sc, runs, vparams
 
 
+#: A value of each kind, standing for a carried value that is not known before its source run ends.
+_STAND_IN: dict[str, Any] = {"Real": 0.0, "Integer": 0, "Enumeration": 0, "Boolean": False, "String": ""}
+
+
+def _resolve_run(path: str | os.PathLike, resolver: Resolver | None, run: str, params: dict[str, Any],
+                 force: bool) -> system.Plan:
+    """The checked plan of one run; a failure names the run."""
+    try:
+        return system.resolve(scenario.load(path, resolver, params), force)
+    except ScenarioError as exc:
+        where = f"runs.{run}: {exc.field}" if exc.field else f"runs.{run}"
+        raise ScenarioError(exc.file, where, exc.reason) from None
+
+
+def _carried(file: str, run: scenario.RunSpec, finals: dict[str, dict[str, Any]], carry: Carry | None
+             ) -> dict[str, Any]:
+    """The values a run carries from the final values of the runs before it ({run: {column: value}})."""
+    for ref, src in run.carry.items():
+        src_run = src.split(".", 1)[0]
+        if src_run not in finals:
+            raise ScenarioError(file, f"runs.{run.name}.carry.{ref}", f"run {src_run!r} has not been run")
+    if carry is not None:
+        try:
+            return carry(run.carry, finals)
+        except ScenarioError:
+            raise
+        except CosimError as exc:
+            raise ScenarioError(file, f"runs.{run.name}.carry", str(exc)) from None
+    carried: dict[str, Any] = {}
+    for ref, src in run.carry.items():
+        src_run, col = src.split(".", 1)
+        if col not in finals[src_run]:
+            raise ScenarioError(file, f"runs.{run.name}.carry.{ref}", f"{src!r} was not recorded by run {src_run!r}")
+        carried[ref] = finals[src_run][col]
+    return carried
+
+
+def check_protocol(path: str | os.PathLike, resolver: Resolver | None = None, variant: str | None = None,
+                   overrides: dict[str, Any] | None = None, only: list[str] | None = None, force: bool = False,
+                   carry: Carry | None = None) -> dict[str, system.Plan]:
+    """Resolve every run of the file (the ones in ``only``) before any of them starts: each run's parameters
+    against its FMUs, each carry against what its source run records and what its target takes (type and
+    shape; the range once the value is known).  Returns {run name: plan}; raises ScenarioError naming the
+    run and the field."""
+    sc, runs, vparams = plan_runs(path, resolver, variant)
+    overrides = overrides or {}
+    plans: dict[str, system.Plan] = {}
+    finals: dict[str, dict[str, Any]] = {}
+    for run in runs:
+        if only is not None and run.name not in only:
+            continue
+        carried = {ref: v for ref, v in _carried(sc.file, run, finals, carry).items() if ref not in overrides}
+        plan = _resolve_run(path, resolver, run.name, {**vparams, **run.parameters, **overrides}, force)
+        for ref, value in carried.items():
+            system.check_carried(sc.file, f"runs.{run.name}.carry.{ref}", plan, ref, value)
+        plans[run.name] = plan
+        finals[run.name] = {rp.column: _STAND_IN.get(rp.var.type, 0.0) for rp in plan.record}
+    return plans
+
+
 def run_protocol(path: str | os.PathLike, out_dir: str | os.PathLike, resolver: Resolver | None = None,
                  variant: str | None = None, overrides: dict[str, Any] | None = None,
                  progress: bool | None = None, only: list[str] | None = None,
@@ -49,11 +109,13 @@ def run_protocol(path: str | os.PathLike, out_dir: str | os.PathLike, resolver: 
                  ) -> dict[str, execution.RunResult]:
     """Run every run of the file in order into ``out_dir/<run>``; returns {run name: result}.
 
-    A run whose carried source run failed is still run if the source recorded the value; a carried value
-    that was not recorded is a ScenarioError before that run starts.  ``overrides`` ("inst.param" ->
-    value) apply to every run, after the variant and the run's own parameters.  ``carry`` replaces the
-    plain lookup of carried values (a resolver to other FMUs may need the names translated).
+    Every run is checked first (:func:`check_protocol`), so a run that cannot work stops the protocol
+    before its first run starts.  A run whose carried source run failed is still run if the source
+    recorded the value.  ``overrides`` ("inst.param" -> value) apply to every run, after the variant and
+    the run's own parameters and carried values.  ``carry`` replaces the plain lookup of carried values
+    (a resolver to other FMUs may need the names translated).
     """
+    check_protocol(path, resolver, variant, overrides, only, force, carry)
     sc, runs, vparams = plan_runs(path, resolver, variant)
     out = Path(out_dir)
     results: dict[str, execution.RunResult] = {}
@@ -61,21 +123,9 @@ def run_protocol(path: str | os.PathLike, out_dir: str | os.PathLike, resolver: 
         if only is not None and run.name not in only:
             continue
         params = {**vparams, **run.parameters}
-        carried: dict[str, Any] = {}
-        for ref, src in run.carry.items():
-            src_run, col = src.split(".", 1)
-            if src_run not in results:
-                raise ScenarioError(sc.file, f"runs.{run.name}.carry.{ref}", f"run {src_run!r} has not been run")
-            if carry is None:
-                if col not in results[src_run].final:
-                    raise ScenarioError(sc.file, f"runs.{run.name}.carry.{ref}",
-                                        f"{src!r} was not recorded by run {src_run!r}")
-                carried[ref] = results[src_run].final[col]
-        if carry is not None:
-            carried = carry(run.carry, {n: r.final for n, r in results.items()})
-        params.update(carried)
+        params.update(_carried(sc.file, run, {n: r.final for n, r in results.items()}, carry))
         params.update(overrides or {})
-        plan = system.resolve(scenario.load(path, resolver, params), force)
+        plan = _resolve_run(path, resolver, run.name, params, force)
         for ip in plan.instances.values():
             ip.spec.isolate = ip.spec.isolate or isolate
         res = execution.run(plan, out / run.name, progress=progress)

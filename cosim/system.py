@@ -123,7 +123,7 @@ def _value(file: str, fld: str, var: Variable, value: Any) -> Any:
     return _scalar_value(file, fld, var, value)
 
 
-def _scalar_value(file: str, fld: str, var: Variable, value: Any) -> Any:
+def _scalar_value(file: str, fld: str, var: Variable, value: Any, check_range: bool = True) -> Any:
     types = PY_TYPES.get(var.type)
     if types is None:
         raise ScenarioError(file, fld, f"variables of type {var.type} cannot be set")
@@ -135,10 +135,31 @@ def _scalar_value(file: str, fld: str, var: Variable, value: Any) -> Any:
         value = float(value)
         if not math.isfinite(value):
             raise ScenarioError(file, fld, f"{value!r} is not finite")
-    reason = var.check_range(value)
+    reason = var.check_range(value) if check_range else None
     if reason:
         raise ScenarioError(file, fld, reason)
     return value
+
+
+def check_carried(file: str, fld: str, plan: Plan, ref: str, value: Any) -> None:
+    """Check, before any run starts, that a value carried into ``ref`` ("instance.parameter") can be set:
+    the variable exists, is settable before initialisation and takes a value of ``value``'s type and shape
+    (its range is checked when the carried value is known)."""
+    inst, name = split_ref(file, fld, ref)
+    if inst not in plan.instances:
+        raise ScenarioError(file, fld, f"unknown instance {inst!r}")
+    var = _var(file, fld, plan.instances[inst], name)
+    reason = var.settable()
+    if reason:
+        raise ScenarioError(file, fld, reason)
+    if var.shape:
+        if not isinstance(value, list) or len(value) != var.size:
+            raise ScenarioError(file, fld, f"{var.name} is an array of {var.size} values {var.shape}: the carried "
+                                           f"value is {'a list of ' + str(len(value)) if isinstance(value, list) else 'a scalar'}")
+        for v in value:
+            _scalar_value(file, fld, var, v, check_range=False)
+    else:
+        _scalar_value(file, fld, var, value, check_range=False)
 
 
 def _var(file: str, fld: str, inst: InstancePlan, name: str) -> Variable:

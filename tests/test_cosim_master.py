@@ -208,3 +208,34 @@ carry = { "controller.W2_init" = "a.controller.W2" }
     p = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "run", str(path), "--variant", "x"],
                        capture_output=True, text=True)
     assert p.returncode == 2 and "--variant x: not declared" in p.stderr
+
+
+def test_check_of_a_protocol_with_a_swapped_plant_names_what_a_later_run_lacks(built_fmus, tmp_path, swap_fmu,
+                                                                                capsys):
+    """A protocol based on the paper's G1 with the plant swapped: check resolves every run, so what the
+    foam run sets on a plant that has no such parameter is found before anything is simulated."""
+    from cosim_support import ROOT, toml_value
+    from wmr_cosim.cli import main
+
+    g1 = ROOT / "scenarios" / "paper" / "g1.toml"
+    record = ('[record]\nvariables = ["plant.x_A", "plant.y_A", "plant.alpha*", "controller.u*", '
+              '"controller.e*", "controller.W*", "controller.P*"]\n')
+    text = (f"base = {toml_value(str(g1))}\n{record}"
+            + "".join(f"[instances.{i}]\nfmu = {toml_value(str(built_fmus[m]))}\n"
+                      for i, m in (("sensor", "WmrSensor"), ("controller", "WmrController")))
+            + f"[instances.plant]\nfmu = {toml_value(str(swap_fmu))}\n{SWAP_NAMES}[instances.plant.units]\n"
+              'alpha1 = "deg"\nalpha2 = "deg"\n')
+    path = tmp_path / "swap_protocol.toml"
+    path.write_text(text)
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "runs.foam: instances.plant.parameters.foam_" in err and "has no variable" in err
+    assert len(err.splitlines()) == 1
+    # without P* in the record, the carry of the frozen run is what check names first
+    path.write_text(text.replace(', "controller.P*"', ""))
+    assert main(["check", str(path)]) == 2
+    assert "runs.frozen.carry.controller.P11_init: 'learn.controller.P11' was not recorded by run 'learn'" \
+        in capsys.readouterr().err
+    out = tmp_path / "out"
+    assert main(["run", str(path), "--out", str(out), "--quiet"]) == 2
+    assert not out.exists()          # nothing was simulated

@@ -10,7 +10,7 @@ import pytest
 from cosim_support import write_scenario
 from reference_fmus import REF as _REF
 from wmr_cosim.cosim.errors import EXIT_RUN_FAILED, RunError, ScenarioError
-from wmr_cosim.cosim.protocol import plan_runs, run_protocol
+from wmr_cosim.cosim.protocol import check_protocol, plan_runs, run_protocol
 
 DAHLQUIST = _REF / "fmi2" / "Dahlquist.fmu"
 
@@ -113,6 +113,23 @@ def test_a_carry_of_a_value_that_was_not_recorded(tmp_path):
     with pytest.raises(ScenarioError) as exc:
         run_protocol(path, tmp_path / "out", progress=False)
     assert str(exc.value) == f"{path}: runs.b.carry.d.k: 'a.d.der(x)' was not recorded by run 'a'"
+    assert not (tmp_path / "out").exists()      # refused before the first run started
+
+
+def test_a_later_run_that_cannot_work_stops_the_protocol_before_the_first_run(tmp_path):
+    path = _protocol(tmp_path, RUNS + 'parameters = { "d.kk" = 3.0 }\n')
+    with pytest.raises(ScenarioError) as exc:
+        run_protocol(path, tmp_path / "out", progress=False)
+    assert exc.value.field == "runs.c: instances.d.parameters.kk" and "has no variable 'kk'" in exc.value.reason
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_carry_into_a_variable_that_cannot_take_it_is_refused_before_any_run(tmp_path):
+    path = _protocol(tmp_path, RUNS.replace('"d.k" = "a.d.x"', '"d.der(x)" = "a.d.x"'))
+    with pytest.raises(ScenarioError) as exc:
+        check_protocol(path)
+    assert exc.value.field == "runs.b.carry.d.der(x)" and "der(x)" in exc.value.reason
+    assert not (tmp_path / "out").exists()
 
 
 def test_a_carry_function_replaces_the_lookup(tmp_path):
@@ -124,7 +141,8 @@ def test_a_carry_function_replaces_the_lookup(tmp_path):
         return {ref: 1.5 for ref in spec}
     results = run_protocol(path, tmp_path / "out", progress=False, carry=carry)
     assert results["b"].final["d.k"] == 1.5
-    assert calls == [({}, []), ({"d.k": "a.d.der(x)"}, ["a"]), ({}, ["a", "b"])]
+    # called once by the check before any run starts, once as the runs go
+    assert calls == [({}, []), ({"d.k": "a.d.der(x)"}, ["a"]), ({}, ["a", "b"])] * 2
 
 
 def test_force_lifts_the_step_limit(tmp_path):

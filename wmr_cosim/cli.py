@@ -28,6 +28,16 @@ class UsageError(Exception):
     """Bad command-line input; the message is one line."""
 
 
+#: The help of every command's --set.
+SET_HELP = ("override a parameter or start value, one per --set (repeat it): INSTANCE.PARAM=VALUE, or PARAM=VALUE "
+            "when there is one instance (a single FMU)")
+
+
+def plain(text: str) -> str:
+    """A docstring as --help shows it: reStructuredText's double backquotes (``name``) become plain text."""
+    return text.replace("``", "")
+
+
 def _overrides(items: list[str]) -> dict[str, dict[str, Any]]:
     """--set plant.foam_da1=0.4 controller.gamma=5 ... -> {'plant': {...}, 'sensor': {...}, 'controller': {...}}."""
     out: dict[str, dict[str, Any]] = {"plant": {}, "sensor": {}, "controller": {}}
@@ -187,7 +197,24 @@ def cmd_check(args: argparse.Namespace) -> int:
             print(f"note: String outputs are not recorded: {', '.join(plan.not_recorded)}")
         for note in plan.notes:
             print(f"note: {note}")
+    if str(args.scenario).endswith(".toml"):
+        _check_runs(args, overrides)
     return EXIT_OK
+
+
+def _check_runs(args: argparse.Namespace, overrides: dict[str, Any]) -> None:
+    """A protocol's runs, each resolved as ``run`` would run it (parameters, carries, records)."""
+    from .cosim.protocol import check_protocol, plan_runs
+    from .runner import resolve_model
+
+    sc, _, _ = plan_runs(args.scenario, resolve_model, args.variant)
+    if not sc.runs:
+        return
+    plans = check_protocol(args.scenario, resolve_model, args.variant, overrides, force=args.force)
+    carries = {r.name: len(r.carry) for r in sc.runs}
+    for name, plan in plans.items():
+        print(f"  run {name}: ok: {plan.n_steps} steps, {len(plan.record)} recorded variables"
+              + (f", {carries[name]} carried values" if carries[name] else ""))
 
 
 def _size(n: float) -> str:
@@ -287,7 +314,7 @@ def _dask_options(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="wmr-cosim", description=__doc__,
+    ap = argparse.ArgumentParser(prog="wmr-cosim", description=plain(__doc__),
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--max-archive-size", metavar="SIZE", default=None,
                     help="refuse FMU/SSP archives that unpack to more than SIZE (default 2 GiB; e.g. 8GiB)")
@@ -299,10 +326,12 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Run one task of the paper (learning run: adaptation 0-39 s, reference floor) "
                                    "through the FMI-free direct loop and print its metrics beside Table 2/3.")
     d.add_argument("task", nargs="?", default="G1", choices=paper.TASKS, help="task (default G1)")
-    d.add_argument("--t-stop", type=float, default=50.0, help="stop time [s] (default 50)")
+    d.add_argument("--stop", dest="t_stop", type=float, default=50.0, help="stop time [s] (default 50)")
+    d.add_argument("--t-stop", dest="t_stop", type=float, default=argparse.SUPPRESS, help=argparse.SUPPRESS)
     d.add_argument("--step", type=float, default=0.002, help="communication step h [s] (default 0.002)")
-    d.add_argument("--set", nargs="+", action="extend", metavar="COMP.PARAM=VALUE",
-                   help="override parameters, e.g. plant.foam_on_time=true plant.foam_t_on=8.38 controller.gamma=5")
+    d.add_argument("--set", action="append", metavar="COMP.PARAM=VALUE",
+                   help="override a parameter, e.g. --set controller.gamma=5 (one per --set; repeat it: "
+                        "--set plant.foam_on_time=true --set plant.foam_t_on=8.38)")
     d.add_argument("--json", action="store_true", help="print only the JSON line")
     d.set_defaults(func=cmd_direct)
     b = sub.add_parser("build", help="build the three FMUs (WmrPlant, WmrSensor, WmrController)",
@@ -319,7 +348,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also build WmrCPlant.fmu, the plant in C (needs cmake and a C compiler)")
     b.set_defaults(func=cmd_build)
 
-    r = sub.add_parser("run", help="run a scenario (TOML) through the co-simulation master",
+    r = sub.add_parser("run", help="run a scenario (.toml), an SSP archive (.ssp) or one FMU (.fmu)",
                        description="Run a scenario file: FMUs, parameters, connections, experiment, recording, events. "
                                    "A name that is not a file is looked up among the shipped scenarios (example.toml, "
                                    "g1_learn.toml, paper/g1.toml, ...). Results go to a folder: signals.npy (written "
@@ -329,7 +358,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("scenario", type=scenario_path,
                    help="scenario file (.toml), SSP 1.0 archive (.ssp) or one FMU (.fmu)")
     r.add_argument("--out", type=Path, default=None, metavar="DIR", help="results folder (default results/<scenario>)")
-    r.add_argument("--set", nargs="+", action="extend", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
+    r.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
     r.add_argument("--variant", default=None, help="a variant the scenario declares ([variants.NAME])")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--input", type=Path, default=None, metavar="FILE.csv",
@@ -346,13 +375,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="pace the steps to the wall clock at FACTOR x real time (default 1); steps that finish "
                         "late are counted and reported, never skipped")
     r.set_defaults(func=cmd_run)
-    c = sub.add_parser("check", help="check a scenario against its FMUs without running it",
+    c = sub.add_parser("check", help="check a scenario (.toml, .ssp or .fmu) against its FMUs without running it",
                        description="Run every check of a scenario (files, variables, causality, types, units, "
                                    "steps, ranges, keys) without stepping. Exit code 0 if it would run, 2 if not.")
     c.add_argument("scenario", type=scenario_path,
                    help="scenario file (.toml), SSP 1.0 archive (.ssp) or one FMU (.fmu)")
-    c.add_argument("--set", nargs="+", action="extend", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
+    c.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
     c.add_argument("--force", action="store_true", help="check as `run --force` would run")
+    c.add_argument("--variant", default=None, help="a protocol's variant ([variants.NAME]): check its runs with it")
     c.set_defaults(func=cmd_check)
     e = sub.add_parser("export-ssp", help="write a scenario as an SSP 1.0 archive",
                        description="Write a scenario as an SSP 1.0 archive that other tools (libcosim, ecos, FMPy, "
@@ -362,7 +392,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "Timed events cannot be expressed in SSP 1.0 and are refused.")
     e.add_argument("scenario", type=scenario_path, help="scenario file (.toml)")
     e.add_argument("--out", type=Path, required=True, metavar="FILE.ssp", help="the archive to write")
-    e.add_argument("--set", nargs="+", action="extend", metavar="INSTANCE.PARAM=VALUE", help="override parameters or start values")
+    e.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
     e.set_defaults(func=cmd_export_ssp)
     i = sub.add_parser("info", help="describe an FMU", description="Describe an FMU: model, FMI capabilities, "
                        "default experiment, and every variable with causality, type, unit, range and start.")
@@ -406,7 +436,8 @@ def build_parser() -> argparse.ArgumentParser:
                                     "reports the smallest gamma for which every run stays stable and gamma* <= gamma, "
                                     "and the whole curve.")
     gs.add_argument("scenario", type=scenario_path, help="a protocol with runs learn, frozen, foam (e.g. scenarios/paper/g1.toml)")
-    gs.add_argument("--out", type=Path, default=None, metavar="DIR")
+    gs.add_argument("--out", type=Path, default=None, metavar="DIR",
+                    help="results folder (default results/gamma-search-<scenario>)")
     gs.add_argument("--grid", type=float, nargs="+", default=None, metavar="GAMMA", help="the gamma grid")
     gs.add_argument("--variant", default="freeze", help="a variant the protocol declares (default freeze)")
     _dask_options(gs)
