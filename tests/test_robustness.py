@@ -100,3 +100,33 @@ def test_reduced_study_runs_on_dask(built_fmus, tmp_path):
         assert again["robustness"]["mismatch"] == rob["mismatch"]
     finally:
         mp.undo()
+
+
+@pytest.mark.slow
+def test_the_paper_command_runs_the_robustness_study(built_fmus, tmp_path, monkeypatch, capsys):
+    """`wmr-cosim paper --robustness` end to end through the command line, as a user runs it (the study's
+    grid names no tasks file: the job's is used), on G1 cut to 12 s and a reduced grid (4 points)."""
+    import functools
+    import json
+
+    from wmr_cosim import cli, runner
+
+    monkeypatch.setattr(runner, "resolve_model", lambda name: built_fmus.get(name))   # the job's workers fork
+    monkeypatch.setattr(sweep, "fmu_paths", lambda: {k: str(v) for k, v in built_fmus.items()})
+    monkeypatch.setattr(rb, "StudyGrid", functools.partial(
+        rb.StudyGrid, mismatch=(0.0, 0.1), heading_deg=(0.0,), noise_counts=(0.0, 1.0), bump_Nm=(0.0, 3.4),
+        p0=(paper.table1()["P0"],), freeze_times=(), freeze_mismatch=0.1))
+    manifest = tmp_path / "tasks.toml"
+    manifest.write_text(f'[tasks]\nG1 = "{DATA / "short_protocol.toml"}"\n')
+    out = tmp_path / "job"
+    code = cli.main(["paper", "--robustness", "--manifest", str(manifest), "--no-compare", "--out", str(out),
+                     "--workers", "2", "--quiet"])
+    assert code == 0, capsys.readouterr().err
+    m = json.loads((out / "metrics.json").read_text())
+    rob = m["robustness"]
+    assert rob["tasks"] == ["G1"] and rob["n_points"] == 4
+    assert [e["value"] for e in rob["mismatch"]] == [0.0, 0.1]
+    assert rob["max_mismatch_all_converge"] == 0.1 and m["freeze_study"]["default"].startswith("P0 = 0.0005")
+    assert len(list((out / "robustness" / "points").glob("*.json"))) == 4
+    md = (out / "report.md").read_text()
+    assert "Robustness beyond the paper" in md and "figures/robustness.png" in md

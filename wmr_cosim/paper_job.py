@@ -28,9 +28,16 @@ DEFAULT_MANIFEST = "paper.toml"  # among the shipped scenario files (wmr_cosim.s
 VARIANTS = ("freeze", "printed")
 
 
-def _manifest(path: Path) -> dict[str, Path]:
+def manifest_path(manifest: str | os.PathLike | None = None) -> Path:
+    """The tasks file: ``manifest`` as given, or the shipped ``scenarios/paper.toml`` when None."""
+    return Path(manifest) if manifest is not None else scenario_files.folder() / DEFAULT_MANIFEST
+
+
+def _manifest(manifest: str | os.PathLike | None = None) -> dict[str, Path]:
+    """{task: protocol file} of the tasks file ``manifest`` (default: the shipped one, see :func:`manifest_path`)."""
     from .cosim.errors import ScenarioError
 
+    path = manifest_path(manifest)
     if not path.is_file():
         raise ScenarioError(str(path), "", "file not found")
     try:
@@ -135,7 +142,7 @@ def _run_paper(out: Path, variant: str, compare: bool, workers: int | None, mani
     from .runner import resolver
 
     resolve_model = resolver(fmi)
-    tasks = _manifest(Path(manifest) if manifest else scenario_files.folder() / DEFAULT_MANIFEST)
+    tasks = _manifest(manifest)
     variants = [variant] + ([v for v in VARIANTS if v != variant] if compare else [])
     if progress is None:
         progress = sys.stderr.isatty()
@@ -159,8 +166,9 @@ def _run_paper(out: Path, variant: str, compare: bool, workers: int | None, mani
                       file=sys.stderr, flush=True)
     study = study_fig = None
     if robustness:
-        from .robustness import run_study
-        study = run_study(out / "robustness", robustness_grid, workers=workers, progress=progress)
+        from .robustness import job_grid, run_study
+        study = run_study(out / "robustness", job_grid(robustness_grid, manifest, tuple(tasks)), workers=workers,
+                          progress=progress)
     results: dict[str, Any] = {}
     main_signals = main_dist = None
     for v in variants:

@@ -96,7 +96,7 @@ def outside_cells(m: dict[str, Any], study: dict[str, Any] | None) -> tuple[list
     rows, notes, unexplained = [], [], []
     for c in m["fidelity"]["cells"]:
         r = c["ratio"]
-        if r is not None and 1 / 1.5 <= r <= 1.5:
+        if (r is not None and 1 / 1.5 <= r <= 1.5) or c["task"] not in m["tasks"]:   # inside, or not run
             continue
         task, run, cell = c["task"], c["run"], c["cell"]
         q, i = cell.rsplit("_", 1)

@@ -26,8 +26,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -57,6 +58,16 @@ class StudyGrid:
     freeze: bool = True
     axes: tuple[str, ...] = ("mismatch", "heading", "noise", "bump")
     manifest: str | None = None      # the tasks file (default scenarios/paper.toml)
+
+
+def job_grid(grid: StudyGrid | None, manifest: str | os.PathLike | None, tasks: tuple[str, ...]) -> StudyGrid:
+    """The study grid of a paper job run on the tasks file ``manifest`` naming ``tasks``: ``grid`` (default
+    the full one) on that file and, when the grid names no file itself, on those of its tasks the file names."""
+    grid = grid if grid is not None else StudyGrid()
+    if grid.manifest is not None:
+        return grid
+    return replace(grid, manifest=None if manifest is None else str(manifest),
+                   tasks=tuple(t for t in grid.tasks if t in tasks))
 
 
 def mismatch_params(m: float) -> dict[str, float]:
@@ -103,9 +114,14 @@ def reading_label(kind: str, value: float) -> str:
 def plan(grid: StudyGrid) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """The distinct points of the study (a point: id, base protocol file, parameters) and, per axis
     value or reading, the point id of each task."""
-    from .paper_job import DEFAULT_MANIFEST, _manifest
+    from .cosim.errors import ScenarioError
+    from .paper_job import _manifest, manifest_path
 
-    files = _manifest(Path(grid.manifest) if grid.manifest else DEFAULT_MANIFEST)
+    files = _manifest(grid.manifest)
+    missing = [t for t in grid.tasks if t not in files]
+    if missing:
+        raise ScenarioError(str(manifest_path(grid.manifest)), "tasks",
+                            f"the robustness study needs {', '.join(missing)}, which this file does not name")
     points: list[dict[str, Any]] = []
     index: dict[str, int] = {}
 
