@@ -16,6 +16,7 @@ from typing import Any
 
 from .archive import use_scenario_limits
 from .errors import ScenarioError
+from .suggest import did_you_mean
 
 ALGORITHMS = ("gauss-seidel", "jacobi")
 ACTIONS = ("override", "bias", "reset", "set", "stop")
@@ -147,7 +148,8 @@ def _read(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, str] | N
     if not path.is_file():
         if asked_by is not None:
             raise ScenarioError(asked_by[0], "base", f"{asked_by[1]!r}: "
-                                                     f"{'a folder' if path.is_dir() else 'file not found'} ({path})")
+                                                     f"{'a folder' if path.is_dir() else 'file not found'} ({path}; "
+                                                     f"nor a shipped scenario{_shipped_hint(asked_by[1])})")
         raise ScenarioError(name, "", "a folder, not a scenario file" if path.is_dir() else "file not found")
     if path.resolve() in seen:
         raise ScenarioError(name, "base", "circular base chain")
@@ -178,8 +180,40 @@ def _read(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, str] | N
         b = doc.pop("base")
         if not isinstance(b, str):
             raise ScenarioError(name, "base", "must be a file name")
-        doc = _merge(_read((path.parent / b), seen + (path.resolve(),), (name, b)), doc)
+        doc = _merge(_read(_base_path(path, b), seen + (path.resolve(),), (name, b)), doc)
     return doc
+
+
+def _shipped() -> Path | None:
+    """The folder of the scenario files shipped with the package (None without it)."""
+    from importlib import resources
+    try:
+        return Path(str(resources.files("wmr_cosim.scenarios")))
+    except ModuleNotFoundError:
+        return None
+
+
+def _shipped_hint(base: str) -> str:
+    """", did you mean 'paper/protocol.toml'?" where a shipped file of that name lies in a subfolder."""
+    folder = _shipped()
+    if folder is None:
+        return ""
+    hits = sorted(p.relative_to(folder).as_posix() for p in folder.rglob(Path(base).name))
+    return f", did you mean {hits[0]!r}?" if hits else ""
+
+
+def _base_path(path: Path, base: str) -> Path:
+    """The file a ``base`` names: relative to the file that names it, else (a relative name without ``..``)
+    one of the scenario files shipped with the package (``g1_learn.toml``, ``paper/protocol.toml``), so
+    that a copy of a shipped file still finds its base."""
+    beside = path.parent / base
+    b = Path(base)
+    if beside.exists() or b.is_absolute() or ".." in b.parts:
+        return beside
+    shipped = _shipped()
+    parts = b.parts[1:] if b.parts[:1] == ("scenarios",) else b.parts
+    found = shipped.joinpath(*parts) if shipped is not None and parts else None
+    return found if found is not None and found.is_file() else beside
 
 
 def _is_path(fmu: str) -> bool:
@@ -510,13 +544,37 @@ def check_experiment(sc: Scenario, where: str = "experiment") -> None:
 
 
 
+#: The tables whose fields ``--set`` may also set ("experiment.stop=5", "record.variables=[...]"), with
+#: their fields; an instance of the same name takes precedence.
+SET_TABLES = {"experiment": _EXPERIMENT_KEYS, "record": _RECORD_KEYS}
+
+
 def apply_overrides(doc: dict[str, Any], overrides: dict[str, Any] | None, file: str) -> dict[str, Any]:
-    """Set ``overrides`` ({'inst.param': value}, from ``--set`` or the API) as parameters in a document."""
+    """Set ``overrides`` ({'inst.param': value}, from ``--set`` or the API) as parameters in a document.
+
+    A key without an instance (``"e"``) is the variable of the document's one instance (refused when it
+    has several); ``"experiment.FIELD"`` and ``"record.FIELD"`` set a field of [experiment] or [record]
+    (unless an instance is so named), checked as the file's own values are."""
     for ref, value in (overrides or {}).items():
-        inst, var = split_ref(file, f"--set {ref}", ref)
+        fld = f"--set {ref}"
         insts = doc.setdefault("instances", {})
+        if isinstance(ref, str) and "." not in ref and ref and isinstance(insts, dict) and len(insts) == 1:
+            ref = f"{next(iter(insts))}.{ref}"
+        inst, var = split_ref(file, fld, ref)
+        if not isinstance(insts, dict):
+            raise ScenarioError(file, "instances", "must be a table")
+        if inst not in insts and inst in SET_TABLES:
+            if var not in SET_TABLES[inst]:
+                raise ScenarioError(file, fld, f"unknown {inst} field {var!r} (allowed: "
+                                               f"{', '.join(sorted(SET_TABLES[inst]))}){did_you_mean(var, SET_TABLES[inst])}")
+            table = doc.setdefault(inst, {})
+            if not isinstance(table, dict):
+                raise ScenarioError(file, inst, "must be a table")
+            table[var] = [value] if (inst, var) == ("record", "variables") and isinstance(value, str) else value
+            continue
         if inst not in insts:
-            raise ScenarioError(file, f"--set {ref}", f"unknown instance {inst!r}")
+            raise ScenarioError(file, fld, f"unknown instance {inst!r}"
+                                           f"{did_you_mean(inst, [*insts, *(t for t in SET_TABLES if t not in insts)])}")
         if not isinstance(insts[inst], dict):
             raise ScenarioError(file, f"instances.{inst}", "must be a table")
         params = insts[inst].setdefault("parameters", {})
@@ -539,11 +597,12 @@ def parse_value(text: str) -> Any:
 
 def parse_set(items: list[str] | None, form: str = "INSTANCE.PARAM=VALUE") -> dict[str, Any]:
     """['plant.foam_da1=0.4', 'controller.task="line"'] -> {'plant.foam_da1': 0.4, ...}; repeated options
-    add up (the last value of a name wins)."""
+    add up (the last value of a name wins).  A key without an instance (``e=0.5``) is kept as it is: it
+    names the variable of a scenario of one instance (:func:`apply_overrides`)."""
     out: dict[str, Any] = {}
     for item in items or []:
         key, sep, text = item.partition("=")
-        if not sep or "." not in key:
+        if not sep or not key.strip():
             raise ScenarioError("--set", item, f"expected {form}")
         out[key.strip()] = parse_value(text)
     return out

@@ -217,7 +217,9 @@ def test_an_fmu_with_a_range_and_units_refuses_bad_values(sandbox, capsys, tmp_p
     work, _ = sandbox
     for extra, words in (('[instances.p.parameters]\np = 11.0\n', ["parameters.p", "above the maximum"]),
                          (f'[instances.q]\nfmu = "{fmu}"\nunits = {{ y = "s" }}\n[[connections]]\nfrom = "q.y"\n'
-                          f'to = "p.u"\n', ["connections[0]", "unit mismatch"])):
+                          f'to = "p.u"\n', ["instances.q.units.y", "contradicts the unit"]),
+                         (f'[instances.q]\nfmu = "{fmu}"\nunits = {{ y = "s" }}\noverride_declared_units = true\n'
+                          f'[[connections]]\nfrom = "q.y"\nto = "p.u"\n', ["connections[0]", "unit mismatch"])):
         path = work / "p.toml"
         path.write_text(f'[experiment]\nstop = 0.1\nstep = 0.01\n[instances.p]\nfmu = "{fmu}"\n' + extra)
         _one_line(capsys, main(["check", str(path)]), 2, words)
