@@ -550,6 +550,7 @@ def _results(ex: Execution, keep: bool) -> RunResult:
                           "log_received": ex.instances[n].received if n in ex.instances else 0}
                       for n, ip in plan.instances.items()},
         "final": final,
+        "columns": plan.columns(),
         "not_recorded": plan.not_recorded,
         "events": ex.event_log,
         **({"real_time": res.real_time} if res.real_time is not None else {}),
@@ -657,7 +658,7 @@ def _resolved(plan: Plan) -> dict[str, Any]:
                           for n, ip in plan.instances.items()},
             "connections": [{"from": c.spec.src, "to": c.spec.dst, "factor": c.factor, "offset": c.offset}
                             for c in plan.connections],
-            "record": [r.column for r in plan.record], "decimation": sc.decimation,
+            "record": [r.column for r in plan.record], "columns": plan.columns(), "decimation": sc.decimation,
             "events": [{"time": e.time, "variable": e.ref, "action": e.action, "value": e.value,
                         **({"when": e.when, "trigger": e.trigger, "delay": e.delay} if e.when else {})}
                        for e in sorted(plan.events + plan.conditions, key=lambda e: e.index)],

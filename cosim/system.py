@@ -19,6 +19,7 @@ from .errors import CosimError, FmuLoadError, ScenarioError
 from .inputs import InputPlan, read_inputs
 from .model import PY_TYPES, FmuModel, Variable, load_model
 from .scenario import ConnectionSpec, InstanceSpec, Scenario, check_experiment, split_ref
+from .suggest import did_you_mean
 from .units import conversion, lookup, same_unit, units_of
 
 
@@ -113,6 +114,19 @@ class Plan:
     def order(self) -> list[str]:
         return self.scenario.order
 
+    def columns(self) -> dict[str, dict[str, Any]]:
+        """What each recorded column holds: its unit (as the model description declares it, or the
+        scenario's ``units``; None where neither gives one), the instance, that instance's FMU file and the
+        FMU's own name of the variable (before the name map; with the element of an array)."""
+        out: dict[str, dict[str, Any]] = {"time": {"unit": "s", "instance": None, "fmu": None, "variable": "time"}}
+        for r in self.record:
+            ip = self.instances[r.instance]
+            unit = unit_of(ip, r.var) if r.var.type == "Real" else None
+            own = r.var.element_names()[r.elem] if r.var.shape else r.var.name
+            out[r.column] = {"unit": unit.name if unit is not None else None, "instance": r.instance,
+                             "fmu": ip.model.path.name, "variable": own}
+        return out
+
 
 def _value(file: str, fld: str, var: Variable, value: Any) -> Any:
     if var.shape:   # an FMI 3.0 array: every element, row-major
@@ -167,7 +181,8 @@ def _var(file: str, fld: str, inst: InstancePlan, name: str) -> Variable:
     var = inst.model.variables.get(theirs)
     if var is None:
         mapped = f" (mapped to {theirs!r})" if theirs != name else ""
-        raise ScenarioError(file, fld, f"{inst.name} ({inst.model.path.name}) has no variable {name!r}{mapped}")
+        raise ScenarioError(file, fld, f"{inst.name} ({inst.model.path.name}) has no variable {name!r}{mapped}"
+                                       f"{did_you_mean(name, map(inst.our_name, inst.model.variables.values()))}")
     return var
 
 

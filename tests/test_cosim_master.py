@@ -166,6 +166,13 @@ def test_swapped_plant_with_other_names_and_degrees(resolver, tmp_path, swap_fmu
     assert res.status == "ok", res.message
     d = np.load(tmp_path / "out" / "signals.npy")
     assert "plant.alpha1" in d.dtype.names           # recorded under our names
+    import json
+    for f in ("summary.json", "scenario.json"):     # ... with the unit and the FMU's own name beside them
+        cols = json.loads((tmp_path / "out" / f).read_text())["columns"]
+        assert cols["plant.alpha1"] == {"unit": "deg", "instance": "plant", "fmu": swap_fmu.name,
+                                        "variable": "phi_right_deg"}
+        assert cols["time"]["unit"] == "s" and cols["controller.u1"]["unit"] == "N.m"
+        assert list(cols) == list(d.dtype.names)
     m = run_metrics({k: d[k] for k in d.dtype.names}, (2, 5))
     m0 = run_metrics({k: gs[k] for k in gs.dtype.names}, (2, 5))
     for a, b in zip(m["rmse_e"] + m["rmse_edot"], m0["rmse_e"] + m0["rmse_edot"]):

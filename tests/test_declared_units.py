@@ -70,3 +70,11 @@ def test_override_declared_units_must_be_a_boolean(built_fmus, tmp_path):
                          skip=("plant",))
     with pytest.raises(ScenarioError, match=r"instances.plant.override_declared_units: 'yes': must be true or false"):
         scenario.load(path)
+
+
+def test_the_columns_say_their_unit_and_fmu(built_fmus, tmp_path):
+    plan = _plan(g1_with_paths(tmp_path, built_fmus))
+    cols = plan.columns()
+    assert cols["plant.alpha1"] == {"unit": "rad", "instance": "plant", "fmu": "WmrPlant.fmu", "variable": "alpha1"}
+    assert cols["plant.x_A"]["unit"] == "m" and cols["time"]["unit"] == "s"
+    assert set(cols) == {"time", *(r.column for r in plan.record)}

@@ -470,6 +470,11 @@ def test_scenario_and_summary_files_of_a_run(tmp_path):
     assert scen.pop("document")["events"][1] == {"when": "b.Float64_continuous_output > 3", "delay": 0.02,
                                                  "variable": "a.Int32_input", "action": "bias", "value": 1}
     inst = {"fmu": fmu, "model": "Feedthrough", "names": {}, "units": {}, "logging": "warning"}
+    columns = {"time": {"unit": "s", "instance": None, "fmu": None, "variable": "time"},
+               "b.Float64_continuous_output": {"unit": None, "instance": "b", "fmu": "Feedthrough.fmu",
+                                               "variable": "Float64_continuous_output"},
+               "a.Int32_output": {"unit": None, "instance": "a", "fmu": "Feedthrough.fmu", "variable": "Int32_output"}}
+    assert scen.pop("columns") == columns
     assert scen == {
         "file": "t.toml",
         "experiment": {"start": 1.0, "stop": 1.1, "step": 0.02, "algorithm": "gauss-seidel", "order": ["a", "b"],
@@ -482,6 +487,7 @@ def test_scenario_and_summary_files_of_a_run(tmp_path):
                    {"time": None, "variable": "a.Int32_input", "action": "bias", "value": 1,
                     "when": "b.Float64_continuous_output > 3", "trigger": "once", "delay": 0.02}]}
     summary = json.loads((out / "summary.json").read_text())
+    assert summary.pop("columns") == columns
     wall, setup, per_step = summary.pop("wall_s"), summary.pop("setup_s"), summary.pop("us_per_step")
     assert wall == round(res.wall_s, 6) and setup == round(res.setup_s, 6)
     assert per_step == round(res.wall_s / 5 * 1e6, 3) and per_step > 0
