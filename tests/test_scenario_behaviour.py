@@ -68,7 +68,7 @@ def test_set_values_keep_everything_after_the_first_equals_sign():
         "a.s": "x=1", "a.t": True, "a.u": [1, 2], "a.v": "q"}
 
 
-@pytest.mark.parametrize("item", ["a.b", "ab=1"])
+@pytest.mark.parametrize("item", ["a.b", "ab", "=1"])
 def test_a_malformed_set_names_the_option_and_the_item(item):
     with pytest.raises(ScenarioError) as info:
         parse_set([item], form="I.P=V")
@@ -295,6 +295,9 @@ def test_the_interpolation_of_input_columns_is_linear_or_hold(tmp_path):
 def test_a_value_given_on_the_command_line_names_its_option():
     from wmr_cosim.cosim.scenario import apply_overrides
 
+    two = _doc(instances={"a": {"fmu": str(FT)}, "b": {"fmu": str(FT)}})
     with pytest.raises(ScenarioError) as info:
-        apply_overrides(_doc(), {"nodot": 1}, "s.toml")
+        apply_overrides(two, {"nodot": 1}, "s.toml")
     assert str(info.value) == 's.toml: --set nodot: \'nodot\' is not of the form "instance.variable"'
+    # with one instance, a name alone is that instance's variable
+    assert apply_overrides(_doc(), {"nodot": 1}, "s.toml")["instances"]["a"]["parameters"] == {"nodot": 1}

@@ -21,6 +21,7 @@ from .components.sensor import SensorParams
 from .components.validation import ParameterError
 from .cosim.errors import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN_FAILED as EXIT_FAILED, CosimError
 from .cosim.scenario import parse_value
+from .cosim.suggest import did_you_mean
 from .scenario_files import scenario_path
 
 
@@ -39,7 +40,8 @@ def plain(text: str) -> str:
 
 
 def _overrides(items: list[str]) -> dict[str, dict[str, Any]]:
-    """--set plant.foam_da1=0.4 controller.gamma=5 ... -> {'plant': {...}, 'sensor': {...}, 'controller': {...}}."""
+    """['plant.foam_da1=0.4', 'controller.gamma=5'] (one per --set) -> {'plant': {...}, 'sensor': {...},
+    'controller': {...}}."""
     out: dict[str, dict[str, Any]] = {"plant": {}, "sensor": {}, "controller": {}}
     fields = {"plant": PlantParams.__dataclass_fields__, "sensor": SensorParams.__dataclass_fields__,
               "controller": ControllerParams.__dataclass_fields__}
@@ -47,9 +49,10 @@ def _overrides(items: list[str]) -> dict[str, dict[str, Any]]:
         key, sep, val = item.partition("=")
         comp, dot, name = key.partition(".")
         if not sep or not dot or comp not in out:
-            raise UsageError(f"--set {item!r}: expected COMPONENT.PARAM=VALUE with COMPONENT plant, sensor or controller")
+            raise UsageError(f"--set {item!r}: expected COMPONENT.PARAM=VALUE with COMPONENT plant, sensor or controller"
+                             f"{did_you_mean(comp, out) if sep and dot else ''}")
         if name not in fields[comp]:
-            raise UsageError(f"--set {item!r}: {comp} has no parameter {name!r}")
+            raise UsageError(f"--set {item!r}: {comp} has no parameter {name!r}{did_you_mean(name, fields[comp])}")
         v = parse_value(val)
         out[comp][name] = tuple(v) if isinstance(v, list) else v
     return out
@@ -129,8 +132,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     out = args.out if args.out is not None else default_out(args.scenario)
     if str(args.scenario).endswith(".toml"):
-        from .cosim.protocol import plan_runs, run_protocol
-        from .runner import resolve_model
+        from .cosim.protocol import plan_runs
+        from .runner import resolve_model, run_protocol   # each run judged by analysis.divergence
 
         sc, runs, _ = plan_runs(args.scenario, resolve_model, args.variant)
         if sc.runs:  # a protocol: every run, in order, into OUT/<run>
@@ -348,7 +351,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also build WmrCPlant.fmu, the plant in C (needs cmake and a C compiler)")
     b.set_defaults(func=cmd_build)
 
-    r = sub.add_parser("run", help="run a scenario (.toml), an SSP archive (.ssp) or one FMU (.fmu)",
+    r = sub.add_parser("run", help="run a scenario (.toml), SSP archive (.ssp) or FMU (.fmu)",
                        description="Run a scenario file: FMUs, parameters, connections, experiment, recording, events. "
                                    "A name that is not a file is looked up among the shipped scenarios (example.toml, "
                                    "g1_learn.toml, paper/g1.toml, ...). Results go to a folder: signals.npy (written "
@@ -375,7 +378,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="pace the steps to the wall clock at FACTOR x real time (default 1); steps that finish "
                         "late are counted and reported, never skipped")
     r.set_defaults(func=cmd_run)
-    c = sub.add_parser("check", help="check a scenario (.toml, .ssp or .fmu) against its FMUs without running it",
+    c = sub.add_parser("check", help="check a scenario, SSP archive or FMU without running it",
                        description="Run every check of a scenario (files, variables, causality, types, units, "
                                    "steps, ranges, keys) without stepping. Exit code 0 if it would run, 2 if not.")
     c.add_argument("scenario", type=scenario_path,
