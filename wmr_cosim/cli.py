@@ -132,8 +132,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     out = args.out if args.out is not None else default_out(args.scenario)
     if str(args.scenario).endswith(".toml"):
-        from .cosim.protocol import plan_runs
-        from .runner import resolve_model, run_protocol   # each run judged by analysis.divergence
+        from .cosim.protocol import plan_runs, run_protocol
+        from .runner import resolve_model
 
         sc, runs, _ = plan_runs(args.scenario, resolve_model, args.variant)
         if sc.runs:  # a protocol: every run, in order, into OUT/<run>
