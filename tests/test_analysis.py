@@ -398,3 +398,23 @@ def test_table1_analysis_uses_table1s_weights():
 def test_fidelity_of_a_perfect_or_uniformly_smaller_reproduction():
     assert fidelity(_paper_tasks(1.0))["rms_log_factor"] == 1.0
     assert fidelity(_paper_tasks(0.5))["rms_log_factor"] == pytest.approx(2.0)
+
+
+def test_divergence_is_one_line_naming_the_figure():
+    """THE definition of 'diverged' (paper job, sweeps, `run` of a protocol): not ended 'ok', nothing
+    recorded, a non-finite tracking error, or the larger |e_i| at the last sample above 1 rad."""
+    from wmr_cosim.analysis import divergence
+
+    n = 5
+    assert divergence(_run(n)) is None
+    e1 = np.zeros(n)
+    e1[-1] = -4.6
+    assert divergence(_run(n, **{"controller.e1": e1})) == "|e1| = 4.6 rad at t = 0.008 s, above 1 rad"
+    e1[-1], e1[1] = 1.0, 9.0                       # exactly 1 rad at the end, a large error before: not diverged
+    assert divergence(_run(n, **{"controller.e1": e1})) is None
+    ed = np.zeros(n)
+    ed[2] = math.inf
+    assert divergence(_run(n, **{"controller.edot2": ed})) == "edot2 is not finite"
+    assert divergence(None) == "nothing was recorded"
+    assert divergence(_run(n), "stopped") == "the run ended 'stopped'"
+    assert run_summary(_run(n, **{"controller.e2": -e1 * 1.2}), None)["diverged"] is True

@@ -200,8 +200,9 @@ name = "a"
 [[runs]]
 name = "b"
 parameters = { "controller.adapt" = false }
-carry = { "controller.W2_init" = "a.controller.W2" }
+carry = { "controller.W1_init" = "a.controller.W1", "controller.W2_init" = "a.controller.W2", "controller.W3_init" = "a.controller.W3" }
 """)
+    # b carries all of W: with W2 alone its |e1| ends at 1.1 rad, which `run` reports as diverged (exit 1)
     out = tmp_path / "out"
     p = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "run", str(path), "--out", str(out), "--quiet"],
                        capture_output=True, text=True)

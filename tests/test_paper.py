@@ -4,12 +4,16 @@ from __future__ import annotations
 
 import json
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from wmr_cosim.analysis import cumulative_integral, disturbance_analysis, fidelity
 from wmr_cosim.components import paper
+
+DATA = Path(__file__).parent / "data"
 
 
 @pytest.fixture(scope="module")
@@ -250,3 +254,50 @@ def test_claim_text_follows_the_number():
     assert make_claim(m, "x", "missing.key", "x", "<", 1.0, "one")["text"].endswith(": no")
     m["claims"] = [c]          # a claim written for 13.6, the metrics now say 9.0
     assert check_claims(m) and not check_claims({**m, "claims": [c2]})
+
+
+def _short_job_manifest(folder: Path) -> Path:
+    """A tasks file naming only G1 cut to 12 s (tests/data/short_protocol.toml)."""
+    f = folder / "tasks.toml"
+    f.write_text(f'[tasks]\nG1 = "{DATA / "short_protocol.toml"}"\n')
+    return f
+
+
+@pytest.mark.slow
+def test_the_paper_job_prints_one_line_per_finished_run_also_when_piped(built_fmus, tmp_path, monkeypatch, capfd):
+    """Piped (stderr not a terminal), `wmr-cosim paper` prints one line per finished run (variant, task,
+    run, status, wall time) as it goes; --quiet silences them."""
+    from wmr_cosim import cli, runner
+
+    monkeypatch.setattr(runner, "resolve_model", lambda name: built_fmus.get(name))   # the workers fork
+    manifest = _short_job_manifest(tmp_path)
+    args = ["paper", "--manifest", str(manifest), "--no-compare", "--workers", "1"]
+    assert cli.main(args + ["--out", str(tmp_path / "a")]) == 0
+    err = capfd.readouterr().err.splitlines()
+    lines = [line for line in err if line.startswith("wmr-cosim paper: ")]
+    assert [line.split(":")[1].strip() for line in lines] == ["freeze G1 learn", "freeze G1 frozen", "freeze G1 foam"]
+    assert all(re.fullmatch(r"wmr-cosim paper: freeze G1 \w+: ok, \d+\.\d s", line) for line in lines), lines
+    assert cli.main(args + ["--out", str(tmp_path / "b"), "--quiet"]) == 0
+    assert "wmr-cosim paper: " not in capfd.readouterr().err
+
+
+@pytest.mark.slow
+def test_run_of_a_protocol_exits_1_on_a_run_the_paper_job_calls_diverged(built_fmus, tmp_path, monkeypatch, capsys):
+    """`wmr-cosim run` of a protocol judges each run as the paper job does (analysis.divergence): the
+    printed reading of (51) on G1 cut to 12 s ends the frozen and foam runs 'ok' for the master with |e_i| far
+    above 1 rad; the command exits 1 with one line per such run naming it and the figure."""
+    from wmr_cosim import cli, runner
+    from wmr_cosim.analysis import divergence, load_signals, run_summary
+
+    monkeypatch.setattr(runner, "resolve_model", lambda name: built_fmus.get(name))
+    out = tmp_path / "run"
+    code = cli.main(["run", str(DATA / "short_protocol.toml"), "--variant", "printed", "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err.splitlines()
+    assert code == 1, err
+    for run in ("frozen", "foam"):
+        sig = load_signals(out / run)
+        reason = divergence(sig)
+        assert re.fullmatch(r"\|e[12]\| = [\d.e+]+ rad at t = 12 s, above 1 rad", reason or ""), reason
+        assert f"wmr-cosim: run {run} diverged: {reason}" in err
+        assert run_summary(sig, paper.task_goal("G1"))["diverged"]       # the paper job's verdict on it
+    assert divergence(load_signals(out / "learn")) is None and not any("run learn" in line for line in err)

@@ -23,6 +23,11 @@ RUNS = ("learn", "frozen", "foam")
 TABLE_ROWS = {"learn": "learn", "foam": "foam"}
 #: the window after the foam's onset t_F in which the peak control at the edge is taken [s]
 EDGE_WINDOW_S = 2.0
+#: a run whose |e_i| at its last sample is above this has diverged [rad]: the paper's static errors are
+#: 0.06-0.18 rad and its largest RMSE of e 0.40 rad, so an error above 1 rad at the end is no longer tracking
+DIVERGED_E_RAD = 1.0
+#: the tracking errors the paper's controller records (e [rad], de/dt [rad/s], per wheel)
+TRACKING_ERRORS = ("controller.e1", "controller.e2", "controller.edot1", "controller.edot2")
 
 
 def load_signals(folder: str | Path) -> Signals | None:
@@ -39,6 +44,26 @@ def load_signals(folder: str | Path) -> Signals | None:
             i = name.rindex("[")  # the element's own index (s[2].v[1] is s[2].v1)
             sig.setdefault(name[:i] + name[i + 1:-1].replace(",", ""), sig[name])
     return sig
+
+
+def divergence(sig: Signals | None, status: str = "ok") -> str | None:
+    """Why a run of the paper's controller diverged, as one line, or None if it did not: THE definition of
+    'diverged' of the paper job, its sweeps and ``wmr-cosim run`` of a protocol.  A run diverged if it did
+    not end 'ok', recorded nothing, a tracking error (e, de/dt) is not finite, or the larger |e_i| at its
+    last sample is above DIVERGED_E_RAD."""
+    if status != "ok":
+        return f"the run ended {status!r}"
+    if sig is None:
+        return "nothing was recorded"
+    for name in TRACKING_ERRORS:
+        if not np.all(np.isfinite(sig[name])):
+            return f"{name.split('.', 1)[1]} is not finite"
+    i = max((1, 2), key=lambda k: abs(float(sig[f"controller.e{k}"][-1])))
+    e = abs(float(sig[f"controller.e{i}"][-1]))
+    if e > DIVERGED_E_RAD:
+        at = f" at t = {float(sig['time'][-1]):g} s" if "time" in sig else " at the end"
+        return f"|e{i}| = {e:.3g} rad{at}, above {DIVERGED_E_RAD:g} rad"
+    return None
 
 
 def cumulative_integral(f: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -63,13 +88,12 @@ def run_summary(sig: Signals | None, goal: tuple[float, float] | None, status: s
     v_star = paper.table1()["v_star"]
     cr = cruise_mask(sig, v_star)
     u1, u2 = sig["controller.u1"], sig["controller.u2"]
-    complete = status == "ok"
     true = true_errors(sig)
     out = {
         "rmse_e": m["rmse_e"], "rmse_edot": m["rmse_edot"],
         "rmse_e_true": [rmse(true["e1"]), rmse(true["e2"])] if true else None,
         "rmse_edot_true": [rmse(true["edot1"]), rmse(true["edot2"])] if true else None, "final_position": m["final_position"],
-        "t_goal": m["t_goal"], "diverged": bool(m["diverged"] or not complete), "status": status,
+        "t_goal": m["t_goal"], "diverged": divergence(sig, status) is not None, "status": status,
         "samples": int(len(sig["time"])), "final_W": m["final_W"],
         "cruise_u": [float(np.mean(u1[cr])), float(np.mean(u2[cr]))] if cr.any() else None,
         "peak_u": [float(np.max(np.abs(u1))), float(np.max(np.abs(u2)))],

@@ -55,15 +55,27 @@ def _manifest(manifest: str | os.PathLike | None = None) -> dict[str, Path]:
     return out
 
 
-def _task_job(task: str, file: str, folder: str, variant: str, fmi: int = 2) -> dict[str, Any]:
+def run_line(variant: str, task: str, run: str, res: Any) -> str:
+    """The progress line of one finished run: variant, task, run, status (the reason when it did not end
+    'ok') and wall time (set-up and stepping) [s]."""
+    how = res.status if res.status == "ok" else f"{res.status} ({res.message})"
+    return f"wmr-cosim paper: {variant} {task} {run}: {how}, {res.setup_s + res.wall_s:.1f} s"
+
+
+def _task_job(task: str, file: str, folder: str, variant: str, fmi: int = 2, progress: bool = False
+              ) -> dict[str, Any]:
     """One task's protocol in a worker process: {run: {status, message, wall_s, setup_s}}; ``fmi`` 3 runs it
-    through the FMI 3.0 FMUs (runner.resolver, runner.carry_fmi3)."""
-    from .cosim.protocol import run_protocol
-    from .runner import carry_fmi3, resolver
+    through the FMI 3.0 FMUs (runner.resolver, runner.carry_fmi3).  Each run is judged by
+    analysis.divergence as it finishes; with ``progress``, its line (:func:`run_line`) goes to stderr."""
+    from .runner import carry_fmi3, resolver, run_protocol
+
+    def report(run: str, res: Any) -> None:
+        if progress:
+            print(run_line(variant, task, run, res), file=sys.stderr, flush=True)
 
     t0 = time.perf_counter()
     results = run_protocol(file, folder, resolver(fmi), variant=variant, progress=False,
-                           carry=carry_fmi3 if fmi == 3 else None)
+                           carry=carry_fmi3 if fmi == 3 else None, on_run=report)
     return {"task": task, "variant": variant, "wall_s": time.perf_counter() - t0,
             "runs": {n: {"status": r.status, "message": r.message, "wall_s": r.wall_s, "setup_s": r.setup_s,
                          "steps": r.steps} for n, r in results.items()}}
@@ -123,7 +135,8 @@ def run_paper(out: str | os.PathLike = "results/paper", variant: str = "freeze",
               robustness_grid: Any = None, fmi: int = 2) -> dict[str, Any]:
     """Run every task of the manifest for ``variant`` (and, with ``compare``, the other variants too),
     analyse, draw the figures and write report.md, report.html and metrics.json into ``out``; ``fmi``
-    3 runs the FMI 3.0 versions of the FMUs (the same numbers).
+    3 runs the FMI 3.0 versions of the FMUs (the same numbers).  Unless ``progress`` is False, one line per
+    finished run (variant, task, run, status, wall time) goes to stderr, also when it is not a terminal.
 
     With ``robustness``, also the robustness study and the study of when W stops adapting
     (robustness.py; ``robustness_grid`` a StudyGrid, default the full one) into ``out/robustness``.
@@ -144,31 +157,24 @@ def _run_paper(out: Path, variant: str, compare: bool, workers: int | None, mani
     resolve_model = resolver(fmi)
     tasks = _manifest(manifest)
     variants = [variant] + ([v for v in VARIANTS if v != variant] if compare else [])
-    if progress is None:
-        progress = sys.stderr.isatty()
+    progress = progress is not False     # one line per finished run, also when stderr is not a terminal
     t0 = time.perf_counter()
     for model in ("WmrPlant", "WmrSensor", "WmrController"):  # build once, before the workers start
         resolve_model(model)
     folders = {v: out / "runs" if v == variant else out / "variants" / v / "runs" for v in variants}
-    jobs = [(task, str(f), str(folders[v] / task), v, fmi) for v in variants for task, f in tasks.items()]
+    jobs = [(task, str(f), str(folders[v] / task), v, fmi, progress) for v in variants for task, f in tasks.items()]
     statuses: dict[str, dict[str, dict[str, Any]]] = {v: {} for v in variants}
     workers = workers or min(len(jobs), os.cpu_count() or 1)
-    done = 0
     with ProcessPoolExecutor(max_workers=workers) as pool:
         futures = [pool.submit(_task_job, *job) for job in jobs]
         for fut in as_completed(futures):
             r = fut.result()
             statuses[r["variant"]][r["task"]] = r["runs"]
-            done += 1
-            if progress:
-                runs = ", ".join(f"{n} {s['status']}" for n, s in r["runs"].items())
-                print(f"[{done}/{len(jobs)}] {r['variant']} {r['task']}: {runs} ({r['wall_s']:.1f} s)",
-                      file=sys.stderr, flush=True)
     study = study_fig = None
     if robustness:
         from .robustness import job_grid, run_study
         study = run_study(out / "robustness", job_grid(robustness_grid, manifest, tuple(tasks)), workers=workers,
-                          progress=progress)
+                          progress=None if progress else False)
     results: dict[str, Any] = {}
     main_signals = main_dist = None
     for v in variants:

@@ -83,6 +83,38 @@ def carry_fmi3(carry: dict[str, str], finals: dict[str, dict[str, float]]) -> di
     return out
 
 
+def judge_run(res: execution.RunResult) -> execution.RunResult:
+    """A finished run of the paper's controller judged by :func:`wmr_cosim.analysis.divergence`: a run that
+    ended 'ok' but diverged gets the status 'diverged' (exit code 1) and the reason as its message.  A run
+    that did not record the controller's tracking errors is left as it is."""
+    from .analysis import TRACKING_ERRORS, divergence, load_signals
+
+    if res.status != "ok" or res.out_dir is None:
+        return res
+    sig = load_signals(res.out_dir)
+    if sig is None or not all(name in sig for name in TRACKING_ERRORS):
+        return res
+    reason = divergence(sig)
+    if reason is not None:
+        res.status, res.message = "diverged", reason
+    return res
+
+
+def run_protocol(path: str | Path, out_dir: str | Path, resolver: Callable[[str], Path | None] | None = None,
+                 on_run: Callable[[str, execution.RunResult], None] | None = None, **options: Any
+                 ) -> dict[str, execution.RunResult]:
+    """:func:`wmr_cosim.cosim.protocol.run_protocol` (same ``options``; the resolver defaults to
+    :func:`resolve_model`) with every run judged by :func:`judge_run` as it finishes, before ``on_run``."""
+    from .cosim.protocol import run_protocol as run_all
+
+    def judged(name: str, res: execution.RunResult) -> None:
+        judge_run(res)
+        if on_run is not None:
+            on_run(name, res)
+
+    return run_all(path, out_dir, resolver or resolve_model, on_run=judged, **options)
+
+
 def fmu_document(fmu: str | Path, inputs: str | Path | None = None, stop: float | None = None,
                  step: float | None = None) -> dict[str, Any]:
     """The scenario document of one FMU run alone (as ``fmpy simulate`` runs it): one instance named after
