@@ -130,7 +130,7 @@ class Execution:
         sc = self.plan.scenario
         for name, inst in self.instances.items():
             inst.instantiate()
-            inst.setup_experiment(self.t0, sc.stop, sc.tolerance)
+            inst.setup_experiment(self.t0, sc.stop, self.plan.instances[name].tolerance)
             inst.set_values(self.plan.instances[name].parameters)
         for inst in self.instances.values():
             inst.enter_initialization()
@@ -654,7 +654,8 @@ def _resolved(plan: Plan) -> dict[str, Any]:
                                             "tolerance": sc.tolerance},
             "instances": {n: {"fmu": str(ip.model.path), "model": ip.model.model_name,
                               "parameters": {v.name: val for v, val in ip.parameters},
-                              "names": ip.spec.names, "units": ip.spec.units, "logging": ip.spec.logging}
+                              "names": ip.spec.names, "units": ip.spec.units, "logging": ip.spec.logging,
+                              "tolerance": ip.tolerance}
                           for n, ip in plan.instances.items()},
             "connections": [{"from": c.spec.src, "to": c.spec.dst, "factor": c.factor, "offset": c.offset}
                             for c in plan.connections],

@@ -28,7 +28,7 @@ _TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "r
 _INPUTS_KEYS = {"file", "interpolation"}
 _EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps"}
 _INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "override_declared_units", "description", "logging", "isolate",
-                  "step_timeout"}
+                  "step_timeout", "tolerance"}
 _CONNECTION_KEYS = {"from", "to", "factor", "offset", "convert", "threshold"}
 _RECORD_KEYS = {"variables", "decimation", "csv", "max_bytes"}
 _RUN_KEYS = {"name", "description", "parameters", "carry"}
@@ -53,6 +53,7 @@ class InstanceSpec:
     isolate: bool = False               # host the FMU in a child process (a crash or hang cannot take the run down)
     step_timeout: float | None = None   # seconds a call may take before the instance is ended (isolated: 60)
     override_declared_units: bool = False   # ``units`` may replace a unit the model description declares
+    tolerance: float | None = None      # this FMU's own solver tolerance (else [experiment], else its default)
 
 
 @dataclass
@@ -104,7 +105,7 @@ class Scenario:
     start: float | None = None      # None: from the FMUs' default experiments (else 0)
     stop: float | None = None       # None: from the FMUs' default experiments
     step: float | None = None       # None: from the FMUs' default experiments
-    tolerance: float | None = None  # passed to fmi2SetupExperiment
+    tolerance: float | None = None  # passed to every FMU's set-up, unless its instance gives its own
     max_steps: int = 50_000_000     # a run of more steps is refused (unless forced)
     max_bytes: int = 4 * 2 ** 30    # a recording expected larger than this is refused (unless forced)
     force: bool = False             # lift max_steps and max_bytes (the command line's --force)
@@ -359,8 +360,11 @@ def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:
         override = inst.get("override_declared_units", False)
         if not isinstance(override, bool):
             raise ScenarioError(file, f"{fld}.override_declared_units", f"{override!r}: must be true or false")
+        tol = inst.get("tolerance")
+        if tol is not None:
+            tol = _num(file, f"{fld}.tolerance", tol, positive=True)
         sc.instances[iname] = InstanceSpec(iname, fmu, path, dict(params), dict(names), dict(units), logging,
-                                           isolate, timeout, override)
+                                           isolate, timeout, override, tol)
 
 
     exp = doc.get("experiment") or {}

@@ -33,6 +33,7 @@ class InstancePlan:
     ours_to_theirs: dict[str, str] = field(default_factory=dict)
     theirs_to_ours: dict[str, str] = field(default_factory=dict)
     parameters: list[tuple[Variable, Any]] = field(default_factory=list)
+    tolerance: float | None = None   # what its set-up gets: the instance's, else the experiment's, else the FMU's own
 
     def our_name(self, var: Variable) -> str:
         return self.theirs_to_ours.get(var.name, var.name)
@@ -264,8 +265,9 @@ def _connection_types(file: str, fld: str, c: ConnectionSpec, svar: Variable, dv
 
 def _experiment(sc: Scenario, models: dict[str, FmuModel]) -> None:
     """Fill start, stop and step the scenario leaves open from the FMUs' default experiments (refused
-    where they disagree), then check the run's times."""
-    attrs = {"start": "startTime", "stop": "stopTime", "step": "stepSize", "tolerance": "tolerance"}
+    where they disagree), then check the run's times.  (A tolerance is each FMU's own: see
+    :func:`_tolerances`.)"""
+    attrs = {"start": "startTime", "stop": "stopTime", "step": "stepSize"}
     for key, attr in attrs.items():
         if getattr(sc, key) is not None:
             continue
@@ -291,6 +293,15 @@ def _experiment(sc: Scenario, models: dict[str, FmuModel]) -> None:
         raise ScenarioError(sc.file, "experiment.step", f"{n:.4g} steps of {sc.step!r} s from {sc.start!r} to "
                                                         f"{sc.stop!r} s: more than max_steps = {sc.max_steps} "
                                                         "(raise experiment.max_steps, or --force)")
+
+
+def _tolerances(sc: Scenario, insts: dict[str, InstancePlan]) -> None:
+    """Each FMU's solver tolerance: its instance's ``tolerance``, else the experiment's, else the one of
+    its own default experiment, else none (toleranceDefined false)."""
+    for ip in insts.values():
+        de = ip.model.md.defaultExperiment
+        own = getattr(de, "tolerance", None) if de is not None else None
+        ip.tolerance = next((float(t) for t in (ip.spec.tolerance, sc.tolerance, own) if t is not None), None)
 
 
 def _record(sc: Scenario, insts: dict[str, InstancePlan]) -> tuple[list[RecordPlan], list[str]]:
@@ -478,6 +489,7 @@ def resolve(sc: Scenario, force: bool | None = None) -> Plan:
             ip.parameters.append((var, _value(file, fld, var, value)))
         insts[name] = ip
     _experiment(sc, {n: ip.model for n, ip in insts.items()})
+    _tolerances(sc, insts)
 
     conns: list[ConnectionPlan] = []
     driven: dict[tuple[str, str], int] = {}

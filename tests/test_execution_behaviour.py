@@ -139,13 +139,15 @@ def test_a_failed_get_before_the_first_step_names_the_start_time(probe, tmp_path
     assert res.message == "probe: get outputs returned Error at t = 1 s; last log: (the FMU logged nothing)"
 
 
-@pytest.mark.parametrize("tolerance, seen", [(1e-5, 1e-5), (None, -1.0)])
-def test_the_experiment_tolerance_reaches_the_fmu(probe, tmp_path, tolerance, seen):
-    """fmi2SetupExperiment gets the scenario's tolerance (toleranceDefined false without one); the probe
-    copies what it got into p."""
+@pytest.mark.parametrize("tolerance, own, seen", [(1e-5, None, 1e-5), (None, None, -1.0), (1e-5, 1e-4, 1e-4)])
+def test_the_experiment_tolerance_reaches_the_fmu(probe, tmp_path, tolerance, own, seen):
+    """fmi2SetupExperiment gets the instance's tolerance, else the scenario's (toleranceDefined false
+    without one); the probe copies what it got into p."""
     sim = _sim(probe(TOL_TO_P=True), stop=0.02, record=("probe.p",))
     if tolerance is not None:
         sim.experiment(tolerance=tolerance)
+    if own is not None:
+        sim.document["instances"]["probe"]["tolerance"] = own
     res = _run(sim, tmp_path / "out")
     assert res.status == "ok", res.message
     assert np.load(tmp_path / "out" / "signals.npy")["probe.p"][0] == seen
@@ -469,7 +471,7 @@ def test_scenario_and_summary_files_of_a_run(tmp_path):
     scen = json.loads((out / "scenario.json").read_text())
     assert scen.pop("document")["events"][1] == {"when": "b.Float64_continuous_output > 3", "delay": 0.02,
                                                  "variable": "a.Int32_input", "action": "bias", "value": 1}
-    inst = {"fmu": fmu, "model": "Feedthrough", "names": {}, "units": {}, "logging": "warning"}
+    inst = {"fmu": fmu, "model": "Feedthrough", "names": {}, "units": {}, "logging": "warning", "tolerance": None}
     columns = {"time": {"unit": "s", "instance": None, "fmu": None, "variable": "time"},
                "b.Float64_continuous_output": {"unit": None, "instance": "b", "fmu": "Feedthrough.fmu",
                                                "variable": "Float64_continuous_output"},

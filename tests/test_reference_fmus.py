@@ -5,6 +5,7 @@ tabulated inputs, types, missing binaries, logging)."""
 from __future__ import annotations
 
 import csv
+import re
 import json
 import subprocess
 import sys
@@ -18,6 +19,7 @@ from fmpy import read_csv, simulate_fmu
 from cosim_support import build_test_fmu, write_scenario
 from wmr_cosim.cosim import execution, scenario, system
 from wmr_cosim.cosim.errors import ScenarioError
+from wmr_cosim.cosim.model import load_model
 from wmr_cosim.runner import fmu_plan
 
 from reference_fmus import REF
@@ -268,6 +270,38 @@ def test_defaults_come_from_the_fmus_and_must_agree(tmp_path):
     assert (plan.scenario.start, plan.scenario.tolerance, plan.n_steps) == (0.0, 1e-6, 10)
     one = fmu_plan(a)
     assert (one.scenario.stop, one.scenario.step) == (10.0, 0.1)
+
+
+def test_each_fmu_gets_its_own_default_tolerance_unless_the_scenario_gives_one(tmp_path):
+    """A tolerance is each FMU's own solver setting: FMUs whose default experiments give different ones
+    run together, each set up with its own; the experiment's tolerance sets all, an instance's its own."""
+    import zipfile
+
+    def with_tolerance(src: Path, dst: Path, tol: str) -> Path:
+        with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w") as zout:
+            for item in zin.infolist():
+                data = zin.read(item)
+                if item.filename == "modelDescription.xml":
+                    data = re.sub(rb'<DefaultExperiment[^>]*/>', b'<DefaultExperiment startTime="0" stopTime="1" '
+                                  b'stepSize="0.1" tolerance="' + tol.encode() + b'"/>', data)
+                zout.writestr(item, data)
+        return dst
+    a = with_tolerance(FMI2 / "Dahlquist.fmu", tmp_path / "A.fmu", "1e-08")
+    b = with_tolerance(FMI2 / "VanDerPol.fmu", tmp_path / "B.fmu", "1e-06")
+    head = "[experiment]\nstop = 1.0\nstep = 0.1\n"
+    path = write_scenario(tmp_path / "d.toml", f'{head}[instances.a]\nfmu = "{a}"\n[instances.b]\nfmu = "{b}"\n')
+    plan = system.resolve(scenario.load(path))
+    assert (plan.instances["a"].tolerance, plan.instances["b"].tolerance) == (1e-8, 1e-6)
+    path.write_text(path.read_text().replace(head, head + "tolerance = 1e-5\n"))
+    plan = system.resolve(scenario.load(path))
+    assert (plan.instances["a"].tolerance, plan.instances["b"].tolerance) == (1e-5, 1e-5)
+    path.write_text(path.read_text() + "tolerance = 1e-3\n")     # on instance b
+    plan = system.resolve(scenario.load(path))
+    assert (plan.instances["a"].tolerance, plan.instances["b"].tolerance) == (1e-5, 1e-3)
+    res = execution.run(plan, tmp_path / "out", progress=False)
+    assert res.status == "ok", res.message
+    resolved = json.loads((tmp_path / "out" / "scenario.json").read_text())
+    assert [resolved["instances"][n]["tolerance"] for n in "ab"] == [1e-5, 1e-3]
 
 
 # ------------------------------------------------------------------------------- C FMUs of other exporters
