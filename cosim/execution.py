@@ -223,7 +223,7 @@ class Execution:
         conditions evaluated at the start time (an event whose condition holds there fires before the first
         step), the pacer's clock."""
         self._ev_i, self._loop, self._check_inputs, self._stop = 0, None, check_inputs, stop
-        self._bar = _progress(progress, self.n_steps)
+        self._bar = _progress(progress, self.n_steps, self.h, sum(self.plan.internal_steps.values()))
         self._conds = []
         for ev in self.plan.conditions:
             read = {ref: self._reader(inst, var) for ref, (inst, var) in ev.reads.items()}
@@ -272,7 +272,7 @@ class Execution:
                 if len(rows) >= FLUSH_ROWS or k == self.n_steps:
                     self._flush()
                 if self._bar is not None:
-                    self._bar.update(self.k_done - self._bar.n)
+                    self._bar.update(self.k_done * self.h - self._bar.n)
                 if per_step:
                     if self._conds:
                         self._evaluate(k)
@@ -635,16 +635,22 @@ def _check(inst: Instance, what: str, status: int, t: float) -> None:
         raise inst.fail_status(what, status, t)
 
 
-def _progress(enabled: bool | None, total: int):
+def _progress(enabled: bool | None, steps: int, h: float, internal: int = 0):
+    """The progress bar on a terminal (runs of more than 5,000 steps, unless asked for or not): simulated
+    seconds done of the run's, the rate in simulated seconds per second, and the FMUs' fixed internal steps
+    over the run where they declare them."""
     if enabled is None:
-        enabled = sys.stderr.isatty() and total > 5000
+        enabled = sys.stderr.isatty() and steps > 5000
     if not enabled:
         return None
     try:
         from tqdm import tqdm
     except ImportError:
         return None
-    return tqdm(total=total, unit="step", unit_scale=True, leave=False, file=sys.stderr, mininterval=0.5)
+    what = f" ({internal:.3g} internal steps)" if internal else ""
+    return tqdm(total=steps * h, leave=False, file=sys.stderr, mininterval=0.5, unit="s",
+                bar_format="{l_bar}{bar}| t = {n:.4g} of {total:.4g} s" + what + " [{elapsed}<{remaining}, "
+                           "{rate_fmt}]")
 
 
 def _resolved(plan: Plan) -> dict[str, Any]:

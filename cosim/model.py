@@ -1,6 +1,8 @@
 """What the master knows of an FMU before running it: its model description, variables and units."""
 from __future__ import annotations
 
+import math
+
 import os
 import zipfile
 from dataclasses import dataclass, field
@@ -119,6 +121,16 @@ class FmuModel:
     def default_step(self) -> float | None:
         de = self.md.defaultExperiment
         return float(de.stepSize) if de is not None and de.stepSize is not None else None
+
+    @property
+    def internal_step(self) -> float | None:
+        """The fixed internal step [s] an FMI 3.0 co-simulation FMU declares (fixedInternalStepSize), else None."""
+        h = getattr(self.md.coSimulation, "fixedInternalStepSize", None) if self.fmi == 3 else None
+        try:
+            h = float(h) if h is not None else None
+        except ValueError:
+            return None
+        return h if h is not None and math.isfinite(h) and h > 0 else None
 
     def outputs(self) -> list[Variable]:
         return [v for v in self.variables.values() if v.causality == "output"]

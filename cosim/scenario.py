@@ -26,7 +26,7 @@ LOGGING = ("error", "warning", "info", "all")
 _TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "record", "events", "runs",
              "variants", "inputs", "limits"}
 _INPUTS_KEYS = {"file", "interpolation"}
-_EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps"}
+_EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps", "max_internal_steps"}
 _INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "override_declared_units", "description", "logging", "isolate",
                   "step_timeout", "tolerance"}
 _CONNECTION_KEYS = {"from", "to", "factor", "offset", "convert", "threshold"}
@@ -107,6 +107,7 @@ class Scenario:
     step: float | None = None       # None: from the FMUs' default experiments
     tolerance: float | None = None  # passed to every FMU's set-up, unless its instance gives its own
     max_steps: int = 50_000_000     # a run of more steps is refused (unless forced)
+    max_internal_steps: int = 1_000_000_000   # ... and one in which an FMU takes more fixed internal steps
     max_bytes: int = 4 * 2 ** 30    # a recording expected larger than this is refused (unless forced)
     force: bool = False             # lift max_steps and max_bytes (the command line's --force)
     algorithm: str = "gauss-seidel"
@@ -304,6 +305,8 @@ def _parse_experiment(sc: Scenario, doc: dict[str, Any]) -> None:
             setattr(sc, key, _num(file, f"experiment.{key}", exp[key], positive=key in ("step", "tolerance")))
     if "max_steps" in exp:
         sc.max_steps = _count(file, "experiment.max_steps", exp["max_steps"])
+    if "max_internal_steps" in exp:
+        sc.max_internal_steps = _count(file, "experiment.max_internal_steps", exp["max_internal_steps"])
     if sc.start is not None and sc.stop is not None and sc.step is not None:
         check_experiment(sc)
     sc.algorithm = str(exp.get("algorithm", "gauss-seidel")).lower()
@@ -558,7 +561,8 @@ def apply_overrides(doc: dict[str, Any], overrides: dict[str, Any] | None, file:
 
     A key without an instance (``"e"``) is the variable of the document's one instance (refused when it
     has several); ``"experiment.FIELD"`` and ``"record.FIELD"`` set a field of [experiment] or [record]
-    (unless an instance is so named), checked as the file's own values are."""
+    (unless an instance is so named), checked as the file's own values are (``record.variables``: a name
+    alone is the variable of the one instance, as in a key)."""
     for ref, value in (overrides or {}).items():
         fld = f"--set {ref}"
         insts = doc.setdefault("instances", {})
@@ -574,7 +578,11 @@ def apply_overrides(doc: dict[str, Any], overrides: dict[str, Any] | None, file:
             table = doc.setdefault(inst, {})
             if not isinstance(table, dict):
                 raise ScenarioError(file, inst, "must be a table")
-            table[var] = [value] if (inst, var) == ("record", "variables") and isinstance(value, str) else value
+            if (inst, var) == ("record", "variables"):   # one name alone; with one instance, its variables
+                value = [value] if isinstance(value, str) else value
+                if isinstance(value, list) and len(insts) == 1:
+                    value = [f"{next(iter(insts))}.{v}" if isinstance(v, str) and "." not in v else v for v in value]
+            table[var] = value
             continue
         if inst not in insts:
             raise ScenarioError(file, fld, f"unknown instance {inst!r}"

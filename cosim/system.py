@@ -94,6 +94,7 @@ class Plan:
     not_recorded: list[str] = field(default_factory=list)   # String outputs a pattern matched
     conditions: list[EventPlan] = field(default_factory=list)  # events on conditions, evaluated between steps
     notes: list[str] = field(default_factory=list)   # what check prints beside its verdict (declared units overridden)
+    internal_steps: dict[str, int] = field(default_factory=dict)   # instance -> its fixed internal steps over the run
 
     @property
     def watched(self) -> list[tuple[str, Variable]]:
@@ -295,6 +296,26 @@ def _experiment(sc: Scenario, models: dict[str, FmuModel]) -> None:
                                                         "(raise experiment.max_steps, or --force)")
 
 
+def _internal_steps(sc: Scenario, insts: dict[str, InstancePlan]) -> dict[str, int]:
+    """The fixed internal steps each FMU that declares one (FMI 3.0 fixedInternalStepSize) takes over the
+    run; a run in which one takes more than ``max_internal_steps`` is refused (unless forced): it would not
+    finish (the Reference FMU Roberts over its default 1e8 s takes 1e11 steps of 1 ms)."""
+    out: dict[str, int] = {}
+    for name, ip in insts.items():
+        h = ip.model.internal_step
+        if h is None:
+            continue
+        n = (sc.stop - sc.start) / h
+        if n > sc.max_internal_steps and not sc.force:
+            raise ScenarioError(sc.file, "experiment.stop", f"{name} ({ip.model.path.name}) takes fixed internal steps "
+                                                            f"of {h:g} s: {n:.3g} from {sc.start!r} to {sc.stop!r} s, "
+                                                            f"more than max_internal_steps = {sc.max_internal_steps} "
+                                                            "(a shorter run: experiment.stop or --stop; or raise "
+                                                            "experiment.max_internal_steps, or --force)")
+        out[name] = int(math.ceil(n - 1e-9))
+    return out
+
+
 def _tolerances(sc: Scenario, insts: dict[str, InstancePlan]) -> None:
     """Each FMU's solver tolerance: its instance's ``tolerance``, else the experiment's, else the one of
     its own default experiment, else none (toleranceDefined false)."""
@@ -490,6 +511,7 @@ def resolve(sc: Scenario, force: bool | None = None) -> Plan:
         insts[name] = ip
     _experiment(sc, {n: ip.model for n, ip in insts.items()})
     _tolerances(sc, insts)
+    internal = _internal_steps(sc, insts)
 
     conns: list[ConnectionPlan] = []
     driven: dict[tuple[str, str], int] = {}
@@ -526,7 +548,7 @@ def resolve(sc: Scenario, force: bool | None = None) -> Plan:
     events = sorted((ev for ev in checked if ev.condition is None), key=lambda ev: ev.step)  # stable within a step
     conditions = [ev for ev in checked if ev.condition is not None]
     plan = Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs, not_recorded,
-                conditions, notes)
+                conditions, notes, internal)
     if plan.output_bytes > sc.max_bytes and not sc.force:
         raise ScenarioError(file, "record", f"the recording would take about {plan.output_bytes / 2 ** 20:.0f} MiB "
                                             f"(more than max_bytes = {sc.max_bytes}): record fewer variables, "

@@ -298,7 +298,7 @@ def test_progress_bar_only_when_asked(probe, tmp_path, capsys):
     sim = _sim(probe(), stop=0.2)
     execution.run(sim.check(), tmp_path / "a", progress=True)
     err = capsys.readouterr().err
-    assert "step" in err and not err.endswith("\n")      # the bar is cleared at the end, no line left
+    assert " of 0.2 s" in err and not err.endswith("\n")   # simulated seconds; cleared at the end
     execution.run(sim.check(), tmp_path / "b")                     # default: only on a terminal, long runs
     execution.run(sim.check(), tmp_path / "c", progress=False)
     assert capsys.readouterr().err == ""
@@ -556,18 +556,19 @@ def test_the_default_progress_bar_is_for_long_runs_on_a_terminal(monkeypatch):
     import sys
 
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
-    assert execution._progress(None, 5000) is None
-    bar = execution._progress(None, 5001)
+    assert execution._progress(None, 5000, 0.002) is None
+    bar = execution._progress(None, 5001, 0.002)
     try:
-        assert bar is not None and bar.total == 5001
+        assert bar is not None and bar.total == 5001 * 0.002     # in simulated seconds
     finally:
         bar.close()
-    assert execution._progress(False, 10 ** 6) is None
+    assert execution._progress(False, 10 ** 6, 0.002) is None
     monkeypatch.setattr(sys.stderr, "isatty", lambda: False, raising=False)
-    assert execution._progress(None, 10 ** 6) is None
-    bar = execution._progress(True, 3)
+    assert execution._progress(None, 10 ** 6, 0.002) is None
+    bar = execution._progress(True, 3, 0.5, internal=3000)
     try:
-        assert bar is not None and bar.total == 3
+        assert bar is not None and bar.total == 1.5
+        assert "(3e+03 internal steps)" in str(bar)
     finally:
         bar.close()
 

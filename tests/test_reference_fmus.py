@@ -524,3 +524,22 @@ variables = ["a.Float64_continuous_output", "b.Float64_continuous_output"]
     a, b = d["a.Float64_continuous_output"], d["b.Float64_continuous_output"]
     assert a[2] == 1.0 and a[3] == 3.0                  # the row after the step from 0.02 s
     assert b[5] == 30.0 and b[6] == 35.0 and b[8] == 35.0 and b[9] == 30.0   # 10 * (3 + 0.5), then reset
+
+
+def test_a_run_whose_fmu_would_take_too_many_internal_steps_is_refused_at_check(tmp_path, capsys):
+    """The Reference FMU Roberts declares a fixed internal step of 1 ms and a default experiment of 1e8 s:
+    1e11 internal steps, a run that would not finish.  check refuses it in one line; a stop the FMU can
+    reach passes and says how many internal steps it takes."""
+    from wmr_cosim.cli import main
+
+    roberts = REF / "fmi3" / "Roberts.fmu"
+    if not roberts.is_file():
+        pytest.skip("no Reference FMU Roberts")
+    assert main(["check", str(roberts)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert "experiment.stop: Roberts (Roberts.fmu) takes fixed internal steps of 0.001 s: 1e+11" in err
+    assert "more than max_internal_steps = 1000000000" in err
+    plan = fmu_plan(roberts, stop=10.0)
+    assert plan.internal_steps == {"Roberts": round((10.0 - plan.scenario.start) / 1e-3)}
+    assert fmu_plan(roberts, force=True).internal_steps["Roberts"] > 10 ** 10
