@@ -126,14 +126,36 @@ def _real_time(text: str) -> float:
     return v
 
 
+#: The experiment options of run and check: option -> the field of [experiment] it sets.
+EXPERIMENT_OPTIONS = {"start": "experiment.start", "stop": "experiment.stop", "step": "experiment.step"}
+#: What a scenario file, an SSP archive and one FMU end in (the positional argument of run and check).
+SCENARIO_SUFFIXES = (".toml", ".ssp", ".fmu")
+
+
+def experiment_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """The overrides of run and check: every --set (``experiment.stop=5`` and ``record.variables=[...]``
+    among them), then --start, --stop, --step [s] and --record as the fields of [experiment] and [record]
+    they set; the scenario's checks then judge them as they judge the file's own values."""
+    from .runner import parse_set
+
+    overrides = parse_set(args.set)
+    for opt, key in EXPERIMENT_OPTIONS.items():
+        if getattr(args, opt, None) is not None:
+            overrides[key] = getattr(args, opt)
+    if getattr(args, "record", None):
+        overrides["record.variables"] = list(args.record)
+    return overrides
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     """Run a scenario through the co-simulation master."""
-    from .runner import default_out, parse_set, run_scenario
+    from .runner import default_out, run_scenario
 
     out = args.out if args.out is not None else default_out(args.scenario)
+    overrides = experiment_overrides(args)
     if str(args.scenario).endswith(".toml"):
-        from .cosim.protocol import plan_runs, run_protocol
-        from .runner import resolve_model
+        from .cosim.protocol import plan_runs
+        from .runner import resolve_model, run_protocol   # each run judged by analysis.divergence
 
         sc, runs, _ = plan_runs(args.scenario, resolve_model, args.variant)
         if sc.runs:  # a protocol: every run, in order, into OUT/<run>
@@ -141,7 +163,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                 raise UsageError("--real-time paces a single run, not a protocol's runs")
             code = EXIT_OK
             for name, r in run_protocol(args.scenario, out, resolve_model, variant=args.variant,
-                                        overrides=parse_set(args.set), progress=False if args.quiet else None,
+                                        overrides=overrides, progress=False if args.quiet else None,
                                         force=args.force, isolate=args.isolate).items():
                 if r.status == "ok":
                     print(f"{args.scenario} [{name}]: ok, {r.steps} steps in {r.wall_s:.2f} s; results in {out / name}")
@@ -153,12 +175,10 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise UsageError(f"--variant {args.variant}: {args.scenario} declares no runs")
     elif args.variant is not None:
         raise UsageError(f"--variant {args.variant}: only a scenario file (.toml) declares variants")
-    fmu_only = (args.input, args.stop, args.step)
-    if any(v is not None for v in fmu_only) and not str(args.scenario).lower().endswith(".fmu"):
-        raise UsageError("--input, --stop and --step apply to a single FMU (.fmu); a scenario file says them itself")
-    res = run_scenario(args.scenario, out, parse_set(args.set), progress=False if args.quiet else None,
-                       inputs=args.input, stop=args.stop, step=args.step, force=args.force, isolate=args.isolate,
-                       real_time=args.real_time)
+    if args.input is not None and not str(args.scenario).lower().endswith(".fmu"):
+        raise UsageError("--input applies to a single FMU (.fmu); a scenario file says it in [inputs]")
+    res = run_scenario(args.scenario, out, overrides, progress=False if args.quiet else None,
+                       inputs=args.input, force=args.force, isolate=args.isolate, real_time=args.real_time)
     per = f", {res.wall_s / res.steps * 1e6:.1f} us/step" if res.steps else ""
     if res.real_time is not None:
         rt = res.real_time
@@ -181,11 +201,9 @@ def cmd_check(args: argparse.Namespace) -> int:
     import contextlib
 
     from .cosim.ssp import is_ssp
-    from .runner import load_plan, parse_set, ssp_plan
+    from .runner import fmu_plan, is_fmu, load_plan, ssp_plan
 
-    from .runner import fmu_plan, is_fmu
-
-    overrides = parse_set(args.set)
+    overrides = experiment_overrides(args)
     f = args.force
     with (ssp_plan(args.scenario, overrides, f) if is_ssp(args.scenario)
           else contextlib.nullcontext(fmu_plan(args.scenario, overrides, force=f) if is_fmu(args.scenario)
@@ -316,6 +334,34 @@ def _dask_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+def _experiment_options(p: argparse.ArgumentParser) -> None:
+    """--start, --stop, --step and --record of run and check (with FMPy's names as aliases)."""
+    what = "of the scenario, the SSP archive or the FMU's default experiment"
+    p.add_argument("--start", "--start-time", dest="start", type=float, default=None, metavar="T",
+                   help=f"start time [s]: sets experiment.start (default: that {what})")
+    p.add_argument("--stop", "--stop-time", dest="stop", type=float, default=None, metavar="T",
+                   help=f"stop time [s]: sets experiment.stop (default: that {what})")
+    p.add_argument("--step", "--output-interval", dest="step", type=float, default=None, metavar="H",
+                   help=f"communication step [s]: sets experiment.step (default: that {what})")
+    p.add_argument("--record", "--output-variables", dest="record", nargs="+", action="extend", default=None,
+                   metavar="VAR", help="the variables to record, as [record] variables: names or patterns "
+                                       "(plant.x_A, \"controller.W*\", \"*.*\"); replaces the file's list")
+
+
+def _scenario_after_record(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """``run --record a.x b.y scenario.toml``: --record takes every word up to the next option, the scenario
+    too; the last of them is the scenario when it ends in .toml, .ssp or .fmu and none was given."""
+    if getattr(args, "scenario", "given") is not None:
+        return
+    sub = next(a for a in ap._actions if isinstance(a, argparse._SubParsersAction)).choices[args.command]
+    if args.record and args.record[-1].lower().endswith(SCENARIO_SUFFIXES):
+        args.scenario = scenario_path(args.record.pop())
+        if args.record:
+            return
+        sub.error("argument --record: expected at least one variable before the scenario")
+    sub.error("the following arguments are required: scenario")
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="wmr-cosim", description=plain(__doc__),
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -358,7 +404,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "as the run goes), signals.csv, scenario.json, logs/, summary.json. Exit codes: "
                                    "0 ok, 1 the run failed (an FMU error, a non-finite value), 2 bad input, "
                                    "130 interrupted.")
-    r.add_argument("scenario", type=scenario_path,
+    r.add_argument("scenario", type=scenario_path, nargs="?",
                    help="scenario file (.toml), SSP 1.0 archive (.ssp) or one FMU (.fmu)")
     r.add_argument("--out", type=Path, default=None, metavar="DIR", help="results folder (default results/<scenario>)")
     r.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
@@ -366,9 +412,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--input", type=Path, default=None, metavar="FILE.csv",
                    help="one FMU only: input signals (a time column, one column per input; see docs/scenarios.md)")
-    r.add_argument("--stop", type=float, default=None, help="one FMU only: stop time [s] (default: its default experiment)")
-    r.add_argument("--step", type=float, default=None,
-                   help="one FMU only: communication step [s] (default: its default experiment)")
+    _experiment_options(r)
     r.add_argument("--force", action="store_true",
                    help="run even beyond the limits of steps (experiment.max_steps) and recording size (record.max_bytes)")
     r.add_argument("--isolate", action="store_true",
@@ -381,10 +425,11 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("check", help="check a scenario, SSP archive or FMU without running it",
                        description="Run every check of a scenario (files, variables, causality, types, units, "
                                    "steps, ranges, keys) without stepping. Exit code 0 if it would run, 2 if not.")
-    c.add_argument("scenario", type=scenario_path,
+    c.add_argument("scenario", type=scenario_path, nargs="?",
                    help="scenario file (.toml), SSP 1.0 archive (.ssp) or one FMU (.fmu)")
     c.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
     c.add_argument("--force", action="store_true", help="check as `run --force` would run")
+    _experiment_options(c)
     c.add_argument("--variant", default=None, help="a protocol's variant ([variants.NAME]): check its runs with it")
     c.set_defaults(func=cmd_check)
     e = sub.add_parser("export-ssp", help="write a scenario as an SSP 1.0 archive",
@@ -451,6 +496,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     ap = build_parser()
     args = ap.parse_args(argv)
+    _scenario_after_record(ap, args)
     try:
         if args.max_archive_size is not None or args.max_archive_ratio is not None:
             from .cosim.archive import set_command_line_limits

@@ -116,10 +116,11 @@ def run_protocol(path: str | Path, out_dir: str | Path, resolver: Callable[[str]
 
 
 def fmu_document(fmu: str | Path, inputs: str | Path | None = None, stop: float | None = None,
-                 step: float | None = None) -> dict[str, Any]:
+                 step: float | None = None, start: float | None = None) -> dict[str, Any]:
     """The scenario document of one FMU run alone (as ``fmpy simulate`` runs it): one instance named after
-    the model identifier, every output recorded, start, stop and step from its default experiment unless given (with
-    no default step, 500 steps over the run, as FMPy; with no stop either, 1 s), inputs from a CSV table."""
+    the model identifier, every output recorded, start, stop and step [s] from its default experiment unless
+    given (with no default step, 500 steps over the run, as FMPy; with no stop either, 1 s), inputs from a
+    CSV table."""
     import re
 
     path = Path(fmu).resolve()
@@ -129,9 +130,10 @@ def fmu_document(fmu: str | Path, inputs: str | Path | None = None, stop: float 
     doc: dict[str, Any] = {"instances": {name: {"fmu": str(path)}}, "record": {"variables": ["*.*"]}}
     de = model.md.defaultExperiment
     if step is None and model.default_step is None:  # as FMPy: 500 steps over the run
-        start = float(de.startTime) if de is not None and de.startTime is not None else 0.0
+        begin = start if start is not None else float(de.startTime) if de is not None and de.startTime is not None \
+            else 0.0
         end = stop if stop is not None else float(de.stopTime) if de is not None and de.stopTime is not None else 1.0
-        step = (end - start) / 500
+        step = (end - begin) / 500 if end > begin else 1.0   # (a stop not after the start: the check refuses it)
         stop = end
     exp = {k: v for k, v in (("stop", stop), ("step", step)) if v is not None}
     if exp:
@@ -143,9 +145,12 @@ def fmu_document(fmu: str | Path, inputs: str | Path | None = None, stop: float 
 
 def fmu_plan(fmu: str | Path, overrides: dict[str, Any] | None = None, inputs: str | Path | None = None,
              stop: float | None = None, step: float | None = None, force: bool = False) -> system.Plan:
-    """The checked plan of one FMU run alone (see :func:`fmu_document`)."""
+    """The checked plan of one FMU run alone (see :func:`fmu_document`); ``overrides`` may set the
+    experiment (``experiment.stop``: its 500 default steps then span the new run)."""
+    given = {k: v for k in ("start", "stop", "step")
+             if isinstance(v := (overrides or {}).get(f"experiment.{k}"), (int, float)) and not isinstance(v, bool)}
     try:
-        doc = fmu_document(fmu, inputs, stop, step)
+        doc = fmu_document(fmu, inputs, given.get("stop", stop), given.get("step", step), given.get("start"))
     except CosimError as exc:
         raise ScenarioError(str(fmu), "", str(exc).replace(f"{Path(fmu).resolve()}: ", "", 1)) from None
     doc = scenario.apply_overrides(doc, overrides, str(fmu))
