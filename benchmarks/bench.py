@@ -53,6 +53,10 @@ NAME:
             per area; target >= 0.90 on components and cosim), equivalent (listed with their reasons in
             benchmarks/mutation-equivalents.toml), minutes, survivors.  Results are kept in build/mutation/,
             so a second run re-tests only what changed.
+    bugs    bugs of the kinds mutmut does not make (an integer index off by one, an off-by-one in a
+            time expression k * h, one factor dropped from a product, a containment check weakened to its
+            first element), planted one at a time in cosim/ and components/ (benchmarks/bug_kinds.py):
+            population, bugs (a sample of 60, seed 1), killed, kill_rate, by_kind, survivors, minutes.
 """
 from __future__ import annotations
 
@@ -623,9 +627,17 @@ def bench_mutation(repeats: int) -> dict:
     return mutation.run()
 
 
+def bench_bugs(repeats: int) -> dict:
+    """Bugs of the kinds mutmut does not make, a sample of 60 (benchmarks/bug_kinds.py)."""
+    import bug_kinds
+
+    return bug_kinds.run(sample=60, seed=1)
+
+
 BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "fmi3": bench_fmi3, "paper": bench_paper,
            "sweep": bench_sweep, "interop": bench_interop, "archive": bench_archive, "loader": bench_loader,
-           "isolation": bench_isolation, "scripting": bench_scripting, "mutation": bench_mutation}
+           "isolation": bench_isolation, "scripting": bench_scripting, "mutation": bench_mutation,
+           "bugs": bench_bugs}
 
 
 def main(argv: list[str] | None = None) -> int:
