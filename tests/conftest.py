@@ -49,6 +49,10 @@ USES_THE_PAPER_JOB = "job"
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     import os
 
+    slow = pytest.mark.slow
+    for item in items:   # a test of the paper job's results runs the whole job (a minute or more): slow
+        if USES_THE_PAPER_JOB in getattr(item, "fixturenames", ()) and item.get_closest_marker("slow") is None:
+            item.add_marker(slow)
     if "MUTANT_UNDER_TEST" not in os.environ:
         return
     import re
