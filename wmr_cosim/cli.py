@@ -258,7 +258,8 @@ def cmd_export_ssp(args: argparse.Namespace) -> int:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
-    """Describe an FMU: model, capabilities, default experiment, variables with units and ranges."""
+    """Describe an FMU (any it can read): model, kinds, platforms, default experiment, what would stop a
+    run here, variables with variability, units and ranges."""
     from .runner import describe_fmu
 
     print(describe_fmu(args.fmu))
@@ -442,8 +443,12 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--out", type=Path, required=True, metavar="FILE.ssp", help="the archive to write")
     e.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
     e.set_defaults(func=cmd_export_ssp)
-    i = sub.add_parser("info", help="describe an FMU", description="Describe an FMU: model, FMI capabilities, "
-                       "default experiment, and every variable with causality, type, unit, range and start.")
+    i = sub.add_parser("info", help="describe an FMU", description="Describe any FMU whose model description "
+                       "can be read (FMI 1.0, 2.0, 3.0; co-simulation, model exchange): model, FMI version, kinds "
+                       "(CS, ME, SE), platforms, default experiment, one line on what would stop a run here, and "
+                       "every variable with causality, variability (set events need tunable parameters), type, "
+                       "unit, range and start. Exit code 0 when described, 2 when the archive or its model "
+                       "description cannot be read.")
     i.add_argument("fmu", type=Path, help="an .fmu file")
     i.set_defaults(func=cmd_info)
     pp = sub.add_parser("paper", help="run the paper's experiments and write the report",
