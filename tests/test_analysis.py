@@ -162,9 +162,9 @@ def test_disturbance_estimate_52_is_zero_before_the_onset():
     d = disturbance_analysis(frozen, foam, Q=1.0, R=0.5)
     t = d["time"]
     assert d["t_F"] == pytest.approx(5.0)
-    for du in d["dF_hat"]:
+    for du in d["dF_est"]:
         assert np.all(du[t <= 5.0] == 0.0) and np.allclose(du[t > 5.0], 0.3)
-    assert d["dF_hat_rms"] == pytest.approx(0.3)
+    assert d["dF_est_rms"] == pytest.approx(0.3)
     assert np.all(d["dF_true"][0] == foam["plant.dF1"]) and np.all(d["dF_true"][1] == foam["plant.dF2"])
     # before the onset no gain is defined: the curves are nan there, finite after
     for key in ("gamma_star_curve", "gamma_true_curve", "gain_incremental_curve"):
@@ -205,7 +205,7 @@ def test_incremental_gain_weighs_the_change_of_s_by_Q():
     foam["controller.s2"] = np.where(on, 0.7, 1.0)
     d = disturbance_analysis(frozen, foam, Q=3.0, R=0.5)
     assert d["gain_incremental"] == pytest.approx(math.sqrt(3.0 * (0.16 + 0.09) / (2 * 0.25)), rel=2e-3)
-    assert d["gamma_star"] is None and d["dF_hat_rms"] == 0.0          # no control change: no estimate
+    assert d["gamma_star"] is None and d["dF_est_rms"] == 0.0          # no control change: no estimate
 
 
 def _quarter_pair() -> tuple[np.ndarray, dict, dict]:
@@ -247,7 +247,7 @@ def test_no_foam_gives_no_onset_and_no_windows():
     d = disturbance_analysis(frozen, dict(frozen), Q=1.0, R=0.5)
     assert d["t_F"] == math.inf
     assert d["foam_rise"] == [None, None] and d["edge_peak_u"] is None and d["edge_peak_u_frozen"] is None
-    assert d["dF_hat_rms"] is None and d["gamma_star"] is None and d["gamma_true"] is None
+    assert d["dF_est_rms"] is None and d["gamma_star"] is None and d["gamma_true"] is None
 
 
 def test_runs_of_different_lengths_are_compared_over_the_shorter():

@@ -140,8 +140,9 @@ def foam_onset(foam: Signals) -> float:
 def disturbance_analysis(frozen: Signals, foam: Signals, Q: float, R: float, ramp: float = 0.1) -> dict[str, Any]:
     """(52), (53) and the gains a simulation can add.
 
-    dF_hat_i = u_foam_i - u_frozen_i for t > t_F, 0 before (52); gamma*(t) = sqrt(int_0^t [s'Qs + u'Ru] /
-    int_0^t dF_hat'dF_hat) on the foam run (53); gamma_true(t): (53) with the injected dF (the plant's
+    dF_est_i = u_foam_i - u_frozen_i for t > t_F, 0 before (the estimate (52); not the controller's output
+    dF_hat, the maximising player of (46)); gamma*(t) = sqrt(int_0^t [s'Qs + u'Ru] / int_0^t dF_est'dF_est) on
+    the foam run (53); gamma_true(t): (53) with the injected dF (the plant's
     output) in the denominator; gain_incremental = sqrt(int |z_foam - z_frozen|^2 / int |dF|^2) with
     |z|^2 = s'Qs + u'Ru (9): the gain from the injected disturbance to the change of the controlled output.
     Q, R: the weights of (9) (multiples of the identity); ramp [s]: the foam's ramp, before the window
@@ -192,13 +193,13 @@ def _disturbance_analysis(frozen: Signals, foam: Signals, Q: float, R: float, ra
         edge_peak_frozen = float(max(np.max(np.abs(frozen["controller.u1"][:n][edge])),
                                      np.max(np.abs(frozen["controller.u2"][:n][edge]))))
     return {
-        "t_F": tF, "time": t, "dF_hat": (du1, du2), "dF_true": (d1, d2), "gamma_star_curve": g_star,
+        "t_F": tF, "time": t, "dF_est": (du1, du2), "dF_true": (d1, d2), "gamma_star_curve": g_star,
         "gamma_true_curve": g_true, "gain_incremental_curve": g_inc,
         "gamma_star": _last_finite(g_star), "gamma_true": _last_finite(g_true),
         "gain_incremental": _last_finite(g_inc),
         "edge_peak_u": edge_peak, "edge_peak_u_frozen": edge_peak_frozen,
         "foam_rise": rise,
-        "dF_hat_rms": float(rmse(np.concatenate([du1[after], du2[after]]))) if after.any() else None,
+        "dF_est_rms": float(rmse(np.concatenate([du1[after], du2[after]]))) if after.any() else None,
     }
 
 

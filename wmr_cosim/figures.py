@@ -20,6 +20,10 @@ from .components import paper  # noqa: E402
 Signals = dict[str, np.ndarray]
 WHEELS = (("1", "wheel 1", "C0"), ("2", "wheel 2", "C3"))
 DPI = 110
+#: the two disturbances of the paper, which it names alike: the maximising player of (46), which the
+#: controller outputs (controller.dF_hat1, dF_hat2), and the estimate (52) from two runs' controls
+PLAYER = "dF_hat (46)"
+ESTIMATE = "dF_est (52)"
 
 
 def _wheels(ax, sig: Signals, name: str, ylabel: str, title: str, scale: float = 1.0, label: str = "",
@@ -59,7 +63,7 @@ def fig_learning(sig: Signals, out: Path, task: str, number: str) -> Path:
     _wheels(axs[0, 0], sig, "e", "e [rad]", f"(a) angle tracking error e, {task} learning")
     _wheels(axs[0, 1], sig, "edot", "de/dt [rad/s]", "(b) velocity tracking error")
     _wheels(axs[1, 0], sig, "u", "u [N.m]", "(c) control u (minimising player)")
-    _wheels(axs[1, 1], sig, "dF_hat", "dF_hat [N.m]", "(d) worst-case disturbance (maximising player)")
+    _wheels(axs[1, 1], sig, "dF_hat", f"{PLAYER} [N.m]", f"(d) worst-case disturbance {PLAYER}, the maximising player")
     ax = axs[2, 0]
     t = sig["time"]
     ax.plot(t, sig["controller.u_v"], lw=1.0, label="u_v")
@@ -111,7 +115,7 @@ def fig_foam(sig: Signals, out: Path, task: str, number: str, t_F: float) -> Pat
     _wheels(axs[0, 0], sig, "e", "e [rad]", f"(a) angle tracking error, {task} on foam")
     _wheels(axs[0, 1], sig, "edot", "de/dt [rad/s]", "(b) velocity tracking error")
     _wheels(axs[1, 0], sig, "u", "u [N.m]", "(c) control u")
-    _wheels(axs[1, 1], sig, "dF_hat", "dF_hat [N.m]", "(d) worst-case disturbance (player)")
+    _wheels(axs[1, 1], sig, "dF_hat", f"{PLAYER} [N.m]", f"(d) worst-case disturbance {PLAYER}, the maximising player")
     for ax in axs.ravel():
         if np.isfinite(t_F):
             ax.axvline(t_F, color="k", lw=0.6, ls=":")
@@ -121,7 +125,7 @@ def fig_foam(sig: Signals, out: Path, task: str, number: str, t_F: float) -> Pat
 
 def _gamma(ax, d: dict[str, Any], title: str, gamma: float) -> None:
     t = d["time"]
-    ax.plot(t, d["gamma_star_curve"], lw=1.2, label="gamma* (53), dF_hat of (52)")
+    ax.plot(t, d["gamma_star_curve"], lw=1.2, label=f"gamma* (53) with {ESTIMATE}")
     ax.plot(t, d["gamma_true_curve"], lw=1.0, ls="--", label="(53) with the injected dF")
     ax.axhline(gamma, color="k", lw=0.8, label=f"gamma = {gamma:g}")
     ax.set_xlabel("t [s]")
@@ -135,11 +139,11 @@ def _gamma(ax, d: dict[str, Any], title: str, gamma: float) -> None:
 
 def _dF(ax, d: dict[str, Any], title: str) -> None:
     t = d["time"]
-    for (_, wl, col), est, true in zip(WHEELS, d["dF_hat"], d["dF_true"]):
-        ax.plot(t, est, color=col, lw=1.0, label=f"dF_hat (52), {wl}")
+    for (_, wl, col), est, true in zip(WHEELS, d["dF_est"], d["dF_true"]):
+        ax.plot(t, est, color=col, lw=1.0, label=f"{ESTIMATE}, {wl}")
         ax.plot(t, true, color=col, lw=0.8, ls="--", label=f"injected dF, {wl}")
     ax.set_xlabel("t [s]")
-    ax.set_ylabel("dF [N.m]")
+    ax.set_ylabel(f"{ESTIMATE}, injected dF [N.m]")
     ax.set_title(title, fontsize=9, loc="left")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
@@ -148,7 +152,7 @@ def _dF(ax, d: dict[str, Any], title: str) -> None:
 def fig_gamma_g1(d: dict[str, Any], out: Path, gamma: float) -> Path:
     """Fig. 8: the disturbance estimate (52) (a) and the gain curve (53) (b), G1."""
     fig, axs = plt.subplots(1, 2, figsize=(10, 4.2))
-    _dF(axs[0], d, "(a) disturbance estimate (52), G1")
+    _dF(axs[0], d, f"(a) disturbance estimate {ESTIMATE}, G1")
     _gamma(axs[1], d, "(b) gamma* gain (53), G1", gamma)
     fig.suptitle("Fig. 8 redrawn", fontsize=10)
     return _save(fig, out / "fig8_g1_gamma.png")
@@ -168,20 +172,21 @@ def fig_line_control(frozen: Signals, foam: Signals, d: dict[str, Any], out: Pat
     fig, axs = plt.subplots(2, 2, figsize=(10, 6.5))
     _wheels(axs[0, 0], frozen, "u", "u [N.m]", "(a) control, reference floor")
     _wheels(axs[0, 1], foam, "u", "u [N.m]", "(b) control, foam")
-    _dF(axs[1, 0], d, "(c) disturbance estimate (52)")
+    _dF(axs[1, 0], d, f"(c) disturbance estimate {ESTIMATE}")
     _gamma(axs[1, 1], d, "(d) gamma and gamma* (53)", gamma)
     fig.suptitle("Fig. 13 redrawn: LINE", fontsize=10)
     return _save(fig, out / "fig13_line_gamma.png")
 
 
 def fig_line_learning(sig: Signals, out: Path) -> Path:
-    """Fig. 11: LINE learning run: errors, control with 30 x dF_hat (as the paper scales it), weights."""
+    """Fig. 11: LINE learning run: errors, control with 30 x the player dF_hat (46) (as the paper scales it),
+    weights."""
     fig, axs = plt.subplots(2, 2, figsize=(10, 6.5))
     _wheels(axs[0, 0], sig, "e", "e [rad]", "(a) angle tracking error, LINE learning")
     _wheels(axs[0, 1], sig, "edot", "de/dt [rad/s]", "(b) velocity tracking error")
-    _wheels(axs[1, 0], sig, "u", "u, 30 dF_hat [N.m]", "(c) control u and 30 x dF_hat", label="u ")
-    _wheels(axs[1, 0], sig, "dF_hat", "u, 30 dF_hat [N.m]", "(c) control u and 30 x dF_hat", scale=30.0,
-            label="30 dF_hat ", colours=("C2", "C1"), ls="--")
+    _wheels(axs[1, 0], sig, "u", f"u, 30 x {PLAYER} [N.m]", f"(c) control u and 30 x {PLAYER}", label="u ")
+    _wheels(axs[1, 0], sig, "dF_hat", f"u, 30 x {PLAYER} [N.m]", f"(c) control u and 30 x {PLAYER}", scale=30.0,
+            label=f"30 x {PLAYER}, ", colours=("C2", "C1"), ls="--")
     _weights(axs[1, 1], sig, "(d) critic weights W")
     fig.suptitle("Fig. 11 redrawn: LINE, learning run", fontsize=10)
     return _save(fig, out / "fig11_line_learn.png")
@@ -191,25 +196,26 @@ def fig_line_learning(sig: Signals, out: Path) -> Path:
 CAPTIONS = {
     "fig5_g1_learn": "Fig. 5 redrawn, G1 learning run (adaptation 0-39 s, reference floor): (a) angle tracking "
                      "error e of both wheels (measured signal), (b) velocity tracking error, (c) control u, (d) the "
-                     "maximising player dF_hat, (e) the kinematic controls u_v, u_beta and the speed profile v_A of "
-                     "(50), (f) the critic weights W, which change only in the acceleration phase.",
+                     "maximising player dF_hat of (46), (e) the kinematic controls u_v, u_beta and the speed "
+                     "profile v_A of (50), (f) the critic weights W, which change only in the acceleration phase.",
     "fig6_value_paths": "Fig. 6 redrawn: (a) the value function V_hat (45) along the G1 learning run; (b) the paths "
                         "of point A (true pose) of the three go-to-goal learning runs from (0, 0) to G1, G2, G3 "
                         "(crosses).",
     "fig7_g1_foam": "Fig. 7 redrawn, G1 with the learned weights frozen, foam from t_F (dotted line): tracking "
-                    "errors (a, b), control (c) and dF_hat (d); at t_F the control steps up by the friction change.",
-    "fig8_g1_gamma": "Fig. 8 redrawn, G1: (a) the disturbance estimate dF_hat of (52) (foam run minus frozen run) "
+                    "errors (a, b), control (c) and the maximising player dF_hat of (46) (d); at t_F the control "
+                    "steps up by the friction change.",
+    "fig8_g1_gamma": "Fig. 8 redrawn, G1: (a) the disturbance estimate dF_est of (52) (foam run minus frozen run) "
                      "and the injected friction change (dashed); (b) gamma*(t) of (53) with the estimate and with "
                      "the injected dF, against gamma of Table 1.",
-    "fig9_g2_g3_gamma": "Fig. 9 redrawn: gamma*(t) of (53) for G2 (a) and G3 (b), with the estimate (52) and with "
-                        "the injected dF, against gamma of Table 1.",
+    "fig9_g2_g3_gamma": "Fig. 9 redrawn: gamma*(t) of (53) for G2 (a) and G3 (b), with the estimate dF_est of "
+                        "(52) and with the injected dF, against gamma of Table 1.",
     "fig11_line_learn": "Fig. 11 redrawn, LINE learning run: (a) angle and (b) velocity tracking errors; (c) the "
-                        "control u (solid, blue/red) and 30 x dF_hat (dashed, green/orange), scaled as in the "
-                        "paper; (d) the critic weights W.",
+                        "control u (solid, blue/red) and 30 x the maximising player dF_hat of (46) (dashed, "
+                        "green/orange), scaled as in the paper; (d) the critic weights W.",
     "fig12_line_foam": "Fig. 12 redrawn, LINE with frozen weights, foam from t_F (dotted line): tracking errors "
-                       "(a, b), control (c) and dF_hat (d).",
-    "fig13_line_gamma": "Fig. 13 redrawn, LINE: control without (a) and with (b) the foam, (c) the estimate (52) "
-                        "and the injected dF, (d) gamma*(t) of (53) against gamma of Table 1.",
+                       "(a, b), control (c) and the maximising player dF_hat of (46) (d).",
+    "fig13_line_gamma": "Fig. 13 redrawn, LINE: control without (a) and with (b) the foam, (c) the estimate "
+                        "dF_est of (52) and the injected dF, (d) gamma*(t) of (53) against gamma of Table 1.",
     "robustness": "Robustness study: the largest RMSE of e of the foam run per task against the swept mismatch, "
                   "initial heading, encoder noise and bump at the foam's edge; crosses mark diverged points.",
 }
