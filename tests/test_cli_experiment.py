@@ -117,3 +117,13 @@ def test_an_ssp_archive_takes_the_overrides(work, capsys):
     capsys.readouterr()
     assert _steps(capsys, ["q.ssp", "--stop", "0.05"]) == "5 steps of 0.01 s"
     assert "whole steps" in _refused(capsys, ["check", "q.ssp", "--stop", "0.055"])
+
+
+def test_check_of_a_single_fmu_checks_its_input_table_as_run_does(work, capsys):
+    (work / "in.csv").write_text("time,Float64_continuous_input\n0,1\n2,3\n")
+    (work / "bad.csv").write_text("time,nothing\n0,1\n")
+    assert _steps(capsys, [str(FT), "--input", "in.csv", "--stop", "1", "--step", "0.1"]) == "10 steps of 0.1 s"
+    for cmd in ("check", "run"):
+        err = _refused(capsys, [cmd, str(FT), "--input", "bad.csv"] + (["--out", "o"] if cmd == "run" else []))
+        assert "bad.csv" in err and "no variable" in err, err
+    assert "--input applies to a single FMU" in _refused(capsys, ["check", "s.toml", "--input", "in.csv"])

@@ -205,8 +205,10 @@ def cmd_check(args: argparse.Namespace) -> int:
 
     overrides = experiment_overrides(args)
     f = args.force
+    if args.input is not None and not is_fmu(args.scenario):
+        raise UsageError("--input applies to a single FMU (.fmu); a scenario file says it in [inputs]")
     with (ssp_plan(args.scenario, overrides, f) if is_ssp(args.scenario)
-          else contextlib.nullcontext(fmu_plan(args.scenario, overrides, force=f) if is_fmu(args.scenario)
+          else contextlib.nullcontext(fmu_plan(args.scenario, overrides, args.input, force=f) if is_fmu(args.scenario)
                                       else load_plan(args.scenario, overrides, f))) as plan:
         sc = plan.scenario
         print(f"{args.scenario}: ok: {len(plan.instances)} instances ({', '.join(plan.order)}), "
@@ -430,6 +432,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="scenario file (.toml), SSP 1.0 archive (.ssp) or one FMU (.fmu)")
     c.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
     c.add_argument("--force", action="store_true", help="check as `run --force` would run")
+    c.add_argument("--input", type=Path, default=None, metavar="FILE.csv",
+                   help="one FMU only: input signals, checked as `run --input` reads them")
     _experiment_options(c)
     c.add_argument("--variant", default=None, help="a protocol's variant ([variants.NAME]): check its runs with it")
     c.set_defaults(func=cmd_check)
