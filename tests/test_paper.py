@@ -301,3 +301,154 @@ def test_run_of_a_protocol_exits_1_on_a_run_the_paper_job_calls_diverged(built_f
         assert f"wmr-cosim: run {run} diverged: {reason}" in err
         assert run_summary(sig, paper.task_goal("G1"))["diverged"]       # the paper job's verdict on it
     assert divergence(load_signals(out / "learn")) is None and not any("run learn" in line for line in err)
+
+
+# ---------------------------------------------------------------------- the report's summary and provenance
+@pytest.fixture(scope="module")
+def short_job(built_fmus, tmp_path_factory, monkeypatch_module):
+    """The paper job on G1 cut to 12 s, one variant (3 runs of 12 s): a report whose claims partly fail."""
+    from wmr_cosim import paper_job, runner
+
+    monkeypatch_module.setattr(runner, "resolve_model", lambda name: built_fmus.get(name))
+    folder = tmp_path_factory.mktemp("short_job")
+    r = paper_job.run_paper(folder / "out", compare=False, manifest=_short_job_manifest(folder), progress=False)
+    return r | {"md": (r["out"] / "report.md").read_text()}
+
+
+def _section(md: str, title: str) -> str:
+    """The text of the report's section ``## title...`` up to the next section of that level."""
+    start = md.index(f"## {title}")
+    end = md.find("\n## ", start + 3)
+    return md[start:end if end >= 0 else len(md)]
+
+
+def test_no_bound_of_a_claim_is_a_result_of_the_project():
+    """Every claim's bound is a figure of the paper or argued: no 'project's target' (26 cells, 1.38), the
+    final position against eps_G (the paper's stopping radius), not 5 mm."""
+    from wmr_cosim.paper_report import claims
+
+    t1 = paper.table1()
+    cl = {c["id"]: c for c in claims({"fidelity": {"n_cells": 32}, "tasks": {t: {} for t in paper.TASKS}})}
+    assert not [c for c in cl.values() if "project" in c["bound_name"]]
+    assert cl["within_1_5"]["bound"] == 32 and cl["within_2_5"]["bound"] == 32
+    assert "rms_log" not in cl                          # a figure without a verdict: the paper gives no tolerance
+    assert all(cl[f"{t}.position"]["bound"] == t1["eps_G"] for t in ("G1", "G2", "G3"))
+
+
+def test_the_summary_lists_every_failing_claim_with_its_figure(short_job):
+    from wmr_cosim.claims import check_claims
+
+    m, md = short_job["metrics"], short_job["md"]
+    summary = _section(md, "Summary")
+    failing = [c for c in m["claims"] if not c["holds"]]
+    assert failing and any(c["id"] == "G1.gamma" for c in failing)
+    fails = summary[summary.index("### Claims that fail"):summary.index("### Claims that hold")]
+    assert f"{len(failing)} of {len(m['claims'])} claims fail" in summary
+    for c in failing:
+        assert f"- {c['text']}" in fails and c["text"].endswith(": no")
+    assert "the project's target" not in md
+    assert check_claims(m, md) == []
+
+
+def test_the_report_names_the_paper_the_tool_the_commit_and_the_date(short_job):
+    import subprocess
+    from datetime import datetime, timezone
+
+    from wmr_cosim import version
+
+    md, pv = short_job["md"], short_job["metrics"]["provenance"]
+    head = md[:md.index("## Summary")]
+    assert "Experimental verification of H-infinity control with examples of the movement of a wheeled robot" in head
+    assert f"Tool: wmr-cosim {version()}" in head
+    commit = pv["git_commit"].split()[0]
+    assert re.fullmatch(r"[0-9a-f]{40}", commit) and f"Git commit: {pv['git_commit']}" in head
+    root = Path(__file__).resolve().parent.parent
+    assert subprocess.run(["git", "-C", str(root), "cat-file", "-e", commit]).returncode == 0
+    assert re.fullmatch(r"\d{4}-\d\d-\d\d \d\d:\d\d UTC", pv["date"]) and f"Date: {pv['date']}" in head
+    assert abs((datetime.now(timezone.utc) - datetime.strptime(pv["date"], "%Y-%m-%d %H:%M UTC").replace(
+        tzinfo=timezone.utc)).total_seconds()) < 3600
+
+
+def test_the_git_commit_is_unknown_outside_a_checkout(tmp_path, monkeypatch):
+    import subprocess
+
+    from wmr_cosim.paper_report import git_commit
+
+    assert git_commit(tmp_path) == "unknown"                      # no project here
+    (tmp_path / "pyproject.toml").write_text("")
+    assert git_commit(tmp_path) == "unknown"                      # a project, not a checkout
+    inner = tmp_path / "site-packages"                            # inside someone else's checkout
+    inner.mkdir()
+    (inner / "pyproject.toml").write_text("")
+    subprocess.run(["git", "init", "-q", str(tmp_path)], check=True)
+    subprocess.run(["git", "-C", str(tmp_path), "-c", "user.name=t", "-c", "user.email=t@t", "commit", "-q",
+                    "--allow-empty", "-m", "x"], check=True)
+    assert git_commit(inner) == "unknown"
+    assert re.fullmatch(r"[0-9a-f]{40}", git_commit(tmp_path))
+    monkeypatch.setenv("PATH", str(tmp_path / "no-git-here"))     # git is not there: never fails
+    assert git_commit(tmp_path) == "unknown"
+
+
+def test_the_gamma_miss_is_under_what_is_not_reproduced_with_its_measured_cause(short_job):
+    m, md = short_job["metrics"], short_job["md"]
+    section = _section(md, "What is not reproduced")
+    g, gt = m["gamma_star"]["G1"], m["gamma_true"]["G1"]
+    bound = paper.results()["reported_figures"]["gamma_star_bound"]["G1"]
+    claim = next(c for c in m["claims"] if c["id"] == "G1.gamma")
+    assert not claim["holds"] and claim["text"] in section
+    da = m["tasks"]["G1"]["foam"]["foam_da"]
+    assert da == [0.4, 0.4]                                       # read from the foam run's resolved scenario
+    assert "scales as 1/|dF|" in section and "assumed size of the friction change" in section
+    assert f"(53) gives {gt:.2f}" in section and f"at {da[0] * g / bound:.2f} N.m" in section
+    edge = next(c for c in m["claims"] if c["id"] == "G1.edge_peak")
+    assert not edge["holds"] and edge["text"] in section
+
+
+def test_the_gamma_miss_cites_the_edge_bump_of_the_robustness_study():
+    from wmr_cosim.paper_report import gamma_miss
+
+    m = {"claims": [{"id": "G2.gamma_paper", "holds": False, "bound": 6.0, "text": "gamma* of G2 = 15.40 > 6.00: no"}],
+         "gamma_star": {"G2": 15.4}, "gamma_true": {"G2": 15.3}, "tasks": {"G2": {"foam": {"foam_da": [0.4, 0.4]}}}}
+    study = {"bump": [{"value": 0.0, "points": {"G2": 1}, "gamma_star": {"G2": 15.4}},
+                      {"value": 3.4, "points": {"G2": 57}, "gamma_star": {"G2": 9.87}}]}
+    text = gamma_miss(m, study)
+    assert "gamma* of G2 = 15.40 > 6.00: no" in text and "at 1.03 N.m" in text        # 0.4 * 15.4 / 6
+    assert "bump of 3.4 N.m at the edge (robustness points 57) gamma* at 50 s is G2 9.87" in text
+    assert gamma_miss({**m, "claims": [{**m["claims"][0], "holds": True}]}, None) is None
+
+
+def test_the_player_and_the_estimate_have_distinct_labels(short_job, monkeypatch):
+    """dF_hat labels the maximising player (46) only (the controller's output); the estimate (52) is dF_est,
+    in the figures (titles, axes, legends, captions) and in the report."""
+    from wmr_cosim import figures
+    from wmr_cosim.analysis import load_signals, table1_disturbance_analysis
+
+    texts: dict[str, list[str]] = {}
+    save = figures._save
+
+    def keep(fig, path):
+        texts[Path(path).stem] = [fig._suptitle.get_text() if fig._suptitle else ""] + [
+            t for ax in fig.axes for t in [ax.get_title(loc="left"), ax.get_ylabel()]
+            + ([x.get_text() for x in ax.get_legend().get_texts()] if ax.get_legend() else [])]
+        return save(fig, path)
+
+    monkeypatch.setattr(figures, "_save", keep)
+    runs = short_job["out"] / "runs" / "G1"
+    learn, frozen, foam = (load_signals(runs / r) for r in ("learn", "frozen", "foam"))
+    d = table1_disturbance_analysis(frozen, foam)
+    out = short_job["out"] / "labels"
+    out.mkdir()
+    figures.fig_learning(learn, out, "G1", "5")
+    figures.fig_foam(foam, out, "G1", "7", d["t_F"])
+    figures.fig_gamma_g1(d, out, 11.0)
+    figures.fig_line_learning(learn, out)
+    figures.fig_line_control(frozen, foam, d, out, 11.0)
+    for name in ("fig5_g1_learn", "fig7_g1_foam", "fig11_line_learn"):      # the player (46)
+        assert any("dF_hat (46)" in t for t in texts[name]) and not any("dF_est" in t for t in texts[name])
+        assert "dF_hat of (46)" in figures.CAPTIONS[name]
+    for name in ("fig8_g1_gamma", "fig13_line_gamma"):                      # the estimate (52)
+        assert any("dF_est (52)" in t for t in texts[name]) and not any("dF_hat" in t for t in texts[name])
+        assert "dF_est of (52)" in figures.CAPTIONS[name] and "dF_hat" not in figures.CAPTIONS[name]
+    assert "dF_est" in d and "dF_hat" not in d
+    md = short_job["md"]
+    assert "dF_est (52)" in md and not re.search(r"dF_hat[^.;]{0,60}\(52\)", md)

@@ -127,6 +127,7 @@ def test_the_paper_command_runs_the_robustness_study(built_fmus, tmp_path, monke
     assert rob["tasks"] == ["G1"] and rob["n_points"] == 4
     assert [e["value"] for e in rob["mismatch"]] == [0.0, 0.1]
     assert rob["max_mismatch_all_converge"] == 0.1 and m["freeze_study"]["default"].startswith("P0 = 0.0005")
+    assert isinstance(rob["bump"][1]["gamma_star"]["G1"], float)     # gamma* (53) of the point with the bump
     assert len(list((out / "robustness" / "points").glob("*.json"))) == 4
     md = (out / "report.md").read_text()
     assert "Robustness beyond the paper" in md and "figures/robustness.png" in md

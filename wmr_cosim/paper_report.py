@@ -6,31 +6,30 @@ import math
 from pathlib import Path
 from typing import Any
 
+from .analysis import DIVERGED_E_RAD
 from .claims import make_claim
 from .components import paper
 from .report import fmt
 
-#: the project's fidelity targets for Tables 2 and 3 (32 cells)
-TARGET_WITHIN_1_5 = 26
-TARGET_RMS_LOG = 1.38
-#: how close the learning runs must end to the paper's final positions [m]
-POSITION_TOL_M = 0.005
+#: the paper: its title (shared/paper/hinf-wmr-paper.md)
+PAPER_TITLE = "Experimental verification of H-infinity control with examples of the movement of a wheeled robot"
 
 
 def claims(m: dict[str, Any]) -> list[dict[str, Any]]:
-    """Every pass/fail statement of the report, from the metrics ``m`` of the default variant."""
+    """Every pass/fail statement of the report, from the metrics ``m`` of the default variant.  Every bound
+    is a figure of the paper (Table 1, its tables and text) or is argued in its name; none is a result of
+    this project."""
     t1 = paper.table1()
     rep = paper.results()["reported_figures"]
     n = m["fidelity"]["n_cells"]
     out = [
         make_claim(m, "within_1_5", "fidelity.within_1_5", f"RMSE cells within 1.5x of the paper (of {n})", ">=",
-                   TARGET_WITHIN_1_5, "the project's target", 0),
+                   n, "every cell of Tables 2 and 3", 0),
         make_claim(m, "within_2_5", "fidelity.within_2_5", f"RMSE cells within 2.5x of the paper (of {n})", ">=",
-                   n, "all", 0),
-        make_claim(m, "rms_log", "fidelity.rms_log_factor", "rms log-factor exp(sqrt(mean(log(ours/paper)^2)))",
-                   "<=", TARGET_RMS_LOG, "the project's target", 4),
-        make_claim(m, "diverged", "diverged_runs.#len", "diverged runs (non-finite, or |e_i| > 1 rad at 50 s)", "==",
-                   0, "none", 0),
+                   n, "every cell of Tables 2 and 3", 0),
+        make_claim(m, "diverged", "diverged_runs.#len",
+                   f"diverged runs (non-finite, or |e_i| > {DIVERGED_E_RAD:g} rad at 50 s)", "==",
+                   0, "none: every experiment of the paper ran to its end", 0),
     ]
     for t in ("G1", "G2", "G3"):
         if t not in m["tasks"]:
@@ -40,7 +39,7 @@ def claims(m: dict[str, Any]) -> list[dict[str, Any]]:
                               "eps_G", 4))
         out.append(make_claim(m, f"{t}.position", f"tasks.{t}.learn.position_error_to_paper",
                               f"{t} learning run: distance to the paper's final position [m]", "<=",
-                              POSITION_TOL_M, "5 mm", 4))
+                              t1["eps_G"], "eps_G: the paper's robot stops anywhere within it of the goal", 4))
     for t in m["tasks"]:
         out.append(make_claim(m, f"{t}.gamma", f"gamma_star.{t}", f"gamma* (53) of {t} at 50 s", "<=",
                               t1["gamma"], "gamma of Table 1", 2))
@@ -55,13 +54,109 @@ def claims(m: dict[str, Any]) -> list[dict[str, Any]]:
         for i in (0, 1):
             out.append(make_claim(m, f"{t}.rise{i + 1}", f"tasks.{t}.foam.foam_rise.{i}",
                                   f"{t}: rise of u_{i + 1} on the foam [N.m]", ">=", 0.75 * want,
-                                  f"3/4 of the paper's {want:g} N.m", 3))
+                                  f"3/4 of the paper's 'approximately {want:g} N.m', a figure read off its plot", 3))
     if "G1" in m["tasks"]:
         static = min(rep["G1_static_error_rad"])
         out.append(make_claim(m, "G1.static", "tasks.G1.learn.final_abs_e",
                               "G1 learning run: largest |e_i| at 50 s [rad]", ">=", static,
                               "the paper's static error after braking", 4))
     return out
+
+
+def summary_blocks(m: dict[str, Any]) -> list:
+    """The summary: how many claims fail, every failing one and every holding one (each with its figure),
+    and the figures the report states without a verdict."""
+    cl = m["claims"]
+    fail = [c["text"] for c in cl if not c["holds"]]
+    hold = [c["text"] for c in cl if c["holds"]]
+    f = m["fidelity"]
+    b: list = [("h2", "Summary (each line computed from metrics.json)"),
+               ("p", f"{len(fail)} of {len(cl)} claims fail, {len(hold)} hold. Each bound is a figure of the paper "
+                     f"(Table 1, Tables 2 and 3, its text) or says in brackets why it was chosen; none is a result "
+                     f"of this project.")]
+    b += [("h3", f"Claims that fail ({len(fail)})"), ("ul", fail)] if fail else [("p", "No claim fails.")]
+    if hold:
+        b += [("h3", f"Claims that hold ({len(hold)})"), ("ul", hold)]
+    b += [("h3", "Figures without a verdict"),
+          ("ul", [f"rms log-factor exp(sqrt(mean(log(ours/paper)^2))) over the {f['n_cells']} cells = "
+                  f"{fmt(f['rms_log_factor'], 4)} (the paper gives no tolerance for it)",
+                  f"diverged runs: {', '.join(m['diverged_runs']) or 'none'}"])]
+    return b
+
+
+def git_commit(folder: Path | None = None) -> str:
+    """The git commit of the checkout the package runs from (``folder``, default the package's parent
+    folder when it holds pyproject.toml), with '(uncommitted changes)' when tracked files differ from it;
+    'unknown' when it is not a checkout or git is not there.  Never raises."""
+    import subprocess
+
+    root = Path(__file__).resolve().parent.parent if folder is None else Path(folder)
+
+    def git(*args: str) -> str | None:
+        try:
+            p = subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, timeout=20)
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return p.stdout.strip() if p.returncode == 0 else None
+
+    if not (root / "pyproject.toml").is_file():
+        return "unknown"
+    top = git("rev-parse", "--show-toplevel")
+    commit = git("rev-parse", "--verify", "HEAD")
+    if top is None or commit is None or Path(top).resolve() != root.resolve():
+        return "unknown"
+    changed = git("status", "--porcelain", "--untracked-files=no")
+    return commit + (" (uncommitted changes)" if changed else "")
+
+
+def provenance() -> dict[str, str]:
+    """What produced a report: the paper (its title), the tool's version, the git commit ('unknown' outside
+    a checkout) and the date and time (UTC)."""
+    from datetime import datetime, timezone
+
+    from . import version
+
+    return {"paper": PAPER_TITLE, "tool": f"wmr-cosim {version()}", "git_commit": git_commit(),
+            "date": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")}
+
+
+def gamma_miss(m: dict[str, Any], study: dict[str, Any] | None) -> str | None:
+    """The 'What is not reproduced' item of gamma* above the paper's bound, with its cause measured on our
+    runs: the estimate (52) against the injected dF, and the size of the friction change [N.m] the bound
+    needs under the 1/|dF| scaling of (53); with the robustness study (``study``: metrics.json's
+    ``robustness``), gamma* with the bump at the foam's edge.  None if gamma* is within the bound in every task."""
+    bounds = paper.results()["reported_figures"]["gamma_star_bound"]
+    missed = [c for c in m["claims"] if not c["holds"] and c["id"].endswith(("gamma_paper", "gamma"))
+              and c["bound"] == bounds.get(c["id"].split(".")[0])]
+    if not missed:
+        return None
+    tasks = [c["id"].split(".")[0] for c in missed]
+    parts = ["gamma* (53) at 50 s is above the paper's bound in " + ", ".join(tasks) + ": "
+             + "; ".join(c["text"] for c in missed) + "."]
+    parts.append("Cause: (53) divides the cost of the foam run by the energy of the disturbance estimate dF_est "
+                 "(52), so gamma* scales as 1/|dF| and depends on the assumed size of the friction change, which "
+                 "the paper does not print (docs/decisions.md: a5, a6 rise on the foam by the change that "
+                 "reproduces the paper's rise of the cruising control).")
+    rows = []
+    for t in tasks:
+        g, gt = m["gamma_star"].get(t), m["gamma_true"].get(t)
+        da = (m["tasks"][t]["foam"].get("foam_da") or [None])[0]
+        if g is None or gt is None or da is None:
+            continue
+        rows.append(f"{t}: with the injected dF in place of dF_est, (53) gives {gt:.2f} ({100 * (gt / g - 1):+.1f} % "
+                    f"against gamma*), so the estimate is not the cause; the assumed change is {da:g} N.m, and under "
+                    f"the 1/|dF| scaling (the cost held) gamma* would reach {bounds[t]:g} at "
+                    f"{da * g / bounds[t]:.2f} N.m")
+    if rows:
+        parts.append("Measured (`runs/<task>/foam`, `runs/<task>/frozen`): " + "; ".join(rows) + ".")
+    bump = (study or {}).get("bump") or []
+    if len(bump) > 1 and bump[-1].get("gamma_star"):
+        e = bump[-1]
+        vals = ", ".join(f"{t} {fmt(v, 2)}" for t, v in e["gamma_star"].items() if v is not None)
+        parts.append(f"The real robot's control also peaked at 8.4 N.m at the foam's edge, which the smooth model "
+                     f"lacks; with a bump of {e['value']:g} N.m at the edge (robustness points "
+                     f"{', '.join(str(p) for p in e['points'].values())}) gamma* at 50 s is {vals}.")
+    return " ".join(parts)
 
 
 def _ratio_str(r: float | None) -> str:
@@ -152,9 +247,9 @@ def robustness_blocks(study: dict[str, Any], figure: Path | None) -> list:
                    f"controller keeps the nominal model), the initial heading beta0 (plant and odometry), and "
                    f"encoder noise (a Gaussian jitter of the edge position, seeded), and a bump at the foam's edge "
                    f"(a5, a6 raised by a further amount for {study['robustness'].get('bump_time', 0.2):g} s from the "
-                   f"foam's onset; it acts on the foam runs only). A run diverged if a value is "
-                   f"non-finite (the master then stops it: 'failed') or |e_i| > 1 rad at 50 s; a run after a "
-                   f"diverged learning run starts from its weights."))
+                   f"foam's onset; it acts on the foam runs only). A run diverged (analysis.divergence) if a value "
+                   f"is non-finite (the master then stops it: 'failed') or |e_i| > {DIVERGED_E_RAD:g} rad at 50 s; "
+                   f"a run after a diverged learning run starts from its weights."))
     names = {"mismatch": ("left/right mismatch m [-]", "max_mismatch_all_converge"),
              "heading": ("initial heading beta0 [deg]", "max_heading_deg_all_converge"),
              "noise": ("encoder noise [counts, std]", "max_noise_counts_all_converge"),

@@ -195,6 +195,8 @@ def summarise(rows: dict[int, dict[str, Any]], layout: dict[str, Any], grid: Stu
                                    for c in fidelity(tasks)["cells"] if c["task"] in tasks},
                 # the foam run's peak |u| within 2 s of the foam's edge [N.m]
                 "edge_peak_u": {t: rows[pid].get("edge_peak_u") for t, pid in e["points"].items()},
+                # gamma* (53) at 50 s of the task's foam run against its frozen run [-]
+                "gamma_star": {t: rows[pid].get("gamma_star") for t, pid in e["points"].items()},
                 "points": e["points"],
             })
         out[name] = entries
