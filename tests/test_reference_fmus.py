@@ -542,4 +542,6 @@ def test_a_run_whose_fmu_would_take_too_many_internal_steps_is_refused_at_check(
     assert "more than max_internal_steps = 1000000000" in err
     plan = fmu_plan(roberts, stop=10.0)
     assert plan.internal_steps == {"Roberts": round((10.0 - plan.scenario.start) / 1e-3)}
+    assert main(["check", str(roberts), "--stop", "10"]) == 0
+    assert "note: Roberts takes fixed internal steps of 0.001 s: about 1e+04 over the run" in capsys.readouterr().out
     assert fmu_plan(roberts, force=True).internal_steps["Roberts"] > 10 ** 10

@@ -220,6 +220,9 @@ def cmd_check(args: argparse.Namespace) -> int:
             print(f"note: String outputs are not recorded: {', '.join(plan.not_recorded)}")
         for note in plan.notes:
             print(f"note: {note}")
+        for name, n in plan.internal_steps.items():
+            print(f"note: {name} takes fixed internal steps of {plan.instances[name].model.internal_step:g} s: "
+                  f"about {n:.3g} over the run")
     if str(args.scenario).endswith(".toml"):
         _check_runs(args, overrides)
     return EXIT_OK
