@@ -48,15 +48,16 @@ USES_THE_PAPER_JOB = "job"
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     import os
+    import re
 
     slow = pytest.mark.slow
-    for item in items:   # a test of the paper job's results runs the whole job (a minute or more): slow
-        if USES_THE_PAPER_JOB in getattr(item, "fixturenames", ()) and item.get_closest_marker("slow") is None:
+    for item in items:   # the paper job (a minute or more) and pools of worker processes (Dask): slow
+        nodeid = re.sub(r"/_check_\d+_", "/", item.nodeid)
+        if (USES_THE_PAPER_JOB in getattr(item, "fixturenames", ()) or nodeid.startswith(STARTS_WORKER_PROCESSES)) \
+                and item.get_closest_marker("slow") is None:
             item.add_marker(slow)
     if "MUTANT_UNDER_TEST" not in os.environ:
         return
-    import re
-
     skip = pytest.mark.skip(reason="starts worker processes: not run under mutation testing")
     for item in items:
         nodeid = re.sub(r"/_check_\d+_", "/", item.nodeid)   # (the copies benchmarks/mutation.py --check runs)
