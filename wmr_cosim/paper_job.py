@@ -253,7 +253,7 @@ def report_blocks(results: dict[str, Any], variant: str, figures: list[Path], ou
     rep = paper.results()["reported_figures"]
     b: list = [("h1", "The paper's experiments, reproduced by co-simulation")]
     pv = m.get("provenance") or {}
-    b.append(("ul", [f"Paper: *{pv.get('paper', '-')}*", f"Tool: {pv.get('tool', '-')}",
+    b.append(("ul", [f"Paper: '{pv.get('paper', '-')}'", f"Tool: {pv.get('tool', '-')}",
                      f"Git commit: {pv.get('git_commit', 'unknown')}", f"Date: {pv.get('date', '-')}"]))
     b.append(("p", f"Variant **{variant}** (reading of (51): "
                    f"{'W and P stop once the smallest eigenvalue of P falls to P0' if variant == 'freeze' else 'the Frobenius norm of P against P0, only P stops'}"

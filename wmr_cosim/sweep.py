@@ -178,7 +178,7 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
     """Run one point (the base's runs with the point's parameters) and return its row: id, parameters,
     status ('ok', 'diverged', 'failed'), reason and metrics.  Never raises: a failure is a row.
     ``archive_limits``: the submitting process's command-line archive limits (a worker may be elsewhere)."""
-    from .analysis import disturbance_analysis, load_signals, run_summary
+    from .analysis import disturbance_analysis, divergence, load_signals, run_summary
     from .cosim.archive import ENV_RATIO, ENV_SIZE
     from .cosim.protocol import run_protocol
 
@@ -215,7 +215,7 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
             row[f"{name}.goal_distance"] = s.get("goal_distance", math.nan)
             row[f"{name}.diverged"] = bool(s["diverged"])
             if s["diverged"] and row["status"] == "ok":
-                row["status"], row["reason"] = "diverged", f"{name}: |e| = {max(map(abs, s['final_e'])):.3g} rad at the end"
+                row["status"], row["reason"] = "diverged", f"{name}: {divergence(sig, res.status)}"
         if sigs.get("frozen") is not None and sigs.get("foam") is not None:
             d = disturbance_analysis(sigs["frozen"], sigs["foam"], **_weights(work / "foam"))
             for k in ("gamma_star", "gamma_true", "gain_incremental"):
