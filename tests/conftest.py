@@ -44,6 +44,8 @@ STARTS_WORKER_PROCESSES = (
 
 #: The fixture of tests/test_paper.py that runs the whole paper job in a pool of worker processes.
 USES_THE_PAPER_JOB = "job"
+#: Fixtures that start a pool of worker processes (the whole paper job; a shortened one, a few seconds).
+STARTS_A_POOL = (USES_THE_PAPER_JOB, "short_job")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -61,7 +63,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     skip = pytest.mark.skip(reason="starts worker processes: not run under mutation testing")
     for item in items:
         nodeid = re.sub(r"/_check_\d+_", "/", item.nodeid)   # (the copies benchmarks/mutation.py --check runs)
-        if nodeid.startswith(STARTS_WORKER_PROCESSES) or USES_THE_PAPER_JOB in getattr(item, "fixturenames", ()):
+        if nodeid.startswith(STARTS_WORKER_PROCESSES) or set(STARTS_A_POOL) & set(getattr(item, "fixturenames", ())):
             item.add_marker(skip)
 
 
