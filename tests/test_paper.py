@@ -300,6 +300,9 @@ def test_run_of_a_protocol_exits_1_on_a_run_the_paper_job_calls_diverged(built_f
         assert re.fullmatch(r"\|e[12]\| = [\d.e+]+ rad at t = 12 s, above 1 rad", reason or ""), reason
         assert f"wmr-cosim: run {run} diverged: {reason}" in err
         assert run_summary(sig, paper.task_goal("G1"))["diverged"]       # the paper job's verdict on it
+        summary = json.loads((out / run / "summary.json").read_text())   # and the file on disk says so
+        assert (summary["status"], summary["message"]) == ("diverged", reason)
+    assert json.loads((out / "learn" / "summary.json").read_text())["status"] == "ok"
     assert divergence(load_signals(out / "learn")) is None and not any("run learn" in line for line in err)
 
 
@@ -452,3 +455,19 @@ def test_the_player_and_the_estimate_have_distinct_labels(short_job, monkeypatch
     assert "dF_est" in d and "dF_hat" not in d
     md = short_job["md"]
     assert "dF_est (52)" in md and not re.search(r"dF_hat[^.;]{0,60}\(52\)", md)
+
+
+def test_run_of_a_single_scenario_is_judged_as_a_protocol_run_is(built_fmus, tmp_path, monkeypatch, capsys):
+    """`wmr-cosim run` of one scenario of the paper's controller judges it by analysis.divergence too (here
+    with the bound lowered to 0 rad, so that a 0.5 s G1 run counts as diverged): exit 1, one line, and
+    summary.json says so."""
+    from wmr_cosim import analysis, cli, runner
+
+    monkeypatch.setattr(runner, "resolve_model", lambda name: built_fmus.get(name))
+    monkeypatch.setattr(analysis, "DIVERGED_E_RAD", 0.0)
+    out = tmp_path / "one"
+    code = cli.main(["run", "g1_learn.toml", "--stop", "0.5", "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 1, err
+    assert "wmr-cosim: run diverged: |e" in err and "above 0 rad" in err
+    assert json.loads((out / "summary.json").read_text())["status"] == "diverged"

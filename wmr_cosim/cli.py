@@ -408,8 +408,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "A name that is not a file is looked up among the shipped scenarios (example.toml, "
                                    "g1_learn.toml, paper/g1.toml, ...). Results go to a folder: signals.npy (written "
                                    "as the run goes), signals.csv, scenario.json, logs/, summary.json. Exit codes: "
-                                   "0 ok, 1 the run failed (an FMU error, a non-finite value), 2 bad input, "
-                                   "130 interrupted.")
+                                   "0 ok, 1 the run failed (an FMU error, a non-finite value, or a run of a protocol that "
+                                   "diverged), 2 bad input, 130 interrupted.")
     r.add_argument("scenario", type=scenario_path, nargs="?",
                    help="scenario file (.toml), SSP 1.0 archive (.ssp) or one FMU (.fmu)")
     r.add_argument("--out", type=Path, default=None, metavar="DIR", help="results folder (default results/<scenario>)")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import json
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -97,6 +98,12 @@ def judge_run(res: execution.RunResult) -> execution.RunResult:
     reason = divergence(sig)
     if reason is not None:
         res.status, res.message = "diverged", reason
+        summary = res.out_dir / "summary.json"     # the file on disk says what the command says
+        if summary.is_file():
+            from .cosim.recording import write_json
+            doc = json.loads(summary.read_text(encoding="utf-8"))
+            doc["status"], doc["message"] = res.status, res.message
+            write_json(summary, doc)
     return res
 
 
@@ -205,7 +212,7 @@ def run_scenario(path: str | Path, out: str | Path | None = None, overrides: dic
         with ssp_plan(path, overrides, force) as plan:
             return execution.run(isolated(plan, isolate), out, progress=progress, real_time=real_time)
     plan = load_plan(path, overrides, force)
-    return execution.run(isolated(plan, isolate), out, progress=progress, real_time=real_time)
+    return judge_run(execution.run(isolated(plan, isolate), out, progress=progress, real_time=real_time))
 
 
 def isolated(plan: system.Plan, isolate: bool) -> system.Plan:
