@@ -222,6 +222,12 @@ def _is_path(fmu: str) -> bool:
     return fmu.endswith(".fmu") or "/" in fmu or os.sep in fmu
 
 
+def _flag(file: str, fld: str, v: Any) -> bool:
+    if not isinstance(v, bool):
+        raise ScenarioError(file, fld, f"{v!r}: must be true or false")
+    return v
+
+
 def _num(file: str, fld: str, v: Any, *, positive: bool = False, allow_none: bool = False) -> float:
     if v is None and allow_none:
         return math.nan
@@ -354,20 +360,11 @@ def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:
         logging = inst.get("logging", "warning")
         if logging not in LOGGING:
             raise ScenarioError(file, f"{fld}.logging", f"{logging!r}: must be one of {', '.join(LOGGING)}")
-        isolate = inst.get("isolate", False)
-        if not isinstance(isolate, bool):
-            raise ScenarioError(file, f"{fld}.isolate", f"{isolate!r}: must be true or false")
-        timeout = inst.get("step_timeout")
-        if timeout is not None:
-            timeout = _num(file, f"{fld}.step_timeout", timeout, positive=True)
-        override = inst.get("override_declared_units", False)
-        if not isinstance(override, bool):
-            raise ScenarioError(file, f"{fld}.override_declared_units", f"{override!r}: must be true or false")
-        tol = inst.get("tolerance")
-        if tol is not None:
-            tol = _num(file, f"{fld}.tolerance", tol, positive=True)
+        flag = {key: _flag(file, f"{fld}.{key}", inst.get(key, False)) for key in ("isolate", "override_declared_units")}
+        timeout, tol = (_num(file, f"{fld}.{key}", inst[key], positive=True) if inst.get(key) is not None else None
+                        for key in ("step_timeout", "tolerance"))
         sc.instances[iname] = InstanceSpec(iname, fmu, path, dict(params), dict(names), dict(units), logging,
-                                           isolate, timeout, override, tol)
+                                           flag["isolate"], timeout, flag["override_declared_units"], tol)
 
 
     exp = doc.get("experiment") or {}
