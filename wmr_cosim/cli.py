@@ -284,6 +284,10 @@ def cmd_paper(args: argparse.Namespace) -> int:
     print(f"variant {m['variant']}: {f['within_1_5']} of {f['n_cells']} RMSE cells within 1.5x of the paper, "
           f"{f['within_2_5']} within 2.5x, rms log-factor {f['rms_log_factor'] if f['rms_log_factor'] is None else round(f['rms_log_factor'], 3)}; "
           f"diverged runs: {', '.join(m['diverged_runs']) or 'none'}")
+    failing = [c for c in m.get("claims", []) if not c["holds"]]
+    print(f"claims of the paper: {len(failing)} of {len(m.get('claims', []))} fail"
+          + (f" ({', '.join(sorted({c['id'].split('.', 1)[-1] for c in failing}))}); report.md lists each with its figure"
+             if failing else ""))
     for v, mv in r["variants"].items():
         if v != m["variant"]:
             print(f"variant {v}: {mv['fidelity']['within_1_5']} cells within 1.5x; diverged runs: "
