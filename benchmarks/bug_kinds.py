@@ -239,10 +239,15 @@ def judge(bug: Bug, limit_s: float) -> str:
     return verdict
 
 
+def select(only: str | None = None, kinds: list[str] | None = None) -> list[Bug]:
+    """The bugs in files matching the regular expression ``only``, of the ``kinds`` (default: all)."""
+    return [b for b in all_bugs() if (only is None or re.search(only, b.file)) and (not kinds or b.kind in kinds)]
+
+
 def run(sample: int | None = None, seed: int = 1, only: str | None = None, limit_s: float = 600.0,
-        out: Path | None = None) -> dict:
+        out: Path | None = None, kinds: list[str] | None = None) -> dict:
     t0 = time.time()
-    bugs = [b for b in all_bugs() if only is None or re.search(only, b.file)]
+    bugs = select(only, kinds)
     equivalents = load_equivalents()
     stale = sorted(set(equivalents) - {b.name for b in bugs})
     candidates = [b for b in bugs if b.name not in equivalents]
@@ -259,7 +264,7 @@ def run(sample: int | None = None, seed: int = 1, only: str | None = None, limit
         k = by_kind.setdefault(bug.kind, {"bugs": 0, "killed": 0})
         k["bugs"] += 1
         k["killed"] += verdicts[bug.name] in ("killed", "timeout")
-    result = {"population": len(bugs), "bugs": len(drawn), "killed": killed,
+    result = {"population": len(bugs), "kinds": kinds or "all", "only": only, "bugs": len(drawn), "killed": killed,
               "kill_rate": round(killed / len(drawn), 4) if drawn else None, "by_kind": by_kind,
               "seed": seed, "equivalent": len(equivalents), "stale_equivalents": stale,
               "minutes": round((time.time() - t0) / 60, 1),
@@ -275,16 +280,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sample", type=int, default=None, metavar="N", help="plant only N bugs drawn at random")
     ap.add_argument("--seed", type=int, default=1, help="the seed of the draw")
     ap.add_argument("--only", default=None, metavar="REGEX", help="only bugs in files matching REGEX")
+    ap.add_argument("--kind", action="append", choices=("index", "time", "factor", "contains"),
+                    help="only bugs of this kind (repeatable)")
+    ap.add_argument("--out", type=Path, default=STAGE.parent / "bug_kinds.json", help="where the verdicts go")
     ap.add_argument("--list", action="store_true", help="list the bugs that would be planted, run nothing")
     ap.add_argument("--limit", type=float, default=600.0, help="seconds a test session may take (default 600)")
     args = ap.parse_args(argv)
     if args.list:
-        bugs = [b for b in all_bugs() if args.only is None or re.search(args.only, b.file)]
+        bugs = select(args.only, args.kind)
         for b in bugs:
             print(b.name)
         print(json.dumps({"population": len(bugs)}))
         return 0
-    print(json.dumps(run(args.sample, args.seed, args.only, args.limit, STAGE.parent / "bug_kinds.json")))
+    print(json.dumps(run(args.sample, args.seed, args.only, args.limit, args.out, args.kind)))
     return 0
 
 
