@@ -11,10 +11,16 @@ Generic: nothing here knows the FMUs it packs.
   ``LinearTransformation`` where the scenario gives a factor or an offset (unit conversion is left to the
   connectors' units, as SSP prescribes), and a DefaultExperiment (start, stop) whose annotations carry the
   step: Open Simulation Platform's ``osp:FixedStepAlgorithm baseStepSize`` (read by libcosim and by this
-  module) and this master's own ``algorithm``/``order``/``step``;
+  module) and this master's own ``algorithm``/``order``/``step``.  The System's annotations: OpenModelica's
+  ``oms:SimulationInformation`` with a ``FixedStepMaster`` at the step (OMSimulator takes the system's type
+  from it and aborts without one; its master is a Jacobi one), then this master's own annotation holding the
+  String parameters left out of the parameter sets (:func:`held_strings`);
 - ``resources/<instance>.ssv``: the parameter values as one SSV parameter set named ``parameters``, one
   file per component, bound to the component (names without prefix).  This is the form that libcosim and
-  ecos both apply (neither applies a system-level binding nor a prefix; measured).
+  ecos both apply (neither applies a system-level binding nor a prefix; measured).  A String parameter
+  whose value is the FMU's default is left out of it and of the connectors (OMSimulator imports neither a
+  String connector nor a String parameter); :func:`export_remarks` says what an export changes for other
+  tools.
 
 Both XML files are validated against the SSP 1.0 schemas before the archive is written.
 
@@ -57,6 +63,15 @@ OSP_NS = "http://opensimulationplatform.com/SSP/OSPAnnotations"
 #: This master's annotation: the step, the algorithm and the order of a Gauss-Seidel run.
 OWN_TYPE = "org.wmr-cosim.experiment"
 OWN_NS = "https://wmr-cosim.invalid/ssp/experiment"
+#: OMSimulator's annotation on ``ssd:System``: it takes a system's type (here its fixed-step co-simulation
+#: master ``oms-ma``, a Jacobi master) and step only from it, and aborts without one.  It matches the
+#: prefixes literally (``ssc:Annotation``, ``oms:Annotations``, ``oms:FixedStepMaster``) and reads only the
+#: first annotation of the system: this one is written first, under the prefix ``oms``.
+OMS_TYPE = "org.openmodelica"
+OMS_NS = "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd"
+#: This master's annotation on ``ssd:System`` holding the String parameters left out of the parameter sets
+#: (see :func:`held_strings`), so that importing the archive here loses none of them.
+OWN_PARAMETERS_TYPE = "org.wmr-cosim.parameters"
 #: The name of the parameter set written (one .ssv per component, all with this set name: ecos applies a
 #: parameter set by name, ``init(parameter_set="parameters")``; libcosim and this master apply them all).
 PARAMETER_SET = "parameters"
@@ -159,10 +174,14 @@ def export_ssp(plan: Plan, out: str | os.PathLike, name: str | None = None) -> P
     name = name or Path(sc.file).stem or "system"
     resources = _resource_names(plan)
     conns, params = _connectors(plan)
+    held = held_strings(plan)
+    params = [p for p in params if not any(p[0] == i and p[1] is v for i, v, _ in held)]
+    for inst, var, _ in held:  # (a String can be neither connected nor recorded: the connector is the parameter's)
+        conns[inst].pop(var.name, None)
     tmp = Path(tempfile.mkdtemp(prefix="wmr-cosim-ssp-"))
     try:
         ssd_path = tmp / "SystemStructure.ssd"
-        _write_ssd(plan, name, resources, conns, {i for i, _, _ in params}, ssd_path)
+        _write_ssd(plan, name, resources, conns, {i for i, _, _ in params}, held, ssd_path)
         validate_xml(ssd_path.read_bytes(), "ssd", f"{out}: SystemStructure.ssd (as written)")
         ssvs = _write_ssvs(plan, params, tmp, out)
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -180,6 +199,45 @@ def export_ssp(plan: Plan, out: str | os.PathLike, name: str | None = None) -> P
         os.replace(part, out)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+    return out
+
+
+def held_strings(plan: Plan) -> list[tuple[str, Any, str]]:
+    """The String parameters that the export leaves out of the parameter sets and the connectors, as
+    (instance, Variable, value): the scalar ones whose value is the FMU's own start value.
+
+    OMSimulator (2.1) imports neither a String connector nor an ``ssv:String`` parameter (it logs an error
+    for each); left out, every tool runs such a parameter alike (at the FMU's default), and this master reads
+    it back from its own annotation (:data:`OWN_PARAMETERS_TYPE`).  A String parameter set to any other value
+    stays in the parameter set, where libcosim, ecos and this master apply it (see :func:`export_remarks`)."""
+    return [(n, var, value) for n, ip in plan.instances.items() for var, value in ip.parameters
+            if var.type == "String" and not var.shape and value == var.start]
+
+
+def export_remarks(plan: Plan) -> list[tuple[str, str]]:
+    """What an export of ``plan`` changes for other tools, as (kind, one line); kind 'warning' or 'note'.
+
+    - each String parameter: left out of the parameter set (its value is the FMU's default) or kept there
+      (OMSimulator cannot set it, and runs with the FMU's default);
+    - a Gauss-Seidel scenario: OMSimulator's fixed-step master is a Jacobi master."""
+    out: list[tuple[str, str]] = []
+    held = {(i, v.name) for i, v, _ in held_strings(plan)}
+    for n, ip in plan.instances.items():
+        for var, value in ip.parameters:
+            if var.type != "String":
+                continue
+            what = f"{n}.{var.name} = {value!r} (String)"
+            if (n, var.name) in held:
+                out.append(("warning", f"{what} is left out of the parameter set and the connectors (OMSimulator "
+                                       f"cannot import a String); it is the FMU's default, so every tool runs "
+                                       f"with it, and this master reads it back from its own annotation"))
+            else:
+                out.append(("warning", f"{what} stays in the parameter set (libcosim, ecos and this master apply "
+                                       f"it); OMSimulator cannot set a String parameter: it logs an error and "
+                                       f"runs with the FMU's default {var.start!r}"))
+    if plan.scenario.algorithm == "gauss-seidel":
+        out.append(("note", "OMSimulator runs the archive as Jacobi (its fixed-step master, oms-ma): its results "
+                            "equal this master's run with algorithm = \"jacobi\", not this Gauss-Seidel run"))
     return out
 
 
@@ -201,8 +259,10 @@ def _connectors(plan: Plan) -> tuple[dict[str, dict[str, tuple[str, Any]]], list
     return conns, params
 
 
-def _write_ssd(plan: Plan, name: str, resources: dict[Path, str], conns, with_params: set[str], path: Path) -> None:
-    """SystemStructure.ssd: components with their connectors, connections, units, default experiment."""
+def _write_ssd(plan: Plan, name: str, resources: dict[Path, str], conns, with_params: set[str],
+               held: list[tuple[str, Any, str]], path: Path) -> None:
+    """SystemStructure.ssd: components with their connectors, connections, the system's annotations
+    (OMSimulator's master and step, then the String parameters held back), units, default experiment."""
     from pyssp_standard.common_content_ssc import TypeBoolean, TypeInteger, TypeReal, TypeString
     from pyssp_standard.ssd import Component, Connector, ParameterBinding, System
     from pyssp_standard.unit import BaseUnit, Unit
@@ -232,10 +292,31 @@ def _write_ssd(plan: Plan, name: str, resources: dict[Path, str], conns, with_pa
             system.connections.append(_LinearConnection(
                 start_element=c.src, start_connector=c.src_var.name, end_element=c.dst,
                 end_connector=c.dst_var.name, factor=c.spec.factor, offset=c.spec.offset))
+        for a in _system_annotations(plan.scenario, held):
+            system.annotations.add_annotation(a)
         ssd.system = system
         ssd.default_experiment = _default_experiment(plan.scenario)
         for u in units.values():
             ssd.units.add_unit(Unit(u.name, base_unit=BaseUnit(_unit_base(u))))
+
+
+def _system_annotations(sc: Scenario, held: list[tuple[str, Any, str]]) -> list:
+    """The System's annotations: OMSimulator's first (the only one it reads), with its fixed-step master
+    (``oms-ma``, Jacobi) at the scenario's step [s]; then, if any, the String parameters held back from the
+    parameter sets (:func:`held_strings`), for this master."""
+    from lxml import etree as ET
+    from pyssp_standard.common_content_ssc import Annotation
+
+    oms = Annotation(OMS_TYPE)
+    info = ET.SubElement(ET.SubElement(oms.root, f"{{{OMS_NS}}}Annotations"), f"{{{OMS_NS}}}SimulationInformation")
+    ET.SubElement(info, f"{{{OMS_NS}}}FixedStepMaster", description="oms-ma", stepSize=_fmt(sc.step))
+    out = [oms]
+    if held:
+        own = Annotation(OWN_PARAMETERS_TYPE)
+        for inst, var, value in held:
+            ET.SubElement(own.root, f"{{{OWN_NS}}}String", component=inst, name=var.name, value=str(value))
+        out.append(own)
+    return out
 
 
 def _default_experiment(sc: Scenario):
@@ -303,8 +384,9 @@ def _ordered_ssd():
             if units is not None and de is not None:
                 de.addprevious(units)
             # the annotations' namespaces declared once, at the root: libcosim takes a namespace
-            # declaration on its osp:Algorithm element for an algorithm and fails
-            ET.cleanup_namespaces(self.root, top_nsmap={"osp": OSP_NS, "wmr": OWN_NS})
+            # declaration on its osp:Algorithm element for an algorithm and fails; OMSimulator finds its
+            # elements by the prefix "oms" (as it finds every SSP element by its usual prefix)
+            ET.cleanup_namespaces(self.root, top_nsmap={"osp": OSP_NS, "wmr": OWN_NS, "oms": OMS_NS})
 
     return _SSD
 
@@ -562,6 +644,18 @@ def _document(root, system, path: Path, arch: Path, step: float | None, stop: fl
     and the one resolver check both."""
     where = str(path)
     instances, connectors, comp_params = _components(system, path, arch)
+    # String parameters this module's export held back from the parameter sets (the bindings come after)
+    for a in system.findall("ssd:Annotations/ssc:Annotation", NS):
+        if a.get("type") == OWN_PARAMETERS_TYPE:
+            for e in a.iter(f"{{{OWN_NS}}}String"):
+                inst, pname, value = e.get("component"), e.get("name"), e.get("value")
+                if inst not in instances:
+                    raise ScenarioError(where, f"Annotation {OWN_PARAMETERS_TYPE}",
+                                        f"String parameter {pname!r}: component {inst!r} is not in the system")
+                if not pname or value is None:
+                    raise ScenarioError(where, f"Annotation {OWN_PARAMETERS_TYPE}",
+                                        f"a String parameter of {inst} without a name or a value")
+                instances[inst]["parameters"][pname] = value
     # parameters: system-level bindings address "component.variable"; component-level ones the variable
     for pname, value in _bindings(system, arch, where):
         inst, dot, var = pname.partition(".")

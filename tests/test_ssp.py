@@ -75,7 +75,13 @@ def test_export_writes_a_valid_ssp_archive(g1_ssp, built_fmus):
     assert pset.get("name") == "parameters"
     values = {p.get("name"): p[0] for p in pset.findall("ssv:Parameters/ssv:Parameter", NS)}
     assert values["goal_x"].get("value") == "2.0" and ET.QName(values["goal_x"]).localname == "Real"
-    assert ET.QName(values["adapt"]).localname == "Boolean" and values["task"].get("value") == "goal"
+    assert ET.QName(values["adapt"]).localname == "Boolean"
+    # task = "goal" (a String, the FMU's default) is held back from the set and the connectors, which
+    # OMSimulator cannot import with a String in them, into our own annotation on the system
+    assert "task" not in values
+    assert "task" not in {c.get("name") for c in comps["controller"].findall("ssd:Connectors/ssd:Connector", NS)}
+    held = root.findall("ssd:System/ssd:Annotations/ssc:Annotation[@type='org.wmr-cosim.parameters']/*", NS)
+    assert [(e.get("component"), e.get("name"), e.get("value")) for e in held] == [("controller", "task", "goal")]
     binding = comps["controller"].find("ssd:ParameterBindings/ssd:ParameterBinding", NS)
     assert binding.get("source") == "resources/controller.ssv"
 
@@ -133,6 +139,73 @@ def test_cli_export_check_and_run(g1_ssp, tmp_path, built_fmus):
     assert np.load(tmp_path / "res" / "signals.npy")["time"][-1] == 1.0
     p = _cli("export-ssp", scen, "--out", tmp_path / "x.zip")
     assert p.returncode == 2 and "ends in .ssp" in p.stderr
+
+
+def _run_signals(plan, out: Path) -> np.ndarray:
+    res = execution.run(plan, out, progress=False)
+    assert res.status == "ok", res.message
+    return np.load(out / "signals.npy")
+
+
+@pytest.mark.parametrize("task", ["goal", "line"])
+def test_a_string_parameter_reaches_our_master_through_the_archive(task, tmp_path, built_fmus):
+    """OMSimulator imports neither a String connector nor a String parameter.  At the FMU's default ("goal",
+    the controller's task in scenarios/g1_learn.toml) it is held back from the parameter set and the
+    connectors into our own annotation; at another value ("line") it stays in the set, where libcosim and
+    ecos apply it too.  Either way our run of the archive is our run of the scenario."""
+    from wmr_cosim.components.paper import task_controller
+
+    params = {"goal": {"task": "goal"}, "line": task_controller("LINE")}[task]
+    extra = "[experiment]\nstop = 1.0\n[instances.controller.parameters]\n" + "".join(
+        f"{k} = {v!r}\n".replace("'", '"') for k, v in params.items())
+    path = g1_with_paths(tmp_path, built_fmus, extra)
+    plan = _plan(path, None)
+    assert dict((v.name, x) for v, x in plan.instances["controller"].parameters)["task"] == task
+    out = export_ssp(plan, tmp_path / "s.ssp")
+    with zipfile.ZipFile(out) as zf:
+        root = ET.fromstring(zf.read("SystemStructure.ssd"))
+        ssv = ET.fromstring(zf.read("resources/controller.ssv"))
+    in_set = {p.get("name"): p[0] for p in ssv.findall("ssv:Parameters/ssv:Parameter", NS)}
+    connectors = {c.get("name") for c in root.findall("ssd:System/ssd:Elements/ssd:Component[@name='controller']"
+                                                       "/ssd:Connectors/ssd:Connector", NS)}
+    held = root.findall("ssd:System/ssd:Annotations/ssc:Annotation[@type='org.wmr-cosim.parameters']/*", NS)
+    if task == "goal":
+        assert "task" not in in_set and "task" not in connectors
+        assert [(e.get("component"), e.get("name"), e.get("value")) for e in held] == [("controller", "task", "goal")]
+    else:
+        assert in_set["task"].get("value") == "line" and ET.QName(in_set["task"]).localname == "String"
+        assert "task" in connectors and held == []
+    arch = load_ssp(out)
+    try:
+        assert arch.scenario.instances["controller"].parameters["task"] == task
+        from_ssp = _run_signals(system.resolve(arch.scenario), tmp_path / "from_ssp")
+    finally:
+        arch.cleanup()
+    from_toml = _run_signals(_plan(path, None), tmp_path / "from_toml")
+    for name in from_toml.dtype.names:
+        assert np.array_equal(from_ssp[name], from_toml[name]), name
+    if task == "line":  # (the value matters: the default task gives another run)
+        default = _run_signals(_plan(g1_with_paths(tmp_path, built_fmus, "[experiment]\nstop = 1.0\n", name="d.toml"),
+                                     None), tmp_path / "default")
+        assert not np.array_equal(default["plant.x_A"], from_toml["plant.x_A"])
+
+
+def test_export_ssp_names_the_string_parameter_and_omsimulators_jacobi_master(tmp_path, built_fmus, capsys):
+    from wmr_cosim.runner import export_ssp as export_file
+
+    export_file(g1_with_paths(tmp_path, built_fmus), tmp_path / "g1.ssp")      # Gauss-Seidel, task = "goal"
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 2, err
+    assert err[0].startswith("wmr-cosim: warning: controller.task = 'goal' (String) is left out of the parameter set")
+    assert "the FMU's default" in err[0]
+    assert err[1].startswith("wmr-cosim: note: OMSimulator runs the archive as Jacobi") and "gauss-seidel" in err[1].lower()
+    line = g1_with_paths(tmp_path, built_fmus, '[experiment]\nalgorithm = "jacobi"\n[instances.controller.parameters]\n'
+                         'task = "line"\nb1 = 5.0\nline_b2 = 15.0\n', name="line.toml")
+    export_file(line, tmp_path / "line.ssp")
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1, err                                                   # Jacobi: no note
+    assert err[0].startswith("wmr-cosim: warning: controller.task = 'line' (String) stays in the parameter set")
+    assert "OMSimulator cannot set a String parameter" in err[0] and "default 'goal'" in err[0]
 
 
 def _pyssp_foreign_archive(path: Path, built_fmus) -> Path:

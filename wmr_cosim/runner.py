@@ -186,8 +186,13 @@ def ssp_plan(path: str | Path, overrides: dict[str, Any] | None = None, force: b
 
 
 def export_ssp(path: str | Path, out: str | Path, overrides: dict[str, Any] | None = None) -> Path:
-    """Write the scenario file ``path`` as an SSP 1.0 archive ``out``."""
-    return ssp.export_ssp(load_plan(path, overrides), out)
+    """Write the scenario file ``path`` as an SSP 1.0 archive ``out``; what the export changes for other
+    tools (String parameters, OMSimulator's Jacobi master) goes to stderr, one line each."""
+    plan = load_plan(path, overrides)
+    written = ssp.export_ssp(plan, out)
+    for kind, text in ssp.export_remarks(plan):
+        print(f"wmr-cosim: {kind}: {text}", file=sys.stderr)
+    return written
 
 
 def default_out(path: str | Path) -> Path:
