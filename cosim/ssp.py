@@ -28,7 +28,8 @@ Both XML files are validated against the SSP 1.0 schemas before the archive is w
 master's :class:`~.scenario.Scenario` (so :func:`.system.resolve` checks it against the FMUs and
 :func:`.execution.run` runs it): the archive is checked for unsafe entries before anything is extracted,
 the SSD is validated against the schema, components must be FMUs inside the archive, parameter bindings
-(inline or in .ssv files, on the system or on components, with or without prefix) become parameters,
+(inline or in .ssv files, on the system or on components, with or without prefix) become parameters, and
+so do the String parameters that this module's export held back into its own annotation on the system,
 connections (with their LinearTransformation) become connections, connector units become declared units,
 the DefaultExperiment gives start and stop, the step comes from the annotations or from the FMUs'
 default experiments (or ``step=``).  Every problem is a one-line :class:`~.errors.ScenarioError`.

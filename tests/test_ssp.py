@@ -317,11 +317,15 @@ def bad_archives(g1_ssp, built_fmus, tmp_path_factory):
         "no system structure": (_rewrite(g1_ssp, d / "nossd.ssp", drop=("SystemStructure.ssd",)),
                                 "no SystemStructure.ssd"),
         "not a zip": ((d / "text.ssp").resolve(), "not a zip archive"),
+        "held String of no component": (_rewrite(g1_ssp, d / "held.ssp", edit=lambda t: t.replace(
+            'component="controller" name="task"', 'component="ctrl" name="task"', 1)),
+            "String parameter 'task': component 'ctrl' is not in the system"),
     }
 
 
 @pytest.mark.parametrize("case", ["missing resource", "unknown connector", "SSP 2.0 namespace",
-                                  "model exchange FMU", "not valid", "no system structure", "not a zip"])
+                                  "model exchange FMU", "not valid", "no system structure", "not a zip",
+                                  "held String of no component"])
 def test_a_bad_or_foreign_archive_gives_one_line(bad_archives, case, tmp_path):
     path, expected = bad_archives[case]
     if case == "not a zip":
