@@ -90,6 +90,7 @@ def test_omsimulator_runs_the_exported_g1_system_as_our_jacobi_run(omsimulator, 
     wall = time.perf_counter() - t0
     assert p.returncode == 0, (p.stdout + p.stderr)[-3000:]
     assert _errors(p) == [], p.stdout[-3000:]
+    assert re.search(r"^info:\s+0 errors$", p.stdout, re.MULTILINE), p.stdout[-3000:]  # its own count
     row = _last_row(tmp_path / "r.csv")
     assert row["time"] == 50.0
     oms = np.array([row[f"g1_learn.g1_learn.plant.{v}"] for v in POSE])
