@@ -57,6 +57,7 @@ class Bug:
     file: str
     kind: str
     line: int
+    col: int
     start: int
     end: int
     old: str
@@ -64,7 +65,7 @@ class Bug:
 
     @property
     def name(self) -> str:
-        return f"{self.file}:{self.line}:{self.kind}:{self.old} -> {self.new}"
+        return f"{self.file}:{self.line}:{self.col}:{self.kind}:{self.old} -> {self.new}"
 
     def apply(self, text: str) -> str:
         if text[self.start:self.end] != self.old:
@@ -139,7 +140,7 @@ def bugs_of(path: Path, rel: str) -> list[Bug]:
                 a, b, old = span(sl)
                 for new in (value - 1, value + 1):
                     if (new >= 0) == (value >= 0) or new == 0:     # an index stays from its end or its start
-                        out.append(Bug(rel, "index", node.lineno, a, b, old, str(new)))
+                        out.append(Bug(rel, "index", node.lineno, a - lines[node.lineno], a, b, old, str(new)))
         elif isinstance(node, ast.BinOp) and isinstance(node.op, ast.Mult) and id(node) not in inner:
             fs = _factors(node)          # (the outermost product of a chain makes the bugs of the whole chain)
             a, b, old = span(node)
@@ -150,12 +151,13 @@ def bugs_of(path: Path, rel: str) -> list[Bug]:
                 i = 0 if _is_step(fs[1]) else 1
                 if not isinstance(fs[i], ast.Constant):
                     for sign in ("+", "-"):
-                        out.append(Bug(rel, "time", node.lineno, a, b, old, f"({src[i]} {sign} 1) * {src[1 - i]}"))
+                        out.append(Bug(rel, "time", node.lineno, a - lines[node.lineno], a, b, old,
+                                       f"({src[i]} {sign} 1) * {src[1 - i]}"))
             for i, f in enumerate(fs):
                 if isinstance(f, ast.Constant) and f.value in (1, -1):
                     continue             # dropping a factor of one changes nothing (or only the sign: mutmut's)
                 rest = [t if " " not in t or t.startswith("(") else f"({t})" for j, t in enumerate(src) if j != i]
-                out.append(Bug(rel, "factor", node.lineno, a, b, old, " * ".join(rest)))  # type: ignore[arg-type]
+                out.append(Bug(rel, "factor", node.lineno, a - lines[node.lineno], a, b, old, " * ".join(rest)))  # type: ignore[arg-type]
         elif isinstance(node, ast.Compare) and len(node.ops) == 1 and isinstance(node.ops[0], (ast.In, ast.NotIn)):
             seq = node.comparators[0]
             if isinstance(seq, (ast.Tuple, ast.List, ast.Set)) and len(seq.elts) >= 2:
@@ -164,7 +166,8 @@ def bugs_of(path: Path, rel: str) -> list[Bug]:
                 first = ast.get_source_segment(text, seq.elts[0])
                 if left is not None and first is not None:
                     op = "==" if isinstance(node.ops[0], ast.In) else "!="
-                    out.append(Bug(rel, "contains", node.lineno, a, b, old, f"{left} {op} {first}"))
+                    out.append(Bug(rel, "contains", node.lineno, a - lines[node.lineno], a, b, old,
+                                       f"{left} {op} {first}"))
     return sorted(set(out), key=lambda bug: (bug.file, bug.start, bug.kind, bug.new))
 
 

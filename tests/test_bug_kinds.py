@@ -63,3 +63,10 @@ def test_every_bug_of_the_core_compiles():
 def test_the_tests_of_a_module_are_found_by_its_imports():
     tests = bug_kinds.tests_of("cosim/units.py")
     assert "tests/test_units.py" in tests and "tests/test_docs.py" not in tests
+
+
+def test_every_bug_has_a_name_of_its_own():
+    """Two bugs on one line (the same expression twice) are told apart by their column: the verdicts are
+    kept by name."""
+    names = [b.name for b in bug_kinds.all_bugs()]
+    assert len(names) == len(set(names))
