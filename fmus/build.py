@@ -3,9 +3,9 @@ WmrSensor3.fmu and WmrController3.fmu with pythonfmu3 (FMI 3.0), rebuilding only
 
 FMI 3.0: the same slave script, bundled in the package as ``slave_<component>.py`` with its ``fmi_base``
 import pointing at ``fmi3_base`` (the FMI 3.0 base with the same interface), and a two-line main script
-``class WmrPlant3(WmrPlant, Fmi3Slave)``; no C loader (see docs/hosts.md: FMI 3.0 FMUs need a Python host).
+``class WmrPlant3(WmrPlant, Fmi3Slave)``; the FMI 3.0 loader (below) in front of pythonfmu3's binary.
 Its package is ``wmrfmu_<component>3_<hash8>``, the hash over the slave script, fmi3_base.py, fmi_decl.py,
-the components, this script and the pythonfmu3 version.
+the components, this script, the loader's sources, the Python and C compiler and the pythonfmu3 version.
 
 Each FMU carries, in its resources, a copy of the components package (with paper_results.json) plus
 fmus/fmi_base.py under a package name unique to the FMU and to the source version,
@@ -22,12 +22,16 @@ It is stored beside the FMU (``WmrPlant.fmu.sha256``); an FMU is rebuilt only wh
 its hash differs.  pythonfmu's builder runs in a child process (it imports the slave script and leaves
 modules and sys.path entries behind).
 
-Loader: pythonfmu's binary takes the Python C API from the process that loads it, so alone it runs only in
-Python hosts.  Each FMU's ``binaries/linux64/<model>.so`` is instead our loader (fmus/pyloader/, compiled
-here with the system C compiler): it uses the interpreter already in the process, or loads the libpython
-this build ran on (recorded in the loader; the environment variable :data:`LIBPYTHON_ENV` names another),
-and forwards every FMI call to pythonfmu's binary, shipped beside it as ``libpythonfmu-export.so``.  The
-model description records the Python version, library and variable in its VendorAnnotations.
+Loader: pythonfmu's and pythonfmu3's binaries take the Python C API from the process that loads them, so
+alone they run only in Python hosts.  Each FMU's ``binaries/linux64/<model>.so`` (FMI 3.0:
+``binaries/x86_64-linux/<model>.so``) is instead our loader (fmus/pyloader/, compiled here with the system
+C compiler; wmr_pyloader.c for FMI 2.0, wmr_pyloader3.c for FMI 3.0, the shared part in wmr_pyfinder.h):
+it uses the interpreter already in the process, or loads the libpython this build ran on (recorded in the
+loader; the environment variable :data:`LIBPYTHON_ENV` names another), and forwards every FMI call to
+pythonfmu's binary, shipped beside it as ``libpythonfmu-export.so``, guarding against that binary's
+use-after-free at exit and its double release after a Fatal status (see wmr_pyfinder.h).  The model
+description records the Python version, library and variable (FMI 2.0: VendorAnnotations; FMI 3.0: an
+Annotation of type ``wmr-cosim``).
 
 Platforms: only the binaries built and tested here ship (``binaries/linux64``; FMI 3.0
 ``binaries/x86_64-linux``); the stock Windows DLLs pythonfmu and pythonfmu3 add are removed.
@@ -62,8 +66,11 @@ FMI_VERSION: dict[str, int] = {**{m: 2 for m in SLAVES}, **{m: 3 for m in SLAVES
 #: flags); never --interpolate-inputs (it declares a capability pythonfmu does not implement).
 BUILD_OPTIONS = ("--handle-state", "--serialize-state")
 _IMPORT_RE = re.compile(r"^\s*(from|import)\s+wmr_cosim\b", re.MULTILINE)
-#: The loader's C source and the name pythonfmu's own binary gets beside it.
-LOADER_SOURCE = _HERE / "pyloader" / "wmr_pyloader.c"
+#: The loader's C sources by FMI version, the part both include, and the name pythonfmu's own binary gets
+#: beside the loader.
+LOADER_SOURCES = {2: _HERE / "pyloader" / "wmr_pyloader.c", 3: _HERE / "pyloader" / "wmr_pyloader3.c"}
+LOADER_SOURCE = LOADER_SOURCES[2]
+LOADER_HEADER = _HERE / "pyloader" / "wmr_pyfinder.h"
 REAL_BINARY = "libpythonfmu-export.so"
 #: The environment variable that points the FMUs at another libpython (a path to libpython3.X.so).
 LIBPYTHON_ENV = "WMR_FMU_LIBPYTHON"
@@ -177,12 +184,12 @@ def _compiler_id(cc: str) -> str:
     return cc + "\n" + (out.splitlines()[0] if out else "")
 
 
-def _fmi_headers() -> Path:
-    """The FMI 2.0 headers FMPy ships (fmi2Functions.h and the files it includes)."""
+def _fmi_headers(fmi: int = 2) -> Path:
+    """The FMI 2.0 or 3.0 headers FMPy ships (fmi2Functions.h / fmi3Functions.h and the files they include)."""
     import fmpy
     d = Path(fmpy.__file__).parent / "c-code"
-    if not (d / "fmi2Functions.h").is_file():
-        raise BuildError(f"{d}: FMPy's FMI 2.0 headers not found (fmpy >= 0.3.20 ships them)")
+    if not (d / f"fmi{fmi}Functions.h").is_file():
+        raise BuildError(f"{d}: FMPy's FMI {fmi}.0 headers not found (fmpy >= 0.3.20 ships them)")
     return d
 
 
@@ -190,34 +197,47 @@ def _c_string(text: str) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def compile_loader(dest: Path, py: PythonRecord | None = None) -> Path:
-    """Compile the loader into ``dest`` (a shared library); returns its path."""
+def compile_loader(dest: Path, py: PythonRecord | None = None, fmi: int = 2) -> Path:
+    """Compile the loader of FMI version ``fmi`` into ``dest`` (a shared library); returns its path."""
     py = py or build_python()
     cc = c_compiler()
-    cmd = [cc, "-shared", "-fPIC", "-O2", "-Wall", f"-I{_fmi_headers()}",
+    source = LOADER_SOURCES[fmi]
+    cmd = [cc, "-shared", "-fPIC", "-O2", "-Wall", f"-I{_fmi_headers(fmi)}",
            f"-DWMR_PY_LIBRARY={_c_string(py.library)}", f"-DWMR_PY_HOME={_c_string(py.home)}",
            f"-DWMR_PY_VERSION={_c_string(py.version)}", f"-DWMR_PY_ENV={_c_string(LIBPYTHON_ENV)}",
-           "-o", str(dest), str(LOADER_SOURCE), "-ldl", "-lpthread"]
+           "-o", str(dest), str(source), "-ldl", "-lpthread"]
     p = subprocess.run(cmd, capture_output=True, text=True)
     if p.returncode != 0 or not dest.is_file():
         tail = "\n".join((p.stdout + p.stderr).strip().splitlines()[-10:])
-        raise BuildError(f"compiling the FMU loader {LOADER_SOURCE.name} with {cc} failed (exit {p.returncode}):\n{tail}")
+        raise BuildError(f"compiling the FMU loader {source.name} with {cc} failed (exit {p.returncode}):\n{tail}")
     return dest
 
 
-def _vendor_annotation(py: PythonRecord) -> str:
+def _python_element(py: PythonRecord, platform: str) -> str:
     from xml.sax.saxutils import quoteattr
+    return (f'<Python version={quoteattr(py.version)} library={quoteattr(py.library)} '
+            f'override={quoteattr(LIBPYTHON_ENV)} platforms={quoteattr(platform)} description='
+            f'{quoteattr(f"Runs on Python {py.version} (its shared library libpython{py.version}.so, found at the path recorded here) or on the interpreter of a Python host; set the environment variable {LIBPYTHON_ENV} to the path of another libpython3.X.so to use it")}/>')
+
+
+def _vendor_annotation(py: PythonRecord) -> str:
     return (f'\t<VendorAnnotations>\n\t\t<Tool name="wmr-cosim">\n'
-            f'\t\t\t<Python version={quoteattr(py.version)} library={quoteattr(py.library)} '
-            f'override={quoteattr(LIBPYTHON_ENV)} platforms="linux64" description='
-            f'{quoteattr(f"Runs on Python {py.version} (its shared library libpython{py.version}.so, found at the path recorded here) or on the interpreter of a Python host; set the environment variable {LIBPYTHON_ENV} to the path of another libpython3.X.so to use it")}/>\n'
+            f'\t\t\t{_python_element(py, "linux64")}\n'
             f'\t\t</Tool>\n\t</VendorAnnotations>\n')
 
 
-def install_loader(fmu: Path, model: str, loader: Path, py: PythonRecord) -> None:
-    """Rewrite ``fmu`` in place: pythonfmu's binaries/linux64/<model>.so becomes ``libpythonfmu-export.so``,
-    the loader takes its name, and the model description gets the loader's VendorAnnotations."""
-    ours = f"binaries/linux64/{model}.so"
+def _annotation3(py: PythonRecord) -> str:
+    """The FMI 3.0 form (an Annotation of the model description's last element, Annotations)."""
+    return (f'\t<Annotations>\n\t\t<Annotation type="wmr-cosim">\n'
+            f'\t\t\t{_python_element(py, "x86_64-linux")}\n'
+            f'\t\t</Annotation>\n\t</Annotations>\n')
+
+
+def install_loader(fmu: Path, model: str, loader: Path, py: PythonRecord, fmi: int = 2) -> None:
+    """Rewrite ``fmu`` in place: pythonfmu's binaries/linux64/<model>.so (FMI 3.0: pythonfmu3's
+    binaries/x86_64-linux/<model>.so) becomes ``libpythonfmu-export.so``, the loader takes its name, and
+    the model description records the loader's Python (VendorAnnotations; FMI 3.0: Annotations)."""
+    ours = f"binaries/{SHIPPED_PLATFORM[fmi]}/{model}.so"
     part = fmu.with_name(fmu.name + ".part")
     with zipfile.ZipFile(fmu) as src, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as dst:
         names = src.namelist()
@@ -226,15 +246,21 @@ def install_loader(fmu: Path, model: str, loader: Path, py: PythonRecord) -> Non
         for info in src.infolist():
             data = src.read(info)
             if info.filename == ours:
-                dst.writestr(f"binaries/linux64/{REAL_BINARY}", data)
+                dst.writestr(f"binaries/{SHIPPED_PLATFORM[fmi]}/{REAL_BINARY}", data)
                 dst.write(loader, ours)
                 continue
             if info.filename == "modelDescription.xml":
                 text = data.decode("utf-8")
-                if "<VendorAnnotations" in text or "<ModelVariables" not in text:
-                    raise BuildError(f"{fmu}: unexpected model description (VendorAnnotations already there)")
-                at = text.rfind("\n", 0, text.index("<ModelVariables")) + 1  # schema order: just before
-                text = text[:at] + _vendor_annotation(py) + text[at:]
+                if fmi == 3:
+                    if "<Annotations" in text or text.count("</ModelStructure>") != 1:
+                        raise BuildError(f"{fmu}: unexpected model description (Annotations already there)")
+                    at = text.index("</ModelStructure>") + len("</ModelStructure>\n")  # schema order: last
+                    text = text[:at] + _annotation3(py) + text[at:]
+                else:
+                    if "<VendorAnnotations" in text or "<ModelVariables" not in text:
+                        raise BuildError(f"{fmu}: unexpected model description (VendorAnnotations already there)")
+                    at = text.rfind("\n", 0, text.index("<ModelVariables")) + 1  # schema order: just before
+                    text = text[:at] + _vendor_annotation(py) + text[at:]
                 data = text.encode("utf-8")
             dst.writestr(info.filename, data)
     os.replace(part, fmu)
@@ -287,6 +313,7 @@ def plan(model: str) -> Plan:
     add("fmi_base.py", (_HERE / "fmi_base.py").read_bytes())
     add("fmi_decl.py", (_HERE / "fmi_decl.py").read_bytes())
     add("loader", LOADER_SOURCE.read_bytes())
+    add("loader header", LOADER_HEADER.read_bytes())
     add("python", repr(build_python()).encode())
     add("compiler", _compiler_identity().encode())
     for f in _component_files():
@@ -303,6 +330,8 @@ def _plan3(model: str) -> Plan:
                         ("build.py", Path(__file__).read_bytes()), ("slave", script.read_bytes()),
                         ("fmi3_base.py", (_HERE / "fmi3_base.py").read_bytes()),
                         ("fmi_decl.py", (_HERE / "fmi_decl.py").read_bytes()),
+                        ("loader", LOADER_SOURCES[3].read_bytes()), ("loader header", LOADER_HEADER.read_bytes()),
+                        ("python", repr(build_python()).encode()), ("compiler", _compiler_identity().encode()),
                         *((f"components/{f.name}", f.read_bytes()) for f in _component_files())):
         h.update(f"{label}\0{len(data)}\0".encode())
         h.update(data)
@@ -383,11 +412,12 @@ def _check_archive(fmu: Path, p: Plan) -> None:
         need = {"modelDescription.xml", f"resources/{p.module}.py", f"resources/{p.package}/fmi3_base.py",
                 f"resources/{p.package}/fmi_decl.py", f"resources/{p.package}/{p.script.name}",
                 f"resources/{p.package}/paper_results.json", "resources/slavemodule.txt",
-                f"binaries/x86_64-linux/{p.model}.so"}
+                f"binaries/x86_64-linux/{p.model}.so", f"binaries/x86_64-linux/{REAL_BINARY}"}
         missing = sorted(need - names)
         if missing:
             raise BuildError(f"{fmu}: entries missing from the built FMU: {', '.join(missing)}")
-        if f'modelName="{p.model}"' not in md or 'canGetAndSetFMUState="true"' not in md:
+        if (f'modelName="{p.model}"' not in md or 'canGetAndSetFMUState="true"' not in md
+                or f'override="{LIBPYTHON_ENV}"' not in md):
             raise BuildError(f"{fmu}: unexpected model description (model name or state capabilities)")
         return
     need = {"modelDescription.xml", f"resources/{p.module}.py", f"resources/{p.package}/__init__.py",
@@ -440,7 +470,8 @@ def build_all(out_dir: Path | None = None, force: bool = False, models: tuple[st
     if any(p.fmi == 3 for p, _ in todo) and _pythonfmu3_version() == "not installed":
         raise BuildError("building the FMI 3.0 FMUs needs pythonfmu3: pip install pythonfmu3")
     with tempfile.TemporaryDirectory(prefix="wmr_fmu_build_") as tmp:
-        loader = compile_loader(Path(tmp) / "loader.so", py) if any(p.fmi == 2 for p, _ in todo) else None
+        loaders = {fmi: compile_loader(Path(tmp) / f"loader{fmi}.so", py, fmi)
+                   for fmi in sorted({p.fmi for p, _ in todo})}
         procs = []
         for p, fmu in todo:
             stage = Path(tmp) / p.model
@@ -459,8 +490,7 @@ def build_all(out_dir: Path | None = None, force: bool = False, models: tuple[st
                 tail = "\n".join(log.strip().splitlines()[-15:])
                 errors.append(f"{p.model}: pythonfmu build failed (exit {proc.returncode})\n{tail}")
                 continue
-            if p.fmi == 2:
-                install_loader(built, p.model, loader, py)
+            install_loader(built, p.model, loaders[p.fmi], py, p.fmi)
             ship_only_tested_binaries(built, p.fmi)
             _check_archive(built, p)
             _hash_file(fmu).unlink(missing_ok=True)  # no stale hash beside a half-replaced FMU

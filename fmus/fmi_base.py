@@ -24,6 +24,13 @@ Design (each point answers a measured behaviour of pythonfmu 0.7 under FMPy):
   one-line cause is logged first.
 * The FMU state holds every variable value and the component's own ``get_state()`` (pythonfmu's
   default state saves only the registered variables, silently dropping integrator, filter and RLS states).
+* pythonfmu 0.7 releases a reference it does not own at every instantiation (its ``findClass`` calls
+  ``Py_DECREF`` on the slave script module's dict, a borrowed reference): a script whose class defines no
+  methods of its own (nothing else holds that dict) has its module dict freed under it, and the host
+  crashes at its next garbage collection.  Every class derived from :class:`WmrSlave` holds one reference
+  to its module's dict, taken when the class is created (``__init_subclass__``); ``findClass`` executes the
+  script again at every instantiation, before that release, so each instantiation adds the reference it
+  takes away (see :data:`_HELD_MODULE_DICTS`).
 * The communication step is whatever the master gives; a step or time within 1e-9 (relative) of the
   previous step or of a whole multiple of it is snapped to it, so that the rounding of other masters
   neither recomputes discretisations nor perturbs the results.
@@ -31,6 +38,7 @@ Design (each point answers a measured behaviour of pythonfmu 0.7 under FMPy):
 from __future__ import annotations
 
 import math
+import sys
 from operator import itemgetter
 from typing import Any
 from xml.etree.ElementTree import Element, SubElement
@@ -92,6 +100,14 @@ class IntegerR(Integer):
         return node
 
 
+#: One reference to the module dict of every class derived from WmrSlave, per class created: pythonfmu
+#: 0.7's findClass re-executes the slave script (creating its class again) and then releases the module
+#: dict once, a reference it never took; without these, a script class with no methods of its own would
+#: leave that dict with no owner but its module (freed at the first instantiation, a crash at the next
+#: garbage collection).  Grows by one entry per instantiation, as pythonfmu's own leaks do.
+_HELD_MODULE_DICTS: list[dict[str, Any]] = []
+
+
 class WmrSlave(SlaveCore, Fmi2Slave):
     """Base of the project's slaves.  A subclass declares its variables with :meth:`declare` in
     ``__init__`` and implements :meth:`_build` (component from the parameters, initial outputs),
@@ -101,6 +117,12 @@ class WmrSlave(SlaveCore, Fmi2Slave):
     author = "wmr-cosim"
 
     _DISCARD = Fmi2Status.discard   # the status of a refused or failed step (see SlaveCore)
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        module = sys.modules.get(cls.__module__)
+        if module is not None:
+            _HELD_MODULE_DICTS.append(vars(module))   # see _HELD_MODULE_DICTS
 
     # ------------------------------------------------------------------ declaration
     def __init__(self, **kwargs: Any) -> None:

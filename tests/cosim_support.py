@@ -56,8 +56,9 @@ def fmu_cache_dir(name: str) -> Path | None:
 
 
 def build_test_fmu(script: str, out: Path) -> Path:
-    """Build tests/slaves/<script> with pythonfmu into ``out``; returns the .fmu.  With an FMU cache
-    (:func:`fmu_cache_dir`), an FMU built earlier from the same script is reused from there."""
+    """Build tests/slaves/<script> with pythonfmu into ``out``, with our loader in front of pythonfmu's
+    binary (see :func:`build_test_fmu_uncached`); returns the .fmu.  With an FMU cache
+    (:func:`fmu_cache_dir`), an FMU built earlier from the same script and loader is reused from there."""
     import hashlib
     import shutil
     import tempfile
@@ -66,7 +67,9 @@ def build_test_fmu(script: str, out: Path) -> Path:
     cache = fmu_cache_dir("test-fmus")
     if cache is None:
         return build_test_fmu_uncached(src, out)
-    done = cache / f"{src.stem}-{hashlib.sha256(src.read_bytes()).hexdigest()[:16]}"
+    from wmr_cosim.fmus.build import LOADER_HEADER, LOADER_SOURCE
+    key = hashlib.sha256(src.read_bytes() + LOADER_SOURCE.read_bytes() + LOADER_HEADER.read_bytes())
+    done = cache / f"{src.stem}-{key.hexdigest()[:16]}"
     if not done.is_dir():
         tmp = Path(tempfile.mkdtemp(prefix=done.name, dir=cache))
         build_test_fmu_uncached(src, tmp)
@@ -81,13 +84,24 @@ def build_test_fmu(script: str, out: Path) -> Path:
 
 
 def build_test_fmu_uncached(src: Path, out: Path) -> Path:
-    """Build the pythonfmu script ``src`` into ``out``; returns the .fmu."""
+    """Build the pythonfmu script ``src`` into ``out``; returns the .fmu.  Its binary is our FMI 2.0 loader
+    with pythonfmu's beside it, as in our own FMUs (fmus/build.py): pythonfmu's binary alone corrupts the
+    heap at the exit of the process that instantiated it (see fmus/pyloader/wmr_pyfinder.h), and the
+    test session hosts these FMUs in its own process."""
+    import tempfile
+
+    from wmr_cosim.fmus.build import build_python, compile_loader, install_loader
+
     p = subprocess.run([sys.executable, "-m", "pythonfmu", "build", "-f", str(src), "-d", str(out)],
                        capture_output=True, text=True)
     if p.returncode != 0:
         raise RuntimeError(p.stdout + p.stderr)
     fmus = sorted(out.glob("*.fmu"), key=lambda f: f.stat().st_mtime)
-    return fmus[-1]
+    fmu = fmus[-1]
+    with tempfile.TemporaryDirectory(prefix="wmr_test_loader_") as tmp:
+        py = build_python()
+        install_loader(fmu, fmu.stem, compile_loader(Path(tmp) / "loader.so", py), py)
+    return fmu
 
 
 class FakeClock:

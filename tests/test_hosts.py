@@ -17,6 +17,7 @@ import sys
 import sysconfig
 from pathlib import Path
 
+import numpy as np
 import pytest
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
@@ -344,3 +345,144 @@ def test_a_statically_linked_python_host_loads_no_libpython(all_fmus, tmp_path):
     assert r["libpython"] == []                        # the executable's interpreter, nothing loaded
     ref = _py_host(sys.executable, all_fmus["WmrSensor"], tmp_path, {})
     assert r["last"] == ref["last"]
+
+
+# ------------------------------------------------------------------------------------------ fmusim, OMSimulator
+#: The prebuilt third-party hosts beside the checkout (../shared/tools, see its README): absent from a
+#: user's checkout, where these tests skip.
+TOOLS = TESTS.parents[1] / "shared" / "tools"
+STOP = 1.0
+#: Constant inputs (set as start values, held by every host) for each model, FMI 2.0 and 3.0 alike.
+CONSTANT_INPUTS = {
+    "WmrPlant": {"u1": 0.5, "u2": 0.3, "tau_d1": 0.02},
+    "WmrSensor": {"alpha1": 0.7, "alpha2": -0.4},
+    "WmrController": {"alpha_m1": 0.1, "alpha_m2": 0.05, "alpha_dot_m1": 1.0, "alpha_dot_m2": 0.8},
+}
+MODELS6 = ["WmrPlant", "WmrSensor", "WmrController", "WmrPlant3", "WmrSensor3", "WmrController3"]
+
+
+def _tool(relative: str, probe: list[str]) -> Path:
+    """The tool's executable, or a skip with the reason when it is absent or cannot start here (a missing
+    run-time library: see ../shared/tools/README.md)."""
+    exe = TOOLS / relative
+    if not exe.is_file():
+        pytest.skip(f"{exe} not found (the prebuilt third-party hosts are not beside this checkout)")
+    p = subprocess.run([str(exe), *probe], capture_output=True, text=True, env={}, timeout=60)
+    if p.returncode != 0 or "error while loading shared libraries" in p.stderr:
+        pytest.skip(f"{exe.name} cannot start here: {(p.stderr or p.stdout).strip()[-300:]}")
+    return exe
+
+
+@pytest.fixture(scope="session")
+def six_fmus(built_fmus, tmp_path_factory) -> dict[str, Path]:
+    from conftest import fmu_cache
+    from wmr_cosim.fmus.build import SLAVES3, build_all
+
+    return {**built_fmus, **build_all(fmu_cache(tmp_path_factory, "fmus3"), models=tuple(SLAVES3))}
+
+
+def _fmpy_run(fmu: Path, inputs: dict[str, float]) -> np.ndarray:
+    from fmpy import simulate_fmu
+    return simulate_fmu(str(fmu), stop_time=STOP, output_interval=H, start_values=inputs)
+
+
+def _read_host_csv(path: Path, prefix: str = "") -> dict[str, np.ndarray]:
+    """{column: rows x values} of a host's result file; a cell may hold an array (space-separated).  Of
+    rows with the same time (OMSimulator writes each communication point twice, equal rows) the last."""
+    import csv
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f, skipinitialspace=True))
+    head = [h.strip().removeprefix(prefix) for h in rows[0]]
+    rows = [r for k, r in enumerate(rows[1:], 1) if k == len(rows) - 1 or float(rows[k + 1][0]) != float(r[0])]
+    rows.insert(0, [])
+    out: dict[str, np.ndarray] = {}
+    for j, name in enumerate(head):
+        if name in out:   # OMSimulator writes time twice
+            continue
+        out[name] = np.array([[float(x) for x in r[j].split()] for r in rows[1:]])
+    return out
+
+
+def _compare(ref: np.ndarray, got: dict[str, np.ndarray]) -> tuple[int, float]:
+    """(how many outputs compared, the largest relative difference) between FMPy's run and a host's file:
+    every output of FMPy's result the host wrote with as many values (OMSimulator writes an array output as
+    one value and is compared on the scalar outputs)."""
+    assert np.allclose(got["time"][:, 0], ref["time"], rtol=0, atol=1e-9), (got["time"][-3:], ref["time"][-3:])
+    compared, worst = 0, 0.0
+    for name in ref.dtype.names[1:]:
+        want = np.asarray(ref[name], dtype=float).reshape(len(ref), -1)
+        if name not in got or got[name].shape != want.shape:
+            continue
+        scale = np.maximum(np.abs(want), 1e-300)
+        worst = max(worst, float(np.max(np.abs(got[name] - want) / scale, initial=0.0)))
+        compared += 1
+    return compared, worst
+
+
+@pytest.mark.parametrize("model", MODELS6)
+def test_fmusim_with_an_empty_environment_runs_each_fmu_as_fmpy_does(model, six_fmus, tmp_path):
+    """The Reference FMUs' fmusim (a C host) under ``env -i``, 500 steps with constant inputs: every
+    output equal to FMPy's to the 16 digits fmusim writes.  (pythonfmu3's binary alone failed here:
+    "undefined symbol: _Py_NoneStruct".)"""
+    fmusim = _tool("fmusim/fmusim", ["--version"])
+    inputs = CONSTANT_INPUTS[model.removesuffix("3")]
+    out = tmp_path / "fmusim.csv"
+    cmd = [str(fmusim), "--interface-type", "cs", "--stop-time", repr(STOP), "--output-interval", repr(H),
+           "--output-file", str(out)]
+    for name, value in inputs.items():
+        cmd += ["--start-value", name, repr(value)]
+    p = subprocess.run([*cmd, str(six_fmus[model])], capture_output=True, text=True, env={}, cwd=tmp_path,
+                       timeout=600)
+    assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
+    ref = _fmpy_run(six_fmus[model], inputs)
+    got = _read_host_csv(out)
+    assert len(got["time"]) == len(ref) == round(STOP / H) + 1
+    compared, worst = _compare(ref, got)
+    assert compared == len(ref.dtype.names) - 1     # every output, arrays too
+    assert worst <= 1e-15, worst
+
+
+_OMS_SCRIPT = """oms_setTempDirectory({tmp})
+oms_newModel("m")
+oms_addSystem("m.root", oms_system_wc)
+oms_addSubModel("m.root.x", {fmu})
+oms_setResultFile("m", {out})
+oms_setStartTime("m", 0.0)
+oms_setStopTime("m", {stop})
+oms_setFixedStepSize("m.root", {step})
+oms_instantiate("m")
+{inputs}
+oms_initialize("m")
+oms_simulate("m")
+oms_terminate("m")
+oms_delete("m")
+"""
+
+
+@pytest.mark.parametrize("model", MODELS6)
+def test_omsimulator_with_an_empty_environment_runs_each_fmu_as_fmpy_does(model, six_fmus, tmp_path):
+    """OMSimulator (a C++ host) under ``env -i`` running a Lua script, 500 steps with constant inputs:
+    every scalar output equal to FMPy's to the 12 digits OMSimulator writes.  (pythonfmu3's binary alone
+    failed here: "fmi3Instantiate() failed".)"""
+    oms = _tool("omsimulator/bin/OMSimulator", ["--version"])
+    inputs = CONSTANT_INPUTS[model.removesuffix("3")]
+    out = tmp_path / "oms.csv"
+
+    def lua(text) -> str:
+        return '"' + str(text).replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+    (tmp_path / "oms_temp").mkdir()
+    script = tmp_path / "run.lua"
+    script.write_text(_OMS_SCRIPT.format(
+        tmp=lua(tmp_path / "oms_temp"), fmu=lua(six_fmus[model]), out=lua(out), stop=repr(STOP), step=repr(H),
+        inputs="\n".join(f'oms_setReal("m.root.x.{n}", {v!r})' for n, v in inputs.items())))
+    p = subprocess.run([str(oms), str(script)], capture_output=True, text=True, env={}, cwd=tmp_path, timeout=600)
+    assert p.returncode == 0 and "error" not in p.stdout.lower(), p.stdout[-3000:] + p.stderr[-2000:]
+    assert list((tmp_path / "oms_temp").iterdir()) == []   # OMSimulator removed its temporary folder
+    ref = _fmpy_run(six_fmus[model], inputs)
+    got = _read_host_csv(out, prefix="m.root.x.")
+    assert len(got["time"]) == len(ref)
+    compared, worst = _compare(ref, got)
+    scalars = sum(1 for n in ref.dtype.names[1:] if ref.dtype[n].shape == ())
+    assert compared >= scalars
+    assert worst <= 1e-11, worst
