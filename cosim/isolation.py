@@ -365,10 +365,7 @@ def _step(inst: Any, state: dict[str, Any], t: float, h: float, fmi3: bool) -> i
 
 
 if __name__ == "__main__":
-    _code = _serve(sys.argv[1:])
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(_code)   # no interpreter finalisation after hosting an FMU (see wmr_cosim.cli.entry)
+    sys.exit(_serve(sys.argv[1:]))
 
 
 # ---------------------------------------------------------------------------------------------- master side

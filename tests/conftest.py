@@ -66,29 +66,3 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         if nodeid.startswith(STARTS_WORKER_PROCESSES) or set(STARTS_A_POOL) & set(getattr(item, "fixturenames", ())):
             item.add_marker(skip)
 
-
-@pytest.hookimpl(trylast=True)
-def pytest_unconfigure(config: pytest.Config) -> None:
-    """End the test process without the interpreter's finalisation. Known issue, not yet fixed: a process
-    that has hosted many pythonfmu FMUs sometimes aborts while the interpreter tears down ("corrupted
-    double-linked list", about one full run in five, also with the code of the previous release) after
-    every result was reported. Exiting here keeps pytest's exit status the tests' own.
-
-    Not under mutation testing (mutmut sets MUTANT_UNDER_TEST): mutmut runs pytest in its own process,
-    several times, and reads the status pytest returns."""
-    import os
-    import sys
-
-    if "MUTANT_UNDER_TEST" in os.environ:
-        return
-
-    session = getattr(config, "_wmr_session", None)
-    status = int(session.exitstatus) if session is not None else 0
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(status)
-
-
-@pytest.hookimpl(tryfirst=True)
-def pytest_sessionstart(session: pytest.Session) -> None:
-    session.config._wmr_session = session  # type: ignore[attr-defined]

@@ -535,15 +535,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def entry() -> None:
-    """The ``wmr-cosim`` command: :func:`main`, then exit without the interpreter's finalisation (a process
-    that has hosted many pythonfmu FMUs sometimes aborts while the interpreter tears down, after every
-    result is written; its exit code would then hide the command's own)."""
-    import os
-
-    code = main()
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(code)
+    """The ``wmr-cosim`` command: :func:`main`, its return value the exit status; the interpreter then
+    finishes normally."""
+    sys.exit(main())
 
 
 if __name__ == "__main__":

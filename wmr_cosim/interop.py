@@ -379,9 +379,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    # exit without the interpreter's finalisation, as the wmr-cosim command does (see cli.entry): a
-    # process that hosted pythonfmu FMUs sometimes aborts while tearing down, after its results are written
-    _code = main()
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(_code)
+    sys.exit(main())
