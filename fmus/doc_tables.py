@@ -83,9 +83,10 @@ What differs from the FMI 2.0 FMUs:
   initialisation, an asymmetric `P_init`) is fmi3Fatal (pythonfmu3 turns an exception in any call but a step into fmi3Fatal),
   after which the instance must not be called again.
 - State: fmi3GetFMUState/SetFMUState and serialisation, with the component's whole internal state.
-- Hosts: FMI 3.0 FMUs built with pythonfmu3 load only in a **Python host** (FMPy, this project's master,
-  any tool embedding CPython): pythonfmu3's binary takes the Python C API from the process that loads it,
-  and the C loader of the FMI 2.0 FMUs (see [hosts.md](hosts.md)) is not provided for FMI 3.0.
+- Hosts: any FMI 3.0 host, Python or not (FMPy, this project's master, `fmusim`, OMSimulator, a C
+  program): `binaries/x86_64-linux/<model>.so` is the C loader of the FMI 2.0 FMUs in its FMI 3.0 form,
+  which finds or starts the Python interpreter and forwards every call to pythonfmu3's binary (see
+  [hosts.md](hosts.md)).
 """
 
 _OUTSIDE = """## Running the FMUs outside this project
