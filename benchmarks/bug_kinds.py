@@ -4,8 +4,9 @@ mutmut's operators swap one token (an operator, a number, a string, a keyword). 
 a suite that kills every mutmut mutant are of other kinds, and this harness makes them, with Python's
 ``ast``, in ``cosim/`` and ``components/``:
 
-* ``index``: an integer index into a sequence off by one (``flags[1]`` -> ``flags[0]`` / ``flags[2]``): a
-  wrong entry of an array of FMI flags or statuses;
+* ``index``: an index into a sequence off by one, a constant one (``flags[1]`` -> ``flags[0]`` /
+  ``flags[2]``) or a variable one (``status[i]`` -> ``status[i + 1]`` / ``status[i - 1]``): a wrong entry of
+  an array of FMI flags or statuses (a variable index into a mapping is a wrong key, which fails at once);
 * ``time``: an off-by-one inside a time expression, a step count times a step (``k * h`` -> ``(k + 1) * h``
   / ``(k - 1) * h``, with ``h``, ``step``, ``dt`` or ``self.h`` as the step);
 * ``factor``: one factor dropped from one term of a product (``a * b * c`` -> ``a * c``);
@@ -43,6 +44,9 @@ EQUIVALENTS = ROOT / "benchmarks" / "bug-kinds-equivalents.toml"
 SOURCES = {"cosim": "wmr_cosim.cosim", "components": "wmr_cosim.components"}
 #: Names that stand for a communication or integration step in a time expression.
 STEP_NAMES = {"h", "step", "dt", "step_size"}
+#: Names of integer positions (an index named so is off by one in an ``index`` bug; other names are keys).
+INDEX_NAME = re.compile(r"(i|j|k|n|m|ii|idx|index|pos|elem|offset|row|col|slot|first|last|start|end)"
+                        r"|\w*_(i|j|k|idx|index|pos|elem|offset)")
 #: The fast suite, as the mutation harness runs it (tests that read the repository itself left out).
 FAST = ["-m", "not slow", "-p", "no:cacheprovider", "-q", "-x",
         "--ignore=tests/test_docs.py", "--ignore=tests/test_packaging.py", "--ignore=tests/test_mutation_harness.py",
@@ -141,6 +145,11 @@ def bugs_of(path: Path, rel: str) -> list[Bug]:
                 for new in (value - 1, value + 1):
                     if (new >= 0) == (value >= 0) or new == 0:     # an index stays from its end or its start
                         out.append(Bug(rel, "index", node.lineno, a - lines[node.lineno], a, b, old, str(new)))
+            elif isinstance(sl, (ast.Name, ast.Attribute)) and INDEX_NAME.fullmatch(
+                    sl.id if isinstance(sl, ast.Name) else sl.attr):
+                a, b, old = span(sl)          # a variable index, off by one (names of positions, not of keys)
+                for sign in ("+", "-"):
+                    out.append(Bug(rel, "index", node.lineno, a - lines[node.lineno], a, b, old, f"{old} {sign} 1"))
         elif isinstance(node, ast.BinOp) and isinstance(node.op, ast.Mult) and id(node) not in inner:
             fs = _factors(node)          # (the outermost product of a chain makes the bugs of the whole chain)
             a, b, old = span(node)
@@ -242,15 +251,17 @@ def judge(bug: Bug, limit_s: float) -> str:
     return verdict
 
 
-def select(only: str | None = None, kinds: list[str] | None = None) -> list[Bug]:
-    """The bugs in files matching the regular expression ``only``, of the ``kinds`` (default: all)."""
-    return [b for b in all_bugs() if (only is None or re.search(only, b.file)) and (not kinds or b.kind in kinds)]
+def select(only: str | None = None, kinds: list[str] | None = None, match: str | None = None) -> list[Bug]:
+    """The bugs in files matching the regular expression ``only``, of the ``kinds`` (default: all), whose
+    names match ``match``."""
+    return [b for b in all_bugs() if (only is None or re.search(only, b.file)) and (not kinds or b.kind in kinds)
+            and (match is None or re.search(match, b.name))]
 
 
 def run(sample: int | None = None, seed: int = 1, only: str | None = None, limit_s: float = 600.0,
-        out: Path | None = None, kinds: list[str] | None = None) -> dict:
+        out: Path | None = None, kinds: list[str] | None = None, match: str | None = None) -> dict:
     t0 = time.time()
-    bugs = select(only, kinds)
+    bugs = select(only, kinds, match)
     equivalents = load_equivalents()
     stale = sorted(set(equivalents) - {b.name for b in bugs})
     candidates = [b for b in bugs if b.name not in equivalents]
@@ -267,7 +278,7 @@ def run(sample: int | None = None, seed: int = 1, only: str | None = None, limit
         k = by_kind.setdefault(bug.kind, {"bugs": 0, "killed": 0})
         k["bugs"] += 1
         k["killed"] += verdicts[bug.name] in ("killed", "timeout")
-    result = {"population": len(bugs), "kinds": kinds or "all", "only": only, "bugs": len(drawn), "killed": killed,
+    result = {"population": len(bugs), "kinds": kinds or "all", "only": only, "match": match, "bugs": len(drawn), "killed": killed,
               "kill_rate": round(killed / len(drawn), 4) if drawn else None, "by_kind": by_kind,
               "seed": seed, "equivalent": len(equivalents), "stale_equivalents": stale,
               "minutes": round((time.time() - t0) / 60, 1),
@@ -285,17 +296,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--only", default=None, metavar="REGEX", help="only bugs in files matching REGEX")
     ap.add_argument("--kind", action="append", choices=("index", "time", "factor", "contains"),
                     help="only bugs of this kind (repeatable)")
+    ap.add_argument("--match", default=None, metavar="REGEX", help="only bugs whose names match REGEX")
     ap.add_argument("--out", type=Path, default=STAGE.parent / "bug_kinds.json", help="where the verdicts go")
     ap.add_argument("--list", action="store_true", help="list the bugs that would be planted, run nothing")
     ap.add_argument("--limit", type=float, default=600.0, help="seconds a test session may take (default 600)")
     args = ap.parse_args(argv)
     if args.list:
-        bugs = select(args.only, args.kind)
+        bugs = select(args.only, args.kind, args.match)
         for b in bugs:
             print(b.name)
         print(json.dumps({"population": len(bugs)}))
         return 0
-    print(json.dumps(run(args.sample, args.seed, args.only, args.limit, args.out, args.kind)))
+    print(json.dumps(run(args.sample, args.seed, args.only, args.limit, args.out, args.kind, args.match)))
     return 0
 
 

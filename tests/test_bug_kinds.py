@@ -10,6 +10,20 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 import bug_kinds  # noqa: E402
 
+SOURCE_VAR = '''\
+def g(status: list[int], names: dict[str, int], i: int, key: str) -> int:
+    return status[i] + names[key] + status[self.pos]
+'''
+
+
+def test_a_variable_index_of_a_position_is_off_by_one_and_a_key_is_left_alone(tmp_path):
+    path = tmp_path / "v.py"
+    path.write_text(SOURCE_VAR)
+    bugs = {(b.kind, b.old, b.new) for b in bug_kinds.bugs_of(path, "cosim/v.py") if b.kind == "index"}
+    assert bugs == {("index", "i", "i + 1"), ("index", "i", "i - 1"), ("index", "self.pos", "self.pos + 1"),
+                    ("index", "self.pos", "self.pos - 1")}
+
+
 SOURCE = '''\
 def f(flags: dict[str, int], k: int, h: float, x: float, a: float, b: float) -> float:
     t = t0 + k * h
@@ -40,7 +54,8 @@ def test_annotations_and_inner_products_make_no_bugs(tmp_path):
     bugs, _ = _bugs(tmp_path)
     assert not any(old in ("str, int", "str") for _, old, _ in bugs)        # dict[str, int] is no index
     assert not any(old == "a * b" for _, old, _ in bugs)                     # only the whole chain a * b * x
-    assert len([b for b in bugs if b[0] == "index"]) == 4
+    assert {b for b in bugs if b[0] == "index"} == {("index", "1", "0"), ("index", "1", "2"), ("index", "-1", "-2"),
+                                                 ("index", "-1", "0")}    # no variable index in SOURCE
 
 
 def test_a_bug_applies_to_its_place_only(tmp_path):
