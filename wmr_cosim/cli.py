@@ -448,8 +448,13 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Write a scenario as an SSP 1.0 archive that other tools (libcosim, ecos, FMPy, "
                                    "OMSimulator) run: the FMUs as resources, SystemStructure.ssd (components, "
                                    "connectors, connections with linear transforms, units, default experiment with "
-                                   "the step), the parameter values as an SSV parameter set named 'parameters'. "
-                                   "Timed events cannot be expressed in SSP 1.0 and are refused.")
+                                   "the step, OMSimulator's fixed-step master at that step), the parameter values as "
+                                   "an SSV parameter set named 'parameters'. These tools run the system as Jacobi: "
+                                   "their results equal this master's run with algorithm = \"jacobi\" (a note says "
+                                   "so for a Gauss-Seidel scenario). A String parameter at the FMU's default is left "
+                                   "out of the parameter set (OMSimulator cannot import one; this master reads it "
+                                   "back); at another value it stays there and OMSimulator runs with the default (a "
+                                   "warning names each). Timed events cannot be expressed in SSP 1.0 and are refused.")
     e.add_argument("scenario", type=scenario_path, help="scenario file (.toml)")
     e.add_argument("--out", type=Path, required=True, metavar="FILE.ssp", help="the archive to write")
     e.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
