@@ -48,6 +48,12 @@ NAME:
             once through the loader and once through pythonfmu's binary loaded directly, in one process,
             interleaved, best of the rounds: via_loader_us_per_step, direct_us_per_step, loader_overhead
             (ratio - 1; target <= 0.05).
+    exit    normal process exits after hosting our FMUs (the use-after-free of pythonfmu's and pythonfmu3's
+            binaries at exit, fmus/pyloader/wmr_pyfinder.h): exit_runs = for each FMI 3.0 FMU, how many of 50
+            runs (PYTHONHASHSEED=random) of a plain FMPy script (simulate_fmu x3, then FMU3Slave x30,
+            normal exit) exit 0 (target 50 of 50); valgrind_invalid = for each of our FMUs (FMI 2.0, 3.0,
+            the C plant) the "Invalid read/write" reports of valgrind on a script that instantiates, frees
+            and exits under PYTHONMALLOC=malloc (target 0; null without valgrind).  ``--repeats`` is not used.
     mutation  mutation testing with mutmut of components/, cosim/ and the analysis code against the fast
             tests covering each mutant (benchmarks/mutation.py says how): mutants, killed, kill_rate (also
             per area; target >= 0.90 on components and cosim), equivalent (listed with their reasons in
@@ -561,6 +567,8 @@ def bench_loader(repeats: int) -> dict[str, float]:
         for key, d in dirs.items():
             f = FMU2Slave(guid=md.guid, unzipDirectory=str(d), modelIdentifier="WmrSensor", instanceName=key)
             f.instantiate(loggingOn=False)
+            if key == "direct":  # this host does what the loader does: release pythonfmu's (empty) PyState,
+                f.dll.finalizePythonInterpreter()  # or the process corrupts its heap at exit (wmr_pyfinder.h)
             f.setupExperiment(startTime=0.0)
             f.enterInitializationMode()
             f.exitInitializationMode()
@@ -591,6 +599,77 @@ def bench_loader(repeats: int) -> dict[str, float]:
     return {"steps": n, "rounds": max(3, repeats), "via_loader_us_per_step": round(us["via_loader"], 3),
             "direct_us_per_step": round(us["direct"], 3),
             "loader_overhead": round(us["via_loader"] / us["direct"] - 1.0, 4)}
+
+
+_EXIT_RUN = r"""
+import shutil, sys
+from fmpy import extract, read_model_description, simulate_fmu
+from fmpy.fmi3 import FMU3Slave
+path = sys.argv[1]
+for _ in range(3):
+    simulate_fmu(path, stop_time=0.1, output_interval=0.002)
+md = read_model_description(path)
+d = extract(path)
+for i in range(30):
+    s = FMU3Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier, instanceName=f"i{i}")
+    s.instantiate()
+    s.enterInitializationMode()
+    s.exitInitializationMode()
+    s.doStep(0.0, 0.002)
+    s.terminate()
+    s.freeInstance()
+shutil.rmtree(d)
+"""
+
+_LOAD_FREE_EXIT = r"""
+import shutil, sys
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi3 import FMU3Slave
+md = read_model_description(sys.argv[1])
+d = extract(sys.argv[1])
+cls = FMU3Slave if md.fmiVersion.startswith("3") else FMU2Slave
+s = cls(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="x")
+s.instantiate()
+s.freeInstance()
+shutil.rmtree(d)
+"""
+
+
+def bench_exit(repeats: int) -> dict[str, Any]:
+    """Exit statuses of plain FMPy scripts on the FMI 3.0 FMUs; valgrind's invalid accesses per FMU."""
+    import os
+    import re
+    import shutil
+    import subprocess
+    import tempfile
+    from pathlib import Path
+
+    from wmr_cosim.fmus import cplant_build
+    from wmr_cosim.fmus.build import FMI_VERSION, build_all
+
+    fmus = build_all(models=tuple(FMI_VERSION))
+    runs: dict[str, int] = {}
+    invalid: dict[str, int] | None = None
+    with tempfile.TemporaryDirectory(prefix="wmr_bench_exit_") as tmp:
+        env = {**{k: v for k, v in os.environ.items() if k != "PYTHONPATH"}, "TMPDIR": tmp,
+               "PYTHONHASHSEED": "random"}
+        for model in ("WmrPlant3", "WmrSensor3", "WmrController3"):
+            runs[model] = sum(subprocess.run([sys.executable, "-c", _EXIT_RUN, str(fmus[model])], env=env,
+                                             capture_output=True, timeout=600).returncode == 0 for _ in range(50))
+        valgrind = shutil.which("valgrind")
+        if valgrind:
+            fmus["WmrCPlant"] = cplant_build.build_c_plant(Path(tmp) / "cplant")
+            supp = Path(tmp) / "ldso.supp"   # glibc's SSE2 strncmp reading past a string in ld.so: not an error
+            supp.write_text("{\n   ld.so is_dst\n   Memcheck:Addr8\n   fun:strncmp\n   fun:is_dst\n}\n")
+            invalid = {}
+            for model, path in fmus.items():
+                log = Path(tmp) / f"{model}.valgrind"
+                subprocess.run([valgrind, "--quiet", f"--suppressions={supp}", f"--log-file={log}", sys.executable,
+                                "-c", _LOAD_FREE_EXIT, str(path)], env={**env, "PYTHONMALLOC": "malloc"},
+                               capture_output=True, timeout=1200)
+                invalid[model] = len(re.findall(r"Invalid (?:read|write|free)", log.read_text()))
+    return {"exit_runs": {m: f"{n} of 50" for m, n in runs.items()}, "valgrind_invalid": invalid}
 
 
 def bench_scripting(repeats: int) -> dict[str, float]:
@@ -637,7 +716,7 @@ def bench_bugs(repeats: int) -> dict:
 BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "fmi3": bench_fmi3, "paper": bench_paper,
            "sweep": bench_sweep, "interop": bench_interop, "archive": bench_archive, "loader": bench_loader,
            "isolation": bench_isolation, "scripting": bench_scripting, "mutation": bench_mutation,
-           "bugs": bench_bugs}
+           "bugs": bench_bugs, "exit": bench_exit}
 
 
 def main(argv: list[str] | None = None) -> int:

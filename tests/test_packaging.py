@@ -68,6 +68,8 @@ def test_non_editable_install_works(tmp_path):
     assert shipped.is_relative_to(target)
     for f in (ROOT / "scenarios").rglob("*.toml"):  # every scenario file ships, byte for byte
         assert (shipped / f.relative_to(ROOT / "scenarios")).read_bytes() == f.read_bytes(), f
+    for f in (ROOT / "fmus" / "pyloader").iterdir():  # the loaders' sources and their header (the build needs them)
+        assert (target / "wmr_cosim" / "fmus" / "pyloader" / f.name).read_bytes() == f.read_bytes(), f
 
 
 #: every third-party module the installed code imports -> the requirement that provides it, and where
