@@ -5,7 +5,8 @@ At the start the plugin creates ``wmr-tests-tmp-*`` in the system's temporary fo
 and :mod:`tempfile`'s default at it, so every temporary file or folder made by the tests, by the code they
 run and by every child process (FMU extraction, the FMU build, Dask workers, the ecos program) lands there.
 At the end it lists what is left, removes the folder and, if it was not empty, reports the entries and
-sets the exit status to "tests failed".  A test's ``tmp_path`` is unaffected: pytest keeps those in its
+sets the exit status to "tests failed".  Under pytest-xdist the workers inherit the folder (``TMPDIR``) and
+the session checks it once every worker has finished.  A test's ``tmp_path`` is unaffected: pytest keeps those in its
 own folder (``PYTEST_DEBUG_TEMPROOT`` is set to the system's temporary folder for that).
 """
 from __future__ import annotations
@@ -21,6 +22,8 @@ _state: dict[str, object] = {}
 
 
 def pytest_configure(config: pytest.Config) -> None:
+    if hasattr(config, "workerinput"):
+        return   # a pytest-xdist worker: it inherits the session's folder (TMPDIR), which the session checks
     system_tmp = tempfile.gettempdir()
     _state["env"] = {k: os.environ.get(k) for k in ("TMPDIR", "PYTEST_DEBUG_TEMPROOT")}
     _state["tempdir"] = tempfile.tempdir
