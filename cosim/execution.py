@@ -29,9 +29,10 @@ import numpy as np
 from .algorithm import InstanceIO, compile_loop
 from .condition import compile_condition
 from .archive import safe_extract
-from .errors import EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN_FAILED, CosimError, RunError
+from .errors import CosimError, RunError
 from .instance import Instance, Instance3, accessor, raw, vr_array
 from .pacing import Pacer
+from .status import RunStatus
 from .recording import NpyRecorder, OutputLock, RowBuffer, make_folder, write_csv, write_json
 from .system import Plan
 from .wiring import RowLayout, Wiring, discrete_copier, is_f64, is_real, table_feeder
@@ -43,7 +44,7 @@ DISCARD = 2
 
 @dataclass
 class RunResult:
-    status: str                 # 'ok', 'terminated' (by an FMU), 'failed', 'interrupted'
+    status: RunStatus
     message: str
     steps: int
     t_end: float
@@ -58,8 +59,7 @@ class RunResult:
 
     @property
     def exit_code(self) -> int:
-        return {"ok": EXIT_OK, "terminated": EXIT_OK, "stopped": EXIT_OK,
-                "interrupted": EXIT_INTERRUPTED}.get(self.status, EXIT_RUN_FAILED)
+        return RunStatus(self.status).exit_code
 
 
 class _Stop(Exception):
@@ -94,7 +94,7 @@ class Execution:
         self.fmi_acc = [0.0]
         self.k_done = 0
         self.setup_s = self.wall_s = 0.0
-        self.status, self.message = "ok", ""
+        self.status, self.message = RunStatus.OK, ""
         self._discrete: dict[tuple[str, int], Any] = {}   # values events have set on non-Real inputs
         self.pacer: Pacer | None = None                    # real-time pacing (None: as fast as it goes)
         self.callbacks: list[Callable[[], Any]] = []       # called after every step (the API's step hooks)
@@ -429,7 +429,8 @@ class Execution:
         """The run ended before its stop time: an FMU ended the simulation, or a stop event."""
         if isinstance(s, _Stopped):
             self.k_done = s.k
-            self.status, self.message = "stopped", f"stopped by events[{s.index}] at t = {s.t:.6g} s"
+            self.status = RunStatus.STOPPED
+            self.message = f"stopped by events[{s.index}] at t = {s.t:.6g} s"
             return
         self.k_done = min(self.n_steps, int(math.floor((s.t - self.t0) / self.h + 1e-9)))
         try:
@@ -437,9 +438,10 @@ class Execution:
             # simulation at a communication point without advancing)
             if not s.recorded and (s.t - self.layout.row[0]) / self.h > 1e-9:
                 self.record_final(s.t)
-            self.status, self.message = "terminated", f"terminated by FMU {s.name} at t = {s.t:.6g} s"
+            self.status = RunStatus.TERMINATED
+            self.message = f"terminated by FMU {s.name} at t = {s.t:.6g} s"
         except RunError as exc:
-            self.status, self.message = "failed", str(exc)
+            self.status, self.message = RunStatus.FAILED, str(exc)
 
     def record_final(self, t: float) -> None:
         """The row at the time an FMU ended the simulation."""
@@ -461,8 +463,8 @@ class Execution:
             try:
                 self._flush()
             except RunError as exc:
-                if self.status != "failed":
-                    self.status, self.message = "failed", str(exc)
+                if self.status != RunStatus.FAILED:
+                    self.status, self.message = RunStatus.FAILED, str(exc)
         for inst in self.instances.values():
             inst.shutdown()
         if self.recorder is not None:
@@ -500,9 +502,10 @@ def _run(plan: Plan, out: Path, keep: bool, progress: bool | None, timing: bool,
     except (_Stop, _Stopped) as s:
         ex.ended(s)
     except KeyboardInterrupt:
-        ex.status, ex.message = "interrupted", f"interrupted by the user at t = {ex.t0 + ex.k_done * ex.h:.6g} s"
+        ex.status = RunStatus.INTERRUPTED
+        ex.message = f"interrupted by the user at t = {ex.t0 + ex.k_done * ex.h:.6g} s"
     except CosimError as exc:
-        ex.status, ex.message = "failed", str(exc)
+        ex.status, ex.message = RunStatus.FAILED, str(exc)
         if getattr(exc, "died", False) and exc.time is not None:  # an isolated FMU died inside a segment
             ex.k_done = int(round((exc.time - ex.t0) / ex.h))
     finally:
@@ -535,7 +538,8 @@ def _results(ex: Execution, keep: bool) -> RunResult:
         final = {c: data[c][-1].item() for c in ex.columns}
         if keep and sc.csv:
             write_csv(out / "signals.npy", out / "signals.csv")
-    t_end = final.get("time", ex.t0 + ex.k_done * ex.h) if ex.status == "terminated" else ex.t0 + ex.k_done * ex.h
+    t_end = final.get("time", ex.t0 + ex.k_done * ex.h) if ex.status == RunStatus.TERMINATED \
+        else ex.t0 + ex.k_done * ex.h
     res = RunResult(ex.status, ex.message, ex.k_done, t_end, ex.wall_s, ex.setup_s, out if keep else None,
                     ex.columns, final, ex.fmi_acc[0] if ex.timing else None, list(ex.event_log),
                     ex.pacer.summary() if ex.pacer is not None else None)

@@ -6,8 +6,8 @@ Sub-packages (each mapped from a top-level folder of the repository):
     wmr_cosim.cosim        the generic FMI master (cosim/)
     wmr_cosim.scenarios    the shipped scenario files, package data only (scenarios/)
 
-The Python API (docs/scripting.md): ``from wmr_cosim import Simulation`` (also Run, Result, ScenarioError,
-RunError), imported on first use so that ``import wmr_cosim`` stays light.
+The Python API (docs/scripting.md): ``from wmr_cosim import Simulation`` (also Run, Result, RunStatus,
+ScenarioError, RunError), imported on first use so that ``import wmr_cosim`` stays light.
 """
 __version__ = "0.1.0"  # the fallback when the distribution's metadata is not installed
 
@@ -23,7 +23,7 @@ def version() -> str:
         return __version__
 
 
-_API = ("Simulation", "Run", "Result", "ScenarioError", "RunError", "CosimError")
+_API = ("Simulation", "Run", "Result", "RunStatus", "ScenarioError", "RunError", "CosimError")
 
 
 def __getattr__(name: str):

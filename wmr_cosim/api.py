@@ -34,11 +34,12 @@ import numpy as np
 
 from .cosim import scenario, system
 from .cosim.errors import CosimError, RunError, ScenarioError
+from .cosim.status import RunStatus
 from .cosim.execution import Execution, _Interrupt, _prepare, _results, _Stop, _Stopped
 from .cosim.pacing import Pacer
 from .cosim.recording import OutputLock, make_folder
 
-__all__ = ["Simulation", "Run", "Result", "ScenarioError", "RunError", "CosimError"]
+__all__ = ["Simulation", "Run", "Result", "RunStatus", "ScenarioError", "RunError", "CosimError"]
 
 
 @dataclass
@@ -47,7 +48,7 @@ class Result:
     variable plus ``time`` [s]); ``summary`` is summary.json (status, steps, wall time, final values, the
     event log, the real-time figures); ``scenario`` is scenario.json (the scenario as resolved)."""
 
-    status: str                      # ok, terminated (by an FMU), stopped (by an event or stop()), failed, interrupted
+    status: RunStatus                # how the run ended (cosim.status.RunStatus: a str, "ok", "failed", ...)
     message: str
     steps: int
     t_end: float                     # [s]
@@ -60,7 +61,7 @@ class Result:
     @property
     def ok(self) -> bool:
         """The run reached its stop time, or ended cleanly earlier (an FMU or a stop event ended it)."""
-        return self.status in ("ok", "terminated", "stopped")
+        return RunStatus(self.status).ended_well
 
     def __getitem__(self, name: str) -> np.ndarray:
         """One recorded signal, e.g. ``result["plant.x_A"]``."""
@@ -232,7 +233,7 @@ class Run:
             ex.begin(progress, True, None)
         except BaseException as exc:
             if self._ex is not None:
-                self._ex.status, self._ex.message = "failed", str(exc)
+                self._ex.status, self._ex.message = RunStatus.FAILED, str(exc)
             self._end(raise_on_failure=False)
             raise
 
@@ -277,8 +278,8 @@ class Run:
         """End the run now (status "stopped" if it had not ended), free the FMUs; returns the result."""
         if self.result is None:
             ex = self._ex
-            if ex.k_done < ex.n_steps and ex.status == "ok":
-                ex.status, ex.message = "stopped", f"closed at t = {self.time:.6g} s"
+            if ex.k_done < ex.n_steps and ex.status == RunStatus.OK:
+                ex.status, ex.message = RunStatus.STOPPED, f"closed at t = {self.time:.6g} s"
             self._end(raise_on_failure=False)
         return self.result
 
@@ -286,7 +287,7 @@ class Run:
         """End the run cleanly at the current time (from a callback or between steps): status "stopped"."""
         if self.result is None:
             ex = self._ex
-            ex.status, ex.message = "stopped", f"stopped by the script at t = {self.time:.6g} s" + \
+            ex.status, ex.message = RunStatus.STOPPED, f"stopped by the script at t = {self.time:.6g} s" + \
                 (f": {reason}" if reason else "")
             ex.stop_request = True
             if not ex.in_step:
@@ -361,21 +362,22 @@ class Run:
         except (_Stop, _Stopped) as s:
             ex.ended(s)
         except KeyboardInterrupt:
-            ex.status, ex.message = "interrupted", f"interrupted by the user at t = {self.time:.6g} s"
+            ex.status, ex.message = RunStatus.INTERRUPTED, f"interrupted by the user at t = {self.time:.6g} s"
             stop.restore()
             self._end(raise_on_failure=False)
             raise
         except CosimError as exc:
-            ex.status, ex.message = "failed", str(exc)
+            ex.status, ex.message = RunStatus.FAILED, str(exc)
         except Exception as exc:   # a callback's own error: the run ends failed, the error goes to the script
-            ex.status, ex.message = "failed", f"a callback raised {type(exc).__name__}: {exc} at t = {self.time:.6g} s"
+            ex.status = RunStatus.FAILED
+            ex.message = f"a callback raised {type(exc).__name__}: {exc} at t = {self.time:.6g} s"
             stop.restore()
             self._end(raise_on_failure=False)
             raise
         finally:
             stop.restore()
             ex._stop = None
-        if ex.status != "ok" or ex.k_done >= ex.n_steps or ex.stop_request:
+        if ex.status != RunStatus.OK or ex.k_done >= ex.n_steps or ex.stop_request:
             self._end(raise_on_failure=True)
         return self
 
@@ -397,5 +399,5 @@ class Run:
             self._lock.release()
             if not self._keep:
                 shutil.rmtree(self._out, ignore_errors=True)
-        if raise_on_failure and self.result is not None and self.result.status == "failed":
+        if raise_on_failure and self.result is not None and self.result.status == RunStatus.FAILED:
             raise RunError(self.result.message)

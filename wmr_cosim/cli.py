@@ -15,6 +15,7 @@ from . import version
 from .components import paper
 from .components.controller import ControllerParams
 from .components.direct_loop import run_direct
+from .cosim.status import RunStatus
 from .components.metrics import run_metrics
 from .components.plant import PlantParams
 from .components.sensor import SensorParams
@@ -84,7 +85,7 @@ def cmd_direct(args: argparse.Namespace) -> int:
             print(f"eps_G reached at t = {m['t_goal']:.3f} s; distance at the end {m['goal_distance']:.4f} m")
         print("final W:", " ".join(f"{w:.4f}" for w in m["final_W"]))
     print(json.dumps(m))
-    return EXIT_OK if res.status == "ok" and not m["diverged"] else EXIT_FAILED
+    return EXIT_OK if res.status == RunStatus.OK and not m["diverged"] else EXIT_FAILED
 
 
 def cmd_build(args: argparse.Namespace) -> int:
@@ -165,7 +166,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             for name, r in run_protocol(args.scenario, out, resolve_model, variant=args.variant,
                                         overrides=overrides, progress=False if args.quiet else None,
                                         force=args.force, isolate=args.isolate).items():
-                if r.status == "ok":
+                if r.status == RunStatus.OK:
                     print(f"{args.scenario} [{name}]: ok, {r.steps} steps in {r.wall_s:.2f} s; results in {out / name}")
                 else:
                     print(f"wmr-cosim: run {name} {r.status}: {r.message}", file=sys.stderr)
@@ -185,8 +186,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"real time x{rt['factor']:g}: {rt['overruns']} of {rt['steps']} steps finished late"
               + (f" (by up to {rt['late_max_s'] * 1e3:.3g} ms, {rt['late_mean_s'] * 1e3:.3g} ms on average)"
                  if rt["overruns"] else ""))
-    if res.status in ("ok", "terminated", "stopped"):
-        how = "ok" if res.status == "ok" else res.message
+    if RunStatus(res.status).ended_well:
+        how = "ok" if res.status == RunStatus.OK else res.message
         print(f"{args.scenario}: {how}, {res.steps} steps to t = {res.t_end:g} s in {res.wall_s:.2f} s{per} "
               f"(set-up {res.setup_s:.2f} s); results in {out}")
     else:

@@ -33,6 +33,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from .cosim.status import RunStatus
+
 import numpy as np
 
 #: What the tests and the benchmark compare: tracking errors, weights, the goal time, the position of A.
@@ -114,7 +116,7 @@ def _ours(ssp: Path, stop: float, step: float, signals, tmp: Path, algorithm: st
         wall = time.perf_counter() - t0
     finally:
         arch.cleanup()
-    if res.status != "ok":
+    if res.status != RunStatus.OK:
         raise PeerError(f"ours: {res.message}")
     data = np.load(tmp / "ours" / "signals.npy")
     return {"wall_s": wall, "loop_s": res.wall_s, "steps": res.steps, "t_end": res.t_end,

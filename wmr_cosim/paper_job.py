@@ -17,6 +17,8 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
+from .cosim.status import RunStatus
+
 from . import scenario_files
 from .analysis import (RUNS, fidelity, load_signals, position_error, run_summary,
                        table1_disturbance_analysis)
@@ -58,7 +60,7 @@ def _manifest(manifest: str | os.PathLike | None = None) -> dict[str, Path]:
 def run_line(variant: str, task: str, run: str, res: Any) -> str:
     """The progress line of one finished run: variant, task, run, status (the reason when it did not end
     'ok') and wall time (set-up and stepping) [s]."""
-    how = res.status if res.status == "ok" else f"{res.status} ({res.message})"
+    how = res.status if res.status == RunStatus.OK else f"{res.status} ({res.message})"
     return f"wmr-cosim paper: {variant} {task} {run}: {how}, {res.setup_s + res.wall_s:.1f} s"
 
 

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from .cosim import execution, scenario, ssp, system
+from .cosim.status import RunStatus
 from .cosim.errors import CosimError, ScenarioError
 from .cosim.model import load_model
 from .cosim.scenario import parse_set
@@ -90,14 +91,14 @@ def judge_run(res: execution.RunResult) -> execution.RunResult:
     that did not record the controller's tracking errors is left as it is."""
     from .analysis import TRACKING_ERRORS, divergence, load_signals
 
-    if res.status != "ok" or res.out_dir is None:
+    if res.status != RunStatus.OK or res.out_dir is None:
         return res
     sig = load_signals(res.out_dir)
     if sig is None or not all(name in sig for name in TRACKING_ERRORS):
         return res
     reason = divergence(sig)
     if reason is not None:
-        res.status, res.message = "diverged", reason
+        res.status, res.message = RunStatus.DIVERGED, reason
         summary = res.out_dir / "summary.json"     # the file on disk says what the command says
         if summary.is_file():
             from .cosim.recording import write_json

@@ -1,0 +1,38 @@
+"""How a run ended: a closed set of statuses, each with the exit code of the command that ran it."""
+from __future__ import annotations
+
+from enum import StrEnum
+
+from .errors import EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN_FAILED
+
+
+class RunStatus(StrEnum):
+    """How a run ended.  A str (``RunStatus.OK == "ok"``), so it is written to JSON and compared as its value.
+
+    - ``OK``: every step was taken;
+    - ``TERMINATED``: an FMU ended the simulation itself (Discard with fmi2Terminated / fmi3 terminateSimulation);
+    - ``STOPPED``: a stop event, or the script, ended it early;
+    - ``FAILED``: an FMU returned a non-OK status, a value became non-finite, or the master raised;
+    - ``INTERRUPTED``: the user pressed Ctrl-C;
+    - ``DIVERGED``: the run ended ok but an application's check of its results rejected it (the paper's
+      controller: its tracking error far above the paper's, as ``wmr_cosim.analysis.divergence`` judges).
+    """
+
+    OK = "ok"
+    TERMINATED = "terminated"
+    STOPPED = "stopped"
+    FAILED = "failed"
+    INTERRUPTED = "interrupted"
+    DIVERGED = "diverged"
+
+    @property
+    def ended_well(self) -> bool:
+        """Whether the run gave its results as asked (ok, or ended early by an FMU or a stop)."""
+        return self in (RunStatus.OK, RunStatus.TERMINATED, RunStatus.STOPPED)
+
+    @property
+    def exit_code(self) -> int:
+        """The exit code of a command whose run ended so: 0, 1 (the run failed), 130 (interrupted)."""
+        if self.ended_well:
+            return EXIT_OK
+        return EXIT_INTERRUPTED if self is RunStatus.INTERRUPTED else EXIT_RUN_FAILED
