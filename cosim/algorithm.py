@@ -21,6 +21,8 @@ import ctypes
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
+from .failure import Call, Failure
+
 
 @dataclass
 class InstanceIO:
@@ -65,7 +67,7 @@ class _Source:
 def _copies(s: _Source, i: int, io: InstanceIO, ind: str, check_inputs: bool) -> None:
     if io.feed is not None:
         s.w(f"{ind}s = {s.bind(f'feed_{i}', io.feed)}(k)")
-        s.w(f"{ind}if s: return (k, name_{i}, 'fmi2Set (tabulated inputs)', s)")
+        s.w(f"{ind}if s: return Failure(k, name_{i}, Call.TABLE_INPUTS, s, {io.fmi})")
     names = []
     for j, (pos, arr, idx, f, o) in enumerate(io.copies):
         a, x = s.bind(f"src_{i}_{j}", arr), s.bind(f"idx_{i}_{j}", idx)
@@ -76,29 +78,29 @@ def _copies(s: _Source, i: int, io: InstanceIO, ind: str, check_inputs: bool) ->
         names.append(f"v{j}")
     if names and check_inputs:  # one test for all: a sum is non-finite if any term is (or it overflows)
         s.w(f"{ind}x = {' + '.join(names)}")
-        s.w(f"{ind}if x - x != 0.0: return (k, name_{i}, 'inputs', x)")
+        s.w(f"{ind}if x - x != 0.0: return Failure(k, name_{i}, Call.NON_FINITE_INPUT, x, {io.fmi})")
     for j, (pos, *_rest) in enumerate(io.copies):
         s.w(f"{ind}in_{i}[{s.bind(f'pos_{i}_{j}', pos)}] = v{j}")
     if io.copies:
         nv = f", nvin_{i}" if io.fmi == 3 else ""
         s.w(f"{ind}s = setr_{i}(c_{i}, invr_{i}, nin_{i}, in_{i}{nv})")
-        s.w(f"{ind}if s: return (k, name_{i}, 'fmi2SetReal', s)")
+        s.w(f"{ind}if s: return Failure(k, name_{i}, Call.SET_REAL, s, {io.fmi})")
     for j, fn in enumerate(io.other):
         s.w(f"{ind}s = {s.bind(f'other_{i}_{j}', fn)}()")
-        s.w(f"{ind}if s: return (k, name_{i}, 'fmi2Get/Set (a connection)', s)")
+        s.w(f"{ind}if s: return Failure(k, name_{i}, Call.CONNECTION, s, {io.fmi})")
 
 
 def _step(s: _Source, i: int, io: InstanceIO, ind: str) -> None:
     if io.fmi == 2:
         s.w(f"{ind}s = dostep_{i}(c_{i}, Tv, H, 1)")
-        s.w(f"{ind}if s: return (k, name_{i}, 'fmi2DoStep', s)")
+        s.w(f"{ind}if s: return Failure(k, name_{i}, Call.DO_STEP, s, 2)")
         return
     # FMI 3.0: event (unused: no event mode), terminateSimulation, earlyReturn (not allowed), lastSuccessfulTime
     flags = [ctypes.c_bool(), ctypes.c_bool(), ctypes.c_bool(), ctypes.c_double()]
     s.bind(f"term_{i}", flags[1]), s.bind(f"last_{i}", flags[3])
     refs = ", ".join(s.bind(f"ref{j}_{i}", ctypes.byref(f)) for j, f in enumerate(flags))
     s.w(f"{ind}s = dostep_{i}(c_{i}, Tv, H, True, {refs})")
-    s.w(f"{ind}if s: return (k, name_{i}, 'fmi3DoStep', s)")
+    s.w(f"{ind}if s: return Failure(k, name_{i}, Call.DO_STEP, s, 3)")
     s.w(f"{ind}if term_{i}.value: ended = (name_{i}, last_{i}.value)")
 
 
@@ -106,7 +108,7 @@ def _get(s: _Source, i: int, io: InstanceIO, ind: str) -> None:
     if io.n_out.value:
         nv = f", nvout_{i}" if io.fmi == 3 else ""
         s.w(f"{ind}s = getr_{i}(c_{i}, outvr_{i}, nout_{i}, out_{i}{nv})")
-        s.w(f"{ind}if s: return (k + 1, name_{i}, 'fmi{io.fmi}GetReal', s)")
+        s.w(f"{ind}if s: return Failure(k + 1, name_{i}, Call.GET_REAL, s, {io.fmi})")
 
 
 def _record(s: _Source, ios: list[InstanceIO], dec: int, n_double: int) -> None:
@@ -120,14 +122,14 @@ def _record(s: _Source, ios: list[InstanceIO], dec: int, n_double: int) -> None:
         for j, (get, vrs, n, buf, nv, slots) in enumerate(io.extras):
             names = [s.bind(f"x{w}_{i}_{j}", x) for w, x in zip("gvnbc", (get, vrs, n, buf, nv))]
             s.w(f"            s = {names[0]}({', '.join(names[1:])})")
-            s.w(f"            if s: return (k + 1, name_{i}, 'fmi{io.fmi}Get (recorded)', s)")
+            s.w(f"            if s: return Failure(k + 1, name_{i}, Call.GET_RECORDED, s, {io.fmi})")
             for e, slot in slots:
                 target = f"row[{s.bind(f'xs_{i}_{j}_{e}', slot)}]" if slot < n_double else \
                     f"irow[{s.bind(f'xs_{i}_{j}_{e}', slot - n_double)}]"
                 s.w(f"            {target} = {names[3]}[{s.bind(f'xe_{i}_{j}_{e}', e)}]")
     s.w("            append(bytes(buf))")
     if fmi3:  # an FMI 3.0 FMU ended the simulation in this step: its row is recorded, then stop
-        s.w("        if ended is not None: return (k + 1, ended[0], 'fmi3Terminated', ended[1])")
+        s.w("        if ended is not None: return Failure(k + 1, ended[0], Call.TERMINATED, ended[1], 3)")
 
 
 def compile_loop(ios: list[InstanceIO], algorithm: str, t0: float, h: float, dec: int, n_steps: int, layout: Any,
@@ -136,7 +138,7 @@ def compile_loop(ios: list[InstanceIO], algorithm: str, t0: float, h: float, dec
     (wiring.RowLayout: ``buf``, its doubles ``row`` and integers ``irow``, ``n_double``)."""
     s = _Source()
     s.env.update({"row": layout.row, "irow": layout.irow, "buf": layout.buf, "append": chunk.append,
-                  "bytes": bytes, "T": ctypes.c_double(0.0),
+                  "bytes": bytes, "T": ctypes.c_double(0.0), "Failure": Failure, "Call": Call,
                   "H": ctypes.c_double(h), "t0": float(t0), "h": float(h), "dec": int(dec), "n_steps": int(n_steps)})
     for i, io in enumerate(ios):
         s.env.update({f"name_{i}": io.name, f"c_{i}": io.c, f"setr_{i}": io.set_real, f"dostep_{i}": io.do_step,

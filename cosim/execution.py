@@ -32,6 +32,7 @@ from .archive import safe_extract
 from .errors import CosimError, RunError
 from .instance import Instance, Instance3, accessor, raw, vr_array
 from .pacing import Pacer
+from .failure import Call, Failure, FmiStatus
 from .status import RunStatus
 from .recording import NpyRecorder, OutputLock, RowBuffer, make_folder, write_csv, write_json
 from .system import Plan
@@ -39,7 +40,6 @@ from .wiring import RowLayout, Wiring, discrete_copier, is_f64, is_real, table_f
 
 #: Rows recorded between two flushes to disk (and progress updates).
 FLUSH_ROWS = 2500
-DISCARD = 2
 
 
 @dataclass
@@ -267,7 +267,7 @@ class Execution:
                 if k_end < self.n_steps and self._stop is not None:  # a Ctrl-C after the last step interrupts nothing
                     self._stop.check()
                 if fail is not None:
-                    self._failed(*fail)
+                    self._failed(fail)
                 self.k_done = k = k_end
                 if len(rows) >= FLUSH_ROWS or k == self.n_steps:
                     self._flush()
@@ -406,24 +406,25 @@ class Execution:
         if value is not None:
             self.instances[ev.instance].set_values([(ev.var, value)])
 
-    def _failed(self, kf: int, name: str, what: str, val: Any) -> None:
-        """A segment stopped at step ``kf``: an FMU that ended the simulation, or an error."""
-        tf = self.t0 + kf * self.h
+    def _failed(self, f: Failure) -> None:
+        """A segment stopped at step ``f.step``: an FMU that ended the simulation, or an error."""
+        name, tf = f.instance, self.t0 + f.step * self.h
         # a get after the step to t_kf failed: that step's row is not recorded, the steps done are kf - 1
-        self.k_done = kf - 1 if what.endswith(("GetReal", "Get (recorded)")) else kf
+        self.k_done = f.step - 1 if f.call.after_step else f.step
         inst = self.instances[name]
-        if what == "inputs":
+        if f.call is Call.NON_FINITE_INPUT:
             io = self.ios[self.plan.order.index(name)]
             raise self.wiring.bad_input(name, io.in_vr, io.copies, tf)
-        if what == "fmi3Terminated":  # the step's row is recorded already
+        if f.call is Call.TERMINATED:  # the step's row is recorded already
             raise _Stop(name, tf, recorded=True)
-        if what == "fmi2DoStep" and int(val) == DISCARD and inst.n_errors == self._errors[name]:
+        if f.call is Call.DO_STEP and f.fmi == 2 and int(f.value) == FmiStatus.DISCARD \
+                and inst.n_errors == self._errors[name]:
             # fmi2Terminated after a Discard with nothing logged at Discard, Error or Fatal: the FMU ended the
             # simulation (pythonfmu reports every failed step as terminated; its message tells them apart)
             t_end = inst.terminated_at()
             if t_end is not None:
                 raise _Stop(name, t_end if math.isfinite(t_end) else tf)
-        raise inst.fail_status(what, int(val), tf)
+        raise inst.fail_status(f.call.name_for(f.fmi), int(f.value), tf)
 
     def ended(self, s: "_Stop | _Stopped") -> None:
         """The run ended before its stop time: an FMU ended the simulation, or a stop event."""

@@ -23,6 +23,7 @@ from c_fmu_support import MODEL_DESCRIPTION, SRC
 from reference_fmus import REF
 from wmr_cosim import Simulation
 from wmr_cosim.cosim import execution
+from wmr_cosim.cosim.failure import Call, Failure
 from wmr_cosim.cosim.errors import CosimError, RunError
 
 FEEDTHROUGH = REF / "fmi2" / "Feedthrough.fmu"
@@ -202,17 +203,20 @@ def test_an_isolated_fmu_dying_mid_run_keeps_the_steps_before_it(probe, tmp_path
     assert len(np.load(tmp_path / "out" / "signals.npy")) == 26
 
 
-@pytest.mark.parametrize("label, steps", [("fmi2GetReal", 6), ("fmi3GetReal", 6), ("fmi2Get (recorded)", 6),
-                                          ("fmi3Get (recorded)", 6), ("fmi2DoStep", 7), ("fmi3DoStep", 7),
-                                          ("fmi2SetReal", 7), ("fmi2Get/Set (a connection)", 7)])
-def test_a_failure_reported_by_the_loop_counts_the_steps_whose_rows_are_recorded(probe, tmp_path, label, steps):
+@pytest.mark.parametrize("call, fmi, label, steps", [
+    (Call.GET_REAL, 2, "fmi2GetReal", 6), (Call.GET_REAL, 3, "fmi3GetFloat64", 6),
+    (Call.GET_RECORDED, 2, "fmi2Get (recorded)", 6), (Call.GET_RECORDED, 3, "fmi3Get (recorded)", 6),
+    (Call.DO_STEP, 2, "fmi2DoStep", 7), (Call.DO_STEP, 3, "fmi3DoStep", 7), (Call.SET_REAL, 2, "fmi2SetReal", 7),
+    (Call.SET_REAL, 3, "fmi3SetFloat64", 7), (Call.CONNECTION, 2, "fmi2Get/Set (a connection)", 7)])
+def test_a_failure_reported_by_the_loop_counts_the_steps_whose_rows_are_recorded(probe, tmp_path, call, fmi, label,
+                                                                                 steps):
     """The loop reports a failure at step k = 7 (t = 1.07 s): a get after the step to t_7 means 6 steps
     done (the row at t_7 is missing); a failure before or in the step from t_7 means 7 (rows up to t_7).
-    The message names the call, its status and t_7 in both FMI versions."""
+    The message names the call as its FMI version does, its status and t_7."""
     run = _sim(probe(), start=1.0, stop=1.5).start(tmp_path / "out")
     try:
         with pytest.raises(RunError) as err:
-            run._ex._failed(7, "probe", label, 3)
+            run._ex._failed(Failure(7, "probe", call, 3, fmi))
         assert run._ex.k_done == steps
         assert str(err.value) == f"probe: {label} returned Error at t = 1.07 s; last log: (the FMU logged nothing)"
     finally:
@@ -226,7 +230,7 @@ def test_an_fmi3_fmu_ending_the_simulation_in_a_step_ends_the_run_after_that_ste
     try:
         ex = run._ex
         with pytest.raises(execution._Stop) as stop:
-            ex._failed(7, "probe", "fmi3Terminated", 0)
+            ex._failed(Failure(7, "probe", Call.TERMINATED, 0, 3))
         assert (stop.value.name, stop.value.t, stop.value.recorded) == ("probe", 1.07, True)
         n = len(ex.rows)
         ex.ended(stop.value)
