@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any
 
+from .kinds import FileKind, file_kind
 from .archive import check_archive, check_entries, check_sizes, safe_extract
 from .errors import CosimError, FmuLoadError, ScenarioError
 from .scenario import Scenario, apply_overrides, parse
@@ -762,7 +763,7 @@ def _connections(system, instances: dict[str, Any], connectors: dict[tuple[str, 
 
 
 def is_ssp(path: str | os.PathLike) -> bool:
-    return str(path).lower().endswith(".ssp")
+    return file_kind(path) is FileKind.SSP
 
 
 __all__ = ["export_ssp", "load_ssp", "SspArchive", "validate_xml", "is_ssp", "CosimError"]

@@ -34,6 +34,7 @@ import numpy as np
 
 from .cosim import scenario, system
 from .cosim.errors import CosimError, RunError, ScenarioError
+from .cosim.kinds import FileKind, file_kind
 from .cosim.status import RunStatus
 from .cosim.execution import Execution, _Interrupt, _prepare, _results, _Stop, _Stopped
 from .cosim.pacing import Pacer
@@ -108,7 +109,7 @@ class Simulation:
                 doc = fmu_document(p)
             except CosimError as exc:
                 raise ScenarioError(str(p), "", str(exc).replace(f"{Path(p).resolve()}: ", "", 1)) from None
-        elif str(p).lower().endswith(".ssp"):
+        elif file_kind(p) is FileKind.SSP:
             raise ScenarioError(str(p), "", "an SSP archive: the API loads scenario files (.toml) and FMUs (.fmu); "
                                             "run an archive with `wmr-cosim run`")
         else:

@@ -150,11 +150,11 @@ def experiment_overrides(args: argparse.Namespace) -> dict[str, Any]:
 
 def cmd_run(args: argparse.Namespace) -> int:
     """Run a scenario through the co-simulation master."""
-    from .runner import default_out, run_scenario
+    from .runner import default_out, is_fmu, is_scenario, run_scenario
 
     out = args.out if args.out is not None else default_out(args.scenario)
     overrides = experiment_overrides(args)
-    if str(args.scenario).endswith(".toml"):
+    if is_scenario(args.scenario):
         from .cosim.protocol import plan_runs
         from .runner import resolve_model, run_protocol   # each run judged by analysis.divergence
 
@@ -176,7 +176,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise UsageError(f"--variant {args.variant}: {args.scenario} declares no runs")
     elif args.variant is not None:
         raise UsageError(f"--variant {args.variant}: only a scenario file (.toml) declares variants")
-    if args.input is not None and not str(args.scenario).lower().endswith(".fmu"):
+    if args.input is not None and not is_fmu(args.scenario):
         raise UsageError("--input applies to a single FMU (.fmu); a scenario file says it in [inputs]")
     res = run_scenario(args.scenario, out, overrides, progress=False if args.quiet else None,
                        inputs=args.input, force=args.force, isolate=args.isolate, real_time=args.real_time)
@@ -202,7 +202,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     import contextlib
 
     from .cosim.ssp import is_ssp
-    from .runner import fmu_plan, is_fmu, load_plan, ssp_plan
+    from .runner import fmu_plan, is_fmu, is_scenario, load_plan, ssp_plan
 
     overrides = experiment_overrides(args)
     f = args.force
@@ -224,7 +224,7 @@ def cmd_check(args: argparse.Namespace) -> int:
         for name, n in plan.internal_steps.items():
             print(f"note: {name} takes fixed internal steps of {plan.instances[name].model.internal_step:g} s: "
                   f"about {n:.3g} over the run")
-    if str(args.scenario).endswith(".toml"):
+    if is_scenario(args.scenario):
         _check_runs(args, overrides)
     return EXIT_OK
 

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from .cosim import execution, scenario, ssp, system
+from .cosim.kinds import FileKind, file_kind
 from .cosim.status import RunStatus
 from .cosim.errors import CosimError, ScenarioError
 from .cosim.model import load_model
@@ -201,7 +202,12 @@ def default_out(path: str | Path) -> Path:
 
 
 def is_fmu(path: str | Path) -> bool:
-    return str(path).lower().endswith(".fmu")
+    return file_kind(path) is FileKind.FMU
+
+
+def is_scenario(path: str | Path) -> bool:
+    """A scenario file (``.toml``, or any file that is neither an FMU nor an SSP archive)."""
+    return file_kind(path) is FileKind.SCENARIO
 
 
 def run_scenario(path: str | Path, out: str | Path | None = None, overrides: dict[str, Any] | None = None,

@@ -1,0 +1,37 @@
+"""One function decides what a file given to the master is, by its suffix in any case."""
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from reference_fmus import REF
+from wmr_cosim.cli import main
+from wmr_cosim.cosim.kinds import FileKind, file_kind
+
+
+@pytest.mark.parametrize("name, kind", [("a.fmu", FileKind.FMU), ("A.FMU", FileKind.FMU), ("x/s.ssp", FileKind.SSP),
+                                        ("S.Ssp", FileKind.SSP), ("g1.toml", FileKind.SCENARIO),
+                                        ("G1.TOML", FileKind.SCENARIO), ("scenario", FileKind.SCENARIO),
+                                        ("fmu", FileKind.SCENARIO)])
+def test_the_kind_comes_from_the_suffix_in_any_case(name, kind):
+    assert file_kind(name) is kind
+
+
+def test_a_protocol_with_an_upper_case_suffix_is_checked_as_a_protocol(tmp_path, capsys):
+    fmu = REF / "fmi2" / "Dahlquist.fmu"
+    path = tmp_path / "P.TOML"
+    path.write_text(f'[experiment]\nstop = 0.1\nstep = 0.05\n[instances.d]\nfmu = "{fmu}"\n'
+                    '[record]\nvariables = ["d.x"]\n[[runs]]\nname = "a"\n[[runs]]\nname = "b"\n'
+                    'carry = { "d.k" = "a.d.x" }\n')
+    assert main(["check", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "run a: ok" in out and "run b: ok: 2 steps, 1 recorded variables, 1 carried values" in out
+
+
+def test_an_fmu_with_an_upper_case_suffix_takes_an_input_table(tmp_path, capsys):
+    fmu = tmp_path / "FEEDTHROUGH.FMU"
+    shutil.copy(REF / "fmi2" / "Feedthrough.fmu", fmu)
+    table = tmp_path / "in.csv"
+    table.write_text("time,Float64_continuous_input\n0,1\n1,2\n")
+    assert main(["check", str(fmu), "--input", str(table)]) == 0
