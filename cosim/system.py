@@ -8,6 +8,7 @@ start value of the wrong type or outside the min/max the model description decla
 """
 from __future__ import annotations
 
+import copy
 import math
 import re
 from dataclasses import dataclass, field
@@ -478,7 +479,11 @@ def _condition_reads(file: str, fld: str, e: Any, insts: dict[str, InstancePlan]
 
 def resolve(sc: Scenario, force: bool | None = None) -> Plan:
     """Load every FMU of the scenario and run all the checks (the one preflight that ``check`` and ``run``
-    share); returns the executable plan.  ``force`` lifts the limits of steps and recording size."""
+    share); returns the executable plan.  ``force`` lifts the limits of steps and recording size.
+
+    ``sc`` is left as it is: the plan holds a copy of it with the times the FMUs' default experiments
+    give filled in (``plan.scenario``)."""
+    sc = copy.copy(sc)
     if force is not None:
         sc.force = force
     file = sc.file

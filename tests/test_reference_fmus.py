@@ -545,3 +545,14 @@ def test_a_run_whose_fmu_would_take_too_many_internal_steps_is_refused_at_check(
     assert main(["check", str(roberts), "--stop", "10"]) == 0
     assert "note: Roberts takes fixed internal steps of 0.001 s: about 1e+04 over the run" in capsys.readouterr().out
     assert fmu_plan(roberts, force=True).internal_steps["Roberts"] > 10 ** 10
+
+
+def test_resolve_leaves_the_scenario_it_is_given_as_it_is(tmp_path):
+    """The times a scenario leaves open come from the FMU's default experiment into the plan's copy; the
+    scenario given to resolve is not changed (so one Scenario resolves the same way twice)."""
+    path = write_scenario(tmp_path / "d.toml", f'[instances.a]\nfmu = "{FMI2 / "Dahlquist.fmu"}"\n')
+    sc = scenario.load(path)
+    plan = system.resolve(sc, force=True)
+    assert (plan.scenario.stop, plan.scenario.step, plan.scenario.force) == (10.0, 0.1, True)
+    assert (sc.stop, sc.step, sc.force) == (None, None, False)
+    assert system.resolve(sc).n_steps == plan.n_steps == 100

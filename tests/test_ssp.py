@@ -260,7 +260,8 @@ def test_a_foreign_archive_runs(tmp_path, built_fmus):
         sc = arch.scenario
         assert sc.instances["controller"].parameters == {"goal_x": 1.25}
         plan = system.resolve(sc)
-        assert (sc.step, sc.stop, sc.algorithm) == (0.002, 0.5, "jacobi")  # step from the FMUs; SSP tools' Jacobi
+        assert (plan.scenario.step, plan.scenario.stop, plan.scenario.algorithm) == (0.002, 0.5, "jacobi")
+        assert sc.step is None              # the step from the FMUs, into the plan's copy; SSP tools' Jacobi
         res = execution.run(plan, tmp_path / "out", progress=False)
         assert res.status == "ok" and res.steps == 250, res.message
         assert "controller.u1" in res.columns
