@@ -128,3 +128,18 @@ def test_direct_takes_stop_as_run_does_and_t_stop_still_works(capsys):
     assert json.loads(capsys.readouterr().out)["steps"] == 10
     h = _help(capsys, "direct")
     assert "--stop" in h and "--t-stop" not in h
+
+
+def test_output_into_a_closed_pipe_ends_quietly(built_fmus):
+    """`wmr-cosim info X.fmu | head -1`: a reader that closes the pipe early ends the command with the
+    shell's status for SIGPIPE (141) and no traceback."""
+    import subprocess
+    import sys
+
+    p = subprocess.Popen([sys.executable, "-c", "from wmr_cosim.cli import entry; entry()", "info",
+                          str(built_fmus["WmrController"])], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    p.stdout.close()                    # the reader is gone before the command writes
+    err = p.stderr.read().decode()
+    p.stderr.close()
+    assert p.wait(timeout=60) == 141, err
+    assert "Traceback" not in err and "BrokenPipeError" not in err, err

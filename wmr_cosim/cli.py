@@ -542,8 +542,18 @@ def main(argv: list[str] | None = None) -> int:
 
 def entry() -> None:
     """The ``wmr-cosim`` command: :func:`main`, its return value the exit status; the interpreter then
-    finishes normally."""
-    sys.exit(main())
+    finishes normally.  Output into a pipe the reader closed (``wmr-cosim info X.fmu | head``) ends the
+    command quietly, with the shell's status for it (128 + SIGPIPE)."""
+    try:
+        code = main()
+        sys.stdout.flush()
+    except BrokenPipeError:
+        import os
+        import signal
+        # Python's own advice: point stdout at devnull so that the flush at exit cannot raise again
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        code = 128 + signal.SIGPIPE
+    sys.exit(code)
 
 
 if __name__ == "__main__":
