@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+from host_tools import FMUSIM, OMSIMULATOR, tool
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
@@ -348,9 +350,6 @@ def test_a_statically_linked_python_host_loads_no_libpython(all_fmus, tmp_path):
 
 
 # ------------------------------------------------------------------------------------------ fmusim, OMSimulator
-#: The prebuilt third-party hosts beside the checkout (../shared/tools, see its README): absent from a
-#: user's checkout, where these tests skip.
-TOOLS = TESTS.parents[1] / "shared" / "tools"
 STOP = 1.0
 #: Constant inputs (set as start values, held by every host) for each model, FMI 2.0 and 3.0 alike.
 CONSTANT_INPUTS = {
@@ -359,18 +358,6 @@ CONSTANT_INPUTS = {
     "WmrController": {"alpha_m1": 0.1, "alpha_m2": 0.05, "alpha_dot_m1": 1.0, "alpha_dot_m2": 0.8},
 }
 MODELS6 = ["WmrPlant", "WmrSensor", "WmrController", "WmrPlant3", "WmrSensor3", "WmrController3"]
-
-
-def _tool(relative: str, probe: list[str]) -> Path:
-    """The tool's executable, or a skip with the reason when it is absent or cannot start here (a missing
-    run-time library: see ../shared/tools/README.md)."""
-    exe = TOOLS / relative
-    if not exe.is_file():
-        pytest.skip(f"{exe} not found (the prebuilt third-party hosts are not beside this checkout)")
-    p = subprocess.run([str(exe), *probe], capture_output=True, text=True, env={}, timeout=60)
-    if p.returncode != 0 or "error while loading shared libraries" in p.stderr:
-        pytest.skip(f"{exe.name} cannot start here: {(p.stderr or p.stdout).strip()[-300:]}")
-    return exe
 
 
 @pytest.fixture(scope="session")
@@ -424,7 +411,7 @@ def test_fmusim_with_an_empty_environment_runs_each_fmu_as_fmpy_does(model, six_
     """The Reference FMUs' fmusim (a C host) under ``env -i``, 500 steps with constant inputs: every
     output equal to FMPy's to the 16 digits fmusim writes.  (pythonfmu3's binary alone failed here:
     "undefined symbol: _Py_NoneStruct".)"""
-    fmusim = _tool("fmusim/fmusim", ["--version"])
+    fmusim = tool(FMUSIM)
     inputs = CONSTANT_INPUTS[model.removesuffix("3")]
     out = tmp_path / "fmusim.csv"
     cmd = [str(fmusim), "--interface-type", "cs", "--stop-time", repr(STOP), "--output-interval", repr(H),
@@ -464,7 +451,7 @@ def test_omsimulator_with_an_empty_environment_runs_each_fmu_as_fmpy_does(model,
     """OMSimulator (a C++ host) under ``env -i`` running a Lua script, 500 steps with constant inputs:
     every scalar output equal to FMPy's to the 12 digits OMSimulator writes.  (pythonfmu3's binary alone
     failed here: "fmi3Instantiate() failed".)"""
-    oms = _tool("omsimulator/bin/OMSimulator", ["--version"])
+    oms = tool(OMSIMULATOR)
     inputs = CONSTANT_INPUTS[model.removesuffix("3")]
     out = tmp_path / "oms.csv"
 

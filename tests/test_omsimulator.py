@@ -1,5 +1,5 @@
-"""The exported SSP in OMSimulator (a C++ master, prebuilt in ../shared/tools/omsimulator; these tests skip,
-saying why, where it is absent or cannot start).
+"""The exported SSP in OMSimulator (a C++ master, prebuilt beside the checkout: tests/host_tools.py; these
+tests skip, saying why, where it is absent or cannot start).
 
 OMSimulator takes a system's type only from an ``org.openmodelica`` annotation on ``ssd:System`` (without one
 it aborts), imports neither a String connector nor a String parameter (it logs an error for each), and its
@@ -13,45 +13,25 @@ import os
 import re
 import subprocess
 import time
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from host_tools import OMSIMULATOR, tool
 from cosim_support import G1, g1_with_paths
 from wmr_cosim.cosim import execution, scenario, system
 from wmr_cosim.cosim.ssp import export_ssp, load_ssp
 
 ROOT = Path(__file__).resolve().parents[1]
-OMSIMULATOR = ROOT.parent / "shared" / "tools" / "omsimulator" / "bin" / "OMSimulator"
 POSE = ("x_A", "y_A", "beta")
 #: OMSimulator's oms_solver_enu_t value of its fixed-step co-simulation master (oms-ma).
 OMS_SOLVER_WC_MA = 6
 
 
-@lru_cache(maxsize=1)
-def _omsimulator_problem() -> str | None:
-    """Why OMSimulator cannot be used here (None: it starts)."""
-    if not OMSIMULATOR.is_file():
-        return f"OMSimulator not found at {OMSIMULATOR} (a checkout without ../shared/tools)"
-    try:
-        p = subprocess.run([str(OMSIMULATOR), "--version"], capture_output=True, text=True, env={}, timeout=60)
-    except OSError as exc:
-        return f"{OMSIMULATOR} cannot start: {exc}"
-    if p.returncode != 0 or "OMSimulator" not in p.stdout:
-        why = (p.stderr or p.stdout).strip().splitlines()
-        return f"{OMSIMULATOR} cannot start (exit {p.returncode}): {why[0] if why else 'no output'}" + (
-            " (it needs Debian's libcurl4 and libicu72)" if "shared libraries" in (p.stderr or "") else "")
-    return None
-
-
 @pytest.fixture(scope="module")
 def omsimulator() -> Path:
-    why = _omsimulator_problem()
-    if why is not None:
-        pytest.skip(why)
-    return OMSIMULATOR
+    return tool(OMSIMULATOR)
 
 
 def _oms(exe: Path, args: list[str], cwd: Path) -> subprocess.CompletedProcess:
