@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import math
-
 import os
 import zipfile
 from dataclasses import dataclass, field
@@ -125,12 +124,11 @@ class FmuModel:
     @property
     def internal_step(self) -> float | None:
         """The fixed internal step [s] an FMI 3.0 co-simulation FMU declares (fixedInternalStepSize), else None."""
-        h = getattr(self.md.coSimulation, "fixedInternalStepSize", None) if self.fmi == 3 else None
         try:
-            h = float(h) if h is not None else None
-        except ValueError:
+            h = float(self.md.coSimulation.fixedInternalStepSize) if self.fmi == 3 else math.nan
+        except (AttributeError, TypeError, ValueError):   # not declared, or not a number
             return None
-        return h if h is not None and math.isfinite(h) and h > 0 else None
+        return h if math.isfinite(h) and h > 0 else None
 
     def outputs(self) -> list[Variable]:
         return [v for v in self.variables.values() if v.causality == "output"]

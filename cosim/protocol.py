@@ -85,7 +85,14 @@ def check_protocol(path: str | os.PathLike, resolver: Resolver | None = None, va
     against its FMUs, each carry against what its source run records and what its target takes (type and
     shape; the range once the value is known).  Returns {run name: plan}; raises ScenarioError naming the
     run and the field."""
-    sc, runs, vparams = plan_runs(path, resolver, variant)
+    return _check_runs(path, plan_runs(path, resolver, variant), resolver, overrides, only, force, carry)
+
+
+def _check_runs(path: str | os.PathLike, parsed: tuple[scenario.Scenario, list[scenario.RunSpec], dict[str, Any]],
+                resolver: Resolver | None, overrides: dict[str, Any] | None, only: list[str] | None, force: bool,
+                carry: Carry | None) -> dict[str, system.Plan]:
+    """:func:`check_protocol` of a file already parsed by :func:`plan_runs`."""
+    sc, runs, vparams = parsed
     overrides = overrides or {}
     plans: dict[str, system.Plan] = {}
     finals: dict[str, dict[str, Any]] = {}
@@ -115,8 +122,9 @@ def run_protocol(path: str | os.PathLike, out_dir: str | os.PathLike, resolver: 
     the run's own parameters and carried values.  ``carry`` replaces the plain lookup of carried values
     (a resolver to other FMUs may need the names translated).
     """
-    check_protocol(path, resolver, variant, overrides, only, force, carry)
-    sc, runs, vparams = plan_runs(path, resolver, variant)
+    parsed = plan_runs(path, resolver, variant)
+    _check_runs(path, parsed, resolver, overrides, only, force, carry)
+    sc, runs, vparams = parsed
     out = Path(out_dir)
     results: dict[str, execution.RunResult] = {}
     for run in runs:

@@ -131,13 +131,13 @@ class Plan:
         return out
 
 
-def _value(file: str, fld: str, var: Variable, value: Any) -> Any:
+def _value(file: str, fld: str, var: Variable, value: Any, check_range: bool = True) -> Any:
     if var.shape:   # an FMI 3.0 array: every element, row-major
         if not isinstance(value, list) or len(value) != var.size:
             raise ScenarioError(file, fld, f"{var.name} is an array of {var.size} values {var.shape}: give a "
                                            f"list of {var.size}")
-        return [_scalar_value(file, fld, var, v) for v in value]
-    return _scalar_value(file, fld, var, value)
+        return [_scalar_value(file, fld, var, v, check_range) for v in value]
+    return _scalar_value(file, fld, var, value, check_range)
 
 
 def _scalar_value(file: str, fld: str, var: Variable, value: Any, check_range: bool = True) -> Any:
@@ -169,14 +169,7 @@ def check_carried(file: str, fld: str, plan: Plan, ref: str, value: Any) -> None
     reason = var.settable()
     if reason:
         raise ScenarioError(file, fld, reason)
-    if var.shape:
-        if not isinstance(value, list) or len(value) != var.size:
-            raise ScenarioError(file, fld, f"{var.name} is an array of {var.size} values {var.shape}: the carried "
-                                           f"value is {'a list of ' + str(len(value)) if isinstance(value, list) else 'a scalar'}")
-        for v in value:
-            _scalar_value(file, fld, var, v, check_range=False)
-    else:
-        _scalar_value(file, fld, var, value, check_range=False)
+    _value(file, fld, var, value, check_range=False)
 
 
 def _var(file: str, fld: str, inst: InstancePlan, name: str) -> Variable:

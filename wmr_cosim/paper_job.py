@@ -35,7 +35,7 @@ def manifest_path(manifest: str | os.PathLike | None = None) -> Path:
     return Path(manifest) if manifest is not None else scenario_files.folder() / DEFAULT_MANIFEST
 
 
-def _manifest(manifest: str | os.PathLike | None = None) -> dict[str, Path]:
+def task_files(manifest: str | os.PathLike | None = None) -> dict[str, Path]:
     """{task: protocol file} of the tasks file ``manifest`` (default: the shipped one, see :func:`manifest_path`)."""
     from .cosim.errors import ScenarioError
 
@@ -168,7 +168,7 @@ def _run_paper(out: Path, variant: str, compare: bool, workers: int | None, mani
     from .runner import resolver
 
     resolve_model = resolver(fmi)
-    tasks = _manifest(manifest)
+    tasks = task_files(manifest)
     variants = [variant] + ([v for v in VARIANTS if v != variant] if compare else [])
     progress = progress is not False     # one line per finished run, also when stderr is not a terminal
     t0 = time.perf_counter()

@@ -115,9 +115,9 @@ def plan(grid: StudyGrid) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """The distinct points of the study (a point: id, base protocol file, parameters) and, per axis
     value or reading, the point id of each task."""
     from .cosim.errors import ScenarioError
-    from .paper_job import _manifest, manifest_path
+    from .paper_job import task_files, manifest_path
 
-    files = _manifest(grid.manifest)
+    files = task_files(grid.manifest)
     missing = [t for t in grid.tasks if t not in files]
     if missing:
         raise ScenarioError(str(manifest_path(grid.manifest)), "tasks",
