@@ -178,7 +178,7 @@ def _initial(v: Any) -> str | None:
     return None
 
 
-def _fmi_version(path: Path) -> str:
+def fmi_version(path: Path) -> str:
     """The fmiVersion attribute of the model description, read before FMPy parses it.  A model description
     that declares XML entities is refused: an external entity can read a local file into the model, and
     nested internal ones expand without bound ("billion laughs"); FMI needs neither."""
@@ -231,7 +231,7 @@ def load_model(path: str | os.PathLike) -> FmuModel:
     for FMI 3.0, needs neither clocks nor event mode)."""
     path = Path(path)
     check_archive(path)
-    version = _fmi_version(path)
+    version = fmi_version(path)
     if version not in ("2.0",) and not version.startswith("3."):
         raise FmuLoadError(f"{path}: FMI version {version}: only FMI 2.0 and 3.0 are supported")
     try:

@@ -69,7 +69,6 @@ _IMPORT_RE = re.compile(r"^\s*(from|import)\s+wmr_cosim\b", re.MULTILINE)
 #: The loader's C sources by FMI version, the part both include, and the name pythonfmu's own binary gets
 #: beside the loader.
 LOADER_SOURCES = {2: _HERE / "pyloader" / "wmr_pyloader.c", 3: _HERE / "pyloader" / "wmr_pyloader3.c"}
-LOADER_SOURCE = LOADER_SOURCES[2]
 LOADER_HEADER = _HERE / "pyloader" / "wmr_pyfinder.h"
 REAL_BINARY = "libpythonfmu-export.so"
 #: The environment variable that points the FMUs at another libpython (a path to libpython3.X.so).
@@ -312,7 +311,7 @@ def plan(model: str) -> Plan:
     add("slave", script.read_bytes())
     add("fmi_base.py", (_HERE / "fmi_base.py").read_bytes())
     add("fmi_decl.py", (_HERE / "fmi_decl.py").read_bytes())
-    add("loader", LOADER_SOURCE.read_bytes())
+    add("loader", LOADER_SOURCES[2].read_bytes())
     add("loader header", LOADER_HEADER.read_bytes())
     add("python", repr(build_python()).encode())
     add("compiler", _compiler_identity().encode())

@@ -67,8 +67,8 @@ def build_test_fmu(script: str, out: Path) -> Path:
     cache = fmu_cache_dir("test-fmus")
     if cache is None:
         return build_test_fmu_uncached(src, out)
-    from wmr_cosim.fmus.build import LOADER_HEADER, LOADER_SOURCE
-    key = hashlib.sha256(src.read_bytes() + LOADER_SOURCE.read_bytes() + LOADER_HEADER.read_bytes())
+    from wmr_cosim.fmus.build import LOADER_HEADER, LOADER_SOURCES
+    key = hashlib.sha256(src.read_bytes() + LOADER_SOURCES[2].read_bytes() + LOADER_HEADER.read_bytes())
     done = cache / f"{src.stem}-{key.hexdigest()[:16]}"
     if not done.is_dir():
         tmp = Path(tempfile.mkdtemp(prefix=done.name, dir=cache))

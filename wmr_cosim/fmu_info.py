@@ -17,7 +17,7 @@ from fmpy import read_model_description
 
 from .cosim.archive import check_archive
 from .cosim.errors import FmuLoadError
-from .cosim.model import _fmi_version, load_model
+from .cosim.model import fmi_version, load_model
 
 #: The largest double: a bound of this size (or infinite) is no bound, and is shown as nothing.
 UNBOUNDED = 1.7976931348623157e308
@@ -75,7 +75,7 @@ def describe(path: str | Path) -> str:
     Raises FmuLoadError (one line) when the archive is unsafe or its model description unreadable."""
     path = Path(path)
     check_archive(path)
-    _fmi_version(path)          # (refuses XML entities before FMPy parses the document)
+    fmi_version(path)          # (refuses XML entities before FMPy parses the document)
     try:
         md = read_model_description(str(path), validate=False)
     except Exception as exc:  # FMPy raises plain Exceptions for unreadable descriptions
