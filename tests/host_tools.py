@@ -1,6 +1,6 @@
 """The prebuilt third-party FMI hosts the tests compare against (fmusim, OMSimulator): C/C++ programs that
-no package index provides.  They are looked for in the folder ``WMR_HOST_TOOLS`` names, else in
-``shared/tools`` beside the checkout (fmusim in ``fmusim/fmusim``, OMSimulator in
+no package index provides.  They are looked for in the folder ``WMR_HOST_TOOLS`` names, else in the
+folder ``tools`` of a folder ``shared`` beside the checkout (fmusim in ``fmusim/fmusim``, OMSimulator in
 ``omsimulator/bin/OMSimulator``); a test that needs one skips, saying why, where it is absent or cannot
 start (fmusim needs Debian's libxml2, libminizip1 and libsundials-cvode6; OMSimulator libcurl4 and
 libicu72)."""

@@ -11,7 +11,7 @@ from .claims import make_claim
 from .components import paper
 from .report import fmt
 
-#: the paper: its title (shared/paper/hinf-wmr-paper.md)
+#: the paper this project reproduces: its title
 PAPER_TITLE = "Experimental verification of H-infinity control with examples of the movement of a wheeled robot"
 
 
