@@ -12,49 +12,20 @@ import math
 import os
 import sys
 import time
-import tomllib
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
 from .cosim.status import RunStatus
 
-from . import scenario_files
 from .analysis import (RUNS, fidelity, load_signals, position_error, run_summary,
                        table1_disturbance_analysis)
 from .components import paper
 from .paper_report import claims, provenance
+from .paper_tasks import DEFAULT_MANIFEST, task_files  # noqa: F401  (DEFAULT_MANIFEST: also read from here)
 from .report import fmt, to_html, to_markdown
 
-DEFAULT_MANIFEST = "paper.toml"  # among the shipped scenario files (wmr_cosim.scenarios)
 VARIANTS = ("freeze", "printed")
-
-
-def manifest_path(manifest: str | os.PathLike | None = None) -> Path:
-    """The tasks file: ``manifest`` as given, or the shipped ``scenarios/paper.toml`` when None."""
-    return Path(manifest) if manifest is not None else scenario_files.folder() / DEFAULT_MANIFEST
-
-
-def task_files(manifest: str | os.PathLike | None = None) -> dict[str, Path]:
-    """{task: protocol file} of the tasks file ``manifest`` (default: the shipped one, see :func:`manifest_path`)."""
-    from .cosim.errors import ScenarioError
-
-    path = manifest_path(manifest)
-    if not path.is_file():
-        raise ScenarioError(str(path), "", "file not found")
-    try:
-        doc = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(str(path), "", f"not valid TOML ({exc})") from None
-    tasks = doc.get("tasks")
-    if not isinstance(tasks, dict) or not tasks:
-        raise ScenarioError(str(path), "tasks", "missing: a table task name -> protocol file")
-    out = {}
-    for name, f in tasks.items():
-        if name not in paper.TASKS:
-            raise ScenarioError(str(path), f"tasks.{name}", f"unknown task (one of {', '.join(paper.TASKS)})")
-        out[name] = (path.parent / f).resolve()
-    return out
 
 
 def run_line(variant: str, task: str, run: str, res: Any) -> str:

@@ -34,6 +34,7 @@ from typing import Any
 
 from .analysis import fidelity
 from .components import paper
+from .paper_tasks import manifest_path, task_files
 
 RUNS = ("learn", "frozen", "foam")
 _A = paper.table1()["a"][4]          # nominal a5 = a6 [N.m]
@@ -115,7 +116,6 @@ def plan(grid: StudyGrid) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """The distinct points of the study (a point: id, base protocol file, parameters) and, per axis
     value or reading, the point id of each task."""
     from .cosim.errors import ScenarioError
-    from .paper_job import task_files, manifest_path
 
     files = task_files(grid.manifest)
     missing = [t for t in grid.tasks if t not in files]
