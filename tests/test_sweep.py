@@ -12,7 +12,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from wmr_cosim import sweep
+from wmr_cosim import cluster, sweep, sweep_file
 from wmr_cosim.cosim.errors import ScenarioError
 
 DATA = Path(__file__).parent / "data"
@@ -46,7 +46,7 @@ samples = 2
 
 @pytest.fixture(scope="module")
 def cluster2():
-    with sweep.Cluster(workers=2) as cl:
+    with cluster.Cluster(workers=2) as cl:
         yield cl
 
 
@@ -55,14 +55,14 @@ def _table(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def test_points_are_drawn_from_the_seed(tmp_path):
-    spec = sweep.load_sweep(_sweep_file(tmp_path, SMALL))
-    a, b = sweep.draw_points(spec), sweep.draw_points(spec)
+    spec = sweep_file.load_sweep(_sweep_file(tmp_path, SMALL))
+    a, b = sweep_file.draw_points(spec), sweep_file.draw_points(spec)
     assert a == b and len(a) == 4
     assert [p["params"]["plant.foam_da1"] for p in a] == [0.2, 0.2, 0.6, 0.6]
     assert all(p["params"]["plant.foam_da1"] == p["params"]["plant.foam_da2"] for p in a)   # linked
     assert all(1.8 <= p["params"]["controller.goal_x"] <= 2.2 for p in a)
     spec.seed = 6
-    assert sweep.draw_points(spec) != a
+    assert sweep_file.draw_points(spec) != a
 
 
 @pytest.mark.parametrize("body, field, reason", [
@@ -76,7 +76,7 @@ def test_points_are_drawn_from_the_seed(tmp_path):
 ])
 def test_bad_sweep_files(tmp_path, body, field, reason):
     with pytest.raises(ScenarioError) as exc:
-        sweep.load_sweep(_sweep_file(tmp_path, body))
+        sweep_file.load_sweep(_sweep_file(tmp_path, body))
     assert exc.value.field == field and reason in str(exc.value), str(exc.value)
 
 
@@ -99,7 +99,7 @@ def test_a_point_that_changes_q_and_r_gets_gamma_star_with_its_own_weights(tmp_p
 
 def test_same_results_with_one_or_two_workers_and_after_a_restart(tmp_path, cluster2):
     f = _sweep_file(tmp_path, SMALL)
-    with sweep.Cluster(workers=1) as one:
+    with cluster.Cluster(workers=1) as one:
         df1 = sweep.run_sweep(f, tmp_path / "one", cluster=one, progress=False)
     df2 = sweep.run_sweep(f, tmp_path / "two", cluster=cluster2, progress=False)
     assert (df1["status"] == "ok").all()
@@ -181,7 +181,7 @@ def test_sweep_on_an_existing_scheduler_with_two_workers(tmp_path):
             c.wait_for_workers(2, timeout=30)
             assert len(c.scheduler_info()["workers"]) == 2
         f = _sweep_file(tmp_path, SMALL)
-        with sweep.Cluster(address=addr) as cl:
+        with cluster.Cluster(address=addr) as cl:
             df = sweep.run_sweep(f, tmp_path / "out", cluster=cl, progress=False)
             workers_used = {w for w in cl.client.run(lambda: os.getpid()).values()}
         assert (df["status"] == "ok").all() and len(df) == 4

@@ -17,7 +17,8 @@ import os
 from pathlib import Path
 from typing import Any
 
-from .sweep import Cluster, run_points
+from .cluster import Cluster
+from .sweep import run_points
 
 DEFAULT_GRID = (0.25, 0.5, 1.0, 2.0, 4.0, 6.0, 8.0, 10.0, 12.0, 14.0, 16.0, 20.0, 30.0)
 
@@ -34,7 +35,7 @@ def gamma_search(scenario: str | os.PathLike, out: str | os.PathLike, grid: list
                  workers: int | None = None, scheduler: str | None = None, progress: bool | None = None,
                  security: Any = None, dashboard: bool = False) -> dict[str, Any]:
     """Grid, then bisection where the grid shows a single crossing; writes gamma_search.json, .csv and a
-    figure into ``out``; returns the result.  ``security`` and ``dashboard``: see :class:`.sweep.Cluster`."""
+    figure into ``out``; returns the result.  ``security`` and ``dashboard``: see :class:`.cluster.Cluster`."""
 
     from .cosim.protocol import plan_runs
     from .cosim.errors import CosimError

@@ -265,7 +265,8 @@ def decide(readings: list[dict[str, Any]]) -> dict[str, Any]:
 def run_study(out: Path, grid: StudyGrid | None = None, workers: int | None = None,
               progress: bool | None = None) -> dict[str, Any]:
     """Run the study's points on a local Dask cluster into ``out`` (resumable) and summarise them."""
-    from .sweep import Cluster, run_points
+    from .cluster import Cluster
+    from .sweep import run_points
 
     grid = grid or StudyGrid()
     points, layout = plan(grid)
