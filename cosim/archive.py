@@ -11,10 +11,12 @@ counted as each entry is decompressed (when the archive is verified and when it 
 that inflates past the size its directory declares, or a total past ``max_size``, stops the extraction
 at once and removes what was written.
 
-The limits (:class:`ArchiveLimits`) come from, in increasing precedence: the defaults (2 GiB, 200:1),
-the ``[limits]`` table of the scenario read last (:func:`use_scenario_limits`), and the environment
-variables ``WMR_COSIM_MAX_ARCHIVE_SIZE`` and ``WMR_COSIM_MAX_ARCHIVE_RATIO`` (which the command line's
-``--max-archive-size`` and ``--max-archive-ratio`` set, so that every process a command starts sees them).
+The limits (:class:`ArchiveLimits`) are an explicit argument of every check and extraction (the defaults,
+2 GiB and 200:1, when none is given).  A scenario carries its own (``Scenario.archive_limits``, from its
+``[limits]`` table: :func:`parse_limits`) and so does the plan resolved from it (``Plan.archive_limits``);
+a caller's own limits (:class:`LimitOverrides`, such as a command line's options) win over the
+scenario's, one by one.  Nothing is kept between calls: two scenarios read one after the other each
+extract with their own limits.
 """
 from __future__ import annotations
 
@@ -41,6 +43,8 @@ DEFAULT_MAX_RATIO = 200.0
 #: Archives that unpack to at most this many bytes are never refused for their ratio: they cannot fill
 #: a disk, and small text files alone can compress well [bytes].
 RATIO_FLOOR = 1 * MiB
+#: Names of environment variables that earlier versions read the limits from.  Nothing reads them any
+#: more; they stay defined until the sweep module stops clearing them in its workers.
 ENV_SIZE = "WMR_COSIM_MAX_ARCHIVE_SIZE"
 ENV_RATIO = "WMR_COSIM_MAX_ARCHIVE_RATIO"
 _CHUNK = 1 * MiB
@@ -58,7 +62,22 @@ class ArchiveLimits:
     max_ratio: float = DEFAULT_MAX_RATIO
 
 
-_scenario_limits: dict[str, Any] = {}
+#: The limits of an archive nobody set limits for.
+DEFAULT_LIMITS = ArchiveLimits()
+
+
+@dataclass(frozen=True)
+class LimitOverrides:
+    """Limits a caller sets over a scenario's own (a command line's options): each one given (not None)
+    wins over the scenario's ``[limits]``; one not given leaves the scenario's, else the default."""
+
+    max_size: int | None = None
+    max_ratio: float | None = None
+
+    def over(self, limits: ArchiveLimits = DEFAULT_LIMITS) -> ArchiveLimits:
+        """``limits`` with the ones given here put in their place."""
+        return ArchiveLimits(limits.max_size if self.max_size is None else self.max_size,
+                             limits.max_ratio if self.max_ratio is None else self.max_ratio)
 
 
 # ---------------------------------------------------------------------------------------------- limits
@@ -98,62 +117,52 @@ def fmt_size(n: float) -> str:
     return f"{int(n)} B"
 
 
-def use_scenario_limits(file: str, table: Any) -> None:
-    """Take the ``[limits]`` table of a scenario (``archive_size``: a size, ``archive_ratio``: a number),
-    or forget the previous scenario's limits when ``table`` is None.  ScenarioError for a bad value."""
-    _scenario_limits.clear()
+def parse_limits(file: str, table: Any, over: LimitOverrides | None = None) -> ArchiveLimits:
+    """The limits of a scenario: its ``[limits]`` table (``archive_size``: a size, ``archive_ratio``: a
+    number; None when it has none) over the defaults, and ``over`` over both.  ScenarioError for a bad value."""
     if table is None:
-        return
+        table = {}
     if not isinstance(table, dict):
         raise ScenarioError(file, "limits", "must be a table (archive_size, archive_ratio)")
+    given: dict[str, Any] = {}
     for k, v in table.items():
         try:
             if k == "archive_size":
-                _scenario_limits["max_size"] = parse_size(v)
+                given["max_size"] = parse_size(v)
             elif k == "archive_ratio":
-                _scenario_limits["max_ratio"] = parse_ratio(v)
+                given["max_ratio"] = parse_ratio(v)
             else:
                 raise ScenarioError(file, f"limits.{k}", "unknown key (allowed: archive_ratio, archive_size)")
         except ValueError as exc:
-            _scenario_limits.clear()
             raise ScenarioError(file, f"limits.{k}", str(exc)) from None
+    own = ArchiveLimits(**given)
+    return over.over(own) if over is not None else own
 
 
-def set_command_line_limits(max_size: Any = None, max_ratio: Any = None) -> None:
-    """The command line's limits, kept in the environment so that every process started afterwards (a
-    local Dask worker, a process pool) applies them too.  CosimError (exit code 2) for a bad value."""
-    for opt, value, env, parse in (("--max-archive-size", max_size, ENV_SIZE, parse_size),
-                                   ("--max-archive-ratio", max_ratio, ENV_RATIO, parse_ratio)):
-        if value is not None:
-            try:
-                os.environ[env] = str(parse(value))
-            except ValueError as exc:
-                raise CosimError(f"{opt}: {exc}") from None
+def limit_overrides(max_size: Any = None, max_ratio: Any = None, names: tuple[str, str] = ("max_size", "max_ratio")
+                    ) -> LimitOverrides:
+    """A caller's limits from their text (``max_size`` a size such as ``"8 GiB"``, ``max_ratio`` a number;
+    None: not given).  CosimError naming the value (by ``names``: a command line gives its options' names)."""
+    parsed: list[Any] = []
+    for name, value, parse in ((names[0], max_size, parse_size), (names[1], max_ratio, parse_ratio)):
+        try:
+            parsed.append(None if value is None else parse(value))
+        except ValueError as exc:
+            raise CosimError(f"{name}: {exc}") from None
+    return LimitOverrides(*parsed)
 
 
 def command_line_limits() -> dict[str, str]:
-    """The limits set by the command line (environment), to hand to a process on another machine."""
-    return {k: os.environ[k] for k in (ENV_SIZE, ENV_RATIO) if k in os.environ}
-
-
-def current_limits() -> ArchiveLimits:
-    """The limits in effect: defaults, then the scenario's ``[limits]``, then the command line."""
-    d: dict[str, Any] = {"max_size": DEFAULT_MAX_SIZE, "max_ratio": DEFAULT_MAX_RATIO, **_scenario_limits}
-    try:
-        if os.environ.get(ENV_SIZE):
-            d["max_size"] = parse_size(os.environ[ENV_SIZE])
-        if os.environ.get(ENV_RATIO):
-            d["max_ratio"] = parse_ratio(os.environ[ENV_RATIO])
-    except ValueError as exc:
-        raise FmuLoadError(f"environment {ENV_SIZE}/{ENV_RATIO}: {exc}") from None
-    return ArchiveLimits(**d)
+    """Always empty: limits no longer travel through the environment (pass :class:`LimitOverrides`).
+    Kept until the sweep module stops asking for them."""
+    return {}
 
 
 def check_sizes(label: str, infos: list[zipfile.ZipInfo], archive_size: int,
                 limits: ArchiveLimits | None = None) -> None:
     """FmuLoadError naming ``label`` if the entries' declared sizes pass the limits: their sum above
     ``max_size``, or (above :data:`RATIO_FLOOR`) above ``max_ratio`` times ``archive_size`` [bytes]."""
-    lim = limits or current_limits()
+    lim = limits or DEFAULT_LIMITS
     total = sum(i.file_size for i in infos)
     if total > lim.max_size:
         raise FmuLoadError(f"{label}: refused: its entries unpack to {fmt_size(total)}, more than the limit of "
@@ -174,7 +183,7 @@ def check_archive(path: str | os.PathLike, limits: ArchiveLimits | None = None,
     path = Path(path)
     if not path.is_file():
         raise FmuLoadError(f"{path}: file not found")
-    lim = limits or current_limits()
+    lim = limits or DEFAULT_LIMITS
     try:
         zf = zipfile.ZipFile(path)
     except (zipfile.BadZipFile, OSError) as exc:
@@ -244,7 +253,7 @@ def _copy_member(label: str, zf: zipfile.ZipFile, info: zipfile.ZipInfo, sink: I
 def safe_extract(path: str | os.PathLike, dest: str | os.PathLike, limits: ArchiveLimits | None = None) -> Path:
     """Check the whole archive, then extract it into ``dest`` (created), counting the bytes written;
     returns ``dest``.  On any refusal what was written is removed (``dest`` too if it did not exist)."""
-    lim = limits or current_limits()
+    lim = limits or DEFAULT_LIMITS
     infos = check_archive(path, lim, verify=False)
     dest = Path(dest)
     top = dest                         # the first folder this call creates: removed on failure

@@ -1,6 +1,9 @@
-"""Errors of the master.  Every message is one line; the CLI prints it and exits with ``exit_code``."""
+"""Errors of the master.  Every message is one line (an application shows it as it is; what exit code
+a command gives for each is the application's: ``wmr_cosim.exit_codes``)."""
 from __future__ import annotations
 
+# Exit codes, kept only until cosim/status.py stops importing them (the command line's own are in
+# wmr_cosim.exit_codes; nothing else here uses them).
 EXIT_OK = 0
 EXIT_RUN_FAILED = 1
 EXIT_BAD_INPUT = 2
@@ -9,8 +12,6 @@ EXIT_INTERRUPTED = 130
 
 class CosimError(Exception):
     """A failure the user must see as one line (no traceback)."""
-
-    exit_code = EXIT_BAD_INPUT
 
     def __init__(self, message: str) -> None:
         super().__init__(" ".join(str(message).split()))
@@ -24,6 +25,14 @@ class ScenarioError(CosimError):
         super().__init__(f"{file}: {field}: {reason}" if field else f"{file}: {reason}")
 
 
+class OtherFileError(ScenarioError):
+    """A file given as a scenario is another kind of file (``kind``: "a paper manifest", "a sweep file")."""
+
+    def __init__(self, file: str, kind: str) -> None:
+        self.kind = kind
+        super().__init__(file, "", f"not a scenario but {kind}")
+
+
 class FmuLoadError(CosimError):
     """An FMU file is missing, unsafe, not FMI 2.0 co-simulation, or cannot be loaded."""
 
@@ -34,8 +43,6 @@ class OutputError(CosimError):
 
 class RunError(CosimError):
     """The run stopped: a non-OK status, a non-finite output, or an exception while stepping."""
-
-    exit_code = EXIT_RUN_FAILED
 
     def __init__(self, message: str, instance: str = "", time: float | None = None) -> None:
         self.instance, self.time = instance, time

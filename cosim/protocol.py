@@ -14,11 +14,14 @@ named "run".
 """
 from __future__ import annotations
 
+import copy
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
 from . import execution, scenario, system
+from .archive import LimitOverrides
 from .errors import CosimError, ScenarioError
 
 Resolver = Callable[[str], "Path | None"]
@@ -27,29 +30,69 @@ Resolver = Callable[[str], "Path | None"]
 Carry = Callable[[dict[str, str], dict[str, dict[str, float]]], dict[str, Any]]
 
 
-def plan_runs(path: str | os.PathLike, resolver: Resolver | None = None, variant: str | None = None
+@dataclass(frozen=True)
+class Protocol:
+    """A scenario file read once: its merged document and the scenario it makes, with the resolver of
+    its model names and the caller's archive limits; every run's scenario is made from the document."""
+
+    file: str
+    document: dict[str, Any]
+    scenario: scenario.Scenario
+    resolver: Resolver | None = None
+    limits: LimitOverrides | None = None
+
+    @property
+    def runs(self) -> list[scenario.RunSpec]:
+        """The runs (one default run named "run" if the file declares none)."""
+        return self.scenario.runs or [scenario.RunSpec("run")]
+
+    def variant_parameters(self, variant: str | None) -> dict[str, Any]:
+        """The parameters a variant sets ({} for None); ScenarioError for a variant the file does not declare."""
+        if variant is None:
+            return {}
+        if variant not in self.scenario.variants:
+            known = ", ".join(self.scenario.variants) or "none"
+            raise ScenarioError(self.file, f"--variant {variant}", f"not declared by this file (declared: {known})")
+        return self.scenario.variants[variant]
+
+    def with_parameters(self, overrides: dict[str, Any] | None) -> scenario.Scenario:
+        """The scenario with ``overrides`` ({'inst.param': value}) applied to a copy of the document."""
+        if not overrides:
+            return self.scenario
+        doc = scenario.apply_overrides(copy.deepcopy(self.document), overrides, self.file)
+        return scenario.parse(doc, self.file, self.resolver, self.limits)
+
+
+def read_protocol(path: str | os.PathLike, resolver: Resolver | None = None, limits: LimitOverrides | None = None
+                  ) -> Protocol:
+    """Read and parse a scenario file once (:class:`Protocol`); ``limits``: the caller's archive limits."""
+    file = str(Path(path))
+    doc = scenario.read_document(Path(path))
+    sc = scenario.parse(copy.deepcopy(doc), file, resolver, limits)
+    return Protocol(file, doc, sc, resolver, limits)
+
+
+def _protocol(source: str | os.PathLike | Protocol, resolver: Resolver | None,
+              limits: LimitOverrides | None) -> Protocol:
+    return source if isinstance(source, Protocol) else read_protocol(source, resolver, limits)
+
+
+def plan_runs(path: str | os.PathLike | Protocol, resolver: Resolver | None = None, variant: str | None = None,
+              limits: LimitOverrides | None = None
               ) -> tuple[scenario.Scenario, list[scenario.RunSpec], dict[str, Any]]:
     """The scenario, its runs (one default run if it declares none) and the variant's parameters."""
-    sc = scenario.load(path, resolver)
-    runs = sc.runs or [scenario.RunSpec("run")]
-    vparams: dict[str, Any] = {}
-    if variant is not None:
-        if variant not in sc.variants:
-            known = ", ".join(sc.variants) or "none"
-            raise ScenarioError(str(path), f"--variant {variant}", f"not declared by this file (declared: {known})")
-        vparams = sc.variants[variant]
-    return sc, runs, vparams
+    proto = _protocol(path, resolver, limits)
+    return proto.scenario, proto.runs, proto.variant_parameters(variant)
 
 
 #: A value of each kind, standing for a carried value that is not known before its source run ends.
 _STAND_IN: dict[str, Any] = {"Real": 0.0, "Integer": 0, "Enumeration": 0, "Boolean": False, "String": ""}
 
 
-def _resolve_run(path: str | os.PathLike, resolver: Resolver | None, run: str, params: dict[str, Any],
-                 force: bool) -> system.Plan:
+def _resolve_run(proto: Protocol, run: str, params: dict[str, Any], force: bool, isolate: bool) -> system.Plan:
     """The checked plan of one run; a failure names the run."""
     try:
-        return system.resolve(scenario.load(path, resolver, params), force)
+        return system.resolve(proto.with_parameters(params), force, isolate_all=isolate)
     except ScenarioError as exc:
         where = f"runs.{run}: {exc.field}" if exc.field else f"runs.{run}"
         raise ScenarioError(exc.file, where, exc.reason) from None
@@ -78,64 +121,60 @@ def _carried(file: str, run: scenario.RunSpec, finals: dict[str, dict[str, Any]]
     return carried
 
 
-def check_protocol(path: str | os.PathLike, resolver: Resolver | None = None, variant: str | None = None,
+def check_protocol(path: str | os.PathLike | Protocol, resolver: Resolver | None = None, variant: str | None = None,
                    overrides: dict[str, Any] | None = None, only: list[str] | None = None, force: bool = False,
-                   carry: Carry | None = None) -> dict[str, system.Plan]:
+                   carry: Carry | None = None, limits: LimitOverrides | None = None, isolate: bool = False
+                   ) -> dict[str, system.Plan]:
     """Resolve every run of the file (the ones in ``only``) before any of them starts: each run's parameters
     against its FMUs, each carry against what its source run records and what its target takes (type and
     shape; the range once the value is known).  Returns {run name: plan}; raises ScenarioError naming the
-    run and the field."""
-    return _check_runs(path, plan_runs(path, resolver, variant), resolver, overrides, only, force, carry)
-
-
-def _check_runs(path: str | os.PathLike, parsed: tuple[scenario.Scenario, list[scenario.RunSpec], dict[str, Any]],
-                resolver: Resolver | None, overrides: dict[str, Any] | None, only: list[str] | None, force: bool,
-                carry: Carry | None) -> dict[str, system.Plan]:
-    """:func:`check_protocol` of a file already parsed by :func:`plan_runs`."""
-    sc, runs, vparams = parsed
+    run and the field.  ``path`` may be a file already read (:func:`read_protocol`: then ``resolver`` and
+    ``limits`` are its own)."""
+    proto = _protocol(path, resolver, limits)
+    vparams = proto.variant_parameters(variant)
     overrides = overrides or {}
     plans: dict[str, system.Plan] = {}
     finals: dict[str, dict[str, Any]] = {}
-    for run in runs:
+    for run in proto.runs:
         if only is not None and run.name not in only:
             continue
-        carried = {ref: v for ref, v in _carried(sc.file, run, finals, carry).items() if ref not in overrides}
-        plan = _resolve_run(path, resolver, run.name, {**vparams, **run.parameters, **overrides}, force)
+        carried = {ref: v for ref, v in _carried(proto.file, run, finals, carry).items() if ref not in overrides}
+        plan = _resolve_run(proto, run.name, {**vparams, **run.parameters, **overrides}, force, isolate)
         for ref, value in carried.items():
-            system.check_carried(sc.file, f"runs.{run.name}.carry.{ref}", plan, ref, value)
+            system.check_carried(proto.file, f"runs.{run.name}.carry.{ref}", plan, ref, value)
         plans[run.name] = plan
         finals[run.name] = {rp.column: _STAND_IN.get(rp.var.type, 0.0) for rp in plan.record}
     return plans
 
 
-def run_protocol(path: str | os.PathLike, out_dir: str | os.PathLike, resolver: Resolver | None = None,
+def run_protocol(path: str | os.PathLike | Protocol, out_dir: str | os.PathLike, resolver: Resolver | None = None,
                  variant: str | None = None, overrides: dict[str, Any] | None = None,
                  progress: bool | None = None, only: list[str] | None = None,
                  on_run: Callable[[str, execution.RunResult], None] | None = None,
-                 force: bool = False, isolate: bool = False, carry: Carry | None = None
-                 ) -> dict[str, execution.RunResult]:
+                 force: bool = False, isolate: bool = False, carry: Carry | None = None,
+                 limits: LimitOverrides | None = None) -> dict[str, execution.RunResult]:
     """Run every run of the file in order into ``out_dir/<run>``; returns {run name: result}.
 
     Every run is checked first (:func:`check_protocol`), so a run that cannot work stops the protocol
     before its first run starts.  A run whose carried source run failed is still run if the source
     recorded the value.  ``overrides`` ("inst.param" -> value) apply to every run, after the variant and
     the run's own parameters and carried values.  ``carry`` replaces the plain lookup of carried values
-    (a resolver to other FMUs may need the names translated).
+    (a resolver to other FMUs may need the names translated).  ``isolate`` hosts every instance of every
+    run in a child process of its own; ``limits``: the caller's archive limits.  ``path`` may be a file
+    already read (:func:`read_protocol`).
     """
-    parsed = plan_runs(path, resolver, variant)
-    _check_runs(path, parsed, resolver, overrides, only, force, carry)
-    sc, runs, vparams = parsed
+    proto = _protocol(path, resolver, limits)
+    check_protocol(proto, variant=variant, overrides=overrides, only=only, force=force, carry=carry)
+    vparams = proto.variant_parameters(variant)
     out = Path(out_dir)
     results: dict[str, execution.RunResult] = {}
-    for run in runs:
+    for run in proto.runs:
         if only is not None and run.name not in only:
             continue
         params = {**vparams, **run.parameters}
-        params.update(_carried(sc.file, run, {n: r.final for n, r in results.items()}, carry))
+        params.update(_carried(proto.file, run, {n: r.final for n, r in results.items()}, carry))
         params.update(overrides or {})
-        plan = _resolve_run(path, resolver, run.name, params, force)
-        for ip in plan.instances.values():
-            ip.spec.isolate = ip.spec.isolate or isolate
+        plan = _resolve_run(proto, run.name, params, force, isolate)
         res = execution.run(plan, out / run.name, progress=progress)
         results[run.name] = res
         if on_run is not None:

@@ -14,8 +14,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .archive import use_scenario_limits
-from .errors import ScenarioError
+from .archive import DEFAULT_LIMITS, ArchiveLimits, LimitOverrides, parse_limits
+from .errors import OtherFileError, ScenarioError
+from .kinds import FileKind, file_kind
 from .suggest import did_you_mean
 
 ALGORITHMS = ("gauss-seidel", "jacobi")
@@ -123,6 +124,7 @@ class Scenario:
     inputs_file: Path | None = None                      # a CSV table of input signals
     interpolation: dict[str, str] = field(default_factory=dict)  # column -> "linear" | "hold"
     data: dict[str, Any] = field(default_factory=dict)  # the merged document, as run
+    archive_limits: ArchiveLimits = DEFAULT_LIMITS      # how far its FMU and SSP archives may unpack ([limits])
 
 
 def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
@@ -135,17 +137,17 @@ def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-#: Top-level keys of the other files of this project, and the command that takes each.
-_OTHER_FILES = {"tasks": "a paper manifest: run it with `wmr-cosim paper --manifest FILE`",
-                "grid": "a sweep file: run it with `wmr-cosim sweep FILE`",
-                "random": "a sweep file: run it with `wmr-cosim sweep FILE`",
-                "samples": "a sweep file: run it with `wmr-cosim sweep FILE`"}
+#: Top-level keys of other files a scenario may be mistaken for, and what each makes the file
+#: (:class:`~.errors.OtherFileError`: the application can add how to run it).
+OTHER_FILES = {"tasks": "a paper manifest", "grid": "a sweep file", "random": "a sweep file",
+               "samples": "a sweep file"}
 #: The longest instance name (it names files: logs/<instance>.log).
 MAX_NAME = 100
 
 
-def _read(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, str] | None = None) -> dict[str, Any]:
-    """Read one file, absolutise its FMU and input paths, and merge it over its ``base``."""
+def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, str] | None = None) -> dict[str, Any]:
+    """Read one scenario file, absolutise its FMU and input paths, and merge it over its ``base`` (the
+    document :func:`parse` checks)."""
     name = str(path)
     if not path.is_file():
         if asked_by is not None:
@@ -168,12 +170,12 @@ def _read(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, str] | N
         raise ScenarioError(name, "", f"cannot be read ({exc.strerror or exc})") from None
     unknown = set(doc) - _TOP_KEYS
     for key in sorted(unknown):
-        if key in _OTHER_FILES:
-            raise ScenarioError(name, "", f"not a scenario but {_OTHER_FILES[key]}")
+        if key in OTHER_FILES:
+            raise OtherFileError(name, OTHER_FILES[key])
     if unknown:
         raise ScenarioError(name, sorted(unknown)[0], f"unknown key (allowed: {', '.join(sorted(_TOP_KEYS))})")
     for inst in (doc.get("instances") or {}).values():
-        if isinstance(inst, dict) and isinstance(inst.get("fmu"), str) and _is_path(inst["fmu"]):
+        if isinstance(inst, dict) and isinstance(inst.get("fmu"), str) and is_path(inst["fmu"]):
             inst["fmu"] = str((path.parent / inst["fmu"]).resolve())
     inputs = doc.get("inputs")
     if isinstance(inputs, dict) and isinstance(inputs.get("file"), str):
@@ -182,8 +184,11 @@ def _read(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, str] | N
         b = doc.pop("base")
         if not isinstance(b, str):
             raise ScenarioError(name, "base", "must be a file name")
-        doc = _merge(_read(_base_path(path, b), seen + (path.resolve(),), (name, b)), doc)
+        doc = _merge(read_document(_base_path(path, b), seen + (path.resolve(),), (name, b)), doc)
     return doc
+
+
+_read = read_document   # the former name (wmr_cosim.api reads documents through it)
 
 
 def _shipped() -> Path | None:
@@ -218,8 +223,12 @@ def _base_path(path: Path, base: str) -> Path:
     return found if found is not None and found.is_file() else beside
 
 
-def _is_path(fmu: str) -> bool:
-    return fmu.endswith(".fmu") or "/" in fmu or os.sep in fmu
+def is_path(fmu: str) -> bool:
+    """Whether an instance's ``fmu`` names a file (an ``.fmu``, in any case, or a path) rather than a model."""
+    return file_kind(fmu) is FileKind.FMU or "/" in fmu or os.sep in fmu
+
+
+_is_path = is_path      # the former name (wmr_cosim.api tells paths from model names through it)
 
 
 def _flag(file: str, fld: str, v: Any) -> bool:
@@ -282,15 +291,15 @@ def _instance_refs(file: str, fld: str, table: Any, sc: Scenario) -> dict[str, A
     return table
 
 
-def parse(doc: dict[str, Any], file: str, resolver=None) -> Scenario:
+def parse(doc: dict[str, Any], file: str, resolver=None, limits: LimitOverrides | None = None) -> Scenario:
     """Check the structure of a merged scenario document and build a :class:`Scenario`.  TOML files, SSP
     archives and documents built in code all come through here, so every check exists once.
 
     ``resolver(model_name) -> Path | None`` turns an FMU given by model name (e.g. ``WmrPlant``) into a
-    file; without one, every ``fmu`` must be a path.
+    file; without one, every ``fmu`` must be a path.  ``limits``: the caller's archive limits, each given
+    one over the document's ``[limits]`` (the scenario's ``archive_limits``).
     """
-    sc = Scenario(file=file, data=doc)
-    use_scenario_limits(file, doc.get("limits"))  # [limits] archive_size, archive_ratio: see archive.py
+    sc = Scenario(file=file, data=doc, archive_limits=parse_limits(file, doc.get("limits"), limits))
     _parse_experiment(sc, doc)
     _parse_instances(sc, doc, resolver)
     _parse_connections(sc, doc)
@@ -338,7 +347,7 @@ def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:
         fmu = inst.get("fmu")
         if not isinstance(fmu, str) or not fmu:
             raise ScenarioError(file, f"{fld}.fmu", "missing: a model name or a path to an .fmu file")
-        if _is_path(fmu):
+        if is_path(fmu):
             path: Path | None = Path(fmu)
             if not path.is_file():
                 raise ScenarioError(file, f"{fld}.fmu", f"FMU file not found: {fmu}")
@@ -617,9 +626,10 @@ def parse_set(items: list[str] | None, form: str = "INSTANCE.PARAM=VALUE") -> di
     return out
 
 
-def load(path: str | os.PathLike, resolver=None, overrides: dict[str, Any] | None = None) -> Scenario:
+def load(path: str | os.PathLike, resolver=None, overrides: dict[str, Any] | None = None,
+         limits: LimitOverrides | None = None) -> Scenario:
     """Read a scenario file (following its ``base`` chain), apply ``overrides`` ({'inst.param': value}),
-    and check its structure."""
+    and check its structure (``limits``: see :func:`parse`)."""
     path = Path(path)
-    doc = apply_overrides(_read(path), overrides, str(path))
-    return parse(doc, str(path), resolver)
+    doc = apply_overrides(read_document(path), overrides, str(path))
+    return parse(doc, str(path), resolver, limits)

@@ -45,10 +45,10 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 
 from .kinds import FileKind, file_kind
-from .archive import check_archive, check_entries, check_sizes, safe_extract
+from .archive import ArchiveLimits, LimitOverrides, check_archive, check_entries, check_sizes, safe_extract
 from .errors import CosimError, FmuLoadError, ScenarioError
 from .scenario import Scenario, apply_overrides, parse
-from .system import Plan, unit_of
+from .system import Plan, load_checked_model, unit_of
 
 SSP_VERSION = "1.0"
 FMU_MIME = "application/x-fmu-sharedlibrary"
@@ -121,9 +121,9 @@ def _fmt(v: float) -> str:
 
 def _unit_base(unit) -> dict[str, Any]:
     """pyssp-standard BaseUnit attributes of a master Unit (exponents, factor, offset)."""
-    from .units import _BASES
+    from .units import BASES
 
-    d: dict[str, Any] = {b: e for b, e in zip(_BASES, unit.exps) if e}
+    d: dict[str, Any] = {b: e for b, e in zip(BASES, unit.exps) if e}
     if unit.factor != 1.0:
         d["factor"] = unit.factor
     if unit.offset != 0.0:
@@ -513,17 +513,15 @@ def _bindings(owner, folder: Path, where: str) -> list[tuple[str, Any]]:
     return out
 
 
-def _join_array_elements(instances: dict[str, dict[str, Any]], where: str) -> None:
+def _join_array_elements(instances: dict[str, dict[str, Any]], where: str, limits: ArchiveLimits) -> None:
     """Parameters named as elements of an FMI 3.0 array (x[1], A[1,2], ...: how export_ssp writes an array,
     SSP 1.0 having no array values) joined into the array's list, row-major; every element must be given."""
-    from .model import load_model
-
     for inst, d in instances.items():
         params = d["parameters"]
         bases = {n[:n.rindex("[")] for n in params if n.endswith("]") and "[" in n}
         if not bases:
             continue
-        model = load_model(d["fmu"])
+        model = load_checked_model(d["fmu"], limits)
         for base in sorted(bases):
             var = model.variables.get(base)
             if var is None or not var.shape:
@@ -564,16 +562,20 @@ def _step_from_annotations(root) -> tuple[float | None, str | None, list[str] | 
 
 
 def load_ssp(path: str | os.PathLike, *, step: float | None = None, stop: float | None = None,
-             algorithm: str | None = None, overrides: dict[str, Any] | None = None) -> SspArchive:
+             algorithm: str | None = None, overrides: dict[str, Any] | None = None,
+             limits: LimitOverrides | None = None) -> SspArchive:
     """Read an SSP 1.0 archive into a Scenario (FMUs extracted into a temporary folder).
 
     ``step``, ``stop``, ``algorithm`` override what the archive says; ``overrides`` ({'inst.param': value})
     override its parameter values.  The step, when neither given nor annotated, is the FMUs' common
-    default experiment step.  Raises ScenarioError (one line) for anything unsafe, foreign or missing.
+    default experiment step.  ``limits``: the caller's archive limits (over the defaults) for the archive,
+    the FMUs inside it and the scenario's ``archive_limits``.  Raises ScenarioError (one line) for anything
+    unsafe, foreign or missing.
     """
     path = Path(path)
     where = str(path)
-    root, warnings = _read_ssd(path)
+    lim = limits.over() if limits is not None else ArchiveLimits()
+    root, warnings = _read_ssd(path, lim)
 
     system = root.find("ssd:System", NS)   # (the schema check made sure there is one)
     if system.find("ssd:Elements/ssd:System", NS) is not None:
@@ -585,12 +587,12 @@ def load_ssp(path: str | os.PathLike, *, step: float | None = None, stop: float 
     ok = False
     try:
         try:
-            safe_extract(path, folder / "archive")
+            safe_extract(path, folder / "archive", lim)
         except FmuLoadError as exc:
             raise ScenarioError(where, "", str(exc)) from None
-        doc = _document(root, system, path, folder / "archive", step, stop, algorithm)
+        doc = _document(root, system, path, folder / "archive", step, stop, algorithm, lim)
         doc = apply_overrides(doc, overrides, where)
-        sc = parse(doc, where)
+        sc = parse(doc, where, limits=limits)
         ok = True
         return SspArchive(sc, folder, warnings)
     finally:
@@ -598,7 +600,7 @@ def load_ssp(path: str | os.PathLike, *, step: float | None = None, stop: float 
             shutil.rmtree(folder, ignore_errors=True)
 
 
-def _read_ssd(path: Path) -> tuple[Any, list[str]]:
+def _read_ssd(path: Path, limits: ArchiveLimits) -> tuple[Any, list[str]]:
     """The archive checked (entries, and the FMUs inside) and its SSD parsed and validated, with the
     warnings of reading it."""
     from lxml import etree as ET
@@ -607,7 +609,7 @@ def _read_ssd(path: Path) -> tuple[Any, list[str]]:
     if not path.is_file():
         raise ScenarioError(where, "", "file not found")
     try:
-        infos = check_archive(path)
+        infos = check_archive(path, limits)
     except FmuLoadError as exc:
         raise ScenarioError(where, "", str(exc).replace(f"{path}: ", "", 1)) from None
     if "SystemStructure.ssd" not in {i.filename for i in infos}:
@@ -615,11 +617,11 @@ def _read_ssd(path: Path) -> tuple[Any, list[str]]:
     with zipfile.ZipFile(path) as zf:
         ssd_bytes = zf.read("SystemStructure.ssd")
         for info in infos:  # the FMUs inside are archives too: every one checked before anything is extracted
-            if info.filename.lower().endswith(".fmu"):
+            if file_kind(info.filename) is FileKind.FMU:
                 try:  # their directories read through a stream, not into memory
                     with zf.open(info) as stream, zipfile.ZipFile(stream) as inner:
                         check_entries(f"{info.filename} in the archive", inner.infolist())
-                        check_sizes(f"{info.filename} in the archive", inner.infolist(), info.file_size)
+                        check_sizes(f"{info.filename} in the archive", inner.infolist(), info.file_size, limits)
                 except zipfile.BadZipFile as exc:
                     raise ScenarioError(where, info.filename, f"not a zip archive ({exc})") from None
                 except FmuLoadError as exc:
@@ -641,11 +643,11 @@ def _read_ssd(path: Path) -> tuple[Any, list[str]]:
 
 
 def _document(root, system, path: Path, arch: Path, step: float | None, stop: float | None,
-              algorithm: str | None) -> dict[str, Any]:
+              algorithm: str | None, limits: ArchiveLimits) -> dict[str, Any]:
     """The scenario document an SSD describes: the same document a TOML file gives, so the one parser
     and the one resolver check both."""
     where = str(path)
-    instances, connectors, comp_params = _components(system, path, arch)
+    instances, connectors, comp_params = _components(system, path, arch, limits)
     # String parameters this module's export held back from the parameter sets (the bindings come after)
     for a in system.findall("ssd:Annotations/ssc:Annotation", NS):
         if a.get("type") == OWN_PARAMETERS_TYPE:
@@ -667,7 +669,7 @@ def _document(root, system, path: Path, arch: Path, step: float | None, stop: fl
         comp_params.append((inst, var, value))
     for inst, var, value in comp_params:
         instances[inst]["parameters"][var] = value
-    _join_array_elements(instances, where)
+    _join_array_elements(instances, where, limits)
     a_step, a_alg, a_order = _step_from_annotations(root)
     de = root.find("ssd:DefaultExperiment", NS)
     experiment: dict[str, Any] = {"algorithm": algorithm or a_alg or "jacobi"}
@@ -687,11 +689,10 @@ def _document(root, system, path: Path, arch: Path, step: float | None, stop: fl
             "record": {"variables": outs or ["*.*"]}, "ssp": where, "name": root.get("name")}
 
 
-def _components(system, path: Path, arch: Path) -> tuple[dict[str, Any], dict[tuple[str, str], Any], list]:
+def _components(system, path: Path, arch: Path, limits: ArchiveLimits
+                ) -> tuple[dict[str, Any], dict[tuple[str, str], Any], list]:
     """The components as scenario instances (FMU inside the archive, connector units), their connectors,
     and their own parameter bindings as (component, name, value)."""
-    from .model import load_model
-
     where = str(path)
     comps = system.findall("ssd:Elements/ssd:Component", NS)
     if not comps:
@@ -717,7 +718,7 @@ def _components(system, path: Path, arch: Path) -> tuple[dict[str, Any], dict[tu
         if not src or not fmu.is_file():
             raise ScenarioError(where, f"{fld}.source", f"resource {src!r} is missing from the archive")
         try:
-            model = load_model(fmu)
+            model = load_checked_model(fmu, limits)
         except FmuLoadError as exc:
             raise ScenarioError(where, f"{fld}.source", f"{src}: {str(exc).replace(f'{fmu}: ', '', 1)}") from None
         units: dict[str, str] = {}

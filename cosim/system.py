@@ -9,13 +9,16 @@ start value of the wrong type or outside the min/max the model description decla
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
+import os
 import re
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from .archive import DEFAULT_LIMITS, ArchiveLimits, check_archive
 from .errors import CosimError, FmuLoadError, ScenarioError
 from .inputs import InputPlan, read_inputs
 from .model import PY_TYPES, FmuModel, Variable, load_model
@@ -96,6 +99,7 @@ class Plan:
     conditions: list[EventPlan] = field(default_factory=list)  # events on conditions, evaluated between steps
     notes: list[str] = field(default_factory=list)   # what check prints beside its verdict (declared units overridden)
     internal_steps: dict[str, int] = field(default_factory=dict)   # instance -> its fixed internal steps over the run
+    archive_limits: ArchiveLimits = DEFAULT_LIMITS   # the scenario's: what extracting its FMUs may unpack
 
     @property
     def watched(self) -> list[tuple[str, Variable]]:
@@ -131,7 +135,10 @@ class Plan:
         return out
 
 
-def _value(file: str, fld: str, var: Variable, value: Any, check_range: bool = True) -> Any:
+def checked_value(file: str, fld: str, var: Variable, value: Any, check_range: bool = True) -> Any:
+    """``value`` as ``var`` takes it (a Real as a float; an array as a list of its elements), or
+    ScenarioError naming ``file`` and ``fld``: a wrong type or shape, a non-finite Real, a value outside the
+    declared range (unless not ``check_range``)."""
     if var.shape:   # an FMI 3.0 array: every element, row-major
         if not isinstance(value, list) or len(value) != var.size:
             raise ScenarioError(file, fld, f"{var.name} is an array of {var.size} values {var.shape}: give a "
@@ -165,14 +172,16 @@ def check_carried(file: str, fld: str, plan: Plan, ref: str, value: Any) -> None
     inst, name = split_ref(file, fld, ref)
     if inst not in plan.instances:
         raise ScenarioError(file, fld, f"unknown instance {inst!r}")
-    var = _var(file, fld, plan.instances[inst], name)
+    var = variable(file, fld, plan.instances[inst], name)
     reason = var.settable()
     if reason:
         raise ScenarioError(file, fld, reason)
-    _value(file, fld, var, value, check_range=False)
+    checked_value(file, fld, var, value, check_range=False)
 
 
-def _var(file: str, fld: str, inst: InstancePlan, name: str) -> Variable:
+def variable(file: str, fld: str, inst: InstancePlan, name: str) -> Variable:
+    """The variable the scenario calls ``name`` in instance ``inst`` (through its name map), or
+    ScenarioError naming ``file`` and ``fld`` (with the nearest names)."""
     theirs = inst.ours_to_theirs.get(name, name)
     var = inst.model.variables.get(theirs)
     if var is None:
@@ -180,6 +189,10 @@ def _var(file: str, fld: str, inst: InstancePlan, name: str) -> Variable:
         raise ScenarioError(file, fld, f"{inst.name} ({inst.model.path.name}) has no variable {name!r}{mapped}"
                                        f"{did_you_mean(name, map(inst.our_name, inst.model.variables.values()))}")
     return var
+
+
+_value = checked_value   # the former names (wmr_cosim.api checks values and finds variables through them)
+_var = variable
 
 
 _ELEMENT = re.compile(r"^(.*)\[(\d+(?:,\d+)*)\]$")
@@ -202,7 +215,7 @@ def _element(file: str, fld: str, inst: InstancePlan, name: str) -> tuple[Variab
             for i, d in zip(idx, base.shape):
                 flat = flat * d + (i - 1)
             return base, flat
-    return _var(file, fld, inst, name), None
+    return variable(file, fld, inst, name), None
 
 
 def unit_of(inst: InstancePlan, var: Variable):
@@ -218,7 +231,7 @@ def _declared_unit(file: str, fld: str, inst: InstancePlan, name: str, unit_name
     the one it declares (under any name of the same unit), is accepted silently; one that contradicts the
     declared unit is refused, unless the instance sets ``override_declared_units`` (then the note that
     ``check`` prints is returned)."""
-    var = _var(file, fld, inst, name)
+    var = variable(file, fld, inst, name)
     if var.type != "Real":
         raise ScenarioError(file, fld, f"{var.name} is {var.type}: units apply to Real variables")
     given = lookup(unit_name, units_of(inst.model.md))
@@ -376,7 +389,7 @@ def _inputs(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str
             if len(insts) != 1:
                 raise ScenarioError(file, f"inputs.{col}", "a column must be named \"instance.variable\"")
             inst, name = next(iter(insts)), col
-        var = _var(file, f"inputs.{col}", insts[inst], name)
+        var = variable(file, f"inputs.{col}", insts[inst], name)
         if var.causality != "input":
             raise ScenarioError(file, f"inputs.{col}", f"{var.name} is {var.causality}, not an input")
         if (inst, var.name) in driven:
@@ -418,7 +431,7 @@ def _events(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str
                                     e.trigger, e.delay, reads))
             continue
         inst, vname = split_ref(file, f"{fld}.variable", e.variable)
-        var = _var(file, f"{fld}.variable", insts[inst], vname)
+        var = variable(file, f"{fld}.variable", insts[inst], vname)
         if var.shape:
             raise ScenarioError(file, f"{fld}.variable", f"{e.variable} is an array: events act on scalars")
         if e.action == "set":
@@ -426,7 +439,7 @@ def _events(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str
                 raise ScenarioError(file, f"{fld}.variable", f"{e.variable} is a {var.variability} {var.causality}: "
                                                              "set changes a tunable parameter during the run "
                                                              "(override changes an input)")
-            value = _value(file, f"{fld}.value", var, e.value)
+            value = checked_value(file, f"{fld}.value", var, e.value)
         else:
             if var.type == "Real":
                 if var.causality not in ("input", "output"):
@@ -441,9 +454,9 @@ def _events(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str
             if e.action == "reset":
                 value = None
             elif e.action == "override" or var.type != "Real":
-                value = _value(file, f"{fld}.value", var, e.value)
+                value = checked_value(file, f"{fld}.value", var, e.value)
             else:
-                value = float(_value(file, f"{fld}.value", Variable(var.name, 0, "Real", "input", "", None, None,
+                value = float(checked_value(file, f"{fld}.value", Variable(var.name, 0, "Real", "input", "", None, None,
                                                                     None, None), e.value))
         events.append(EventPlan(e.time, k, inst, var, e.action, value, e.variable, e.index, e.when, e.condition,
                                 e.trigger, e.delay, reads))
@@ -457,7 +470,7 @@ def _condition_reads(file: str, fld: str, e: Any, insts: dict[str, InstancePlan]
     reads: dict[str, tuple[str, Variable]] = {}
     for ref in variables(e.condition):
         inst, vname = ref.split(".", 1)
-        var = _var(file, fld, insts[inst], vname)
+        var = variable(file, fld, insts[inst], vname)
         if var.shape:
             raise ScenarioError(file, fld, f"{ref} is an array: a condition reads scalars")
         if var.causality == "independent":
@@ -470,85 +483,132 @@ def _condition_reads(file: str, fld: str, e: Any, insts: dict[str, InstancePlan]
     return reads
 
 
-def resolve(sc: Scenario, force: bool | None = None) -> Plan:
+def load_checked_model(path: str | os.PathLike, limits: ArchiveLimits = DEFAULT_LIMITS) -> FmuModel:
+    """:func:`~.model.load_model` of an FMU whose archive is checked against ``limits``."""
+    if limits != DEFAULT_LIMITS:     # (load_model checks against the default limits itself)
+        check_archive(path, limits)
+    return load_model(path)
+
+
+def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) -> Plan:
     """Load every FMU of the scenario and run all the checks (the one preflight that ``check`` and ``run``
-    share); returns the executable plan.  ``force`` lifts the limits of steps and recording size.
+    share); returns the executable plan.  ``force`` lifts the limits of steps and recording size;
+    ``isolate_all`` hosts every instance in a child process of its own (as if each said ``isolate = true``).
 
     ``sc`` is left as it is: the plan holds a copy of it with the times the FMUs' default experiments
     give filled in (``plan.scenario``)."""
-    sc = copy.copy(sc)
-    if force is not None:
-        sc.force = force
-    file = sc.file
-    insts: dict[str, InstancePlan] = {}
-    notes: list[str] = []
-    for name, spec in sc.instances.items():
-        try:
-            model = load_model(spec.fmu_path)
-        except FmuLoadError as exc:
-            raise ScenarioError(file, f"instances.{name}.fmu", str(exc)) from None
-        ip = InstancePlan(name, spec, model, {o: t for t, o in spec.names.items()}, dict(spec.names))
-        for their, ours in spec.names.items():
-            if their not in model.variables:
-                raise ScenarioError(file, f"instances.{name}.names.{their}",
-                                    f"{model.path.name} has no variable {their!r}")
-            if ours != their and ours in model.variables and ours not in spec.names:
-                raise ScenarioError(file, f"instances.{name}.names.{their}",
-                                    f"{ours!r} is already the name of another variable of {model.path.name}")
-        for var_name, unit_name in spec.units.items():
-            note = _declared_unit(file, f"instances.{name}.units.{var_name}", ip, var_name, unit_name)
-            if note:
-                notes.append(note)
-        for pname, value in spec.parameters.items():
-            fld = f"instances.{name}.parameters.{pname}"
-            var = _var(file, fld, ip, pname)
-            reason = var.settable()
-            if reason:
-                raise ScenarioError(file, fld, reason)
-            ip.parameters.append((var, _value(file, fld, var, value)))
-        insts[name] = ip
+    sc = _planned_copy(sc, force, isolate_all)
+    insts, notes = _instance_plans(sc)
     _experiment(sc, {n: ip.model for n, ip in insts.items()})
     _tolerances(sc, insts)
     internal = _internal_steps(sc, insts)
-
-    conns: list[ConnectionPlan] = []
-    driven: dict[tuple[str, str], int] = {}
-    for c in sc.connections:
-        fld = f"connections[{c.index}]"
-        si, sv = split_ref(file, f"{fld}.from", c.src)
-        di, dv = split_ref(file, f"{fld}.to", c.dst)
-        svar, src_elem = _element(file, f"{fld}.from", insts[si], sv)
-        dvar, dst_elem = _element(file, f"{fld}.to", insts[di], dv)
-        if dst_elem is not None:
-            raise ScenarioError(file, f"{fld}.to", f"{c.dst}: an element of an input array cannot be a target "
-                                                   f"(connect the whole array {dvar.name})")
-        if src_elem is not None and (dvar.size != 1 or svar.fmi_type != "Float64"):
-            raise ScenarioError(file, fld, f"{c.src} -> {c.dst}: an element of a Float64 array goes to a scalar")
-        if src_elem is None and svar.size != dvar.size:
-            raise ScenarioError(file, fld, f"{c.src} has {svar.size} values, {c.dst} {dvar.size}: arrays connect "
-                                           "whole, of one size (or one element to a scalar)")
-        if svar.causality != "output":
-            raise ScenarioError(file, f"{fld}.from", f"{c.src} is {svar.causality}, not an output")
-        if dvar.causality != "input":
-            raise ScenarioError(file, f"{fld}.to", f"{c.dst} is {dvar.causality}, not an input: it cannot be a target")
-        key = (di, dvar.name)
-        if key in driven:
-            raise ScenarioError(file, f"{fld}.to", f"{c.dst} is already driven by connections[{driven[key]}]")
-        driven[key] = c.index
-        f, o = _connection_types(file, fld, c, svar, dvar, insts[si], insts[di])
-        conns.append(ConnectionPlan(si, svar, di, dvar, c.factor * f, c.factor * o + c.offset, c, src_elem))
-
+    conns, driven = _connection_plans(sc, insts)
     record, not_recorded = _record(sc, insts)
     inputs = _inputs(sc, insts, driven)
-
     n_steps = int(round((sc.stop - sc.start) / sc.step))
     checked = _events(sc, insts, driven, inputs)
     events = sorted((ev for ev in checked if ev.condition is None), key=lambda ev: ev.step)  # stable within a step
     conditions = [ev for ev in checked if ev.condition is not None]
     plan = Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs, not_recorded,
-                conditions, notes, internal)
-    if plan.output_bytes > sc.max_bytes and not sc.force:
-        raise ScenarioError(file, "record", f"the recording would take about {plan.output_bytes / 2 ** 20:.0f} MiB "
-                                            f"(more than max_bytes = {sc.max_bytes}): record fewer variables, "
-                                            f"decimate, raise record.max_bytes, or --force")
+                conditions, notes, internal, sc.archive_limits)
+    _check_recording_size(plan)
     return plan
+
+
+def _planned_copy(sc: Scenario, force: bool | None, isolate_all: bool) -> Scenario:
+    """The copy of ``sc`` the plan holds (``sc`` itself is not changed): forced if ``force`` says so, every
+    instance isolated if ``isolate_all``."""
+    sc = copy.copy(sc)
+    if force is not None:
+        sc.force = force
+    if isolate_all:
+        sc.instances = {n: dataclasses.replace(spec, isolate=True) for n, spec in sc.instances.items()}
+    return sc
+
+
+def _instance_plans(sc: Scenario) -> tuple[dict[str, InstancePlan], list[str]]:
+    """Every instance's FMU loaded, its name map, units and parameters checked; with the notes of units
+    that override declared ones."""
+    insts: dict[str, InstancePlan] = {}
+    notes: list[str] = []
+    for name, spec in sc.instances.items():
+        insts[name] = _instance_plan(sc, name, spec, notes)
+    return insts, notes
+
+
+def _instance_plan(sc: Scenario, name: str, spec: InstanceSpec, notes: list[str]) -> InstancePlan:
+    """One instance: its FMU loaded (its archive within the scenario's limits), its name map, units and
+    parameters checked (a note added to ``notes`` for each unit that overrides a declared one)."""
+    file = sc.file
+    try:
+        model = load_checked_model(spec.fmu_path, sc.archive_limits)
+    except FmuLoadError as exc:
+        raise ScenarioError(file, f"instances.{name}.fmu", str(exc)) from None
+    ip = InstancePlan(name, spec, model, {o: t for t, o in spec.names.items()}, dict(spec.names))
+    for their, ours in spec.names.items():
+        if their not in model.variables:
+            raise ScenarioError(file, f"instances.{name}.names.{their}",
+                                f"{model.path.name} has no variable {their!r}")
+        if ours != their and ours in model.variables and ours not in spec.names:
+            raise ScenarioError(file, f"instances.{name}.names.{their}",
+                                f"{ours!r} is already the name of another variable of {model.path.name}")
+    for var_name, unit_name in spec.units.items():
+        note = _declared_unit(file, f"instances.{name}.units.{var_name}", ip, var_name, unit_name)
+        if note:
+            notes.append(note)
+    for pname, value in spec.parameters.items():
+        fld = f"instances.{name}.parameters.{pname}"
+        var = variable(file, fld, ip, pname)
+        reason = var.settable()
+        if reason:
+            raise ScenarioError(file, fld, reason)
+        ip.parameters.append((var, checked_value(file, fld, var, value)))
+    return ip
+
+
+def _connection_plans(sc: Scenario, insts: dict[str, InstancePlan]
+                      ) -> tuple[list[ConnectionPlan], dict[tuple[str, str], int]]:
+    """The connections checked, and the inputs they drive ((instance, variable) -> connection index)."""
+    conns: list[ConnectionPlan] = []
+    driven: dict[tuple[str, str], int] = {}
+    for c in sc.connections:
+        conns.append(_connection_plan(sc.file, c, insts, driven))
+    return conns, driven
+
+
+def _connection_plan(file: str, c: ConnectionSpec, insts: dict[str, InstancePlan],
+                     driven: dict[tuple[str, str], int]) -> ConnectionPlan:
+    """One connection: its ends exist, an output drives an input no other connection drives (added to
+    ``driven``), sizes, types and units agree."""
+    fld = f"connections[{c.index}]"
+    si, sv = split_ref(file, f"{fld}.from", c.src)
+    di, dv = split_ref(file, f"{fld}.to", c.dst)
+    svar, src_elem = _element(file, f"{fld}.from", insts[si], sv)
+    dvar, dst_elem = _element(file, f"{fld}.to", insts[di], dv)
+    if dst_elem is not None:
+        raise ScenarioError(file, f"{fld}.to", f"{c.dst}: an element of an input array cannot be a target "
+                                               f"(connect the whole array {dvar.name})")
+    if src_elem is not None and (dvar.size != 1 or svar.fmi_type != "Float64"):
+        raise ScenarioError(file, fld, f"{c.src} -> {c.dst}: an element of a Float64 array goes to a scalar")
+    if src_elem is None and svar.size != dvar.size:
+        raise ScenarioError(file, fld, f"{c.src} has {svar.size} values, {c.dst} {dvar.size}: arrays connect "
+                                       "whole, of one size (or one element to a scalar)")
+    if svar.causality != "output":
+        raise ScenarioError(file, f"{fld}.from", f"{c.src} is {svar.causality}, not an output")
+    if dvar.causality != "input":
+        raise ScenarioError(file, f"{fld}.to", f"{c.dst} is {dvar.causality}, not an input: it cannot be a target")
+    key = (di, dvar.name)
+    if key in driven:
+        raise ScenarioError(file, f"{fld}.to", f"{c.dst} is already driven by connections[{driven[key]}]")
+    driven[key] = c.index
+    f, o = _connection_types(file, fld, c, svar, dvar, insts[si], insts[di])
+    return ConnectionPlan(si, svar, di, dvar, c.factor * f, c.factor * o + c.offset, c, src_elem)
+
+
+def _check_recording_size(plan: Plan) -> None:
+    """A recording expected larger than ``max_bytes`` is refused (unless forced)."""
+    sc = plan.scenario
+    if plan.output_bytes > sc.max_bytes and not sc.force:
+        raise ScenarioError(sc.file, "record", f"the recording would take about {plan.output_bytes / 2 ** 20:.0f} MiB "
+                                               f"(more than max_bytes = {sc.max_bytes}): record fewer variables, "
+                                               f"decimate, raise record.max_bytes, or --force")

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 from .errors import CosimError
 
-_BASES = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+#: The SI base units (and the radian) whose exponents make a unit, in the order of :attr:`Unit.exps`.
+BASES = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 
 
 @dataclass(frozen=True)
@@ -28,7 +29,7 @@ class Unit:
 def unit(name: str, factor: float = 1.0, offset: float = 0.0, **exps: int) -> Unit:
     """The Unit ``name`` with the exponents given by base unit name (``unit("N", kg=1, m=1, s=-2)``; the
     bases not given have exponent 0): value in base units = factor * value + offset."""
-    return Unit(name, tuple(exps.get(b, 0) for b in _BASES), factor, offset)
+    return Unit(name, tuple(exps.get(b, 0) for b in BASES), factor, offset)
 
 
 _DEG = math.pi / 180.0
@@ -59,7 +60,7 @@ def units_of(model_description) -> dict[str, Unit]:
             if ud.name in KNOWN:
                 out[ud.name] = KNOWN[ud.name]
             continue
-        out[ud.name] = Unit(ud.name, tuple(int(getattr(bu, b)) for b in _BASES),
+        out[ud.name] = Unit(ud.name, tuple(int(getattr(bu, b)) for b in BASES),
                             float(bu.factor), float(bu.offset))
     return out
 

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 from cosim_support import write_scenario
 from reference_fmus import REF as _REF
-from wmr_cosim.cosim.errors import EXIT_RUN_FAILED, RunError, ScenarioError
+from wmr_cosim.cosim.errors import RunError, ScenarioError
 from wmr_cosim.cosim.protocol import check_protocol, plan_runs, run_protocol
+from wmr_cosim.exit_codes import RUN_FAILED, for_error
 
 DAHLQUIST = _REF / "fmi2" / "Dahlquist.fmu"
 
@@ -175,5 +176,5 @@ def test_isolate_hosts_every_instance_in_a_child_process(tmp_path):
 def test_a_run_error_without_an_instance():
     """A RunError not tied to an instance (the API's failed run) has no instance and no time."""
     err = RunError("the run  failed\n at the end")
-    assert (str(err), err.instance, err.time, err.exit_code) == ("the run failed at the end", "", None,
-                                                                 EXIT_RUN_FAILED)
+    assert (str(err), err.instance, err.time, for_error(err)) == ("the run failed at the end", "", None,
+                                                                  RUN_FAILED)

@@ -3,7 +3,6 @@ values given on the command line, condition variables, array sizes of FMI 3.0 mo
 of the command line.  Each message is compared in full: it is what the user reads."""
 from __future__ import annotations
 
-import os
 import shutil
 import zipfile
 from pathlib import Path
@@ -17,6 +16,7 @@ from wmr_cosim.cosim.errors import CosimError, FmuLoadError, ScenarioError
 from wmr_cosim.cosim.model import load_model
 from wmr_cosim.cosim.scenario import parse, parse_set, parse_value
 from wmr_cosim.cosim.system import resolve
+from wmr_cosim.exit_codes import for_error
 
 FT = REF / "fmi2" / "Feedthrough.fmu"
 
@@ -154,24 +154,17 @@ def test_a_dimension_whose_structural_parameter_has_no_start_is_refused(tmp_path
 
 
 # ---------------------------------------------------------------------------------- archive limits
-@pytest.fixture
-def no_limits_in_env(monkeypatch):
-    """No limit in the environment, and whatever a test sets there is removed afterwards (setting first
-    makes monkeypatch remember the variable's absence)."""
-    for name in (archive.ENV_SIZE, archive.ENV_RATIO):
-        monkeypatch.setenv(name, "")
-        monkeypatch.delenv(name)
-
-
-def test_command_line_limits_are_kept_in_the_environment(no_limits_in_env):
-    assert archive.command_line_limits() == {}
-    archive.set_command_line_limits(max_size="2 KiB")
-    assert archive.command_line_limits() == {archive.ENV_SIZE: "2048"}
-    archive.set_command_line_limits(max_ratio=50)
-    assert archive.command_line_limits() == {archive.ENV_SIZE: "2048", archive.ENV_RATIO: "50.0"}
-    assert archive.current_limits().max_size == 2048 and archive.current_limits().max_ratio == 50.0
-    archive.set_command_line_limits()  # nothing given: nothing changes
-    assert archive.command_line_limits() == {archive.ENV_SIZE: "2048", archive.ENV_RATIO: "50.0"}
+def test_a_callers_limits_win_over_the_scenarios_one_by_one():
+    assert archive.limit_overrides() == archive.LimitOverrides()
+    over = archive.limit_overrides(max_size="2 KiB")
+    assert over == archive.LimitOverrides(max_size=2048)
+    assert over.over() == archive.ArchiveLimits(2048, archive.DEFAULT_MAX_RATIO)
+    assert archive.limit_overrides(max_ratio=50).over(archive.ArchiveLimits(7, 3)) == archive.ArchiveLimits(7, 50.0)
+    table = {"archive_size": "1 MiB", "archive_ratio": 20}
+    assert archive.parse_limits("f.toml", table) == archive.ArchiveLimits(1024**2, 20.0)
+    assert archive.parse_limits("f.toml", table, over) == archive.ArchiveLimits(2048, 20.0)
+    assert archive.parse_limits("f.toml", None) == archive.DEFAULT_LIMITS
+    assert archive.command_line_limits() == {}   # nothing travels through the environment
 
 
 @pytest.mark.parametrize("kw, message", [
@@ -179,12 +172,10 @@ def test_command_line_limits_are_kept_in_the_environment(no_limits_in_env):
                            "'500 MB')"),
     ({"max_ratio": 0.5}, "--max-archive-ratio: 0.5: a ratio limit must be a number >= 1"),
 ])
-def test_a_bad_command_line_limit_names_the_option(no_limits_in_env, kw, message):
+def test_a_bad_command_line_limit_names_the_option(kw, message):
     with pytest.raises(CosimError) as info:
-        archive.set_command_line_limits(**kw)
-    assert str(info.value) == message and info.value.exit_code == 2
-    assert archive.command_line_limits() == {}
-    assert os.environ.get(archive.ENV_SIZE) is None
+        archive.limit_overrides(**kw, names=("--max-archive-size", "--max-archive-ratio"))
+    assert str(info.value) == message and for_error(info.value) == 2
 
 
 @pytest.mark.parametrize("n, text", [(0, "0 B"), (1023, "1023 B"), (1023.7, "1023 B"), (1024, "1 KiB"),

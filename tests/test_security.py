@@ -83,12 +83,6 @@ def _tree(root: Path) -> list[Path]:
 
 
 # ---------------------------------------------------------------------------------------------- bombs
-@pytest.fixture(autouse=True)
-def _forget_scenario_limits():
-    yield
-    archive.use_scenario_limits("", None)
-
-
 def _stub(path: Path) -> Path:
     with zipfile.ZipFile(path, "w") as zf:
         zf.writestr("modelDescription.xml", "<fmiModelDescription/>")
@@ -187,15 +181,41 @@ def test_limits_from_the_scenario_and_the_command_line(built_fmus, tmp_path):
     assert p.returncode == 0, p.stderr
     p = _cli("--max-archive-size", "lots", "check", plain, env=env)
     assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "--max-archive-size" in p.stderr
-    # in process: a bad [limits] names the file and the field; the next scenario read forgets the limits
+    # in process: a bad [limits] names the file and the field; each scenario carries its own limits, and
+    # its plan too; the caller's limits win over the scenario's, one by one
     bad = g1_with_paths(tmp_path, built_fmus, name="bad.toml", head="[limits]\narchive_size = -3\n")
     with pytest.raises(ScenarioError) as exc:
         scenario.load(bad)
     assert exc.value.field == "limits.archive_size"
-    scenario.load(steep)
-    assert archive.current_limits().max_ratio == 10
-    scenario.load(plain)
-    assert archive.current_limits() == ArchiveLimits()
+    assert scenario.load(steep).archive_limits == ArchiveLimits(max_ratio=10)
+    assert scenario.load(plain).archive_limits == ArchiveLimits()
+    over = archive.LimitOverrides(max_size=3 * 1024**3)
+    assert scenario.load(steep, limits=over).archive_limits == ArchiveLimits(3 * 1024**3, 10)
+    assert system.resolve(scenario.load(plain, limits=archive.LimitOverrides(max_ratio=ratio + 10))
+                          ).archive_limits == ArchiveLimits(max_ratio=ratio + 10)
+
+
+def test_two_scenarios_read_one_after_the_other_extract_each_with_its_own_limits(tmp_path):
+    """The limits travel with the scenario and its plan, not with the module: a scenario read later does
+    not change the limits an earlier one is resolved and extracted with."""
+    from reference_fmus import REF
+
+    fat = tmp_path / "Dahlquist.fmu"     # 4 MiB more, stored (ratio about 1: within the default limits)
+    with zipfile.ZipFile(REF / "fmi2" / "Dahlquist.fmu") as zi, zipfile.ZipFile(fat, "w") as zo:
+        for info in zi.infolist():
+            zo.writestr(info, zi.read(info))
+        zo.writestr("resources/zeros.bin", bytes(4 * 1024**2))
+    doc = {"experiment": {"stop": 0.1, "step": 0.05}, "instances": {"a": {"fmu": str(fat)}}}
+    tight = scenario.parse({**doc, "limits": {"archive_size": "1 MiB"}}, "tight.toml")
+    loose = scenario.parse({**doc, "limits": {"archive_size": "1 GiB"}}, "loose.toml")
+    with pytest.raises(ScenarioError, match="instances.a.fmu: .*more than the limit of 1 MiB"):
+        system.resolve(tight)
+    plan = system.resolve(loose)
+    assert plan.archive_limits == ArchiveLimits(max_size=1024**3)
+    assert (safe_extract(fat, tmp_path / "loose", plan.archive_limits) / "resources" / "zeros.bin").is_file()
+    with pytest.raises(FmuLoadError, match="more than the limit of 1 MiB"):
+        safe_extract(fat, tmp_path / "tight", tight.archive_limits)
+    assert not (tmp_path / "tight").exists()
 
 
 # ---------------------------------------------------------------------------------------------- SSP

@@ -20,9 +20,11 @@ from .components.metrics import run_metrics
 from .components.plant import PlantParams
 from .components.sensor import SensorParams
 from .components.validation import ParameterError
-from .cosim.errors import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN_FAILED as EXIT_FAILED, CosimError
+from .cosim.errors import CosimError, OtherFileError
+from .cosim.kinds import FileKind, file_kind, named_kind
 from .cosim.scenario import parse_value
 from .cosim.suggest import did_you_mean
+from .exit_codes import OK as EXIT_OK, RUN_FAILED as EXIT_FAILED, for_error, for_status, for_statuses
 from .scenario_files import scenario_path
 
 
@@ -131,6 +133,9 @@ def _real_time(text: str) -> float:
 EXPERIMENT_OPTIONS = {"start": "experiment.start", "stop": "experiment.stop", "step": "experiment.step"}
 #: What a scenario file, an SSP archive and one FMU end in (the positional argument of run and check).
 SCENARIO_SUFFIXES = (".toml", ".ssp", ".fmu")
+#: How to run each other kind of file that may be given as a scenario (cosim.errors.OtherFileError).
+OTHER_FILE_HINTS = {"a paper manifest": "run it with `wmr-cosim paper --manifest FILE`",
+                    "a sweep file": "run it with `wmr-cosim sweep FILE`"}
 
 
 def experiment_overrides(args: argparse.Namespace) -> dict[str, Any]:
@@ -154,32 +159,47 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     out = args.out if args.out is not None else default_out(args.scenario)
     overrides = experiment_overrides(args)
+    parsed = None
     if is_scenario(args.scenario):
-        from .cosim.protocol import plan_runs
-        from .runner import resolve_model, run_protocol   # each run judged by analysis.divergence
+        from .cosim.protocol import read_protocol
+        from .runner import resolve_model
 
-        sc, runs, _ = plan_runs(args.scenario, resolve_model, args.variant)
-        if sc.runs:  # a protocol: every run, in order, into OUT/<run>
-            if args.real_time is not None:
-                raise UsageError("--real-time paces a single run, not a protocol's runs")
-            code = EXIT_OK
-            for name, r in run_protocol(args.scenario, out, resolve_model, variant=args.variant,
-                                        overrides=overrides, progress=False if args.quiet else None,
-                                        force=args.force, isolate=args.isolate).items():
-                if r.status == RunStatus.OK:
-                    print(f"{args.scenario} [{name}]: ok, {r.steps} steps in {r.wall_s:.2f} s; results in {out / name}")
-                else:
-                    print(f"wmr-cosim: run {name} {r.status}: {r.message}", file=sys.stderr)
-                code = max(code, r.exit_code)
-            return code
+        parsed = read_protocol(args.scenario, resolve_model, args.limits)
+        parsed.variant_parameters(args.variant)
+        if parsed.scenario.runs:  # a protocol: every run, in order, into OUT/<run>
+            return _run_protocol(args, parsed, out, overrides)
         if args.variant is not None:
             raise UsageError(f"--variant {args.variant}: {args.scenario} declares no runs")
     elif args.variant is not None:
         raise UsageError(f"--variant {args.variant}: only a scenario file (.toml) declares variants")
     if args.input is not None and not is_fmu(args.scenario):
         raise UsageError("--input applies to a single FMU (.fmu); a scenario file says it in [inputs]")
-    res = run_scenario(args.scenario, out, overrides, progress=False if args.quiet else None,
-                       inputs=args.input, force=args.force, isolate=args.isolate, real_time=args.real_time)
+    res = run_scenario(args.scenario, out, overrides, progress=False if args.quiet else None, inputs=args.input,
+                       force=args.force, isolate=args.isolate, real_time=args.real_time, limits=args.limits,
+                       parsed=parsed)
+    _report_run(args, res, out)
+    return for_status(res.status)
+
+
+def _run_protocol(args: argparse.Namespace, parsed: Any, out: Path, overrides: dict[str, Any]) -> int:
+    """``run`` of a protocol (a file read once: ``parsed``): every run, in order, into OUT/<run>, each
+    judged by analysis.divergence; one line per run."""
+    from .runner import run_protocol
+
+    if args.real_time is not None:
+        raise UsageError("--real-time paces a single run, not a protocol's runs")
+    results = run_protocol(parsed, out, variant=args.variant, overrides=overrides,
+                           progress=False if args.quiet else None, force=args.force, isolate=args.isolate)
+    for name, r in results.items():
+        if r.status == RunStatus.OK:
+            print(f"{args.scenario} [{name}]: ok, {r.steps} steps in {r.wall_s:.2f} s; results in {out / name}")
+        else:
+            print(f"wmr-cosim: run {name} {r.status}: {r.message}", file=sys.stderr)
+    return for_statuses(r.status for r in results.values())
+
+
+def _report_run(args: argparse.Namespace, res: Any, out: Path) -> None:
+    """What ``run`` prints of one finished run: real-time pacing, then ok (stdout) or the failure (stderr)."""
     per = f", {res.wall_s / res.steps * 1e6:.1f} us/step" if res.steps else ""
     if res.real_time is not None:
         rt = res.real_time
@@ -194,50 +214,59 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"wmr-cosim: run {res.status}: {res.message}", file=sys.stderr)
         print(f"{args.scenario}: {res.status} after {res.steps} steps (t = {res.t_end:g} s); "
               f"what was recorded is in {out}", file=sys.stderr)
-    return res.exit_code
 
 
 def cmd_check(args: argparse.Namespace) -> int:
     """Every check of a scenario against its FMUs, without stepping."""
-    import contextlib
-
-    from .cosim.ssp import is_ssp
-    from .runner import fmu_plan, is_fmu, is_scenario, load_plan, ssp_plan
+    from .runner import fmu_plan, is_fmu, load_plan, ssp_plan
 
     overrides = experiment_overrides(args)
-    f = args.force
+    f, lim = args.force, args.limits
     if args.input is not None and not is_fmu(args.scenario):
         raise UsageError("--input applies to a single FMU (.fmu); a scenario file says it in [inputs]")
-    with (ssp_plan(args.scenario, overrides, f) if is_ssp(args.scenario)
-          else contextlib.nullcontext(fmu_plan(args.scenario, overrides, args.input, force=f) if is_fmu(args.scenario)
-                                      else load_plan(args.scenario, overrides, f))) as plan:
-        sc = plan.scenario
-        print(f"{args.scenario}: ok: {len(plan.instances)} instances ({', '.join(plan.order)}), "
-              f"{len(plan.connections)} connections, {len(plan.record)} recorded variables, "
-              f"{len(plan.events) + len(plan.conditions)} events, "
-              f"{plan.n_steps} steps of {sc.step:g} s ({sc.algorithm}); signals.npy about "
-              f"{_size(plan.output_bytes)}{' (and signals.csv about ' + _size(3 * plan.output_bytes) + ')' if sc.csv else ''}")
-        if plan.not_recorded:
-            print(f"note: String outputs are not recorded: {', '.join(plan.not_recorded)}")
-        for note in plan.notes:
-            print(f"note: {note}")
-        for name, n in plan.internal_steps.items():
-            print(f"note: {name} takes fixed internal steps of {plan.instances[name].model.internal_step:g} s: "
-                  f"about {n:.3g} over the run")
-    if is_scenario(args.scenario):
-        _check_runs(args, overrides)
+    kind = file_kind(args.scenario)
+    if kind is FileKind.SSP:
+        with ssp_plan(args.scenario, overrides, f, limits=lim) as plan:
+            _report_check(args, plan)
+    elif kind is FileKind.FMU:
+        _report_check(args, fmu_plan(args.scenario, overrides, args.input, force=f, limits=lim))
+    else:
+        from .cosim.protocol import read_protocol
+        from .runner import resolve_model
+
+        parsed = read_protocol(args.scenario, resolve_model, lim)
+        _report_check(args, load_plan(args.scenario, overrides, f, parsed=parsed))
+        _check_runs(args, parsed, overrides)
     return EXIT_OK
 
 
-def _check_runs(args: argparse.Namespace, overrides: dict[str, Any]) -> None:
-    """A protocol's runs, each resolved as ``run`` would run it (parameters, carries, records)."""
-    from .cosim.protocol import check_protocol, plan_runs
-    from .runner import resolve_model
+def _report_check(args: argparse.Namespace, plan: Any) -> None:
+    """What ``check`` prints of a checked plan: its verdict and sizes, then its notes."""
+    sc = plan.scenario
+    print(f"{args.scenario}: ok: {len(plan.instances)} instances ({', '.join(plan.order)}), "
+          f"{len(plan.connections)} connections, {len(plan.record)} recorded variables, "
+          f"{len(plan.events) + len(plan.conditions)} events, "
+          f"{plan.n_steps} steps of {sc.step:g} s ({sc.algorithm}); signals.npy about "
+          f"{_size(plan.output_bytes)}{' (and signals.csv about ' + _size(3 * plan.output_bytes) + ')' if sc.csv else ''}")
+    if plan.not_recorded:
+        print(f"note: String outputs are not recorded: {', '.join(plan.not_recorded)}")
+    for note in plan.notes:
+        print(f"note: {note}")
+    for name, n in plan.internal_steps.items():
+        print(f"note: {name} takes fixed internal steps of {plan.instances[name].model.internal_step:g} s: "
+              f"about {n:.3g} over the run")
 
-    sc, _, _ = plan_runs(args.scenario, resolve_model, args.variant)
+
+def _check_runs(args: argparse.Namespace, parsed: Any, overrides: dict[str, Any]) -> None:
+    """A protocol's runs (of the file read once: ``parsed``), each resolved as ``run`` would run it
+    (parameters, carries, records)."""
+    from .cosim.protocol import check_protocol
+
+    parsed.variant_parameters(args.variant)
+    sc = parsed.scenario
     if not sc.runs:
         return
-    plans = check_protocol(args.scenario, resolve_model, args.variant, overrides, force=args.force)
+    plans = check_protocol(parsed, variant=args.variant, overrides=overrides, force=args.force)
     carries = {r.name: len(r.carry) for r in sc.runs}
     for name, plan in plans.items():
         print(f"  run {name}: ok: {plan.n_steps} steps, {len(plan.record)} recorded variables"
@@ -256,9 +285,9 @@ def cmd_export_ssp(args: argparse.Namespace) -> int:
     """Write a scenario as an SSP 1.0 archive (FMUs, system structure, parameter set, default experiment)."""
     from .runner import export_ssp, parse_set
 
-    if not str(args.out).lower().endswith(".ssp"):
+    if file_kind(args.out) is not FileKind.SSP:
         raise UsageError(f"--out {str(args.out)!r}: an SSP archive's name ends in .ssp")
-    out = export_ssp(args.scenario, args.out, parse_set(args.set))
+    out = export_ssp(args.scenario, args.out, parse_set(args.set), limits=args.limits)
     print(f"{args.scenario}: written {out}")
     return EXIT_OK
 
@@ -268,7 +297,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     run here, variables with variability, units and ranges."""
     from .runner import describe_fmu
 
-    print(describe_fmu(args.fmu))
+    print(describe_fmu(args.fmu, args.limits))
     return EXIT_OK
 
 
@@ -364,8 +393,8 @@ def _scenario_after_record(ap: argparse.ArgumentParser, args: argparse.Namespace
     too; the last of them is the scenario when it ends in .toml, .ssp or .fmu and none was given."""
     if getattr(args, "scenario", "given") is not None:
         return
-    sub = next(a for a in ap._actions if isinstance(a, argparse._SubParsersAction)).choices[args.command]
-    if args.record and args.record[-1].lower().endswith(SCENARIO_SUFFIXES):
+    sub = args.subparser
+    if args.record and named_kind(args.record[-1]) is not None:
         args.scenario = scenario_path(args.record.pop())
         if args.record:
             return
@@ -382,6 +411,20 @@ def build_parser() -> argparse.ArgumentParser:
                     help="refuse archives that unpack to more than RATIO times their size (default 200)")
     ap.add_argument("--version", action="version", version=f"wmr-cosim {version()}")
     sub = ap.add_subparsers(dest="command", required=True)
+    _add_direct(sub)
+    _add_build(sub)
+    _add_run(sub)
+    _add_check(sub)
+    _add_export_ssp(sub)
+    _add_info(sub)
+    _add_paper(sub)
+    _add_sweep(sub)
+    _add_gamma_search(sub)
+    return ap
+
+
+def _add_direct(sub: Any) -> None:
+    """The ``direct`` command."""
     d = sub.add_parser("direct", help="run a task of the paper through the FMI-free direct loop",
                        description="Run one task of the paper (learning run: adaptation 0-39 s, reference floor) "
                                    "through the FMI-free direct loop and print its metrics beside Table 2/3.")
@@ -393,7 +436,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override a parameter, e.g. --set controller.gamma=5 (one per --set; repeat it: "
                         "--set plant.foam_on_time=true --set plant.foam_t_on=8.38)")
     d.add_argument("--json", action="store_true", help="print only the JSON line")
-    d.set_defaults(func=cmd_direct)
+    d.set_defaults(func=cmd_direct, subparser=d)
+
+
+def _add_build(sub: Any) -> None:
+    """The ``build`` command."""
     b = sub.add_parser("build", help="build the three FMUs (WmrPlant, WmrSensor, WmrController)",
                        description="Build WmrPlant.fmu, WmrSensor.fmu and WmrController.fmu into DIR, rebuilding "
                                    "only those whose sources changed.")
@@ -406,8 +453,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "WmrPlant3/WmrSensor3/WmrController3 with pythonfmu3 (docs/fmu-interfaces-fmi3.md)")
     b.add_argument("--c-plant", action="store_true",
                    help="also build WmrCPlant.fmu, the plant in C (needs cmake and a C compiler)")
-    b.set_defaults(func=cmd_build)
+    b.set_defaults(func=cmd_build, subparser=b)
 
+
+def _add_run(sub: Any) -> None:
+    """The ``run`` command."""
     r = sub.add_parser("run", help="run a scenario (.toml), SSP archive (.ssp) or FMU (.fmu)",
                        description="Run a scenario file: FMUs, parameters, connections, experiment, recording, events. "
                                    "A name that is not a file is looked up among the shipped scenarios (example.toml, "
@@ -432,7 +482,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--real-time", nargs="?", const=1.0, default=None, type=_real_time, metavar="FACTOR",
                    help="pace the steps to the wall clock at FACTOR x real time (default 1); steps that finish "
                         "late are counted and reported, never skipped")
-    r.set_defaults(func=cmd_run)
+    r.set_defaults(func=cmd_run, subparser=r)
+
+
+def _add_check(sub: Any) -> None:
+    """The ``check`` command."""
     c = sub.add_parser("check", help="check a scenario, SSP archive or FMU without running it",
                        description="Run every check of a scenario (files, variables, causality, types, units, "
                                    "steps, ranges, keys) without stepping. Exit code 0 if it would run, 2 if not.")
@@ -444,7 +498,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="one FMU only: input signals, checked as `run --input` reads them")
     _experiment_options(c)
     c.add_argument("--variant", default=None, help="a protocol's variant ([variants.NAME]): check its runs with it")
-    c.set_defaults(func=cmd_check)
+    c.set_defaults(func=cmd_check, subparser=c)
+
+
+def _add_export_ssp(sub: Any) -> None:
+    """The ``export-ssp`` command."""
     e = sub.add_parser("export-ssp", help="write a scenario as an SSP 1.0 archive",
                        description="Write a scenario as an SSP 1.0 archive that other tools (libcosim, ecos, FMPy, "
                                    "OMSimulator) run: the FMUs as resources, SystemStructure.ssd (components, "
@@ -459,7 +517,11 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("scenario", type=scenario_path, help="scenario file (.toml)")
     e.add_argument("--out", type=Path, required=True, metavar="FILE.ssp", help="the archive to write")
     e.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
-    e.set_defaults(func=cmd_export_ssp)
+    e.set_defaults(func=cmd_export_ssp, subparser=e)
+
+
+def _add_info(sub: Any) -> None:
+    """The ``info`` command."""
     i = sub.add_parser("info", help="describe an FMU", description="Describe any FMU whose model description "
                        "can be read (FMI 1.0, 2.0, 3.0; co-simulation, model exchange): model, FMI version, kinds "
                        "(CS, ME, SE), platforms, default experiment, one line on what would stop a run here, and "
@@ -467,7 +529,11 @@ def build_parser() -> argparse.ArgumentParser:
                        "unit, range and start. Exit code 0 when described, 2 when the archive or its model "
                        "description cannot be read.")
     i.add_argument("fmu", type=Path, help="an .fmu file")
-    i.set_defaults(func=cmd_info)
+    i.set_defaults(func=cmd_info, subparser=i)
+
+
+def _add_paper(sub: Any) -> None:
+    """The ``paper`` command."""
     pp = sub.add_parser("paper", help="run the paper's experiments and write the report",
                         description="Run every experiment of section 5 of the paper (G1, G2, G3, LINE; each a "
                                     "learning run, a frozen-weights run on the reference floor and one on foam) "
@@ -489,7 +555,11 @@ def build_parser() -> argparse.ArgumentParser:
                          "W stops adapting, on Dask (about 300 more runs; resumes in DIR/robustness)")
     pp.add_argument("--fmi", type=int, choices=(2, 3), default=2,
                     help="run the FMI 2.0 FMUs (default) or their FMI 3.0 versions (WmrPlant3, ...): same numbers")
-    pp.set_defaults(func=cmd_paper)
+    pp.set_defaults(func=cmd_paper, subparser=pp)
+
+
+def _add_sweep(sub: Any) -> None:
+    """The ``sweep`` command."""
     sw = sub.add_parser("sweep", help="run a parameter sweep or Monte Carlo study on Dask",
                         description="Run a sweep file (scenarios/sweep-*.toml): a base scenario or protocol, grids "
                                     "and random distributions over any parameter, a seed. Each point is one full "
@@ -499,7 +569,11 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("sweep", type=scenario_path, help="sweep file (.toml)")
     sw.add_argument("--out", type=Path, default=None, metavar="DIR", help="results folder (default results/<sweep>)")
     _dask_options(sw)
-    sw.set_defaults(func=cmd_sweep)
+    sw.set_defaults(func=cmd_sweep, subparser=sw)
+
+
+def _add_gamma_search(sub: Any) -> None:
+    """The ``gamma-search`` command."""
     gs = sub.add_parser("gamma-search", help="the smallest gamma for which the H-infinity condition holds",
                         description="gamma* of (53) against gamma on a grid (the whole learning + frozen + foam "
                                     "protocol at each gamma), then bisection where the grid shows a single crossing; "
@@ -511,8 +585,33 @@ def build_parser() -> argparse.ArgumentParser:
     gs.add_argument("--grid", type=float, nargs="+", default=None, metavar="GAMMA", help="the gamma grid")
     gs.add_argument("--variant", default="freeze", help="a variant the protocol declares (default freeze)")
     _dask_options(gs)
-    gs.set_defaults(func=cmd_gamma_search)
-    return ap
+    gs.set_defaults(func=cmd_gamma_search, subparser=gs)
+
+
+#: The commands that run their scenarios in worker processes of their own, which the command line's
+#: archive limits do not reach (a scenario's [limits] table does).
+WORKER_COMMANDS = ("paper", "sweep", "gamma-search")
+
+
+def archive_limits(args: argparse.Namespace) -> Any:
+    """The archive limits of --max-archive-size and --max-archive-ratio (None when neither is given);
+    CosimError naming the option for a bad value, UsageError for a command they do not reach."""
+    if args.max_archive_size is None and args.max_archive_ratio is None:
+        return None
+    if args.command in WORKER_COMMANDS:
+        raise UsageError(f"--max-archive-size and --max-archive-ratio do not reach the worker processes of "
+                         f"{args.command}: give the limits in the scenarios' [limits] table")
+    from .cosim.archive import limit_overrides
+
+    return limit_overrides(args.max_archive_size, args.max_archive_ratio,
+                           names=("--max-archive-size", "--max-archive-ratio"))
+
+
+def error_message(exc: BaseException) -> str:
+    """The one line ``wmr-cosim: error: ...`` says for an error: its own message, and for a file of another
+    kind given as a scenario, how to run it."""
+    hint = OTHER_FILE_HINTS.get(exc.kind) if isinstance(exc, OtherFileError) else None
+    return f"{exc}: {hint}" if hint else str(exc)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -520,24 +619,19 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     _scenario_after_record(ap, args)
     try:
-        if args.max_archive_size is not None or args.max_archive_ratio is not None:
-            from .cosim.archive import set_command_line_limits
-            set_command_line_limits(args.max_archive_size, args.max_archive_ratio)
+        args.limits = archive_limits(args)
         return int(args.func(args))
-    except (ParameterError, UsageError) as exc:
-        print(f"wmr-cosim: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except CosimError as exc:
-        print(f"wmr-cosim: error: {exc}", file=sys.stderr)
-        return exc.exit_code
+    except (ParameterError, UsageError, CosimError) as exc:
+        print(f"wmr-cosim: error: {error_message(exc)}", file=sys.stderr)
+        return for_error(exc)
     except ImportError as exc:
         if exc.name and exc.name.split(".")[0] in ("dask", "distributed", "pandas", "pyarrow"):
             print(f"wmr-cosim: error: {args.command} needs {exc.name}: pip install 'wmr-cosim[sweep]'", file=sys.stderr)
-            return EXIT_BAD_INPUT
+            return for_error(exc)
         raise
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         print("wmr-cosim: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return for_error(exc)
 
 
 def entry() -> None:

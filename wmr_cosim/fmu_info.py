@@ -15,9 +15,10 @@ from typing import Any
 
 from fmpy import read_model_description
 
-from .cosim.archive import check_archive
+from .cosim.archive import DEFAULT_LIMITS, ArchiveLimits, check_archive
 from .cosim.errors import FmuLoadError
-from .cosim.model import fmi_version, load_model
+from .cosim.model import fmi_version
+from .cosim.system import load_checked_model
 
 #: The largest double: a bound of this size (or infinite) is no bound, and is shown as nothing.
 UNBOUNDED = 1.7976931348623157e308
@@ -54,8 +55,8 @@ def kinds(md: Any) -> list[str]:
             if getattr(md, attr, None) is not None]
 
 
-def why_not_runnable(path: Path, md: Any) -> str | None:
-    """Why the master cannot run this FMU here (one line), or None if it can."""
+def why_not_runnable(path: Path, md: Any, limits: ArchiveLimits = DEFAULT_LIMITS) -> str | None:
+    """Why the master cannot run this FMU here (one line), or None if it can (its archive within ``limits``)."""
     version = str(md.fmiVersion)
     if version != "2.0" and not version.startswith("3."):
         return f"FMI {version} (the master runs FMI 2.0 and 3.0 FMUs)"
@@ -63,18 +64,19 @@ def why_not_runnable(path: Path, md: Any) -> str | None:
         only = "Scheduled Execution" if getattr(md, "scheduledExecution", None) is not None else "Model Exchange"
         return f"{only} only (the master runs co-simulation FMUs)"
     try:
-        load_model(path)
+        load_checked_model(path, limits)
     except FmuLoadError as exc:
         return str(exc).replace(f"{path}: ", "", 1)
     return None
 
 
-def describe(path: str | Path) -> str:
+def describe(path: str | Path, limits: ArchiveLimits = DEFAULT_LIMITS) -> str:
     """A readable description of an FMU: model, FMI version, kinds, platforms, default experiment, what
     would stop a run, and a table of the variables (causality, variability, type, unit, range, start).
-    Raises FmuLoadError (one line) when the archive is unsafe or its model description unreadable."""
+    Raises FmuLoadError (one line) when the archive is unsafe (for ``limits``) or its model description
+    unreadable."""
     path = Path(path)
-    check_archive(path)
+    check_archive(path, limits)
     fmi_version(path)          # (refuses XML entities before FMPy parses the document)
     try:
         md = read_model_description(str(path), validate=False)
@@ -98,7 +100,7 @@ def describe(path: str | Path) -> str:
                                       ("step", getattr(de, "stepSize", None)),
                                       ("tolerance", getattr(de, "tolerance", None))) if v is not None]
     lines.append(f"  default experiment: {', '.join(given) or 'none'}")
-    why = why_not_runnable(path, md)
+    why = why_not_runnable(path, md, limits)
     if why:
         lines.append(f"  cannot run here: {why}")
     rows = [("name", "causality", "variability", "type", "unit", "min", "max", "start", "description")]

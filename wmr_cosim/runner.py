@@ -10,10 +10,11 @@ from pathlib import Path
 from typing import Any
 
 from .cosim import execution, scenario, ssp, system
+from .cosim.archive import LimitOverrides
 from .cosim.kinds import FileKind, file_kind
+from .cosim.protocol import Protocol
 from .cosim.status import RunStatus
 from .cosim.errors import CosimError, ScenarioError
-from .cosim.model import load_model
 from .cosim.scenario import parse_set
 
 
@@ -125,15 +126,16 @@ def run_protocol(path: str | Path, out_dir: str | Path, resolver: Callable[[str]
 
 
 def fmu_document(fmu: str | Path, inputs: str | Path | None = None, stop: float | None = None,
-                 step: float | None = None, start: float | None = None) -> dict[str, Any]:
+                 step: float | None = None, start: float | None = None,
+                 limits: LimitOverrides | None = None) -> dict[str, Any]:
     """The scenario document of one FMU run alone (as ``fmpy simulate`` runs it): one instance named after
     the model identifier, every output recorded, start, stop and step [s] from its default experiment unless
     given (with no default step, 500 steps over the run, as FMPy; with no stop either, 1 s), inputs from a
-    CSV table."""
+    CSV table.  ``limits``: the caller's archive limits (over the defaults)."""
     import re
 
     path = Path(fmu).resolve()
-    model = load_model(path)
+    model = system.load_checked_model(path, (limits or LimitOverrides()).over())
     name = re.sub(r"\W", "_", model.md.coSimulation.modelIdentifier) or "fmu"
     name = name if name.isidentifier() else f"fmu_{name}"
     doc: dict[str, Any] = {"instances": {name: {"fmu": str(path)}}, "record": {"variables": ["*.*"]}}
@@ -153,44 +155,51 @@ def fmu_document(fmu: str | Path, inputs: str | Path | None = None, stop: float 
 
 
 def fmu_plan(fmu: str | Path, overrides: dict[str, Any] | None = None, inputs: str | Path | None = None,
-             stop: float | None = None, step: float | None = None, force: bool = False) -> system.Plan:
+             stop: float | None = None, step: float | None = None, force: bool = False, isolate: bool = False,
+             limits: LimitOverrides | None = None) -> system.Plan:
     """The checked plan of one FMU run alone (see :func:`fmu_document`); ``overrides`` may set the
-    experiment (``experiment.stop``: its 500 default steps then span the new run)."""
+    experiment (``experiment.stop``: its 500 default steps then span the new run); ``isolate`` hosts it in a
+    child process; ``limits``: the caller's archive limits."""
     given = {k: v for k in ("start", "stop", "step")
              if isinstance(v := (overrides or {}).get(f"experiment.{k}"), (int, float)) and not isinstance(v, bool)}
     try:
-        doc = fmu_document(fmu, inputs, given.get("stop", stop), given.get("step", step), given.get("start"))
+        doc = fmu_document(fmu, inputs, given.get("stop", stop), given.get("step", step), given.get("start"), limits)
     except CosimError as exc:
         raise ScenarioError(str(fmu), "", str(exc).replace(f"{Path(fmu).resolve()}: ", "", 1)) from None
     doc = scenario.apply_overrides(doc, overrides, str(fmu))
-    return system.resolve(scenario.parse(doc, str(fmu)), force)
+    return system.resolve(scenario.parse(doc, str(fmu), limits=limits), force, isolate_all=isolate)
 
 
-def load_plan(path: str | Path, overrides: dict[str, Any] | None = None, force: bool = False) -> system.Plan:
-    """Parse a scenario file (TOML, or an SSP archive: ``.ssp``) and run every check against its FMUs.
-    For an SSP archive the plan's FMUs live in a temporary folder: use :func:`ssp_plan` to remove it."""
+def load_plan(path: str | Path, overrides: dict[str, Any] | None = None, force: bool = False, isolate: bool = False,
+              limits: LimitOverrides | None = None, parsed: Protocol | None = None) -> system.Plan:
+    """Parse a scenario file (TOML; not an SSP archive: see :func:`ssp_plan`) and run every check against
+    its FMUs; ``isolate`` hosts every instance in a child process; ``limits``: the caller's archive limits.
+    ``parsed``: the file already read (:func:`wmr_cosim.cosim.protocol.read_protocol`), not read again."""
     if ssp.is_ssp(path):
         raise CosimError(f"{path}: an SSP archive, not a scenario file (.toml)")  # (run/check use ssp_plan)
-    sc = scenario.load(path, resolve_model, overrides)
-    return system.resolve(sc, force)
+    sc = parsed.with_parameters(overrides) if parsed is not None else \
+        scenario.load(path, resolve_model, overrides, limits)
+    return system.resolve(sc, force, isolate_all=isolate)
 
 
 @contextlib.contextmanager
-def ssp_plan(path: str | Path, overrides: dict[str, Any] | None = None, force: bool = False) -> Iterator[system.Plan]:
+def ssp_plan(path: str | Path, overrides: dict[str, Any] | None = None, force: bool = False, isolate: bool = False,
+             limits: LimitOverrides | None = None) -> Iterator[system.Plan]:
     """The checked plan of an SSP archive, its FMUs extracted for the time of the ``with`` block."""
-    arch = ssp.load_ssp(path, overrides=overrides)
+    arch = ssp.load_ssp(path, overrides=overrides, limits=limits)
     for w in arch.warnings:
         print(f"wmr-cosim: warning: {w}", file=sys.stderr)
     try:
-        yield system.resolve(arch.scenario, force)
+        yield system.resolve(arch.scenario, force, isolate_all=isolate)
     finally:
         arch.cleanup()
 
 
-def export_ssp(path: str | Path, out: str | Path, overrides: dict[str, Any] | None = None) -> Path:
+def export_ssp(path: str | Path, out: str | Path, overrides: dict[str, Any] | None = None,
+               limits: LimitOverrides | None = None) -> Path:
     """Write the scenario file ``path`` as an SSP 1.0 archive ``out``; what the export changes for other
     tools (String parameters, OMSimulator's Jacobi master) goes to stderr, one line each."""
-    plan = load_plan(path, overrides)
+    plan = load_plan(path, overrides, limits=limits)
     written = ssp.export_ssp(plan, out)
     for kind, text in ssp.export_remarks(plan):
         print(f"wmr-cosim: {kind}: {text}", file=sys.stderr)
@@ -213,34 +222,28 @@ def is_scenario(path: str | Path) -> bool:
 def run_scenario(path: str | Path, out: str | Path | None = None, overrides: dict[str, Any] | None = None,
                  progress: bool | None = None, inputs: str | Path | None = None, stop: float | None = None,
                  step: float | None = None, force: bool = False, isolate: bool = False,
-                 real_time: float | None = None) -> execution.RunResult:
+                 real_time: float | None = None, limits: LimitOverrides | None = None,
+                 parsed: Protocol | None = None) -> execution.RunResult:
     """Run a scenario file (.toml), an SSP archive (.ssp) or one FMU alone (.fmu); ``isolate`` hosts every
-    instance in a child process of its own; ``real_time=FACTOR`` paces the steps to the wall clock."""
+    instance in a child process of its own; ``real_time=FACTOR`` paces the steps to the wall clock;
+    ``limits``: the caller's archive limits; ``parsed``: a scenario file already read (see :func:`load_plan`)."""
     out = out if out is not None else default_out(path)
     if is_fmu(path):
-        return execution.run(isolated(fmu_plan(path, overrides, inputs, stop, step, force), isolate), out,
+        return execution.run(fmu_plan(path, overrides, inputs, stop, step, force, isolate, limits), out,
                              progress=progress, real_time=real_time)
     if ssp.is_ssp(path):
-        with ssp_plan(path, overrides, force) as plan:
-            return execution.run(isolated(plan, isolate), out, progress=progress, real_time=real_time)
-    plan = load_plan(path, overrides, force)
-    return judge_run(execution.run(isolated(plan, isolate), out, progress=progress, real_time=real_time))
+        with ssp_plan(path, overrides, force, isolate, limits) as plan:
+            return execution.run(plan, out, progress=progress, real_time=real_time)
+    plan = load_plan(path, overrides, force, isolate, limits, parsed)
+    return judge_run(execution.run(plan, out, progress=progress, real_time=real_time))
 
 
-def isolated(plan: system.Plan, isolate: bool) -> system.Plan:
-    """The plan with every instance isolated (``--isolate``), or as it is."""
-    if isolate:
-        for ip in plan.instances.values():
-            ip.spec.isolate = True
-    return plan
-
-
-def describe_fmu(path: str | Path) -> str:
+def describe_fmu(path: str | Path, limits: LimitOverrides | None = None) -> str:
     """A readable summary of any FMU whose model description can be read (``wmr-cosim info``; see
-    :mod:`wmr_cosim.fmu_info`), with what would stop a run here."""
+    :mod:`wmr_cosim.fmu_info`), with what would stop a run here; ``limits``: the caller's archive limits."""
     from .fmu_info import describe
 
-    return describe(path)
+    return describe(path, (limits or LimitOverrides()).over())
 
 
 __all__ = ["CosimError", "ScenarioError", "resolve_model", "parse_set", "load_plan", "ssp_plan", "export_ssp",

@@ -1,0 +1,39 @@
+"""The exit codes of the ``wmr-cosim`` command line: 0 success; 1 the run failed or diverged; 2 bad input
+(a parameter, a file, an option); 130 interrupted (Ctrl-C).  The master (``wmr_cosim.cosim``) knows none of
+them: the command decides here what each run status and each error exits with."""
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+from .cosim.errors import RunError
+from .cosim.status import RunStatus
+
+OK = 0
+RUN_FAILED = 1
+BAD_INPUT = 2
+INTERRUPTED = 130
+
+
+def for_status(status: str) -> int:
+    """The exit code of a command whose run ended with ``status`` (a :class:`RunStatus` or its value): 0 for
+    ok, terminated and stopped; 130 for interrupted; 1 for failed and diverged."""
+    s = RunStatus(status)
+    if s.ended_well:
+        return OK
+    return INTERRUPTED if s is RunStatus.INTERRUPTED else RUN_FAILED
+
+
+def for_statuses(statuses: Iterable[str]) -> int:
+    """The exit code of a command of several runs (a protocol): the worst of theirs (0 for none)."""
+    return max((for_status(s) for s in statuses), default=OK)
+
+
+def for_error(exc: BaseException) -> int:
+    """The exit code of a command stopped by ``exc``: 130 for Ctrl-C, 1 for a run that failed
+    (:class:`~wmr_cosim.cosim.errors.RunError`), 2 for anything else it reports as bad input (a scenario,
+    an FMU, a results folder, a parameter, an option)."""
+    if isinstance(exc, KeyboardInterrupt):
+        return INTERRUPTED
+    if isinstance(exc, RunError):
+        return RUN_FAILED
+    return BAD_INPUT
