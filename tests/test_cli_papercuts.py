@@ -143,3 +143,21 @@ def test_output_into_a_closed_pipe_ends_quietly(built_fmus):
     p.stderr.close()
     assert p.wait(timeout=60) == 141, err
     assert "Traceback" not in err and "BrokenPipeError" not in err, err
+
+
+def test_archive_limits_of_the_command_line_are_passed_down_not_kept(tmp_path, capsys, monkeypatch):
+    """--max-archive-size reaches the run's checks as an argument: nothing is left in the environment; a
+    command whose runs happen in worker processes refuses the options (their scenarios' [limits] apply)."""
+    import os
+
+    for name in ("WMR_COSIM_MAX_ARCHIVE_SIZE", "WMR_COSIM_MAX_ARCHIVE_RATIO"):
+        monkeypatch.delenv(name, raising=False)
+    assert main(["--max-archive-size", "1 KiB", "check", str(DQ)]) == 2
+    assert "more than the limit of 1 KiB" in capsys.readouterr().err
+    assert not {"WMR_COSIM_MAX_ARCHIVE_SIZE", "WMR_COSIM_MAX_ARCHIVE_RATIO"} & set(os.environ)
+    assert main(["check", str(DQ)]) == 0          # the next command has the defaults again
+    capsys.readouterr()
+    sweep = tmp_path / "s.toml"
+    sweep.write_text("")
+    assert main(["--max-archive-ratio", "1000", "sweep", str(sweep)]) == 2
+    assert "do not reach the worker processes of sweep" in capsys.readouterr().err

@@ -7,7 +7,8 @@ import pytest
 
 from reference_fmus import REF
 from wmr_cosim.cli import main
-from wmr_cosim.cosim.kinds import FileKind, file_kind
+from wmr_cosim.cosim.kinds import FileKind, file_kind, named_kind
+from wmr_cosim.cosim.scenario import is_path
 
 
 @pytest.mark.parametrize("name, kind", [("a.fmu", FileKind.FMU), ("A.FMU", FileKind.FMU), ("x/s.ssp", FileKind.SSP),
@@ -35,3 +36,23 @@ def test_an_fmu_with_an_upper_case_suffix_takes_an_input_table(tmp_path, capsys)
     table = tmp_path / "in.csv"
     table.write_text("time,Float64_continuous_input\n0,1\n1,2\n")
     assert main(["check", str(fmu), "--input", str(table)]) == 0
+
+
+@pytest.mark.parametrize("name, kind", [("a.fmu", FileKind.FMU), ("A.Fmu", FileKind.FMU), ("s.SSP", FileKind.SSP),
+                                        ("G1.TOML", FileKind.SCENARIO), ("notes.txt", None), ("fmu", None)])
+def test_the_kind_a_name_declares(name, kind):
+    assert named_kind(name) is kind
+
+
+def test_every_dispatch_on_a_suffix_takes_any_case(tmp_path, capsys):
+    """An instance's fmu "X.FMU" is a path, not a model name; export-ssp writes to "OUT.SSP"; and run's
+    --record before the scenario takes the last word as the scenario when its suffix is ".TOML"."""
+    assert is_path("Plant.FMU") and is_path("plant.fmu") and not is_path("WmrPlant")
+    fmu = tmp_path / "DAHLQUIST.FMU"
+    shutil.copy(REF / "fmi2" / "Dahlquist.fmu", fmu)
+    path = tmp_path / "S.TOML"
+    path.write_text('[experiment]\nstop = 0.1\nstep = 0.05\n[instances.d]\nfmu = "DAHLQUIST.FMU"\n')
+    assert main(["export-ssp", str(path), "--out", str(tmp_path / "OUT.SSP")]) == 0
+    assert (tmp_path / "OUT.SSP").is_file()
+    assert main(["run", "--quiet", "--out", str(tmp_path / "out"), "--record", "d.x", str(path)]) == 0
+    assert "S.TOML: ok" in capsys.readouterr().out

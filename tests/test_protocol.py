@@ -178,3 +178,42 @@ def test_a_run_error_without_an_instance():
     err = RunError("the run  failed\n at the end")
     assert (str(err), err.instance, err.time, for_error(err)) == ("the run failed at the end", "", None,
                                                                   RUN_FAILED)
+
+
+def test_a_protocol_file_is_read_once_per_command(tmp_path, monkeypatch, capsys):
+    """check and run of a protocol read and parse the file once (every run's scenario is made from the
+    document read), also through the command line."""
+    from wmr_cosim.cli import main
+    from wmr_cosim.cosim import scenario
+
+    path = _protocol(tmp_path, RUNS)
+    reads: list[str] = []
+    real = scenario.read_document
+
+    def counted(p, *args, **kw):
+        if not args and not kw:           # (the file itself, not a base it names)
+            reads.append(str(p))
+        return real(p, *args, **kw)
+
+    monkeypatch.setattr(scenario, "read_document", counted)
+    assert main(["check", str(path), "--variant", "slow"]) == 0
+    assert "run c: ok" in capsys.readouterr().out and reads == [str(path)]
+    reads.clear()
+    assert main(["run", str(path), "--quiet", "--out", str(tmp_path / "out")]) == 0
+    assert reads == [str(path)] and (tmp_path / "out" / "c" / "signals.npy").is_file()
+
+
+def test_isolate_is_part_of_the_plan_and_leaves_the_scenario_as_it_is(tmp_path):
+    """resolve(isolate_all=True) isolates every instance of the plan; the scenario given keeps its own flags
+    (and every other field), and a later plan of it without isolate_all is not isolated."""
+    import copy
+
+    from wmr_cosim.cosim import scenario, system
+
+    sc = scenario.load(_protocol(tmp_path))
+    before = copy.deepcopy(sc)
+    plan = system.resolve(sc, force=True, isolate_all=True)
+    assert [ip.spec.isolate for ip in plan.instances.values()] == [True]
+    assert plan.scenario.instances["d"].isolate and plan.scenario.force
+    assert sc == before and not sc.instances["d"].isolate and sc.start is None and not sc.force
+    assert not system.resolve(sc).instances["d"].spec.isolate

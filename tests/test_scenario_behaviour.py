@@ -292,3 +292,22 @@ def test_a_value_given_on_the_command_line_names_its_option():
     assert str(info.value) == 's.toml: --set nodot: \'nodot\' is not of the form "instance.variable"'
     # with one instance, a name alone is that instance's variable
     assert apply_overrides(_doc(), {"nodot": 1}, "s.toml")["instances"]["a"]["parameters"] == {"nodot": 1}
+
+
+@pytest.mark.parametrize("key, kind, hint", [
+    ("tasks", "a paper manifest", "run it with `wmr-cosim paper --manifest FILE`"),
+    ("grid", "a sweep file", "run it with `wmr-cosim sweep FILE`")])
+def test_another_kind_of_file_is_named_by_the_master_and_the_command_line_says_how_to_run_it(
+        tmp_path, capsys, key, kind, hint):
+    """The master names what the file is and no command; the command line adds the command that takes it."""
+    from wmr_cosim.cli import main
+    from wmr_cosim.cosim.errors import OtherFileError
+    from wmr_cosim.cosim.scenario import load
+
+    path = tmp_path / "other.toml"
+    path.write_text(f"[{key}]\n")
+    with pytest.raises(OtherFileError) as info:
+        load(path)
+    assert str(info.value) == f"{path}: not a scenario but {kind}" and info.value.kind == kind
+    assert main(["check", str(path)]) == 2
+    assert capsys.readouterr().err == f"wmr-cosim: error: {path}: not a scenario but {kind}: {hint}\n"

@@ -368,16 +368,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="write the signals and figures to this .npz")
     args = ap.parse_args(argv)
     signals = tuple(s for s in args.signals.split(",") if s)
+    from .exit_codes import OK, RUN_FAILED
+
     try:
         r = run_here(args.peer, args.ssp, args.stop, args.step, signals)
     except PeerError as exc:
         print(f"{args.peer}: {exc}", file=sys.stderr)
-        return 1
+        return RUN_FAILED
     meta = {k: v for k, v in r.items() if k != "signals"}
     if args.out is not None:
         np.savez(args.out, meta=json.dumps(meta), **{f"sig:{k}": v for k, v in r["signals"].items()})
     print(json.dumps(meta))
-    return 0
+    return OK
 
 
 if __name__ == "__main__":
