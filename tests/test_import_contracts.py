@@ -1,0 +1,78 @@
+"""The layering of the packages, as import-linter contracts ([tool.importlinter] in pyproject.toml): the
+generic master (cosim/) imports nothing of the components, the FMUs or the application, and the
+components import no FMI package and nothing of wmr_cosim outside themselves.  import-linter reads the
+source tree of this checkout (wmr_cosim/ with its links to the top-level folders), imports inside
+functions and chains through other modules included; a copy of the tree with forbidden imports added
+shows that the contracts see them."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+CONFIG = ROOT / "pyproject.toml"
+#: the folders linked into wmr_cosim/ as its subpackages
+SUBPACKAGES = ("cosim", "components", "fmus", "scenarios")
+CONTRACTS = {"master": "the generic master (cosim/)", "components": "the components (components/)"}
+
+
+def lint_imports(tree: Path) -> subprocess.CompletedProcess:
+    """``lint-imports`` with the contracts of pyproject.toml on the package wmr_cosim found in ``tree``
+    (first on the path, so neither an installed copy nor another checkout's editable install is read)."""
+    env = {**os.environ, "PYTHONPATH": str(tree), "PYTHONDONTWRITEBYTECODE": "1"}
+    code = "from importlinter.cli import lint_imports_command; lint_imports_command()"
+    return subprocess.run([sys.executable, "-c", code, "--no-cache", "--no-logo", str(CONFIG)],
+                          capture_output=True, text=True, cwd=tree, env=env, timeout=300)
+
+
+def test_the_subpackages_are_links_in_the_package_folder():
+    """The layout the contracts (and any tool that reads the tree) depend on."""
+    for name in SUBPACKAGES:
+        link = ROOT / "wmr_cosim" / name
+        assert link.is_symlink() and os.readlink(link) == f"../{name}", link
+        assert (link / "__init__.py").is_file(), link
+
+
+def test_the_layering_contracts_hold():
+    p = lint_imports(ROOT)
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert "Contracts: 2 kept, 0 broken." in p.stdout, p.stdout
+
+
+def _tree_copy(dest: Path) -> Path:
+    """The package's sources, with wmr_cosim/ and its links as in the checkout."""
+    ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.fmu")
+    shutil.copytree(ROOT / "wmr_cosim", dest / "wmr_cosim", symlinks=True, ignore=ignore)
+    for name in SUBPACKAGES:
+        shutil.copytree(ROOT / name, dest / name, ignore=ignore)
+    return dest
+
+
+def test_a_forbidden_import_breaks_the_contracts(tmp_path):
+    tree = _tree_copy(tmp_path / "tree")
+    (tree / "cosim" / "_forbidden.py").write_text(
+        "def f():\n    from ..components import paper  # inside a function\n    return paper\n")
+    (tree / "components" / "_forbidden.py").write_text(
+        "def f():\n    import fmpy\n    from ..cosim import errors\n    return fmpy, errors\n")
+    p = lint_imports(tree)
+    assert p.returncode == 1, p.stdout + p.stderr
+    assert "Contracts: 0 kept, 2 broken." in p.stdout, p.stdout
+    for line in ("wmr_cosim.cosim._forbidden -> wmr_cosim.components.paper (l.2)",
+                 "wmr_cosim.components._forbidden -> fmpy (l.2)",
+                 "wmr_cosim.components._forbidden -> wmr_cosim.cosim.errors (l.3)"):
+        assert line in p.stdout, p.stdout
+
+
+def test_an_application_module_imported_by_the_master_breaks_its_contract(tmp_path):
+    """Any module directly in wmr_cosim/ counts as the application, one added later too, and importing
+    the package wmr_cosim itself reaches the application through its __init__."""
+    tree = _tree_copy(tmp_path / "tree")
+    (tree / "wmr_cosim" / "_new_module.py").write_text("X = 1\n")
+    (tree / "cosim" / "_forbidden.py").write_text("from .. import _new_module\nimport wmr_cosim\n")
+    p = lint_imports(tree)
+    assert p.returncode == 1 and "Contracts: 1 kept, 1 broken." in p.stdout, p.stdout + p.stderr
+    assert "wmr_cosim.cosim._forbidden -> wmr_cosim._new_module (l.1)" in p.stdout, p.stdout
+    assert "wmr_cosim.cosim is not allowed to import wmr_cosim.api:" in p.stdout, p.stdout
