@@ -63,6 +63,7 @@ def tokenize(text: str) -> list[Token]:
         if m is None:
             raise ConditionError(f"unexpected {text[pos]!r} at character {pos + 1} of {text!r}")
         kind = m.lastgroup
+        assert kind is not None   # every alternative of _TOKEN is a named group
         if kind != "space":
             word = m.group()
             if kind == "name" and word in KEYWORDS:
@@ -186,11 +187,13 @@ def variables(node: Node) -> list[str]:
             if n[1] not in out:
                 out.append(n[1])
         elif n[0] in ("or", "and"):
-            walk(n[1]), walk(n[2])
+            walk(n[1])
+            walk(n[2])
         elif n[0] in ("not", "is"):
             walk(n[1])
         elif n[0] == "cmp":
-            walk(n[2]), walk(n[3])
+            walk(n[2])
+            walk(n[3])
     walk(node)
     return out
 
@@ -223,7 +226,8 @@ def check_types(node: Node, types: dict[str, str]) -> None:
     """Raise ConditionError where a comparison mixes a number and a boolean, orders booleans, or an operand
     alone is not a boolean.  ``types`` maps each variable of the condition to its FMI 2.0 type name."""
     if node[0] in ("or", "and"):
-        check_types(node[1], types), check_types(node[2], types)
+        check_types(node[1], types)
+        check_types(node[2], types)
     elif node[0] == "not":
         check_types(node[1], types)
     elif node[0] == "is":

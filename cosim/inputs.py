@@ -19,7 +19,7 @@ import csv
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Callable
 
 import numpy as np
 
@@ -44,7 +44,7 @@ def _isclose(a: float, b: float) -> bool:
     return math.isclose(a, b, rel_tol=1e-9)
 
 
-def _convert(text: str, var: Variable, where: str, fld: str) -> Any:
+def _convert(text: str, var: Variable, where: str, fld: str) -> float | int | bool | str:
     t = text.strip()
     try:
         if var.type == "Real":
@@ -96,8 +96,8 @@ def sample_linear(t: np.ndarray, v: np.ndarray, grid: np.ndarray) -> np.ndarray:
     return out
 
 
-def read_inputs(file: Path, where: str, interpolation: dict[str, str], resolve_var, grid: np.ndarray
-                ) -> list[InputPlan]:
+def read_inputs(file: Path, where: str, interpolation: dict[str, str],
+                resolve_var: Callable[[str], tuple[str, Variable]], grid: np.ndarray) -> list[InputPlan]:
     """Read the table ``file`` for the scenario ``where``; ``resolve_var(column) -> (instance, Variable)``
     names the input a column drives (raising ScenarioError if it cannot)."""
     fld = "inputs.file"

@@ -6,7 +6,7 @@ import os
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from xml.parsers import expat
 
@@ -15,6 +15,9 @@ from fmpy import read_model_description
 from .archive import check_archive
 from .errors import FmuLoadError
 from .units import Unit, lookup, units_of
+
+if TYPE_CHECKING:   # (FMPy has no type information: to mypy these are Any)
+    from fmpy.model_description import ModelDescription, ScalarVariable
 
 #: The master's kind of a variable -> the Python types a scenario value of that variable may have.
 PY_TYPES: dict[str, tuple[type, ...]] = {"Real": (float, int), "Integer": (int,), "Enumeration": (int,),
@@ -104,7 +107,7 @@ class FmuModel:
     """An FMU file and its model description (FMI 2.0 or 3.0 co-simulation checked)."""
 
     path: Path
-    md: Any
+    md: ModelDescription   # FMPy's reading of modelDescription.xml
     variables: dict[str, Variable] = field(default_factory=dict)
     fmi: int = 2
 
@@ -143,7 +146,7 @@ def _num(text: Any, typ: str) -> float | None:
         return None
 
 
-def _start(v: Any, kind: str, shape: tuple[int, ...]) -> Any:
+def _start(v: ScalarVariable, kind: str, shape: tuple[int, ...]) -> Any:
     s = v.start
     if s is None:
         return None
@@ -165,7 +168,7 @@ def _scalar(s: Any, kind: str) -> Any:
     return s
 
 
-def _initial(v: Any) -> str | None:
+def _initial(v: ScalarVariable) -> str | None:
     """The variable's ``initial``, or its default by causality and variability (FMI 2.0, table of 2.2.7)."""
     if v.initial:
         return v.initial

@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Callable
 
 
 @dataclass
@@ -22,7 +22,7 @@ class Pacer:
     steps: int = 0
     _wall0: float | None = None
     _t_start: float = 0.0
-    _clock: Any = field(default=time.perf_counter, repr=False)
+    _clock: Callable[[], float] = field(default=time.perf_counter, repr=False)
 
     def __post_init__(self) -> None:
         if not (isinstance(self.factor, (int, float)) and math.isfinite(self.factor) and self.factor > 0):
@@ -50,7 +50,7 @@ class Pacer:
             time.sleep(due - now)
             now = self._clock()
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> dict[str, float]:
         """The figures summary.json reports under ``real_time``."""
         return {"factor": self.factor, "steps": self.steps, "overruns": self.overruns,
                 "late_max_s": round(self.late_max_s, 6),

@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 from numpy.lib import format as npformat
@@ -37,7 +37,7 @@ class OutputLock:
     def __init__(self, folder: Path) -> None:
         self.folder = Path(folder)
         self.path = self.folder / LOCK_NAME
-        self._fh = None
+        self._fh: IO[str] | None = None
 
     def acquire(self) -> "OutputLock":
         import fcntl

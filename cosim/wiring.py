@@ -20,13 +20,16 @@ import numpy as np
 from .errors import RunError
 from .instance import Instance, accessor, real_array, vr_array
 from .inputs import InputPlan
-from .system import ConnectionPlan, EventPlan, Plan
+from .model import Variable
+from .system import ConnectionPlan, EventPlan, Plan, RecordPlan
 
+#: A ctypes array of doubles: the row's outputs, a table's values, an override's value.
+Doubles = ctypes.Array[ctypes.c_double]
 #: (position in the instance's input array, source array, index in it, factor, offset)
-Copy = tuple[int, Any, int, float, float]
+Copy = tuple[int, Doubles, int, float, float]
 
 
-def is_f64(var: Any) -> bool:
+def is_f64(var: Variable) -> bool:
     """A 64-bit real (FMI 2.0 Real, FMI 3.0 Float64): the values the generated loop copies directly."""
     return var.fmi_type in ("Real", "Float64")
 
@@ -40,20 +43,20 @@ class RowLayout:
     reals: dict[str, list[tuple[int, int]]]   # instance -> (vr, number of values) of its Float64 outputs
     offset: dict[str, int]                     # instance -> first slot of its Float64 outputs
     n_real: int                                # slots of time and Float64 outputs
-    extra: list[Any]                           # recorded outputs that are not Float64 (RecordPlan)
+    extra: list[RecordPlan]                    # recorded outputs that are not Float64
     n_double: int = 0
     n_int: int = 0
-    buf: Any = None                            # the raw bytes of the row
-    row: Any = None                            # its doubles (ctypes view)
-    irow: Any = None                           # its integers (ctypes view)
-    out_arr: dict[str, Any] = field(default_factory=dict)   # instance -> view of its Float64 outputs
+    buf: ctypes.Array[ctypes.c_byte] = field(init=False)     # the raw bytes of the row (set by of)
+    row: Doubles = field(init=False)                         # its doubles (ctypes view)
+    irow: ctypes.Array[ctypes.c_int64] = field(init=False)   # its integers (ctypes view)
+    out_arr: dict[str, Doubles] = field(default_factory=dict)   # instance -> view of its Float64 outputs
     extra_slot: dict[int, int] = field(default_factory=dict)  # id(RecordPlan) -> slot
 
     @classmethod
     def of(cls, plan: Plan) -> "RowLayout":
         reals: dict[str, list[tuple[int, int]]] = {n: [] for n in plan.order}
 
-        def add(inst: str, var: Any) -> None:
+        def add(inst: str, var: Variable) -> None:
             if is_f64(var) and (var.vr, var.size) not in reals[inst]:
                 reals[inst].append((var.vr, var.size))
         for c in plan.connections:
@@ -90,13 +93,14 @@ class RowLayout:
             i += size
         raise KeyError((inst, vr))
 
-    def slot(self, rec: Any) -> int:
+    def slot(self, rec: RecordPlan) -> int:
         """The row slot of a recorded variable (RecordPlan)."""
         if is_f64(rec.var):
             return self.offset[rec.instance] + self.index(rec.instance, rec.var.vr, rec.elem)
         return self.extra_slot[id(rec)]
 
     def write(self, slot: int, value: Any) -> None:
+        """Put a value in a slot: a float in a double's, an int or a bool in an integer's."""
         if slot < self.n_double:
             self.row[slot] = value
         else:
@@ -120,7 +124,7 @@ class Wiring:
                 src = layout.out_arr[c.src], layout.index(c.src, c.src_var.vr, e if c.src_elem is None else c.src_elem)
                 self.base[(c.dst, pos)] = (pos, *src, c.factor, c.offset)
                 self.feeds[(c.dst, pos)] = (c.src, c.src_var.vr)
-        self.tables: dict[str, tuple[Any, np.ndarray]] = {}   # instance -> (array the copies read, values)
+        self.tables: dict[str, tuple[Doubles, np.ndarray]] = {}   # instance -> (array the copies read, values)
         for inst in plan.order:  # tabulated Real inputs: sources refreshed before each step
             cols = [ip for ip in plan.inputs if ip.instance == inst and is_f64(ip.var)]
             if cols:
@@ -132,11 +136,12 @@ class Wiring:
         for ev in plan.events + plan.conditions:  # an unconnected input driven by events holds its start
             if ev.var is None or ev.var.causality != "input" or ev.var.type != "Real" or ev.action == "set":
                 continue
+            assert ev.instance is not None   # (an event with a variable has its instance)
             key = (ev.instance, self._pos(ev.instance, ev.var.vr))
             if key not in self.base:
                 self.base[key] = (key[1], real_array([float(_start(plan, ev))]), 0, 1.0, 0.0)
         self.overrides: dict[tuple[str, int, str], tuple[str, float]] = {}
-        self._held: dict[tuple[str, int, str], Any] = {}   # the array each override's copies read
+        self._held: dict[tuple[str, int, str], Doubles] = {}   # the array each override's copies read
 
     def is_wired(self, inst: str, vr: int, causality: str) -> bool:
         """Whether the copies can carry an override of this Real input (one the master sets) or output
@@ -158,13 +163,15 @@ class Wiring:
     def apply(self, ev: EventPlan) -> bool:
         """Put an event's action in force (override, bias on top of an earlier one, or reset).  Returns
         whether the copies changed (False: a new value of an override already in force, written in place)."""
+        assert ev.instance is not None and ev.var is not None, "a stop event acts on no variable"
         return self.act(ev.instance, ev.var.vr, ev.var.causality, ev.action, ev.value)
 
-    def act(self, inst: str, vr: int, causality: str, action: str, value: Any) -> bool:
-        """:meth:`apply` for one Real variable ``(inst, vr, causality)``."""
+    def act(self, inst: str, vr: int, causality: str, action: str, value: float | None) -> bool:
+        """:meth:`apply` for one Real variable ``(inst, vr, causality)`` (``value`` None for a reset)."""
         key = (inst, vr, causality)
         if action == "reset":
             return self.overrides.pop(key, None) is not None
+        assert value is not None, f"{action} without a value"
         prev = self.overrides.get(key)
         if action == "bias" and prev is not None:   # on top of an earlier override or bias
             self.overrides[key] = (prev[0], prev[1] + float(value))
@@ -178,7 +185,7 @@ class Wiring:
             return False
         return True
 
-    def _held_value(self, key: tuple[str, int, str], value: float) -> Any:
+    def _held_value(self, key: tuple[str, int, str], value: float) -> Doubles:
         arr = self._held.get(key)
         if arr is None:
             arr = self._held[key] = real_array([value])
@@ -206,7 +213,7 @@ class Wiring:
                 out.append((pos, arr, i, f, o + ov[1]))
         return out
 
-    def bad_input(self, name: str, in_vr: Any, copies: list[Copy], t: float) -> RunError:
+    def bad_input(self, name: str, in_vr: ctypes.Array[ctypes.c_uint], copies: list[Copy], t: float) -> RunError:
         """The first non-finite value about to be set on an input of ``name``, named with the output that
         produced it (or an overflow of their sum, reported as such)."""
         ip = self.plan.instances[name]
@@ -229,6 +236,7 @@ class Wiring:
 
 
 def _start(plan: Plan, ev: EventPlan) -> float:
+    assert ev.instance is not None and ev.var is not None
     start = ev.var.start if ev.var.start is not None else 0.0
     for v, val in plan.instances[ev.instance].parameters:
         if v.vr == ev.var.vr:
@@ -236,7 +244,7 @@ def _start(plan: Plan, ev: EventPlan) -> float:
     return start
 
 
-def table_feeder(inst: Instance, table: tuple[Any, np.ndarray] | None, discrete: list[InputPlan]
+def table_feeder(inst: Instance, table: tuple[Doubles, np.ndarray] | None, discrete: list[InputPlan]
                  ) -> Callable[[int], int] | None:
     """A closure that puts the tabulated inputs of step k in place: the Float64 values where the copies
     read them, the others set on the FMU with one call per FMI type."""
@@ -256,6 +264,7 @@ def table_feeder(inst: Instance, table: tuple[Any, np.ndarray] | None, discrete:
         put, ctype = accessor(inst, t, "Set")
         vrs, n = vr_array([ip.var.vr for ip in cols]), ctypes.c_size_t(len(cols))
         buf = (ctype * len(cols))()
+        mat: list[list[Any]]   # the values of each step, of the FMI type's ctype
         if ctype is ctypes.c_char_p:
             mat = [[str(v).encode("utf-8") for v in row] for row in zip(*(ip.values for ip in cols))]
         elif ctype in (ctypes.c_double, ctypes.c_float):
