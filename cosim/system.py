@@ -516,13 +516,14 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
 
 
 def _planned_copy(sc: Scenario, force: bool | None, isolate_all: bool) -> Scenario:
-    """The copy of ``sc`` the plan holds (``sc`` itself is not changed): forced if ``force`` says so, every
-    instance isolated if ``isolate_all``."""
+    """The copy of ``sc`` the plan holds, with copies of its instances (so that neither resolving nor a
+    change to the plan changes ``sc``): forced if ``force`` says so, every instance isolated if
+    ``isolate_all``."""
     sc = copy.copy(sc)
     if force is not None:
         sc.force = force
-    if isolate_all:
-        sc.instances = {n: dataclasses.replace(spec, isolate=True) for n, spec in sc.instances.items()}
+    sc.instances = {n: dataclasses.replace(spec, isolate=spec.isolate or isolate_all)
+                    for n, spec in sc.instances.items()}
     return sc
 
 

@@ -217,3 +217,12 @@ def test_isolate_is_part_of_the_plan_and_leaves_the_scenario_as_it_is(tmp_path):
     assert plan.scenario.instances["d"].isolate and plan.scenario.force
     assert sc == before and not sc.instances["d"].isolate and sc.start is None and not sc.force
     assert not system.resolve(sc).instances["d"].spec.isolate
+
+
+def test_a_change_to_a_plan_leaves_its_scenario_as_it_is(tmp_path):
+    from wmr_cosim.cosim import scenario, system
+
+    sc = scenario.load(_protocol(tmp_path))
+    plan = system.resolve(sc)
+    plan.instances["d"].spec.isolate = True
+    assert not sc.instances["d"].isolate and not system.resolve(sc).instances["d"].spec.isolate

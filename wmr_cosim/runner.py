@@ -110,11 +110,13 @@ def judge_run(res: execution.RunResult) -> execution.RunResult:
     return res
 
 
-def run_protocol(path: str | Path, out_dir: str | Path, resolver: Callable[[str], Path | None] | None = None,
+def run_protocol(path: str | Path | Protocol, out_dir: str | Path,
+                 resolver: Callable[[str], Path | None] | None = None,
                  on_run: Callable[[str, execution.RunResult], None] | None = None, **options: Any
                  ) -> dict[str, execution.RunResult]:
     """:func:`wmr_cosim.cosim.protocol.run_protocol` (same ``options``; the resolver defaults to
-    :func:`resolve_model`) with every run judged by :func:`judge_run` as it finishes, before ``on_run``."""
+    :func:`resolve_model`; ``path`` may be a file already read) with every run judged by :func:`judge_run`
+    as it finishes, before ``on_run``."""
     from .cosim.protocol import run_protocol as run_all
 
     def judged(name: str, res: execution.RunResult) -> None:
