@@ -1,9 +1,8 @@
-"""Errors of the master.  Every message is one line (an application shows it as it is; what exit code
-a command gives for each is the application's: ``wmr_cosim.exit_codes``)."""
+"""Errors of the master.  Every message is one line, which an application shows as it is; what a command
+exits with for each is the application's to decide (the master defines no exit code of its own)."""
 from __future__ import annotations
 
-# Exit codes, kept only until cosim/status.py stops importing them (the command line's own are in
-# wmr_cosim.exit_codes; nothing else here uses them).
+# Exit codes, kept only until cosim/status.py stops importing them (nothing else of the master uses them).
 EXIT_OK = 0
 EXIT_RUN_FAILED = 1
 EXIT_BAD_INPUT = 2

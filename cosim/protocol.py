@@ -63,11 +63,13 @@ class Protocol:
         return scenario.parse(doc, self.file, self.resolver, self.limits)
 
 
-def read_protocol(path: str | os.PathLike, resolver: Resolver | None = None, limits: LimitOverrides | None = None
-                  ) -> Protocol:
-    """Read and parse a scenario file once (:class:`Protocol`); ``limits``: the caller's archive limits."""
+def read_protocol(path: str | os.PathLike, resolver: Resolver | None = None, limits: LimitOverrides | None = None,
+                  shipped: Path | None = None) -> Protocol:
+    """Read and parse a scenario file once (:class:`Protocol`); ``limits``: the caller's archive limits;
+    ``shipped``: the caller's folder of scenario files a ``base`` may name
+    (:func:`~.scenario.read_document`)."""
     file = str(Path(path))
-    doc = scenario.read_document(Path(path))
+    doc = scenario.read_document(Path(path), shipped=shipped)
     sc = scenario.parse(copy.deepcopy(doc), file, resolver, limits)
     return Protocol(file, doc, sc, resolver, limits)
 

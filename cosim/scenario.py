@@ -145,15 +145,19 @@ OTHER_FILES = {"tasks": "a paper manifest", "grid": "a sweep file", "random": "a
 MAX_NAME = 100
 
 
-def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, str] | None = None) -> dict[str, Any]:
+def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, str] | None = None,
+                  shipped: Path | None = None) -> dict[str, Any]:
     """Read one scenario file, absolutise its FMU and input paths, and merge it over its ``base`` (the
-    document :func:`parse` checks)."""
+    document :func:`parse` checks).  ``shipped``: the application's folder of scenario files, where a
+    ``base`` found neither beside the file nor by an absolute path is looked up (see :func:`base_path`)."""
+    if shipped is None:
+        shipped = _package_scenarios()
     name = str(path)
     if not path.is_file():
         if asked_by is not None:
             raise ScenarioError(asked_by[0], "base", f"{asked_by[1]!r}: "
                                                      f"{'a folder' if path.is_dir() else 'file not found'} ({path}; "
-                                                     f"nor a shipped scenario{_shipped_hint(asked_by[1])})")
+                                                     f"nor a shipped scenario{_shipped_hint(asked_by[1], shipped)})")
         raise ScenarioError(name, "", "a folder, not a scenario file" if path.is_dir() else "file not found")
     if path.resolve() in seen:
         raise ScenarioError(name, "base", "circular base chain")
@@ -184,41 +188,40 @@ def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, 
         b = doc.pop("base")
         if not isinstance(b, str):
             raise ScenarioError(name, "base", "must be a file name")
-        doc = _merge(read_document(_base_path(path, b), seen + (path.resolve(),), (name, b)), doc)
+        doc = _merge(read_document(base_path(path, b, shipped), seen + (path.resolve(),), (name, b), shipped), doc)
     return doc
 
 
-_read = read_document   # the former name (wmr_cosim.api reads documents through it)
+_read = read_document   # the former name, while callers move to the public one
 
 
-def _shipped() -> Path | None:
-    """The folder of the scenario files shipped with the package (None without it)."""
+def _package_scenarios() -> Path | None:
+    """The folder a caller that gives none gets: the scenario package installed beside this master, if
+    any.  Kept only until every caller passes its own folder (``shipped``)."""
     from importlib import resources
     try:
-        return Path(str(resources.files("wmr_cosim.scenarios")))
-    except ModuleNotFoundError:
+        return Path(str(resources.files(__name__.rsplit(".", 2)[0] + ".scenarios")))
+    except (ModuleNotFoundError, TypeError, ValueError):
         return None
 
 
-def _shipped_hint(base: str) -> str:
+def _shipped_hint(base: str, folder: Path | None) -> str:
     """", did you mean 'paper/protocol.toml'?" where a shipped file of that name lies in a subfolder."""
-    folder = _shipped()
-    if folder is None:
+    if folder is None or not folder.is_dir():
         return ""
     hits = sorted(p.relative_to(folder).as_posix() for p in folder.rglob(Path(base).name))
     return f", did you mean {hits[0]!r}?" if hits else ""
 
 
-def _base_path(path: Path, base: str) -> Path:
+def base_path(path: Path, base: str, shipped: Path | None = None) -> Path:
     """The file a ``base`` names: relative to the file that names it, else (a relative name without ``..``)
-    one of the scenario files shipped with the package (``g1_learn.toml``, ``paper/protocol.toml``), so
-    that a copy of a shipped file still finds its base."""
+    one of the scenario files in the folder ``shipped`` (``g1_learn.toml``, ``paper/protocol.toml``; a name
+    may start with that folder's own name), so that a copy of a shipped file still finds its base."""
     beside = path.parent / base
     b = Path(base)
-    if beside.exists() or b.is_absolute() or ".." in b.parts:
+    if beside.exists() or b.is_absolute() or ".." in b.parts or shipped is None:
         return beside
-    shipped = _shipped()
-    parts = b.parts[1:] if b.parts[:1] == ("scenarios",) else b.parts
+    parts = b.parts[1:] if b.parts[:1] == (shipped.name,) else b.parts
     found = shipped.joinpath(*parts) if shipped is not None and parts else None
     return found if found is not None and found.is_file() else beside
 
@@ -228,7 +231,7 @@ def is_path(fmu: str) -> bool:
     return file_kind(fmu) is FileKind.FMU or "/" in fmu or os.sep in fmu
 
 
-_is_path = is_path      # the former name (wmr_cosim.api tells paths from model names through it)
+_is_path = is_path      # the former name, while callers move to the public one
 
 
 def _flag(file: str, fld: str, v: Any) -> bool:
@@ -627,9 +630,9 @@ def parse_set(items: list[str] | None, form: str = "INSTANCE.PARAM=VALUE") -> di
 
 
 def load(path: str | os.PathLike, resolver=None, overrides: dict[str, Any] | None = None,
-         limits: LimitOverrides | None = None) -> Scenario:
-    """Read a scenario file (following its ``base`` chain), apply ``overrides`` ({'inst.param': value}),
-    and check its structure (``limits``: see :func:`parse`)."""
+         limits: LimitOverrides | None = None, shipped: Path | None = None) -> Scenario:
+    """Read a scenario file (following its ``base`` chain; ``shipped``: see :func:`read_document`), apply
+    ``overrides`` ({'inst.param': value}), and check its structure (``limits``: see :func:`parse`)."""
     path = Path(path)
-    doc = apply_overrides(read_document(path), overrides, str(path))
+    doc = apply_overrides(read_document(path, shipped=shipped), overrides, str(path))
     return parse(doc, str(path), resolver, limits)

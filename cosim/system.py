@@ -191,7 +191,7 @@ def variable(file: str, fld: str, inst: InstancePlan, name: str) -> Variable:
     return var
 
 
-_value = checked_value   # the former names (wmr_cosim.api checks values and finds variables through them)
+_value = checked_value   # the former names, while callers move to the public ones
 _var = variable
 
 

@@ -191,7 +191,7 @@ def test_a_protocol_file_is_read_once_per_command(tmp_path, monkeypatch, capsys)
     real = scenario.read_document
 
     def counted(p, *args, **kw):
-        if not args and not kw:           # (the file itself, not a base it names)
+        if not args:                      # (the file itself, not a base it names)
             reads.append(str(p))
         return real(p, *args, **kw)
 

@@ -51,3 +51,20 @@ def test_a_copy_of_a_shipped_protocol_task_is_told_where_its_base_is(tmp_path):
     shutil.copy(scenario_files.folder() / "paper" / "g1.toml", copy)     # base = "protocol.toml"
     with pytest.raises(ScenarioError, match=r"did you mean 'paper/protocol.toml'\?"):
         scenario.load(copy)
+
+
+def test_the_folder_of_shipped_files_is_the_callers(tmp_path):
+    """The master looks for a base in the folder its caller gives (another application's), named with or
+    without that folder's own name; the hint of a base found nowhere names that folder's files."""
+    ours = tmp_path / "library"
+    (ours / "tasks").mkdir(parents=True)
+    (ours / "tasks" / "common.toml").write_text('[experiment]\nstop = 1.0\nstep = 0.5\n[instances.a]\nfmu = "A"\n')
+    work = tmp_path / "work"
+    work.mkdir()
+    for i, base in enumerate(("tasks/common.toml", "library/tasks/common.toml")):
+        (work / f"m{i}.toml").write_text(f'base = "{base}"\n')
+        sc = scenario.load(work / f"m{i}.toml", lambda name: tmp_path / f"{name}.fmu", shipped=ours)
+        assert list(sc.instances) == ["a"]
+    (work / "lost.toml").write_text('base = "common.toml"\n')
+    with pytest.raises(ScenarioError, match=r"did you mean 'tasks/common.toml'\?"):
+        scenario.load(work / "lost.toml", shipped=ours)

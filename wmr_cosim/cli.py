@@ -161,10 +161,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     overrides = experiment_overrides(args)
     parsed = None
     if is_scenario(args.scenario):
-        from .cosim.protocol import read_protocol
-        from .runner import resolve_model
+        from .runner import read_scenario
 
-        parsed = read_protocol(args.scenario, resolve_model, args.limits)
+        parsed = read_scenario(args.scenario, args.limits)
         parsed.variant_parameters(args.variant)
         if parsed.scenario.runs:  # a protocol: every run, in order, into OUT/<run>
             return _run_protocol(args, parsed, out, overrides)
@@ -231,10 +230,9 @@ def cmd_check(args: argparse.Namespace) -> int:
     elif kind is FileKind.FMU:
         _report_check(args, fmu_plan(args.scenario, overrides, args.input, force=f, limits=lim))
     else:
-        from .cosim.protocol import read_protocol
-        from .runner import resolve_model
+        from .runner import read_scenario
 
-        parsed = read_protocol(args.scenario, resolve_model, lim)
+        parsed = read_scenario(args.scenario, lim)
         _report_check(args, load_plan(args.scenario, overrides, f, parsed=parsed))
         _check_runs(args, parsed, overrides)
     return EXIT_OK

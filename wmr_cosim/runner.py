@@ -172,6 +172,25 @@ def fmu_plan(fmu: str | Path, overrides: dict[str, Any] | None = None, inputs: s
     return system.resolve(scenario.parse(doc, str(fmu), limits=limits), force, isolate_all=isolate)
 
 
+def shipped_folder() -> Path | None:
+    """The folder of this project's shipped scenario files, which a ``base`` may name (None when they are
+    not files on disk)."""
+    from .scenario_files import folder
+
+    try:
+        return folder()
+    except (RuntimeError, ModuleNotFoundError):
+        return None
+
+
+def read_scenario(path: str | Path, limits: LimitOverrides | None = None) -> Protocol:
+    """A scenario file (a protocol or a single run) read and parsed once, with our model names and shipped
+    scenario files; ``limits``: the caller's archive limits."""
+    from .cosim.protocol import read_protocol
+
+    return read_protocol(path, resolve_model, limits, shipped_folder())
+
+
 def load_plan(path: str | Path, overrides: dict[str, Any] | None = None, force: bool = False, isolate: bool = False,
               limits: LimitOverrides | None = None, parsed: Protocol | None = None) -> system.Plan:
     """Parse a scenario file (TOML; not an SSP archive: see :func:`ssp_plan`) and run every check against
@@ -180,7 +199,7 @@ def load_plan(path: str | Path, overrides: dict[str, Any] | None = None, force: 
     if ssp.is_ssp(path):
         raise CosimError(f"{path}: an SSP archive, not a scenario file (.toml)")  # (run/check use ssp_plan)
     sc = parsed.with_parameters(overrides) if parsed is not None else \
-        scenario.load(path, resolve_model, overrides, limits)
+        scenario.load(path, resolve_model, overrides, limits, shipped_folder())
     return system.resolve(sc, force, isolate_all=isolate)
 
 
