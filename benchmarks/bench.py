@@ -127,66 +127,71 @@ def bench_cosim(repeats: int) -> dict[str, float]:
             "master_us_per_fmu_step": round(overhead, 3)}
 
 
-def plain_loop(ios, algorithm, t0, h, dec, n_steps, layout, chunk, check_inputs=True):
-    """The stepping loop written as a plain loop over the instances, making the same raw ctypes calls as
-    the generated one (Gauss-Seidel, Real connections only: what G1 needs): the yardstick that decides
-    whether generating the loop pays for itself."""
-    import ctypes
+def plain_algorithm():
+    """Gauss-Seidel with its loop written as a plain loop over the instances, making the same raw ctypes
+    calls as the generated one (Real connections only: what G1 needs): the yardstick that decides whether
+    generating the loop pays for itself.  An algorithm object of its own (cosim.algorithm's interface)."""
+    from wmr_cosim.cosim.algorithm import GaussSeidel
+    from wmr_cosim.cosim.failure import Call, Failure
 
-    if algorithm != "gauss-seidel" or any(io.other or io.feed or io.extras or io.fmi != 2 for io in ios):
-        raise ValueError("the plain loop covers FMI 2.0 Gauss-Seidel with Real connections and recordings only")
-    row, buf = layout.row, layout.buf
-    T, H = ctypes.c_double(0.0), ctypes.c_double(h)
-    items = [(io.name, io.c, io.set_real, io.do_step, io.get_real, io.in_vr, io.in_val, io.n_in, io.out_vr,
-              io.out_val, io.n_out, io.copies, bool(io.n_out.value)) for io in ios]
-    append = chunk.append
-    row, buf = layout.row, layout.buf
+    class PlainGaussSeidel(GaussSeidel):
+        def compile(self):
+            import ctypes
 
-    def loop(k0, k1):
-        for k in range(k0, k1):
-            T.value = t0 + k * h
-            for name, c, setr, dostep, getr, invr, inv, nin, outvr, outv, nout, copies, has_out in items:
-                if copies:
-                    for pos, arr, i, f, o in copies:
-                        v = arr[i] * f + o
-                        if check_inputs and v - v != 0.0:
-                            return (k, name, "inputs", v)
-                        inv[pos] = v
-                    s = setr(c, invr, nin, inv)
-                    if s:
-                        return (k, name, "fmi2SetReal", s)
-                s = dostep(c, T, H, 1)
-                if s:
-                    return (k, name, "fmi2DoStep", s)
-                if has_out:
-                    s = getr(c, outvr, nout, outv)
-                    if s:
-                        return (k + 1, name, "fmi2GetReal", s)
-            if (k + 1) % dec == 0 or k + 1 == n_steps:
-                row[0] = t0 + (k + 1) * h
-                append(bytes(buf))
-        return None
-    return loop
+            ios, clock, layout, chunk, check_inputs = self.ios, self.clock, self.layout, self.chunk, self.check_inputs
+            if any(io.other or io.feed or io.extras or io.fast.terminated is not None for io in ios):
+                raise ValueError("the plain loop covers Gauss-Seidel with Real connections and recordings only")
+            t0, h, dec, n_steps = clock.start, clock.step, clock.decimation, clock.n_steps
+            T, H = ctypes.c_double(0.0), ctypes.c_double(h)
+            items = [(io.name, io.fast.c, io.fast.set_real, io.fast.do_step, io.fast.get_real, io.in_vr,
+                      io.fast.in_val, io.n_in, io.out_vr, io.out_val, io.n_out, io.copies, bool(io.n_out.value),
+                      io.fast.set_tail, io.fast.step_tail, io.fast.get_tail) for io in ios]
+            append = chunk.append
+            row, buf = layout.row, layout.buf
+
+            def loop(k0, k1):
+                for k in range(k0, k1):
+                    T.value = t0 + k * h
+                    for (name, c, setr, dostep, getr, invr, inv, nin, outvr, outv, nout, copies, has_out,
+                         st, dt, gt) in items:
+                        if copies:
+                            for pos, arr, i, f, o in copies:
+                                v = arr[i] * f + o
+                                if check_inputs and v - v != 0.0:
+                                    return Failure(k, name, Call.NON_FINITE_INPUT, v)
+                                inv[pos] = v
+                            s = setr(c, invr, nin, inv, *st)
+                            if s:
+                                return Failure(k, name, Call.SET_REAL, s)
+                        s = dostep(c, T, H, *dt)
+                        if s:
+                            return Failure(k, name, Call.DO_STEP, s)
+                        if has_out:
+                            s = getr(c, outvr, nout, outv, *gt)
+                            if s:
+                                return Failure(k + 1, name, Call.GET_REAL, s)
+                    if (k + 1) % dec == 0 or k + 1 == n_steps:
+                        row[0] = t0 + (k + 1) * h
+                        append(bytes(buf))
+                return None
+            return loop
+    return PlainGaussSeidel()
 
 
 def bench_plain(repeats: int) -> dict[str, float]:
     """G1 as in bench_cosim, with the plain loop in place of the generated one (interleaved runs)."""
     from wmr_cosim.cosim import execution, scenario, system
+    from wmr_cosim.cosim.algorithm import GaussSeidel
     from wmr_cosim.runner import resolve_model
 
     root = __import__("pathlib").Path(__file__).resolve().parents[1]
     sc = scenario.load(root / "scenarios" / "g1_learn.toml", resolve_model)
     sc.record = ANALYSIS_RECORD
     plan = system.resolve(sc)
-    generated = execution.compile_loop
     walls: dict[str, list[float]] = {"generated": [], "plain": []}
     for _ in range(repeats):
-        for kind, fn in (("generated", generated), ("plain", plain_loop)):
-            execution.compile_loop = fn
-            try:
-                walls[kind].append(execution.run(plan, None, progress=False).wall_s)
-            finally:
-                execution.compile_loop = generated
+        for kind, make in (("generated", GaussSeidel), ("plain", plain_algorithm)):
+            walls[kind].append(execution.run(plan, None, progress=False, algorithm=make()).wall_s)
     g, p = statistics.median(walls["generated"]), statistics.median(walls["plain"])
     return {"cosim_plain_us_per_step": round(p / plan.n_steps * 1e6, 2),
             "cosim_generated_us_per_step": round(g / plan.n_steps * 1e6, 2),

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 from enum import Enum, IntEnum
 from typing import Any
 
+from .errors import RunError
+
 
 class FmiStatus(IntEnum):
     """fmi2Status / fmi3Status."""
@@ -16,6 +18,11 @@ class FmiStatus(IntEnum):
     ERROR = 3
     FATAL = 4
     PENDING = 5   # (FMI 2.0 only)
+
+    @property
+    def label(self) -> str:
+        """The name the standard gives it: "OK", "Warning", "Discard", "Error", "Fatal", "Pending"."""
+        return "OK" if self is FmiStatus.OK else self.name.capitalize()
 
 
 class Call(Enum):
@@ -58,4 +65,8 @@ class Failure:
     instance: str
     call: Call
     value: Any
-    fmi: int = 2
+
+
+class InstanceLost(RunError):
+    """An instance's host process ended (crash, abort, exit) or was ended after a hang, at ``time``: the
+    steps up to there are recorded, the other instances are terminated and freed."""

@@ -31,10 +31,8 @@ from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFr
 from fmpy.fmi1 import FMICallException
 
 from .errors import RunError
+from .fmu_instance import FastPath, FmuInstance, status_label
 from .model import Variable
-
-STATUS = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
-FATAL = 4
 
 try:  # the C calloc/free FMPy hands to FMUs
     from fmpy import calloc, free
@@ -57,11 +55,6 @@ LOG_LEVELS = {"all": 0, "info": 0, "warning": 1, "error": 3}
 _LEVEL_WORDS = {"warning": ("warn", "discard", "error", "fatal", "pending"), "error": ("error", "fatal")}
 
 
-def _label(status: int) -> str:
-    """The FMI name of a status ("OK" ... "Pending"), or its number when it is none of them."""
-    return STATUS[status] if 0 <= status < len(STATUS) else str(status)
-
-
 def _text(raw: bytes | None) -> str:
     """A C string from an FMU as text: UTF-8, undecodable bytes replaced (an FMU may log in another
     encoding), "" for NULL."""
@@ -75,14 +68,16 @@ def _dispatch(env, instance_name, status, category, message) -> None:
     if inst is not None:
         inst._logger(status, category, message)
     else:  # an FMU this master did not instantiate (FMPy's own defaults): print as FMPy does
-        print(f"[{_label(status)}] {_text(message)}")
+        print(f"[{status_label(status)}] {_text(message)}")
 
 
 _DISPATCH = fmi2CallbackLoggerTYPE(_dispatch)
 
 
-class Instance:
+class Instance(FmuInstance):
     """An instantiated FMU (FMI 2.0 co-simulation) with its log."""
+
+    fmi_version = 2
 
     def __init__(self, name: str, md: Any, unzipdir: str, log_path: str | os.PathLike | None = None,
                  logging: str = "warning", log_size: int = 200) -> None:
@@ -127,7 +122,7 @@ class Instance:
             self.n_errors += 1
         if status < self.min_status:
             return
-        line = f"[{_label(status)}] {_text(category)}: {_text(message)}"
+        line = f"[{status_label(status)}] {_text(category)}: {_text(message)}"
         self.log.append(line)
         self.log_lines += 1
         if self._log_fh is not None:
@@ -137,18 +132,16 @@ class Instance:
         lines = list(self.log)[-n:]
         return " | ".join(" ".join(ln.split()) for ln in lines) if lines else "(the FMU logged nothing)"
 
+    def flush_log(self) -> None:
+        """The log file's lines on disk now (a child process answers for its instance's log)."""
+        if self._log_fh is not None and not self._log_fh.closed:
+            self._log_fh.flush()
+
     def close_log(self) -> None:
         if self._log_fh is not None and not self._log_fh.closed:
             self._log_fh.close()
 
     # ------------------------------------------------------------------ life cycle
-    def fail_status(self, what: str, status: int, t: float | None) -> RunError:
-        if status == FATAL:
-            self.fatal = True
-        at = f" at t = {t:.6g} s" if t is not None else ""
-        return RunError(f"{self.name}: {what} returned {_label(status)}{at}; "
-                        f"last log: {self.last_log()}", self.name, t)
-
     def call(self, what: str, fn, *args, t: float | None = None) -> Any:
         """Call an FMPy wrapper method; a non-OK status becomes a RunError naming this instance."""
         try:
@@ -225,6 +218,31 @@ class Instance:
         except Exception:
             return math.nan
 
+    # ------------------------------------------------------------------ the step's fast path
+    def fast_path(self, in_vrs: list[int], n_in: int, out_vrs: list[int], n_out: int,
+                  in_val: Any = None) -> FastPath:
+        """fmi2SetReal, fmi2DoStep (noSetFMUStatePriorToCurrentPoint true), fmi2GetReal; ``in_val``: the
+        input array to use (default: a new one)."""
+        dll = self.fmu.dll
+        return FastPath(ctypes.c_void_p(self.c), raw(dll, "fmi2SetReal"), raw(dll, "fmi2DoStep"),
+                        raw(dll, "fmi2GetReal"), in_val if in_val is not None else (ctypes.c_double * max(1, n_in))(),
+                        step_tail=(1,))
+
+    def accessor(self, fmi_type: str, op: str) -> tuple[Any, Any]:
+        ctype, tname = ACCESS[2][fmi_type]
+        fn, c = raw(self.fmu.dll, f"fmi2{op}{tname}"), ctypes.c_void_p(self.c)
+        return (lambda vrs, n, buf, nv: fn(c, vrs, n, buf)), ctype
+
+    # ------------------------------------------------------------------ state
+    def get_state(self) -> Any:
+        return self.call("fmi2GetFMUstate", self.fmu.getFMUstate)
+
+    def set_state(self, state: Any) -> None:
+        self.call("fmi2SetFMUstate", self.fmu.setFMUstate, state)
+
+    def free_state(self, state: Any) -> None:
+        self.call("fmi2FreeFMUstate", self.fmu.freeFMUstate, state)
+
     def shutdown(self) -> None:
         """Terminate (if initialised) and free, exactly once; nothing at all after a Fatal."""
         self.close_log()
@@ -252,6 +270,8 @@ def _fmi3_call_type(var: Variable) -> str:
 
 class Instance3(Instance):
     """An instantiated FMI 3.0 co-simulation FMU (no event mode, no early return) with its log."""
+
+    fmi_version = 3
 
     def _slave(self, md: Any, unzipdir: str) -> Any:
         from fmpy.fmi3 import FMU3Slave
@@ -300,7 +320,35 @@ class Instance3(Instance):
         self.initialised = True
 
     def terminated_at(self) -> float | None:
-        return None   # FMI 3.0 says it in fmi3DoStep's terminateSimulation (see the algorithm)
+        return None   # FMI 3.0 says it in fmi3DoStep's terminateSimulation (FastPath.terminated)
+
+    def fast_path(self, in_vrs: list[int], n_in: int, out_vrs: list[int], n_out: int,
+                  in_val: Any = None) -> FastPath:
+        """fmi3SetFloat64 and fmi3GetFloat64 (with the count of values), fmi3DoStep with
+        noSetFMUStatePriorToCurrentPoint true and its four outputs: eventHandlingNeeded (unused: no event
+        mode), terminateSimulation, earlyReturn (not allowed), lastSuccessfulTime."""
+        dll = self.fmu.dll
+        flags = ctypes.c_bool(), ctypes.c_bool(), ctypes.c_bool(), ctypes.c_double()
+        return FastPath(ctypes.c_void_p(self.c), raw(dll, "fmi3SetFloat64"), raw(dll, "fmi3DoStep"),
+                        raw(dll, "fmi3GetFloat64"),
+                        in_val if in_val is not None else (ctypes.c_double * max(1, n_in))(),
+                        set_tail=(ctypes.c_size_t(n_in),), get_tail=(ctypes.c_size_t(n_out),),
+                        step_tail=(True, *(ctypes.byref(f) for f in flags)), terminated=flags[1],
+                        last_time=flags[3])
+
+    def accessor(self, fmi_type: str, op: str) -> tuple[Any, Any]:
+        ctype, tname = ACCESS[3][fmi_type]
+        fn, c = raw(self.fmu.dll, f"fmi3{op}{tname}"), ctypes.c_void_p(self.c)
+        return (lambda vrs, n, buf, nv: fn(c, vrs, n, buf, nv)), ctype
+
+    def get_state(self) -> Any:
+        return self.call("fmi3GetFMUState", self.fmu.getFMUState)
+
+    def set_state(self, state: Any) -> None:
+        self.call("fmi3SetFMUState", self.fmu.setFMUState, state)
+
+    def free_state(self, state: Any) -> None:
+        self.call("fmi3FreeFMUState", self.fmu.freeFMUState, state)
 
 
 def raw(dll: Any, name: str) -> Any:
@@ -318,7 +366,7 @@ def raw(dll: Any, name: str) -> Any:
 
 
 #: FMI type -> (ctypes element type, the FMI function's type name) for FMI 2.0 and 3.0.
-_ACCESS = {
+ACCESS = {
     2: {"Real": (ctypes.c_double, "Real"), "Integer": (ctypes.c_int, "Integer"),
         "Enumeration": (ctypes.c_int, "Integer"), "Boolean": (ctypes.c_int, "Boolean"),
         "String": (ctypes.c_char_p, "String")},
@@ -331,19 +379,11 @@ _ACCESS = {
 }
 
 
-def accessor(inst: Instance, fmi_type: str, op: str) -> tuple[Any, Any]:
+def accessor(inst: FmuInstance, fmi_type: str, op: str) -> tuple[Any, Any]:
     """(call, ctype): ``call(vrs, n, buf, n_values)`` gets (``op`` "Get") or sets ("Set") values of
     ``fmi_type`` on the instance with one raw FMI call (FMI 2.0 ignores n_values); ctype is the element
-    type of ``buf``."""
-    if hasattr(inst, "accessor"):   # an isolated instance: through its control channel
-        return inst.accessor(fmi_type, op)
-    fmi = 3 if isinstance(inst, Instance3) else 2
-    ctype, tname = _ACCESS[fmi][fmi_type]
-    fn = raw(inst.fmu.dll, f"fmi{fmi}{op}{tname}")
-    c = ctypes.c_void_p(inst.c)
-    if fmi == 2:
-        return (lambda vrs, n, buf, nv: fn(c, vrs, n, buf)), ctype
-    return (lambda vrs, n, buf, nv: fn(c, vrs, n, buf, nv)), ctype
+    type of ``buf`` (:meth:`.fmu_instance.FmuInstance.accessor`)."""
+    return inst.accessor(fmi_type, op)
 
 
 def real_array(values) -> Any:

@@ -1,7 +1,7 @@
 """Out-of-process instances: an FMU hosted in a child process, so that a crash (any signal, abort, exit)
 or a hang inside the FMU cannot take the master down.
 
-The child (``python -m wmr_cosim.cosim.isolation``) loads the FMU with FMPy and serves two channels:
+The child (``python -m`` this module) loads the FMU with FMPy and serves two channels:
 
 - the **step slot**, a block of shared memory per instance: the Float64 inputs and outputs in place (the
   master's input array and the child's output array *are* this memory), the time and the step size, the
@@ -29,9 +29,15 @@ import signal
 import struct
 import subprocess
 import sys
+import math
 from multiprocessing import shared_memory
 from pathlib import Path
 from typing import Any
+
+from .errors import RunError
+from .failure import Call, InstanceLost
+from .fmu_instance import FastPath, FmuInstance
+from .instance import ACCESS
 
 #: Header of the step slot: status (int64), t (float64), h (float64), then inputs and outputs (float64).
 _HEAD = 24
@@ -92,7 +98,7 @@ class Child:
         m_d, d_w = os.pipe()      # step: child -> master
         out = open(str(log_path) + ".stdout", "wb") if log_path is not None else subprocess.DEVNULL
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "wmr_cosim.cosim.isolation", self.shm.name, str(c_r), str(c_w), str(s_r),
+            [sys.executable, "-m", __name__, self.shm.name, str(c_r), str(c_w), str(s_r),
              str(d_w), fmu_dir, name, str(log_path or ""), logging, str(spin)],
             pass_fds=(c_r, c_w, s_r, d_w), stdin=subprocess.DEVNULL, stdout=out, stderr=out, close_fds=True)
         if out is not subprocess.DEVNULL:
@@ -213,6 +219,99 @@ class Child:
 
 
 # ---------------------------------------------------------------------------------------------- child side
+#: The step slot's status for a step after which the FMU ended the simulation (FMI 3.0
+#: terminateSimulation with status OK): not an FMI status, a code of the slot's own.
+SLOT_TERMINATED = 100
+
+
+class _Server:
+    """The child: one FMU instance in this process, its step slot and its control channel's operations."""
+
+    def __init__(self, shm: shared_memory.SharedMemory, inst: Any) -> None:
+        self.shm, self.inst = shm, inst
+        self.addr = _address(shm)
+        self.cap = (shm.size - _HEAD) // 16
+        self.fast: Any = None                 # the instance's FastPath, once configured
+        self.io: tuple[Any, ...] = ()         # (in_vr, n_in, out_vr, n_out, out_val)
+        self.states: dict[int, Any] = {}
+        self.T, self.H = ctypes.c_double(0.0), ctypes.c_double(0.0)
+
+    def configure(self, in_vrs: list[int], n_in: int, out_vrs: list[int], n_out: int) -> None:
+        """The instance's fast path over the slot: its input array is the slot's inputs."""
+        from .instance import vr_array
+
+        slot_in = (ctypes.c_double * max(1, n_in)).from_address(self.addr + _HEAD)
+        slot_out = (ctypes.c_double * max(1, n_out)).from_address(self.addr + _HEAD + 8 * self.cap)
+        self.fast = self.inst.fast_path(in_vrs, n_in, out_vrs, n_out, in_val=slot_in)
+        self.io = (vr_array(in_vrs), ctypes.c_size_t(len(in_vrs)), vr_array(out_vrs), ctypes.c_size_t(len(out_vrs)),
+                   slot_out)
+
+    def set_inputs(self) -> int:
+        """Outside the step loop (initialisation): the slot's inputs set now."""
+        fp, (ivr, nin, *_rest) = self.fast, self.io
+        return fp.set_real(fp.c, ivr, nin, fp.in_val, *fp.set_tail) if nin.value else 0
+
+    def get_outputs(self) -> int:
+        """Outside the step loop: the outputs into the slot now."""
+        fp, (_, _, ovr, nout, oval) = self.fast, self.io
+        return fp.get_real(fp.c, ovr, nout, oval, *fp.get_tail) if nout.value else 0
+
+    def step(self, t: float, h: float) -> int:
+        """Set the inputs, do the step, get the outputs: the status (or SLOT_TERMINATED)."""
+        s = self.set_inputs()
+        if s:
+            return s
+        fp = self.fast
+        self.T.value, self.H.value = t, h
+        s = fp.do_step(fp.c, self.T, self.H, *fp.step_tail)
+        if s:
+            return s
+        if fp.terminated is not None and fp.terminated.value:
+            return SLOT_TERMINATED
+        return self.get_outputs()
+
+    def log_state(self) -> tuple[int, int, int, list[str]]:
+        self.inst.flush_log()
+        return (self.inst.log_lines, self.inst.received, self.inst.n_errors, list(self.inst.log))
+
+    def get_typed(self, fmi_type: str, vrs: list[int], nv: int) -> tuple[int, list[Any]]:
+        from .instance import vr_array
+
+        call, ctype = self.inst.accessor(fmi_type, "Get")
+        buf = (ctype * max(1, nv))()
+        st = call(vr_array(vrs), ctypes.c_size_t(len(vrs)), buf, ctypes.c_size_t(nv))
+        return st, list(buf[:nv])
+
+    def set_typed(self, fmi_type: str, vrs: list[int], values: list[Any]) -> int:
+        from .instance import vr_array
+
+        call, ctype = self.inst.accessor(fmi_type, "Set")
+        buf = (ctype * max(1, len(values)))(*values)
+        return call(vr_array(vrs), ctypes.c_size_t(len(vrs)), buf, ctypes.c_size_t(len(values)))
+
+    def get_state(self) -> int:
+        key = len(self.states) + 1
+        while key in self.states:
+            key += 1
+        self.states[key] = self.inst.get_state()
+        return key
+
+    def set_state(self, key: int) -> None:
+        self.inst.set_state(self.states[key])
+
+    def free_state(self, key: int) -> None:
+        self.inst.free_state(self.states.pop(key))
+
+    def answer(self, op: str, args: tuple[Any, ...]) -> tuple[str, Any]:
+        """A control request's reply: ("ok", value) or ("error", one line)."""
+        own = ("configure", "set_inputs", "get_outputs", "log_state", "get_typed", "set_typed", "get_state",
+               "set_state", "free_state")
+        try:
+            return "ok", (getattr(self, op) if op in own else getattr(self.inst, op))(*args)
+        except BaseException as exc:  # reported to the master as one line
+            return "error", " ".join(str(exc).split()) or type(exc).__name__
+
+
 def _serve(argv: list[str]) -> int:
     """The child: load the FMU, then answer the control channel and the step slot until the master
     closes them."""
@@ -227,104 +326,47 @@ def _serve(argv: list[str]) -> int:
         pass
     from fmpy import read_model_description
 
-    from .instance import Instance3, raw
-    from .instance import Instance as Instance2
+    from .instance import Instance, Instance3
 
     md = read_model_description(os.path.join(fmu_dir, "modelDescription.xml"), validate=False)
-    fmi3 = md.fmiVersion.startswith("3")
-    inst = (Instance3 if fmi3 else Instance2)(name, md, fmu_dir, log_path or None, logging)
-    state: dict[str, Any] = {}
+    cls = Instance3 if md.fmiVersion.startswith("3") else Instance
+    server = _Server(shm, cls(name, md, fmu_dir, log_path or None, logging))
+    return _loop(server, os.fdopen(c_r, "rb", buffering=0), c_w, s_r, d_w, spin)
 
-    addr = _address(shm)
 
-    def configure(in_vrs, n_in, out_vrs, n_out):
-        from .instance import vr_array
-        cap = (shm.size - _HEAD) // 16
-        state["in"] = (vr_array(in_vrs), ctypes.c_size_t(len(in_vrs)),
-                       (ctypes.c_double * max(1, n_in)).from_address(addr + _HEAD), ctypes.c_size_t(n_in))
-        state["out"] = (vr_array(out_vrs), ctypes.c_size_t(len(out_vrs)),
-                        (ctypes.c_double * max(1, n_out)).from_address(addr + _HEAD + 8 * cap), ctypes.c_size_t(n_out))
-        return None
-
-    def set_inputs():   # outside the step loop (initialisation): the slot's inputs set now
-        ivr, nin, ival, nvin = state["in"]
-        setr, c = state["fns"][0], state["c"]
-        if not nin.value:
-            return 0
-        return setr(c, ivr, nin, ival, nvin) if fmi3 else setr(c, ivr, nin, ival)
-
-    def get_outputs():  # outside the step loop: the outputs into the slot now
-        ovr, nout, oval, nvout = state["out"]
-        getr, c = state["fns"][2], state["c"]
-        if not nout.value:
-            return 0
-        return getr(c, ovr, nout, oval, nvout) if fmi3 else getr(c, ovr, nout, oval)
-
-    def log_state():
-        if inst._log_fh is not None:
-            inst._log_fh.flush()
-        return (inst.log_lines, inst.received, inst.n_errors, list(inst.log))
-
-    def get_typed(fmi_type, vrs, nv):
-        from .instance import accessor, vr_array
-        call, ctype = accessor(inst, fmi_type, "Get")
-        buf = (ctype * max(1, nv))()
-        st = call(vr_array(vrs), ctypes.c_size_t(len(vrs)), buf, ctypes.c_size_t(nv))
-        return st, list(buf[:nv])
-
-    def set_typed(fmi_type, vrs, values):
-        from .instance import accessor, vr_array
-        call, ctype = accessor(inst, fmi_type, "Set")
-        buf = (ctype * max(1, len(values)))(*values)
-        return call(vr_array(vrs), ctypes.c_size_t(len(vrs)), buf, ctypes.c_size_t(len(values)))
-
-    ops = {"configure": configure, "log_state": log_state, "get_typed": get_typed, "set_typed": set_typed,
-           "set_inputs": set_inputs, "get_outputs": get_outputs}
-    ctl_in = os.fdopen(c_r, "rb", buffering=0)
+def _loop(server: _Server, ctl_in: Any, c_w: int, s_r: int, d_w: int, spin: int) -> int:
+    """Answer requests on the control channel and steps on the slot until the master has gone."""
     polls = select.poll()
-    polls.register(c_r, select.POLLIN)
+    polls.register(ctl_in.fileno(), select.POLLIN)
     polls.register(s_r, select.POLLIN)
-    status = ctypes.c_int64.from_address(addr)
-    time_ = ctypes.c_double.from_address(addr + 8)
-    h_ = ctypes.c_double.from_address(addr + 16)
     os.set_blocking(s_r, False)
     while True:
         for fd, _ in polls.poll():
             if fd == s_r:
-                if not _steps(s_r, d_w, inst, state, status, time_, h_, fmi3, spin):
+                if not _steps(s_r, d_w, server, spin):
                     return 0
                 continue
             head = ctl_in.read(8)
             if len(head) < 8:
                 return 0
             (n,) = struct.unpack("<q", head)
-            op, args = pickle.loads(ctl_in.read(n))
-            try:
-                fn = ops.get(op) or getattr(inst, op)
-                reply = ("ok", fn(*args))
-            except BaseException as exc:  # reported to the master as one line
-                reply = ("error", " ".join(str(exc).split()) or type(exc).__name__)
-            if op == "configure" and reply[0] == "ok":
-                fmi = 3 if fmi3 else 2
-                names = ("fmi3SetFloat64", "fmi3DoStep", "fmi3GetFloat64") if fmi3 else \
-                    ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
-                state["fns"] = [raw(inst.fmu.dll, f) for f in names]
-                state["c"] = ctypes.c_void_p(inst.c)
-                state["fmi"] = fmi
-            data = pickle.dumps(reply)
+            data = pickle.dumps(server.answer(*pickle.loads(ctl_in.read(n))))
             os.write(c_w, struct.pack("<q", len(data)) + data)
 
 
-def _steps(s_r: int, d_w: int, inst: Any, state: dict[str, Any], status: Any, time_: Any, h_: Any,
-           fmi3: bool, spin: int) -> bool:
+def _steps(s_r: int, d_w: int, server: _Server, spin: int) -> bool:
     """Answer step requests while they keep coming within the spin; False when the master has gone."""
     try:
         if not os.read(s_r, 1):
             return False
     except BlockingIOError:
         return True
+    addr = server.addr
+    status = ctypes.c_int64.from_address(addr)
+    time_ = ctypes.c_double.from_address(addr + 8)
+    h_ = ctypes.c_double.from_address(addr + 16)
     while True:
-        status.value = _step(inst, state, time_.value, h_.value, fmi3)
+        status.value = server.step(time_.value, h_.value)
         os.write(d_w, b"d")
         for _ in range(abs(spin)):
             if spin < 0:
@@ -339,52 +381,21 @@ def _steps(s_r: int, d_w: int, inst: Any, state: dict[str, Any], status: Any, ti
             return True
 
 
-def _step(inst: Any, state: dict[str, Any], t: float, h: float, fmi3: bool) -> int:
-    setr, dostep, getr = state["fns"]
-    c = state["c"]
-    ivr, nin, ival, nvin = state["in"]
-    ovr, nout, oval, nvout = state["out"]
-    if fmi3:
-        s = setr(c, ivr, nin, ival, nvin) if nin.value else 0
-        if s:
-            return s
-        flags = [ctypes.c_bool(), ctypes.c_bool(), ctypes.c_bool(), ctypes.c_double()]
-        s = dostep(c, ctypes.c_double(t), ctypes.c_double(h), True, *(ctypes.byref(f) for f in flags))
-        if s:
-            return s
-        if flags[1].value:
-            return 100   # terminateSimulation: see IsolatedInstance
-        return getr(c, ovr, nout, oval, nvout) if nout.value else 0
-    s = setr(c, ivr, nin, ival) if nin.value else 0
-    if s:
-        return s
-    s = dostep(c, ctypes.c_double(t), ctypes.c_double(h), 1)
-    if s:
-        return s
-    return getr(c, ovr, nout, oval) if nout.value else 0
-
-
-if __name__ == "__main__":
-    sys.exit(_serve(sys.argv[1:]))
-
-
 # ---------------------------------------------------------------------------------------------- master side
-class IsolatedInstance:
-    """An FMU instance in a child process, with the interface of :class:`.instance.Instance`: the
-    execution drives it through the same calls, and the generated loop through the entry points of
-    :meth:`entry_points`, which work on the step slot."""
+class IsolatedInstance(FmuInstance):
+    """An FMU instance in a child process (an implementation of :class:`.fmu_instance.FmuInstance`): the
+    life cycle goes through the control channel, the step through the slot (:meth:`fast_path`)."""
 
     def __init__(self, name: str, md: Any, unzipdir: str, log_path: str | os.PathLike | None, logging: str,
                  step_timeout: float | None, spin: int) -> None:
         self.name, self.md, self.logging = name, md, logging
-        self.fmi = 3 if md.fmiVersion.startswith("3") else 2
+        self.fmi_version = 3 if md.fmiVersion.startswith("3") else 2
         self.log: list[str] = []   # the child's last log lines (its instance keeps at most 200)
         self.log_lines = self.received = self.n_errors = 0
         self.fatal = self.freed = False
         self.dead = ""
         self.child = Child(name, unzipdir, Path(log_path) if log_path else None, logging, step_timeout, spin)
         self.c = 0
-        self.fmu = None
 
     # ------------------------------------------------------------------ log
     def _sync_log(self) -> None:
@@ -404,24 +415,13 @@ class IsolatedInstance:
         self._sync_log()
 
     # ------------------------------------------------------------------ life cycle (control channel)
-    def fail_status(self, what: str, status: int, t: float | None) -> Any:
-        from .instance import Instance
-
-        return Instance.fail_status(self, what, status, t)   # the same rule and message as in process
-
-    def died(self, exc: ChildDied, what: str, t: float | None) -> Any:
-        from .errors import RunError
-
+    def died(self, exc: ChildDied, what: str, t: float | None) -> InstanceLost:
         self.dead = str(exc)
         at = f" at t = {t:.6g} s" if t is not None else ""
-        err = RunError(f"{self.name}: the FMU's process {exc} during {what}{at} (isolated: the other "
-                       "instances are terminated and freed, the recording kept)", self.name, t)
-        err.died = True  # type: ignore[attr-defined]
-        return err
+        return InstanceLost(f"{self.name}: the FMU's process {exc} during {what}{at} (isolated: the other "
+                            "instances are terminated and freed, the recording kept)", self.name, t)
 
     def _call(self, what: str, op: str, *args: Any, t: float | None = None) -> Any:
-        from .errors import RunError
-
         try:
             return self.child.call(op, *args)
         except ChildDied as exc:
@@ -450,12 +450,21 @@ class IsolatedInstance:
         self._call("initialisation", "exit_initialization", t=self.child.t)
 
     def terminated_at(self) -> float | None:
-        if self.fmi == 3:
+        if self.fmi_version == 3:
             return None
         try:
             return self.child.call("terminated_at")
         except (ChildDied, RuntimeError):
             return None
+
+    def get_state(self) -> Any:
+        return self._call("saving the state", "get_state", t=self.child.t)
+
+    def set_state(self, state: Any) -> None:
+        self._call("restoring a state", "set_state", state, t=self.child.t)
+
+    def free_state(self, state: Any) -> None:
+        self._call("freeing a state", "free_state", state, t=self.child.t)
 
     def shutdown(self) -> None:
         """Terminate and free in the child (nothing after a Fatal, nothing if it died), then end it."""
@@ -471,11 +480,10 @@ class IsolatedInstance:
         self.child.close()
 
     # ------------------------------------------------------------------ the generated loop's entry points
-    def entry_points(self, in_vrs: list[int], n_in: int, out_vrs: list[int], n_out: int) -> tuple:
-        """(set_real, do_step, get_real, input array): set_real is a no-op (the input array is the step
-        slot's), do_step runs set + step + get in the child, get_real copies the slot's outputs."""
-        from .errors import RunError
-
+    def fast_path(self, in_vrs: list[int], n_in: int, out_vrs: list[int], n_out: int) -> FastPath:
+        """On the step slot: the input array is the slot's; set_real is a no-op once stepping (the child
+        sets the inputs with the step), do_step runs set + step + get in the child, get_real copies the
+        slot's outputs.  Before the first step (initialisation), set and get are requests."""
         try:
             inputs, outputs = self.child.configure(in_vrs, n_in, out_vrs, n_out)
         except ChildDied as exc:
@@ -483,25 +491,27 @@ class IsolatedInstance:
         except RuntimeError as exc:
             raise RunError(f"{self.name}: {exc}", self.name) from None
         child, size = self.child, 8 * n_out
-        mode = {"stepping": False}   # before the first step (initialisation), set and get are requests
+        terminated = ctypes.c_bool(False) if self.fmi_version == 3 else None   # FMI 3.0's terminateSimulation
+        mode = {"stepping": False}
+        step_name = self.call_name(Call.DO_STEP)
 
         def set_real(*args: Any) -> int:
             if mode["stepping"]:
                 return 0            # the inputs are in place: the child sets them with the step
             return self._call("setting inputs", "set_inputs")
 
-        def do_step(c: Any, T: Any, H: Any, flag: Any, *refs: Any) -> int:
+        def do_step(c: Any, T: Any, H: Any) -> int:
             mode["stepping"] = True
             try:
                 s = child.step(T.value, H.value)
             except ChildDied as exc:
-                raise self.died(exc, "fmi2DoStep" if self.fmi == 2 else "fmi3DoStep", T.value) from None
-            if s == 100:           # FMI 3.0 terminateSimulation
-                refs[1]._obj.value = True
+                raise self.died(exc, step_name, T.value) from None
+            if s == SLOT_TERMINATED and terminated is not None:
+                terminated.value = True
                 return 0
             return s
 
-        def get_real(c: Any, vrs: Any, n: Any, out: Any, *nv: Any) -> int:
+        def get_real(c: Any, vrs: Any, n: Any, out: Any) -> int:
             if not mode["stepping"]:
                 s = self._call("getting outputs", "get_outputs")
                 if s:
@@ -509,13 +519,12 @@ class IsolatedInstance:
             if size:
                 ctypes.memmove(out, outputs, size)
             return 0
-        return set_real, do_step, get_real, inputs
+        return FastPath(ctypes.c_void_p(0), set_real, do_step, get_real, inputs, terminated=terminated,
+                        last_time=ctypes.c_double(math.nan) if terminated is not None else None)
 
     def accessor(self, fmi_type: str, op: str) -> tuple[Any, Any]:
-        """(call, ctype) as :func:`.instance.accessor`, through the control channel."""
-        from .instance import _ACCESS
-
-        ctype = _ACCESS[self.fmi][fmi_type][0]
+        """(call, ctype) as :meth:`.fmu_instance.FmuInstance.accessor`, through the control channel."""
+        ctype = ACCESS[self.fmi_version][fmi_type][0]
 
         def call(vrs: Any, n: Any, buf: Any, nv: Any) -> int:
             try:
@@ -527,3 +536,7 @@ class IsolatedInstance:
             except ChildDied as exc:
                 raise self.died(exc, f"fmi{op}{fmi_type}", self.child.t) from None
         return call, ctype
+
+
+if __name__ == "__main__":
+    sys.exit(_serve(sys.argv[1:]))

@@ -22,7 +22,9 @@ import pytest
 from c_fmu_support import MODEL_DESCRIPTION, SRC
 from reference_fmus import REF
 from wmr_cosim import Simulation
-from wmr_cosim.cosim import execution
+from wmr_cosim.cosim import execution, startup
+from wmr_cosim.cosim.interrupt import Interrupt
+from wmr_cosim.cosim.observers import progress_bar
 from wmr_cosim.cosim.failure import Call, Failure
 from wmr_cosim.cosim.errors import CosimError, RunError
 
@@ -215,9 +217,11 @@ def test_a_failure_reported_by_the_loop_counts_the_steps_whose_rows_are_recorded
     The message names the call as its FMI version does, its status and t_7."""
     run = _sim(probe(), start=1.0, stop=1.5).start(tmp_path / "out")
     try:
+        ex = run.execution
+        ex.instances["probe"].fmi_version = fmi          # the call named as that FMI version names it
         with pytest.raises(RunError) as err:
-            run._ex._failed(Failure(7, "probe", call, 3, fmi))
-        assert run._ex.k_done == steps
+            ex._failed(Failure(7, "probe", call, 3))
+        assert ex.k_done == steps
         assert str(err.value) == f"probe: {label} returned Error at t = 1.07 s; last log: (the FMU logged nothing)"
     finally:
         run.close()
@@ -228,14 +232,15 @@ def test_an_fmi3_fmu_ending_the_simulation_in_a_step_ends_the_run_after_that_ste
     terminated by that FMU, with 7 steps and no row added."""
     run = _sim(probe(), start=1.0, stop=1.5).start(tmp_path / "out")
     try:
-        ex = run._ex
-        with pytest.raises(execution._Stop) as stop:
-            ex._failed(Failure(7, "probe", Call.TERMINATED, 0, 3))
+        ex = run.execution
+        with pytest.raises(execution.FmuEnded) as stop:
+            ex._failed(Failure(7, "probe", Call.TERMINATED, 0))
         assert (stop.value.name, stop.value.t, stop.value.recorded) == ("probe", 1.07, True)
-        n = len(ex.rows)
-        ex.ended(stop.value)
-        assert (ex.status, ex.message, ex.k_done, len(ex.rows)) == ("terminated", "terminated by FMU probe at "
-                                                                    "t = 1.07 s", 7, n)
+        rows = ex._recorder.rows
+        n = len(rows) + rows.recorder.rows
+        ex._end_by(stop.value)
+        assert (ex.status, ex.message, ex.k_done) == ("terminated", "terminated by FMU probe at t = 1.07 s", 7)
+        assert len(np.load(tmp_path / "out" / "signals.npy")) == n
     finally:
         run.close()
 
@@ -282,9 +287,9 @@ def test_timing_measures_the_time_inside_the_fmi_calls(probe, tmp_path):
 
 def test_timed_calls_add_up_each_calls_duration(monkeypatch):
     clock = iter(range(100))
-    monkeypatch.setattr(execution._time, "perf_counter", lambda: float(next(clock)))
+    monkeypatch.setattr(startup._time, "perf_counter", lambda: float(next(clock)))
     acc = [0.5]
-    fn = execution._timed(lambda *a: sum(a), acc)
+    fn = startup.timed(lambda *a: sum(a), acc)
     assert [fn(1, 2), fn(3), fn()] == [3, 3, 0]
     assert acc == [3.5]                  # three calls of one tick each, added to what was there
 
@@ -315,13 +320,12 @@ def test_a_run_without_a_results_folder_works_in_a_temporary_one_and_removes_it(
     tmp.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(tmp))
     seen = []
-    real = execution._results
+    real = execution.write_results
 
-    def spy(ex, keep):
-        res = real(ex, keep)
-        seen.append((ex.out, sorted(p.name for p in ex.out.iterdir())))
-        return res
-    monkeypatch.setattr(execution, "_results", spy)
+    def spy(folder, *args):
+        real(folder, *args)
+        seen.append((folder.path, sorted(p.name for p in folder.path.iterdir())))
+    monkeypatch.setattr(execution, "write_results", spy)
     res = execution.run(_sim(probe(), stop=0.1).check(), None, progress=False)
     assert res.status == "ok" and res.out_dir is None and res.final["probe.y"] == 10.0
     (out, files), = seen
@@ -539,7 +543,7 @@ def test_ctrl_c_handling_sets_a_flag_first_and_interrupts_at_the_second():
     import signal
 
     before = signal.getsignal(signal.SIGINT)
-    stop = execution._Interrupt()
+    stop = Interrupt()
     try:
         assert signal.getsignal(signal.SIGINT) == stop._handler
         stop.check()                                   # nothing pending
@@ -560,16 +564,16 @@ def test_the_default_progress_bar_is_for_long_runs_on_a_terminal(monkeypatch):
     import sys
 
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
-    assert execution._progress(None, 5000, 0.002) is None
-    bar = execution._progress(None, 5001, 0.002)
+    assert progress_bar(None, 5000, 0.002) is None
+    bar = progress_bar(None, 5001, 0.002)
     try:
         assert bar is not None and bar.total == 5001 * 0.002     # in simulated seconds
     finally:
         bar.close()
-    assert execution._progress(False, 10 ** 6, 0.002) is None
+    assert progress_bar(False, 10 ** 6, 0.002) is None
     monkeypatch.setattr(sys.stderr, "isatty", lambda: False, raising=False)
-    assert execution._progress(None, 10 ** 6, 0.002) is None
-    bar = execution._progress(True, 3, 0.5, internal=3000)
+    assert progress_bar(None, 10 ** 6, 0.002) is None
+    bar = progress_bar(True, 3, 0.5, internal=3000)
     try:
         assert bar is not None and bar.total == 1.5
         assert "(3e+03 internal steps)" in str(bar)

@@ -21,6 +21,7 @@ from types import SimpleNamespace
 import pytest
 from wmr_cosim.cosim import isolation
 from wmr_cosim.cosim.errors import RunError
+from wmr_cosim.cosim.failure import InstanceLost
 from wmr_cosim.cosim.isolation import Child, ChildDied, IsolatedInstance, spin_for
 
 FAKE_CHILD = r'''
@@ -176,6 +177,12 @@ while True:
         except KeyError:
             send(("error", f"no operation {op}"))
 '''
+
+def _entry(inst, *args):
+    """The fast path's set_real, do_step, get_real and input array."""
+    fp = inst.fast_path(*args)
+    return fp.set_real, fp.do_step, fp.get_real, fp.in_val
+
 
 MD2 = SimpleNamespace(fmiVersion="2.0")
 MD3 = SimpleNamespace(fmiVersion="3.0")
@@ -466,7 +473,7 @@ def test_a_failed_request_names_the_instance_what_it_was_doing_and_when(fake, k)
     with pytest.raises(RunError) as exc:
         call()
     assert str(exc.value) == f"d: {what}: {op} went wrong"
-    assert (exc.value.instance, exc.value.time) == ("d", t) and not getattr(exc.value, "died", False)
+    assert (exc.value.instance, exc.value.time) == ("d", t) and not isinstance(exc.value, InstanceLost)
 
     dead = fake.instance({"replies": {op: ["exit", 3]}})
     if op in ("enter_initialization", "exit_initialization"):
@@ -476,7 +483,7 @@ def test_a_failed_request_names_the_instance_what_it_was_doing_and_when(fake, k)
         call()
     at = " at t = 0.5 s" if t is not None else ""
     assert str(exc.value) == f"d: the FMU's process exited with code 3 during {what}{at} {TAIL}"
-    assert (exc.value.instance, exc.value.time, exc.value.died) == ("d", t, True)
+    assert (exc.value.instance, exc.value.time, isinstance(exc.value, InstanceLost)) == ("d", t, True)
 
 
 def test_the_last_log_lines_come_from_the_child(fake):
@@ -531,12 +538,12 @@ def test_terminated_at(fake, md, expected):
     assert fake.instance({"terminated_at": 0.75}, md=md).terminated_at() == expected
 
 
-def test_the_entry_points_before_and_after_the_first_step(fake, tmp_path):
+def test_the_fast_path_before_and_after_the_first_step(fake, tmp_path):
     """Before the first step (initialisation) set and get are requests; from the first step on, the
     inputs go with the step and the outputs come back with it."""
     log = tmp_path / "d.log"
     inst = fake.instance(log=log)
-    set_real, do_step, get_real, inputs = inst.entry_points([1, 2], 2, [10, 11, 12], 3)
+    set_real, do_step, get_real, inputs = _entry(inst, [1, 2], 2, [10, 11, 12], 3)
     x = -1.2345678901234567   # every byte of it non-zero: a copy past the outputs shows
     out = (ctypes.c_double * 5)(*[x] * 5)
     inputs[0], inputs[1] = 1.0, 2.0
@@ -546,12 +553,12 @@ def test_the_entry_points_before_and_after_the_first_step(fake, tmp_path):
     inputs[0] = 5.0
     assert set_real(None, None, None, inputs) == 0
     n_calls = len(_lines(log))
-    assert do_step(None, ctypes.c_double(0.0), ctypes.c_double(0.1), 1) == 0
+    assert do_step(None, ctypes.c_double(0.0), ctypes.c_double(0.1)) == 0
     assert get_real(None, None, None, out) == 0
     assert list(out) == [7.0, 0.0, 0.1, x, x]
     inputs[1] = 0.5
     set_real(None, None, None, inputs)
-    do_step(None, ctypes.c_double(0.1), ctypes.c_double(0.1), 1)
+    do_step(None, ctypes.c_double(0.1), ctypes.c_double(0.1))
     get_real(None, None, None, out)
     assert list(out) == [5.5, 0.1, 0.1, x, x]
     assert [ln.split()[0] for ln in _lines(log)[n_calls:]] == ["step", "step"]   # no requests
@@ -560,59 +567,60 @@ def test_the_entry_points_before_and_after_the_first_step(fake, tmp_path):
 @pytest.mark.parametrize("op, what", [("set_inputs", "setting inputs"), ("get_outputs", "getting outputs")])
 def test_set_and_get_before_the_first_step_report_failures(fake, op, what):
     inst = fake.instance({"replies": {op: ["error", "it broke"]}})
-    set_real, _, get_real, _ = inst.entry_points([1], 1, [2], 1)
+    set_real, _, get_real, _ = _entry(inst, [1], 1, [2], 1)
     out = (ctypes.c_double * 1)()
     with pytest.raises(RunError) as exc:
         set_real() if op == "set_inputs" else get_real(None, None, None, out)
     assert str(exc.value) == f"d: {what}: it broke"
     status = fake.instance({"replies": {op: ["ok", 3]}})
-    set_real, _, get_real, _ = status.entry_points([1], 1, [2], 1)
+    set_real, _, get_real, _ = _entry(status, [1], 1, [2], 1)
     assert (set_real() if op == "set_inputs" else get_real(None, None, None, out)) == 3
 
 
-def test_entry_points_that_cannot_be_set_up(fake):
+def test_a_fast_path_that_cannot_be_set_up(fake):
     big = fake.instance()
     with pytest.raises(RunError) as exc:
-        big.entry_points(list(range(9000)), 9000, [], 0)
+        _entry(big, list(range(9000)), 9000, [], 0)
     assert str(exc.value) == "d: 9000 values: more than the step slot holds"
     assert (exc.value.instance, exc.value.time) == ("d", None)
     dead = fake.instance({"replies": {"configure": ["exit", 3]}})
     with pytest.raises(RunError) as exc:
-        dead.entry_points([], 0, [], 0)
+        _entry(dead, [], 0, [], 0)
     assert str(exc.value) == f"d: the FMU's process exited with code 3 during set-up {TAIL}"
-    assert (exc.value.instance, exc.value.time, exc.value.died) == ("d", None, True)
+    assert (exc.value.instance, exc.value.time, isinstance(exc.value, InstanceLost)) == ("d", None, True)
 
 
 @pytest.mark.parametrize("md, call", [(MD2, "fmi2DoStep"), (MD3, "fmi3DoStep")])
 def test_a_death_inside_do_step(fake, md, call):
     inst = fake.instance({"steps": {"2": ["signal", int(signal.SIGSEGV)]}}, md=md)
-    _, do_step, _, _ = inst.entry_points([], 0, [], 0)
-    assert do_step(None, ctypes.c_double(0.0), ctypes.c_double(0.25), 1) == 0
+    _, do_step, _, _ = _entry(inst, [], 0, [], 0)
+    assert do_step(None, ctypes.c_double(0.0), ctypes.c_double(0.25)) == 0
     with pytest.raises(RunError) as exc:
-        do_step(None, ctypes.c_double(0.25), ctypes.c_double(0.25), 1)
+        do_step(None, ctypes.c_double(0.25), ctypes.c_double(0.25))
     assert str(exc.value) == f"d: the FMU's process was killed by SIGSEGV during {call} at t = 0.25 s {TAIL}"
-    assert (exc.value.instance, exc.value.time, exc.value.died) == ("d", 0.25, True)
+    assert (exc.value.instance, exc.value.time, isinstance(exc.value, InstanceLost)) == ("d", 0.25, True)
 
 
 def test_a_hang_inside_do_step_is_ended_after_the_step_timeout(fake, tmp_path):
     inst = fake.instance({"steps": {"1": ["hang", 5.0]}}, log=tmp_path / "d.log", timeout=1.0)
     _started(tmp_path / "d.log")
-    _, do_step, _, _ = inst.entry_points([], 0, [], 0)
+    _, do_step, _, _ = _entry(inst, [], 0, [], 0)
     with pytest.raises(RunError) as exc:
-        do_step(None, ctypes.c_double(0.5), ctypes.c_double(0.25), 1)
+        do_step(None, ctypes.c_double(0.5), ctypes.c_double(0.25))
     assert str(exc.value) == f"d: the FMU's process did not answer within 1 s (ended) during fmi2DoStep at t = 0.5 s {TAIL}"
 
 
 def test_fmi3_terminate_simulation_from_the_child(fake):
     """The child's status 100 is fmi3DoStep's terminateSimulation flag, with status OK."""
     inst = fake.instance({"steps": {"1": ["status", 100], "2": ["status", 2]}}, md=MD3)
-    _, do_step, _, _ = inst.entry_points([], 0, [], 0)
-    flags = [ctypes.c_bool(), ctypes.c_bool(), ctypes.c_bool(), ctypes.c_double()]
-    assert do_step(None, ctypes.c_double(0.0), ctypes.c_double(0.1), True, *(ctypes.byref(f) for f in flags)) == 0
-    assert [f.value for f in flags] == [False, True, False, 0.0]
-    flags[1].value = False
-    assert do_step(None, ctypes.c_double(0.1), ctypes.c_double(0.1), True, *(ctypes.byref(f) for f in flags)) == 2
-    assert not flags[1].value
+    fp = inst.fast_path([], 0, [], 0)
+    assert fp.step_tail == () and not fp.terminated.value
+    assert fp.do_step(None, ctypes.c_double(0.0), ctypes.c_double(0.1)) == 0
+    assert fp.terminated.value
+    fp.terminated.value = False
+    assert fp.do_step(None, ctypes.c_double(0.1), ctypes.c_double(0.1)) == 2
+    assert not fp.terminated.value
+    assert fake.instance(md=MD2).fast_path([], 0, [], 0).terminated is None   # FMI 2.0: Discard and fmi2GetBooleanStatus
 
 
 @pytest.mark.parametrize("md, fmi_type, ctype, values", [(MD2, "Integer", ctypes.c_int, [4, -5]),
@@ -635,13 +643,13 @@ def test_values_of_other_types_through_the_control_channel(fake, md, fmi_type, c
 @pytest.mark.parametrize("op", ["Set", "Get"])
 def test_a_death_while_reading_or_writing_other_types(fake, op):
     inst = fake.instance({"replies": {f"{op.lower()}_typed": ["exit", 3]}})
-    _, do_step, _, _ = inst.entry_points([], 0, [], 0)
-    do_step(None, ctypes.c_double(0.25), ctypes.c_double(0.25), 1)
+    _, do_step, _, _ = _entry(inst, [], 0, [], 0)
+    do_step(None, ctypes.c_double(0.25), ctypes.c_double(0.25))
     call, ctype = inst.accessor("Integer", op)
     with pytest.raises(RunError) as exc:
         call((ctypes.c_uint * 1)(3), ctypes.c_size_t(1), (ctype * 1)(), ctypes.c_size_t(1))
     assert str(exc.value) == f"d: the FMU's process exited with code 3 during fmi{op}Integer at t = 0.25 s {TAIL}"
-    assert (exc.value.instance, exc.value.time, exc.value.died) == ("d", 0.25, True)
+    assert (exc.value.instance, exc.value.time, isinstance(exc.value, InstanceLost)) == ("d", 0.25, True)
 
 
 def test_the_instances_child_writes_beside_its_log(fake, tmp_path, monkeypatch):

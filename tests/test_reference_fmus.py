@@ -459,21 +459,16 @@ def test_a_ctrl_c_after_the_last_step_interrupts_nothing(tmp_path, monkeypatch):
     import os
     import signal
 
-    from wmr_cosim.cosim import execution as ex
+    from wmr_cosim.cosim.algorithm import GaussSeidel
 
-    real = ex.compile_loop
-
-    def compile_then_signal(ios, algorithm, t0, h, dec, n_steps, *rest):
-        loop = real(ios, algorithm, t0, h, dec, n_steps, *rest)
-
-        def wrapped(k0, k1):
-            r = loop(k0, k1)
-            if k1 == n_steps:
-                os.kill(os.getpid(), signal.SIGINT)   # Ctrl-C once every step has run
+    class SignalAfterTheLastStep(GaussSeidel):   # Ctrl-C once every step has run
+        def advance(self, k0, k1):
+            r = super().advance(k0, k1)
+            if k1 == self.clock.n_steps:
+                os.kill(os.getpid(), signal.SIGINT)
             return r
-        return wrapped
-    monkeypatch.setattr(ex, "compile_loop", compile_then_signal)
-    res = execution.run(fmu_plan(FMI2 / "Dahlquist.fmu"), tmp_path / "out", progress=False)
+    res = execution.run(fmu_plan(FMI2 / "Dahlquist.fmu"), tmp_path / "out", progress=False,
+                        algorithm=SignalAfterTheLastStep())
     assert res.status == "ok" and res.steps == 100, res.message
 
 

@@ -21,11 +21,6 @@ for a run that failed.  See docs/scripting.md.
 from __future__ import annotations
 
 import copy
-import json
-import math
-import shutil
-import tempfile
-import time as _time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -36,9 +31,7 @@ from .cosim import scenario, system
 from .cosim.errors import CosimError, RunError, ScenarioError
 from .cosim.kinds import FileKind, file_kind
 from .cosim.status import RunStatus
-from .cosim.execution import Execution, _Interrupt, _prepare, _results, _Stop, _Stopped
-from .cosim.pacing import Pacer
-from .cosim.recording import OutputLock, make_folder
+from .cosim.execution import Execution
 
 __all__ = ["Simulation", "Run", "Result", "RunStatus", "ScenarioError", "RunError", "CosimError"]
 
@@ -113,7 +106,7 @@ class Simulation:
             raise ScenarioError(str(p), "", "an SSP archive: the API loads scenario files (.toml) and FMUs (.fmu); "
                                             "run an archive with `wmr-cosim run`")
         else:
-            doc = scenario._read(Path(p))
+            doc = scenario.read_document(Path(p))
         sim = cls(doc, file=str(p))
         for ref, value in (parameters or {}).items():
             sim.parameter(ref, value)
@@ -128,7 +121,7 @@ class Simulation:
     def instance(self, name: str, fmu: str | Path, **parameters: Any) -> "Simulation":
         """Add an instance: ``fmu`` a model name (WmrPlant, WmrSensor, WmrController, WmrCPlant) or a path
         to an .fmu; keyword arguments are its parameters and start values."""
-        fmu = str(Path(fmu).resolve()) if scenario._is_path(str(fmu)) else str(fmu)
+        fmu = str(Path(fmu).resolve()) if scenario.is_path(str(fmu)) else str(fmu)
         inst: dict[str, Any] = {"fmu": fmu}
         if parameters:
             inst["parameters"] = dict(parameters)
@@ -208,42 +201,26 @@ class Simulation:
 
 
 class Run:
-    """A run in progress: the FMUs loaded and initialised, stepped on demand.  Use it as a context
-    manager (or call :meth:`finish` or :meth:`close`) so every FMU is freed."""
+    """A run in progress: the FMUs loaded and initialised, stepped on demand (a driver of the master's
+    :class:`~wmr_cosim.cosim.execution.Execution`).  Use it as a context manager (or call :meth:`finish`
+    or :meth:`close`) so every FMU is freed."""
 
     def __init__(self, plan: system.Plan, out: str | Path | None = None, *, real_time: float | None = None,
                  progress: bool | None = False) -> None:
         self.plan = plan
         self.result: Result | None = None
-        self._keep = out is not None
-        pacer = Pacer(real_time) if real_time is not None else None
-        self._out = make_folder(Path(out)) if self._keep else Path(tempfile.mkdtemp(prefix="wmr-cosim-out-"))
-        self._lock = OutputLock(self._out)
-        self._lock.acquire()
-        self._ex: Execution | None = None
-        self._vars: dict[str, tuple[str, Any]] = {}
-        self._readers: dict[str, Callable[[], Any]] = {}   # ref -> a function returning its current value
+        self._ex = Execution(plan, out, progress=progress, real_time=real_time, keep_signals=True)
         try:
-            _prepare(self._out, plan)
-            ex = self._ex = Execution(plan, self._out)
-            ex.pacer = pacer
-            t0 = _time.perf_counter()
-            ex.load()
-            ex.initialise(True)
-            ex.setup_s = _time.perf_counter() - t0
-            ex.begin(progress, True, None)
-        except BaseException as exc:
-            if self._ex is not None:
-                self._ex.status, self._ex.message = RunStatus.FAILED, str(exc)
-            self._end(raise_on_failure=False)
+            self._ex.initialize()
+        except BaseException:
+            self._take_result(raise_on_failure=False)
             raise
 
     # ------------------------------------------------------------------ time
     @property
     def time(self) -> float:
         """The current communication point t_k = start + k h [s]."""
-        ex = self._ex
-        return ex.t0 + ex.k_done * ex.h
+        return self._ex.time
 
     @property
     def steps(self) -> int:
@@ -254,45 +231,47 @@ class Run:
     def finished(self) -> bool:
         return self.result is not None
 
+    @property
+    def execution(self) -> Execution:
+        """The master's execution this run drives (to add observers and manipulators)."""
+        return self._ex
+
     def step(self, n: int = 1) -> "Run":
         """Do ``n`` communication steps (fewer at the stop time or when the run ends)."""
-        return self._advance(self._ex.k_done + int(n))
+        return self._advance(lambda ex: ex.step(n))
 
     def step_to(self, t: float) -> "Run":
         """Step until the communication point at or after ``t`` [s] (at most the stop time)."""
-        ex = self._ex
-        return self._advance(int(math.ceil((float(t) - ex.t0) / ex.h - 1e-9)))
+        return self._advance(lambda ex: ex.step_to(t))
 
     def finish(self, raise_on_failure: bool = True) -> Result:
         """Step to the stop time (unless the run has ended) and return the result."""
         if self.result is None:
             try:
-                self._advance(self._ex.n_steps)
+                self._advance(lambda ex: ex.simulate_until())
             except RunError:
                 if raise_on_failure:
                     raise
         if self.result is None:
-            self._end(raise_on_failure)
+            self._ex.close()
+            self._take_result(raise_on_failure)
+        assert self.result is not None
         return self.result
 
     def close(self) -> Result:
         """End the run now (status "stopped" if it had not ended), free the FMUs; returns the result."""
         if self.result is None:
-            ex = self._ex
-            if ex.k_done < ex.n_steps and ex.status == RunStatus.OK:
-                ex.status, ex.message = RunStatus.STOPPED, f"closed at t = {self.time:.6g} s"
-            self._end(raise_on_failure=False)
+            self._ex.close()
+            self._take_result(raise_on_failure=False)
+        assert self.result is not None
         return self.result
 
     def stop(self, reason: str = "") -> None:
         """End the run cleanly at the current time (from a callback or between steps): status "stopped"."""
         if self.result is None:
-            ex = self._ex
-            ex.status, ex.message = RunStatus.STOPPED, f"stopped by the script at t = {self.time:.6g} s" + \
-                (f": {reason}" if reason else "")
-            ex.stop_request = True
-            if not ex.in_step:
-                self._end(raise_on_failure=False)
+            self._ex.stop(f"stopped by the script at t = {self.time:.6g} s" + (f": {reason}" if reason else ""))
+            if self._ex.ended:   # (from a callback, the run ends after its step)
+                self._take_result(raise_on_failure=False)
 
     def __enter__(self) -> "Run":
         return self
@@ -301,104 +280,56 @@ class Run:
         self.close()
 
     # ------------------------------------------------------------------ values between steps
-    def _lookup(self, ref: str) -> tuple[str, Any]:
-        got = self._vars.get(ref)
-        if got is None:
-            inst, name = scenario.split_ref(self.plan.scenario.file, ref, ref)
-            if inst not in self.plan.instances:
-                raise ScenarioError(self.plan.scenario.file, ref, f"unknown instance {inst!r}")
-            got = self._vars[ref] = (inst, system._var(self.plan.scenario.file, ref, self.plan.instances[inst], name))
-        return got
-
     def get(self, ref: str) -> Any:
         """The current value of ``"instance.variable"`` (any variable: an output, an input, a parameter).
         A Float64 output the loop reads at every step gives its value at the last communication point (as
         recorded, and as conditions see it); any other variable is asked of the FMU, so an output with
         direct feedthrough already reflects an input :meth:`set` since that point."""
-        read = self._readers.get(ref)
-        if read is None or self.result is not None:
-            self._alive()
-            inst, var = self._lookup(ref)
-            read = self._readers[ref] = self._ex._reader(inst, var)
-        return read()
+        return self._ex.get(ref)
 
     def set(self, ref: str, value: Any) -> None:
         """Change ``"instance.variable"`` from the next step on: a tunable parameter; a Real input (its
         connection is overridden until :meth:`release`); an output feeding connections (what they carry);
         an input no connection drives.  The value is checked against the variable's type and range."""
-        self._alive()
-        inst, var = self._lookup(ref)
-        self._ex.set(inst, var, system._value(self.plan.scenario.file, ref, var, value))
+        self._ex.set(ref, value)
 
     def release(self, ref: str) -> None:
         """End an override :meth:`set` put on a connected input or an output."""
-        self._alive()
-        inst, var = self._lookup(ref)
-        self._ex.release(inst, var)
+        self._ex.release(ref)
 
     def on_step(self, fn: Callable[["Run"], Any]) -> Callable[["Run"], Any]:
         """Call ``fn(run)`` after every step from now on (an observer reads with :meth:`get`, a
         manipulator changes inputs with :meth:`set`; :meth:`stop` ends the run).  Returns ``fn``."""
-        self._alive()
-        self._ex.callbacks.append(lambda: fn(self))
+        self._ex.on_step(lambda: fn(self))
         return fn
 
     @property
     def events(self) -> list[dict[str, Any]]:
         """The event log so far: time, event, action, ..."""
-        return list(self._ex.event_log)
+        return self._ex.events
 
     # ------------------------------------------------------------------ internals
-    def _alive(self) -> None:
-        if self.result is not None:
-            raise CosimError(f"the run has ended ({self.result.status}: {self.result.message or 'at the stop time'})")
-
-    def _advance(self, k: int) -> "Run":
-        self._alive()
-        ex = self._ex
-        stop = _Interrupt()
-        ex._stop = stop
+    def _advance(self, how: Callable[[Execution], Any]) -> "Run":
+        """Step the execution; when the run ends (at the stop time, cleanly earlier, or on a failure, which
+        is raised as the execution raises it) its result is taken."""
+        if self._ex.ended:
+            how(self._ex)   # refused: the run has ended
         try:
-            ex.advance(k)
-        except (_Stop, _Stopped) as s:
-            ex.ended(s)
-        except KeyboardInterrupt:
-            ex.status, ex.message = RunStatus.INTERRUPTED, f"interrupted by the user at t = {self.time:.6g} s"
-            stop.restore()
-            self._end(raise_on_failure=False)
-            raise
-        except CosimError as exc:
-            ex.status, ex.message = RunStatus.FAILED, str(exc)
-        except Exception as exc:   # a callback's own error: the run ends failed, the error goes to the script
-            ex.status = RunStatus.FAILED
-            ex.message = f"a callback raised {type(exc).__name__}: {exc} at t = {self.time:.6g} s"
-            stop.restore()
-            self._end(raise_on_failure=False)
-            raise
+            how(self._ex)
         finally:
-            stop.restore()
-            ex._stop = None
-        if ex.status != RunStatus.OK or ex.k_done >= ex.n_steps or ex.stop_request:
-            self._end(raise_on_failure=True)
+            self._take_result(raise_on_failure=False)
+        if self.result is not None and self.result.status == RunStatus.FAILED:
+            raise RunError(self.result.message)
         return self
 
-    def _end(self, raise_on_failure: bool) -> None:
-        """Free the FMUs, write summary.json, load the results, release the folder."""
-        ex = self._ex
-        try:
-            if ex is not None:
-                ex.end()
-                ex.close()
-                _results(ex, self._keep)
-                data = np.load(self._out / "signals.npy") if (self._out / "signals.npy").is_file() else \
-                    np.zeros(0, dtype=[("time", "f8")])
-                summary = json.loads((self._out / "summary.json").read_text())
-                resolved = json.loads((self._out / "scenario.json").read_text())
-                self.result = Result(ex.status, ex.message, ex.k_done, summary["t_end"], data, summary, resolved,
-                                     self._out if self._keep else None, list(ex.event_log))
-        finally:
-            self._lock.release()
-            if not self._keep:
-                shutil.rmtree(self._out, ignore_errors=True)
-        if raise_on_failure and self.result is not None and self.result.status == RunStatus.FAILED:
+    def _take_result(self, raise_on_failure: bool) -> None:
+        """The execution's result as a :class:`Result`; a failed run raises RunError when asked."""
+        r = self._ex.result
+        if r is None:
+            return
+        if self.result is None:
+            signals = r.signals if r.signals is not None else np.zeros(0, dtype=[("time", "f8")])
+            self.result = Result(r.status, r.message, r.steps, r.t_end, signals, r.summary, r.scenario,
+                                 r.out_dir, list(r.events))
+        if raise_on_failure and self.result.status == RunStatus.FAILED:
             raise RunError(self.result.message)
