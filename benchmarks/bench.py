@@ -63,6 +63,9 @@ NAME:
             time expression k * h, one factor dropped from a product, a containment check weakened to its
             first element), planted one at a time in cosim/ and components/ (benchmarks/bug_kinds.py):
             population, bugs (a sample of 60, seed 1), killed, kill_rate, by_kind, survivors, minutes.
+
+``--against REV`` runs NAME in this checkout and in a worktree of commit REV, interleaved, a fresh process
+per run (benchmarks/against.py): each figure's median for both and their ratio, this / that.
 """
 from __future__ import annotations
 
@@ -728,8 +731,14 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("name", choices=sorted(BENCHES))
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--against", metavar="REV", help="run NAME here and in a worktree of commit REV, "
+                    "interleaved, --repeats rounds of one run each (benchmarks/against.py)")
     args = ap.parse_args(argv)
-    figures = BENCHES[args.name](args.repeats)
+    if args.against:
+        from against import against
+        figures = against(args.name, args.against, args.repeats)
+    else:
+        figures = BENCHES[args.name](args.repeats)
     print(f"# {args.name} on {platform.python_implementation()} {platform.python_version()}, "
           f"{platform.machine()}", file=sys.stderr, flush=True)
     print(json.dumps({"bench": args.name, **figures}))

@@ -289,5 +289,5 @@ def compile_loop(ios: list[InstanceIO], body: Callable[[LoopSource, list[Instanc
     env = dict(s.env)
     exec(compile(src, "<cosim-loop>", "exec"), env)
     loop = env["loop"]
-    loop.source = src  # type: ignore[attr-defined]
+    loop.source = src   # (a function object takes attributes: the source, for reading and tests)
     return loop

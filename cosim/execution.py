@@ -73,6 +73,7 @@ class Execution:
                  timing: bool = False, check_inputs: bool = True, real_time: float | None = None,
                  algorithm: Algorithm | None = None, keep_signals: bool = False) -> None:
         sc = plan.scenario
+        assert sc.start is not None and sc.step is not None   # (resolved from the FMUs' defaults)
         self.plan = plan
         self.clock = Clock(sc.start, sc.step, plan.n_steps, sc.decimation)
         self.algorithm = algorithm if algorithm is not None else algorithm_for(sc.algorithm)
@@ -177,7 +178,7 @@ class Execution:
         self.algorithm.setup(self.ios, self.clock, self._layout, self._recorder.rows.chunk, self.check_inputs)
         actuator = self._actuator = Actuator(self.plan, self.instances, self._wiring)
         self._script = ScriptChanges(actuator)
-        self.manipulators[:0] = [self._script, TimedEvents(actuator, self.plan.events),
+        self.manipulators[:0] = [TimedEvents(actuator, self.plan.events),
                                  ConditionEvents(actuator, self.plan.conditions)]
         bar = progress_bar(self.progress, self.clock.n_steps, self.clock.step,
                            sum(self.plan.internal_steps.values()))
@@ -256,8 +257,10 @@ class Execution:
 
     def _segments(self, k_target: int, interrupt: Interrupt) -> None:
         k, n_steps = self.k_done, self.clock.n_steps
+        assert self._script is not None
         while k < k_target and not self._stop_requested:
-            if any([m.act(self, k) for m in self.manipulators]):
+            acted = [m.act(self, k) for m in self.manipulators]
+            if self._script.act(self, k) or any(acted):   # (the script's changes last: a manipulator may set)
                 assert self._wiring is not None
                 for io in self.ios:
                     io.copies = self._wiring.copies(io.name)

@@ -34,10 +34,7 @@ from .errors import RunError
 from .fmu_instance import FastPath, FmuInstance, status_label
 from .model import Variable
 
-try:  # the C calloc/free FMPy hands to FMUs
-    from fmpy import calloc, free
-except ImportError:  # pragma: no cover
-    from fmpy.fmi1 import calloc, free  # type: ignore
+from fmpy import calloc, free   # the C calloc/free FMPy hands to FMUs
 
 
 # FMPy's C logger proxy (it formats the variadic arguments ctypes cannot pass) forwards every message to ONE

@@ -57,6 +57,7 @@ def spin_for(isolated: int) -> int:
 def _address(shm: shared_memory.SharedMemory) -> int:
     """The address of a shared memory block, without keeping a buffer export alive (views made from it
     by address let the block be closed; the owner closes it only after its last use)."""
+    assert shm.buf is not None
     probe = ctypes.c_char.from_buffer(shm.buf)
     addr = ctypes.addressof(probe)
     del probe
@@ -96,7 +97,7 @@ class Child:
         p_r, c_w = os.pipe()      # control: child -> master
         s_r, m_s = os.pipe()      # step: master -> child
         m_d, d_w = os.pipe()      # step: child -> master
-        out = open(str(log_path) + ".stdout", "wb") if log_path is not None else subprocess.DEVNULL
+        out: Any = open(str(log_path) + ".stdout", "wb") if log_path is not None else subprocess.DEVNULL
         self.proc = subprocess.Popen(
             [sys.executable, "-m", __name__, self.shm.name, str(c_r), str(c_w), str(s_r),
              str(d_w), fmu_dir, name, str(log_path or ""), logging, str(spin)],
@@ -202,7 +203,7 @@ class Child:
                 os.close(fd)
             except OSError:
                 pass
-        self.status = self.time = self.h = self.inputs = self.outputs = None
+        self.inputs = self.outputs = None   # (the slot's views: released with the memory)
         try:
             self.shm.close()
         except BufferError:  # a view still alive: released with the process

@@ -46,6 +46,7 @@ def load_instances(plan: Plan, work: Path, logs: Path) -> dict[str, FmuInstance]
 def set_up(plan: Plan, instances: dict[str, FmuInstance]) -> None:
     """Instantiate, set up the experiment, set parameters and start values, enter initialisation mode."""
     sc = plan.scenario
+    assert sc.start is not None   # (resolved)
     for name, inst in instances.items():
         inst.instantiate()
         inst.setup_experiment(sc.start, sc.stop, plan.instances[name].tolerance)

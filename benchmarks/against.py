@@ -1,0 +1,63 @@
+"""One benchmark of this checkout against another commit's code, interleaved (``bench.py NAME --against
+REV``): the commit is checked out into a temporary git worktree, and ``bench.py NAME --repeats 1`` runs in
+a fresh process in each tree in turn, ``repeats`` times, so that the machine's drifting load falls on both
+alike.  Each numeric figure's median over the rounds is given for both trees with their ratio (this /
+that); a ratio above 1 for a time is this checkout slower."""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+#: The import names that older checkouts map onto the top-level folders through setuptools' package-dir
+#: (newer ones hold relative links in wmr_cosim/): made as links in the worktree so PYTHONPATH finds them.
+LINKED = ("cosim", "components", "fmus", "scenarios")
+
+
+def _worktree(rev: str, where: Path) -> Path:
+    tree = where / "tree"
+    subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "--quiet", str(tree), rev], check=True)
+    for name in LINKED:
+        link = tree / "wmr_cosim" / name
+        if not link.exists():
+            link.symlink_to(Path("..") / name)
+    return tree
+
+
+def _one(tree: Path, name: str) -> dict[str, Any]:
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    out = subprocess.run([sys.executable, str(tree / "benchmarks" / "bench.py"), name, "--repeats", "1"], cwd=tree,
+                         env=env, capture_output=True, text=True)
+    if out.returncode != 0:
+        raise SystemExit(f"bench.py {name} in {tree} failed (exit {out.returncode}): {out.stderr.strip()[-2000:]}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def against(name: str, rev: str, repeats: int) -> dict[str, Any]:
+    where = Path(tempfile.mkdtemp(prefix="wmr-cosim-against-"))
+    try:
+        that = _worktree(rev, where)
+        runs: dict[str, list[dict[str, Any]]] = {"this": [], "that": []}
+        _one(that, name)   # the other tree's FMUs built, and both trees' caches warm, before the rounds
+        for _ in range(max(1, repeats)):
+            runs["this"].append(_one(ROOT, name))
+            runs["that"].append(_one(that, name))
+    finally:
+        subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(where / "tree")],
+                       capture_output=True)
+        shutil.rmtree(where, ignore_errors=True)
+    figures: dict[str, Any] = {}
+    for key, value in runs["this"][0].items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or key not in runs["that"][0]:
+            continue
+        a = statistics.median(r[key] for r in runs["this"])
+        b = statistics.median(r[key] for r in runs["that"])
+        figures[key] = {"this": a, "that": b, "ratio": round(a / b, 4) if b else None}
+    return {"against": rev, "rounds": repeats, "figures": figures}
