@@ -222,7 +222,7 @@ def _copy_member(label: str, zf: zipfile.ZipFile, info: zipfile.ZipInfo, sink: I
     bounded = copy.copy(info)
     # zipfile stops an entry at its declared size; one byte more shows whether the data goes on
     bounded.file_size = min(declared, budget[0]) + 1
-    bounded.CRC = None                 # (zipfile would check it at that byte, before the count does)
+    bounded.CRC = None  # type: ignore[assignment]  # (else zipfile checks it at that byte, before the count)
     n = crc = 0
     try:
         with zf.open(bounded) as src:

@@ -23,6 +23,7 @@ from typing import Any, Callable
 from . import execution, scenario, system
 from .archive import LimitOverrides
 from .errors import CosimError, ScenarioError
+from .scenario import RunSpec, Scenario
 
 Resolver = Callable[[str], "Path | None"]
 #: What a run's carry gives: (run's carry {parameter ref: "run.instance.variable"}, final values of the runs
@@ -37,14 +38,14 @@ class Protocol:
 
     file: str
     document: dict[str, Any]
-    scenario: scenario.Scenario
+    scenario: Scenario
     resolver: Resolver | None = None
     limits: LimitOverrides | None = None
 
     @property
-    def runs(self) -> list[scenario.RunSpec]:
+    def runs(self) -> list[RunSpec]:
         """The runs (one default run named "run" if the file declares none)."""
-        return self.scenario.runs or [scenario.RunSpec("run")]
+        return self.scenario.runs or [RunSpec("run")]
 
     def variant_parameters(self, variant: str | None) -> dict[str, Any]:
         """The parameters a variant sets ({} for None); ScenarioError for a variant the file does not declare."""
@@ -55,7 +56,7 @@ class Protocol:
             raise ScenarioError(self.file, f"--variant {variant}", f"not declared by this file (declared: {known})")
         return self.scenario.variants[variant]
 
-    def with_parameters(self, overrides: dict[str, Any] | None) -> scenario.Scenario:
+    def with_parameters(self, overrides: dict[str, Any] | None) -> Scenario:
         """The scenario with ``overrides`` ({'inst.param': value}) applied to a copy of the document."""
         if not overrides:
             return self.scenario
@@ -81,7 +82,7 @@ def _protocol(source: str | os.PathLike | Protocol, resolver: Resolver | None,
 
 def plan_runs(path: str | os.PathLike | Protocol, resolver: Resolver | None = None, variant: str | None = None,
               limits: LimitOverrides | None = None
-              ) -> tuple[scenario.Scenario, list[scenario.RunSpec], dict[str, Any]]:
+              ) -> tuple[Scenario, list[RunSpec], dict[str, Any]]:
     """The scenario, its runs (one default run if it declares none) and the variant's parameters."""
     proto = _protocol(path, resolver, limits)
     return proto.scenario, proto.runs, proto.variant_parameters(variant)
@@ -100,7 +101,7 @@ def _resolve_run(proto: Protocol, run: str, params: dict[str, Any], force: bool,
         raise ScenarioError(exc.file, where, exc.reason) from None
 
 
-def _carried(file: str, run: scenario.RunSpec, finals: dict[str, dict[str, Any]], carry: Carry | None
+def _carried(file: str, run: RunSpec, finals: dict[str, dict[str, Any]], carry: Carry | None
              ) -> dict[str, Any]:
     """The values a run carries from the final values of the runs before it ({run: {column: value}})."""
     for ref, src in run.carry.items():

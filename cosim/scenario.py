@@ -126,6 +126,13 @@ class Scenario:
     data: dict[str, Any] = field(default_factory=dict)  # the merged document, as run
     archive_limits: ArchiveLimits = DEFAULT_LIMITS      # how far its FMU and SSP archives may unpack ([limits])
 
+    def times(self) -> tuple[float, float, float]:
+        """start, stop and step [s] once all three are known (given, or filled in by the resolution);
+        ValueError while one is open."""
+        if self.start is None or self.stop is None or self.step is None:
+            raise ValueError(f"{self.file}: the experiment's start, stop and step are not all known yet")
+        return self.start, self.stop, self.step
+
 
 def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
     out = copy.deepcopy(base)
@@ -352,7 +359,7 @@ def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:
             raise ScenarioError(file, f"{fld}.fmu", "missing: a model name or a path to an .fmu file")
         if is_path(fmu):
             path: Path | None = Path(fmu)
-            if not path.is_file():
+            if not Path(fmu).is_file():
                 raise ScenarioError(file, f"{fld}.fmu", f"FMU file not found: {fmu}")
         else:
             path = resolver(fmu) if resolver is not None else None
@@ -551,12 +558,13 @@ def _parse_events(sc: Scenario, doc: dict[str, Any]) -> None:
 def check_experiment(sc: Scenario, where: str = "experiment") -> None:
     """The run's times: stop after start, a step that divides the run into whole steps."""
     file = sc.file
-    if sc.stop <= sc.start:
-        raise ScenarioError(file, f"{where}.stop", f"{sc.stop!r} is not after the start {sc.start!r}")
-    n = (sc.stop - sc.start) / sc.step
+    start, stop, step = sc.times()
+    if stop <= start:
+        raise ScenarioError(file, f"{where}.stop", f"{stop!r} is not after the start {start!r}")
+    n = (stop - start) / step
     if not math.isfinite(n) or abs(n - round(n)) > 1e-6 * max(1.0, n):
         raise ScenarioError(file, f"{where}.step",
-                            f"{sc.step!r} s does not divide the run {sc.start!r}..{sc.stop!r} s into whole steps")
+                            f"{step!r} s does not divide the run {start!r}..{stop!r} s into whole steps")
 
 
 

@@ -311,7 +311,7 @@ def _system_annotations(sc: Scenario, held: list[tuple[str, Any, str]]) -> list:
 
     oms = Annotation(OMS_TYPE)
     info = ET.SubElement(ET.SubElement(oms.root, f"{{{OMS_NS}}}Annotations"), f"{{{OMS_NS}}}SimulationInformation")
-    ET.SubElement(info, f"{{{OMS_NS}}}FixedStepMaster", description="oms-ma", stepSize=_fmt(sc.step))
+    ET.SubElement(info, f"{{{OMS_NS}}}FixedStepMaster", description="oms-ma", stepSize=_fmt(sc.times()[2]))
     out = [oms]
     if held:
         own = Annotation(OWN_PARAMETERS_TYPE)
@@ -331,9 +331,9 @@ def _default_experiment(sc: Scenario):
     de.start_time, de.stop_time = sc.start, sc.stop
     osp = Annotation(OSP_TYPE)
     alg = ET.SubElement(osp.root, f"{{{OSP_NS}}}Algorithm")
-    ET.SubElement(alg, f"{{{OSP_NS}}}FixedStepAlgorithm", baseStepSize=_fmt(sc.step))
+    ET.SubElement(alg, f"{{{OSP_NS}}}FixedStepAlgorithm", baseStepSize=_fmt(sc.times()[2]))
     own = Annotation(OWN_TYPE)
-    ET.SubElement(own.root, f"{{{OWN_NS}}}Experiment", step=_fmt(sc.step), algorithm=sc.algorithm,
+    ET.SubElement(own.root, f"{{{OWN_NS}}}Experiment", step=_fmt(sc.times()[2]), algorithm=sc.algorithm,
                   order=" ".join(sc.order))
     de.annotations.add_annotation(osp)
     de.annotations.add_annotation(own)

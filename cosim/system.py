@@ -14,7 +14,7 @@ import math
 import os
 import re
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -156,7 +156,7 @@ def _scalar_value(file: str, fld: str, var: Variable, value: Any, check_range: b
     if not isinstance(value, types):
         raise ScenarioError(file, fld, f"type mismatch: {var.name} is {var.type}, got {type(value).__name__} {value!r}")
     if var.type == "Real":
-        value = float(value)
+        value = float(cast(float, value))
         if not math.isfinite(value):
             raise ScenarioError(file, fld, f"{value!r} is not finite")
     reason = var.check_range(value) if check_range else None
@@ -296,10 +296,11 @@ def _experiment(sc: Scenario, models: dict[str, FmuModel]) -> None:
         elif key in ("stop", "step"):
             raise ScenarioError(sc.file, f"experiment.{key}", "not given, and no FMU's default experiment gives one")
     check_experiment(sc)
-    n = (sc.stop - sc.start) / sc.step
+    start, stop, step = sc.times()
+    n = (stop - start) / step
     if n > sc.max_steps and not sc.force:
-        raise ScenarioError(sc.file, "experiment.step", f"{n:.4g} steps of {sc.step!r} s from {sc.start!r} to "
-                                                        f"{sc.stop!r} s: more than max_steps = {sc.max_steps} "
+        raise ScenarioError(sc.file, "experiment.step", f"{n:.4g} steps of {step!r} s from {start!r} to "
+                                                        f"{stop!r} s: more than max_steps = {sc.max_steps} "
                                                         "(raise experiment.max_steps, or --force)")
 
 
@@ -312,10 +313,11 @@ def _internal_steps(sc: Scenario, insts: dict[str, InstancePlan]) -> dict[str, i
         h = ip.model.internal_step
         if h is None:
             continue
-        n = (sc.stop - sc.start) / h
+        start, stop, _ = sc.times()
+        n = (stop - start) / h
         if n > sc.max_internal_steps and not sc.force:
             raise ScenarioError(sc.file, "experiment.stop", f"{name} ({ip.model.path.name}) takes fixed internal steps "
-                                                            f"of {h:g} s: {n:.3g} from {sc.start!r} to {sc.stop!r} s, "
+                                                            f"of {h:g} s: {n:.3g} from {start!r} to {stop!r} s, "
                                                             f"more than max_internal_steps = {sc.max_internal_steps} "
                                                             "(a shorter run: experiment.stop or --stop; or raise "
                                                             "experiment.max_internal_steps, or --force)")
@@ -339,7 +341,7 @@ def _record(sc: Scenario, insts: dict[str, InstancePlan]) -> tuple[list[RecordPl
     candidates = [(n, v) for n in sc.order for v in insts[n].model.outputs()]
     record: list[RecordPlan] = []
     skipped: list[str] = []
-    seen: set[tuple[str, str]] = set()
+    seen: set[tuple[Any, ...]] = set()
     for i, pat in enumerate(sc.record or ["*.*"]):
         fld = f"record.variables[{i}]"
         hits = [(n, v) for n, v in candidates if f"{n}.{insts[n].our_name(v)}" == pat]
@@ -403,8 +405,9 @@ def _inputs(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str
         except ScenarioError as exc:
             raise ScenarioError(file, exc.field, f"{exc.reason} (a column of {sc.inputs_file})") from None
 
-    n_steps = int(round((sc.stop - sc.start) / sc.step))
-    grid = sc.start + np.arange(n_steps) * sc.step
+    start, stop, step = sc.times()
+    n_steps = int(round((stop - start) / step))
+    grid = start + np.arange(n_steps) * step
     return read_inputs(sc.inputs_file, file, sc.interpolation, column, grid)
 
 
@@ -415,16 +418,17 @@ def _events(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str
     only on Integer); set a tunable parameter; stop the run.  At a time, or on a condition (its variables
     and types checked here)."""
     file = sc.file
+    start, stop, step = sc.times()
     tabled = {(ip.instance, ip.var.name) for ip in inputs}
     events: list[EventPlan] = []
     for e in sc.events:
         fld = f"events[{e.index}]"
         k = 0
         if e.time is not None:
-            if not sc.start <= e.time < sc.stop:
-                raise ScenarioError(file, f"{fld}.time", f"{e.time!r} is outside the run {sc.start!r}..{sc.stop!r} s "
+            if not start <= e.time < stop:
+                raise ScenarioError(file, f"{fld}.time", f"{e.time!r} is outside the run {start!r}..{stop!r} s "
                                                          "(an event at the stop time would never act)")
-            k = int(math.ceil((e.time - sc.start) / sc.step - 1e-9))
+            k = int(math.ceil((e.time - start) / step - 1e-9))
         reads = _condition_reads(file, f"{fld}.when", e, insts) if e.condition is not None else {}
         if e.action == "stop":
             events.append(EventPlan(e.time, k, None, None, "stop", None, None, e.index, e.when, e.condition,
@@ -505,7 +509,8 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
     conns, driven = _connection_plans(sc, insts)
     record, not_recorded = _record(sc, insts)
     inputs = _inputs(sc, insts, driven)
-    n_steps = int(round((sc.stop - sc.start) / sc.step))
+    start, stop, step = sc.times()
+    n_steps = int(round((stop - start) / step))
     checked = _events(sc, insts, driven, inputs)
     events = sorted((ev for ev in checked if ev.condition is None), key=lambda ev: ev.step)  # stable within a step
     conditions = [ev for ev in checked if ev.condition is not None]
@@ -541,6 +546,8 @@ def _instance_plan(sc: Scenario, name: str, spec: InstanceSpec, notes: list[str]
     """One instance: its FMU loaded (its archive within the scenario's limits), its name map, units and
     parameters checked (a note added to ``notes`` for each unit that overrides a declared one)."""
     file = sc.file
+    if spec.fmu_path is None:   # (parse gives every instance a file or refuses it)
+        raise ScenarioError(file, f"instances.{name}.fmu", f"no FMU file for {spec.fmu!r}")
     try:
         model = load_checked_model(spec.fmu_path, sc.archive_limits)
     except FmuLoadError as exc:
