@@ -2,13 +2,6 @@
 exits with for each is the application's to decide (the master defines no exit code of its own)."""
 from __future__ import annotations
 
-# Exit codes, kept only until cosim/status.py stops importing them (nothing else of the master uses them).
-EXIT_OK = 0
-EXIT_RUN_FAILED = 1
-EXIT_BAD_INPUT = 2
-EXIT_INTERRUPTED = 130
-
-
 class CosimError(Exception):
     """A failure the user must see as one line (no traceback)."""
 

@@ -188,8 +188,7 @@ class Execution:
         for o in self._builtin + self.observers:
             o.started(self)
         if self.pacer is not None:
-            self._pacing = Pacing(self.pacer)
-            self._pacing.started(self)
+            self._pacing = Pacing(self.pacer)   # (its clock starts with the first step: see _advance)
 
     # ------------------------------------------------------------------ observers and manipulators
     def add_observer(self, obs: Observer) -> Observer:
@@ -237,6 +236,8 @@ class Execution:
             raise CosimError("the execution is not initialised: call initialize() first")
         interrupt = Interrupt()
         wall0 = _time.perf_counter()
+        if self._pacing is not None and not self._pacing.running:
+            self._pacing.started(self)
         self._in_step = True
         try:
             self._segments(min(k_target, self.clock.n_steps), interrupt)

@@ -112,9 +112,12 @@ class Pacing(Observer):
 
     def __init__(self, pacer: Pacer) -> None:
         self.pacer = pacer
+        self.running = False
 
     def started(self, ex: "Execution") -> None:
-        self.pacer.start(ex.clock.start)
+        """The wall clock of the current communication point is now (called as the first step begins)."""
+        self.pacer.start(ex.time)
+        self.running = True
 
     def stepped(self, ex: "Execution", k: int) -> None:
         self.pacer.wait(ex.clock.time(k))

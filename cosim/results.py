@@ -36,10 +36,6 @@ class RunResult:
     scenario: dict[str, Any] = field(default_factory=dict)     # scenario.json (the scenario as resolved)
     signals: np.ndarray | None = None   # the recording in memory (when the execution was asked to keep it)
 
-    @property
-    def exit_code(self) -> int:
-        return RunStatus(self.status).exit_code
-
 
 class ResultsFolder:
     """The folder a run writes (``out``; None: a temporary one, removed when the run ends), locked for

@@ -157,8 +157,6 @@ def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, 
     """Read one scenario file, absolutise its FMU and input paths, and merge it over its ``base`` (the
     document :func:`parse` checks).  ``shipped``: the application's folder of scenario files, where a
     ``base`` found neither beside the file nor by an absolute path is looked up (see :func:`base_path`)."""
-    if shipped is None:
-        shipped = _package_scenarios()
     name = str(path)
     if not path.is_file():
         if asked_by is not None:
@@ -199,17 +197,6 @@ def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, 
     return doc
 
 
-_read = read_document   # the former name, while callers move to the public one
-
-
-def _package_scenarios() -> Path | None:
-    """The folder a caller that gives none gets: the scenario package installed beside this master, if
-    any.  Kept only until every caller passes its own folder (``shipped``)."""
-    from importlib import resources
-    try:
-        return Path(str(resources.files(__name__.rsplit(".", 2)[0] + ".scenarios")))
-    except (ModuleNotFoundError, TypeError, ValueError):
-        return None
 
 
 def _shipped_hint(base: str, folder: Path | None) -> str:
@@ -238,7 +225,6 @@ def is_path(fmu: str) -> bool:
     return file_kind(fmu) is FileKind.FMU or "/" in fmu or os.sep in fmu
 
 
-_is_path = is_path      # the former name, while callers move to the public one
 
 
 def _flag(file: str, fld: str, v: Any) -> bool:

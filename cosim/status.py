@@ -1,9 +1,7 @@
-"""How a run ended: a closed set of statuses, each with the exit code of the command that ran it."""
+"""How a run ended: a closed set of statuses (what a command exits with for each is the application's)."""
 from __future__ import annotations
 
 from enum import StrEnum
-
-from .errors import EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN_FAILED
 
 
 class RunStatus(StrEnum):
@@ -29,10 +27,3 @@ class RunStatus(StrEnum):
     def ended_well(self) -> bool:
         """Whether the run gave its results as asked (ok, or ended early by an FMU or a stop)."""
         return self in (RunStatus.OK, RunStatus.TERMINATED, RunStatus.STOPPED)
-
-    @property
-    def exit_code(self) -> int:
-        """The exit code of a command whose run ended so: 0, 1 (the run failed), 130 (interrupted)."""
-        if self.ended_well:
-            return EXIT_OK
-        return EXIT_INTERRUPTED if self is RunStatus.INTERRUPTED else EXIT_RUN_FAILED

@@ -191,10 +191,6 @@ def variable(file: str, fld: str, inst: InstancePlan, name: str) -> Variable:
     return var
 
 
-_value = checked_value   # the former names, while callers move to the public ones
-_var = variable
-
-
 _ELEMENT = re.compile(r"^(.*)\[(\d+(?:,\d+)*)\]$")
 
 

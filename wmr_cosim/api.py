@@ -93,7 +93,7 @@ class Simulation:
         """A scenario file (``.toml``, following its ``base`` chain; a name that is not a file is looked up
         among the shipped scenarios, as on the command line) or one FMU run alone (``.fmu``).
         ``parameters`` ({"instance.param": value}) are applied as ``--set`` applies them."""
-        from .runner import fmu_document, is_fmu
+        from .runner import fmu_document, is_fmu, shipped_folder
         from .scenario_files import scenario_path
 
         p = scenario_path(str(path))
@@ -106,7 +106,7 @@ class Simulation:
             raise ScenarioError(str(p), "", "an SSP archive: the API loads scenario files (.toml) and FMUs (.fmu); "
                                             "run an archive with `wmr-cosim run`")
         else:
-            doc = scenario.read_document(Path(p))
+            doc = scenario.read_document(Path(p), shipped=shipped_folder())
         sim = cls(doc, file=str(p))
         for ref, value in (parameters or {}).items():
             sim.parameter(ref, value)
