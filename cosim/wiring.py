@@ -18,7 +18,8 @@ from typing import Any, Callable
 import numpy as np
 
 from .errors import RunError
-from .instance import Instance, accessor, real_array, vr_array
+from .fmu_instance import FmuInstance
+from .instance import accessor, real_array, vr_array
 from .inputs import InputPlan
 from .model import Variable
 from .system import ConnectionPlan, EventPlan, Plan, RecordPlan
@@ -244,7 +245,7 @@ def _start(plan: Plan, ev: EventPlan) -> float:
     return start
 
 
-def table_feeder(inst: Instance, table: tuple[Doubles, np.ndarray] | None, discrete: list[InputPlan]
+def table_feeder(inst: FmuInstance, table: tuple[Doubles, np.ndarray] | None, discrete: list[InputPlan]
                  ) -> Callable[[int], int] | None:
     """A closure that puts the tabulated inputs of step k in place: the Float64 values where the copies
     read them, the others set on the FMU with one call per FMI type."""
@@ -293,7 +294,7 @@ def is_real(c: ConnectionPlan) -> bool:
     return is_f64(c.src_var) and is_f64(c.dst_var)
 
 
-def discrete_copier(instances: dict[str, Instance], c: ConnectionPlan) -> Callable[[], int]:
+def discrete_copier(instances: dict[str, FmuInstance], c: ConnectionPlan) -> Callable[[], int]:
     """A closure copying one output to an input with a get and a set (FMI 2.0 or 3.0, arrays whole):
     integers, enumerations, booleans and strings as they are; reals of another width through the factor
     and offset; Boolean -> Real as 0 or 1 through the factor and offset; Real -> Boolean as value > threshold."""
