@@ -16,7 +16,8 @@ The limits (:class:`ArchiveLimits`) are an explicit argument of every check and 
 ``[limits]`` table: :func:`parse_limits`) and so does the plan resolved from it (``Plan.archive_limits``);
 a caller's own limits (:class:`LimitOverrides`, such as a command line's options) win over the
 scenario's, one by one.  Nothing is kept between calls: two scenarios read one after the other each
-extract with their own limits.
+extract with their own limits.  Both kinds are plain values that pickle: work run in other processes
+(the paper job's, a sweep's) takes them with each job.
 """
 from __future__ import annotations
 
@@ -43,10 +44,6 @@ DEFAULT_MAX_RATIO = 200.0
 #: Archives that unpack to at most this many bytes are never refused for their ratio: they cannot fill
 #: a disk, and small text files alone can compress well [bytes].
 RATIO_FLOOR = 1 * MiB
-#: Names of environment variables that earlier versions read the limits from.  Nothing reads them any
-#: more; they stay defined until the sweep module stops clearing them in its workers.
-ENV_SIZE = "WMR_COSIM_MAX_ARCHIVE_SIZE"
-ENV_RATIO = "WMR_COSIM_MAX_ARCHIVE_RATIO"
 _CHUNK = 1 * MiB
 _UNITS = {"": 1, "b": 1, "k": 1000, "kb": 1000, "mb": 1000**2, "gb": 1000**3, "tb": 1000**4,
           "kib": KiB, "mib": MiB, "gib": GiB, "tib": TiB}
@@ -150,12 +147,6 @@ def limit_overrides(max_size: Any = None, max_ratio: Any = None, names: tuple[st
         except ValueError as exc:
             raise CosimError(f"{name}: {exc}") from None
     return LimitOverrides(*parsed)
-
-
-def command_line_limits() -> dict[str, str]:
-    """Always empty: limits no longer travel through the environment (pass :class:`LimitOverrides`).
-    Kept until the sweep module stops asking for them."""
-    return {}
 
 
 def check_sizes(label: str, infos: list[zipfile.ZipInfo], archive_size: int,

@@ -192,11 +192,11 @@ def test_wheel_in_a_fresh_environment_runs_the_commands_from_any_folder(venv, tm
 
 
 def test_a_scenario_name_that_is_not_a_file_here_is_the_shipped_one(tmp_path, monkeypatch):
-    from wmr_cosim import paper_job
+    from wmr_cosim.paper_tasks import DEFAULT_MANIFEST
     from wmr_cosim.scenario_files import folder, scenario_path
 
     shipped = folder()
-    assert (shipped / "paper.toml").is_file() and (shipped / paper_job.DEFAULT_MANIFEST).is_file()
+    assert (shipped / "paper.toml").is_file() and (shipped / DEFAULT_MANIFEST).is_file()
     monkeypatch.chdir(tmp_path)
     assert scenario_path("example.toml") == shipped / "example.toml"
     assert scenario_path("paper/g1.toml") == shipped / "paper" / "g1.toml"

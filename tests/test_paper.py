@@ -476,3 +476,37 @@ def test_run_of_a_single_scenario_is_judged_as_a_protocol_run_is(built_fmus, tmp
     assert code == 1, err
     assert "wmr-cosim: run diverged: |e" in err and "above 0 rad" in err
     assert json.loads((out / "summary.json").read_text())["status"] == "diverged"
+
+
+# ---------------------------------------------------------------------- archive limits in the workers
+def test_a_task_job_extracts_with_the_archive_limits_it_is_given(built_fmus, tmp_path, monkeypatch):
+    """The worker's function of the paper job takes the caller's archive limits with its job: a size
+    limit below the FMUs' refuses them, in one line that still reads as the refusal once pickled."""
+    import pickle
+
+    from wmr_cosim import paper_job, runner
+    from wmr_cosim.cosim.archive import LimitOverrides
+    from wmr_cosim.cosim.errors import CosimError
+
+    monkeypatch.setattr(runner, "resolve_model", lambda name: built_fmus.get(name))
+    with pytest.raises(CosimError) as err:
+        paper_job._task_job("G1", str(DATA / "short_protocol.toml"), str(tmp_path / "G1"), "freeze",
+                            archive_limits=LimitOverrides(max_size=1024))
+    assert "refused: its entries unpack to" in str(err.value) and "more than the limit of 1 KiB" in str(err.value)
+    assert str(pickle.loads(pickle.dumps(err.value))) == str(err.value)   # what the pool sends the parent
+
+
+@pytest.mark.slow
+def test_the_command_lines_archive_limits_reach_the_paper_jobs_worker_processes(built_fmus, tmp_path, monkeypatch,
+                                                                                 capsys):
+    """`wmr-cosim --max-archive-size 1KiB paper` runs (it is not refused up front) and its workers extract
+    with that limit: the FMUs are refused, the command exits 2 with the refusal in one line."""
+    from wmr_cosim import cli, runner
+
+    monkeypatch.setattr(runner, "resolve_model", lambda name: built_fmus.get(name))   # the workers fork
+    code = cli.main(["--max-archive-size", "1KiB", "paper", "--manifest", str(_short_job_manifest(tmp_path)),
+                     "--no-compare", "--workers", "1", "--quiet", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "more than the limit of 1 KiB" in lines[0] and ".fmu: refused" in lines[0], err

@@ -24,7 +24,7 @@ import pytest
 from cosim_support import G1, g1_with_paths
 from wmr_cosim.cosim import archive, scenario, system
 from wmr_cosim.cosim.archive import ArchiveLimits, check_archive, safe_extract
-from wmr_cosim.cosim.errors import FmuLoadError, ScenarioError
+from wmr_cosim.cosim.errors import CosimError, FmuLoadError, ScenarioError
 from wmr_cosim.cosim.model import load_model
 from wmr_cosim.cosim.ssp import export_ssp, load_ssp
 
@@ -145,8 +145,6 @@ def test_cli_refuses_a_bomb_fmu_in_a_scenario_and_alone(bombs, built_fmus, tmp_p
     (work / "tmp").mkdir(parents=True)
     scen = g1_with_paths(work, {**built_fmus, "WmrSensor": bombs[lying]}, "[experiment]\nstop = 0.1\n")
     env = dict(os.environ, TMPDIR=str(work / "tmp"))     # every extraction folder would land here
-    env.pop(archive.ENV_SIZE, None)
-    env.pop(archive.ENV_RATIO, None)
     before = _tree(tmp_path)
     for args in (("run", scen, "--out", work / "out", "--quiet"), ("check", scen), ("info", bombs[lying])):
         p = _cli(*args, env=env)
@@ -158,7 +156,6 @@ def test_cli_refuses_a_bomb_fmu_in_a_scenario_and_alone(bombs, built_fmus, tmp_p
 
 
 def test_limits_from_the_scenario_and_the_command_line(built_fmus, tmp_path):
-    env = {k: v for k, v in os.environ.items() if k not in (archive.ENV_SIZE, archive.ENV_RATIO)}
     # our sensor FMU with 24 MiB of zeros: within the default limits (2 GiB, 200:1)
     fat = _copy_with(built_fmus["WmrSensor"], tmp_path / "WmrSensor.fmu", add=(("resources/zeros.bin", bytes(BOMB)),))
     with zipfile.ZipFile(fat) as zf:
@@ -169,17 +166,17 @@ def test_limits_from_the_scenario_and_the_command_line(built_fmus, tmp_path):
     plain = g1_with_paths(tmp_path, fmus, stop)
     tight = g1_with_paths(tmp_path, fmus, stop, name="tight.toml", head='[limits]\narchive_size = "8 MiB"\n')
     steep = g1_with_paths(tmp_path, fmus, stop, name="steep.toml", head="[limits]\narchive_ratio = 10\n")
-    p = _cli("check", plain, env=env)
+    p = _cli("check", plain)
     assert p.returncode == 0, p.stderr
-    p = _cli("check", tight, env=env)
+    p = _cli("check", tight)
     assert p.returncode == 2 and "more than the limit of 8 MiB" in p.stderr and "instances.sensor.fmu" in p.stderr
-    p = _cli("check", steep, env=env)
+    p = _cli("check", steep)
     assert p.returncode == 2 and "above the limit of 10:1" in p.stderr, p.stderr
-    p = _cli("--max-archive-size", "8MiB", "check", plain, env=env)
+    p = _cli("--max-archive-size", "8MiB", "check", plain)
     assert p.returncode == 2 and "more than the limit of 8 MiB" in p.stderr, p.stderr
-    p = _cli("--max-archive-ratio", str(int(ratio) + 10), "check", steep, env=env)   # the command line wins
+    p = _cli("--max-archive-ratio", str(int(ratio) + 10), "check", steep)   # the command line wins
     assert p.returncode == 0, p.stderr
-    p = _cli("--max-archive-size", "lots", "check", plain, env=env)
+    p = _cli("--max-archive-size", "lots", "check", plain)
     assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "--max-archive-size" in p.stderr
     # in process: a bad [limits] names the file and the field; each scenario carries its own limits, and
     # its plan too; the caller's limits win over the scenario's, one by one
@@ -193,6 +190,34 @@ def test_limits_from_the_scenario_and_the_command_line(built_fmus, tmp_path):
     assert scenario.load(steep, limits=over).archive_limits == ArchiveLimits(3 * 1024**3, 10)
     assert system.resolve(scenario.load(plain, limits=archive.LimitOverrides(max_ratio=ratio + 10))
                           ).archive_limits == ArchiveLimits(max_ratio=ratio + 10)
+
+
+@pytest.mark.parametrize("command, target", [
+    (("paper", "--quiet"), "wmr_cosim.paper_job.run_paper"),
+    (("sweep", "s.toml", "--quiet"), "wmr_cosim.sweep.run_sweep"),
+    (("gamma-search", "g.toml", "--quiet"), "wmr_cosim.gamma_search.gamma_search")])
+def test_the_commands_of_worker_processes_take_the_command_lines_limits_along(monkeypatch, tmp_path, command, target):
+    """paper, sweep and gamma-search are given --max-archive-size and --max-archive-ratio as an argument
+    (their workers get them with each job: tests/test_paper.py and tests/test_sweep.py run them), never
+    refused up front; without the options, no limits."""
+    import importlib
+
+    from wmr_cosim import cli
+
+    monkeypatch.chdir(tmp_path)
+    for name in ("s.toml", "g.toml"):
+        (tmp_path / name).write_text("")
+    given: list = []
+
+    def stand_in(*args, **kw):
+        given.append(kw["archive_limits"])
+        raise CosimError("stand-in: stop here")
+
+    module, name = target.rsplit(".", 1)
+    monkeypatch.setattr(importlib.import_module(module), name, stand_in)
+    assert cli.main(["--max-archive-size", "3MiB", "--max-archive-ratio", "50", *command]) == 2
+    assert cli.main(list(command)) == 2
+    assert given == [archive.LimitOverrides(max_size=3 * 1024**2, max_ratio=50.0), None]
 
 
 def test_two_scenarios_read_one_after_the_other_extract_each_with_its_own_limits(tmp_path):
@@ -344,9 +369,9 @@ def _sweep_file(tmp: Path) -> Path:
 
 @pytest.mark.parametrize("dashboard", [False, True])
 def test_a_local_cluster_listens_on_the_loopback_address_only(tmp_path, dashboard, sweep_fmus, capsys):
-    from wmr_cosim import sweep
+    from wmr_cosim import cluster, sweep
 
-    with sweep.Cluster(workers=1, dashboard=dashboard) as cl:
+    with cluster.Cluster(workers=1, dashboard=dashboard) as cl:
         df = sweep.run_sweep(_sweep_file(tmp_path), tmp_path / "out", cluster=cl, progress=False)
         socks = _listening([os.getpid()])
         http_port = cl.cluster.scheduler.http_server.port
@@ -429,7 +454,7 @@ def _free_port() -> int:
 
 
 def test_a_clear_text_scheduler_beyond_this_machine_is_warned_about():
-    from wmr_cosim.sweep import cleartext_warning
+    from wmr_cosim.cluster import cleartext_warning
 
     assert "neither encrypted nor authenticated" in cleartext_warning("tcp://10.0.0.5:8786")
     assert "use tls://" in cleartext_warning("tcp://[2001:db8::1]:8786")
@@ -440,7 +465,7 @@ def test_a_clear_text_scheduler_beyond_this_machine_is_warned_about():
 def test_a_sweep_on_a_tls_scheduler(tmp_path):
     from distributed import Client
 
-    from wmr_cosim.sweep import dask_security
+    from wmr_cosim.cluster import dask_security
 
     certs = _certificates(tmp_path)
     tls = ["--tls-ca-file", str(certs["ca"]), "--tls-cert", str(certs["cert"]), "--tls-key", str(certs["key"])]

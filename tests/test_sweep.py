@@ -209,3 +209,36 @@ def test_cli_sweep_errors_are_one_line(tmp_path):
     p = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "sweep", str(_sweep_file(tmp_path, SMALL, "s2.toml")),
                         "--scheduler", "tcp://127.0.0.1:1"], capture_output=True, text=True, timeout=60)
     assert p.returncode == 2 and "cannot connect" in p.stderr and "Traceback" not in p.stderr
+
+
+# ---------------------------------------------------------------------- archive limits in the workers
+def _cli_in_process(*args: str) -> int:
+    from wmr_cosim import cli
+
+    return cli.main([str(a) for a in args])
+
+
+def test_the_command_lines_archive_limits_reach_the_sweeps_workers(tmp_path, capsys):
+    """`wmr-cosim --max-archive-size 1KiB sweep` is not refused up front: each point is submitted with the
+    limit and its worker extracts with it, so the point fails with the refusal as its reason."""
+    f = _sweep_file(tmp_path, 'runs = ["learn"]\n[grid]\n"plant.foam_da1" = [0.4]\n')
+    out = tmp_path / "out"
+    code = _cli_in_process("--max-archive-size", "1KiB", "sweep", f, "--out", out, "--workers", "1", "--quiet")
+    assert code == 0, capsys.readouterr().err
+    df = pd.read_csv(out / "results.csv")
+    assert list(df["status"]) == ["failed"]
+    assert "refused: its entries unpack to" in df["reason"][0] and "more than the limit of 1 KiB" in df["reason"][0]
+
+
+def test_the_command_lines_archive_limits_reach_the_gamma_searchs_workers(tmp_path, capsys):
+    """`wmr-cosim --max-archive-size 1KiB gamma-search` sends the limit with every gamma: the point fails
+    with the refusal, and no gamma holds."""
+    import json
+
+    out = tmp_path / "gs"
+    code = _cli_in_process("--max-archive-size", "1KiB", "gamma-search", DATA / "short_protocol.toml", "--grid", "4",
+                           "--out", out, "--workers", "1", "--quiet")
+    assert code == 0, capsys.readouterr().err
+    r = json.loads((out / "gamma_search.json").read_text())
+    assert r["smallest_gamma"] is None and [p["status"] for p in r["curve"]] == ["failed"]
+    assert "more than the limit of 1 KiB" in r["curve"][0]["reason"]

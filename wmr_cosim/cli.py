@@ -305,7 +305,7 @@ def cmd_paper(args: argparse.Namespace) -> int:
 
     r = run_paper(args.out, variant=args.variant, compare=not args.no_compare, workers=args.workers,
                   manifest=args.manifest, progress=False if args.quiet else None, robustness=args.robustness,
-                  fmi=args.fmi)
+                  fmi=args.fmi, archive_limits=args.limits)
     m = r["metrics"]
     f = m["fidelity"]
     print(f"report: {args.out / 'report.md'} (and report.html, metrics.json, figures/) in {r['wall_s']:.1f} s")
@@ -325,10 +325,12 @@ def cmd_paper(args: argparse.Namespace) -> int:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     """A sweep file on Dask: one full co-simulation per point, in worker processes."""
-    from .sweep import cluster_options, run_sweep
+    from .cluster import cluster_options
+    from .sweep import run_sweep
 
     out = args.out if args.out is not None else Path("results") / args.sweep.stem
-    df = run_sweep(args.sweep, out, progress=False if args.quiet else None, **cluster_options(args))
+    df = run_sweep(args.sweep, out, progress=False if args.quiet else None, archive_limits=args.limits,
+                   **cluster_options(args))
     counts = df["status"].value_counts().to_dict()
     print(f"{args.sweep}: {len(df)} points ({', '.join(f'{v} {k}' for k, v in sorted(counts.items()))}); "
           f"results in {out} (results.parquet, results.csv, figures/)")
@@ -337,12 +339,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 def cmd_gamma_search(args: argparse.Namespace) -> int:
     """gamma* against gamma on a grid, then bisection: the smallest gamma for which the condition holds."""
+    from .cluster import cluster_options
     from .gamma_search import gamma_search
-    from .sweep import cluster_options
 
     out = args.out if args.out is not None else Path("results") / f"gamma-search-{args.scenario.stem}"
     r = gamma_search(args.scenario, out, grid=args.grid, variant=args.variant,
-                     progress=False if args.quiet else None, **cluster_options(args))
+                     progress=False if args.quiet else None, archive_limits=args.limits, **cluster_options(args))
     for p in r["curve"]:
         gs = "-" if p["gamma_star"] is None else f"{p['gamma_star']:.3f}"
         print(f"  gamma {p['gamma']:8.3f}  gamma* {gs:>10s}  {'holds' if p['holds'] else 'fails'}"
@@ -586,19 +588,12 @@ def _add_gamma_search(sub: Any) -> None:
     gs.set_defaults(func=cmd_gamma_search, subparser=gs)
 
 
-#: The commands that run their scenarios in worker processes of their own, which the command line's
-#: archive limits do not reach (a scenario's [limits] table does).
-WORKER_COMMANDS = ("paper", "sweep", "gamma-search")
-
-
 def archive_limits(args: argparse.Namespace) -> Any:
-    """The archive limits of --max-archive-size and --max-archive-ratio (None when neither is given);
-    CosimError naming the option for a bad value, UsageError for a command they do not reach."""
+    """The archive limits of --max-archive-size and --max-archive-ratio (None when neither is given), which
+    every command passes down as an argument (paper, sweep and gamma-search send them to their worker
+    processes with each job); CosimError naming the option for a bad value."""
     if args.max_archive_size is None and args.max_archive_ratio is None:
         return None
-    if args.command in WORKER_COMMANDS:
-        raise UsageError(f"--max-archive-size and --max-archive-ratio do not reach the worker processes of "
-                         f"{args.command}: give the limits in the scenarios' [limits] table")
     from .cosim.archive import limit_overrides
 
     return limit_overrides(args.max_archive_size, args.max_archive_ratio,

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from .cluster import Cluster
+from .cosim.archive import LimitOverrides
 from .sweep import run_points
 
 DEFAULT_GRID = (0.25, 0.5, 1.0, 2.0, 4.0, 6.0, 8.0, 10.0, 12.0, 14.0, 16.0, 20.0, 30.0)
@@ -33,15 +34,18 @@ def holds(row: dict[str, Any]) -> bool:
 def gamma_search(scenario: str | os.PathLike, out: str | os.PathLike, grid: list[float] | None = None,
                  variant: str | None = "freeze", tol: float = 0.01, max_bisections: int = 12,
                  workers: int | None = None, scheduler: str | None = None, progress: bool | None = None,
-                 security: Any = None, dashboard: bool = False) -> dict[str, Any]:
+                 security: Any = None, dashboard: bool = False, archive_limits: LimitOverrides | None = None
+                 ) -> dict[str, Any]:
     """Grid, then bisection where the grid shows a single crossing; writes gamma_search.json, .csv and a
-    figure into ``out``; returns the result.  ``security`` and ``dashboard``: see :class:`.cluster.Cluster`."""
+    figure into ``out``; returns the result.  ``security`` and ``dashboard``: see :class:`.cluster.Cluster`;
+    ``archive_limits``: the caller's archive limits (a command line's options), over the protocol's own,
+    sent to the workers with every point."""
 
     from .cosim.protocol import plan_runs
     from .cosim.errors import CosimError
 
     scenario = str(Path(scenario).resolve())
-    sc, runs, _ = plan_runs(scenario, lambda name: Path(name), None)
+    sc, runs, _ = plan_runs(scenario, lambda name: Path(name), None, archive_limits)
     names = [r.name for r in runs]
     for need in ("frozen", "foam"):
         if need not in names:
@@ -50,7 +54,7 @@ def gamma_search(scenario: str | os.PathLike, out: str | os.PathLike, grid: list
     if variant is not None and variant not in sc.variants:
         raise CosimError(f"{scenario}: --variant {variant}: the protocol declares "
                          f"{', '.join(sc.variants) or 'no variants'}")
-    sc, runs, vparams = plan_runs(scenario, lambda name: Path(name), variant)
+    sc, runs, vparams = plan_runs(scenario, lambda name: Path(name), variant, archive_limits)
     grid = sorted(set(float(g) for g in (grid or DEFAULT_GRID)))
     if not grid or grid[0] <= 0:
         raise CosimError("gamma-search: the grid must hold values > 0")
@@ -59,19 +63,20 @@ def gamma_search(scenario: str | os.PathLike, out: str | os.PathLike, grid: list
     out = make_folder(Path(out))
     with OutputLock(out):  # a second search into the same folder is refused at once
         return _search(scenario, out, runs, grid, variant, tol, max_bisections, workers, scheduler, progress,
-                       security, dashboard)
+                       security, dashboard, archive_limits)
 
 
 def _search(scenario: str, out: Path, runs: list, grid: list[float], variant: str | None, tol: float,
             max_bisections: int, workers: int | None, scheduler: str | None, progress: bool | None,
-            security: Any, dashboard: bool) -> dict[str, Any]:
+            security: Any, dashboard: bool, archive_limits: LimitOverrides | None) -> dict[str, Any]:
     import pandas as pd
 
     friction = {k: v for r in runs if r.name == "foam" for k, v in r.parameters.items() if k.startswith("plant.foam")}
     rows: list[dict[str, Any]] = []
     with Cluster(workers, scheduler, security, dashboard) as cl:
         pts = [{"id": i, "params": {"controller.gamma": g}} for i, g in enumerate(grid)]
-        rows = run_points(pts, scenario, variant, None, out, cl, progress=progress, label="gamma grid")
+        rows = run_points(pts, scenario, variant, None, out, cl, progress=progress, label="gamma grid",
+                          archive_limits=archive_limits)
         ok = [holds(r) for r in rows]
         changes = [i for i in range(1, len(ok)) if ok[i] != ok[i - 1]]
         bisected = False
@@ -83,7 +88,7 @@ def _search(scenario: str, out: Path, runs: list, grid: list[float], variant: st
                     break
                 mid = 0.5 * (lo + hi)
                 r = run_points([{"id": n, "params": {"controller.gamma": mid}}], scenario, variant, None, out, cl,
-                               progress=False, label="gamma bisection")[0]
+                               progress=False, label="gamma bisection", archive_limits=archive_limits)[0]
                 rows.append(r)
                 n += 1
                 if holds(r):

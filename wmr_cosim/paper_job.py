@@ -17,13 +17,15 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
+from .cosim.archive import LimitOverrides
+from .cosim.errors import CosimError, ScenarioError
 from .cosim.status import RunStatus
 
 from .analysis import (RUNS, fidelity, load_signals, position_error, run_summary,
                        table1_disturbance_analysis)
 from .components import paper
 from .paper_report import claims, provenance, report_blocks
-from .paper_tasks import DEFAULT_MANIFEST, task_files  # noqa: F401  (DEFAULT_MANIFEST: also read from here)
+from .paper_tasks import task_files
 from .report import to_html, to_markdown
 
 VARIANTS = ("freeze", "printed")
@@ -36,11 +38,13 @@ def run_line(variant: str, task: str, run: str, res: Any) -> str:
     return f"wmr-cosim paper: {variant} {task} {run}: {how}, {res.setup_s + res.wall_s:.1f} s"
 
 
-def _task_job(task: str, file: str, folder: str, variant: str, fmi: int = 2, progress: bool = False
-              ) -> dict[str, Any]:
+def _task_job(task: str, file: str, folder: str, variant: str, fmi: int = 2, progress: bool = False,
+              archive_limits: LimitOverrides | None = None) -> dict[str, Any]:
     """One task's protocol in a worker process: {run: {status, message, wall_s, setup_s}}; ``fmi`` 3 runs it
     through the FMI 3.0 FMUs (runner.resolver, runner.carry_fmi3).  Each run is judged by
-    analysis.divergence as it finishes; with ``progress``, its line (:func:`run_line`) goes to stderr."""
+    analysis.divergence as it finishes; with ``progress``, its line (:func:`run_line`) goes to stderr.
+    ``archive_limits``: the caller's, over the protocol's own (they come with the job: nothing else
+    reaches the worker)."""
     from .runner import carry_fmi3, resolver, run_protocol
 
     def report(run: str, res: Any) -> None:
@@ -48,8 +52,11 @@ def _task_job(task: str, file: str, folder: str, variant: str, fmi: int = 2, pro
             print(run_line(variant, task, run, res), file=sys.stderr, flush=True)
 
     t0 = time.perf_counter()
-    results = run_protocol(file, folder, resolver(fmi), variant=variant, progress=False,
-                           carry=carry_fmi3 if fmi == 3 else None, on_run=report)
+    try:
+        results = run_protocol(file, folder, resolver(fmi), variant=variant, progress=False,
+                               carry=carry_fmi3 if fmi == 3 else None, on_run=report, limits=archive_limits)
+    except ScenarioError as exc:   # (it does not unpickle in the parent, which would break the pool: same message)
+        raise CosimError(str(exc)) from None
     return {"task": task, "variant": variant, "wall_s": time.perf_counter() - t0,
             "runs": {n: {"status": r.status, "message": r.message, "wall_s": r.wall_s, "setup_s": r.setup_s,
                          "steps": r.steps} for n, r in results.items()}}
@@ -117,7 +124,8 @@ def _clean(x: Any) -> Any:
 def run_paper(out: str | os.PathLike = "results/paper", variant: str = "freeze", compare: bool = True,
               workers: int | None = None, manifest: str | os.PathLike | None = None,
               progress: bool | None = None, figures: bool = True, robustness: bool = False,
-              robustness_grid: Any = None, fmi: int = 2) -> dict[str, Any]:
+              robustness_grid: Any = None, fmi: int = 2, archive_limits: LimitOverrides | None = None
+              ) -> dict[str, Any]:
     """Run every task of the manifest for ``variant`` (and, with ``compare``, the other variants too),
     analyse, draw the figures and write report.md, report.html and metrics.json into ``out``; ``fmi``
     3 runs the FMI 3.0 versions of the FMUs (the same numbers).  Unless ``progress`` is False, one line per
@@ -125,18 +133,19 @@ def run_paper(out: str | os.PathLike = "results/paper", variant: str = "freeze",
 
     With ``robustness``, also the robustness study and the study of when W stops adapting
     (robustness.py; ``robustness_grid`` a StudyGrid, default the full one) into ``out/robustness``.
-    A second job into the same ``out`` is refused at once (a lock naming the holder's process)."""
+    ``archive_limits``: the caller's archive limits (a command line's options), over each protocol's own,
+    passed to every worker process with its job.  A second job into the same ``out`` is refused at once (a lock naming the holder's process)."""
     from .cosim.recording import OutputLock, make_folder
 
     out = make_folder(Path(out))
     with OutputLock(out):
         return _run_paper(out, variant, compare, workers, manifest, progress, figures, robustness,
-                          robustness_grid, fmi)
+                          robustness_grid, fmi, archive_limits)
 
 
 def _run_paper(out: Path, variant: str, compare: bool, workers: int | None, manifest: str | os.PathLike | None,
-               progress: bool | None, figures: bool, robustness: bool, robustness_grid: Any, fmi: int
-               ) -> dict[str, Any]:
+               progress: bool | None, figures: bool, robustness: bool, robustness_grid: Any, fmi: int,
+               archive_limits: LimitOverrides | None) -> dict[str, Any]:
     from .runner import resolver
 
     resolve_model = resolver(fmi)
@@ -147,7 +156,8 @@ def _run_paper(out: Path, variant: str, compare: bool, workers: int | None, mani
     for model in ("WmrPlant", "WmrSensor", "WmrController"):  # build once, before the workers start
         resolve_model(model)
     folders = {v: out / "runs" if v == variant else out / "variants" / v / "runs" for v in variants}
-    jobs = [(task, str(f), str(folders[v] / task), v, fmi, progress) for v in variants for task, f in tasks.items()]
+    jobs = [(task, str(f), str(folders[v] / task), v, fmi, progress, archive_limits)
+            for v in variants for task, f in tasks.items()]
     statuses: dict[str, dict[str, dict[str, Any]]] = {v: {} for v in variants}
     workers = workers or min(len(jobs), os.cpu_count() or 1)
     with ProcessPoolExecutor(max_workers=workers) as pool:
@@ -159,7 +169,7 @@ def _run_paper(out: Path, variant: str, compare: bool, workers: int | None, mani
     if robustness:
         from .robustness import job_grid, run_study
         study = run_study(out / "robustness", job_grid(robustness_grid, manifest, tuple(tasks)), workers=workers,
-                          progress=None if progress else False)
+                          progress=None if progress else False, archive_limits=archive_limits)
     results: dict[str, Any] = {}
     made_by = provenance()
     main_signals = main_dist = None

@@ -34,6 +34,7 @@ from typing import Any
 
 from .analysis import fidelity
 from .components import paper
+from .cosim.archive import LimitOverrides
 from .paper_tasks import manifest_path, task_files
 
 RUNS = ("learn", "frozen", "foam")
@@ -263,8 +264,9 @@ def decide(readings: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def run_study(out: Path, grid: StudyGrid | None = None, workers: int | None = None,
-              progress: bool | None = None) -> dict[str, Any]:
-    """Run the study's points on a local Dask cluster into ``out`` (resumable) and summarise them."""
+              progress: bool | None = None, archive_limits: LimitOverrides | None = None) -> dict[str, Any]:
+    """Run the study's points on a local Dask cluster into ``out`` (resumable) and summarise them;
+    ``archive_limits`` (the caller's, over each task's own) go with every point."""
     from .cluster import Cluster
     from .sweep import run_points
 
@@ -277,7 +279,8 @@ def run_study(out: Path, grid: StudyGrid | None = None, workers: int | None = No
         shutil.rmtree(out / "points", ignore_errors=True)
     stamp.write_text(key)
     with Cluster(workers) as cl:
-        rows_list = run_points(points, points[0]["base"], "freeze", None, out, cl, progress=progress, label="robustness")
+        rows_list = run_points(points, points[0]["base"], "freeze", None, out, cl, progress=progress, label="robustness",
+                               archive_limits=archive_limits)
     rows = {r["point"]: r for r in rows_list}
     s = summarise(rows, layout, grid)
     s["robustness"]["n_points"] = len(points)

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from .cluster import Cluster
-from .cluster import cleartext_warning, cluster_options, dask_security  # noqa: F401  (read from here too)
+from .cosim.archive import LimitOverrides
 from .cosim.errors import CosimError
 from .sweep_file import SweepSpec, draw_points, load_sweep
 from .sweep_plots import plot_sweep
@@ -36,19 +36,20 @@ from .sweep_plots import plot_sweep
 # ---------------------------------------------------------------------- one point (in a worker)
 def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[str] | None,
               fmus: dict[str, str], out_dir: str, keep_runs: bool = False,
-              archive_limits: dict[str, str] | None = None) -> dict[str, Any]:
+              archive_limits: LimitOverrides | None = None) -> dict[str, Any]:
     """Run one point (the base's runs with the point's parameters) and return its row: id, parameters,
     status ('ok', 'diverged', 'failed'), reason and metrics.  Never raises: a failure is a row.
-    ``archive_limits``: the submitting process's command-line archive limits (a worker may be elsewhere)."""
+    ``archive_limits``: the submitter's archive limits (a command line's options) over the scenario's own;
+    they travel with the point, since a worker may be another process or another machine."""
     from .cosim.protocol import run_protocol
 
-    _use_archive_limits(archive_limits)
     row: dict[str, Any] = {"point": point["id"], **point["params"], "status": "ok", "reason": ""}
     work = Path(out_dir) / "runs" / f"{point['id']:05d}" if keep_runs else Path(tempfile.mkdtemp(prefix="wmr-sweep-"))
     t0 = time.perf_counter()
     try:
         results = run_protocol(base, work, lambda name: Path(fmus[name]) if name in fmus else None,
-                               variant=variant, overrides=point["params"], progress=False, only=runs)
+                               variant=variant, overrides=point["params"], progress=False, only=runs,
+                               limits=archive_limits)
         _measure(row, results, work)
     except CosimError as exc:
         row["status"], row["reason"] = "failed", str(exc)
@@ -62,18 +63,6 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
             shutil.rmtree(work, ignore_errors=True)
     row["wall_s"] = time.perf_counter() - t0
     return row
-
-
-def _use_archive_limits(archive_limits: dict[str, str] | None) -> None:
-    """The submitter's archive limits in this process's environment, not those of an earlier sweep on
-    this worker."""
-    from .cosim.archive import ENV_RATIO, ENV_SIZE
-
-    for k in (ENV_SIZE, ENV_RATIO):
-        if archive_limits and k in archive_limits:
-            os.environ[k] = archive_limits[k]
-        else:
-            os.environ.pop(k, None)
 
 
 def _measure(row: dict[str, Any], results: dict[str, Any], work: Path) -> None:
@@ -157,8 +146,9 @@ def fmu_paths() -> dict[str, str]:
 
 def run_points(points: list[dict[str, Any]], base: str, variant: str | None, runs: list[str] | None,
                out: Path, cluster: Cluster, keep_runs: bool = False, progress: bool | None = None,
-               label: str = "sweep") -> list[dict[str, Any]]:
-    """Run the points not yet in ``out/points`` on the cluster; returns every point's row, by id."""
+               label: str = "sweep", archive_limits: LimitOverrides | None = None) -> list[dict[str, Any]]:
+    """Run the points not yet in ``out/points`` on the cluster; returns every point's row, by id.
+    ``archive_limits`` (a caller's, over each scenario's own) are submitted with every point."""
     from distributed import as_completed
 
     pts_dir = out / "points"
@@ -180,12 +170,10 @@ def run_points(points: list[dict[str, Any]], base: str, variant: str | None, run
         from tqdm import tqdm
         bar = tqdm(total=len(points), initial=len(rows), desc=label, unit="run", file=sys.stderr)
     failed = sum(1 for r in rows.values() if r["status"] != "ok")
-    from .cosim.archive import command_line_limits
-
-    limits = command_line_limits()
     # a point may name its own base (a study over several tasks in one submission)
-    futures = [cluster.client.submit(run_point, p, p.get("base", base), variant, runs, fmus, str(out), keep_runs, limits,
-                                     key=f"{label}-{out.name}-{p['id']}-{_digest(p)}", pure=False) for p in todo]
+    futures = [cluster.client.submit(run_point, p, p.get("base", base), variant, runs, fmus, str(out), keep_runs,
+                                     archive_limits, key=f"{label}-{out.name}-{p['id']}-{_digest(p, archive_limits)}",
+                                     pure=False) for p in todo]
     try:
         for fut in as_completed(futures):
             row = fut.result()
@@ -205,8 +193,10 @@ def run_points(points: list[dict[str, Any]], base: str, variant: str | None, run
     return [rows[p["id"]] for p in points]
 
 
-def _digest(p: dict[str, Any]) -> str:
-    return hashlib.sha1(json.dumps(p, sort_keys=True, default=str).encode()).hexdigest()[:8]
+def _digest(p: dict[str, Any], archive_limits: LimitOverrides | None = None) -> str:
+    """A short digest of a point and the limits it runs with (two submissions differ in their task keys)."""
+    what = [p, asdict(archive_limits) if archive_limits is not None else None]
+    return hashlib.sha1(json.dumps(what, sort_keys=True, default=str).encode()).hexdigest()[:8]
 
 
 def _jsonable(x: Any) -> Any:
@@ -217,20 +207,21 @@ def _jsonable(x: Any) -> Any:
 
 def run_sweep(path: str | os.PathLike, out: str | os.PathLike | None = None, workers: int | None = None,
               scheduler: str | None = None, progress: bool | None = None, cluster: Cluster | None = None,
-              security: Any = None, dashboard: bool = False):
+              security: Any = None, dashboard: bool = False, archive_limits: LimitOverrides | None = None):
     """Run a sweep file; write results.parquet, results.csv, sweep.json and figures/ into ``out``.
     Returns the table (a pandas DataFrame, one row per point, ordered by point).  ``security`` and
-    ``dashboard``: see :class:`Cluster`."""
+    ``dashboard``: see :class:`Cluster`; ``archive_limits``: the caller's archive limits (a command line's
+    options), over each point's scenario's own, sent to the workers with every point."""
     from .cosim.recording import OutputLock, make_folder
 
     spec = load_sweep(path)
     out = make_folder(Path(out) if out is not None else Path("results") / Path(path).stem)
     with OutputLock(out):  # a second sweep into the same folder is refused at once
-        return _run_sweep(spec, out, workers, scheduler, progress, cluster, security, dashboard)
+        return _run_sweep(spec, out, workers, scheduler, progress, cluster, security, dashboard, archive_limits)
 
 
 def _run_sweep(spec: "SweepSpec", out: Path, workers: int | None, scheduler: str | None, progress: bool | None,
-               cluster: "Cluster | None", security: Any, dashboard: bool):
+               cluster: "Cluster | None", security: Any, dashboard: bool, archive_limits: LimitOverrides | None):
     import pandas as pd
 
     points = draw_points(spec)
@@ -244,7 +235,8 @@ def _run_sweep(spec: "SweepSpec", out: Path, workers: int | None, scheduler: str
     own = cluster is None
     cl = cluster or Cluster(workers, scheduler, security, dashboard)
     try:
-        rows = run_points(points, spec.base, spec.variant, spec.runs, out, cl, spec.keep_runs, progress)
+        rows = run_points(points, spec.base, spec.variant, spec.runs, out, cl, spec.keep_runs, progress,
+                          archive_limits=archive_limits)
     finally:
         if own:
             cl.close()
