@@ -34,20 +34,19 @@ from typing import Any, Callable
 import numpy as np
 
 from .algorithm import Algorithm, Clock, InstanceIO, algorithm_for
-from .errors import CosimError, RunError, ScenarioError
+from .access import VariableAccess
+from .errors import CosimError, RunError
 from .failure import Call, Failure, FmiStatus, InstanceLost
 from .fmu_instance import FmuInstance
 from .interrupt import Interrupt
 from .manipulators import Actuator, ConditionEvents, EventStop, Manipulator, ScriptChanges, TimedEvents
-from .model import Variable
 from .observers import Observer, Pacing, ProgressBar, Recorder, StepCallback, progress_bar
 from .pacing import Pacer
 from .results import ResultsFolder, RunResult, final_values, write_results
 from .startup import exchange_initial, instance_io, load_instances, read_outputs, set_up
-from .scenario import split_ref
 from .status import RunStatus
-from .system import Plan, checked_value, variable
-from .wiring import RowLayout, Wiring, is_f64
+from .system import Plan
+from .wiring import RowLayout, Wiring
 
 __all__ = ["Execution", "RunResult", "run"]
 
@@ -95,8 +94,7 @@ class Execution:
         self._actuator: Actuator | None = None
         self._layout: RowLayout | None = None
         self._wiring: Wiring | None = None
-        self._vars: dict[str, tuple[str, Variable]] = {}
-        self._readers: dict[str, Callable[[], Any]] = {}
+        self.access: VariableAccess | None = None   # the variables by reference, once initialised
         self._errors: dict[str, int] = {}          # each instance's logged errors before the segment
         self._pacing: Pacing | None = None
         self._stop_requested = False
@@ -178,6 +176,8 @@ class Execution:
         self.algorithm.setup(self.ios, self.clock, self._layout, self._recorder.rows.chunk, self.check_inputs)
         actuator = self._actuator = Actuator(self.plan, self.instances, self._wiring)
         self._script = ScriptChanges(actuator)
+        assert self._layout is not None
+        self.access = VariableAccess(self.plan, self.instances, self._layout, self._script)
         self.manipulators[:0] = [TimedEvents(actuator, self.plan.events),
                                  ConditionEvents(actuator, self.plan.conditions)]
         bar = progress_bar(self.progress, self.clock.n_steps, self.clock.step,
@@ -327,53 +327,29 @@ class Execution:
         raise inst.fail_status(inst.call_name(f.call), int(f.value), tf)
 
     # ------------------------------------------------------------------ values between steps
-    def variable(self, ref: str) -> tuple[str, Variable]:
-        """(instance, variable) of ``"instance.variable"`` (our name of it), or ScenarioError."""
-        got = self._vars.get(ref)
-        if got is None:
-            file = self.plan.scenario.file
-            inst, name = split_ref(file, ref, ref)
-            if inst not in self.plan.instances:
-                raise ScenarioError(file, ref, f"unknown instance {inst!r}")
-            got = self._vars[ref] = (inst, variable(file, ref, self.plan.instances[inst], name))
-        return got
-
-    def reader(self, inst: str, var: Variable) -> Callable[[], Any]:
-        """A function returning a variable's current value: from the row buffer for a Float64 output it
-        holds (written by the loop at every step), else through an FMI get."""
-        lay = self._layout
-        assert lay is not None
-        if is_f64(var) and var.causality == "output" and any(vr == var.vr for vr, _ in lay.reals[inst]):
-            row, slot = lay.row, lay.offset[inst] + lay.index(inst, var.vr)
-            return lambda: row[slot]
-        instance = self.instances[inst]
-        return lambda: instance.get_value(var)
-
     def get(self, ref: str) -> Any:
         """The current value of ``"instance.variable"`` (any variable).  A Float64 output the loop reads
         at every step gives its value at the last communication point (as recorded, and as conditions see
         it); any other variable is asked of the FMU, so an output with direct feedthrough already reflects
         an input :meth:`set` since that point."""
-        read = self._readers.get(ref)
-        if read is None or self.result is not None:
+        if self.result is not None or self.access is None:
             self._alive()
-            read = self._readers[ref] = self.reader(*self.variable(ref))
-        return read()
+        assert self.access is not None
+        return self.access.get(ref)
 
     def set(self, ref: str, value: Any) -> None:
         """Change ``"instance.variable"`` from the next step on: a tunable parameter; a Real input (its
         connection overridden until :meth:`release`); an output feeding connections (what they carry); an
         input no connection drives.  The value is checked against the variable's type and range."""
         self._alive()
-        inst, var = self.variable(ref)
-        assert self._script is not None
-        self._script.set(inst, var, checked_value(self.plan.scenario.file, ref, var, value))
+        assert self.access is not None
+        self.access.set(ref, value)
 
     def release(self, ref: str) -> None:
         """End an override :meth:`set` put on a connected input or an output."""
         self._alive()
-        assert self._script is not None
-        self._script.release(*self.variable(ref))
+        assert self.access is not None
+        self.access.release(ref)
 
     @property
     def events(self) -> list[dict[str, Any]]:
@@ -383,7 +359,7 @@ class Execution:
     def _alive(self) -> None:
         if self.result is not None:
             raise CosimError(self._ended_message())
-        if not self._started or self._script is None:
+        if not self._started or self.access is None:
             raise CosimError("the execution is not initialised: call initialize() first")
 
     def _ended_message(self) -> str:

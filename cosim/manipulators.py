@@ -181,7 +181,8 @@ class ConditionEvents(Manipulator):
         """The predicates compiled; the conditions at the start time (an event whose condition holds there
         fires before the first step)."""
         for ev in self.events:
-            read = {ref: ex.reader(inst, var) for ref, (inst, var) in ev.reads.items()}
+            assert ex.access is not None
+            read = {ref: ex.access.reader(inst, var) for ref, (inst, var) in ev.reads.items()}
             self.preds.append(compile_condition(ev.condition, read))
         self.stepped(ex, 0)
 
