@@ -53,11 +53,23 @@ def against(name: str, rev: str, repeats: int) -> dict[str, Any]:
         subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(where / "tree")],
                        capture_output=True)
         shutil.rmtree(where, ignore_errors=True)
+    this, that = [_flat(r) for r in runs["this"]], [_flat(r) for r in runs["that"]]
     figures: dict[str, Any] = {}
-    for key, value in runs["this"][0].items():
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or key not in runs["that"][0]:
+    for key in this[0]:
+        if key not in that[0]:
             continue
-        a = statistics.median(r[key] for r in runs["this"])
-        b = statistics.median(r[key] for r in runs["that"])
+        a = statistics.median(r[key] for r in this)
+        b = statistics.median(r[key] for r in that)
         figures[key] = {"this": a, "that": b, "ratio": round(a / b, 4) if b else None}
     return {"against": rev, "rounds": repeats, "figures": figures}
+
+
+def _flat(figures: dict[str, Any], prefix: str = "") -> dict[str, float]:
+    """The numeric figures, nested ones named ``outer.inner`` (booleans and text left out)."""
+    out: dict[str, float] = {}
+    for key, value in figures.items():
+        if isinstance(value, dict):
+            out.update(_flat(value, f"{prefix}{key}."))
+        elif isinstance(value, (int, float)) and not isinstance(value, bool):
+            out[prefix + key] = value
+    return out
