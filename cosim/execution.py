@@ -43,7 +43,7 @@ from .manipulators import Actuator, ConditionEvents, EventStop, Manipulator, Scr
 from .observers import Observer, Pacing, ProgressBar, Recorder, StepCallback, progress_bar
 from .pacing import Pacer
 from .results import ResultsFolder, RunResult, final_values, write_results
-from .startup import exchange_initial, instance_io, load_instances, read_outputs, set_up
+from .startup import exchange_initial, instance_io, load_instances, read_outputs, recorded_types, set_up
 from .status import RunStatus
 from .system import Plan
 from .wiring import RowLayout, Wiring
@@ -162,9 +162,7 @@ class Execution:
         for io in self.ios:
             self.instances[io.name].exit_initialization()
         read_outputs(self.ios, self.instances, layout, self.clock.start)
-        types = ["Real"] + ["Int64" if r.var.fmi_type == "Enumeration" and plan.instances[r.instance].model.fmi == 3
-                            else r.var.fmi_type for r in plan.record]
-        rec = self._recorder = Recorder(self.folder.signals, self.columns, types,
+        rec = self._recorder = Recorder(self.folder.signals, self.columns, recorded_types(plan),
                                         [0] + [layout.slot(r) for r in plan.record], layout.n_double, layout.n_int,
                                         self.clock.decimation)
         layout.row[0] = self.clock.start

@@ -43,6 +43,12 @@ def load_instances(plan: Plan, work: Path, logs: Path) -> dict[str, FmuInstance]
     return instances
 
 
+def recorded_types(plan: Plan) -> list[str]:
+    """The FMI type of each recorded column, time first (an FMI 3.0 Enumeration is recorded as its Int64)."""
+    return ["Real"] + ["Int64" if r.var.fmi_type == "Enumeration" and plan.instances[r.instance].model.fmi == 3
+                       else r.var.fmi_type for r in plan.record]
+
+
 def set_up(plan: Plan, instances: dict[str, FmuInstance]) -> None:
     """Instantiate, set up the experiment, set parameters and start values, enter initialisation mode."""
     sc = plan.scenario
