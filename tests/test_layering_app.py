@@ -1,5 +1,6 @@
 """The shape of the application layer (wmr_cosim/): its modules import each other along a DAG (no
-cycle, imports inside functions included), none imports another's private name, and no function of
+cycle, imports inside functions included); no module of the package (wmr_cosim/, cosim/, components/,
+fmus/) imports another's private name or reads one from an imported module; and no function of
 wmr_cosim/ or cosim/ is longer than 60 lines (a short, shrinking list of exceptions)."""
 from __future__ import annotations
 
@@ -100,11 +101,165 @@ def test_the_modules_of_wmr_cosim_import_each_other_without_a_cycle():
     assert cycle is None, f"an import cycle among the modules of wmr_cosim/: {' -> '.join(cycle)}"
 
 
-def test_no_module_of_wmr_cosim_imports_a_private_name_of_another():
-    mods = _app_modules()
-    bad = [f"{p.relative_to(ROOT)}:{line}: {name} of {dep}" for m, p in mods.items()
-           for dep, name, line in _imports(p, set(mods)) if dep != m and name.startswith("_")]
-    assert not bad, "private names imported from another module: " + "; ".join(bad)
+#: The folders of the package's modules and the package each one is: wmr_cosim/ (its own files; its
+#: links to the others are read as those), and the subpackages it links to.
+PACKAGE_FOLDERS = {"wmr_cosim": APP, "wmr_cosim.cosim": ROOT / "cosim", "wmr_cosim.components": ROOT / "components",
+                   "wmr_cosim.fmus": ROOT / "fmus"}
+
+#: Private names one module still imports from another, as "folder/file.py: name of module", each with
+#: its reason.  The list may only shrink: an entry goes once its name is made public where it is defined.
+ALLOWED_PRIVATE: dict[str, str] = {
+    "fmus/fmi_base.py: _cause of wmr_cosim.fmus.fmi_decl":
+        "the FMI 2.0 slave base shares the declarations' helpers with the FMI 3.0 one; not yet public",
+    "fmus/fmi_base.py: _xml_number of wmr_cosim.fmus.fmi_decl":
+        "the FMI 2.0 slave base shares the declarations' helpers with the FMI 3.0 one; not yet public",
+    "fmus/fmi3_base.py: _cause of wmr_cosim.fmus.fmi_decl":
+        "the FMI 3.0 slave base shares the declarations' helpers with the FMI 2.0 one; not yet public",
+    "fmus/fmi3_base.py: _xml_number of wmr_cosim.fmus.fmi_decl":
+        "the FMI 3.0 slave base shares the declarations' helpers with the FMI 2.0 one; not yet public",
+}
+
+
+def package_modules() -> dict[str, Path]:
+    """{dotted module name: file} of every module of the package (``wmr_cosim.cosim.scenario``, the package
+    itself as ``wmr_cosim``, a subpackage as ``wmr_cosim.cosim``)."""
+    out: dict[str, Path] = {}
+    for pkg, folder in PACKAGE_FOLDERS.items():
+        for p in sorted(folder.glob("*.py")):
+            out[pkg if p.stem == "__init__" else f"{pkg}.{p.stem}"] = p
+    return out
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+class _PrivateUse(ast.NodeVisitor):
+    """The private names a module takes from other modules of the package: ``from .x import _y`` (any
+    level, or absolute from ``wmr_cosim``), and ``x._y`` where ``x`` is bound by an import to a module of
+    the package (``x.y._z`` too) and not rebound in the function that reads it.  Attributes of anything
+    else (a library's handle, a shared memory's ``_name``) are not a module's private names."""
+
+    def __init__(self, module: str, is_package: bool, modules: set[str]) -> None:
+        self.module, self.modules = module, modules
+        self.package = module if is_package else module.rpartition(".")[0]
+        self.scopes: list[dict[str, str | None]] = [{}]   # name -> the module it is bound to (None: rebound)
+        self.found: list[tuple[str, str, int]] = []       # (module, private name, line)
+
+    def _base(self, node: ast.ImportFrom) -> str | None:
+        if node.level == 0:
+            return node.module if node.module and node.module.split(".")[0] == "wmr_cosim" else None
+        parts = self.package.split(".")
+        if node.level > 1:
+            parts = parts[:len(parts) - node.level + 1]
+        return ".".join(parts + ([node.module] if node.module else []))
+
+    def _take(self, dep: str, name: str, line: int) -> None:
+        if dep != self.module and _private(name):
+            self.found.append((dep, name, line))
+
+    def visit_ImportFrom(self, node: ast.ImportFrom) -> None:
+        base = self._base(node)
+        if base is None:
+            return
+        for a in node.names:
+            full = f"{base}.{a.name}"
+            if full in self.modules:          # a module: ``from . import x``, ``from .cosim import scenario``
+                self._take(base, a.name, node.lineno)
+                self.scopes[-1][a.asname or a.name] = full
+            else:
+                self._take(base, a.name, node.lineno)
+                self.scopes[-1][a.asname or a.name] = None
+
+    def visit_Import(self, node: ast.Import) -> None:
+        for a in node.names:
+            if a.name.split(".")[0] != "wmr_cosim":
+                self.scopes[-1][(a.asname or a.name).split(".")[0]] = None
+            elif a.asname:
+                self.scopes[-1][a.asname] = a.name if a.name in self.modules else None
+            else:
+                self.scopes[-1]["wmr_cosim"] = "wmr_cosim"
+
+    def _bound(self, name: str) -> str | None:
+        for scope in reversed(self.scopes):
+            if name in scope:
+                return scope[name]
+        return None
+
+    def _resolve(self, node: ast.AST) -> str | None:
+        """The module of the package an expression names (``scenario``, ``wmr_cosim.cosim.scenario``), or None."""
+        if isinstance(node, ast.Name):
+            return self._bound(node.id)
+        if isinstance(node, ast.Attribute):
+            base = self._resolve(node.value)
+            if base is not None and f"{base}.{node.attr}" in self.modules:
+                return f"{base}.{node.attr}"
+        return None
+
+    def visit_Attribute(self, node: ast.Attribute) -> None:
+        owner = self._resolve(node.value)
+        if owner is not None:
+            self._take(owner, node.attr, node.lineno)
+        self.generic_visit(node)
+
+    def _function(self, node: ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda) -> None:
+        for d in getattr(node, "decorator_list", []):
+            self.visit(d)
+        args = node.args
+        for default in [*args.defaults, *args.kw_defaults]:
+            if default is not None:
+                self.visit(default)
+        local: dict[str, str | None] = {a.arg: None for a in [*args.posonlyargs, *args.args, *args.kwonlyargs,
+                                                                *filter(None, [args.vararg, args.kwarg])]}
+        body = node.body if isinstance(node.body, list) else [node.body]
+        for stmt in body:   # names assigned in the function are its own, wherever the assignment is
+            for sub in ast.walk(stmt):
+                if isinstance(sub, ast.Name) and isinstance(sub.ctx, ast.Store):
+                    local[sub.id] = None
+        self.scopes.append(local)
+        for stmt in body:
+            self.visit(stmt)
+        self.scopes.pop()
+
+    visit_FunctionDef = visit_AsyncFunctionDef = visit_Lambda = _function
+
+
+def private_uses(path: Path, module: str, modules: set[str]) -> list[tuple[str, str, int]]:
+    """(module of the package, private name of it, line) of every private name ``path`` (module ``module``)
+    imports from another module of the package or reads from one it imported."""
+    v = _PrivateUse(module, path.stem == "__init__", modules)
+    v.visit(ast.parse(path.read_text(), str(path)))
+    return v.found
+
+
+def test_the_private_name_finder_sees_imports_and_attributes_of_imported_modules(tmp_path):
+    mods = {"wmr_cosim", "wmr_cosim.cosim", "wmr_cosim.cosim.scenario", "wmr_cosim.cosim.system",
+            "wmr_cosim.cosim.errors", "wmr_cosim.sweep"}
+    f = tmp_path / "system.py"
+    f.write_text("import ctypes\nimport wmr_cosim.cosim.errors\nfrom . import scenario\n"
+                 "from .errors import _one, CosimError\nfrom ..sweep import _two\n"
+                 "from wmr_cosim.cosim.scenario import _three as three\nimport wmr_cosim.cosim.errors as errs\n"
+                 "def _own(): pass\n"
+                 "def f(dll, shm):\n    scenario._read()\n    dll._handle, shm._name, _own()\n"
+                 "    wmr_cosim.cosim.errors._four\n    errs._five\n    return ctypes._six\n"
+                 "def g(scenario):\n    return scenario._field\n"
+                 "def h():\n    scenario = object()\n    return scenario._field\n"
+                 "def k():\n    from .scenario import __all__\n    from . import system\n    return system._x\n")
+    found = sorted(private_uses(f, "wmr_cosim.cosim.system", mods))
+    assert found == [("wmr_cosim.cosim.errors", "_five", 13), ("wmr_cosim.cosim.errors", "_four", 12),
+                     ("wmr_cosim.cosim.errors", "_one", 4), ("wmr_cosim.cosim.scenario", "_read", 10),
+                     ("wmr_cosim.cosim.scenario", "_three", 6), ("wmr_cosim.sweep", "_two", 5)]
+
+
+def test_no_module_of_the_package_takes_a_private_name_of_another():
+    mods = package_modules()
+    assert {"wmr_cosim.sweep", "wmr_cosim.cosim.scenario", "wmr_cosim.components.paper",
+            "wmr_cosim.fmus.fmi_decl"} <= set(mods)   # every folder was read
+    uses = {f"{p.relative_to(ROOT).as_posix()}: {name} of {dep}": line for m, p in mods.items()
+            for dep, name, line in private_uses(p, m, set(mods))}
+    bad = [f"{k.split(':')[0]}:{line}:{k.split(':', 1)[1]}" for k, line in sorted(uses.items())
+           if k not in ALLOWED_PRIVATE]
+    assert not bad, "private names taken from another module: " + "; ".join(bad)
 
 
 def _functions(path: Path) -> dict[str, int]:
