@@ -260,7 +260,8 @@ def bench_sweep(repeats: int) -> dict[str, float]:
     import tempfile
     import time
 
-    from wmr_cosim.sweep import Cluster, run_sweep
+    from wmr_cosim.cluster import Cluster
+    from wmr_cosim.sweep import run_sweep
 
     root = __import__("pathlib").Path(__file__).resolve().parents[1]
     f = root / "scenarios" / "sweep-geometry.toml"

@@ -39,13 +39,19 @@ from __future__ import annotations
 import ctypes
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, NamedTuple
 
 from .failure import Call, Failure
 from .fmu_instance import FastPath
 
-#: (position in the instance's input array, source array, index in it, factor, offset)
-Copy = tuple[int, Any, int, float, float]
+class Copy(NamedTuple):
+    """How one Real input takes its value each step: ``in_val[pos] = src[slot] * factor + offset``."""
+
+    pos: int                 # position in the instance's input array
+    src: Any                 # the source array (a c_double array: the row's outputs, a table's, a held value)
+    slot: int                # the index in it
+    factor: float
+    offset: float
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,9 @@ class ScenarioError(CosimError):
         self.file, self.field, self.reason = file, field, reason
         super().__init__(f"{file}: {field}: {reason}" if field else f"{file}: {reason}")
 
+    def __reduce__(self) -> tuple[object, ...]:   # (a worker process's error unpickles in the parent)
+        return type(self), (self.file, self.field, self.reason)
+
 
 class OtherFileError(ScenarioError):
     """A file given as a scenario is another kind of file (``kind``: "a paper manifest", "a sweep file")."""
@@ -23,6 +26,9 @@ class OtherFileError(ScenarioError):
     def __init__(self, file: str, kind: str) -> None:
         self.kind = kind
         super().__init__(file, "", f"not a scenario but {kind}")
+
+    def __reduce__(self) -> tuple[object, ...]:
+        return type(self), (self.file, self.kind)
 
 
 class FmuLoadError(CosimError):
@@ -39,3 +45,6 @@ class RunError(CosimError):
     def __init__(self, message: str, instance: str = "", time: float | None = None) -> None:
         self.instance, self.time = instance, time
         super().__init__(message)
+
+    def __reduce__(self) -> tuple[object, ...]:
+        return type(self), (str(self), self.instance, self.time)

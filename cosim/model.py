@@ -12,7 +12,7 @@ from xml.parsers import expat
 
 from fmpy import read_model_description
 
-from .archive import check_archive
+from .archive import ArchiveLimits, check_archive
 from .errors import FmuLoadError
 from .units import Unit, lookup, units_of
 
@@ -229,11 +229,12 @@ def _check_binary(path: Path, identifier: str, fmi: int = 2) -> None:
                        f"{', '.join(here) or 'no platform'} (a source-only or other-platform FMU cannot run here)")
 
 
-def load_model(path: str | os.PathLike) -> FmuModel:
-    """Read and check an FMU: it exists, is a safe archive, and is FMI 2.0 or 3.0 with co-simulation (and,
-    for FMI 3.0, needs neither clocks nor event mode)."""
+def load_model(path: str | os.PathLike, limits: ArchiveLimits | None = None) -> FmuModel:
+    """Read and check an FMU: it exists, is a safe archive (within ``limits``; default: the default
+    limits), and is FMI 2.0 or 3.0 with co-simulation (and, for FMI 3.0, needs neither clocks nor event
+    mode)."""
     path = Path(path)
-    check_archive(path)
+    check_archive(path, limits)
     version = fmi_version(path)
     if version not in ("2.0",) and not version.startswith("3."):
         raise FmuLoadError(f"{path}: FMI version {version}: only FMI 2.0 and 3.0 are supported")

@@ -18,7 +18,7 @@ from typing import Any, cast
 
 import numpy as np
 
-from .archive import DEFAULT_LIMITS, ArchiveLimits, check_archive
+from .archive import DEFAULT_LIMITS, ArchiveLimits
 from .errors import CosimError, FmuLoadError, ScenarioError
 from .inputs import InputPlan, read_inputs
 from .model import PY_TYPES, FmuModel, Variable, load_model
@@ -485,9 +485,7 @@ def _condition_reads(file: str, fld: str, e: Any, insts: dict[str, InstancePlan]
 
 def load_checked_model(path: str | os.PathLike, limits: ArchiveLimits = DEFAULT_LIMITS) -> FmuModel:
     """:func:`~.model.load_model` of an FMU whose archive is checked against ``limits``."""
-    if limits != DEFAULT_LIMITS:     # (load_model checks against the default limits itself)
-        check_archive(path, limits)
-    return load_model(path)
+    return load_model(path, limits)
 
 
 def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) -> Plan:

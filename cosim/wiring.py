@@ -17,6 +17,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from .algorithm import Copy
 from .errors import RunError
 from .fmu_instance import FmuInstance
 from .instance import accessor, real_array, vr_array
@@ -26,8 +27,6 @@ from .system import ConnectionPlan, EventPlan, Plan, RecordPlan
 
 #: A ctypes array of doubles: the row's outputs, a table's values, an override's value.
 Doubles = ctypes.Array[ctypes.c_double]
-#: (position in the instance's input array, source array, index in it, factor, offset)
-Copy = tuple[int, Doubles, int, float, float]
 
 
 def is_f64(var: Variable) -> bool:
@@ -123,7 +122,7 @@ class Wiring:
             for e in range(c.dst_var.size):  # every element of an array (or the one element connected)
                 pos = self._pos(c.dst, c.dst_var.vr, e)
                 src = layout.out_arr[c.src], layout.index(c.src, c.src_var.vr, e if c.src_elem is None else c.src_elem)
-                self.base[(c.dst, pos)] = (pos, *src, c.factor, c.offset)
+                self.base[(c.dst, pos)] = Copy(pos, *src, c.factor, c.offset)
                 self.feeds[(c.dst, pos)] = (c.src, c.src_var.vr)
         self.tables: dict[str, tuple[Doubles, np.ndarray]] = {}   # instance -> (array the copies read, values)
         for inst in plan.order:  # tabulated Real inputs: sources refreshed before each step
@@ -132,7 +131,7 @@ class Wiring:
                 arr = (ctypes.c_double * len(cols))()
                 for j, ip in enumerate(cols):
                     pos = self._pos(inst, ip.var.vr)
-                    self.base[(inst, pos)] = (pos, arr, j, 1.0, 0.0)
+                    self.base[(inst, pos)] = Copy(pos, arr, j, 1.0, 0.0)
                 self.tables[inst] = (arr, np.ascontiguousarray(np.column_stack([ip.values for ip in cols])))
         for ev in plan.events + plan.conditions:  # an unconnected input driven by events holds its start
             if ev.var is None or ev.var.causality != "input" or ev.var.type != "Real" or ev.action == "set":
@@ -140,7 +139,7 @@ class Wiring:
             assert ev.instance is not None   # (an event with a variable has its instance)
             key = (ev.instance, self._pos(ev.instance, ev.var.vr))
             if key not in self.base:
-                self.base[key] = (key[1], real_array([float(_start(plan, ev))]), 0, 1.0, 0.0)
+                self.base[key] = Copy(key[1], real_array([float(_start(plan, ev))]), 0, 1.0, 0.0)
         self.overrides: dict[tuple[str, int, str], tuple[str, float]] = {}
         self._held: dict[tuple[str, int, str], Doubles] = {}   # the array each override's copies read
 
@@ -207,11 +206,11 @@ class Wiring:
                 if ov is not None and ov[0] == "bias":  # a bias on the output, before the connection's transform
                     ov = ("bias", ov[1] * f)
             if ov is None:
-                out.append((pos, arr, i, f, o))
+                out.append(Copy(pos, arr, i, f, o))
             elif ov[0] == "override":   # read from an array of its own, so a new value needs no new loop
-                out.append((pos, self._held_value(key, ov[1]), 0, 1.0, 0.0))
+                out.append(Copy(pos, self._held_value(key, ov[1]), 0, 1.0, 0.0))
             else:
-                out.append((pos, arr, i, f, o + ov[1]))
+                out.append(Copy(pos, arr, i, f, o + ov[1]))
         return out
 
     def bad_input(self, name: str, in_vr: ctypes.Array[ctypes.c_uint], copies: list[Copy], t: float) -> RunError:

@@ -37,7 +37,7 @@ from pythonfmu3.enums import Fmi3Status
 from pythonfmu3.fmi3slave import Fmi3StepResult
 
 from .fmi_decl import (SlaveCore, DBL_MAX, DBL_MIN, DISPLAY_UNITS, FINITE, INT_MAX, NON_NEGATIVE, POSITIVE, SIGN,  # noqa: F401
-                       STEP_RTOL, UNITS, Var, _cause, _xml_number, parameters_of)
+                       STEP_RTOL, UNITS, Var, exception_cause, xml_number, parameters_of)
 
 #: FMI 2.0 kind of a declaration -> FMI 3.0 type.
 TYPE3 = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
@@ -238,7 +238,7 @@ class WmrSlave(SlaveCore, Fmi3Slave):
             unit = SubElement(units, "Unit", {"name": name})
             SubElement(unit, "BaseUnit", {k: str(e) for k, e in UNITS[name].items()})
             for dname, factor in DISPLAY_UNITS.get(name, {}).items():
-                SubElement(unit, "DisplayUnit", {"name": dname, "factor": _xml_number(factor)})
+                SubElement(unit, "DisplayUnit", {"name": dname, "factor": xml_number(factor)})
         root.insert(list(root).index(cs) + 1, units)
         variables = SubElement(root, "ModelVariables")
         for v in self._v3:
@@ -276,7 +276,7 @@ class WmrSlave(SlaveCore, Fmi3Slave):
             a["unit"] = v.unit
         lo, hi = v.range
         if v.type in ("Float64", "Int32"):
-            num = _xml_number if v.type == "Float64" else (lambda x: str(int(x)))
+            num = xml_number if v.type == "Float64" else (lambda x: str(int(x)))
             if lo is not None:
                 a["min"] = num(lo)
             if hi is not None:
@@ -284,7 +284,7 @@ class WmrSlave(SlaveCore, Fmi3Slave):
         starts = [self._vals[s] for s in v.slots]
         has_start = v.causality != "output" and all(x is not None for x in starts)
         if has_start and v.type == "Float64":
-            a["start"] = " ".join(_xml_number(float(x)) for x in starts)
+            a["start"] = " ".join(xml_number(float(x)) for x in starts)
         elif has_start and v.type == "Int32":
             a["start"] = str(int(starts[0]))
         elif has_start and v.type == "Boolean":
@@ -460,7 +460,7 @@ class WmrSlave(SlaveCore, Fmi3Slave):
             self._build()
         except Exception as exc:
             self.log(f"{self.modelName} instance {self.instance_name}: initialisation failed: "
-                     f"{_cause(exc)}", Fmi3Status.fatal)
+                     f"{exception_cause(exc)}", Fmi3Status.fatal)
             raise
         self._stale = False
 
@@ -509,7 +509,7 @@ class WmrSlave(SlaveCore, Fmi3Slave):
             self._vals[self._tslot] = current_time + step_size
             return _OK
         except Exception as exc:
-            self._failed = _cause(exc)
+            self._failed = exception_cause(exc)
             self.log(f"{self.modelName} instance {self.instance_name}: step from t = {current_time!r} s "
                      f"over h = {step_size!r} s failed: {self._failed}", Fmi3Status.discard)
             return _DISCARD

@@ -48,7 +48,7 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 from pythonfmu.variables import ScalarVariable
 
 from .fmi_decl import (SlaveCore, DBL_MAX, DBL_MIN, FINITE, INT_MAX, NON_NEGATIVE, POSITIVE, SIGN, STEP_RTOL, UNITS,  # noqa: F401
-                       Var, _cause, _xml_number, parameters_of)
+                       Var, exception_cause, xml_number, parameters_of)
 
 _CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input,
               "output": Fmi2Causality.output}
@@ -71,11 +71,11 @@ class RealU(Real):
         if self.unit is not None:
             attrib["unit"] = self.unit
         if self.min is not None:
-            attrib["min"] = _xml_number(self.min)
+            attrib["min"] = xml_number(self.min)
         if self.max is not None:
-            attrib["max"] = _xml_number(self.max)
+            attrib["max"] = xml_number(self.max)
         if self.start is not None:
-            attrib["start"] = _xml_number(self.start)
+            attrib["start"] = xml_number(self.start)
         SubElement(node, "Real", attrib)
         return node
 
@@ -373,7 +373,7 @@ class WmrSlave(SlaveCore, Fmi2Slave):
             self._build()
         except Exception as exc:
             self.log(f"{self.modelName} instance {self.instance_name}: initialisation failed: "
-                     f"{_cause(exc)}", Fmi2Status.fatal)
+                     f"{exception_cause(exc)}", Fmi2Status.fatal)
             raise
         self._stale = False
 
@@ -421,7 +421,7 @@ class WmrSlave(SlaveCore, Fmi2Slave):
             self._step(t, h)
             return True
         except Exception as exc:
-            self._failed = _cause(exc)
+            self._failed = exception_cause(exc)
             self.log(f"{self.modelName} instance {self.instance_name}: step from t = {current_time!r} s "
                      f"over h = {step_size!r} s failed: {self._failed}", Fmi2Status.discard)
             return False

@@ -60,7 +60,7 @@ _KINDS = ("Real", "Integer", "Boolean", "String")
 _CAUSALITIES = ("parameter", "input", "output")
 
 
-def _xml_number(v: float | int) -> str:
+def xml_number(v: float | int) -> str:
     """Shortest text that reads back as the same double (pythonfmu's '%.16g' does not always)."""
     if isinstance(v, bool):
         raise TypeError("a boolean is not a number")
@@ -153,7 +153,7 @@ def parameters_of(defaults: Any, expanded: tuple[str, ...] = ()) -> list[Var]:
     return out
 
 
-def _cause(exc: BaseException) -> str:
+def exception_cause(exc: BaseException) -> str:
     """One line: the exception's type and message."""
     text = str(exc).strip().splitlines()
     return f"{type(exc).__name__}: {text[0] if text else '(no message)'}"

@@ -146,8 +146,8 @@ def test_output_into_a_closed_pipe_ends_quietly(built_fmus):
 
 
 def test_archive_limits_of_the_command_line_are_passed_down_not_kept(tmp_path, capsys, monkeypatch):
-    """--max-archive-size reaches the run's checks as an argument: nothing is left in the environment; a
-    command whose runs happen in worker processes refuses the options (their scenarios' [limits] apply)."""
+    """--max-archive-size reaches the run's checks as an argument: nothing is left in the environment (the
+    commands whose runs happen in worker processes send the limits with the work: tests/test_security.py)."""
     import os
 
     for name in ("WMR_COSIM_MAX_ARCHIVE_SIZE", "WMR_COSIM_MAX_ARCHIVE_RATIO"):
@@ -157,7 +157,3 @@ def test_archive_limits_of_the_command_line_are_passed_down_not_kept(tmp_path, c
     assert not {"WMR_COSIM_MAX_ARCHIVE_SIZE", "WMR_COSIM_MAX_ARCHIVE_RATIO"} & set(os.environ)
     assert main(["check", str(DQ)]) == 0          # the next command has the defaults again
     capsys.readouterr()
-    sweep = tmp_path / "s.toml"
-    sweep.write_text("")
-    assert main(["--max-archive-ratio", "1000", "sweep", str(sweep)]) == 2
-    assert "do not reach the worker processes of sweep" in capsys.readouterr().err

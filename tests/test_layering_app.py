@@ -108,16 +108,7 @@ PACKAGE_FOLDERS = {"wmr_cosim": APP, "wmr_cosim.cosim": ROOT / "cosim", "wmr_cos
 
 #: Private names one module still imports from another, as "folder/file.py: name of module", each with
 #: its reason.  The list may only shrink: an entry goes once its name is made public where it is defined.
-ALLOWED_PRIVATE: dict[str, str] = {
-    "fmus/fmi_base.py: _cause of wmr_cosim.fmus.fmi_decl":
-        "the FMI 2.0 slave base shares the declarations' helpers with the FMI 3.0 one; not yet public",
-    "fmus/fmi_base.py: _xml_number of wmr_cosim.fmus.fmi_decl":
-        "the FMI 2.0 slave base shares the declarations' helpers with the FMI 3.0 one; not yet public",
-    "fmus/fmi3_base.py: _cause of wmr_cosim.fmus.fmi_decl":
-        "the FMI 3.0 slave base shares the declarations' helpers with the FMI 2.0 one; not yet public",
-    "fmus/fmi3_base.py: _xml_number of wmr_cosim.fmus.fmi_decl":
-        "the FMI 3.0 slave base shares the declarations' helpers with the FMI 2.0 one; not yet public",
-}
+ALLOWED_PRIVATE: dict[str, str] = {}
 
 
 def package_modules() -> dict[str, Path]:

@@ -164,7 +164,6 @@ def test_a_callers_limits_win_over_the_scenarios_one_by_one():
     assert archive.parse_limits("f.toml", table) == archive.ArchiveLimits(1024**2, 20.0)
     assert archive.parse_limits("f.toml", table, over) == archive.ArchiveLimits(2048, 20.0)
     assert archive.parse_limits("f.toml", None) == archive.DEFAULT_LIMITS
-    assert archive.command_line_limits() == {}   # nothing travels through the environment
 
 
 @pytest.mark.parametrize("kw, message", [

@@ -22,7 +22,7 @@ import psutil
 import pytest
 
 from cosim_support import G1, g1_with_paths
-from wmr_cosim.cosim import archive, scenario, system
+from wmr_cosim.cosim import archive, execution, scenario, system
 from wmr_cosim.cosim.archive import ArchiveLimits, check_archive, safe_extract
 from wmr_cosim.cosim.errors import CosimError, FmuLoadError, ScenarioError
 from wmr_cosim.cosim.model import load_model
@@ -241,6 +241,26 @@ def test_two_scenarios_read_one_after_the_other_extract_each_with_its_own_limits
     with pytest.raises(FmuLoadError, match="more than the limit of 1 MiB"):
         safe_extract(fat, tmp_path / "tight", tight.archive_limits)
     assert not (tmp_path / "tight").exists()
+
+
+def test_a_limit_raised_above_the_default_lets_a_compressed_fmu_run(tmp_path):
+    """An FMU whose resources compress 1000 to 1 (over the default ratio of 200) is refused by default and
+    runs with a scenario's ``[limits] archive_ratio`` above it: loading the model checks the scenario's
+    limits, not the default ones."""
+    from reference_fmus import REF
+
+    dense = tmp_path / "Dahlquist.fmu"
+    with zipfile.ZipFile(REF / "fmi2" / "Dahlquist.fmu") as zi, \
+            zipfile.ZipFile(dense, "w", zipfile.ZIP_DEFLATED) as zo:
+        for info in zi.infolist():
+            zo.writestr(info, zi.read(info))
+        zo.writestr("resources/zeros.bin", bytes(8 * 1024**2))
+    doc = {"experiment": {"stop": 0.1, "step": 0.05}, "instances": {"a": {"fmu": str(dense)}}}
+    with pytest.raises(ScenarioError, match="ratio"):
+        system.resolve(scenario.parse(doc, "default.toml"))
+    plan = system.resolve(scenario.parse({**doc, "limits": {"archive_ratio": 1e5}}, "raised.toml"))
+    res = execution.run(plan, None, progress=False)
+    assert res.status == "ok" and res.steps == 2, res.message
 
 
 # ---------------------------------------------------------------------------------------------- SSP

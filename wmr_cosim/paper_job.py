@@ -18,7 +18,6 @@ from pathlib import Path
 from typing import Any
 
 from .cosim.archive import LimitOverrides
-from .cosim.errors import CosimError, ScenarioError
 from .cosim.status import RunStatus
 
 from .analysis import (RUNS, fidelity, load_signals, position_error, run_summary,
@@ -52,11 +51,8 @@ def _task_job(task: str, file: str, folder: str, variant: str, fmi: int = 2, pro
             print(run_line(variant, task, run, res), file=sys.stderr, flush=True)
 
     t0 = time.perf_counter()
-    try:
-        results = run_protocol(file, folder, resolver(fmi), variant=variant, progress=False,
-                               carry=carry_fmi3 if fmi == 3 else None, on_run=report, limits=archive_limits)
-    except ScenarioError as exc:   # (it does not unpickle in the parent, which would break the pool: same message)
-        raise CosimError(str(exc)) from None
+    results = run_protocol(file, folder, resolver(fmi), variant=variant, progress=False,
+                           carry=carry_fmi3 if fmi == 3 else None, on_run=report, limits=archive_limits)
     return {"task": task, "variant": variant, "wall_s": time.perf_counter() - t0,
             "runs": {n: {"status": r.status, "message": r.message, "wall_s": r.wall_s, "setup_s": r.setup_s,
                          "steps": r.steps} for n, r in results.items()}}
