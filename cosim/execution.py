@@ -87,7 +87,7 @@ class Execution:
         self.result: RunResult | None = None
         self.k_done = 0
         self.setup_s = self.wall_s = 0.0
-        self.fmi_s = [0.0]
+        self._fmi_acc = [0.0]   # [s] inside the step's FMI calls (with timing)
         self._recorder: Recorder | None = None
         self._builtin: list[Observer] = []
         self._script: ScriptChanges | None = None
@@ -157,7 +157,7 @@ class Execution:
         layout = self._layout = RowLayout.of(plan)
         wiring = self._wiring = Wiring(plan, layout)
         self.ios = [instance_io(plan, n, self.instances[n], layout, wiring, self.instances,
-                                self.fmi_s if self.timing else None) for n in plan.order]
+                                self._fmi_acc if self.timing else None) for n in plan.order]
         exchange_initial(self.ios, self.instances, wiring, layout, self.clock.start, self.check_inputs)
         for io in self.ios:
             self.instances[io.name].exit_initialization()
@@ -460,7 +460,7 @@ class Execution:
             t_end = final.get("time", t_end)
         res = RunResult(self.status, self.message, self.k_done, t_end, self.wall_s, self.setup_s,
                         self.folder.path if self.folder.keep else None, self.columns, final,
-                        self.fmi_s[0] if self.timing else None, self.events,
+                        self._fmi_acc[0] if self.timing else None, self.events,
                         self.pacer.summary() if self.pacer is not None else None)
         logs = {n: (i.log_lines, i.received) for n, i in self.instances.items()}
         write_results(self.folder, self.plan, res, self._recorder.file.rows if self._recorder else 0, logs)

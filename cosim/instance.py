@@ -230,15 +230,18 @@ class Instance(FmuInstance):
         fn, c = raw(self.fmu.dll, f"fmi2{op}{tname}"), ctypes.c_void_p(self.c)
         return (lambda vrs, n, buf, nv: fn(c, vrs, n, buf)), ctype
 
-    # ------------------------------------------------------------------ state
+    # ------------------------------------------------------------------ state (FMPy names both versions' alike)
+    def _state_call(self, op: str) -> str:
+        return f"fmi{self.fmi_version}{op}FMU{'state' if self.fmi_version == 2 else 'State'}"
+
     def get_state(self) -> Any:
-        return self.call("fmi2GetFMUstate", self.fmu.getFMUstate)
+        return self.call(self._state_call("Get"), self.fmu.getFMUState)
 
     def set_state(self, state: Any) -> None:
-        self.call("fmi2SetFMUstate", self.fmu.setFMUstate, state)
+        self.call(self._state_call("Set"), self.fmu.setFMUState, state)
 
     def free_state(self, state: Any) -> None:
-        self.call("fmi2FreeFMUstate", self.fmu.freeFMUstate, state)
+        self.call(self._state_call("Free"), self.fmu.freeFMUState, state)
 
     def shutdown(self) -> None:
         """Terminate (if initialised) and free, exactly once; nothing at all after a Fatal."""
@@ -337,15 +340,6 @@ class Instance3(Instance):
         ctype, tname = ACCESS[3][fmi_type]
         fn, c = raw(self.fmu.dll, f"fmi3{op}{tname}"), ctypes.c_void_p(self.c)
         return (lambda vrs, n, buf, nv: fn(c, vrs, n, buf, nv)), ctype
-
-    def get_state(self) -> Any:
-        return self.call("fmi3GetFMUState", self.fmu.getFMUState)
-
-    def set_state(self, state: Any) -> None:
-        self.call("fmi3SetFMUState", self.fmu.setFMUState, state)
-
-    def free_state(self, state: Any) -> None:
-        self.call("fmi3FreeFMUState", self.fmu.freeFMUState, state)
 
 
 def raw(dll: Any, name: str) -> Any:

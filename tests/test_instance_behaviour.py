@@ -539,3 +539,45 @@ def test_the_python_view_of_a_library_is_made_once():
     g = instance_mod.raw(libc, "labs")
     assert instance_mod._PYDLLS[libc._handle] is view
     assert f(-3) == 3 and g(-4) == 4 and f.restype is ctypes.c_int
+
+
+# ---------------------------------------------------------------- state, for the algorithms that roll back
+@pytest.mark.parametrize("version, isolated", [("fmi2", False), ("fmi3", False), ("fmi2", True), ("fmi3", True)])
+def test_a_saved_state_restores_the_instance_so_a_step_taken_again_gives_the_same_output(tmp_path, version,
+                                                                                        isolated):
+    """Dahlquist (x' = -k x, x(0) = 1, Euler inside): save at t = 0.1 s, step twice, restore, step once:
+    the output is that of the first step after the save, and not that of the second (rolled back)."""
+    import ctypes
+
+    from wmr_cosim.cosim.isolation import IsolatedInstance
+
+    model = load_model(REF / version / "Dahlquist.fmu")
+    unz = fmpy.extract(str(model.path), str(tmp_path / "unz"))
+    if isolated:
+        inst = IsolatedInstance("d", model.md, unz, None, "warning", 60.0, 0)
+    else:
+        inst = (Instance3 if version == "fmi3" else Instance)("d", model.md, unz)
+    try:
+        assert inst.can_get_and_set_state
+        inst.instantiate()
+        inst.setup_experiment(0.0, 1.0, None)
+        inst.enter_initialization()
+        fp = inst.fast_path([], 0, [model.variables["x"].vr], 1)
+        inst.exit_initialization()
+        T, H, out, vr, n = ctypes.c_double(0.0), ctypes.c_double(0.1), (ctypes.c_double * 1)(), \
+            (ctypes.c_uint * 1)(model.variables["x"].vr), ctypes.c_size_t(1)
+
+        def step(t):
+            T.value = t
+            assert fp.do_step(fp.c, T, H, *fp.step_tail) == 0
+            assert fp.get_real(fp.c, vr, n, out, *fp.get_tail) == 0
+            return out[0]
+        step(0.0)
+        saved = inst.get_state()
+        first, second = step(0.1), step(0.2)
+        inst.set_state(saved)
+        again = step(0.1)
+        inst.free_state(saved)
+        assert again == first != second and first == pytest.approx(0.81)
+    finally:
+        inst.shutdown()
