@@ -1,7 +1,7 @@
 """One benchmark of this checkout against another commit's code, interleaved (``bench.py NAME --against
-REV``): the commit is checked out into a temporary git worktree, and ``bench.py NAME --repeats 1`` runs in
-a fresh process in each tree in turn, ``repeats`` times, so that the machine's drifting load falls on both
-alike.  Each numeric figure's median over the rounds is given for both trees with their ratio (this /
+REV``): the commit is checked out into a temporary git worktree, and ``bench.py NAME --repeats R`` runs
+in a fresh process in each tree in turn, ``rounds`` times, so that the machine's drifting load falls on
+both alike.  Each numeric figure's median over the rounds is given for both trees with their ratio (this /
 that); a ratio above 1 for a time is this checkout slower."""
 from __future__ import annotations
 
@@ -31,24 +31,25 @@ def _worktree(rev: str, where: Path) -> Path:
     return tree
 
 
-def _one(tree: Path, name: str) -> dict[str, Any]:
+def _one(tree: Path, name: str, repeats: int) -> dict[str, Any]:
     env = dict(os.environ, PYTHONPATH=str(tree))
-    out = subprocess.run([sys.executable, str(tree / "benchmarks" / "bench.py"), name, "--repeats", "1"], cwd=tree,
+    out = subprocess.run([sys.executable, str(tree / "benchmarks" / "bench.py"), name, "--repeats", str(repeats)],
+                         cwd=tree,
                          env=env, capture_output=True, text=True)
     if out.returncode != 0:
         raise SystemExit(f"bench.py {name} in {tree} failed (exit {out.returncode}): {out.stderr.strip()[-2000:]}")
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def against(name: str, rev: str, repeats: int) -> dict[str, Any]:
+def against(name: str, rev: str, rounds: int, repeats: int = 1) -> dict[str, Any]:
     where = Path(tempfile.mkdtemp(prefix="wmr-cosim-against-"))
     try:
         that = _worktree(rev, where)
         runs: dict[str, list[dict[str, Any]]] = {"this": [], "that": []}
-        _one(that, name)   # the other tree's FMUs built, and both trees' caches warm, before the rounds
-        for _ in range(max(1, repeats)):
-            runs["this"].append(_one(ROOT, name))
-            runs["that"].append(_one(that, name))
+        _one(that, name, 1)   # the other tree's FMUs built, and both trees' caches warm, before the rounds
+        for _ in range(max(1, rounds)):
+            runs["this"].append(_one(ROOT, name, repeats))
+            runs["that"].append(_one(that, name, repeats))
     finally:
         subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(where / "tree")],
                        capture_output=True)
@@ -61,7 +62,7 @@ def against(name: str, rev: str, repeats: int) -> dict[str, Any]:
         a = statistics.median(r[key] for r in this)
         b = statistics.median(r[key] for r in that)
         figures[key] = {"this": a, "that": b, "ratio": round(a / b, 4) if b else None}
-    return {"against": rev, "rounds": repeats, "figures": figures}
+    return {"against": rev, "rounds": rounds, "repeats": repeats, "figures": figures}
 
 
 def _flat(figures: dict[str, Any], prefix: str = "") -> dict[str, float]:

@@ -64,8 +64,9 @@ NAME:
             first element), planted one at a time in cosim/ and components/ (benchmarks/bug_kinds.py):
             population, bugs (a sample of 60, seed 1), killed, kill_rate, by_kind, survivors, minutes.
 
-``--against REV`` runs NAME in this checkout and in a worktree of commit REV, interleaved, a fresh process
-per run (benchmarks/against.py): each figure's median for both and their ratio, this / that.
+``--against REV`` runs NAME in this checkout and in a worktree of commit REV, interleaved, ``--rounds``
+fresh processes each of ``--repeats`` runs (benchmarks/against.py): each figure's median over the rounds for
+both and their ratio, this / that.
 """
 from __future__ import annotations
 
@@ -733,11 +734,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("name", choices=sorted(BENCHES))
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--against", metavar="REV", help="run NAME here and in a worktree of commit REV, "
-                    "interleaved, --repeats rounds of one run each (benchmarks/against.py)")
+                    "interleaved: --rounds processes each, of --repeats runs (benchmarks/against.py)")
+    ap.add_argument("--rounds", type=int, default=5, help="with --against: processes per tree")
     args = ap.parse_args(argv)
     if args.against:
         from against import against
-        figures = against(args.name, args.against, args.repeats)
+        figures = against(args.name, args.against, args.rounds, args.repeats)
     else:
         figures = BENCHES[args.name](args.repeats)
     print(f"# {args.name} on {platform.python_implementation()} {platform.python_version()}, "
