@@ -1,7 +1,7 @@
 """One benchmark of this checkout against another commit's code, interleaved (``bench.py NAME --against
 REV``): the commit is checked out into a temporary git worktree, and ``bench.py NAME --repeats R`` runs
 in a fresh process in each tree in turn, ``rounds`` times, so that the machine's drifting load falls on
-both alike.  Each numeric figure's median over the rounds is given for both trees with their ratio (this /
+both alike (each tree first in every other round).  Each numeric figure's median over the rounds is given for both trees with their ratio (this /
 that); a ratio above 1 for a time is this checkout slower."""
 from __future__ import annotations
 
@@ -47,9 +47,9 @@ def against(name: str, rev: str, rounds: int, repeats: int = 1) -> dict[str, Any
         that = _worktree(rev, where)
         runs: dict[str, list[dict[str, Any]]] = {"this": [], "that": []}
         _one(that, name, 1)   # the other tree's FMUs built, and both trees' caches warm, before the rounds
-        for _ in range(max(1, rounds)):
-            runs["this"].append(_one(ROOT, name, repeats))
-            runs["that"].append(_one(that, name, repeats))
+        for r in range(max(1, rounds)):   # each tree first in every other round
+            for side, tree in (("this", ROOT), ("that", that))[::1 if r % 2 == 0 else -1]:
+                runs[side].append(_one(tree, name, repeats))
     finally:
         subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(where / "tree")],
                        capture_output=True)
