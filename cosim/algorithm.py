@@ -39,16 +39,23 @@ from __future__ import annotations
 import ctypes
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Any, Callable, NamedTuple
+from typing import TYPE_CHECKING, Any, Callable, NamedTuple
 
 from .failure import Call, Failure
 from .fmu_instance import FastPath
+
+if TYPE_CHECKING:
+    from .wiring import RowLayout
+
+#: ctypes arrays the loop reads and writes: doubles (values), unsigned ints (value references)
+Doubles = ctypes.Array[ctypes.c_double]
+Refs = ctypes.Array[ctypes.c_uint]
 
 class Copy(NamedTuple):
     """How one Real input takes its value each step: ``in_val[pos] = src[slot] * factor + offset``."""
 
     pos: int                 # position in the instance's input array
-    src: Any                 # the source array (a c_double array: the row's outputs, a table's, a held value)
+    src: Doubles             # the source array: the row's outputs, a table's values, a held value
     slot: int                # the index in it
     factor: float
     offset: float
@@ -74,10 +81,10 @@ class RecordedGetter:
     reads them into ``buf``; ``slots`` maps an index in ``buf`` to the row's slot."""
 
     get: Callable[[Any, Any, Any, Any], int]
-    vrs: Any
-    n: Any                                   # c_size_t: value references
-    buf: Any
-    nv: Any                                  # c_size_t: values
+    vrs: Refs
+    n: ctypes.c_size_t                       # value references
+    buf: ctypes.Array[Any]                   # of the type's ctypes element
+    nv: ctypes.c_size_t                      # values
     slots: list[tuple[int, int]]
 
 
@@ -87,18 +94,18 @@ class InstanceIO:
 
     name: str
     fast: FastPath                           # the raw step calls (fmu_instance.FastPath)
-    in_vr: Any                               # c_uint array: the Float64 inputs' value references
-    n_in: Any                                # c_size_t: their number
-    out_vr: Any                              # the Float64 outputs'
-    out_val: Any                             # a view into the row buffer
-    n_out: Any
+    in_vr: Refs                              # the Float64 inputs' value references
+    n_in: ctypes.c_size_t                    # their number
+    out_vr: Refs                             # the Float64 outputs'
+    out_val: Doubles                         # a view into the row buffer
+    n_out: ctypes.c_size_t
     copies: list[Copy] = field(default_factory=list)
     extras: list[RecordedGetter] = field(default_factory=list)
     other: list[Callable[[], int]] = field(default_factory=list)  # connections other than Float64 -> Float64
     feed: Callable[[int], int] | None = None       # tabulated inputs of step k (wiring.table_feeder)
 
     @property
-    def in_val(self) -> Any:
+    def in_val(self) -> Doubles:
         return self.fast.in_val
 
     def set_inputs(self) -> int:
@@ -118,7 +125,7 @@ class Algorithm(ABC):
     name = "?"
 
     @abstractmethod
-    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Any, chunk: list[bytes],
+    def setup(self, ios: list[InstanceIO], clock: Clock, layout: "RowLayout", chunk: list[bytes],
               check_inputs: bool = True) -> None: ...
 
     @abstractmethod
@@ -132,7 +139,7 @@ class GeneratedLoop(Algorithm):
     """A fixed-step algorithm whose loop is generated (see the module's docstring); a subclass says the
     order of work in a step in :meth:`body`."""
 
-    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Any, chunk: list[bytes],
+    def setup(self, ios: list[InstanceIO], clock: Clock, layout: "RowLayout", chunk: list[bytes],
               check_inputs: bool = True) -> None:
         self.ios, self.clock, self.layout, self.chunk, self.check_inputs = ios, clock, layout, chunk, check_inputs
         self.loop: Callable[[int, int], Failure | None] | None = None
@@ -266,7 +273,8 @@ class LoopSource:
 
 
 def compile_loop(ios: list[InstanceIO], body: Callable[[LoopSource, list[InstanceIO], str], None], clock: Clock,
-                 layout: Any, chunk: list[bytes], check_inputs: bool = True) -> Callable[[int, int], Failure | None]:
+                 layout: "RowLayout", chunk: list[bytes], check_inputs: bool = True
+                 ) -> Callable[[int, int], Failure | None]:
     """Generate and compile the loop ``loop(k0, k1)`` whose step is what ``body`` writes."""
     s = LoopSource(check_inputs)
     s.env.update({"row": layout.row, "irow": layout.irow, "buf": layout.buf, "append": chunk.append,

@@ -170,11 +170,10 @@ class Execution:
 
     def _start(self) -> None:
         """The algorithm set up; the built-in observers and the manipulators started."""
-        assert self._recorder is not None and self._wiring is not None
+        assert self._recorder is not None and self._wiring is not None and self._layout is not None
         self.algorithm.setup(self.ios, self.clock, self._layout, self._recorder.rows.chunk, self.check_inputs)
         actuator = self._actuator = Actuator(self.plan, self.instances, self._wiring)
         self._script = ScriptChanges(actuator)
-        assert self._layout is not None
         self.access = VariableAccess(self.plan, self.instances, self._layout, self._script)
         self.manipulators[:0] = [TimedEvents(actuator, self.plan.events),
                                  ConditionEvents(actuator, self.plan.conditions)]

@@ -33,11 +33,15 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any, Callable
+import ctypes
+from typing import TYPE_CHECKING, Any, Callable
 
 from .errors import RunError
 from .failure import Call, FmiStatus
 from .model import Variable
+
+if TYPE_CHECKING:   # (FMPy has no type information: to mypy this is Any)
+    from fmpy.model_description import ModelDescription
 
 
 @dataclass
@@ -46,23 +50,23 @@ class FastPath:
     ``set_real(c, in_vr, n_in, in_val, *set_tail)``, ``do_step(c, t, h, *step_tail)`` (``t`` and ``h``
     c_double) and ``get_real(c, out_vr, n_out, out_val, *get_tail)``, each returning an FMI status."""
 
-    c: Any                                 # the instance's handle (c_void_p)
+    c: ctypes.c_void_p                     # the instance's handle
     set_real: Callable[..., int]
     do_step: Callable[..., int]
     get_real: Callable[..., int]
-    in_val: Any                            # the input values (a c_double array the loop writes)
+    in_val: ctypes.Array[ctypes.c_double]  # the input values the loop writes
     set_tail: tuple[Any, ...] = ()
     step_tail: tuple[Any, ...] = ()
     get_tail: tuple[Any, ...] = ()
-    terminated: Any = None                 # a c_bool a step sets when the FMU ended the simulation (or None)
-    last_time: Any = None                  # a c_double: its last successful time [s] (with ``terminated``)
+    terminated: ctypes.c_bool | None = None   # set by a step after which the FMU ended the simulation
+    last_time: ctypes.c_double | None = None  # its last successful time [s] (with ``terminated``)
 
 
 class FmuInstance(ABC):
     """One FMU instance as the execution sees it (see the module's contract)."""
 
     name: str
-    md: Any                                # the FMU's model description (FMPy)
+    md: "ModelDescription"                 # the FMU's model description (FMPy)
     fmi_version: int = 2                   # 2 or 3: for the names of calls in messages
     fatal: bool = False
     n_errors: int = 0

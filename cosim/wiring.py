@@ -17,7 +17,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .algorithm import Copy
+from .algorithm import Copy, Doubles
 from .errors import RunError
 from .fmu_instance import FmuInstance
 from .instance import accessor, real_array, vr_array
@@ -25,8 +25,6 @@ from .inputs import InputPlan
 from .model import Variable
 from .system import ConnectionPlan, EventPlan, Plan, RecordPlan
 
-#: A ctypes array of doubles: the row's outputs, a table's values, an override's value.
-Doubles = ctypes.Array[ctypes.c_double]
 
 
 def is_f64(var: Variable) -> bool:
