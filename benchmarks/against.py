@@ -1,8 +1,9 @@
 """One benchmark of this checkout against another commit's code, interleaved (``bench.py NAME --against
-REV``): the commit is checked out into a temporary git worktree, and ``bench.py NAME --repeats R`` runs
-in a fresh process in each tree in turn, ``rounds`` times, so that the machine's drifting load falls on
-both alike (each tree first in every other round).  Each numeric figure's median over the rounds is given for both trees with their ratio (this /
-that); a ratio above 1 for a time is this checkout slower."""
+REV``): HEAD and the commit are checked out into temporary git worktrees (alike but for their code), and
+``bench.py NAME --repeats R`` runs in a fresh process in each in turn, ``rounds`` times, each first in every
+other round, so that the machine's drifting load falls on both alike.  Each numeric figure's median over
+the rounds is given for both trees with their ratio (this / that); a ratio above 1 for a time is this
+checkout slower.  ``--against HEAD`` measures the method's own noise (the same code on both sides)."""
 from __future__ import annotations
 
 import json
@@ -21,8 +22,8 @@ ROOT = Path(__file__).resolve().parents[1]
 LINKED = ("cosim", "components", "fmus", "scenarios")
 
 
-def _worktree(rev: str, where: Path) -> Path:
-    tree = where / "tree"
+def _worktree(rev: str, where: Path, name: str) -> Path:
+    tree = where / name
     subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "--quiet", str(tree), rev], check=True)
     for name in LINKED:
         link = tree / "wmr_cosim" / name
@@ -42,17 +43,21 @@ def _one(tree: Path, name: str, repeats: int) -> dict[str, Any]:
 
 
 def against(name: str, rev: str, rounds: int, repeats: int = 1) -> dict[str, Any]:
+    """``this`` is a worktree of the checkout's HEAD (so that both trees are alike but for their code: same
+    kind of folder, FMUs built the same way; commit what is to be measured), ``that`` one of ``rev``."""
     where = Path(tempfile.mkdtemp(prefix="wmr-cosim-against-"))
     try:
-        that = _worktree(rev, where)
+        this, that = _worktree("HEAD", where, "this"), _worktree(rev, where, "that")
         runs: dict[str, list[dict[str, Any]]] = {"this": [], "that": []}
-        _one(that, name, 1)   # the other tree's FMUs built, and both trees' caches warm, before the rounds
+        for tree in (this, that):   # each tree's FMUs built, and the caches warm, before the rounds
+            _one(tree, name, 1)
         for r in range(max(1, rounds)):   # each tree first in every other round
-            for side, tree in (("this", ROOT), ("that", that))[::1 if r % 2 == 0 else -1]:
+            for side, tree in (("this", this), ("that", that))[::1 if r % 2 == 0 else -1]:
                 runs[side].append(_one(tree, name, repeats))
     finally:
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(where / "tree")],
-                       capture_output=True)
+        for tree in ("this", "that"):
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(where / tree)],
+                           capture_output=True)
         shutil.rmtree(where, ignore_errors=True)
     this, that = [_flat(r) for r in runs["this"]], [_flat(r) for r in runs["that"]]
     figures: dict[str, Any] = {}
