@@ -38,7 +38,7 @@ PLATFORMS = {2: "linux64", 3: "x86_64-linux"}
 
 @dataclass
 class Variable:
-    """One scalar variable of an FMU (FMI 2.0)."""
+    """One variable of an FMU (FMI 2.0 or 3.0; an FMI 3.0 array with its shape)."""
 
     name: str
     vr: int

@@ -1,8 +1,8 @@
 """Resolve a scenario against its FMUs: every check that can be made before the first step.
 
 Checks (each a ScenarioError naming the file, the field and the reason): a missing or unsafe FMU file,
-an FMU that is not FMI 2.0 co-simulation, a variable that does not exist, wrong causality (an input driven
-twice, an output or parameter used as a connection target, a connection from a non-output), a type
+an FMU that is not FMI 2.0 or 3.0 co-simulation, a variable that does not exist, wrong causality (an input
+driven twice, an output or parameter used as a connection target, a connection from a non-output), a type
 mismatch, a unit mismatch (convertible units are converted), a step the FMU cannot take, a parameter or
 start value of the wrong type or outside the min/max the model description declares.
 """
