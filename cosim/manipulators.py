@@ -17,6 +17,10 @@ A manipulator is an object behind :class:`Manipulator`.  Its contract:
 All of them act through one :class:`Actuator`, which knows how a value reaches a variable (the wiring's
 copies for a Real input or an output feeding connections; the FMU for a parameter or an input no
 connection drives) and writes the event log.
+
+Tabulated inputs (CSV tables, ``cosim.inputs``) are not a manipulator: their values change at every step,
+so a manipulator would make every segment one step long; they are put in place inside the algorithm's
+loop instead (``InstanceIO.feed``, built by ``wiring.table_feeder``), at no cost to a plan without them.
 """
 from __future__ import annotations
 
