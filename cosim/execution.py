@@ -72,9 +72,9 @@ class Execution:
                  timing: bool = False, check_inputs: bool = True, real_time: float | None = None,
                  algorithm: Algorithm | None = None, keep_signals: bool = False) -> None:
         sc = plan.scenario
-        assert sc.start is not None and sc.step is not None   # (resolved from the FMUs' defaults)
+        start, _, step = sc.times()
         self.plan = plan
-        self.clock = Clock(sc.start, sc.step, plan.n_steps, sc.decimation)
+        self.clock = Clock(start, step, plan.n_steps, sc.decimation)
         self.algorithm = algorithm if algorithm is not None else algorithm_for(sc.algorithm)
         self.progress, self.timing, self.check_inputs, self.keep_signals = progress, timing, check_inputs, keep_signals
         self.pacer = Pacer(real_time) if real_time is not None else None
@@ -97,21 +97,17 @@ class Execution:
         self.access: VariableAccess | None = None   # the variables by reference, once initialised
         self._errors: dict[str, int] = {}          # each instance's logged errors before the segment
         self._pacing: Pacing | None = None
+        self._per_step = False                     # some observer or manipulator must see every step
         self._stop_requested = False
         self._in_step = False
         self._started = False
-        self._work = Path(tempfile.mkdtemp(prefix="wmr-cosim-fmus-"))
-        try:
-            self.folder = ResultsFolder(out)
-        except BaseException:
-            shutil.rmtree(self._work, ignore_errors=True)
-            raise
+        self.folder = ResultsFolder(out)
         try:
             self.folder.prepare(plan)
         except BaseException:
             self.folder.release()
-            shutil.rmtree(self._work, ignore_errors=True)
             raise
+        self._work = Path(tempfile.mkdtemp(prefix="wmr-cosim-fmus-"))
 
     # ------------------------------------------------------------------ state
     @property
@@ -186,24 +182,30 @@ class Execution:
             o.started(self)
         if self.pacer is not None:
             self._pacing = Pacing(self.pacer)   # (its clock starts with the first step: see _advance)
+        self._update_per_step()
 
     # ------------------------------------------------------------------ observers and manipulators
     def add_observer(self, obs: Observer) -> Observer:
         """Call ``obs`` from now on (after the observers added before it)."""
-        if self.result is not None:
-            raise CosimError(self._ended_message())
-        self.observers.append(obs)
-        if self._started:
-            obs.started(self)
-        return obs
+        return self._add(self.observers, obs)
 
     def add_manipulator(self, m: Manipulator) -> Manipulator:
+        """Let ``m`` act from now on (after the scenario's events and the manipulators added before it)."""
+        return self._add(self.manipulators, m)
+
+    def _add(self, parts: list[Any], part: Any) -> Any:
         if self.result is not None:
             raise CosimError(self._ended_message())
-        self.manipulators.append(m)
+        parts.append(part)
         if self._started:
-            m.started(self)
-        return m
+            part.started(self)
+        self._update_per_step()
+        return part
+
+    def _update_per_step(self) -> None:
+        """Whether the segments must be one step long (worked out when the parts change, not per segment)."""
+        self._per_step = (any(p.per_step for p in self._builtin + self.observers + self.manipulators)
+                          or self._pacing is not None)
 
     def on_step(self, fn: Callable[[], Any]) -> Observer:
         """Call ``fn()`` after every step from now on."""
@@ -220,8 +222,7 @@ class Execution:
 
     def simulate_until(self, t: float | None = None) -> RunStatus:
         """Step to ``t`` [s] as :meth:`step_to` does, or to the stop time (None)."""
-        return self._advance(self.clock.n_steps if t is None else
-                             int(math.ceil((float(t) - self.clock.start) / self.clock.step - 1e-9)))
+        return self._advance(self.clock.n_steps) if t is None else self.step_to(t)
 
     def _advance(self, k_target: int) -> RunStatus:
         """Segments up to step ``k_target``.  The run ends (the result set, the FMUs freed) at its stop
@@ -276,11 +277,10 @@ class Execution:
     def _segment_end(self, k: int, k_target: int) -> int:
         """The nearest of ``k_target``, the observers' boundaries and the manipulators' next actions (one
         step while any of them must see every step)."""
-        parts = self._builtin + self.observers
-        if any(p.per_step for p in parts) or any(m.per_step for m in self.manipulators) or self._pacing:
+        if self._per_step:
             return k + 1
         k_end = k_target
-        for o in parts:
+        for o in self._builtin + self.observers:
             b = o.boundary(k)
             if b is not None:
                 k_end = min(k_end, max(b, k + 1))

@@ -370,13 +370,6 @@ ACCESS = {
 }
 
 
-def accessor(inst: FmuInstance, fmi_type: str, op: str) -> tuple[Any, Any]:
-    """(call, ctype): ``call(vrs, n, buf, n_values)`` gets (``op`` "Get") or sets ("Set") values of
-    ``fmi_type`` on the instance with one raw FMI call (FMI 2.0 ignores n_values); ctype is the element
-    type of ``buf`` (:meth:`.fmu_instance.FmuInstance.accessor`)."""
-    return inst.accessor(fmi_type, op)
-
-
 def real_array(values) -> Any:
     """A ctypes fmi2Real array of the values."""
     values = list(values)

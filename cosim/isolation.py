@@ -22,6 +22,7 @@ to a file beside the instance's log, so an FMU writing junk to stdout cannot dis
 from __future__ import annotations
 
 import ctypes
+import itertools
 import os
 import pickle
 import select
@@ -234,7 +235,8 @@ class _Server:
         self.cap = (shm.size - _HEAD) // 16
         self.fast: Any = None                 # the instance's FastPath, once configured
         self.io: tuple[Any, ...] = ()         # (in_vr, n_in, out_vr, n_out, out_val)
-        self.states: dict[int, Any] = {}
+        self.states: dict[int, Any] = {}      # the instance's saved states, by the key the master holds
+        self.keys = itertools.count(1)
         self.T, self.H = ctypes.c_double(0.0), ctypes.c_double(0.0)
 
     def configure(self, in_vrs: list[int], n_in: int, out_vrs: list[int], n_out: int) -> None:
@@ -291,9 +293,7 @@ class _Server:
         return call(vr_array(vrs), ctypes.c_size_t(len(vrs)), buf, ctypes.c_size_t(len(values)))
 
     def get_state(self) -> int:
-        key = len(self.states) + 1
-        while key in self.states:
-            key += 1
+        key = next(self.keys)
         self.states[key] = self.inst.get_state()
         return key
 

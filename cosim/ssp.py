@@ -48,7 +48,8 @@ from .kinds import FileKind, file_kind
 from .archive import ArchiveLimits, LimitOverrides, check_archive, check_entries, check_sizes, safe_extract
 from .errors import CosimError, FmuLoadError, ScenarioError
 from .scenario import Scenario, apply_overrides, parse
-from .system import Plan, load_checked_model, unit_of
+from .model import load_model
+from .system import Plan, unit_of
 
 SSP_VERSION = "1.0"
 FMU_MIME = "application/x-fmu-sharedlibrary"
@@ -521,7 +522,7 @@ def _join_array_elements(instances: dict[str, dict[str, Any]], where: str, limit
         bases = {n[:n.rindex("[")] for n in params if n.endswith("]") and "[" in n}
         if not bases:
             continue
-        model = load_checked_model(d["fmu"], limits)
+        model = load_model(d["fmu"], limits)
         for base in sorted(bases):
             var = model.variables.get(base)
             if var is None or not var.shape:
@@ -718,7 +719,7 @@ def _components(system, path: Path, arch: Path, limits: ArchiveLimits
         if not src or not fmu.is_file():
             raise ScenarioError(where, f"{fld}.source", f"resource {src!r} is missing from the archive")
         try:
-            model = load_checked_model(fmu, limits)
+            model = load_model(fmu, limits)
         except FmuLoadError as exc:
             raise ScenarioError(where, f"{fld}.source", f"{src}: {str(exc).replace(f'{fmu}: ', '', 1)}") from None
         units: dict[str, str] = {}

@@ -11,7 +11,6 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-import os
 import re
 from dataclasses import dataclass, field
 from typing import Any, cast
@@ -483,11 +482,6 @@ def _condition_reads(file: str, fld: str, e: Any, insts: dict[str, InstancePlan]
     return reads
 
 
-def load_checked_model(path: str | os.PathLike, limits: ArchiveLimits = DEFAULT_LIMITS) -> FmuModel:
-    """:func:`~.model.load_model` of an FMU whose archive is checked against ``limits``."""
-    return load_model(path, limits)
-
-
 def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) -> Plan:
     """Load every FMU of the scenario and run all the checks (the one preflight that ``check`` and ``run``
     share); returns the executable plan.  ``force`` lifts the limits of steps and recording size;
@@ -543,7 +537,7 @@ def _instance_plan(sc: Scenario, name: str, spec: InstanceSpec, notes: list[str]
     if spec.fmu_path is None:   # (parse gives every instance a file or refuses it)
         raise ScenarioError(file, f"instances.{name}.fmu", f"no FMU file for {spec.fmu!r}")
     try:
-        model = load_checked_model(spec.fmu_path, sc.archive_limits)
+        model = load_model(spec.fmu_path, sc.archive_limits)
     except FmuLoadError as exc:
         raise ScenarioError(file, f"instances.{name}.fmu", str(exc)) from None
     ip = InstancePlan(name, spec, model, {o: t for t, o in spec.names.items()}, dict(spec.names))

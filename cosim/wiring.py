@@ -20,7 +20,7 @@ import numpy as np
 from .algorithm import Copy, Doubles
 from .errors import RunError
 from .fmu_instance import FmuInstance
-from .instance import accessor, real_array, vr_array
+from .instance import real_array, vr_array
 from .inputs import InputPlan
 from .model import Variable
 from .system import ConnectionPlan, EventPlan, Plan, RecordPlan
@@ -259,7 +259,7 @@ def table_feeder(inst: FmuInstance, table: tuple[Doubles, np.ndarray] | None, di
         steps.append(reals)
     for t in sorted({ip.var.fmi_type for ip in discrete}):
         cols = [ip for ip in discrete if ip.var.fmi_type == t]
-        put, ctype = accessor(inst, t, "Set")
+        put, ctype = inst.accessor(t, "Set")
         vrs, n = vr_array([ip.var.vr for ip in cols]), ctypes.c_size_t(len(cols))
         buf = (ctype * len(cols))()
         mat: list[list[Any]]   # the values of each step, of the FMI type's ctype
@@ -296,8 +296,8 @@ def discrete_copier(instances: dict[str, FmuInstance], c: ConnectionPlan) -> Cal
     integers, enumerations, booleans and strings as they are; reals of another width through the factor
     and offset; Boolean -> Real as 0 or 1 through the factor and offset; Real -> Boolean as value > threshold."""
     n = c.src_var.size
-    get, gt = accessor(instances[c.src], c.src_var.fmi_type, "Get")
-    put, pt = accessor(instances[c.dst], c.dst_var.fmi_type, "Set")
+    get, gt = instances[c.src].accessor(c.src_var.fmi_type, "Get")
+    put, pt = instances[c.dst].accessor(c.dst_var.fmi_type, "Set")
     svr, dvr = vr_array([c.src_var.vr]), vr_array([c.dst_var.vr])
     one, nv = ctypes.c_size_t(1), ctypes.c_size_t(n)
     ibuf, obuf = (gt * n)(), (pt * n)()

@@ -18,7 +18,7 @@ from fmpy import read_model_description
 from .cosim.archive import DEFAULT_LIMITS, ArchiveLimits, check_archive
 from .cosim.errors import FmuLoadError
 from .cosim.model import fmi_version
-from .cosim.system import load_checked_model
+from .cosim.model import load_model
 
 #: The largest double: a bound of this size (or infinite) is no bound, and is shown as nothing.
 UNBOUNDED = 1.7976931348623157e308
@@ -64,7 +64,7 @@ def why_not_runnable(path: Path, md: Any, limits: ArchiveLimits = DEFAULT_LIMITS
         only = "Scheduled Execution" if getattr(md, "scheduledExecution", None) is not None else "Model Exchange"
         return f"{only} only (the master runs co-simulation FMUs)"
     try:
-        load_checked_model(path, limits)
+        load_model(path, limits)
     except FmuLoadError as exc:
         return str(exc).replace(f"{path}: ", "", 1)
     return None

@@ -12,6 +12,7 @@ from typing import Any
 from .cosim import execution, scenario, ssp, system
 from .cosim.archive import LimitOverrides
 from .cosim.kinds import FileKind, file_kind
+from .cosim.model import load_model
 from .cosim.protocol import Protocol
 from .cosim.status import RunStatus
 from .cosim.errors import CosimError, ScenarioError
@@ -137,7 +138,7 @@ def fmu_document(fmu: str | Path, inputs: str | Path | None = None, stop: float 
     import re
 
     path = Path(fmu).resolve()
-    model = system.load_checked_model(path, (limits or LimitOverrides()).over())
+    model = load_model(path, (limits or LimitOverrides()).over())
     name = re.sub(r"\W", "_", model.md.coSimulation.modelIdentifier) or "fmu"
     name = name if name.isidentifier() else f"fmu_{name}"
     doc: dict[str, Any] = {"instances": {name: {"fmu": str(path)}}, "record": {"variables": ["*.*"]}}
