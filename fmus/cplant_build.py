@@ -2,7 +2,8 @@
 C compiler through the CMake project and FMI 2.0 headers that FMPy ships (``fmpy/c-code``).
 
 The FMU holds ``modelDescription.xml``, ``sources/`` (so it is also a source FMU any tool can rebuild)
-and ``binaries/linux64/WmrCPlant.so``.  It is rebuilt only when its inputs change: a SHA-256 over the model
+and ``binaries/linux64/WmrCPlant.so``, one library for both of its interfaces, co-simulation and Model
+Exchange (one ``modelIdentifier``).  It is rebuilt only when its inputs change: a SHA-256 over the model
 description, the C sources, this script, FMPy's CMake project and the compiler's identity is stored
 beside it (``WmrCPlant.fmu.sha256``).  Needs ``cmake`` (>= 3.15) and a C compiler (gcc or clang) on PATH.
 

@@ -1,6 +1,9 @@
 """The plant FMU from another toolchain (fmus/c_plant/, WmrCPlant.fmu): built from its C sources with cmake
 and the C compiler, valid for FMPy, bit-identical to components/plant.py step for step, and swapped into
-the G1 learning run by scenarios/g1_c_plant.toml (other names, degrees, rpm) with the same metrics."""
+the G1 learning run by scenarios/g1_c_plant.toml (other names, degrees, rpm) with the same metrics.  Its
+Model Exchange interface (the same library), driven by FMPy alone: CVode and Euler agree with the
+co-simulation interface, the foam's kinks are time events and its region's entry a state event, a
+non-finite input is an error; the FMU state rolls both interfaces back."""
 from __future__ import annotations
 
 import math
@@ -229,3 +232,334 @@ def test_cli_build_with_the_c_plant(tmp_path):
     assert p.returncode == 0, p.stderr
     assert (tmp_path / "WmrCPlant.fmu").is_file() and (tmp_path / "WmrPlant.fmu").is_file()
     assert "WmrCPlant" in p.stdout
+
+
+# ------------------------------------------------------------------------------------------ Model Exchange
+#: The Model Exchange states (value references 34-40) and their derivatives (41-47), in SI units.
+STATES = ("state_phi_right", "state_phi_left", "state_omega_right", "state_omega_left", "state_pos_x",
+          "state_pos_y", "state_heading")
+DERS = tuple("der_" + s[len("state_"):] for s in STATES)
+OUTS = ["phi_right", "omega_right", "pos_x", "pos_y", "heading", "dist_total_right", "foam_lambda"]
+#: Constant drive torques [N.m]: the robot accelerates and turns left (0.44 m, 12.7 deg in 2 s).
+DRIVE = {"torque_right": 3.0, "torque_left": 2.6}
+H = 0.002
+FOAM_BY_TIME = {**DRIVE, "foam_at_time": True, "foam_time": 0.7013, "foam_ramp_time": 0.25,
+                "foam_rise_right": 0.4, "foam_rise_left": 0.5}
+FOAM_BY_REGION = {**DRIVE, "foam_in_region": True, "foam_x_lo": 0.05, "foam_x_hi": 5.0, "foam_y_lo": -5.0,
+                  "foam_y_hi": 5.0, "foam_ramp_time": 0.05, "foam_rise_right": 0.3, "foam_rise_left": 0.2}
+
+
+def _me(c_plant, start, stop=2.0, solver="CVode", **kw):
+    from fmpy import simulate_fmu
+
+    if solver == "CVode":
+        kw.setdefault("relative_tolerance", 1e-10)
+        kw.setdefault("output_interval", H)
+    return simulate_fmu(str(c_plant), fmi_type="ModelExchange", solver=solver, stop_time=stop,
+                        start_values=start, output=OUTS, **kw)
+
+
+def _cs(c_plant, start, stop=2.0):
+    from fmpy import simulate_fmu
+
+    return simulate_fmu(str(c_plant), fmi_type="CoSimulation", stop_time=stop, output_interval=H,
+                        start_values={**start, "rk4_substeps": 20}, output=OUTS)
+
+
+def _grid(res, h=H):
+    """The rows on the output grid k h (FMPy adds rows at events: the last of equal times is kept)."""
+    t = res["time"]
+    keep = np.abs(t / h - np.round(t / h)) < 1e-6
+    keep[:-1] &= t[:-1] != t[1:]
+    return res[keep]
+
+
+def _event_times(res):
+    """FMPy's rows at an event: two with the same time, before and after it."""
+    t = res["time"]
+    return t[1:][t[1:] == t[:-1]]
+
+
+def _worst(a, b, names=OUTS):
+    assert len(a) == len(b) and np.abs(a["time"] - b["time"]).max() < 1e-12
+    return {n: float(np.abs(a[n] - b[n]).max()) for n in names}
+
+
+def test_one_archive_two_interfaces_one_library_and_the_states_declared(c_plant):
+    import tomllib
+    import zipfile
+
+    from fmpy import read_model_description
+
+    md = read_model_description(str(c_plant), validate=True)
+    assert md.modelExchange.modelIdentifier == md.coSimulation.modelIdentifier == "WmrCPlant"
+    assert [n for n in zipfile.ZipFile(c_plant).namelist() if n.startswith("binaries/")] == \
+        ["binaries/linux64/WmrCPlant.so"]
+    assert md.modelExchange.canGetAndSetFMUstate and md.coSimulation.canGetAndSetFMUstate
+    assert md.numberOfEventIndicators == 1 and md.numberOfContinuousStates == 7
+    v = {x.name: x for x in md.modelVariables}
+    # the existing value references are unchanged; the states and derivatives follow them
+    assert [v[n].valueReference for n in ("inertia_a1", "torque_right", "phi_right", "foam_lambda")] == [0, 20, 24, 33]
+    assert [v[n].valueReference for n in STATES + DERS] == list(range(34, 48))
+    assert [d.variable.name for d in md.derivatives] == list(DERS)
+    assert [d.variable.derivative.name for d in md.derivatives] == list(STATES)
+    assert all(v[n].causality == "local" and v[n].variability == "continuous" for n in STATES + DERS)
+    assert [v[n].unit for n in STATES] == ["rad", "rad", "rad/s", "rad/s", "m", "m", "rad"]
+    # no clash with the name map that swaps the plant into G1 (FMU names nor the scenario's)
+    names = tomllib.loads(G1_C.read_text())["instances"]["plant"]["names"]
+    assert not (set(STATES + DERS) & (set(names) | set(names.values())))
+
+
+def test_model_exchange_with_cvode_matches_the_co_simulation_interface(c_plant):
+    me, cs = _me(c_plant, DRIVE), _cs(c_plant, DRIVE)
+    assert cs["pos_x"][-1] > 0.4 and cs["heading"][-1] > 10.0         # it drove and turned
+    worst = _worst(me, cs)
+    print("ME (CVode 1e-10) - CS (RK4, 20 substeps of 0.1 ms), max |diff|:", worst)
+    # measured: 3.8e-11 m, 2.5e-11 m, 1.5e-9 deg, 3.0e-8 rpm
+    assert worst["pos_x"] < 1e-9 and worst["pos_y"] < 1e-9
+    assert worst["heading"] < 1e-7 and worst["phi_right"] < 1e-7 and worst["omega_right"] < 1e-6
+    assert worst["foam_lambda"] == 0.0
+
+
+def test_model_exchange_with_euler_converges_to_it_at_first_order(c_plant):
+    cs = _cs(c_plant, DRIVE, stop=1.0)
+    err = []
+    for h in (2e-4, 1e-4):
+        me = _grid(_me(c_plant, DRIVE, stop=1.0, solver="Euler", step_size=h, output_interval=h))
+        w = _worst(me, cs, ("pos_x", "pos_y"))
+        err.append(max(w.values()))
+    print("ME (Euler 0.2 ms, 0.1 ms) - CS, max |diff| of pos_x, pos_y [m]:", err)
+    # measured: 8.8e-6 m, 4.4e-6 m
+    assert err[1] < 1e-5
+    assert err[0] / err[1] == pytest.approx(2.0, rel=0.05)
+
+
+def test_foam_by_time_its_kinks_are_time_events_and_both_interfaces_agree(c_plant):
+    t_on, ramp = FOAM_BY_TIME["foam_time"], FOAM_BY_TIME["foam_ramp_time"]
+    me = _me(c_plant, FOAM_BY_TIME, record_events=True)
+    assert _event_times(me).tolist() == pytest.approx([t_on, t_on + ramp], abs=1e-12)
+    assert _event_times(_me(c_plant, DRIVE, record_events=True)).size == 0
+    cs = _cs(c_plant, FOAM_BY_TIME)
+    assert cs["foam_lambda"][-1] == 1.0 and 0.0 < np.interp(0.8, cs["time"], cs["foam_lambda"]) < 1.0
+    worst = _worst(_grid(me), cs)
+    print("foam by time, ME (CVode 1e-10) - CS, max |diff|:", worst)
+    # measured: 5.6e-11 m, 5.1e-12 m, 4.4e-16, 2.8e-10 N.m
+    assert worst["pos_x"] < 1e-9 and worst["pos_y"] < 1e-9
+    assert worst["foam_lambda"] < 1e-12 and worst["dist_total_right"] < 1e-8
+
+
+def test_foam_by_region_is_reached_at_the_state_event_of_the_edge_crossing(c_plant):
+    x_lo, ramp = FOAM_BY_REGION["foam_x_lo"], FOAM_BY_REGION["foam_ramp_time"]
+    me = _me(c_plant, FOAM_BY_REGION, stop=1.0, record_events=True)
+    ev = _event_times(me)
+    assert ev.size == 2 and ev[1] == pytest.approx(ev[0] + ramp, abs=1e-12)   # entry, then the ramp's end
+    t_ev = ev[0]
+    # where x_A crosses foam_x_lo on the trajectory (grid rows only, a cubic through the four around it)
+    g = _grid(me)
+    k = int(np.searchsorted(g["pos_x"], x_lo))
+    t4, x4 = g["time"][k - 2:k + 2], g["pos_x"][k - 2:k + 2]
+    roots = np.roots(np.polyfit(t4 - t4[1], x4 - x_lo, 3)) + t4[1]
+    t_cross = float(next(r.real for r in roots if abs(r.imag) < 1e-12 and t4[1] <= r.real <= t4[2]))
+    print(f"foam by region: state event at {t_ev!r} s, x_A crosses x_lo at {t_cross!r} s")
+    # measured: 4.5e-10 s apart (the cubic's error: 2 ms rows); A is on the edge at the event
+    assert t_ev == pytest.approx(t_cross, abs=1e-8)
+    assert np.abs(me["pos_x"][me["time"] == t_ev] - x_lo).max() < 1e-10
+    # the foam level starts rising at the event: 0 up to it, (t - t_ev) / ramp on the ramp
+    lam, t = g["foam_lambda"], g["time"]
+    assert np.all(lam[t <= t_ev] == 0.0) and np.all(lam[t > t_ev] > 0.0)
+    on = (t > t_ev) & (t < t_ev + ramp)
+    assert np.abs(lam[on] - (t[on] - t_ev) / ramp).max() < 1e-12
+    # co-simulation keeps its behaviour: the region is checked at each step's start
+    cs = _cs(c_plant, FOAM_BY_REGION, stop=1.0)
+    t_cs = cs["time"][np.argmax(cs["pos_x"] >= x_lo)]        # the first step that starts inside
+    assert cs["foam_lambda"][cs["time"] <= t_cs + 1e-12].max() == 0.0
+    assert np.interp(t_cs + H, cs["time"], cs["foam_lambda"]) == pytest.approx(H / ramp, abs=1e-9)
+
+
+_NON_FINITE = r"""
+import math, sys
+from fmpy import extract, read_model_description, simulate_fmu
+from fmpy.fmi2 import FMU2Model
+path = sys.argv[1]
+md = read_model_description(path)
+vr = {v.name: v.valueReference for v in md.modelVariables}
+m = FMU2Model(guid=md.guid, unzipDirectory=extract(path), modelIdentifier="WmrCPlant", instanceName="p")
+m.instantiate()
+m.setupExperiment(startTime=0.0)
+m.enterInitializationMode()
+m.exitInitializationMode()
+m.newDiscreteStates()
+m.enterContinuousTimeMode()
+from ctypes import c_double
+dx = (c_double * 7)()
+m.getDerivatives(dx, 7)
+print("finite:", list(dx)[2] == 0.0)
+m.setReal([vr["dist_left"]], [math.nan])
+try:
+    m.getDerivatives(dx, 7)
+    print("no error:", list(dx))
+except Exception as exc:
+    print("refused:", exc)
+try:
+    m.getDerivatives(dx, 7)
+except Exception as exc:
+    print("refused again:", exc)
+m.terminate()
+m.freeInstance()
+try:
+    r = simulate_fmu(path, fmi_type="ModelExchange", solver="Euler", step_size=1e-3, stop_time=0.01,
+                     start_values={"torque_right": math.inf})
+    print("simulated:", r["pos_x"][-1])
+except Exception as exc:
+    print("simulation refused:", exc)
+"""
+
+
+def test_a_non_finite_input_is_an_error_of_fmi2GetDerivatives_not_a_nan(c_plant, tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "TMPDIR": str(tmp_path)}        # FMPy's extraction folders: the test's own
+    p = subprocess.run([sys.executable, "-c", _NON_FINITE, str(c_plant)], capture_output=True, text=True,
+                       timeout=120, cwd=tmp_path, env=env)
+    assert p.returncode == 0, p.stderr[-2000:]
+    out = p.stdout
+    assert "finite: True" in out and "no error" not in out and "simulated:" not in out, out
+    assert "refused: fmi2GetDerivatives failed with status 3 (error)" in out
+    assert "derivatives at t = 0 s: non-finite input (torque_right = 0, torque_left = 0, dist_right = 0, " \
+           "dist_left = nan N.m)" in out
+    assert "fmi2GetDerivatives at t = 0 s refused: an earlier call failed" in out      # until a reset
+    assert "simulation refused: fmi2GetDerivatives failed" in out and "torque_right = inf" in out
+
+
+def _model(c_plant, unzip_dir, start):
+    """A Model Exchange instance of WmrCPlant in event mode after initialisation with ``start``."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Model
+
+    md = read_model_description(str(c_plant))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    m = FMU2Model(guid=md.guid, unzipDirectory=extract(str(c_plant), unzipdir=str(unzip_dir)),
+                  modelIdentifier="WmrCPlant", instanceName="p")
+    m.instantiate()
+    m.setupExperiment(startTime=0.0)
+    reals = {k: float(v) for k, v in start.items() if not isinstance(v, bool)}
+    bools = {k: v for k, v in start.items() if isinstance(v, bool)}
+    m.setReal([vr[k] for k in reals], list(reals.values()))
+    m.setBoolean([vr[k] for k in bools], list(bools.values()))
+    m.enterInitializationMode()
+    m.exitInitializationMode()
+    return m, vr
+
+
+def test_model_exchange_calls_the_states_derivatives_and_the_region_indicator(c_plant, tmp_path):
+    from ctypes import c_double
+
+    m, vr = _model(c_plant, tmp_path, {**FOAM_BY_REGION, "start_heading": 30.0})
+    with pytest.raises(Exception, match="fmi2SetBoolean"):      # a fixed parameter after initialisation
+        m.setBoolean([vr["foam_in_region"]], [False])
+    assert m.newDiscreteStates()[4] is False            # no time event before the foam is reached
+    m.enterContinuousTimeMode()
+    x, dx, z = (c_double * 7)(), (c_double * 7)(), (c_double * 1)()
+    m.getContinuousStates(x, 7)
+    assert list(x) == [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, math.radians(30.0)]
+    m.getEventIndicators(z, 1)
+    assert z[0] == -0.05                                  # min(x_A - x_lo, ...): 0.05 m from the rectangle
+    state = [0.1, 0.2, 3.0, 2.0, 0.01, 0.02, 0.5]
+    m.setTime(0.1)
+    m.setContinuousStates((c_double * 7)(*state), 7)
+    m.getDerivatives(dx, 7)
+    # the derivatives against the stage of (34)-(36), (23)-(24) written out here
+    a1, a2, a3, a4, a5, a6, cf, r, l1 = 0.0691, 0.0511, 0.0291, 0.0014, 4.3001, 4.3001, 0.226, 0.0825, 0.16
+    m11, m12 = a1 + a2 + a3, a1 - a2
+    w1, w2, be = state[2], state[3], state[6]
+    c = 2 * a4 * (w2 - w1)
+    r1 = 3.0 - c * w2 - 2 * a5 * math.tanh(cf * w1 / 2)
+    r2 = 2.6 + c * w1 - 2 * a6 * math.tanh(cf * w2 / 2)
+    det = m11 * m11 - m12 * m12
+    want = [w1, w2, (m11 * r1 - m12 * r2) / det, (-m12 * r1 + m11 * r2) / det,
+            r / 2 * (w1 + w2) * math.cos(be), r / 2 * (w1 + w2) * math.sin(be), r / (2 * l1) * (w1 - w2)]
+    assert list(dx) == pytest.approx(want, rel=1e-13)
+    assert m.getReal([vr[n] for n in STATES + DERS]) == state + list(dx)
+    assert m.getReal([vr["phi_right"], vr["omega_right"], vr["pos_x"], vr["heading"]]) == pytest.approx(
+        [math.degrees(0.1), 3.0 * RADS2RPM, 0.01, math.degrees(0.5)], rel=1e-15)
+    m.getEventIndicators(z, 1)
+    assert z[0] == pytest.approx(0.01 - 0.05, abs=1e-15)
+    # A enters: the event sets the foam's time to the event's, then the end of the ramp is a time event
+    state[4] = 0.06
+    m.setTime(0.3)
+    m.setContinuousStates((c_double * 7)(*state), 7)
+    m.getEventIndicators(z, 1)
+    assert z[0] > 0.0
+    m.enterEventMode()
+    ev = m.newDiscreteStates()
+    assert ev[:4] == (False, False, False, False) and ev[4] and ev[5] == pytest.approx(0.35, abs=1e-15)
+    m.enterContinuousTimeMode()
+    m.getEventIndicators(z, 1)
+    assert z[0] == 1.0                                    # reached: no more region events
+    m.setTime(0.32)
+    assert m.getReal([vr["foam_lambda"]]) == [pytest.approx(0.4, abs=1e-12)]
+    m.getDerivatives(dx, 7)
+    r1 = 3.0 - c * w2 - 2 * (a5 + 0.4 * 0.3) * math.tanh(cf * w1 / 2)      # rolling resistance + lambda da
+    r2 = 2.6 + c * w1 - 2 * (a6 + 0.4 * 0.2) * math.tanh(cf * w2 / 2)
+    assert dx[2] == pytest.approx((m11 * r1 - m12 * r2) / det, rel=1e-12)
+    m.terminate()
+    m.freeInstance()
+
+
+def test_get_and_set_fmu_state_rolls_both_interfaces_back(c_plant, tmp_path):
+    from ctypes import c_double
+
+    # co-simulation: 100 steps after a saved state, again after restoring it: the same outputs, bit for bit,
+    # the foam region reached in them both times (its flag and time are part of the state)
+    pp, reals, ints, bools = CASES["foam by region"]
+    s, vr = _slave(c_plant, tmp_path / "cs", reals, ints, bools)
+    outs = [vr[n] for n in OUTS]
+    ins = [vr["torque_right"], vr["torque_left"]]
+    for k in range(100):
+        s.setReal(ins, [4.0, 3.9])
+        s.doStep(k * H, H)
+    saved = s.getFMUstate()
+    runs = []
+    for _ in range(2):
+        s.setFMUstate(saved)
+        rows = []
+        for k in range(100, 200):
+            s.setReal(ins, [4.0 + 0.01 * k, 3.9])
+            s.doStep(k * H, H)
+            rows.append(s.getReal(outs))
+        runs.append(rows)
+    s.freeFMUstate(saved)
+    assert runs[0] == runs[1]
+    lam = [r[-1] for r in runs[0]]
+    assert lam[0] == 0.0 and lam[-1] == 1.0
+    s.terminate()
+    s.freeInstance()
+    # Model Exchange: the states, the time and the foam reached are restored, and the mode
+    m, vr = _model(c_plant, tmp_path / "me", FOAM_BY_REGION)
+    m.newDiscreteStates()
+    m.enterContinuousTimeMode()
+    x0 = (c_double * 7)()
+    m.getContinuousStates(x0, 7)
+    saved = m.getFMUstate()
+    m.setTime(0.3)
+    m.setContinuousStates((c_double * 7)(0, 0, 1, 1, 0.06, 0, 0), 7)
+    m.enterEventMode()
+    m.newDiscreteStates()
+    m.enterContinuousTimeMode()
+    m.setTime(0.32)
+    assert m.getReal([vr["foam_lambda"], vr["pos_x"]]) == [pytest.approx(0.4, abs=1e-12), 0.06]
+    m.enterEventMode()
+    m.setFMUstate(saved)                                  # back in continuous-time mode at t = 0, no foam
+    x = (c_double * 7)()
+    m.getContinuousStates(x, 7)
+    assert list(x) == list(x0)
+    m.setTime(0.32)
+    assert m.getReal([vr["foam_lambda"], vr["pos_x"]]) == [0.0, 0.0]
+    z = (c_double * 1)()
+    m.getEventIndicators(z, 1)
+    assert z[0] < 0.0
+    m.freeFMUstate(saved)
+    m.terminate()
+    m.freeInstance()
