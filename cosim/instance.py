@@ -95,8 +95,12 @@ class Instance(FmuInstance):
 
     def _slave(self, md: Any, unzipdir: str) -> Any:
         """The FMPy slave of the FMU, its callbacks registered with the logger dispatcher."""
-        fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir,
-                        modelIdentifier=md.coSimulation.modelIdentifier, instanceName=self.name)
+        self._register_callbacks()
+        return FMU2Slave(guid=md.guid, unzipDirectory=unzipdir,
+                         modelIdentifier=md.coSimulation.modelIdentifier, instanceName=self.name)
+
+    def _register_callbacks(self) -> None:
+        """The FMI 2.0 callbacks of this instance, its log messages routed to it by the dispatcher."""
         self._callbacks = fmi2CallbackFunctions()
         self._env = next(_IDS)
         _LIVE[self._env] = self
@@ -110,7 +114,6 @@ class Instance(FmuInstance):
             addLoggerProxy(ctypes.byref(self._callbacks))
         except Exception:  # pragma: no cover
             pass
-        return fmu
 
     # ------------------------------------------------------------------ log
     def _logger(self, status, category, message) -> None:
