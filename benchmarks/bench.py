@@ -64,6 +64,11 @@ NAME:
             first element), planted one at a time in cosim/ and components/ (benchmarks/bug_kinds.py):
             population, bugs (a sample of 60, seed 1), killed, kill_rate, by_kind, survivors, minutes.
 
+    me      G1 with the C plant as co-simulation and as Model Exchange (the master's CVODE; its RK4 at 1 ms),
+            interleaved: cs_us_per_step, me_cvode_us_per_step, me_rk4_us_per_step, their ratios to the
+            co-simulation (me_cvode_to_cs, me_rk4_to_cs), and me_*_pose_diff_m, the final pose's distance [m]
+            from the co-simulation plant's.
+
 ``--against REV`` runs NAME in this checkout and in a worktree of commit REV, interleaved, ``--rounds``
 fresh processes each of ``--repeats`` runs (benchmarks/against.py): each figure's median over the rounds for
 both and their ratio, this / that.
@@ -723,10 +728,50 @@ def bench_bugs(repeats: int) -> dict:
     return bug_kinds.run(sample=60, seed=1)
 
 
+def bench_me(repeats: int) -> dict[str, Any]:
+    """G1 (50 s learning run, Gauss-Seidel, the analysis record) with the C plant through its co-simulation
+    interface and through its Model Exchange one under the master's CVODE and RK4 (1 ms steps, the
+    co-simulation interface's own), runs interleaved: us_per_step of each (medians), me_cvode_to_cs and
+    me_rk4_to_cs, and the final pose's distance from the co-simulation plant's [m]."""
+    import numpy as np
+
+    from wmr_cosim.cosim import execution, scenario, system
+    from wmr_cosim.runner import resolve_model
+
+    root = __import__("pathlib").Path(__file__).resolve().parents[1]
+    plans = {}
+    for key, file, fields in (("cs", "g1_c_plant.toml", {}), ("me_cvode", "g1_c_plant_me.toml", {}),
+                              ("me_rk4", "g1_c_plant_me.toml", {"solver": "rk4", "max_step": 0.001})):
+        sc = scenario.load(root / "scenarios" / file, resolve_model)
+        sc.record = ANALYSIS_RECORD
+        for k, v in fields.items():
+            setattr(sc.instances["plant"], k, v)
+        plans[key] = system.resolve(sc)
+    walls: dict[str, list[float]] = {k: [] for k in plans}
+    final: dict[str, Any] = {}
+    with __import__("tempfile").TemporaryDirectory() as tmp:
+        for r in range(repeats):
+            for key, plan in plans.items():
+                out = __import__("pathlib").Path(tmp) / f"{key}_{r}"
+                res = execution.run(plan, out, progress=False)
+                if res.status != "ok":
+                    raise SystemExit(f"G1 ({key}) failed: {res.message}")
+                walls[key].append(res.wall_s)
+                sig = np.load(out / "signals.npy")
+                final[key] = np.array([sig["plant.x_A"][-1], sig["plant.y_A"][-1]])
+    n = plans["cs"].n_steps
+    us = {k: statistics.median(w) / n * 1e6 for k, w in walls.items()}
+    return {"steps": n, "cs_us_per_step": round(us["cs"], 2), "me_cvode_us_per_step": round(us["me_cvode"], 2),
+            "me_rk4_us_per_step": round(us["me_rk4"], 2), "me_cvode_to_cs": round(us["me_cvode"] / us["cs"], 3),
+            "me_rk4_to_cs": round(us["me_rk4"] / us["cs"], 3),
+            "me_cvode_pose_diff_m": float(np.linalg.norm(final["me_cvode"] - final["cs"])),
+            "me_rk4_pose_diff_m": float(np.linalg.norm(final["me_rk4"] - final["cs"]))}
+
+
 BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "fmi3": bench_fmi3, "paper": bench_paper,
            "sweep": bench_sweep, "interop": bench_interop, "archive": bench_archive, "loader": bench_loader,
            "isolation": bench_isolation, "scripting": bench_scripting, "mutation": bench_mutation,
-           "bugs": bench_bugs, "exit": bench_exit}
+           "bugs": bench_bugs, "exit": bench_exit, "me": bench_me}
 
 
 def main(argv: list[str] | None = None) -> int:

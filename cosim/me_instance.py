@@ -59,7 +59,7 @@ class ModelExchange:
         self.solver = solver
         self.mode = "instantiated"            # "init", "event", "continuous"
         self.integrator: Integrator | None = None
-        self.t = 0.0                          # the FMU's time [s]
+        self.t = self.start = 0.0             # the FMU's time, the run's start [s]
         self.span = math.inf                  # stop - start [s]
         self.next_event: float | None = None  # the FMU's next time event [s]
         self.z: list[float] = []              # the event indicators at the end of the last step
@@ -74,7 +74,7 @@ class ModelExchange:
 
     # ------------------------------------------------------------------ life cycle
     def setup_experiment(self, start: float, stop: float | None, tolerance: float | None) -> None:
-        self.t = start
+        self.t = self.start = start
         self.span = (stop - start) if stop is not None else math.inf
         super().setup_experiment(start, stop, tolerance)   # type: ignore[misc]
 
@@ -164,11 +164,19 @@ class ModelExchange:
             return s
 
         def do_step(c: Any, t: Any, h: Any, *tail: Any) -> int:
-            t0 = t.value
-            return self.advance(t0, t0 + h.value)
+            return self.advance(t.value, self.step_end(t.value, h.value))
 
         return FastPath(base.c, set_real, do_step, base.get_real, base.in_val, set_tail=base.set_tail,
                         get_tail=base.get_tail, terminated=self._terminated, last_time=self._last_time)
+
+    def step_end(self, t: float, h: float) -> float:
+        """The end of the step of ``h`` from ``t`` [s]: the master's grid point start + (k + 1) h where ``t``
+        is start + k h (t + h in floating point may miss it by an ulp, and a time event on it with it),
+        else t + h."""
+        k = round((t - self.start) / h)
+        if self.start + k * h == t:
+            return self.start + (k + 1) * h
+        return t + h
 
     def _discrete_inputs(self, in_vrs: list[int]) -> bool:
         """Whether any of these Float64 inputs is discrete (set in event mode only)."""

@@ -1,0 +1,356 @@
+"""Model Exchange FMUs in the master: the Reference FMUs run alone through the master's integrators
+against FMPy's own Model Exchange simulation and their reference results, events against analytic times,
+a Model Exchange FMU among co-simulation FMUs against a hand-written FMPy loop, state for rollback."""
+from __future__ import annotations
+
+import csv
+import ctypes
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+import fmpy
+import numpy as np
+import pytest
+from fmpy import simulate_fmu
+
+from wmr_cosim.cosim import execution, scenario, system
+from wmr_cosim.cosim.integrators import SolverSpec
+from wmr_cosim.cosim.me_instance import model_exchange
+from wmr_cosim.cosim.model import load_model
+from wmr_cosim.runner import fmu_document
+
+from reference_fmus import REF
+
+ME_MODELS = [("fmi2", m) for m in ("BouncingBall", "Dahlquist", "Stair", "VanDerPol", "Resource", "Feedthrough")] + \
+            [("fmi3", m) for m in ("BouncingBall", "Dahlquist", "Stair", "VanDerPol", "Resource", "Feedthrough",
+                                   "StateSpace")]
+
+
+def _plan(fmu: Path, **fields: Any) -> system.Plan:
+    """The plan of one FMU run alone as Model Exchange, ``fields`` added to its instance."""
+    doc = fmu_document(fmu)
+    (inst,) = doc["instances"].values()
+    inst.update({"interface": "model-exchange", **fields})
+    return system.resolve(scenario.parse(doc, str(fmu)))
+
+
+def _run(plan: system.Plan, out: Path) -> tuple[execution.RunResult, np.ndarray]:
+    res = execution.run(plan, out, progress=False)
+    assert res.status in ("ok", "terminated"), res.message
+    return res, np.load(out / "signals.npy")
+
+
+def _on_grid(theirs: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """FMPy's rows at the communication points (the last one where an event shares the time: the values
+    after the event, as the master records them)."""
+    keep = []
+    for t in times:
+        hit = np.flatnonzero(np.abs(theirs["time"] - t) <= 1e-9 * max(1.0, abs(t)))
+        assert hit.size, t
+        keep.append(hit[-1])
+    return theirs[keep]
+
+
+@pytest.mark.parametrize("version, model", ME_MODELS)
+def test_a_reference_fmu_under_cvode_equals_fmpy(version, model, tmp_path):
+    """CVODE (the default) on the same output grid as FMPy's simulate_fmu (Model Exchange, CVode): every
+    output within 1e-6 of the output's largest magnitude."""
+    fmu = REF / version / f"{model}.fmu"
+    plan = _plan(fmu)
+    assert plan.instances[model].interface == "model-exchange" and plan.instances[model].solver.name == "cvode"
+    res, ours = _run(plan, tmp_path / "out")
+    theirs = simulate_fmu(str(fmu), fmi_type="ModelExchange", solver="CVode", output_interval=plan.scenario.step,
+                          stop_time=plan.scenario.stop)
+    rows = ours if res.status == "ok" else ours[:-1]   # (FMPy keeps no row after the event that ended the run)
+    theirs = _on_grid(theirs, rows["time"])
+    for name in theirs.dtype.names[1:]:
+        a, b = _column(rows, model, name), np.asarray(theirs[name], float)
+        scale = max(1e-12, float(np.max(np.abs(b))))
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-6 * scale, err_msg=name)
+    assert len(theirs.dtype.names) > 1
+
+
+def _column(ours: np.ndarray, model: str, name: str) -> np.ndarray:
+    """Our recording of output ``name`` as floats: its column, or an FMI 3.0 array's element columns side by
+    side (``y[1]``, ``y[2]``, ...)."""
+    col = f"{model}.{name}"
+    if col in ours.dtype.names:
+        return np.asarray(ours[col], float)
+    elems = sorted((c for c in ours.dtype.names if c.startswith(col + "[")), key=lambda c: int(c[len(col) + 1:-1]))
+    assert elems, col
+    return np.stack([np.asarray(ours[c], float) for c in elems], axis=1)
+
+
+def _reference(path: Path) -> dict[str, list[str]]:
+    """A reference CSV's columns as text (an array's elements space-separated in one field)."""
+    with path.open(newline="", encoding="utf-8") as fh:
+        rows = list(csv.reader(fh))
+    return {name: [r[i] for r in rows[1:]] for i, name in enumerate(rows[0])}
+
+
+def _numbers(values: list[str]) -> np.ndarray | None:
+    """A reference CSV's column as floats (false/true as 0/1, an array as a row of its elements), or None
+    for text."""
+    try:
+        return np.array([[float(x) for x in v.split()] if " " in v.strip() else float(v) for v in values])
+    except ValueError:
+        if {v.lower() for v in values} <= {"true", "false"}:
+            return np.array([v.lower() == "true" for v in values], float)
+        return None
+
+
+def _internal_step(model: str) -> float:
+    """The fixed step [s] of the model's own forward Euler (its co-simulation interface; config.h)."""
+    text = (REF.path / "models" / model / "config.h").read_text(encoding="utf-8")
+    return float(re.search(r"#define FIXED_SOLVER_STEP\s+(\S+)", text).group(1))
+
+
+@pytest.mark.parametrize("version, model", ME_MODELS)
+def test_a_reference_fmu_under_euler_at_its_own_step_equals_its_reference_result(version, model, tmp_path):
+    """The reference CSVs are the FMUs' co-simulation runs, forward Euler at their own fixed step: the
+    master's Euler at that step gives them within 1e-6 (of each output's range) at every time both have;
+    BouncingBall up to its first bounce, which the master locates inside the step where the FMU's own
+    solver takes it at the step's end."""
+    fmu = REF / version / f"{model}.fmu"
+    _, ours = _run(_plan(fmu, solver="euler", max_step=_internal_step(model)), tmp_path / "out")
+    ref = _reference(REF / version / f"{model}_ref.csv")
+    t_ours = np.round(ours["time"], 9)
+    hits = 0
+    for name in list(ref)[1:]:
+        want = _numbers(ref[name])
+        if want is None or not any(c.split("[")[0] == f"{model}.{name}" for c in ours.dtype.names):
+            continue          # (String and Binary outputs are not recorded; the FMI 2.0 Feedthrough has no Float32)
+        got = _column(ours, model, name)
+        span = max(1.0, float(np.ptp(want)))
+        for t, v in zip(np.round(np.array(ref["time"], float), 9), want):
+            hit = np.flatnonzero(t_ours == t)
+            if hit.size and not (model == "BouncingBall" and t > _bounce_times()[0]):
+                assert np.max(np.abs(got[hit[-1]] - v)) <= 1e-6 * span, (name, t)
+                hits += 1
+    assert hits > 0
+
+
+def _bounce_times(h0: float = 1.0, g: float = 9.81, e: float = 0.7, v_min: float = 0.1) -> list[float]:
+    """Analytic: h(t) = h0 - g t^2 / 2 to the first impact, then flights of 2 v / g with v -> e v until
+    v < v_min (BouncingBall's model)."""
+    t = math.sqrt(2 * h0 / g)
+    v, times = g * t, [t]
+    while True:
+        v *= e
+        if v < v_min:
+            return times
+        t += 2 * v / g
+        times.append(t)
+
+
+def _execute(plan: system.Plan, out: Path, name: str) -> tuple[execution.RunResult, np.ndarray,
+                                                                 list[tuple[float, str]]]:
+    """Run the plan through an Execution: its result, the signals and instance ``name``'s events."""
+    ex = execution.Execution(plan, out)
+    ex.initialize()
+    try:
+        ex.simulate_until(plan.scenario.stop)
+    except execution.FmuEnded:
+        pass
+    events = list(ex.instances[name].events)
+    res = ex.close()
+    return res, np.load(out / "signals.npy"), events
+
+
+@pytest.mark.parametrize("version", ["fmi2", "fmi3"])
+@pytest.mark.parametrize("solver, fields", [("cvode", {"tolerance": 1e-10}), ("rk4", {"max_step": 1e-3}),
+                                            ("euler", {"max_step": 1e-5})])
+def test_bouncing_ball_bounces_at_the_analytic_times(version, solver, fields, tmp_path):
+    """The state events' times, as the instance records them, within 1e-6 s of the analytic ones (CVODE at
+    rtol 1e-10 and RK4, exact on these parabolas) and within 2e-3 s for Euler (first order)."""
+    plan = _plan(REF / version / "BouncingBall.fmu", solver=solver, **fields)
+    _, _, events = _execute(plan, tmp_path / "out", "BouncingBall")
+    bounces = [t for t, kind in events if kind == "state"]
+    want = _bounce_times()
+    assert len(bounces) >= len(want)
+    np.testing.assert_allclose(bounces[:len(want)], want, rtol=0, atol=2e-3 if solver == "euler" else 1e-6)
+
+
+@pytest.mark.parametrize("version", ["fmi2", "fmi3"])
+@pytest.mark.parametrize("solver", ["cvode", "euler", "rk4"])
+def test_stair_counts_at_its_time_events_exactly(version, solver, tmp_path):
+    """Stair's counter steps at t = 1, 2, ... s, time events inside the 0.3 s steps used here: the events
+    at exactly those times, the counter k + 1 from t = k s on, the FMU ends the run at 9 s."""
+    plan = _plan(REF / version / "Stair.fmu", solver=solver, **({"max_step": 0.1} if solver != "cvode" else {}))
+    plan.scenario.step = 0.3
+    plan.scenario.stop = 9.9
+    plan = system.resolve(plan.scenario)
+    res, ours, events = _execute(plan, tmp_path / "out", "Stair")
+    assert [t for t, kind in events if kind == "time"] == [float(k) for k in range(1, 10)]
+    assert res.status == "terminated"
+    for t, c in zip(ours["time"], ours["Stair.counter"]):
+        assert c == min(10, math.floor(t + 1e-12) + 1), (t, c)
+
+
+# ---------------------------------------------------------------- among co-simulation FMUs
+def _chain(tmp: Path) -> Path:
+    """VanDerPol (Model Exchange, CVODE) -> Feedthrough (co-simulation) -> the C plant (Model Exchange,
+    CVODE): x0 becomes the right wheel's torque; 2 s of 10 ms steps."""
+    from wmr_cosim.runner import resolve_model
+
+    path = tmp / "chain.toml"
+    path.write_text(f'''
+[experiment]
+stop = 2.0
+step = 0.01
+
+[instances.vdp]
+fmu = "{REF / "fmi2" / "VanDerPol.fmu"}"
+interface = "model-exchange"
+
+[instances.ft]
+fmu = "{REF / "fmi2" / "Feedthrough.fmu"}"
+
+[instances.plant]
+fmu = "{resolve_model("WmrCPlant")}"
+interface = "model-exchange"
+
+[[connections]]
+from = "vdp.x0"
+to = "ft.Float64_continuous_input"
+
+[[connections]]
+from = "ft.Float64_continuous_output"
+to = "plant.torque_right"
+
+[record]
+variables = ["vdp.x0", "ft.Float64_continuous_output", "plant.pos_x", "plant.pos_y", "plant.omega_right"]
+''', encoding="utf-8")
+    return path
+
+
+def _fmpy_chain(plan: system.Plan, tmp: Path) -> dict[str, list[float]]:
+    """The same system as a hand-written FMPy loop: FMU2Model with FMPy's CVodeSolver for the two Model
+    Exchange FMUs (restarted where an input changed), FMU2Slave for the co-simulation one, Gauss-Seidel."""
+    from fmpy.fmi2 import FMU2Model, FMU2Slave
+    from fmpy.sundials import CVodeSolver
+
+    sc = plan.scenario
+    h, n = sc.step, plan.n_steps
+    fmus, solvers = {}, {}
+
+    class NoInput:
+        def apply(self, *a, **k):
+            return None
+
+    for name in ("vdp", "ft", "plant"):
+        md = plan.instances[name].model.md
+        unz = fmpy.extract(str(plan.instances[name].model.path), str(tmp / f"unz_{name}"))
+        me = name != "ft"
+        cls = FMU2Model if me else FMU2Slave
+        ident = (md.modelExchange if me else md.coSimulation).modelIdentifier
+        fmu = cls(guid=md.guid, unzipDirectory=unz, modelIdentifier=ident, instanceName=name)
+        fmu.instantiate()
+        fmu.setupExperiment(startTime=0.0, stopTime=sc.stop)
+        fmu.enterInitializationMode()
+        fmus[name] = (fmu, md)
+    vr = {f"{i}.{v.name}": v.valueReference for i, (f, md) in fmus.items() for v in md.modelVariables}
+    vdp, ft, plant = (fmus[k][0] for k in ("vdp", "ft", "plant"))
+    ft.setReal([vr["ft.Float64_continuous_input"]], vdp.getReal([vr["vdp.x0"]]))
+    plant.setReal([vr["plant.torque_right"]], ft.getReal([vr["ft.Float64_continuous_output"]]))
+    for name in ("vdp", "ft", "plant"):
+        fmus[name][0].exitInitializationMode()
+    for name in ("vdp", "plant"):
+        fmu, md = fmus[name]
+        while fmu.newDiscreteStates()[0]:
+            pass
+        fmu.enterContinuousTimeMode()
+        solvers[name] = CVodeSolver(nx=md.numberOfContinuousStates, nz=md.numberOfEventIndicators,
+                                    get_x=fmu.getContinuousStates, set_x=fmu.setContinuousStates,
+                                    get_dx=fmu.getDerivatives, get_z=fmu.getEventIndicators,
+                                    get_nominals=fmu.getNominalsOfContinuousStates, set_time=fmu.setTime,
+                                    input=NoInput(), startTime=0.0, maxStep=sc.stop / 50, relativeTolerance=1e-5,
+                                    maxNumSteps=100_000)
+    out: dict[str, list[float]] = {k: [] for k in ("x0", "ft", "pos_x", "omega")}
+
+    def sample() -> None:
+        out["x0"].append(vdp.getReal([vr["vdp.x0"]])[0])
+        out["ft"].append(ft.getReal([vr["ft.Float64_continuous_output"]])[0])
+        out["pos_x"].append(plant.getReal([vr["plant.pos_x"]])[0])
+        out["omega"].append(plant.getReal([vr["plant.omega_right"]])[0])
+
+    def advance(name: str, t: float) -> None:
+        fmu = fmus[name][0]
+        _, _, t_reached = solvers[name].step(t, t + h)
+        fmu.setTime(t + h)
+        assert t_reached == pytest.approx(t + h)
+
+    sample()
+    u_last = None
+    for k in range(n):
+        t = k * h
+        advance("vdp", t)
+        ft.setReal([vr["ft.Float64_continuous_input"]], vdp.getReal([vr["vdp.x0"]]))
+        ft.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+        u = ft.getReal([vr["ft.Float64_continuous_output"]])
+        plant.setReal([vr["plant.torque_right"]], u)
+        if u != u_last:
+            solvers["plant"].reset(t)
+            u_last = u
+        advance("plant", t)
+        sample()
+    return out
+
+
+def test_a_model_exchange_chain_with_a_co_simulation_fmu_equals_a_hand_written_fmpy_loop(tmp_path):
+    """Gauss-Seidel over VanDerPol (ME) -> Feedthrough (CS) -> C plant (ME): every recorded value within
+    1e-9 of the FMPy loop doing the same (same CVODE settings, the plant's integrator restarted where its
+    input changed, as the master does)."""
+    from wmr_cosim.runner import load_plan
+
+    plan = load_plan(_chain(tmp_path))
+    assert [plan.instances[n].interface for n in ("vdp", "ft", "plant")] == ["model-exchange", "co-simulation",
+                                                                           "model-exchange"]
+    _, ours = _run(plan, tmp_path / "out")
+    theirs = _fmpy_chain(plan, tmp_path)
+    for col, key in (("vdp.x0", "x0"), ("ft.Float64_continuous_output", "ft"), ("plant.pos_x", "pos_x"),
+                     ("plant.omega_right", "omega")):
+        np.testing.assert_allclose(ours[col], theirs[key], rtol=1e-9, atol=1e-12, err_msg=col)
+    assert abs(ours["plant.pos_x"][-1]) > 1e-3      # (the plant moved: the chain carried the torque)
+
+
+# ---------------------------------------------------------------- state for rollback
+@pytest.mark.parametrize("solver", ["cvode", "rk4"])
+def test_a_saved_model_exchange_state_repeats_the_step_exactly(solver, tmp_path):
+    """The C plant as Model Exchange with a torque input: save at t = 0.1 s, two steps, restore, one step:
+    bit-identical to the first step after the save, and not to the second."""
+    from wmr_cosim.runner import resolve_model
+
+    model = load_model(resolve_model("WmrCPlant"))
+    unz = fmpy.extract(str(model.path), str(tmp_path / "unz"))
+    inst = model_exchange("p", model.md, unz, None, "warning", SolverSpec(solver, max_step=1e-3))
+    try:
+        assert inst.can_get_and_set_state
+        inst.instantiate()
+        inst.setup_experiment(0.0, 1.0, None)
+        inst.enter_initialization()
+        u, x = model.variables["torque_right"].vr, model.variables["pos_x"].vr
+        fp = inst.fast_path([u], 1, [x], 1)
+        inst.exit_initialization()
+        T, H, out = ctypes.c_double(0.0), ctypes.c_double(0.05), (ctypes.c_double * 1)()
+        uvr, xvr, one = (ctypes.c_uint * 1)(u), (ctypes.c_uint * 1)(x), ctypes.c_size_t(1)
+
+        def step(t: float, torque: float) -> float:
+            fp.in_val[0] = torque
+            assert fp.set_real(fp.c, uvr, one, fp.in_val, *fp.set_tail) == 0
+            T.value = t
+            assert fp.do_step(fp.c, T, H, *fp.step_tail) == 0
+            assert fp.get_real(fp.c, xvr, one, out, *fp.get_tail) == 0
+            return out[0]
+        step(0.0, 2.0)
+        step(0.05, 2.5)
+        saved = inst.get_state()
+        first, second = step(0.1, 3.0), step(0.15, 3.5)
+        inst.set_state(saved)
+        again = step(0.1, 3.0)
+        inst.free_state(saved)
+        assert again == first != second
+    finally:
+        inst.shutdown()
