@@ -22,7 +22,9 @@ to a file beside the instance's log, so an FMU writing junk to stdout cannot dis
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import itertools
+import json
 import os
 import pickle
 import select
@@ -38,6 +40,7 @@ from typing import Any
 from .errors import RunError
 from .failure import Call, InstanceLost
 from .fmu_instance import FastPath, FmuInstance
+from .integrators import SolverSpec
 from .instance import ACCESS
 
 #: Header of the step slot: status (int64), t (float64), h (float64), then inputs and outputs (float64).
@@ -89,7 +92,7 @@ class Child:
     """The master's side of one child process."""
 
     def __init__(self, name: str, fmu_dir: str, log_path: Path | None, logging: str, step_timeout: float | None,
-                 spin: int, slot_values: int = 4096) -> None:
+                 spin: int, slot_values: int = 4096, solver: SolverSpec | None = None) -> None:
         self.name, self.step_timeout, self.spin = name, step_timeout, spin
         self.started = False      # the child has answered once
         self.shm = shared_memory.SharedMemory(create=True, size=_HEAD + 16 * slot_values)
@@ -101,7 +104,8 @@ class Child:
         out: Any = open(str(log_path) + ".stdout", "wb") if log_path is not None else subprocess.DEVNULL
         self.proc = subprocess.Popen(
             [sys.executable, "-m", __name__, self.shm.name, str(c_r), str(c_w), str(s_r),
-             str(d_w), fmu_dir, name, str(log_path or ""), logging, str(spin)],
+             str(d_w), fmu_dir, name, str(log_path or ""), logging, str(spin),
+             json.dumps(dataclasses.asdict(solver)) if solver is not None else ""],
             pass_fds=(c_r, c_w, s_r, d_w), stdin=subprocess.DEVNULL, stdout=out, stderr=out, close_fds=True)
         if out is not subprocess.DEVNULL:
             out.close()
@@ -328,10 +332,15 @@ def _serve(argv: list[str]) -> int:
     from fmpy import read_model_description
 
     from .instance import Instance, Instance3
+    from .me_instance import model_exchange
 
     md = read_model_description(os.path.join(fmu_dir, "modelDescription.xml"), validate=False)
-    cls = Instance3 if md.fmiVersion.startswith("3") else Instance
-    server = _Server(shm, cls(name, md, fmu_dir, log_path or None, logging))
+    inst: FmuInstance
+    if len(argv) > 10 and argv[10]:   # a model exchange instance, with its integrator's settings
+        inst = model_exchange(name, md, fmu_dir, log_path or None, logging, SolverSpec(**json.loads(argv[10])))
+    else:
+        inst = (Instance3 if md.fmiVersion.startswith("3") else Instance)(name, md, fmu_dir, log_path or None, logging)
+    server = _Server(shm, inst)
     return _loop(server, os.fdopen(c_r, "rb", buffering=0), c_w, s_r, d_w, spin)
 
 
@@ -388,14 +397,16 @@ class IsolatedInstance(FmuInstance):
     life cycle goes through the control channel, the step through the slot (:meth:`fast_path`)."""
 
     def __init__(self, name: str, md: Any, unzipdir: str, log_path: str | os.PathLike | None, logging: str,
-                 step_timeout: float | None, spin: int) -> None:
-        self.name, self.md, self.logging = name, md, logging
+                 step_timeout: float | None, spin: int, solver: SolverSpec | None = None) -> None:
+        """``solver``: host the FMU as model exchange with this integrator (None: co-simulation)."""
+        self.name, self.md, self.logging, self.solver = name, md, logging, solver
         self.fmi_version = 3 if md.fmiVersion.startswith("3") else 2
         self.log: list[str] = []   # the child's last log lines (its instance keeps at most 200)
         self.log_lines = self.received = self.n_errors = 0
         self.fatal = self.freed = False
         self.dead = ""
-        self.child = Child(name, unzipdir, Path(log_path) if log_path else None, logging, step_timeout, spin)
+        self.child = Child(name, unzipdir, Path(log_path) if log_path else None, logging, step_timeout, spin,
+                           solver=solver)
         self.c = 0
 
     # ------------------------------------------------------------------ log
@@ -450,8 +461,21 @@ class IsolatedInstance(FmuInstance):
     def exit_initialization(self) -> None:
         self._call("initialisation", "exit_initialization", t=self.child.t)
 
+    @property
+    def can_get_and_set_state(self) -> bool:
+        if self.solver is None:
+            return super().can_get_and_set_state
+        me = self.md.modelExchange
+        return me is not None and bool(getattr(me, "canGetAndSetFMUstate", False) or
+                                       getattr(me, "canGetAndSetFMUState", False))
+
+    def call_name(self, call: Call) -> str:
+        if call is Call.DO_STEP and self.solver is not None:
+            return f"the integration ({self.solver.name})"
+        return super().call_name(call)
+
     def terminated_at(self) -> float | None:
-        if self.fmi_version == 3:
+        if self.fmi_version == 3 or self.solver is not None:
             return None
         try:
             return self.child.call("terminated_at")
@@ -492,7 +516,8 @@ class IsolatedInstance(FmuInstance):
         except RuntimeError as exc:
             raise RunError(f"{self.name}: {exc}", self.name) from None
         child, size = self.child, 8 * n_out
-        terminated = ctypes.c_bool(False) if self.fmi_version == 3 else None   # FMI 3.0's terminateSimulation
+        # FMI 3.0's terminateSimulation, and a model exchange FMU's
+        terminated = ctypes.c_bool(False) if self.fmi_version == 3 or self.solver is not None else None
         mode = {"stepping": False}
         step_name = self.call_name(Call.DO_STEP)
 

@@ -14,6 +14,7 @@ from fmpy import read_model_description
 
 from .archive import ArchiveLimits, check_archive
 from .errors import FmuLoadError
+from .scenario import CO_SIMULATION, MODEL_EXCHANGE
 from .units import Unit, lookup, units_of
 
 if TYPE_CHECKING:   # (FMPy has no type information: to mypy these are Any)
@@ -32,6 +33,8 @@ INT_RANGES: dict[str, tuple[int, int]] = {
     "Integer": (-2 ** 31, 2 ** 31 - 1), "Int8": (-2 ** 7, 2 ** 7 - 1), "UInt8": (0, 2 ** 8 - 1),
     "Int16": (-2 ** 15, 2 ** 15 - 1), "UInt16": (0, 2 ** 16 - 1), "Int32": (-2 ** 31, 2 ** 31 - 1),
     "UInt32": (0, 2 ** 32 - 1), "Int64": (-2 ** 63, 2 ** 63 - 1), "UInt64": (0, 2 ** 64 - 1)}
+#: The interfaces the master runs -> the model description's attribute (FMPy) that declares each.
+INTERFACES = {CO_SIMULATION: "coSimulation", MODEL_EXCHANGE: "modelExchange"}
 #: The platform folder of the binaries by FMI version.
 PLATFORMS = {2: "linux64", 3: "x86_64-linux"}
 
@@ -102,22 +105,61 @@ class Variable:
         return None
 
 
+#: The readable name of each interface (messages, ``check``, ``info``).
+INTERFACE_NAMES = {CO_SIMULATION: "co-simulation", MODEL_EXCHANGE: "model exchange"}
+
+
 @dataclass
 class FmuModel:
-    """An FMU file and its model description (FMI 2.0 or 3.0 co-simulation checked)."""
+    """An FMU file and its model description (FMI 2.0 or 3.0, co-simulation and/or model exchange,
+    checked).  ``missing_binaries``: for each interface it declares whose binary for this platform the
+    archive lacks, the reason (no instance can use that interface: :meth:`check_binary`)."""
 
     path: Path
     md: ModelDescription   # FMPy's reading of modelDescription.xml
     variables: dict[str, Variable] = field(default_factory=dict)
     fmi: int = 2
+    missing_binaries: dict[str, str] = field(default_factory=dict)
 
     @property
     def model_name(self) -> str:
         return self.md.modelName
 
     @property
+    def has_cs(self) -> bool:
+        """The FMU declares the co-simulation interface."""
+        return self.md.coSimulation is not None
+
+    @property
+    def has_me(self) -> bool:
+        """The FMU declares the model exchange interface."""
+        return self.md.modelExchange is not None
+
+    @property
+    def interfaces(self) -> tuple[str, ...]:
+        """The interfaces the FMU declares that the master runs, of "co-simulation", "model-exchange"."""
+        return tuple(name for name, attr in INTERFACES.items() if getattr(self.md, attr, None) is not None)
+
+    @property
+    def identifier(self) -> str:
+        """The model identifier (of the co-simulation interface where there is one)."""
+        return self.identifier_of(CO_SIMULATION if self.has_cs else MODEL_EXCHANGE)
+
+    def identifier_of(self, interface: str) -> str:
+        """The model identifier (the binary's name) of one interface the FMU declares."""
+        return str(getattr(self.md, INTERFACES[interface]).modelIdentifier)
+
+    def check_binary(self, interface: str) -> None:
+        """FmuLoadError unless the archive holds the binary of ``interface`` for this platform."""
+        if interface in self.missing_binaries:
+            raise FmuLoadError(self.missing_binaries[interface])
+
+    @property
     def can_vary_step(self) -> bool:
-        return bool(self.md.coSimulation.canHandleVariableCommunicationStepSize)
+        """Whether it takes communication steps of any length: the co-simulation interface's
+        canHandleVariableCommunicationStepSize; a Model Exchange FMU only (the master integrates it) can."""
+        cs = self.md.coSimulation
+        return cs is None or bool(cs.canHandleVariableCommunicationStepSize)
 
     @property
     def default_step(self) -> float | None:
@@ -126,9 +168,12 @@ class FmuModel:
 
     @property
     def internal_step(self) -> float | None:
-        """The fixed internal step [s] an FMI 3.0 co-simulation FMU declares (fixedInternalStepSize), else None."""
+        """The fixed internal step [s] an FMI 3.0 co-simulation FMU declares (fixedInternalStepSize), else None
+        (also for a Model Exchange FMU only: its steps are the master's integrator's)."""
+        if not self.has_cs or self.fmi != 3:
+            return None
         try:
-            h = float(self.md.coSimulation.fixedInternalStepSize) if self.fmi == 3 else math.nan
+            h = float(self.md.coSimulation.fixedInternalStepSize)
         except (AttributeError, TypeError, ValueError):   # not declared, or not a number
             return None
         return h if math.isfinite(h) and h > 0 else None
@@ -210,29 +255,50 @@ def fmi_version(path: Path) -> str:
     return "?"
 
 
-def _check_binary(path: Path, identifier: str, fmi: int = 2) -> None:
-    """FmuLoadError unless the archive holds the binary for this platform, named by the model identifier."""
+def _binary_problem(path: Path, names: list[str], identifier: str, fmi: int = 2) -> str | None:
+    """None if the archive (its entries ``names``) holds the binary for this platform named by the model
+    identifier, else why not (one line, starting with ``path``)."""
     from fmpy import sharedLibraryExtension
 
     platform = PLATFORMS[fmi]
     want = f"binaries/{platform}/{identifier}{sharedLibraryExtension}"
-    with zipfile.ZipFile(path) as zf:
-        names = zf.namelist()
     if want in names:
-        return
+        return None
     here = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") >= 2})
     others = [n for n in names if n.startswith(f"binaries/{platform}/") and n.endswith(sharedLibraryExtension)]
     if others:
-        raise FmuLoadError(f"{path}: no {want} (the binary for this platform must be named after the model "
-                           f"identifier {identifier!r}; the archive has {others[0]})")
-    raise FmuLoadError(f"{path}: no binary for this platform ({platform}): the FMU has binaries for "
-                       f"{', '.join(here) or 'no platform'} (a source-only or other-platform FMU cannot run here)")
+        return (f"{path}: no {want} (the binary for this platform must be named after the model "
+                f"identifier {identifier!r}; the archive has {others[0]})")
+    return (f"{path}: no binary for this platform ({platform}): the FMU has binaries for "
+            f"{', '.join(here) or 'no platform'} (a source-only or other-platform FMU cannot run here)")
+
+
+def _missing_binaries(path: Path, model: FmuModel) -> dict[str, str]:
+    """For each interface the FMU declares whose binary is missing, why; FmuLoadError when every declared
+    interface lacks its binary (the co-simulation one's reason first)."""
+    with zipfile.ZipFile(path) as zf:
+        names = zf.namelist()
+    missing = {i: why for i in model.interfaces
+               if (why := _binary_problem(path, names, model.identifier_of(i), model.fmi)) is not None}
+    if len(missing) == len(model.interfaces):
+        raise FmuLoadError(next(iter(missing.values())))
+    return missing
+
+
+def _interfaces_checked(path: Path, md: Any) -> None:
+    """FmuLoadError unless the FMU declares co-simulation or model exchange (scheduled execution only is
+    refused)."""
+    if md.coSimulation is None and md.modelExchange is None:
+        only = "scheduled execution only" if getattr(md, "scheduledExecution", None) is not None else \
+            "it declares no interface"
+        raise FmuLoadError(f"{path}: neither a co-simulation nor a model exchange FMU ({only})")
 
 
 def load_model(path: str | os.PathLike, limits: ArchiveLimits | None = None) -> FmuModel:
     """Read and check an FMU: it exists, is a safe archive (within ``limits``; default: the default
-    limits), and is FMI 2.0 or 3.0 with co-simulation (and, for FMI 3.0, needs neither clocks nor event
-    mode)."""
+    limits), and is FMI 2.0 or 3.0 with co-simulation or model exchange or both (not scheduled execution
+    only), needs no clocks, and holds the binary for this platform of at least one interface it declares
+    (the one an instance uses is checked when it is planned: :meth:`FmuModel.check_binary`)."""
     path = Path(path)
     check_archive(path, limits)
     version = fmi_version(path)
@@ -243,11 +309,9 @@ def load_model(path: str | os.PathLike, limits: ArchiveLimits | None = None) -> 
     except Exception as exc:  # FMPy raises plain Exceptions for unreadable descriptions
         raise FmuLoadError(f"{path}: cannot read modelDescription.xml ({' '.join(str(exc).split())})") from None
     fmi = 3 if md.fmiVersion.startswith("3") else 2
-    if md.coSimulation is None:
-        other = "scheduled execution" if getattr(md, "scheduledExecution", None) is not None else "model exchange"
-        raise FmuLoadError(f"{path}: not a co-simulation FMU ({other} only)")
-    _check_binary(path, md.coSimulation.modelIdentifier, fmi)
+    _interfaces_checked(path, md)
     model = FmuModel(path, md, fmi=fmi)
+    model.missing_binaries = _missing_binaries(path, model)
     defined = units_of(md)
     for v in md.modelVariables:
         kind = KINDS.get(v.type, v.type) if fmi == 3 else v.type

@@ -16,6 +16,7 @@ from typing import Any
 
 from .archive import DEFAULT_LIMITS, ArchiveLimits, LimitOverrides, parse_limits
 from .errors import OtherFileError, ScenarioError
+from .integrators import SOLVERS
 from .kinds import FileKind, file_kind
 from .suggest import did_you_mean
 
@@ -23,13 +24,18 @@ ALGORITHMS = ("gauss-seidel", "jacobi")
 ACTIONS = ("override", "bias", "reset", "set", "stop")
 TRIGGERS = ("once", "each")
 LOGGING = ("error", "warning", "info", "all")
+#: The FMI interfaces an instance may use (``[instances.NAME] interface``).
+CO_SIMULATION, MODEL_EXCHANGE = "co-simulation", "model-exchange"
+INTERFACES = (CO_SIMULATION, MODEL_EXCHANGE)
+#: The instance fields that set a Model Exchange instance's integrator (any of them asks for model exchange).
+SOLVER_KEYS = ("solver", "max_step", "event_tolerance")
 
 _TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "record", "events", "runs",
              "variants", "inputs", "limits"}
 _INPUTS_KEYS = {"file", "interpolation"}
 _EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps", "max_internal_steps"}
 _INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "override_declared_units", "description", "logging", "isolate",
-                  "step_timeout", "tolerance"}
+                  "step_timeout", "tolerance", "interface", *SOLVER_KEYS}
 _CONNECTION_KEYS = {"from", "to", "factor", "offset", "convert", "threshold"}
 _RECORD_KEYS = {"variables", "decimation", "csv", "max_bytes"}
 _RUN_KEYS = {"name", "description", "parameters", "carry"}
@@ -42,7 +48,11 @@ class InstanceSpec:
     """One FMU instance.  ``names`` maps the FMU's own variable names to the names the scenario uses
     (their -> ours); ``units`` declares units for variables whose FMU does not (scenario name -> unit; a unit
     that contradicts a declared one is refused unless ``override_declared_units``);
-    ``logging`` is the level of the FMU's messages kept in its log ("error", "warning", "info", "all")."""
+    ``logging`` is the level of the FMU's messages kept in its log ("error", "warning", "info", "all");
+    ``interface`` the FMU's interface to use ("co-simulation" or "model-exchange"; None: model exchange when
+    a solver setting is given or the FMU has no co-simulation, else co-simulation: see
+    :func:`cosim.system.resolve`), and ``solver``, ``max_step`` [s], ``event_tolerance`` [s] the integrator
+    of a Model Exchange instance (:class:`cosim.integrators.SolverSpec`; None: its default)."""
 
     name: str
     fmu: str
@@ -55,6 +65,10 @@ class InstanceSpec:
     step_timeout: float | None = None   # seconds a call may take before the instance is ended (isolated: 60)
     override_declared_units: bool = False   # ``units`` may replace a unit the model description declares
     tolerance: float | None = None      # this FMU's own solver tolerance (else [experiment], else its default)
+    interface: str | None = None        # "co-simulation" | "model-exchange"; None: chosen by the FMU and the solver keys
+    solver: str | None = None           # a Model Exchange instance's integrator (cosim.integrators.SOLVERS)
+    max_step: float | None = None       # [s] its largest internal step
+    event_tolerance: float | None = None   # [s] the width to which Euler and RK4 locate a state event
 
 
 @dataclass
@@ -369,7 +383,8 @@ def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:
         timeout, tol = (_num(file, f"{fld}.{key}", inst[key], positive=True) if inst.get(key) is not None else None
                         for key in ("step_timeout", "tolerance"))
         sc.instances[iname] = InstanceSpec(iname, fmu, path, dict(params), dict(names), dict(units), logging,
-                                           flag["isolate"], timeout, flag["override_declared_units"], tol)
+                                           flag["isolate"], timeout, flag["override_declared_units"], tol,
+                                           **_interface_fields(file, fld, inst))
 
 
     exp = doc.get("experiment") or {}
@@ -379,6 +394,32 @@ def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:
         raise ScenarioError(file, "experiment.order",
                             f"{order!r} must list every instance exactly once ({', '.join(sc.instances)})")
     sc.order = list(order)
+
+
+def _interface_fields(file: str, fld: str, inst: dict[str, Any]) -> dict[str, Any]:
+    """An instance's ``interface`` and its integrator's settings (``solver``, ``max_step`` [s] and
+    ``event_tolerance`` [s], each > 0 and finite), checked as given; settings of an integrator with
+    ``interface = "co-simulation"`` are refused (a co-simulation FMU brings its own)."""
+    interface = _choice(file, f"{fld}.interface", inst.get("interface"), INTERFACES)
+    solver = _choice(file, f"{fld}.solver", inst.get("solver"), SOLVERS)
+    max_step, event_tol = (_num(file, f"{fld}.{key}", inst[key], positive=True) if inst.get(key) is not None
+                           else None for key in ("max_step", "event_tolerance"))
+    given = [key for key in SOLVER_KEYS if inst.get(key) is not None]
+    if given and interface == CO_SIMULATION:
+        raise ScenarioError(file, f"{fld}.{given[0]}", "an integrator setting is for a model exchange instance, "
+                                                       "and this one says interface = \"co-simulation\" (a "
+                                                       "co-simulation FMU integrates itself)")
+    return {"interface": interface, "solver": solver, "max_step": max_step, "event_tolerance": event_tol}
+
+
+def _choice(file: str, fld: str, v: Any, allowed: tuple[str, ...]) -> str | None:
+    """``v`` if it is one of ``allowed`` (None if not given), else ScenarioError with the closest name."""
+    if v is None:
+        return None
+    if not isinstance(v, str) or v not in allowed:
+        hint = did_you_mean(v, allowed) if isinstance(v, str) else ""
+        raise ScenarioError(file, fld, f"{v!r}: must be one of {', '.join(allowed)}{hint}")
+    return v
 
 
 def _parse_connections(sc: Scenario, doc: dict[str, Any]) -> None:

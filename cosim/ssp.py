@@ -5,9 +5,10 @@ Generic: nothing here knows the FMUs it packs.
 **Export** (:func:`export_ssp`) writes, with the ``pyssp-standard`` library:
 
 - ``resources/<file>.fmu``: every FMU of the plan (one copy per file);
-- ``SystemStructure.ssd``: one System with one Component per instance (``application/x-fmu-sharedlibrary``),
-  its Connectors (the connected inputs and outputs, the recorded outputs and the parameters set, under the
-  FMU's own variable names, Real ones with their units, defined in the SSD's Units), the Connections with a
+- ``SystemStructure.ssd``: one System with one Component per instance (``application/x-fmu-sharedlibrary``;
+  ``implementation="ModelExchange"`` for an instance run as model exchange, whose integrator's settings SSP
+  1.0 cannot say), its Connectors (the connected inputs and outputs, the recorded outputs and the
+  parameters set, under the FMU's own variable names, Real ones with their units, defined in the SSD's Units), the Connections with a
   ``LinearTransformation`` where the scenario gives a factor or an offset (unit conversion is left to the
   connectors' units, as SSP prescribes), and a DefaultExperiment (start, stop) whose annotations carry the
   step: Open Simulation Platform's ``osp:FixedStepAlgorithm baseStepSize`` (read by libcosim and by this
@@ -27,12 +28,13 @@ Both XML files are validated against the SSP 1.0 schemas before the archive is w
 **Import** (:func:`load_ssp`) reads an SSP 1.0 archive written by this module or another tool into the
 master's :class:`~.scenario.Scenario` (so :func:`.system.resolve` checks it against the FMUs and
 :func:`.execution.run` runs it): the archive is checked for unsafe entries before anything is extracted,
-the SSD is validated against the schema, components must be FMUs inside the archive, parameter bindings
-(inline or in .ssv files, on the system or on components, with or without prefix) become parameters, and
-so do the String parameters that this module's export held back into its own annotation on the system,
-connections (with their LinearTransformation) become connections, connector units become declared units,
-the DefaultExperiment gives start and stop, the step comes from the annotations or from the FMUs'
-default experiments (or ``step=``).  Every problem is a one-line :class:`~.errors.ScenarioError`.
+the SSD is validated against the schema, components must be FMUs inside the archive (a component's
+``implementation`` CoSimulation or ModelExchange is the instance's ``interface``; "any" leaves it to the
+FMU, see :func:`.system.resolve`), parameter bindings (inline or in .ssv files, on the system or on
+components, with or without prefix) become parameters, and so do the String parameters that this module's
+export held back into its own annotation on the system, connections (with their LinearTransformation)
+become connections, connector units become declared units, the DefaultExperiment gives start and stop, the
+step comes from the annotations or from the FMUs' default experiments (or ``step=``).  Every problem is a one-line :class:`~.errors.ScenarioError`.
 """
 from __future__ import annotations
 
@@ -47,8 +49,8 @@ from typing import Any
 from .kinds import FileKind, file_kind
 from .archive import ArchiveLimits, LimitOverrides, check_archive, check_entries, check_sizes, safe_extract
 from .errors import CosimError, FmuLoadError, ScenarioError
-from .scenario import Scenario, apply_overrides, parse
-from .model import load_model
+from .scenario import CO_SIMULATION, MODEL_EXCHANGE, Scenario, apply_overrides, parse
+from .model import INTERFACE_NAMES, load_model
 from .system import Plan, unit_of
 
 SSP_VERSION = "1.0"
@@ -222,8 +224,14 @@ def export_remarks(plan: Plan) -> list[tuple[str, str]]:
 
     - each String parameter: left out of the parameter set (its value is the FMU's default) or kept there
       (OMSimulator cannot set it, and runs with the FMU's default);
-    - a Gauss-Seidel scenario: OMSimulator's fixed-step master is a Jacobi master."""
+    - a Gauss-Seidel scenario: OMSimulator's fixed-step master is a Jacobi master;
+    - an instance run as model exchange: the archive says so, not with which integrator."""
     out: list[tuple[str, str]] = []
+    for n, ip in plan.instances.items():
+        if ip.interface == MODEL_EXCHANGE:
+            out.append(("note", f"{n} runs as model exchange ({ip.describe()}): the archive says "
+                                "implementation=\"ModelExchange\"; SSP 1.0 has no place for the integrator's "
+                                "settings (other tools use their own)"))
     held = {(i, v.name) for i, v, _ in held_strings(plan)}
     for n, ip in plan.instances.items():
         for var, value in ip.parameters:
@@ -278,6 +286,8 @@ def _write_ssd(plan: Plan, name: str, resources: dict[Path, str], conns, with_pa
         for inst, ip in plan.instances.items():
             comp = Component()
             comp.name, comp.component_type, comp.source = inst, FMU_MIME, resources[ip.model.path.resolve()]
+            if ip.interface == MODEL_EXCHANGE:
+                comp.implementation = "ModelExchange"
             for vname, (kind, var) in conns[inst].items():
                 if var.type == "Real":
                     u = unit_of(ip, var)
@@ -709,9 +719,10 @@ def _components(system, path: Path, arch: Path, limits: ArchiveLimits
         ctype = comp.get("type", FMU_MIME)
         if ctype != FMU_MIME:
             raise ScenarioError(where, fld, f"type {ctype!r}: only FMUs ({FMU_MIME}) are supported")
-        if comp.get("implementation", "CoSimulation") not in ("CoSimulation", "any"):
-            raise ScenarioError(where, fld, f"implementation {comp.get('implementation')!r}: only co-simulation "
-                                            "is supported")
+        implementation = comp.get("implementation", "any")
+        if implementation not in IMPLEMENTATIONS:
+            raise ScenarioError(where, fld, f"implementation {implementation!r}: one of "
+                                            f"{', '.join(IMPLEMENTATIONS)}")
         src = comp.get("source") or ""     # (relative to the archive's top; "./" is dropped by the path)
         if "://" in src or src.startswith("/") or ".." in PurePosixPath(src).parts or "#" in src:
             raise ScenarioError(where, f"{fld}.source", f"{src!r}: only FMUs inside the archive are supported")
@@ -731,10 +742,29 @@ def _components(system, path: Path, arch: Path, limits: ArchiveLimits
             real = con.find("ssc:Real", NS)
             if real is not None and real.get("unit"):
                 units[cn] = real.get("unit")
-        instances[cname] = {"fmu": str(fmu), "parameters": {}, "units": units}
+        instances[cname] = {"fmu": str(fmu), "parameters": {}, "units": units,
+                            **_implementation(where, fld, src, model, implementation)}
         comp_params += [(cname, p, v) for p, v in _bindings(comp, arch, where)]
 
     return instances, connectors, comp_params
+
+
+#: An SSD component's ``implementation`` -> the instance's ``interface`` ("any", the default: none given,
+#: so the instance runs as co-simulation where the FMU has it, else as model exchange).
+IMPLEMENTATIONS = {"any": None, "CoSimulation": CO_SIMULATION, "ModelExchange": MODEL_EXCHANGE}
+
+
+def _implementation(where: str, fld: str, src: str, model: Any, implementation: str) -> dict[str, str]:
+    """The instance's ``interface`` an SSD component's ``implementation`` asks for ({} for "any"), or
+    ScenarioError when its FMU lacks that interface."""
+    interface = IMPLEMENTATIONS[implementation]
+    if interface is None:
+        return {}
+    if interface not in model.interfaces:
+        raise ScenarioError(where, fld, f"implementation {implementation!r}: {src} has no "
+                                        f"{INTERFACE_NAMES[interface]} interface (it has "
+                                        f"{' and '.join(INTERFACE_NAMES[i] for i in model.interfaces)} only)")
+    return {"interface": interface}
 
 
 def _connections(system, instances: dict[str, Any], connectors: dict[tuple[str, str], Any], where: str

@@ -18,13 +18,15 @@ from .algorithm import InstanceIO, RecordedGetter
 from .archive import safe_extract
 from .fmu_instance import FmuInstance
 from .instance import Instance, Instance3, vr_array
+from .me_instance import model_exchange
 from .system import Plan, RecordPlan
 from .wiring import RowLayout, Wiring, discrete_copier, is_f64, is_real, table_feeder
 
 
 def load_instances(plan: Plan, work: Path, logs: Path) -> dict[str, FmuInstance]:
     """Extract every FMU file once (into ``work``) and host each instance of the plan: in a child process
-    where it says ``isolate``, else in this one; its log goes to ``logs/<instance>.log``."""
+    where it says ``isolate``, else in this one; as co-simulation or, where the plan says, as model exchange
+    with its integrator; its log goes to ``logs/<instance>.log``."""
     unz: dict[Path, str] = {}
     instances: dict[str, FmuInstance] = {}
     n_isolated = sum(q.spec.isolate for q in plan.instances.values())
@@ -36,7 +38,9 @@ def load_instances(plan: Plan, work: Path, logs: Path) -> dict[str, FmuInstance]
         if ip.spec.isolate:
             from .isolation import IsolatedInstance, spin_for
             instances[name] = IsolatedInstance(name, ip.model.md, unz[p], log, ip.spec.logging,
-                                               ip.spec.step_timeout or 60.0, spin_for(n_isolated))
+                                               ip.spec.step_timeout or 60.0, spin_for(n_isolated), ip.solver)
+        elif ip.solver is not None:   # model exchange
+            instances[name] = model_exchange(name, ip.model.md, unz[p], log, ip.spec.logging, ip.solver)
         else:
             cls = Instance3 if ip.model.fmi == 3 else Instance
             instances[name] = cls(name, ip.model.md, unz[p], log, ip.spec.logging)

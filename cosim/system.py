@@ -1,10 +1,16 @@
 """Resolve a scenario against its FMUs: every check that can be made before the first step.
 
 Checks (each a ScenarioError naming the file, the field and the reason): a missing or unsafe FMU file,
-an FMU that is not FMI 2.0 or 3.0 co-simulation, a variable that does not exist, wrong causality (an input
-driven twice, an output or parameter used as a connection target, a connection from a non-output), a type
-mismatch, a unit mismatch (convertible units are converted), a step the FMU cannot take, a parameter or
-start value of the wrong type or outside the min/max the model description declares.
+an FMU that is not FMI 2.0 or 3.0 co-simulation or model exchange, or lacks the interface an instance uses
+(or its binary), a variable that does not exist, wrong causality (an input driven twice, an output or
+parameter used as a connection target, a connection from a non-output), a type mismatch, a unit mismatch
+(convertible units are converted), a step the FMU cannot take, a parameter or start value of the wrong
+type or outside the min/max the model description declares.
+
+The interface an instance uses: its ``interface``; else model exchange where it gives an integrator
+setting (``solver``, ``max_step``, ``event_tolerance``) or the FMU has no co-simulation interface; else
+co-simulation.  A model exchange instance's plan carries its integrator (:class:`.integrators.SolverSpec`,
+with the tolerance the instance resolves to).
 """
 from __future__ import annotations
 
@@ -20,8 +26,10 @@ import numpy as np
 from .archive import DEFAULT_LIMITS, ArchiveLimits
 from .errors import CosimError, FmuLoadError, ScenarioError
 from .inputs import InputPlan, read_inputs
-from .model import PY_TYPES, FmuModel, Variable, load_model
-from .scenario import ConnectionSpec, InstanceSpec, Scenario, check_experiment, split_ref
+from .integrators import DEFAULT_EVENT_TOLERANCE, DEFAULT_RTOL, SolverSpec
+from .model import INTERFACE_NAMES, PY_TYPES, FmuModel, Variable, load_model
+from .scenario import (CO_SIMULATION, MODEL_EXCHANGE, SOLVER_KEYS, ConnectionSpec, InstanceSpec, Scenario,
+                       check_experiment, split_ref)
 from .suggest import did_you_mean
 from .units import conversion, lookup, same_unit, units_of
 
@@ -37,9 +45,28 @@ class InstancePlan:
     theirs_to_ours: dict[str, str] = field(default_factory=dict)
     parameters: list[tuple[Variable, Any]] = field(default_factory=list)
     tolerance: float | None = None   # what its set-up gets: the instance's, else the experiment's, else the FMU's own
+    interface: str = CO_SIMULATION    # the FMU's interface the run uses ("co-simulation" | "model-exchange")
+    solver: SolverSpec | None = None  # model exchange: the master's integrator of it (None for co-simulation)
 
     def our_name(self, var: Variable) -> str:
         return self.theirs_to_ours.get(var.name, var.name)
+
+    def describe(self) -> str:
+        """How it runs, in words (``check`` prints it): "co-simulation", or "model exchange, cvode, rtol
+        1e-05" with the integrator's settings (largest step [s]; Euler's and RK4's event tolerance [s])."""
+        if self.solver is None:
+            return INTERFACE_NAMES[self.interface]
+        sv = self.solver
+        parts = [INTERFACE_NAMES[self.interface], sv.name]
+        if sv.name == "cvode":
+            parts.append(f"rtol {sv.tolerance if sv.tolerance is not None else DEFAULT_RTOL:g}")
+        if sv.max_step is not None:
+            parts.append(f"max step {sv.max_step:g} s")
+        elif sv.name != "cvode":
+            parts.append("one step per communication step")
+        if sv.name != "cvode":
+            parts.append(f"events located to {sv.event_tolerance:g} s")
+        return ", ".join(parts)
 
 
 @dataclass
@@ -305,7 +332,7 @@ def _internal_steps(sc: Scenario, insts: dict[str, InstancePlan]) -> dict[str, i
     finish (the Reference FMU Roberts over its default 1e8 s takes 1e11 steps of 1 ms)."""
     out: dict[str, int] = {}
     for name, ip in insts.items():
-        h = ip.model.internal_step
+        h = ip.model.internal_step if ip.interface == CO_SIMULATION else None   # (model exchange: the master's steps)
         if h is None:
             continue
         start, stop, _ = sc.times()
@@ -493,6 +520,7 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
     insts, notes = _instance_plans(sc)
     _experiment(sc, {n: ip.model for n, ip in insts.items()})
     _tolerances(sc, insts)
+    _solvers(sc, insts)
     internal = _internal_steps(sc, insts)
     conns, driven = _connection_plans(sc, insts)
     record, not_recorded = _record(sc, insts)
@@ -540,7 +568,8 @@ def _instance_plan(sc: Scenario, name: str, spec: InstanceSpec, notes: list[str]
         model = load_model(spec.fmu_path, sc.archive_limits)
     except FmuLoadError as exc:
         raise ScenarioError(file, f"instances.{name}.fmu", str(exc)) from None
-    ip = InstancePlan(name, spec, model, {o: t for t, o in spec.names.items()}, dict(spec.names))
+    ip = InstancePlan(name, spec, model, {o: t for t, o in spec.names.items()}, dict(spec.names),
+                      interface=_interface(file, name, spec, model))
     for their, ours in spec.names.items():
         if their not in model.variables:
             raise ScenarioError(file, f"instances.{name}.names.{their}",
@@ -560,6 +589,41 @@ def _instance_plan(sc: Scenario, name: str, spec: InstanceSpec, notes: list[str]
             raise ScenarioError(file, fld, reason)
         ip.parameters.append((var, checked_value(file, fld, var, value)))
     return ip
+
+
+def _interface(file: str, name: str, spec: InstanceSpec, model: FmuModel) -> str:
+    """The interface an instance runs: the one it names; else model exchange if it gives an integrator
+    setting or the FMU has no co-simulation interface; else co-simulation (an FMU with both runs as
+    co-simulation unless asked).  ScenarioError (naming the field that asked for it) when the FMU lacks that
+    interface or its binary for this platform."""
+    asked_by = [k for k in SOLVER_KEYS if getattr(spec, k) is not None]
+    if spec.interface is not None:
+        wanted, fld, why = spec.interface, f"instances.{name}.interface", ""
+    elif asked_by:
+        wanted, fld = MODEL_EXCHANGE, f"instances.{name}.{asked_by[0]}"
+        why = " (an integrator setting runs it as model exchange)"
+    else:
+        wanted, fld, why = (CO_SIMULATION if model.has_cs else MODEL_EXCHANGE), f"instances.{name}.fmu", ""
+    if wanted not in model.interfaces:
+        has = " and ".join(INTERFACE_NAMES[i] for i in model.interfaces)
+        raise ScenarioError(file, fld, f"{model.path.name} has no {INTERFACE_NAMES[wanted]} interface (it has "
+                                       f"{has} only){why}")
+    try:
+        model.check_binary(wanted)
+    except FmuLoadError as exc:
+        raise ScenarioError(file, fld, f"{INTERFACE_NAMES[wanted]}: {exc}") from None
+    return wanted
+
+
+def _solvers(sc: Scenario, insts: dict[str, InstancePlan]) -> None:
+    """Each model exchange instance's integrator: its solver (CVODE by default), the tolerance it resolved
+    to (:func:`_tolerances`), its largest step and event tolerance."""
+    for ip in insts.values():
+        if ip.interface != MODEL_EXCHANGE:
+            continue
+        spec = ip.spec
+        ip.solver = SolverSpec(spec.solver or "cvode", ip.tolerance, spec.max_step,
+                               spec.event_tolerance if spec.event_tolerance is not None else DEFAULT_EVENT_TOLERANCE)
 
 
 def _connection_plans(sc: Scenario, insts: dict[str, InstancePlan]

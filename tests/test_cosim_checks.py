@@ -1,6 +1,7 @@
 """Every check before the first step fails with one line naming the file, the field and the reason."""
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import zipfile
@@ -99,15 +100,18 @@ def test_bad_scenario_is_refused_with_file_field_and_reason(case, built_fmus, tm
     assert reason in msg, msg
 
 
-def test_not_co_simulation_fmu_is_refused(built_fmus, tmp_path):
+def test_an_fmu_without_the_interface_asked_for_or_not_fmi2_is_refused(built_fmus, tmp_path):
     bad = _rewrite_fmu(built_fmus["WmrSensor"], tmp_path / "me.fmu", "<CoSimulation", "<ModelExchange")
     bad2 = _rewrite_fmu(built_fmus["WmrSensor"], tmp_path / "v1.fmu", 'fmiVersion="2.0"', 'fmiVersion="1.0"')
-    for fmu, why in ((bad, "not a co-simulation FMU"), (bad2, "only FMI 2.0 and 3.0")):
-        path = g1_with_paths(tmp_path, built_fmus, f'[instances.sensor]\nfmu = "{fmu}"\n', name=f"{fmu.stem}.toml",
-                             skip=("sensor",))
-        with pytest.raises(ScenarioError, match=why) as exc:
+    for fmu, extra, field, why in (
+            (bad, 'interface = "co-simulation"\n', "instances.sensor.interface",
+             "me.fmu has no co-simulation interface (it has model exchange only)"),
+            (bad2, "", "instances.sensor.fmu", "only FMI 2.0 and 3.0")):
+        path = g1_with_paths(tmp_path, built_fmus, f'[instances.sensor]\nfmu = "{fmu}"\n{extra}',
+                             name=f"{fmu.stem}.toml", skip=("sensor",))
+        with pytest.raises(ScenarioError, match=re.escape(why)) as exc:
             _resolve(path)
-        assert exc.value.field == "instances.sensor.fmu"
+        assert exc.value.field == field
 
 
 def test_a_fixed_step_fmu_accepts_any_constant_step(built_fmus, tmp_path):

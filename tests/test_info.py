@@ -1,5 +1,6 @@
 """``wmr-cosim info`` describes any FMU whose model description it can read (Model Exchange only, FMI 1.0,
-no binary for this platform) with one line on what would stop a run; exit 2 only for an unreadable one."""
+no binary for this platform) with one line on what would stop a run, or how it runs here; exit 2 only for
+an unreadable one."""
 from __future__ import annotations
 
 import re
@@ -57,7 +58,10 @@ def test_a_model_exchange_only_fmu_is_described(tmp_path, capsys):
     code, out, err = _info(capsys, me)
     assert code == 0, err
     assert "(FMI 2.0; model exchange (ME); identifier BouncingBall)" in out and "platforms: linux64" in out
-    assert _cannot(out) == ["cannot run here: Model Exchange only (the master runs co-simulation FMUs)"]
+    assert _cannot(out) == []       # (the master integrates a Model Exchange FMU)
+    assert "\n  runs here as: model exchange, integrated by the master (cvode; " in out, out
+    assert ("\n  model exchange: get/set state: True; serialize state: True; needsCompletedIntegratorStep: True; "
+            "event indicators: 1; continuous states: 2\n") in out and "\n  co-simulation:" not in out, out
     assert re.search(r"\n  e +parameter +tunable +Real +0.5 +1 +0.7 +Coefficient of restitution\n", out), out
 
 

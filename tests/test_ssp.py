@@ -310,8 +310,12 @@ def bad_archives(g1_ssp, built_fmus, tmp_path_factory):
         "SSP 2.0 namespace": (_rewrite(g1_ssp, d / "ns2.ssp", edit=lambda t: t.replace("SSP1/", "SSP2/")),
                               "not an SSP 1.0 system structure"),
         "model exchange FMU": (_rewrite(g1_ssp, d / "me.ssp", drop=("resources/WmrSensor.fmu",),
-                                        add=(("resources/WmrSensor.fmu", me.read_bytes()),)),
-                               "not a co-simulation FMU"),
+                                        add=(("resources/WmrSensor.fmu", me.read_bytes()),),
+                                        edit=lambda t: t.replace('source="resources/WmrSensor.fmu"',
+                                                                 'source="resources/WmrSensor.fmu" '
+                                                                 'implementation="CoSimulation"', 1)),
+                               "implementation 'CoSimulation': resources/WmrSensor.fmu has no co-simulation "
+                               "interface (it has model exchange only)"),
         "not valid": (_rewrite(g1_ssp, d / "invalid.ssp", edit=lambda t: t.replace("<ssd:Elements>",
                                                                                   "<ssd:Bogus/><ssd:Elements>", 1)),
                       "not valid against the SSP 1.0 schema"),

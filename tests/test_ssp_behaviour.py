@@ -507,7 +507,8 @@ def _comp(name: str = "a", attrs: str = 'source="resources/Gain.fmu"', inner: st
         'type="application/x-fmu-sharedlibrary" ', ""),
      "Component a", "type 'application/x-other': only FMUs (application/x-fmu-sharedlibrary) are supported"),
     (_comp(attrs='source="resources/Gain.fmu" implementation="ModelExchange"'),
-     "Component a", "implementation 'ModelExchange': only co-simulation is supported"),
+     "Component a", "implementation 'ModelExchange': resources/Gain.fmu has no model exchange interface (it has "
+                    "co-simulation only)"),
     (_comp(attrs='source="https://example.org/Gain.fmu"'), "Component a.source",
      "'https://example.org/Gain.fmu': only FMUs inside the archive are supported"),
     (_comp(attrs='source="/resources/Gain.fmu"'), "Component a.source",

@@ -118,11 +118,16 @@ class Simulation:
         self.document.setdefault("experiment", {}).update(fields)
         return self
 
-    def instance(self, name: str, fmu: str | Path, **parameters: Any) -> "Simulation":
+    def instance(self, name: str, fmu: str | Path, *, fields: dict[str, Any] | None = None,
+                 **parameters: Any) -> "Simulation":
         """Add an instance: ``fmu`` a model name (WmrPlant, WmrSensor, WmrController, WmrCPlant) or a path
-        to an .fmu; keyword arguments are its parameters and start values."""
+        to an .fmu; keyword arguments are its parameters and start values; ``fields``: the other keys of
+        ``[instances.NAME]`` (``logging``, ``isolate``, ``tolerance``, ``interface``, ``solver``,
+        ``max_step`` [s], ``event_tolerance`` [s], ...), checked as a scenario file's:
+        ``.instance("plant", "Plant.fmu", fields={"solver": "rk4", "max_step": 1e-3})`` runs it as model
+        exchange with RK4."""
         fmu = str(Path(fmu).resolve()) if scenario.is_path(str(fmu)) else str(fmu)
-        inst: dict[str, Any] = {"fmu": fmu}
+        inst: dict[str, Any] = {**(fields or {}), "fmu": fmu}
         if parameters:
             inst["parameters"] = dict(parameters)
         self.document.setdefault("instances", {})[name] = inst

@@ -153,12 +153,27 @@ def experiment_overrides(args: argparse.Namespace) -> dict[str, Any]:
     return overrides
 
 
+def instance_fields(args: argparse.Namespace) -> dict[str, Any]:
+    """The fields of a single FMU's instance that --solver and --max-step [s] set (checked as the
+    instance's ``solver`` and ``max_step``); UsageError for a scenario file, an SSP archive or a protocol,
+    whose instances say it themselves."""
+    from .runner import is_fmu
+
+    fields = {key: v for key in ("solver", "max_step") if (v := getattr(args, key, None)) is not None}
+    if fields and not is_fmu(args.scenario):
+        opt = "--solver" if "solver" in fields else "--max-step"
+        raise UsageError(f"{opt} applies to a single FMU (.fmu); a scenario file says it in [instances.NAME] "
+                         f"{opt[2:].replace('-', '_')}")
+    return fields
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     """Run a scenario through the co-simulation master."""
     from .runner import default_out, is_fmu, is_scenario, run_scenario
 
     out = args.out if args.out is not None else default_out(args.scenario)
     overrides = experiment_overrides(args)
+    fields = instance_fields(args)
     parsed = None
     if is_scenario(args.scenario):
         from .runner import read_scenario
@@ -175,7 +190,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise UsageError("--input applies to a single FMU (.fmu); a scenario file says it in [inputs]")
     res = run_scenario(args.scenario, out, overrides, progress=False if args.quiet else None, inputs=args.input,
                        force=args.force, isolate=args.isolate, real_time=args.real_time, limits=args.limits,
-                       parsed=parsed)
+                       parsed=parsed, fields=fields)
     _report_run(args, res, out)
     return for_status(res.status)
 
@@ -220,6 +235,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     from .runner import fmu_plan, is_fmu, load_plan, ssp_plan
 
     overrides = experiment_overrides(args)
+    fields = instance_fields(args)
     f, lim = args.force, args.limits
     if args.input is not None and not is_fmu(args.scenario):
         raise UsageError("--input applies to a single FMU (.fmu); a scenario file says it in [inputs]")
@@ -228,7 +244,7 @@ def cmd_check(args: argparse.Namespace) -> int:
         with ssp_plan(args.scenario, overrides, f, limits=lim) as plan:
             _report_check(args, plan)
     elif kind is FileKind.FMU:
-        _report_check(args, fmu_plan(args.scenario, overrides, args.input, force=f, limits=lim))
+        _report_check(args, fmu_plan(args.scenario, overrides, args.input, force=f, limits=lim, fields=fields))
     else:
         from .runner import read_scenario
 
@@ -239,13 +255,16 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 
 def _report_check(args: argparse.Namespace, plan: Any) -> None:
-    """What ``check`` prints of a checked plan: its verdict and sizes, then its notes."""
+    """What ``check`` prints of a checked plan: its verdict and sizes, how each instance runs (its
+    interface; for model exchange, the integrator), then its notes."""
     sc = plan.scenario
     print(f"{args.scenario}: ok: {len(plan.instances)} instances ({', '.join(plan.order)}), "
           f"{len(plan.connections)} connections, {len(plan.record)} recorded variables, "
           f"{len(plan.events) + len(plan.conditions)} events, "
           f"{plan.n_steps} steps of {sc.step:g} s ({sc.algorithm}); signals.npy about "
           f"{_size(plan.output_bytes)}{' (and signals.csv about ' + _size(3 * plan.output_bytes) + ')' if sc.csv else ''}")
+    for name, ip in plan.instances.items():
+        print(f"  {name}: {ip.describe()}")
     if plan.not_recorded:
         print(f"note: String outputs are not recorded: {', '.join(plan.not_recorded)}")
     for note in plan.notes:
@@ -374,6 +393,19 @@ def _dask_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+def _solver_options(p: argparse.ArgumentParser) -> None:
+    """--solver and --max-step of run and check: a single FMU run as model exchange by the master's integrator."""
+    from .cosim.integrators import SOLVERS
+
+    p.add_argument("--solver", default=None, metavar="NAME",
+                   help=f"one FMU only: run it as model exchange with this integrator ({', '.join(SOLVERS)}; an "
+                        "FMU with no co-simulation interface runs as model exchange with cvode anyway): sets the "
+                        "instance's solver")
+    p.add_argument("--max-step", dest="max_step", type=float, default=None, metavar="H",
+                   help="one FMU only: the integrator's largest step [s] (model exchange): sets the instance's "
+                        "max_step")
+
+
 def _experiment_options(p: argparse.ArgumentParser) -> None:
     """--start, --stop, --step and --record of run and check (with FMPy's names as aliases)."""
     what = "of the scenario, the SSP archive or the FMU's default experiment"
@@ -474,6 +506,7 @@ def _add_run(sub: Any) -> None:
     r.add_argument("--input", type=Path, default=None, metavar="FILE.csv",
                    help="one FMU only: input signals (a time column, one column per input; see docs/scenarios.md)")
     _experiment_options(r)
+    _solver_options(r)
     r.add_argument("--force", action="store_true",
                    help="run even beyond the limits of steps (experiment.max_steps) and recording size (record.max_bytes)")
     r.add_argument("--isolate", action="store_true",
@@ -497,6 +530,7 @@ def _add_check(sub: Any) -> None:
     c.add_argument("--input", type=Path, default=None, metavar="FILE.csv",
                    help="one FMU only: input signals, checked as `run --input` reads them")
     _experiment_options(c)
+    _solver_options(c)
     c.add_argument("--variant", default=None, help="a protocol's variant ([variants.NAME]): check its runs with it")
     c.set_defaults(func=cmd_check, subparser=c)
 

@@ -1,6 +1,7 @@
 """``wmr-cosim info``: describe any FMU whose model description can be read (FMI 1.0, 2.0 or 3.0;
 co-simulation, model exchange or scheduled execution; with or without a binary for this platform), and
-say in one line what would stop the master from running it.
+say in one line what would stop the master from running it, or how it runs it (co-simulation, or model
+exchange through the master's integrator).
 
 Only an archive that is unsafe (a decompression bomb, an entry outside the archive), has no readable
 model description, or declares XML entities is refused (:class:`~wmr_cosim.cosim.errors.FmuLoadError`,
@@ -17,8 +18,8 @@ from fmpy import read_model_description
 
 from .cosim.archive import DEFAULT_LIMITS, ArchiveLimits, check_archive
 from .cosim.errors import FmuLoadError
-from .cosim.model import fmi_version
-from .cosim.model import load_model
+from .cosim.model import FmuModel, fmi_version, load_model
+from .cosim.scenario import CO_SIMULATION, MODEL_EXCHANGE
 
 #: The largest double: a bound of this size (or infinite) is no bound, and is shown as nothing.
 UNBOUNDED = 1.7976931348623157e308
@@ -55,19 +56,61 @@ def kinds(md: Any) -> list[str]:
             if getattr(md, attr, None) is not None]
 
 
-def why_not_runnable(path: Path, md: Any, limits: ArchiveLimits = DEFAULT_LIMITS) -> str | None:
-    """Why the master cannot run this FMU here (one line), or None if it can (its archive within ``limits``)."""
+def verdict(path: Path, md: Any, limits: ArchiveLimits = DEFAULT_LIMITS) -> str:
+    """One line: why the master cannot run this FMU here ("cannot run here: ..."), or how it runs it
+    ("runs here as: ...", the interface an instance uses by default and how to ask for the other); its
+    archive within ``limits``."""
     version = str(md.fmiVersion)
     if version != "2.0" and not version.startswith("3."):
-        return f"FMI {version} (the master runs FMI 2.0 and 3.0 FMUs)"
-    if md.coSimulation is None:
-        only = "Scheduled Execution" if getattr(md, "scheduledExecution", None) is not None else "Model Exchange"
-        return f"{only} only (the master runs co-simulation FMUs)"
+        return f"cannot run here: FMI {version} (the master runs FMI 2.0 and 3.0 FMUs)"
+    if md.coSimulation is None and md.modelExchange is None:
+        only = "Scheduled Execution only" if getattr(md, "scheduledExecution", None) is not None else "no interface"
+        return f"cannot run here: {only} (the master runs co-simulation and model exchange FMUs)"
     try:
-        load_model(path, limits)
+        model = load_model(path, limits)
     except FmuLoadError as exc:
-        return str(exc).replace(f"{path}: ", "", 1)
-    return None
+        return "cannot run here: " + str(exc).replace(f"{path}: ", "", 1)
+    return f"runs here as: {_runs_as(model)}"
+
+
+def _runs_as(model: FmuModel) -> str:
+    """How ``wmr-cosim run`` runs a runnable FMU: the interface it uses by default, how to ask for the other."""
+    usable = [i for i in model.interfaces if i not in model.missing_binaries]
+    if CO_SIMULATION not in usable:
+        no_cs = "" if not model.has_cs else " (no co-simulation binary for this platform)"
+        return f"model exchange{no_cs}, integrated by the master (cvode; --solver euler or rk4, or an instance's solver)"
+    if MODEL_EXCHANGE not in usable:
+        return "co-simulation"
+    return ("co-simulation (or model exchange, integrated by the master: --solver NAME, or an instance's "
+            "interface = \"model-exchange\")")
+
+
+def _identifiers(md: Any) -> str:
+    """The model identifier; where co-simulation and model exchange name different binaries, both."""
+    cs, me = (getattr(getattr(md, a, None), "modelIdentifier", None) for a in ("coSimulation", "modelExchange"))
+    se = getattr(getattr(md, "scheduledExecution", None), "modelIdentifier", None)
+    if cs and me and cs != me:
+        return f"{cs} (model exchange: {me})"
+    return cs or me or se or "?"
+
+
+def _capabilities(md: Any) -> list[str]:
+    """One line per interface the master runs: co-simulation's variable step and state; model exchange's
+    state, whether it needs completedIntegratorStep, its event indicators and continuous states."""
+    if str(md.fmiVersion).startswith("1."):
+        return []
+    lines = []
+    cs, me = md.coSimulation, md.modelExchange
+    if cs is not None:
+        lines.append(f"  co-simulation: variable step: {cs.canHandleVariableCommunicationStepSize}; get/set state: "
+                     f"{cs.canGetAndSetFMUstate}; serialize state: {cs.canSerializeFMUstate}")
+    if me is not None:
+        needs = (bool(me.needsCompletedIntegratorStep) if str(md.fmiVersion).startswith("3")
+                 else not me.completedIntegratorStepNotNeeded)      # (FMI 2.0 says it the other way round)
+        lines.append(f"  model exchange: get/set state: {me.canGetAndSetFMUstate}; serialize state: "
+                     f"{me.canSerializeFMUstate}; needsCompletedIntegratorStep: {needs}; event indicators: "
+                     f"{md.numberOfEventIndicators or 0}; continuous states: {md.numberOfContinuousStates or 0}")
+    return lines
 
 
 def describe(path: str | Path, limits: ArchiveLimits = DEFAULT_LIMITS) -> str:
@@ -82,27 +125,20 @@ def describe(path: str | Path, limits: ArchiveLimits = DEFAULT_LIMITS) -> str:
         md = read_model_description(str(path), validate=False)
     except Exception as exc:  # FMPy raises plain Exceptions for unreadable descriptions
         raise FmuLoadError(f"{path}: cannot read modelDescription.xml ({' '.join(str(exc).split())})") from None
-    iface = md.coSimulation or md.modelExchange or getattr(md, "scheduledExecution", None)
-    ident = getattr(iface, "modelIdentifier", None) or "?"
     names = {"CS": "co-simulation", "ME": "model exchange", "SE": "scheduled execution"}
     platforms, sources = _platforms(path)
     lines = [f"{path}",
              f"  model {md.modelName} (FMI {md.fmiVersion}; {', '.join(f'{names[k]} ({k})' for k in kinds(md)) or 'no interface'}; "
-             f"identifier {ident})",
+             f"identifier {_identifiers(md)})",
              f"  generated by {md.generationTool or '?'}; guid {md.guid}",
              f"  platforms: {', '.join(platforms) or 'no binaries'}{'; sources included' if sources else ''}"]
-    cs = md.coSimulation
-    if cs is not None and not str(md.fmiVersion).startswith("1."):
-        lines.append(f"  co-simulation: variable step: {cs.canHandleVariableCommunicationStepSize}; get/set state: "
-                     f"{cs.canGetAndSetFMUstate}; serialize state: {cs.canSerializeFMUstate}")
+    lines += _capabilities(md)
     de = md.defaultExperiment
     given = [f"{k} {v}" for k, v in (("start", getattr(de, "startTime", None)), ("stop", getattr(de, "stopTime", None)),
                                       ("step", getattr(de, "stepSize", None)),
                                       ("tolerance", getattr(de, "tolerance", None))) if v is not None]
     lines.append(f"  default experiment: {', '.join(given) or 'none'}")
-    why = why_not_runnable(path, md, limits)
-    if why:
-        lines.append(f"  cannot run here: {why}")
+    lines.append(f"  {verdict(path, md, limits)}")
     rows = [("name", "causality", "variability", "type", "unit", "min", "max", "start", "description")]
     for v in md.modelVariables:
         dt = v.declaredType

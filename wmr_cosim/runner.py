@@ -130,18 +130,20 @@ def run_protocol(path: str | Path | Protocol, out_dir: str | Path,
 
 def fmu_document(fmu: str | Path, inputs: str | Path | None = None, stop: float | None = None,
                  step: float | None = None, start: float | None = None,
-                 limits: LimitOverrides | None = None) -> dict[str, Any]:
+                 limits: LimitOverrides | None = None, fields: dict[str, Any] | None = None) -> dict[str, Any]:
     """The scenario document of one FMU run alone (as ``fmpy simulate`` runs it): one instance named after
-    the model identifier, every output recorded, start, stop and step [s] from its default experiment unless
-    given (with no default step, 500 steps over the run, as FMPy; with no stop either, 1 s), inputs from a
-    CSV table.  ``limits``: the caller's archive limits (over the defaults)."""
+    the model identifier (of its co-simulation interface, else of its model exchange one), every output
+    recorded, start, stop and step [s] from its default experiment unless given (with no default step, 500
+    steps over the run, as FMPy; with no stop either, 1 s), inputs from a CSV table.  ``limits``: the
+    caller's archive limits (over the defaults); ``fields``: more keys of the instance (``solver``,
+    ``max_step``, ``interface``, ...), checked as a scenario file's."""
     import re
 
     path = Path(fmu).resolve()
     model = load_model(path, (limits or LimitOverrides()).over())
-    name = re.sub(r"\W", "_", model.md.coSimulation.modelIdentifier) or "fmu"
+    name = re.sub(r"\W", "_", model.identifier) or "fmu"
     name = name if name.isidentifier() else f"fmu_{name}"
-    doc: dict[str, Any] = {"instances": {name: {"fmu": str(path)}}, "record": {"variables": ["*.*"]}}
+    doc: dict[str, Any] = {"instances": {name: {**(fields or {}), "fmu": str(path)}}, "record": {"variables": ["*.*"]}}
     de = model.md.defaultExperiment
     if step is None and model.default_step is None:  # as FMPy: 500 steps over the run
         begin = start if start is not None else float(de.startTime) if de is not None and de.startTime is not None \
@@ -159,14 +161,16 @@ def fmu_document(fmu: str | Path, inputs: str | Path | None = None, stop: float 
 
 def fmu_plan(fmu: str | Path, overrides: dict[str, Any] | None = None, inputs: str | Path | None = None,
              stop: float | None = None, step: float | None = None, force: bool = False, isolate: bool = False,
-             limits: LimitOverrides | None = None) -> system.Plan:
+             limits: LimitOverrides | None = None, fields: dict[str, Any] | None = None) -> system.Plan:
     """The checked plan of one FMU run alone (see :func:`fmu_document`); ``overrides`` may set the
     experiment (``experiment.stop``: its 500 default steps then span the new run); ``isolate`` hosts it in a
-    child process; ``limits``: the caller's archive limits."""
+    child process; ``limits``: the caller's archive limits; ``fields``: more keys of its instance (the
+    command line's ``--solver`` and ``--max-step``)."""
     given = {k: v for k in ("start", "stop", "step")
              if isinstance(v := (overrides or {}).get(f"experiment.{k}"), (int, float)) and not isinstance(v, bool)}
     try:
-        doc = fmu_document(fmu, inputs, given.get("stop", stop), given.get("step", step), given.get("start"), limits)
+        doc = fmu_document(fmu, inputs, given.get("stop", stop), given.get("step", step), given.get("start"), limits,
+                           fields)
     except CosimError as exc:
         raise ScenarioError(str(fmu), "", str(exc).replace(f"{Path(fmu).resolve()}: ", "", 1)) from None
     doc = scenario.apply_overrides(doc, overrides, str(fmu))
@@ -245,13 +249,14 @@ def run_scenario(path: str | Path, out: str | Path | None = None, overrides: dic
                  progress: bool | None = None, inputs: str | Path | None = None, stop: float | None = None,
                  step: float | None = None, force: bool = False, isolate: bool = False,
                  real_time: float | None = None, limits: LimitOverrides | None = None,
-                 parsed: Protocol | None = None) -> execution.RunResult:
+                 parsed: Protocol | None = None, fields: dict[str, Any] | None = None) -> execution.RunResult:
     """Run a scenario file (.toml), an SSP archive (.ssp) or one FMU alone (.fmu); ``isolate`` hosts every
     instance in a child process of its own; ``real_time=FACTOR`` paces the steps to the wall clock;
-    ``limits``: the caller's archive limits; ``parsed``: a scenario file already read (see :func:`load_plan`)."""
+    ``limits``: the caller's archive limits; ``parsed``: a scenario file already read (see :func:`load_plan`);
+    ``fields``: one FMU alone: more keys of its instance (``solver``, ``max_step``: see :func:`fmu_plan`)."""
     out = out if out is not None else default_out(path)
     if is_fmu(path):
-        return execution.run(fmu_plan(path, overrides, inputs, stop, step, force, isolate, limits), out,
+        return execution.run(fmu_plan(path, overrides, inputs, stop, step, force, isolate, limits, fields), out,
                              progress=progress, real_time=real_time)
     if ssp.is_ssp(path):
         with ssp_plan(path, overrides, force, isolate, limits) as plan:
