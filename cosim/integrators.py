@@ -296,7 +296,7 @@ class FixedStep(Integrator):
         eq = self.eq
         eq.check(eq.set_time(t), 0)
         if x:
-            self.buf[:] = x
+            self.buf[:] = x   # type: ignore[assignment]
             eq.check(eq.set_x(self.buf), 1)
         if not eq.nz:
             return []

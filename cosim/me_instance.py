@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import ctypes
 import math
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from .errors import RunError
 from .failure import Call
@@ -53,6 +53,19 @@ class ModelExchange:
     md: Any
     name: str
     c: Any
+    fatal: bool
+
+    if TYPE_CHECKING:   # (given by the co-simulation instance this is mixed into)
+        def call(self, what: str, fn: Any, *args: Any, t: float | None = None) -> Any: ...
+
+    def _sizes(self) -> tuple[int, int]:
+        """The numbers of continuous states and of event indicators."""
+        raise NotImplementedError
+
+    def _update_discrete_states(self) -> tuple[Any, ...]:
+        """One update of the discrete states in event mode: (needed, terminate, nominals changed, values
+        changed, next event time defined, next event time)."""
+        raise NotImplementedError
 
     def __init__(self, name: str, md: Any, unzipdir: str, log_path: Any = None, logging: str = "warning",
                  solver: SolverSpec = SolverSpec()) -> None:
@@ -111,7 +124,7 @@ class ModelExchange:
         """Event mode now, if the FMU is in continuous-time mode (values other than continuous inputs are
         set there); the next step begins with the event iteration."""
         if self.mode == "continuous":
-            self.call(f"fmi{self.fmi_version}EnterEventMode", self.fmu.enterEventMode, t=self.t)  # type: ignore[attr-defined]
+            self.call(f"fmi{self.fmi_version}EnterEventMode", self.fmu.enterEventMode, t=self.t)
             self.mode = "event"
             self.events.append((self.t, "set"))
 
@@ -256,7 +269,7 @@ class ModelExchange:
         """Event mode (unless in it), the event iteration, continuous-time mode, the integrator restarted."""
         assert self.integrator is not None
         if self.mode != "event":
-            self.call(f"fmi{self.fmi_version}EnterEventMode", self.fmu.enterEventMode, t=t)  # type: ignore[attr-defined]
+            self.call(f"fmi{self.fmi_version}EnterEventMode", self.fmu.enterEventMode, t=t)
             self.mode = "event"
         if kind != "set":
             self.events.append((t, kind))
@@ -284,7 +297,7 @@ class ModelExchange:
             raise RunError(f"{self.name}: the event iteration at t = {t:.9g} s did not end after "
                            f"{MAX_EVENTS_AT_ONE_TIME} updates of the discrete states", self.name, t)
         self.next_event = float(t_next) if defined else None
-        self.call(f"fmi{self.fmi_version}EnterContinuousTimeMode", self.fmu.enterContinuousTimeMode, t=t)  # type: ignore[attr-defined]
+        self.call(f"fmi{self.fmi_version}EnterContinuousTimeMode", self.fmu.enterContinuousTimeMode, t=t)
         self.mode = "continuous"
         return False
 
@@ -295,7 +308,7 @@ class ModelExchange:
         if not self.needs_completed:
             return False
         enter, terminate = self.call(f"fmi{self.fmi_version}CompletedIntegratorStep",
-                                     self.fmu.completedIntegratorStep, self.n_saved == 0, t=t)  # type: ignore[attr-defined]
+                                     self.fmu.completedIntegratorStep, self.n_saved == 0, t=t)
         if terminate:
             self._terminated.value, self._last_time.value = True, t
             return True

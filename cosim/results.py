@@ -3,6 +3,7 @@ resolved scenario written before the first step, and at the end signals.csv, sum
 :class:`RunResult` the drivers get."""
 from __future__ import annotations
 
+import dataclasses
 import shutil
 import tempfile
 from dataclasses import dataclass, field
@@ -89,7 +90,7 @@ def summary(plan: Plan, res: RunResult, rows: int, logs: dict[str, tuple[int, in
         "setup_s": round(res.setup_s, 6),
         "us_per_step": round(res.wall_s / res.steps * 1e6, 3) if res.steps else None,
         "rows": rows,
-        "instances": {n: {"fmu": str(ip.model.path), "model": ip.model.model_name,
+        "instances": {n: {"fmu": str(ip.model.path), "model": ip.model.model_name, "interface": ip.interface,
                           "log_lines": logs.get(n, (0, 0))[0], "log_received": logs.get(n, (0, 0))[1]}
                       for n, ip in plan.instances.items()},
         "final": res.final,
@@ -119,7 +120,8 @@ def resolved(plan: Plan) -> dict[str, Any]:
             "instances": {n: {"fmu": str(ip.model.path), "model": ip.model.model_name,
                               "parameters": {v.name: val for v, val in ip.parameters},
                               "names": ip.spec.names, "units": ip.spec.units, "logging": ip.spec.logging,
-                              "tolerance": ip.tolerance}
+                              "tolerance": ip.tolerance, "interface": ip.interface,
+                              **({"solver": dataclasses.asdict(ip.solver)} if ip.solver is not None else {})}
                           for n, ip in plan.instances.items()},
             "connections": [{"from": c.spec.src, "to": c.spec.dst, "factor": c.factor, "offset": c.offset}
                             for c in plan.connections],

@@ -416,3 +416,42 @@ def test_the_paper_protocol_runs_through_the_model_exchange_c_plant(tmp_path):
         level = sig["plant.foam_level"]
         assert level[sig["time"] < 8.38 - 1e-9].max() == 0.0 and level[sig["time"] >= 8.48].min() == 1.0
     assert np.linalg.norm(finals["me"] - finals["cs"]) < 1e-6, finals
+
+
+# ---------------------------------------------------------------- values set between steps, isolation
+def test_a_tunable_parameter_set_by_an_event_enters_event_mode_and_takes_effect(tmp_path):
+    """BouncingBall's restitution e (tunable: set in event mode only) set to 0.5 at t = 1.2 s by a scenario
+    event: the bounces before keep e = 0.7, the first one after rebounds with half the impact speed."""
+    doc = fmu_document(REF / "fmi2" / "BouncingBall.fmu")
+    doc["instances"]["BouncingBall"].update({"interface": "model-exchange", "solver": "rk4", "max_step": 1e-3})
+    doc["events"] = [{"time": 1.2, "variable": "BouncingBall.e", "action": "set", "value": 0.5}]
+    plan = system.resolve(scenario.parse(doc, "events.toml"))
+    res, sig, events = _execute(plan, tmp_path / "out", "BouncingBall")
+    assert res.status == "ok", res.message
+    assert (1.2, "set") in events
+    bounces = [t for t, kind in events if kind == "state"]
+    want = _bounce_times()
+    np.testing.assert_allclose(bounces[:2], want[:2], atol=1e-6)   # 0.45 and 1.08 s: e = 0.7
+    g, v1 = 9.81, 9.81 * want[0] * 0.7 * 0.7                        # the impact speed of the third bounce
+    third = want[1] + 2 * v1 / g                                    # analytic, e = 0.7 until then
+    v_after = 0.5 * v1
+    assert bounces[2] == pytest.approx(third, abs=1e-6)
+    assert bounces[3] == pytest.approx(third + 2 * v_after / g, abs=1e-6)
+
+
+def test_an_isolated_model_exchange_instance_gives_the_in_process_result(tmp_path):
+    """The chain of Model Exchange and co-simulation FMUs with every instance in a child process: the
+    signals bit-identical to the in-process run's; scenario.json says each instance's interface."""
+    import json
+
+    from wmr_cosim.runner import load_plan
+
+    path = _chain(tmp_path)
+    _, here = _run(load_plan(path), tmp_path / "here")
+    _, there = _run(load_plan(path, isolate=True), tmp_path / "there")
+    for col in here.dtype.names:
+        assert np.array_equal(here[col], there[col]), col
+    doc = json.loads((tmp_path / "there" / "scenario.json").read_text(encoding="utf-8"))
+    assert {n: i["interface"] for n, i in doc["instances"].items()} == {
+        "vdp": "model-exchange", "ft": "co-simulation", "plant": "model-exchange"}
+    assert doc["instances"]["plant"]["solver"]["name"] == "cvode"
