@@ -480,7 +480,8 @@ def test_scenario_and_summary_files_of_a_run(tmp_path):
     scen = json.loads((out / "scenario.json").read_text())
     assert scen.pop("document")["events"][1] == {"when": "b.Float64_continuous_output > 3", "delay": 0.02,
                                                  "variable": "a.Int32_input", "action": "bias", "value": 1}
-    inst = {"fmu": fmu, "model": "Feedthrough", "names": {}, "units": {}, "logging": "warning", "tolerance": None}
+    inst = {"fmu": fmu, "model": "Feedthrough", "names": {}, "units": {}, "logging": "warning", "tolerance": None,
+            "interface": "co-simulation"}
     columns = {"time": {"unit": "s", "instance": None, "fmu": None, "variable": "time"},
                "b.Float64_continuous_output": {"unit": None, "instance": "b", "fmu": "Feedthrough.fmu",
                                                "variable": "Float64_continuous_output"},
@@ -506,7 +507,7 @@ def test_scenario_and_summary_files_of_a_run(tmp_path):
                "when": "b.Float64_continuous_output > 3", "condition_time": 1.0},
               {"time": 1.04, "event": 0, "action": "override", "variable": "a.Int32_input", "value": 3}]
     final = {"time": 1.1, "b.Float64_continuous_output": 3.5, "a.Int32_output": 3}
-    counts = {"fmu": fmu, "model": "Feedthrough", "log_lines": 0, "log_received": 0}
+    counts = {"fmu": fmu, "model": "Feedthrough", "interface": "co-simulation", "log_lines": 0, "log_received": 0}
     assert summary == {"status": "ok", "message": "", "steps": 5, "n_steps": 5, "t_end": 1.1, "step": 0.02,
                        "algorithm": "gauss-seidel", "rows": 6, "instances": {"a": counts, "b": counts},
                        "final": final, "not_recorded": [], "events": events}
