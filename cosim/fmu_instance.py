@@ -117,10 +117,8 @@ class FmuInstance(ABC):
     # ------------------------------------------------------------------ state (rollback)
     @property
     def can_get_and_set_state(self) -> bool:
-        """The FMU declares canGetAndSetFMUstate (FMI 2.0) / canGetAndSetFMUState (FMI 3.0)."""
-        cs = self.md.coSimulation
-        return cs is not None and bool(getattr(cs, "canGetAndSetFMUstate", False) or
-                                       getattr(cs, "canGetAndSetFMUState", False))
+        """The FMU's co-simulation interface declares it can save and restore its state."""
+        return declares_state(self.md.coSimulation)
 
     def get_state(self) -> Any:
         raise RunError(f"{self.name}: this instance cannot save its state", self.name)
@@ -146,6 +144,13 @@ class FmuInstance(ABC):
         at = f" at t = {t:.6g} s" if t is not None else ""
         return RunError(f"{self.name}: {what} returned {status_label(status)}{at}; last log: {self.last_log()}",
                         self.name, t)
+
+
+def declares_state(element: Any) -> bool:
+    """Whether an interface element of a model description (FMPy's CoSimulation or ModelExchange, or None)
+    declares canGetAndSetFMUstate (FMI 2.0) / canGetAndSetFMUState (FMI 3.0)."""
+    return element is not None and bool(getattr(element, "canGetAndSetFMUstate", False) or
+                                        getattr(element, "canGetAndSetFMUState", False))
 
 
 def status_label(status: int) -> str:

@@ -39,7 +39,7 @@ from typing import Any
 
 from .errors import RunError
 from .failure import Call, InstanceLost
-from .fmu_instance import FastPath, FmuInstance
+from .fmu_instance import FastPath, FmuInstance, declares_state
 from .integrators import SolverSpec
 from .instance import ACCESS
 
@@ -463,11 +463,8 @@ class IsolatedInstance(FmuInstance):
 
     @property
     def can_get_and_set_state(self) -> bool:
-        if self.solver is None:
-            return super().can_get_and_set_state
-        me = self.md.modelExchange
-        return me is not None and bool(getattr(me, "canGetAndSetFMUstate", False) or
-                                       getattr(me, "canGetAndSetFMUState", False))
+        """The interface the child hosts declares it can save and restore its state."""
+        return declares_state(self.md.coSimulation if self.solver is None else self.md.modelExchange)
 
     def call_name(self, call: Call) -> str:
         if call is Call.DO_STEP and self.solver is not None:

@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from .errors import RunError
 from .failure import Call
-from .fmu_instance import FastPath
+from .fmu_instance import FastPath, declares_state
 from .instance import Instance, Instance3, raw
 from .integrators import Equations, IntegrationError, Integrator, SolverSpec, crossed, make_integrator
 from .model import Variable
@@ -351,9 +351,7 @@ class ModelExchange:
     # ------------------------------------------------------------------ state (rollback)
     @property
     def can_get_and_set_state(self) -> bool:
-        me = self.md.modelExchange
-        return me is not None and bool(getattr(me, "canGetAndSetFMUstate", False) or
-                                       getattr(me, "canGetAndSetFMUState", False))
+        return declares_state(self.md.modelExchange)
 
     def get_state(self) -> Any:
         """The FMU's state and the instance's; the integrator restarts here (see the module's docstring)."""

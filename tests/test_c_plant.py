@@ -68,14 +68,17 @@ def test_rebuilt_only_when_its_sources_change(c_plant, tmp_path, monkeypatch):
         cplant_build.build_c_plant(out)
 
 
-def _slave(c_plant, unzip_dir, reals=None, ints=None, bools=None):
+def _slave(c_plant, unzip_dir, reals=None, ints=None, bools=None, model_exchange=False):
+    """WmrCPlant instantiated through FMPy (co-simulation, or Model Exchange: then in event mode), the
+    values set, initialised; with the value references by name."""
     from fmpy import extract, read_model_description
-    from fmpy.fmi2 import FMU2Slave
+    from fmpy.fmi2 import FMU2Model, FMU2Slave
 
     md = read_model_description(str(c_plant))
     vr = {v.name: v.valueReference for v in md.modelVariables}
-    s = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(c_plant), unzipdir=str(unzip_dir)),
-                  modelIdentifier="WmrCPlant", instanceName="p")
+    s = (FMU2Model if model_exchange else FMU2Slave)(
+        guid=md.guid, unzipDirectory=extract(str(c_plant), unzipdir=str(unzip_dir)), modelIdentifier="WmrCPlant",
+        instanceName="p")
     s.instantiate()
     s.setupExperiment(startTime=0.0)
     for values, setter in ((reals, s.setReal), (ints, s.setInteger), (bools, s.setBoolean)):
@@ -435,22 +438,9 @@ def test_a_non_finite_input_is_an_error_of_fmi2GetDerivatives_not_a_nan(c_plant,
 
 def _model(c_plant, unzip_dir, start):
     """A Model Exchange instance of WmrCPlant in event mode after initialisation with ``start``."""
-    from fmpy import extract, read_model_description
-    from fmpy.fmi2 import FMU2Model
-
-    md = read_model_description(str(c_plant))
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    m = FMU2Model(guid=md.guid, unzipDirectory=extract(str(c_plant), unzipdir=str(unzip_dir)),
-                  modelIdentifier="WmrCPlant", instanceName="p")
-    m.instantiate()
-    m.setupExperiment(startTime=0.0)
     reals = {k: float(v) for k, v in start.items() if not isinstance(v, bool)}
     bools = {k: v for k, v in start.items() if isinstance(v, bool)}
-    m.setReal([vr[k] for k in reals], list(reals.values()))
-    m.setBoolean([vr[k] for k in bools], list(bools.values()))
-    m.enterInitializationMode()
-    m.exitInitializationMode()
-    return m, vr
+    return _slave(c_plant, unzip_dir, reals, None, bools, model_exchange=True)
 
 
 def test_model_exchange_calls_the_states_derivatives_and_the_region_indicator(c_plant, tmp_path):

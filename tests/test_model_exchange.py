@@ -317,15 +317,19 @@ def test_a_model_exchange_chain_with_a_co_simulation_fmu_equals_a_hand_written_f
 
 
 # ---------------------------------------------------------------- state for rollback
-@pytest.mark.parametrize("solver", ["cvode", "rk4"])
-def test_a_saved_model_exchange_state_repeats_the_step_exactly(solver, tmp_path):
-    """The C plant as Model Exchange with a torque input: save at t = 0.1 s, two steps, restore, one step:
-    bit-identical to the first step after the save, and not to the second."""
+@pytest.mark.parametrize("solver, isolated", [("cvode", False), ("rk4", False), ("cvode", True)])
+def test_a_saved_model_exchange_state_repeats_the_step_exactly(solver, isolated, tmp_path):
+    """The C plant as Model Exchange with a torque input (in this process, and in a child): save at
+    t = 0.1 s, two steps, restore, one step: bit-identical to the first step after the save, and not to
+    the second."""
+    from wmr_cosim.cosim.isolation import IsolatedInstance
     from wmr_cosim.runner import resolve_model
 
     model = load_model(resolve_model("WmrCPlant"))
     unz = fmpy.extract(str(model.path), str(tmp_path / "unz"))
-    inst = model_exchange("p", model.md, unz, None, "warning", SolverSpec(solver, max_step=1e-3))
+    spec = SolverSpec(solver, max_step=1e-3)
+    inst = IsolatedInstance("p", model.md, unz, None, "warning", 60.0, 0, spec) if isolated else \
+        model_exchange("p", model.md, unz, None, "warning", spec)
     try:
         assert inst.can_get_and_set_state
         inst.instantiate()
@@ -455,3 +459,34 @@ def test_an_isolated_model_exchange_instance_gives_the_in_process_result(tmp_pat
     assert {n: i["interface"] for n, i in doc["instances"].items()} == {
         "vdp": "model-exchange", "ft": "co-simulation", "plant": "model-exchange"}
     assert doc["instances"]["plant"]["solver"]["name"] == "cvode"
+
+
+@pytest.mark.parametrize("solver", ["cvode", "rk4"])
+def test_an_fmu_call_failing_inside_the_integration_ends_the_run_with_one_line_naming_it(solver, tmp_path):
+    """fmi2GetDerivatives returning Error at t >= 0.5 s (VanDerPol, patched after initialisation): the run
+    fails with one line naming the instance, the integrator, the FMI call and the time of the step; the
+    rows up to that time are on disk."""
+    from wmr_cosim.cosim.errors import RunError
+
+    plan = _plan(REF / "fmi2" / "VanDerPol.fmu", solver=solver)
+    ex = execution.Execution(plan, tmp_path / "out")
+    ex.initialize()
+    inst = ex.instances["VanDerPol"]
+    get_dx, clock = inst.eq.get_dx, {"t": 0.0}
+    set_time = inst.eq.set_time
+
+    def timed(t: float) -> int:
+        clock["t"] = t
+        return set_time(t)
+    inst.eq.set_time = timed
+    inst.eq.get_dx = lambda p: 3 if clock["t"] >= 0.5 else get_dx(p)
+    with pytest.raises(RunError) as err:
+        ex.simulate_until(plan.scenario.stop)
+    res = ex.close()
+    msg = str(err.value)
+    assert "\n" not in msg and msg.startswith("VanDerPol: ") and f"the integration ({solver}" in msg, msg
+    assert "fmi2GetDerivatives" in msg and "returned Error at t = " in msg, msg
+    t_fail = float(re.search(r"returned Error at t = (\S+) s", msg).group(1))
+    assert 0.4 <= t_fail < 0.5      # the step in which an evaluation reached 0.5 s (CVODE looks ahead)
+    assert res.status == "failed"
+    assert np.load(tmp_path / "out" / "signals.npy")["time"][-1] == pytest.approx(t_fail)
