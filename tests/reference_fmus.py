@@ -10,6 +10,7 @@ holds no built FMU.
 """
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import zipfile
@@ -35,7 +36,10 @@ def fmu(version: str, model: str) -> Path:
     if cc is None:
         raise RuntimeError("building the Reference FMUs needs a C compiler (cc or gcc)")
     out.parent.mkdir(parents=True, exist_ok=True)
-    so = out.parent / f".{model}.so"
+    # names of this process's own: test workers that build the same FMU at once do not meet; the last
+    # rename wins, and every rename is of a whole archive
+    tag = f"{os.getpid()}"
+    so = out.parent / f".{model}.{tag}.so"
     c_files = [str(p) for p in sources if p.suffix == ".c"]
     flags = [f"-DFMI_VERSION={version[-1]}", "-DDISABLE_PREFIX",   # a binary FMU: unprefixed FMI functions
              f"-I{Path(fmpy.__file__).parent / 'c-code'}", f"-I{own}", f"-I{common}"]
@@ -43,7 +47,7 @@ def fmu(version: str, model: str) -> Path:
                        capture_output=True, text=True)
     if p.returncode:
         raise RuntimeError(f"building {version}/{model}: {p.stderr[-2000:]}")
-    part = out.parent / f".{model}.fmu.part"
+    part = out.parent / f".{model}.{tag}.fmu.part"
     with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as zf:
         for f in sorted(src.rglob("*")):
             if f.is_file():
