@@ -41,6 +41,7 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Callable, NamedTuple
 
+from .coupling_spec import AdaptiveSpec, IterationSpec
 from .failure import Call, Failure
 from .fmu_instance import FastPath
 
@@ -187,8 +188,16 @@ class Jacobi(GeneratedLoop):
 ALGORITHMS: dict[str, type[Algorithm]] = {"gauss-seidel": GaussSeidel, "jacobi": Jacobi}
 
 
-def algorithm_for(name: str) -> Algorithm:
-    """A new algorithm object for the name a scenario gives."""
+def algorithm_for(name: str, iteration: "IterationSpec | None" = None,
+                  adaptive: "AdaptiveSpec | None" = None) -> Algorithm:
+    """A new algorithm object for the name a scenario gives, with its settings (``[experiment.iteration]``,
+    ``[experiment.adaptive]``; None: the defaults)."""
+    if name == "iterated":
+        from .iterated import Iterated
+        return Iterated(iteration or IterationSpec())
+    if name == "adaptive":
+        from .adaptive import Adaptive
+        return Adaptive(adaptive or AdaptiveSpec(), iteration)
     return ALGORITHMS[name]()
 
 

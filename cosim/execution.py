@@ -75,7 +75,7 @@ class Execution:
         start, _, step = sc.times()
         self.plan = plan
         self.clock = Clock(start, step, plan.n_steps, sc.decimation)
-        self.algorithm = algorithm if algorithm is not None else algorithm_for(sc.algorithm)
+        self.algorithm = algorithm if algorithm is not None else algorithm_for(sc.algorithm, sc.iteration, sc.adaptive)
         self.progress, self.timing, self.check_inputs, self.keep_signals = progress, timing, check_inputs, keep_signals
         self.pacer = Pacer(real_time) if real_time is not None else None
         self.columns = ["time"] + [r.column for r in plan.record]

@@ -36,6 +36,7 @@ class RunResult:
     summary: dict[str, Any] = field(default_factory=dict)      # summary.json
     scenario: dict[str, Any] = field(default_factory=dict)     # scenario.json (the scenario as resolved)
     signals: np.ndarray | None = None   # the recording in memory (when the execution was asked to keep it)
+    stepping: dict[str, Any] | None = None   # the algorithm's own counts (iterations, accepted/rejected steps)
 
 
 class ResultsFolder:
@@ -98,6 +99,7 @@ def summary(plan: Plan, res: RunResult, rows: int, logs: dict[str, tuple[int, in
         "not_recorded": plan.not_recorded,
         "events": res.events,
         **({"real_time": res.real_time} if res.real_time is not None else {}),
+        **({"stepping": res.stepping} if res.stepping is not None else {}),
     }
 
 
@@ -116,7 +118,10 @@ def resolved(plan: Plan) -> dict[str, Any]:
     sc = plan.scenario
     return {"file": sc.file, "experiment": {"start": sc.start, "stop": sc.stop, "step": sc.step,
                                             "algorithm": sc.algorithm, "order": sc.order,
-                                            "tolerance": sc.tolerance},
+                                            "tolerance": sc.tolerance,
+                                            **{k: spec.as_dict() for k, spec in (("iteration", sc.iteration),
+                                                                                 ("adaptive", sc.adaptive))
+                                               if spec is not None}},
             "instances": {n: {"fmu": str(ip.model.path), "model": ip.model.model_name,
                               "parameters": {v.name: val for v, val in ip.parameters},
                               "names": ip.spec.names, "units": ip.spec.units, "logging": ip.spec.logging,

@@ -15,12 +15,13 @@ from pathlib import Path
 from typing import Any
 
 from .archive import DEFAULT_LIMITS, ArchiveLimits, LimitOverrides, parse_limits
+from .coupling_spec import AdaptiveSpec, IterationSpec
 from .errors import OtherFileError, ScenarioError
 from .integrators import SOLVERS
 from .kinds import FileKind, file_kind
 from .suggest import did_you_mean
 
-ALGORITHMS = ("gauss-seidel", "jacobi")
+ALGORITHMS = ("gauss-seidel", "jacobi", "iterated", "adaptive")
 ACTIONS = ("override", "bias", "reset", "set", "stop")
 TRIGGERS = ("once", "each")
 LOGGING = ("error", "warning", "info", "all")
@@ -126,6 +127,8 @@ class Scenario:
     max_bytes: int = 4 * 2 ** 30    # a recording expected larger than this is refused (unless forced)
     force: bool = False             # lift max_steps and max_bytes (the command line's --force)
     algorithm: str = "gauss-seidel"
+    iteration: IterationSpec | None = None   # [experiment.iteration]: algorithm "iterated" (or adaptive over it)
+    adaptive: AdaptiveSpec | None = None     # [experiment.adaptive]: algorithm "adaptive"
     order: list[str] = field(default_factory=list)
     instances: dict[str, InstanceSpec] = field(default_factory=dict)
     connections: list[ConnectionSpec] = field(default_factory=list)

@@ -1,0 +1,141 @@
+"""The settings of the algorithms that go beyond one pass per fixed step: the iteration of coupling loops
+(``[experiment.iteration]``) and the step-size control (``[experiment.adaptive]``).
+
+Both are plain values, checked where they are made (:func:`iteration_spec`, :func:`adaptive_spec`): a bad
+value is one :class:`ValueError` naming the key, which the scenario reader turns into its one-line error.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+#: How a loop's coupling inputs are iterated: fixed point with relaxation, or Newton's method with a
+#: finite-difference Jacobian (a chord: the Jacobian of a step's first iteration, made anew when the
+#: residual stops shrinking).
+ITERATION_METHODS = ("fixed-point", "newton")
+#: How a loop's coupling inputs vary over the step while it is iterated: held at the value being iterated
+#: (the value at the end of the step, implicit: first order), or linear from the value at the start of the
+#: step to it (fmi2SetRealInputDerivatives: second order; only FMUs that can interpolate their inputs).
+INPUT_MODES = ("hold", "linear")
+#: The step that the step-size control takes and estimates: one pass (Gauss-Seidel or Jacobi) or the
+#: iterated step.
+ADAPTIVE_COUPLINGS = ("gauss-seidel", "jacobi", "iterated")
+
+
+@dataclass(frozen=True)
+class IterationSpec:
+    """Per macro step, the coupling inputs u of every loop are iterated until the residual
+    r = G(y(u)) - u meets ``max_i |r_i| / (1 + |G_i|) <= tolerance`` (G: the connections' transforms of the
+    outputs that feed the loop), at most ``max_iterations`` evaluations of the loop's step each; every
+    evaluation after the first restores the loop's FMUs to the state at the start of the step."""
+
+    method: str = "newton"
+    tolerance: float = 1e-10          # [-] mixed absolute/relative, see above
+    max_iterations: int = 20          # evaluations of the loop's step per macro step, at least 1
+    relaxation: float = 1.0           # fixed point: u <- u + relaxation * r, 0 < relaxation <= 1
+    inputs: str = "hold"              # INPUT_MODES
+
+    def describe(self) -> str:
+        relax = f", relaxation {self.relaxation:g}" if self.method == "fixed-point" else ""
+        return (f"{self.method}{relax}, tolerance {self.tolerance:g}, at most {self.max_iterations} iterations, "
+                f"inputs {self.inputs}")
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class AdaptiveSpec:
+    """Step-size control by step doubling: each macro step h is taken once whole and once as two halves
+    from the same saved state; the coupling variables' difference, in the RMS norm weighted by
+    ``atol + rtol * |y|``, is the error estimate; a step whose estimate exceeds 1 is rolled back and taken
+    again shorter, the next step chosen by a PI controller between ``min_step`` and ``max_step`` [s].  The
+    steps land on every communication point of the experiment's grid (its ``step``: the output interval,
+    where the recording, the events and the stop time are)."""
+
+    rtol: float = 1e-4                # [-]
+    atol: float = 1e-6                # [unit of each coupling variable]
+    min_step: float | None = None     # [s] None: the output interval * 1e-6
+    max_step: float | None = None     # [s] None: the output interval
+    initial_step: float | None = None  # [s] None: max_step / 10
+    coupling: str = "gauss-seidel"    # ADAPTIVE_COUPLINGS
+
+    def resolved(self, interval: float) -> "AdaptiveSpec":
+        """The spec with its defaults filled in for the output interval ``interval`` [s]."""
+        hmax = self.max_step if self.max_step is not None else interval
+        hmin = self.min_step if self.min_step is not None else interval * 1e-6
+        h0 = self.initial_step if self.initial_step is not None else hmax / 10.0
+        return AdaptiveSpec(self.rtol, self.atol, hmin, hmax, min(max(h0, hmin), hmax), self.coupling)
+
+    def describe(self) -> str:
+        r = self
+        steps = "".join(f", {k} {v:g} s" for k, v in (("min_step", r.min_step), ("max_step", r.max_step),
+                                                       ("initial_step", r.initial_step)) if v is not None)
+        return f"{r.coupling} steps, rtol {r.rtol:g}, atol {r.atol:g}{steps}"
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def _positive(key: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise ValueError(f"{key}: {value!r}: must be a number > 0")
+    return float(value)
+
+
+def iteration_spec(table: dict[str, Any], where: str = "experiment.iteration") -> IterationSpec:
+    """An :class:`IterationSpec` from a table of its keys (all optional); ValueError naming a bad key."""
+    known = {"method", "tolerance", "max_iterations", "relaxation", "inputs"}
+    for k in table:
+        if k not in known:
+            raise ValueError(f"{where}.{k}: unknown key (known: {', '.join(sorted(known))})")
+    d = IterationSpec()
+    method = str(table.get("method", d.method)).lower()
+    if method not in ITERATION_METHODS:
+        raise ValueError(f"{where}.method: {method!r}: must be one of {', '.join(ITERATION_METHODS)}")
+    tol = _positive(f"{where}.tolerance", table["tolerance"]) if "tolerance" in table else d.tolerance
+    n = table.get("max_iterations", d.max_iterations)
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ValueError(f"{where}.max_iterations: {n!r}: must be an integer >= 1")
+    relax = _positive(f"{where}.relaxation", table["relaxation"]) if "relaxation" in table else d.relaxation
+    if relax > 1.0:
+        raise ValueError(f"{where}.relaxation: {relax!r}: must be in (0, 1]")
+    inputs = str(table.get("inputs", d.inputs)).lower()
+    if inputs not in INPUT_MODES:
+        raise ValueError(f"{where}.inputs: {inputs!r}: must be one of {', '.join(INPUT_MODES)}")
+    return IterationSpec(method, tol, n, relax, inputs)
+
+
+def adaptive_spec(table: dict[str, Any], interval: float | None = None,
+                  where: str = "experiment.adaptive") -> AdaptiveSpec:
+    """An :class:`AdaptiveSpec` from a table of its keys (all optional), checked against the output
+    interval [s] when it is known; ValueError naming a bad key."""
+    known = {"rtol", "atol", "min_step", "max_step", "initial_step", "coupling"}
+    for k in table:
+        if k not in known:
+            raise ValueError(f"{where}.{k}: unknown key (known: {', '.join(sorted(known))})")
+    d = AdaptiveSpec()
+    vals = {k: (_positive(f"{where}.{k}", table[k]) if k in table else getattr(d, k))
+            for k in ("rtol", "atol", "min_step", "max_step", "initial_step")}
+    coupling = str(table.get("coupling", d.coupling)).lower()
+    if coupling not in ADAPTIVE_COUPLINGS:
+        raise ValueError(f"{where}.coupling: {coupling!r}: must be one of {', '.join(ADAPTIVE_COUPLINGS)}")
+    spec = AdaptiveSpec(vals["rtol"], vals["atol"], vals["min_step"], vals["max_step"], vals["initial_step"],
+                        coupling)
+    check_adaptive(spec, interval, where)
+    return spec
+
+
+def check_adaptive(spec: AdaptiveSpec, interval: float | None, where: str = "experiment.adaptive") -> None:
+    """The step bounds agree with each other and with the output interval [s] (when known)."""
+    lo, hi = spec.min_step, spec.max_step
+    if lo is not None and hi is not None and lo > hi:
+        raise ValueError(f"{where}.min_step: {lo!r} s is larger than max_step {hi!r} s")
+    if interval is not None:
+        if hi is not None and hi > interval * (1 + 1e-12):
+            raise ValueError(f"{where}.max_step: {hi!r} s is longer than the output interval (experiment.step "
+                             f"{interval!r} s), on which every step lands")
+        if lo is not None and lo > interval * (1 + 1e-12):
+            raise ValueError(f"{where}.min_step: {lo!r} s is longer than the output interval (experiment.step "
+                             f"{interval!r} s)")
