@@ -104,6 +104,15 @@ class InstanceIO:
     extras: list[RecordedGetter] = field(default_factory=list)
     other: list[Callable[[], int]] = field(default_factory=list)  # connections other than Float64 -> Float64
     feed: Callable[[int], int] | None = None       # tabulated inputs of step k (wiring.table_feeder)
+    # the instance's state and input derivatives, for the algorithms that roll steps back and iterate
+    # (cosim.fmu_instance: get_state, set_state, free_state, allow_rollback, set_input_derivatives)
+    can_roll_back: bool = False
+    can_interpolate: bool = False
+    get_state: Callable[[], Any] | None = None
+    set_state: Callable[[Any], None] | None = None
+    free_state: Callable[[Any], None] | None = None
+    allow_rollback: Callable[[], None] | None = None
+    set_input_derivatives: Callable[[list[int], list[float]], int] | None = None
 
     @property
     def in_val(self) -> Doubles:
@@ -134,6 +143,14 @@ class Algorithm(ABC):
 
     @abstractmethod
     def advance(self, k0: int, k1: int) -> Failure | None: ...
+
+    def initialize(self, ios: list[InstanceIO], t0: float, check_inputs: bool = True) -> None:
+        """In initialisation mode, after the initial exchange of outputs to inputs: an algorithm that
+        solves coupling loops solves them here (raising RunError when it cannot); the others do nothing."""
+
+    def summary(self) -> dict[str, Any] | None:
+        """The algorithm's own counts for summary.json ("stepping"): None when it has none."""
+        return None
 
 
 class GeneratedLoop(Algorithm):

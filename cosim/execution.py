@@ -155,6 +155,7 @@ class Execution:
         self.ios = [instance_io(plan, n, self.instances[n], layout, wiring, self.instances,
                                 self._fmi_acc if self.timing else None) for n in plan.order]
         exchange_initial(self.ios, self.instances, wiring, layout, self.clock.start, self.check_inputs)
+        self.algorithm.initialize(self.ios, self.clock.start, self.check_inputs)
         for io in self.ios:
             self.instances[io.name].exit_initialization()
         read_outputs(self.ios, self.instances, layout, self.clock.start)
@@ -305,7 +306,7 @@ class Execution:
 
     def _failed(self, f: Failure) -> None:
         """A segment stopped at step ``f.step``: an FMU that ended the simulation, or an error."""
-        name, tf = f.instance, self.clock.time(f.step)
+        name, tf = f.instance, self.clock.time(f.step) if f.time is None else f.time
         # a get after the step to t_kf failed: that step's row is not recorded, the steps done are kf - 1
         self.k_done = f.step - 1 if f.call.after_step else f.step
         inst = self.instances[name]
@@ -313,8 +314,10 @@ class Execution:
             assert self._wiring is not None
             io = self.ios[self.plan.order.index(name)]
             raise self._wiring.bad_input(name, io.in_vr, io.copies, tf)
-        if f.call is Call.TERMINATED:  # the step's row is recorded already
-            raise FmuEnded(name, tf, recorded=True)
+        if f.call is Call.TERMINATED:  # the step's row is recorded already (unless it ended between points)
+            raise FmuEnded(name, tf, recorded=f.time is None)
+        if f.call is Call.COUPLING:
+            raise RunError(str(f.value), name, tf)
         if f.call is Call.DO_STEP and int(f.value) == FmiStatus.DISCARD and inst.n_errors == self._errors.get(name, 0):
             # fmi2Terminated after a Discard with nothing logged at Discard, Error or Fatal: the FMU ended the
             # simulation (pythonfmu reports every failed step as terminated; its message tells them apart)
@@ -461,6 +464,7 @@ class Execution:
                         self.folder.path if self.folder.keep else None, self.columns, final,
                         self._fmi_acc[0] if self.timing else None, self.events,
                         self.pacer.summary() if self.pacer is not None else None)
+        res.stepping = self.algorithm.summary()
         logs = {n: (i.log_lines, i.received) for n, i in self.instances.items()}
         write_results(self.folder, self.plan, res, self._recorder.file.rows if self._recorder else 0, logs)
         res.scenario = _read_json(self.folder.path / "scenario.json")

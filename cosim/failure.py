@@ -37,6 +37,8 @@ class Call(Enum):
     GET_REAL = "GetReal"                     # fmi2GetReal, fmi3GetFloat64
     GET_RECORDED = "Get (recorded)"
     TERMINATED = "fmi3Terminated"            # an FMI 3.0 FMU ended the simulation in its step
+    COUPLING = "coupling"                    # the algorithm's own failure (a loop that did not converge, the
+                                             # step-size control at its smallest step): the value is the message
 
     @property
     def after_step(self) -> bool:
@@ -59,12 +61,14 @@ class Call(Enum):
 class Failure:
     """The loop stopped at step ``step`` (the step from t_{step}, or, for a call after the step, to it) in
     ``instance``'s ``call``; ``value`` is the FMI status it returned, the non-finite input value, or (for
-    TERMINATED) the FMU's last successful time [s]."""
+    TERMINATED) the FMU's last successful time [s], or (for COUPLING) the message; ``time`` [s]: where it
+    happened when that is not a communication point (the variable steps of the step-size control)."""
 
     step: int
     instance: str
     call: Call
     value: Any
+    time: float | None = None
 
 
 class InstanceLost(RunError):

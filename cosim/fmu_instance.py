@@ -25,7 +25,9 @@ The contract, for an implementation (a subclass of :class:`FmuInstance`):
 6. :meth:`~FmuInstance.get_state` / :meth:`~FmuInstance.set_state` / :meth:`~FmuInstance.free_state`
    save and restore the whole instance (FMI ``fmi2GetFMUstate`` and its kin) where
    ``can_get_and_set_state`` is true, for the algorithms that roll steps back; elsewhere they raise
-   RunError.
+   RunError.  Such an algorithm calls :meth:`~FmuInstance.allow_rollback` first, and may give the
+   inputs' derivatives over a step (:meth:`~FmuInstance.set_input_derivatives`) where
+   ``can_interpolate_inputs`` is true.
 7. ``n_errors`` counts the messages of status Discard or worse the FMU has logged; ``log_lines`` and
    ``received`` the lines kept and received; :meth:`~FmuInstance.last_log` the last few, for messages.
 """
@@ -128,6 +130,21 @@ class FmuInstance(ABC):
 
     def free_state(self, state: Any) -> None:
         raise RunError(f"{self.name}: this instance cannot free a state", self.name)
+
+    def allow_rollback(self) -> None:
+        """From now on, step so that a state saved before the current point may still be restored (FMI's
+        noSetFMUStatePriorToCurrentPoint false); the fast paths already handed out follow.  Nothing to do
+        where the steps never promise it."""
+
+    @property
+    def can_interpolate_inputs(self) -> bool:
+        """The instance takes the derivatives of its Real inputs over a step (:meth:`set_input_derivatives`)."""
+        return False
+
+    def set_input_derivatives(self, vrs: list[int], values: list[float]) -> int:
+        """The first derivatives [unit/s] of these Float64 inputs over the next step (fmi2SetRealInputDerivatives,
+        order 1): the FMI status."""
+        raise RunError(f"{self.name}: this instance cannot interpolate its inputs", self.name)
 
     # ------------------------------------------------------------------ log and failures
     @abstractmethod

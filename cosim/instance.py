@@ -224,9 +224,46 @@ class Instance(FmuInstance):
         """fmi2SetReal, fmi2DoStep (noSetFMUStatePriorToCurrentPoint true), fmi2GetReal; ``in_val``: the
         input array to use (default: a new one)."""
         dll = self.fmu.dll
-        return FastPath(ctypes.c_void_p(self.c), raw(dll, "fmi2SetReal"), raw(dll, "fmi2DoStep"),
-                        raw(dll, "fmi2GetReal"), in_val if in_val is not None else (ctypes.c_double * max(1, n_in))(),
-                        step_tail=(1,))
+        return self._handed(FastPath(ctypes.c_void_p(self.c), raw(dll, "fmi2SetReal"), raw(dll, "fmi2DoStep"),
+                                     raw(dll, "fmi2GetReal"),
+                                     in_val if in_val is not None else (ctypes.c_double * max(1, n_in))(),
+                                     step_tail=(1,)))
+
+    def _handed(self, fp: FastPath) -> FastPath:
+        """A fast path handed out: kept, so that :meth:`allow_rollback` reaches it."""
+        fasts = self.__dict__.setdefault("_fasts", [])
+        fasts.append(fp)
+        if getattr(self, "_rollback", False):
+            self._rollback_tail(fp)
+        return fp
+
+    def allow_rollback(self) -> None:
+        """noSetFMUStatePriorToCurrentPoint false in every step from now on (the first argument after h)."""
+        self._rollback = True
+        for fp in self.__dict__.get("_fasts", []):
+            self._rollback_tail(fp)
+
+    @staticmethod
+    def _rollback_tail(fp: FastPath) -> None:
+        if fp.step_tail:
+            fp.step_tail = (type(fp.step_tail[0])(0),) + fp.step_tail[1:]
+
+    @property
+    def can_interpolate_inputs(self) -> bool:
+        """FMI 2.0 co-simulation: canInterpolateInputs (FMI 3.0 has no input derivatives)."""
+        cs = self.md.coSimulation
+        return self.fmi_version == 2 and cs is not None and bool(getattr(cs, "canInterpolateInputs", False))
+
+    def set_input_derivatives(self, vrs: list[int], values: list[float]) -> int:
+        """fmi2SetRealInputDerivatives of order 1."""
+        if not self.can_interpolate_inputs:
+            return super().set_input_derivatives(vrs, values)
+        fn = self.__dict__.get("_set_der")
+        if fn is None:
+            fn = self._set_der = raw(self.fmu.dll, "fmi2SetRealInputDerivatives")
+        n = len(vrs)
+        return fn(ctypes.c_void_p(self.c), vr_array(vrs), ctypes.c_size_t(n), (ctypes.c_int * n)(*([1] * n)),
+                  real_array(values))
 
     def accessor(self, fmi_type: str, op: str) -> tuple[Any, Any]:
         ctype, tname = ACCESS[2][fmi_type]
@@ -332,12 +369,12 @@ class Instance3(Instance):
         mode), terminateSimulation, earlyReturn (not allowed), lastSuccessfulTime."""
         dll = self.fmu.dll
         flags = ctypes.c_bool(), ctypes.c_bool(), ctypes.c_bool(), ctypes.c_double()
-        return FastPath(ctypes.c_void_p(self.c), raw(dll, "fmi3SetFloat64"), raw(dll, "fmi3DoStep"),
-                        raw(dll, "fmi3GetFloat64"),
-                        in_val if in_val is not None else (ctypes.c_double * max(1, n_in))(),
-                        set_tail=(ctypes.c_size_t(n_in),), get_tail=(ctypes.c_size_t(n_out),),
-                        step_tail=(True, *(ctypes.byref(f) for f in flags)), terminated=flags[1],
-                        last_time=flags[3])
+        return self._handed(FastPath(ctypes.c_void_p(self.c), raw(dll, "fmi3SetFloat64"), raw(dll, "fmi3DoStep"),
+                                     raw(dll, "fmi3GetFloat64"),
+                                     in_val if in_val is not None else (ctypes.c_double * max(1, n_in))(),
+                                     set_tail=(ctypes.c_size_t(n_in),), get_tail=(ctypes.c_size_t(n_out),),
+                                     step_tail=(True, *(ctypes.byref(f) for f in flags)), terminated=flags[1],
+                                     last_time=flags[3]))
 
     def accessor(self, fmi_type: str, op: str) -> tuple[Any, Any]:
         ctype, tname = ACCESS[3][fmi_type]

@@ -310,7 +310,7 @@ class _Server:
     def answer(self, op: str, args: tuple[Any, ...]) -> tuple[str, Any]:
         """A control request's reply: ("ok", value) or ("error", one line)."""
         own = ("configure", "set_inputs", "get_outputs", "log_state", "get_typed", "set_typed", "get_state",
-               "set_state", "free_state")
+               "set_state", "free_state")   # (anything else, allow_rollback among them, is the instance's)
         try:
             return "ok", (getattr(self, op) if op in own else getattr(self.inst, op))(*args)
         except BaseException as exc:  # reported to the master as one line
@@ -487,6 +487,10 @@ class IsolatedInstance(FmuInstance):
 
     def free_state(self, state: Any) -> None:
         self._call("freeing a state", "free_state", state, t=self.child.t)
+
+    def allow_rollback(self) -> None:
+        """The child's instance steps so that its saved states stay restorable."""
+        self._call("allowing rollback", "allow_rollback", t=self.child.t)
 
     def shutdown(self) -> None:
         """Terminate and free in the child (nothing after a Fatal, nothing if it died), then end it."""

@@ -353,6 +353,11 @@ class ModelExchange:
     def can_get_and_set_state(self) -> bool:
         return declares_state(self.md.modelExchange)
 
+    @property
+    def can_interpolate_inputs(self) -> bool:
+        """No: the integrator holds the inputs over the step (linear inputs are not implemented)."""
+        return False
+
     def get_state(self) -> Any:
         """The FMU's state and the instance's; the integrator restarts here (see the module's docstring)."""
         if self.mode == "continuous" and self.integrator is not None:
