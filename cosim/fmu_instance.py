@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from .errors import RunError
 from .failure import Call, FmiStatus
-from .model import Variable
+from .model import Variable, declares_state
 
 if TYPE_CHECKING:   # (FMPy has no type information: to mypy this is Any)
     from fmpy.model_description import ModelDescription
@@ -161,13 +161,6 @@ class FmuInstance(ABC):
         at = f" at t = {t:.6g} s" if t is not None else ""
         return RunError(f"{self.name}: {what} returned {status_label(status)}{at}; last log: {self.last_log()}",
                         self.name, t)
-
-
-def declares_state(element: Any) -> bool:
-    """Whether an interface element of a model description (FMPy's CoSimulation or ModelExchange, or None)
-    declares canGetAndSetFMUstate (FMI 2.0) / canGetAndSetFMUState (FMI 3.0)."""
-    return element is not None and bool(getattr(element, "canGetAndSetFMUstate", False) or
-                                        getattr(element, "canGetAndSetFMUState", False))
 
 
 def status_label(status: int) -> str:

@@ -39,9 +39,10 @@ from typing import Any
 
 from .errors import RunError
 from .failure import Call, InstanceLost
-from .fmu_instance import FastPath, FmuInstance, declares_state
+from .fmu_instance import FastPath, FmuInstance
 from .integrators import SolverSpec
 from .instance import ACCESS
+from .model import declares_state
 
 #: Header of the step slot: status (int64), t (float64), h (float64), then inputs and outputs (float64).
 _HEAD = 24

@@ -33,10 +33,10 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from .errors import RunError
 from .failure import Call
-from .fmu_instance import FastPath, declares_state
+from .fmu_instance import FastPath
 from .instance import Instance, Instance3, raw
 from .integrators import Equations, IntegrationError, Integrator, SolverSpec, crossed, make_integrator
-from .model import Variable
+from .model import Variable, declares_state
 
 #: Events at one time after which the event iteration is taken not to end.
 MAX_EVENTS_AT_ONE_TIME = 1000

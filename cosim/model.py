@@ -109,6 +109,13 @@ class Variable:
 INTERFACE_NAMES = {CO_SIMULATION: "co-simulation", MODEL_EXCHANGE: "model exchange"}
 
 
+def declares_state(element: Any) -> bool:
+    """Whether an interface element of a model description (FMPy's CoSimulation or ModelExchange, or None)
+    declares canGetAndSetFMUstate (FMI 2.0) / canGetAndSetFMUState (FMI 3.0)."""
+    return element is not None and bool(getattr(element, "canGetAndSetFMUstate", False) or
+                                        getattr(element, "canGetAndSetFMUState", False))
+
+
 @dataclass
 class FmuModel:
     """An FMU file and its model description (FMI 2.0 or 3.0, co-simulation and/or model exchange,
@@ -144,6 +151,10 @@ class FmuModel:
     def identifier(self) -> str:
         """The model identifier (of the co-simulation interface where there is one)."""
         return self.identifier_of(CO_SIMULATION if self.has_cs else MODEL_EXCHANGE)
+
+    def declares_state(self, interface: str) -> bool:
+        """Whether ``interface`` ("co-simulation" | "model-exchange") can get and set the FMU state."""
+        return declares_state(getattr(self.md, INTERFACES[interface], None))
 
     def identifier_of(self, interface: str) -> str:
         """The model identifier (the binary's name) of one interface the FMU declares."""

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from .archive import DEFAULT_LIMITS, ArchiveLimits, LimitOverrides, parse_limits
-from .coupling_spec import AdaptiveSpec, IterationSpec
+from .coupling_spec import AdaptiveSpec, IterationSpec, adaptive_spec, iteration_spec
 from .errors import OtherFileError, ScenarioError
 from .integrators import SOLVERS
 from .kinds import FileKind, file_kind
@@ -34,7 +34,8 @@ SOLVER_KEYS = ("solver", "max_step", "event_tolerance")
 _TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "record", "events", "runs",
              "variants", "inputs", "limits"}
 _INPUTS_KEYS = {"file", "interpolation"}
-_EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps", "max_internal_steps"}
+_EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps", "max_internal_steps",
+                    "iteration", "adaptive"}
 _INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "override_declared_units", "description", "logging", "isolate",
                   "step_timeout", "tolerance", "interface", *SOLVER_KEYS}
 _CONNECTION_KEYS = {"from", "to", "factor", "offset", "convert", "threshold"}
@@ -340,6 +341,33 @@ def _parse_experiment(sc: Scenario, doc: dict[str, Any]) -> None:
     sc.algorithm = str(exp.get("algorithm", "gauss-seidel")).lower()
     if sc.algorithm not in ALGORITHMS:
         raise ScenarioError(file, "experiment.algorithm", f"{sc.algorithm!r}: must be one of {', '.join(ALGORITHMS)}")
+    _parse_stepping(sc, exp)
+
+
+def _parse_stepping(sc: Scenario, exp: dict[str, Any]) -> None:
+    """[experiment.iteration] and [experiment.adaptive]: the settings of the algorithm that uses them (a
+    table the algorithm would not read is refused: it would be silently ignored)."""
+    file = sc.file
+    try:
+        if "iteration" in exp:
+            table = _table(file, "experiment.iteration", exp["iteration"])
+            iterated = sc.algorithm == "iterated" or (
+                sc.algorithm == "adaptive" and
+                str(_table(file, "experiment.adaptive", exp.get("adaptive")).get("coupling", "")).lower() == "iterated")
+            if not iterated:
+                raise ScenarioError(file, "experiment.iteration",
+                                    f"is read by algorithm = \"iterated\" (or \"adaptive\" with coupling = "
+                                    f"\"iterated\") only, not by {sc.algorithm!r}")
+            sc.iteration = iteration_spec(table)
+        if "adaptive" in exp:
+            table = _table(file, "experiment.adaptive", exp["adaptive"])
+            if sc.algorithm != "adaptive":
+                raise ScenarioError(file, "experiment.adaptive",
+                                    f"is read by algorithm = \"adaptive\" only, not by {sc.algorithm!r}")
+            sc.adaptive = adaptive_spec(table, sc.step)
+    except ValueError as exc:
+        fld, _, msg = str(exc).partition(": ")
+        raise ScenarioError(file, fld, msg) from None
 
 
 def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:

@@ -246,6 +246,12 @@ def export_remarks(plan: Plan) -> list[tuple[str, str]]:
                 out.append(("warning", f"{what} stays in the parameter set (libcosim, ecos and this master apply "
                                        f"it); OMSimulator cannot set a String parameter: it logs an error and "
                                        f"runs with the FMU's default {var.start!r}"))
+    sc = plan.scenario
+    if sc.algorithm in ("iterated", "adaptive"):
+        out.append(("note", f"algorithm = \"{sc.algorithm}\" and its settings are kept in this master's own "
+                            f"annotation ({OWN_TYPE}), which only this master reads: SSP 1.0 has no place for a "
+                            f"master's coupling iteration or step-size control, and other tools run the system "
+                            f"with their own fixed-step master (OMSimulator's oms-ma, libcosim's fixed step)"))
     if plan.scenario.algorithm == "gauss-seidel":
         out.append(("note", "OMSimulator runs the archive as Jacobi (its fixed-step master, oms-ma): its results "
                             "equal this master's run with algorithm = \"jacobi\", not this Gauss-Seidel run"))
@@ -344,8 +350,13 @@ def _default_experiment(sc: Scenario):
     alg = ET.SubElement(osp.root, f"{{{OSP_NS}}}Algorithm")
     ET.SubElement(alg, f"{{{OSP_NS}}}FixedStepAlgorithm", baseStepSize=_fmt(sc.times()[2]))
     own = Annotation(OWN_TYPE)
-    ET.SubElement(own.root, f"{{{OWN_NS}}}Experiment", step=_fmt(sc.times()[2]), algorithm=sc.algorithm,
-                  order=" ".join(sc.order))
+    exp = ET.SubElement(own.root, f"{{{OWN_NS}}}Experiment", step=_fmt(sc.times()[2]), algorithm=sc.algorithm,
+                        order=" ".join(sc.order))
+    for tag, spec in (("Iteration", sc.iteration), ("Adaptive", sc.adaptive)):
+        if spec is not None:
+            ET.SubElement(exp, f"{{{OWN_NS}}}{tag}",
+                          {k: (_fmt(v) if isinstance(v, float) else str(v))
+                           for k, v in spec.as_dict().items() if v is not None})
     de.annotations.add_annotation(osp)
     de.annotations.add_annotation(own)
     return de
@@ -553,8 +564,34 @@ def _with_version(root) -> bytes:
     return ET.tostring(root)
 
 
-def _step_from_annotations(root) -> tuple[float | None, str | None, list[str] | None]:
+#: The keys of this master's Iteration and Adaptive annotations that are integers (the others are numbers
+#: or words).
+_INTEGER_KEYS = {"max_iterations"}
+_WORD_KEYS = {"method", "inputs", "coupling"}
+
+
+def _stepping_tables(exp, where: str) -> dict[str, dict[str, Any]]:
+    """The ``experiment.iteration`` and ``experiment.adaptive`` tables of this master's annotation (its
+    Iteration and Adaptive elements), values typed as the scenario reader takes them."""
+    out: dict[str, dict[str, Any]] = {}
+    for tag, key in (("Iteration", "iteration"), ("Adaptive", "adaptive")):
+        el = exp.find(f"{{{OWN_NS}}}{tag}")
+        if el is None:
+            continue
+        table: dict[str, Any] = {}
+        for k, v in el.attrib.items():
+            try:
+                table[k] = v if k in _WORD_KEYS else int(v) if k in _INTEGER_KEYS else float(v)
+            except ValueError:
+                raise ScenarioError(where, f"Annotation {OWN_TYPE}: {tag}.{k}", f"{v!r} is not a number") from None
+        out[key] = table
+    return out
+
+
+def _step_from_annotations(root, where: str = "") -> tuple[float | None, str | None, list[str] | None,
+                                                          dict[str, dict[str, Any]]]:
     step = algorithm = order = None
+    tables: dict[str, dict[str, Any]] = {}
     for de in root.findall("ssd:DefaultExperiment", NS):
         for a in de.iter(f"{{{OWN_NS}}}Experiment"):
             try:
@@ -563,13 +600,14 @@ def _step_from_annotations(root) -> tuple[float | None, str | None, list[str] | 
                 pass
             algorithm = a.get("algorithm")
             order = a.get("order", "").split() or None
+            tables = _stepping_tables(a, where)
         if step is None:
             for a in de.iter(f"{{{OSP_NS}}}FixedStepAlgorithm"):
                 try:
                     step = float(a.get("baseStepSize"))
                 except (TypeError, ValueError):
                     pass
-    return step, algorithm, order
+    return step, algorithm, order, tables
 
 
 def load_ssp(path: str | os.PathLike, *, step: float | None = None, stop: float | None = None,
@@ -681,9 +719,11 @@ def _document(root, system, path: Path, arch: Path, step: float | None, stop: fl
     for inst, var, value in comp_params:
         instances[inst]["parameters"][var] = value
     _join_array_elements(instances, where, limits)
-    a_step, a_alg, a_order = _step_from_annotations(root)
+    a_step, a_alg, a_order, tables = _step_from_annotations(root, where)
     de = root.find("ssd:DefaultExperiment", NS)
     experiment: dict[str, Any] = {"algorithm": algorithm or a_alg or "jacobi"}
+    if experiment["algorithm"] == a_alg:   # (the settings of the algorithm the archive names, if it is run)
+        experiment.update(tables)
     for key, value in (("start", de.get("startTime") if de is not None else None),
                        ("stop", stop if stop is not None else de.get("stopTime") if de is not None else None),
                        ("step", step if step is not None else a_step)):

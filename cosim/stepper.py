@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 from .algorithm import Clock, InstanceIO
 from .errors import RunError
 from .failure import Call, Failure
+from .loops import strongly_connected
 
 if TYPE_CHECKING:
     from .wiring import RowLayout
@@ -33,49 +34,11 @@ def components(ios: list[InstanceIO]) -> list[list[int]]:
     order, the components in the order of their first instance (the order in which the instances step).
     A component of more than one instance, or of one that feeds itself, is a coupling loop."""
     fed_by = feeders(ios)
-    n = len(ios)
-    succ: list[list[int]] = [[] for _ in range(n)]
+    succ: list[list[int]] = [[] for _ in ios]
     for b, srcs in enumerate(fed_by):
         for a in sorted(srcs):
             succ[a].append(b)
-    index: dict[int, int] = {}
-    low: dict[int, int] = {}
-    on: set[int] = set()
-    stack: list[int] = []
-    out: list[list[int]] = []
-    counter = 0
-    for root in range(n):   # Tarjan's algorithm, iteratively
-        if root in index:
-            continue
-        work = [(root, 0)]
-        while work:
-            v, i = work.pop()
-            if i == 0:
-                index[v] = low[v] = counter
-                counter += 1
-                stack.append(v)
-                on.add(v)
-            if i < len(succ[v]):
-                work.append((v, i + 1))
-                w = succ[v][i]
-                if w not in index:
-                    work.append((w, 0))
-                elif w in on:
-                    low[v] = min(low[v], index[w])
-                continue
-            if low[v] == index[v]:
-                comp = []
-                while True:
-                    w = stack.pop()
-                    on.discard(w)
-                    comp.append(w)
-                    if w == v:
-                        break
-                out.append(sorted(comp))
-            if work:
-                u = work[-1][0]
-                low[u] = min(low[u], low[v])
-    return sorted(out, key=lambda c: c[0])
+    return strongly_connected(len(ios), succ)
 
 
 def is_loop(comp: list[int], fed_by: list[set[int]]) -> bool:

@@ -26,7 +26,9 @@ import numpy as np
 from .archive import DEFAULT_LIMITS, ArchiveLimits
 from .errors import CosimError, FmuLoadError, ScenarioError
 from .inputs import InputPlan, read_inputs
+from .coupling_spec import check_adaptive
 from .integrators import DEFAULT_EVENT_TOLERANCE, DEFAULT_RTOL, SolverSpec
+from .loops import Coupling, check_iteration, coupling
 from .model import INTERFACE_NAMES, PY_TYPES, FmuModel, Variable, load_model
 from .scenario import (CO_SIMULATION, MODEL_EXCHANGE, SOLVER_KEYS, ConnectionSpec, InstanceSpec, Scenario,
                        check_experiment, split_ref)
@@ -126,6 +128,7 @@ class Plan:
     notes: list[str] = field(default_factory=list)   # what check prints beside its verdict (declared units overridden)
     internal_steps: dict[str, int] = field(default_factory=dict)   # instance -> its fixed internal steps over the run
     archive_limits: ArchiveLimits = DEFAULT_LIMITS   # the scenario's: what extracting its FMUs may unpack
+    coupling: Coupling = field(default_factory=Coupling)   # its coupling loops and algebraic loops
 
     @property
     def watched(self) -> list[tuple[str, Variable]]:
@@ -523,6 +526,9 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
     _solvers(sc, insts)
     internal = _internal_steps(sc, insts)
     conns, driven = _connection_plans(sc, insts)
+    coupled = coupling([n for n in sc.order], insts, conns)
+    check_iteration(sc, insts, coupled)
+    _check_stepping(sc)
     record, not_recorded = _record(sc, insts)
     inputs = _inputs(sc, insts, driven)
     start, stop, step = sc.times()
@@ -531,9 +537,21 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
     events = sorted((ev for ev in checked if ev.condition is None), key=lambda ev: ev.step)  # stable within a step
     conditions = [ev for ev in checked if ev.condition is not None]
     plan = Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs, not_recorded,
-                conditions, notes, internal, sc.archive_limits)
+                conditions, notes, internal, sc.archive_limits, coupled)
     _check_recording_size(plan)
     return plan
+
+
+def _check_stepping(sc: Scenario) -> None:
+    """The step-size control's bounds against the output interval (known only now, when the FMUs' default
+    experiments may give the step)."""
+    if sc.adaptive is None:
+        return
+    try:
+        check_adaptive(sc.adaptive, sc.times()[2])
+    except ValueError as exc:
+        fld, _, msg = str(exc).partition(": ")
+        raise ScenarioError(sc.file, fld, msg) from None
 
 
 def _planned_copy(sc: Scenario, force: bool | None, isolate_all: bool) -> Scenario:

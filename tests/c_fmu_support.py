@@ -38,6 +38,12 @@ MODEL_DESCRIPTION = """<?xml version="1.0" encoding="UTF-8"?>
 
 def build_probe(out: Path, name: str = "Probe", **defines: object) -> Path:
     """``out/<name>.fmu`` compiled with ``-D<KEY>=<value>`` for each define (True: no value)."""
+    return build_c_fmu(SRC, MODEL_DESCRIPTION.format(name=name), out, name, **defines)
+
+
+def build_c_fmu(src: Path, model_description: str, out: Path, name: str, **defines: object) -> Path:
+    """``out/<name>.fmu``: the C source ``src`` compiled with ``-D<KEY>=<value>`` for each define (True: no
+    value) into ``binaries/linux64/<name>.so``, beside ``model_description``."""
     import fmpy
 
     cc = shutil.which("cc") or shutil.which("gcc")
@@ -47,13 +53,13 @@ def build_probe(out: Path, name: str = "Probe", **defines: object) -> Path:
     so = out / f"{name}.so"
     flags = [f"-D{k}" if v is True else f"-D{k}={v}" for k, v in defines.items()]
     inc = Path(fmpy.__file__).parent / "c-code"
-    p = subprocess.run([cc, "-shared", "-fPIC", "-O1", f"-I{inc}", *flags, str(SRC), "-o", str(so)],
+    p = subprocess.run([cc, "-shared", "-fPIC", "-O1", f"-I{inc}", *flags, str(src), "-o", str(so), "-lm"],
                        capture_output=True, text=True)
     if p.returncode:
         raise RuntimeError(p.stderr)
     fmu = out / f"{name}.fmu"
     with zipfile.ZipFile(fmu, "w") as zf:
-        zf.writestr("modelDescription.xml", MODEL_DESCRIPTION.format(name=name))
+        zf.writestr("modelDescription.xml", model_description)
         zf.write(so, f"binaries/linux64/{name}.so")
     so.unlink()
     return fmu

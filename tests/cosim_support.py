@@ -25,6 +25,12 @@ def toml_value(v: Any) -> str:
     raise TypeError(v)
 
 
+def write_document(path: Path, doc: dict[str, Any]) -> Path:
+    """A scenario document written as a TOML file, each top-level table inline."""
+    path.write_text("".join(f"{k} = {toml_value(v)}\n" for k, v in doc.items()))
+    return path
+
+
 def write_scenario(path: Path, text: str) -> Path:
     path.write_text(text)
     return path

@@ -114,7 +114,10 @@ class Simulation:
 
     # ------------------------------------------------------------------ building in code
     def experiment(self, **fields: Any) -> "Simulation":
-        """Set ``[experiment]`` keys: start, stop, step [s], algorithm, order, tolerance, max_steps."""
+        """Set ``[experiment]`` keys: start, stop, step [s], algorithm, order, tolerance, max_steps, and the
+        tables of the algorithms beyond one pass per step, checked as a scenario file's:
+        ``.experiment(algorithm="iterated", iteration={"method": "newton", "tolerance": 1e-10})``,
+        ``.experiment(algorithm="adaptive", adaptive={"rtol": 1e-5, "atol": 1e-7, "max_step": 0.01})``."""
         self.document.setdefault("experiment", {}).update(fields)
         return self
 

@@ -22,6 +22,7 @@ from .components.sensor import SensorParams
 from .components.validation import ParameterError
 from .cosim.errors import CosimError, OtherFileError
 from .cosim.kinds import FileKind, file_kind, named_kind
+from .cosim.loops import describe as describe_coupling
 from .cosim.scenario import parse_value
 from .cosim.suggest import did_you_mean
 from .exit_codes import OK as EXIT_OK, RUN_FAILED as EXIT_FAILED, for_error, for_status, for_statuses
@@ -265,6 +266,10 @@ def _report_check(args: argparse.Namespace, plan: Any) -> None:
           f"{_size(plan.output_bytes)}{' (and signals.csv about ' + _size(3 * plan.output_bytes) + ')' if sc.csv else ''}")
     for name, ip in plan.instances.items():
         print(f"  {name}: {ip.describe()}")
+    if sc.algorithm in ("iterated", "adaptive"):
+        print(f"  {sc.algorithm}: {_stepping(sc)}")
+    for line in describe_coupling(plan.coupling, sc.algorithm):
+        print(f"  {line}")
     if plan.not_recorded:
         print(f"note: String outputs are not recorded: {', '.join(plan.not_recorded)}")
     for note in plan.notes:
@@ -272,6 +277,18 @@ def _report_check(args: argparse.Namespace, plan: Any) -> None:
     for name, n in plan.internal_steps.items():
         print(f"note: {name} takes fixed internal steps of {plan.instances[name].model.internal_step:g} s: "
               f"about {n:.3g} over the run")
+
+
+def _stepping(sc: Any) -> str:
+    """The settings of the iterated coupling or of the step-size control, in words."""
+    from .cosim.coupling_spec import AdaptiveSpec, IterationSpec
+
+    if sc.algorithm == "iterated":
+        return (sc.iteration or IterationSpec()).describe()
+    text = (sc.adaptive or AdaptiveSpec()).resolved(sc.step).describe()
+    if (sc.adaptive or AdaptiveSpec()).coupling == "iterated":
+        text += f"; iteration {(sc.iteration or IterationSpec()).describe()}"
+    return text
 
 
 def _check_runs(args: argparse.Namespace, parsed: Any, overrides: dict[str, Any]) -> None:
