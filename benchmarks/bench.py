@@ -69,6 +69,19 @@ NAME:
             co-simulation (me_cvode_to_cs, me_rk4_to_cs), and me_*_pose_diff_m, the final pose's distance [m]
             from the co-simulation plant's.
 
+    adaptive  step-size control against fixed steps on a case whose dynamics change speed: the two-mass
+            oscillator of tests/coupling_fmus.py (two C FMUs, the coupling force with direct feedthrough)
+            with a stiff one-sided contact (10^4 N/m beyond a 5 cm stretch, against 100 N/m of the coupling
+            spring) that engages for short spells, 2 s recorded every 10 ms.  The reference: the fixed-step
+            iterated coupling (linear inputs) at 10 us (ref_to_ode_m: its distance from the monolithic
+            ODE solved by DOP853 at 1e-12).  For each coupling (gauss-seidel: one pass; iterated: Newton,
+            linear inputs) and its stated accuracy (largest position error on the output grid: 1e-2 m and
+            1e-4 m), the largest fixed step of 10 ms / 2^k and the loosest rtol = atol of 10^-k that reach
+            it: *_fixed_steps, *_fixed_error_m, *_adaptive_accepted, *_adaptive_rejected,
+            *_adaptive_error_m, *_steps_ratio = (accepted + rejected) / fixed steps (target <= 1/3),
+            *_instance_steps_* (every FMU step, the adaptive's three per macro step and the iterations'
+            included) and *_wall_s_* of both runs.  ``--repeats`` is not used.
+
 ``--against REV`` runs NAME in this checkout and in a worktree of commit REV, interleaved, ``--rounds``
 fresh processes each of ``--repeats`` runs (benchmarks/against.py): each figure's median over the rounds for
 both and their ratio, this / that.
@@ -768,10 +781,94 @@ def bench_me(repeats: int) -> dict[str, Any]:
             "me_rk4_pose_diff_m": float(np.linalg.norm(final["me_rk4"] - final["cs"]))}
 
 
+def bench_adaptive(repeats: int) -> dict[str, Any]:
+    """The step-size control against the fixed step on the two-mass oscillator with a stiff contact (see
+    the module's docstring)."""
+    import tempfile
+    from pathlib import Path
+
+    import numpy as np
+    from scipy.integrate import solve_ivp
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from coupling_fmus import TwoMass, build_mass, two_mass_document
+
+    from wmr_cosim.cosim import execution, scenario, system
+    from wmr_cosim.cosim.adaptive import Adaptive
+    from wmr_cosim.cosim.algorithm import GaussSeidel
+    from wmr_cosim.cosim.coupling_spec import AdaptiveSpec, IterationSpec
+    from wmr_cosim.cosim.iterated import Iterated
+
+    tm = TwoMass(x1=0.0, v1=3.0, kk=1e4, gap=0.05, h_int=1e-5)
+    stop, interval = 2.0, 0.01
+    linear = IterationSpec("newton", inputs="linear")
+    grid = np.arange(round(stop / interval) + 1) * interval
+    ode = solve_ivp(tm.rhs, (0.0, stop), [tm.x1, tm.v1, tm.x2, tm.v2], method="DOP853", rtol=1e-12, atol=1e-12,
+                    dense_output=True, max_step=1e-3).sol(grid).T
+    figures: dict[str, Any] = {"contact_fraction": float(np.mean(ode[:, 0] - ode[:, 2] > tm.gap))}
+    with tempfile.TemporaryDirectory() as tmp:
+        fmus = build_mass(Path(tmp) / "fmu")
+        runs = [0]
+
+        def run(alg: Any, step: float) -> tuple[np.ndarray, Any]:
+            plan = system.resolve(scenario.parse(two_mass_document(fmus, tm, stop=stop, step=step), "two.toml"))
+            runs[0] += 1
+            out = Path(tmp) / f"run{runs[0]}"
+            res = execution.run(plan, out, progress=False, algorithm=alg)
+            if res.status != "ok":
+                raise SystemExit(f"the two-mass run failed: {res.message}")
+            sig = np.load(out / "signals.npy")
+            k = np.round(sig["time"] / interval)
+            on_grid = sig[np.abs(sig["time"] - k * interval) < 1e-9]
+            return on_grid, res
+
+        ref, _ = run(Iterated(linear), 1e-5)
+        z_ref = np.column_stack([ref["body.x"], ref["coupler.x"]])
+        figures["ref_to_ode_m"] = float(np.max(np.abs(z_ref - ode[:, [0, 2]])))
+
+        def error(sig: np.ndarray) -> float:
+            return float(np.max(np.abs(np.column_stack([sig["body.x"], sig["coupler.x"]]) - z_ref)))
+
+        for key, accuracy, fixed, coupling in (("gs", 1e-2, GaussSeidel, "gauss-seidel"),
+                                               ("iterated", 1e-4, lambda: Iterated(linear), "iterated")):
+            figures[f"{key}_accuracy_m"] = accuracy
+            for k in range(12):
+                h = interval / 2 ** k
+                sig, res = run(fixed(), h)
+                if error(sig) <= accuracy:
+                    break
+            steps = round(stop / h)
+            figures[f"{key}_fixed_step_s"] = h
+            figures[f"{key}_fixed_steps"] = steps
+            figures[f"{key}_fixed_error_m"] = float(f"{error(sig):.4g}")
+            st = res.summary.get("stepping") or {}
+            figures[f"{key}_instance_steps_fixed"] = st.get("instance_steps", 2 * steps)
+            figures[f"{key}_wall_s_fixed"] = round(res.wall_s, 3)
+            for k in range(2, 9):
+                tol = 10.0 ** -k
+                sig, res = run(Adaptive(AdaptiveSpec(rtol=tol, atol=tol, coupling=coupling), linear), interval)
+                if error(sig) <= accuracy:
+                    break
+            st = res.summary["stepping"]
+            figures[f"{key}_adaptive_tolerance"] = tol
+            figures[f"{key}_adaptive_accepted"] = st["accepted_steps"]
+            figures[f"{key}_adaptive_rejected"] = st["rejected_steps"]
+            figures[f"{key}_adaptive_error_m"] = float(f"{error(sig):.4g}")
+            figures[f"{key}_adaptive_smallest_step_s"] = float(f"{st['smallest_step']:.4g}")
+            figures[f"{key}_instance_steps_adaptive"] = st["instance_steps"]
+            figures[f"{key}_wall_s_adaptive"] = round(res.wall_s, 3)
+            figures[f"{key}_steps_ratio"] = round((st["accepted_steps"] + st["rejected_steps"]) / steps, 4)
+            figures[f"{key}_steps_ratio_within_third"] = bool(figures[f"{key}_steps_ratio"] <= 1.0 / 3.0)
+            figures[f"{key}_reached"] = bool(figures[f"{key}_adaptive_error_m"] <= accuracy
+                                             and figures[f"{key}_fixed_error_m"] <= accuracy)
+    return figures
+
+
 BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "fmi3": bench_fmi3, "paper": bench_paper,
            "sweep": bench_sweep, "interop": bench_interop, "archive": bench_archive, "loader": bench_loader,
            "isolation": bench_isolation, "scripting": bench_scripting, "mutation": bench_mutation,
-           "bugs": bench_bugs, "exit": bench_exit, "me": bench_me}
+           "bugs": bench_bugs, "exit": bench_exit, "me": bench_me,
+           "adaptive": bench_adaptive}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -241,6 +241,7 @@ class _Server:
         self.fast: Any = None                 # the instance's FastPath, once configured
         self.io: tuple[Any, ...] = ()         # (in_vr, n_in, out_vr, n_out, out_val)
         self.states: dict[int, Any] = {}      # the instance's saved states, by the key the master holds
+        self.derivatives: tuple[list[int], list[float]] | None = None   # for the next step, after its inputs
         self.keys = itertools.count(1)
         self.T, self.H = ctypes.c_double(0.0), ctypes.c_double(0.0)
 
@@ -264,11 +265,24 @@ class _Server:
         fp, (_, _, ovr, nout, oval) = self.fast, self.io
         return fp.get_real(fp.c, ovr, nout, oval, *fp.get_tail) if nout.value else 0
 
+    def set_input_derivatives(self, vrs: list[int], values: list[float]) -> int:
+        """The inputs' derivatives for the next step: set there after its inputs (in this order, as in
+        process: setting an input may reset its derivative)."""
+        self.derivatives = (list(vrs), list(values))
+        return 0
+
     def step(self, t: float, h: float) -> int:
-        """Set the inputs, do the step, get the outputs: the status (or SLOT_TERMINATED)."""
+        """Set the inputs (and the derivatives given for this step), do the step, get the outputs: the
+        status (or SLOT_TERMINATED)."""
         s = self.set_inputs()
         if s:
             return s
+        if self.derivatives is not None:
+            vrs, values = self.derivatives
+            self.derivatives = None
+            s = self.inst.set_input_derivatives(vrs, values)
+            if s:
+                return s
         fp = self.fast
         self.T.value, self.H.value = t, h
         s = fp.do_step(fp.c, self.T, self.H, *fp.step_tail)
@@ -311,7 +325,7 @@ class _Server:
     def answer(self, op: str, args: tuple[Any, ...]) -> tuple[str, Any]:
         """A control request's reply: ("ok", value) or ("error", one line)."""
         own = ("configure", "set_inputs", "get_outputs", "log_state", "get_typed", "set_typed", "get_state",
-               "set_state", "free_state")   # (anything else, allow_rollback among them, is the instance's)
+               "set_state", "free_state", "set_input_derivatives")   # (anything else, allow_rollback among them, is the instance's)
         try:
             return "ok", (getattr(self, op) if op in own else getattr(self.inst, op))(*args)
         except BaseException as exc:  # reported to the master as one line
@@ -466,6 +480,21 @@ class IsolatedInstance(FmuInstance):
     def can_get_and_set_state(self) -> bool:
         """The interface the child hosts declares it can save and restore its state."""
         return declares_state(self.md.coSimulation if self.solver is None else self.md.modelExchange)
+
+    @property
+    def can_interpolate_inputs(self) -> bool:
+        """FMI 2.0 co-simulation that declares canInterpolateInputs (the child sets the derivatives after
+        the step's inputs)."""
+        cs = self.md.coSimulation
+        return (self.solver is None and self.fmi_version == 2 and cs is not None
+                and bool(getattr(cs, "canInterpolateInputs", False)))
+
+    def set_input_derivatives(self, vrs: list[int], values: list[float]) -> int:
+        """fmi2SetRealInputDerivatives of order 1, in the child, for the next step."""
+        if not self.can_interpolate_inputs:
+            return super().set_input_derivatives(vrs, values)
+        return int(self._call("setting input derivatives", "set_input_derivatives", list(vrs), list(values),
+                              t=self.child.t))
 
     def call_name(self, call: Call) -> str:
         if call is Call.DO_STEP and self.solver is not None:

@@ -79,6 +79,7 @@ class Loop:
     jacobians: int = 0
     evaluations: int = 0                      # every step of the loop's instances, the Jacobian's included
     worst_residual: float = 0.0               # the largest residual accepted
+    histogram: dict[int, int] = field(default_factory=dict)   # iterations -> the steps that took that many
 
     @property
     def label(self) -> str:
@@ -88,6 +89,7 @@ class Loop:
         return {"instances": self.names, "unknowns": len(self.unknowns), "steps": self.steps,
                 "iterations": self.iterations, "max_iterations_per_step": self.max_iterations,
                 "mean_iterations_per_step": round(self.iterations / self.steps, 6) if self.steps else None,
+                "steps_by_iterations": {str(n): self.histogram[n] for n in sorted(self.histogram)},
                 "jacobians": self.jacobians, "loop_evaluations": self.evaluations,
                 "max_residual_accepted": self.worst_residual}
 
@@ -134,6 +136,7 @@ class LoopSolver:
             err = max((abs(ri) / (1.0 + abs(gi)) for ri, gi in zip(r, g)), default=0.0)
             if err <= spec.tolerance:
                 loop.iterations += it
+                loop.histogram[it] = loop.histogram.get(it, 0) + 1
                 loop.max_iterations = max(loop.max_iterations, it)
                 loop.worst_residual = max(loop.worst_residual, err)
                 return u
@@ -196,7 +199,8 @@ class IteratedStep:
         for lp in loops:
             prev = self.old.get(tuple(lp.names))
             if prev is not None:
-                for f in ("steps", "iterations", "max_iterations", "jacobians", "evaluations", "worst_residual"):
+                for f in ("steps", "iterations", "max_iterations", "jacobians", "evaluations", "worst_residual",
+                          "histogram"):
                     setattr(lp, f, getattr(prev, f))
             self.old[tuple(lp.names)] = lp
             self.loops[lp.members[0]] = lp
@@ -308,7 +312,7 @@ class IteratedStep:
                 return [x.g() for x in lp.unknowns]
 
             g0 = [x.g() for x in lp.unknowns]
-            counts = (lp.iterations, lp.max_iterations, lp.evaluations)
+            counts = (lp.iterations, lp.max_iterations, lp.evaluations, dict(lp.histogram))
             try:
                 self.solver.solve(lp, evaluate, g0, g0)
             except NotConverged as exc:
@@ -319,7 +323,7 @@ class IteratedStep:
                 raise RunError(f"the coupling loop {lp.label} did not converge at initialisation (t = {t0:.9g} s): "
                                f"{exc}", lp.names[0], t0) from None
             self.initial_iterations += lp.iterations - counts[0]
-            lp.iterations, lp.max_iterations, lp.evaluations = counts
+            lp.iterations, lp.max_iterations, lp.evaluations, lp.histogram = counts
             lp.jac = None   # (the Jacobian of the algebraic part alone is not the step's)
 
 
@@ -361,7 +365,9 @@ class Iterated(Algorithm):
     def summary(self) -> dict[str, Any] | None:
         loops = list(self.step.old.values()) if self.step is not None else []
         return {"algorithm": self.name, "iteration": self.spec.as_dict(),
-                "initial_iterations": self.initial_iterations, "loops": [lp.stats() for lp in loops]}
+                "initial_iterations": self.initial_iterations,
+                "instance_steps": getattr(getattr(self, "stepper", None), "n_do_steps", 0),
+                "loops": [lp.stats() for lp in loops]}
 
 
 @dataclass

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Iterable
 
 from .errors import ScenarioError
+from .scenario import CO_SIMULATION
 
 if TYPE_CHECKING:
     from .model import FmuModel
@@ -215,3 +216,16 @@ def check_iteration(sc: "Scenario", insts: dict[str, "InstancePlan"], c: Couplin
             raise ScenarioError(sc.file, f"instances.{name}",
                                 f"{ip.model.path.name} cannot get and set its state through its {ip.interface} "
                                 f"interface (canGetAndSetFMUstate is false), and {need[name]}")
+    iterated = algorithm == "iterated" or (sc.adaptive is not None and sc.adaptive.coupling == "iterated")
+    if iterated and sc.iteration is not None and sc.iteration.inputs == "linear":
+        for lp in c.loops:
+            for name in lp:
+                ip = insts[name]
+                cs = ip.model.md.coSimulation
+                if not (ip.interface == CO_SIMULATION and ip.model.fmi == 2 and cs is not None
+                        and getattr(cs, "canInterpolateInputs", False)):
+                    raise ScenarioError(sc.file, "experiment.iteration.inputs",
+                                        f"\"linear\" needs every instance of the coupling loop {' <-> '.join(lp)} "
+                                        f"to take its inputs' derivatives (an FMI 2.0 co-simulation FMU that "
+                                        f"declares canInterpolateInputs): {name} ({ip.model.path.name}, "
+                                        f"{ip.interface}) does not")

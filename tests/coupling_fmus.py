@@ -37,12 +37,14 @@ def _var(name: str, vr: int, causality: str, unit: str = "", start: float | None
             f"<Real{attrs}/></ScalarVariable>\n")
 
 
-def _description(name: str, variables: list[tuple[Any, ...]], outputs: dict[str, list[str]]) -> str:
+def _description(name: str, variables: list[tuple[Any, ...]], outputs: dict[str, list[str] | None]) -> str:
     """The model description: ``variables`` (name, vr, causality, unit, start) in index order, ``outputs``
-    the inputs each output depends on directly."""
+    the inputs each output depends on directly (None: no ``dependencies`` attribute, which says that the
+    output depends on every input)."""
     index = {v[0]: i + 1 for i, v in enumerate(variables)}
     body = "".join(_var(*v) for v in variables)
-    deps = "".join(f'<Unknown index="{index[o]}" dependencies="{" ".join(str(index[i]) for i in d)}"/>'
+    deps = "".join(f'<Unknown index="{index[o]}"/>' if d is None else
+                   f'<Unknown index="{index[o]}" dependencies="{" ".join(str(index[i]) for i in d)}"/>'
                    for o, d in outputs.items())
     return (_HEAD.format(name=name) + body + "  </ModelVariables>\n  <ModelStructure>\n"
             f"    <Outputs>{deps}</Outputs>\n    <InitialUnknowns>{deps}</InitialUnknowns>\n"
@@ -133,9 +135,10 @@ def build_mass(out: Path) -> tuple[Path, Path]:
     return body, coupler
 
 
-def build_affine(out: Path) -> Path:
-    """``out/Affine.fmu``."""
-    return build_c_fmu(C_FMUS / "affine.c", _description("Affine", AFFINE_VARIABLES, {"y": ["u"]}), out, "Affine")
+def build_affine(out: Path, name: str = "Affine", dependencies: tuple[str, ...] | None = ("u",)) -> Path:
+    """``out/<name>.fmu``, its output declared to depend directly on ``dependencies`` (None: the attribute
+    left out)."""
+    return build_c_fmu(C_FMUS / "affine.c", _description(name, AFFINE_VARIABLES, {"y": None if dependencies is None else list(dependencies)}), out, name)
 
 
 def two_mass_document(fmus: tuple[Path, Path], system: TwoMass, *, stop: float, step: float) -> dict[str, Any]:

@@ -151,3 +151,57 @@ def test_the_step_size_control_refuses_to_go_below_its_smallest_step(tmp_path):
     assert res.status == "failed"
     assert res.message.startswith("A: step-size control") or "step-size control" in res.message
     assert "min_step" in res.message and "\n" not in res.message
+
+
+def _vdp_chain(version: str, fields: dict[str, Any] | None = None) -> system.Plan:
+    """VanDerPol -> Feedthrough over 2 s, recorded every 0.1 s; ``fields`` added to the VanDerPol instance."""
+    vdp, ft = str(REF / version / "VanDerPol.fmu"), str(REF / version / "Feedthrough.fmu")
+    doc = {"experiment": {"start": 0.0, "stop": 2.0, "step": 0.1},
+           "instances": {"v": {"fmu": vdp, **(fields or {})}, "f": {"fmu": ft}},
+           "connections": [{"from": "v.x0", "to": f"f.{IN}"}],
+           "record": {"variables": ["v.x0", "v.x1", f"f.{OUT}"]}}
+    return system.resolve(scenario.parse(doc, "vdp.toml"))
+
+
+def test_the_step_size_control_rolls_back_model_exchange_isolated_and_fmi3_instances(tmp_path):
+    """VanDerPol through its Model Exchange interface, one RK4 step per macro step, under the step-size
+    control (rtol = atol = 1e-8): the step doubling estimates RK4's error, so steps are rejected and rolled
+    back (the FMU's state and the integrator restored); the rows meet CVODE at rtol 1e-11 to 1e-6; hosted
+    in a child process it gives the in-process rows bit for bit; FMI 3.0 gives the FMI 2.0 rows within
+    1e-9."""
+    me = {"interface": "model-exchange", "solver": "rk4"}
+    spec = AdaptiveSpec(rtol=1e-8, atol=1e-8)
+    base_res, base = run(_vdp_chain("fmi2", me), tmp_path / "base", Adaptive(spec))
+    assert base_res.status == "ok", base_res.message
+    st = base_res.summary["stepping"]
+    assert st["rejected_steps"] >= 1 and st["accepted_steps"] > 40
+    _, ref = run(_vdp_chain("fmi2", {"solver": "cvode", "tolerance": 1e-11}), tmp_path / "ref", GaussSeidel())
+    assert np.max(np.abs(base["v.x0"] - ref["v.x0"])) < 1e-6 and np.max(np.abs(base["v.x1"] - ref["v.x1"])) < 1e-6
+    assert np.array_equal(base[f"f.{OUT}"], base["v.x0"])
+    res, iso = run(_vdp_chain("fmi2", {**me, "isolate": True}), tmp_path / "iso", Adaptive(spec))
+    assert res.status == "ok", res.message
+    assert iso.tobytes() == base.tobytes()
+    res, f3 = run(_vdp_chain("fmi3", me), tmp_path / "f3", Adaptive(spec))
+    assert res.status == "ok", res.message
+    assert np.max(np.abs(f3["v.x0"] - base["v.x0"])) < 1e-9 and np.max(np.abs(f3["v.x1"] - base["v.x1"])) < 1e-9
+
+
+@pytest.mark.parametrize("version, fields, why", [
+    ("fmi3", {}, "A (Feedthrough.fmu, co-simulation) does not"),
+    ("fmi2", {"interface": "model-exchange", "solver": "rk4"}, "A (Feedthrough.fmu, model-exchange) does not"),
+])
+def test_linear_inputs_where_an_instance_cannot_take_derivatives_are_refused_at_check(version, fields, why):
+    """FMI 3.0 has no input derivatives, and a Model Exchange instance holds its inputs: the iterated
+    coupling with linear inputs is refused naming the loop and the instance (it would run first order)."""
+    from wmr_cosim.cosim.errors import ScenarioError
+
+    fmu = str(REF / version / "Feedthrough.fmu")
+    doc = {"experiment": {"start": 0.0, "stop": 0.1, "step": 0.01, "algorithm": "iterated",
+                          "iteration": {"inputs": "linear"}},
+           "instances": {"A": {"fmu": fmu, **fields}, "B": {"fmu": fmu}},
+           "connections": [{"from": f"A.{OUT}", "to": f"B.{IN}"}, {"from": f"B.{OUT}", "to": f"A.{IN}",
+                                                                  "factor": 0.5}]}
+    with pytest.raises(ScenarioError) as err:
+        system.resolve(scenario.parse(doc, "ring.toml"))
+    assert err.value.field == "experiment.iteration.inputs"
+    assert "coupling loop A <-> B" in str(err.value) and why in str(err.value)

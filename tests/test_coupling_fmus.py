@@ -160,6 +160,17 @@ def test_check_names_the_loops(mass_fmus, affine_fmu, tmp_path, capsys):
     assert code == 0 and "coupling loop body <-> coupler" in out and "algebraic loop" not in out
 
 
+def test_an_output_without_declared_dependencies_depends_on_every_input(tmp_path, capsys):
+    """FMI: an output whose Unknown has no ``dependencies`` attribute depends on every input (a loop of
+    such FMUs is algebraic); ``dependencies=""`` says it depends on none (no algebraic loop)."""
+    for name, deps, loop in (("AffineAll", None, True), ("AffineNone", (), False)):
+        fmu = build_affine(tmp_path / name, name, deps)
+        path = write_document(tmp_path / f"{name}.toml", AffineLoop(0.5, 0.8).document(fmu, stop=0.1, step=0.01))
+        code, out, _ = _cli(capsys, "check", str(path))
+        assert code == 0 and "coupling loop one <-> two" in out
+        assert ("algebraic loop one.y -> two.u -> two.y -> one.u -> one.y" in out) is loop, out
+
+
 @pytest.mark.parametrize("table, field, words", [
     ({"iteration": {"tolerance": 0.0}}, "experiment.iteration.tolerance", "must be a number > 0"),
     ({"iteration": {"tolerance": -1e-6}}, "experiment.iteration.tolerance", "must be a number > 0"),
@@ -233,6 +244,8 @@ def test_the_settings_go_through_the_scenario_file_into_summary_json(affine_fmu,
     assert st["iteration"]["max_iterations"] == 5
     (lp,) = st["loops"]
     assert lp["instances"] == ["one", "two"] and lp["steps"] == 50 and lp["max_iterations_per_step"] <= 5
+    assert sum(lp["steps_by_iterations"].values()) == 50
+    assert sum(int(n) * c for n, c in lp["steps_by_iterations"].items()) == lp["iterations"]
     assert lp["max_residual_accepted"] <= 1e-12
 
 
@@ -266,3 +279,58 @@ def test_ssp_keeps_the_settings_in_its_own_annotation(affine_fmu, tmp_path):
         assert arch.scenario.algorithm == "jacobi" and arch.scenario.iteration is None
     finally:
         arch.cleanup()
+
+
+def test_the_step_size_control_puts_its_steps_where_the_contact_is(mass_fmus, tmp_path):
+    """The two masses with a stiff contact (engaged about 7 % of the time): the step-size control (one
+    Gauss-Seidel pass per step, rtol = atol = 1e-4) is closer to the monolithic ODE than the fixed step
+    taking as many macro steps as it took (accepted and rejected), it rejects steps and its steps vary by
+    more than ten times, and a tighter tolerance gives a smaller error."""
+    from scipy.integrate import solve_ivp
+
+    from wmr_cosim.cosim.adaptive import Adaptive
+    from wmr_cosim.cosim.coupling_spec import AdaptiveSpec
+
+    tm = TwoMass(x1=0.0, v1=3.0, kk=1e4, gap=0.05, h_int=1e-5)
+    doc = two_mass_document(mass_fmus, tm, stop=2.0, step=0.01)
+    ode = solve_ivp(tm.rhs, (0.0, 2.0), [tm.x1, tm.v1, tm.x2, tm.v2], method="DOP853", rtol=1e-12, atol=1e-12,
+                    dense_output=True, max_step=1e-3)
+
+    def error(sig: np.ndarray) -> float:
+        z = ode.sol(sig["time"]).T
+        return float(max(np.max(np.abs(sig["body.x"] - z[:, 0])), np.max(np.abs(sig["coupler.x"] - z[:, 2]))))
+
+    plan = system.resolve(scenario.parse(doc, "contact.toml"))
+    errors, counts = [], []
+    for tol in (1e-3, 1e-4):
+        res = execution.run(plan, tmp_path / f"a{tol}", progress=False,
+                            algorithm=Adaptive(AdaptiveSpec(rtol=tol, atol=tol)))
+        assert res.status == "ok", res.message
+        st = res.summary["stepping"]
+        assert st["rejected_steps"] >= 1 and st["smallest_step"] < 0.1 * st["largest_step"]
+        errors.append(error(np.load(tmp_path / f"a{tol}" / "signals.npy")))
+        counts.append(st["accepted_steps"] + st["rejected_steps"])
+    assert errors[1] < 0.6 * errors[0]
+    n = counts[1]
+    step = 2.0 / n
+    fixed = execution.run(system.resolve(scenario.parse(two_mass_document(mass_fmus, tm, stop=2.0, step=step),
+                                                        "fixed.toml")), tmp_path / "fixed", progress=False)
+    assert fixed.status == "ok", fixed.message
+    assert errors[1] < 0.5 * error(np.load(tmp_path / "fixed" / "signals.npy")), (errors[1], n)
+
+
+def test_iterated_and_adaptive_through_isolated_instances_are_bit_for_bit(mass_fmus, tmp_path):
+    """The body hosted in a child process: the iterated coupling with linear inputs (input derivatives
+    through the child) and the step-size control over it (rollbacks included) give the in-process rows."""
+    from wmr_cosim.cosim.adaptive import Adaptive
+    from wmr_cosim.cosim.coupling_spec import AdaptiveSpec
+
+    tm = TwoMass(x1=0.0, v1=3.0, kk=1e4, gap=0.05, h_int=1e-5)
+    lin = IterationSpec("newton", inputs="linear")
+    for name, make in (("iterated", lambda: Iterated(lin)),
+                       ("adaptive", lambda: Adaptive(AdaptiveSpec(rtol=1e-3, atol=1e-3, coupling="iterated"), lin))):
+        doc = two_mass_document(mass_fmus, tm, stop=0.5, step=0.01)
+        base = _run(doc, tmp_path / f"{name}-in", make())
+        doc["instances"]["body"]["isolate"] = True
+        iso = _run(doc, tmp_path / f"{name}-iso", make())
+        assert iso.tobytes() == base.tobytes(), name

@@ -31,10 +31,10 @@
  * Parameters are fixed: settable before fmi2ExitInitializationMode only.
  */
 #include <math.h>
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
-#include "fmi2Functions.h"
+
+typedef struct Mass Mass;
+#define MODEL Mass
+#include "cs_common.h"
 
 #ifdef COUPLER
 #define NPAR 10
@@ -56,36 +56,23 @@ static const char *PAR_NAMES[NPAR] = {"m1", "k1", "d1", "x0", "v0", "h_int"};
 #define VR_PAR 10
 enum { P_M, P_K, P_D, P_X0, P_V0, P_HINT, P_KC, P_DC, P_KK, P_GAP };
 
-typedef struct {
-    fmi2CallbackFunctions cb;
-    char name[256];
-    double time;              /* [s] */
+struct Mass {
+    Base b;                   /* the name, the logger, the time [s], initialised */
     double p[NPAR];
     double x, v;              /* [m], [m/s] */
     double u[NIN], du[NIN];   /* inputs and their derivatives [unit], [unit/s] */
-    int initialized;          /* after fmi2ExitInitializationMode */
-} Mass;
+};
 
-static void say(Mass *s, fmi2Status st, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+static size_t model_size(void) { return sizeof(Mass); }
 
-#include <stdarg.h>
-static void say(Mass *s, fmi2Status st, const char *fmt, ...) {
-    char msg[512];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    if (s->cb.logger) s->cb.logger(s->cb.componentEnvironment, s->name, st, "logStatusError", "%s", msg);
-}
-
-static void defaults(Mass *s) {
+static void model_reset(Mass *s) {
     memcpy(s->p, DEFAULTS, sizeof s->p);
-    s->time = 0.0;
+    s->b.time = 0.0;
+    s->b.initialized = 0;
     s->x = s->p[P_X0];
     s->v = s->p[P_V0];
     memset(s->u, 0, sizeof s->u);
     memset(s->du, 0, sizeof s->du);
-    s->initialized = 0;
 }
 
 /* The force on the body this FMU integrates [N], at position x, velocity v and inputs in[]. */
@@ -97,7 +84,7 @@ static double force(const Mass *s, double x, double v, const double in[]) {
     if (p[P_KK] != 0.0 && closing > p[P_GAP]) F += -p[P_KK] * (closing - p[P_GAP]);
     return -F;                                                   /* the reaction on body 2 */
 #else
-    (void)x; (void)v;
+    (void)s; (void)x; (void)v;
     return in[0];
 #endif
 }
@@ -132,53 +119,6 @@ static void rk4(Mass *s, double h) {
     }
 }
 
-const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
-const char *fmi2GetVersion(void) { return fmi2Version; }
-
-fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cats[]) {
-    (void)c; (void)on; (void)n; (void)cats;
-    return fmi2OK;
-}
-
-fmi2Component fmi2Instantiate(fmi2String name, fmi2Type t, fmi2String guid, fmi2String res,
-                              const fmi2CallbackFunctions *cb, fmi2Boolean visible, fmi2Boolean on) {
-    (void)guid; (void)res; (void)visible; (void)on;
-    Mass *s = (Mass *)calloc(1, sizeof(Mass));
-    if (!s) return NULL;
-    s->cb = *cb;
-    strncpy(s->name, name ? name : "", sizeof(s->name) - 1);
-    if (t != fmi2CoSimulation) {
-        say(s, fmi2Error, "fmi2Instantiate: only co-simulation is supported");
-        free(s);
-        return NULL;
-    }
-    defaults(s);
-    return s;
-}
-
-void fmi2FreeInstance(fmi2Component c) { free(c); }
-
-fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tolDef, fmi2Real tol, fmi2Real start,
-                               fmi2Boolean stopDef, fmi2Real stop) {
-    (void)tolDef; (void)tol; (void)stopDef; (void)stop;
-    ((Mass *)c)->time = start;
-    return fmi2OK;
-}
-
-fmi2Status fmi2EnterInitializationMode(fmi2Component c) { (void)c; return fmi2OK; }
-
-fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
-    ((Mass *)c)->initialized = 1;
-    return fmi2OK;
-}
-
-fmi2Status fmi2Terminate(fmi2Component c) { (void)c; return fmi2OK; }
-
-fmi2Status fmi2Reset(fmi2Component c) {
-    defaults((Mass *)c);
-    return fmi2OK;
-}
-
 #ifdef COUPLER
 static double coupling_force(const Mass *s) { return -force(s, s->x, s->v, s->u); }
 #endif
@@ -195,7 +135,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
 #endif
         else if (r >= VR_PAR && r < VR_PAR + NPAR) v[i] = s->p[r - VR_PAR];
         else {
-            say(s, fmi2Error, "fmi2GetReal: unknown value reference %u", (unsigned)r);
+            say(s, "fmi2GetReal: unknown value reference %u", (unsigned)r);
             return fmi2Error;
         }
     }
@@ -211,108 +151,20 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
             s->du[r - VR_IN] = 0.0;
         } else if (r >= VR_PAR && r < VR_PAR + NPAR) {
             int k = (int)(r - VR_PAR);
-            if (s->initialized) {
-                say(s, fmi2Error, "fmi2SetReal: %s is a fixed parameter: it cannot be set after initialisation",
-                    PAR_NAMES[k]);
-                return fmi2Error;
-            }
+            if (!parameter_settable(s, "fmi2SetReal", PAR_NAMES[k])) return fmi2Error;
             if ((k == P_M || k == P_HINT) && !(v[i] > 0.0)) {
-                say(s, fmi2Error, "fmi2SetReal: %s = %g: must be > 0", PAR_NAMES[k], v[i]);
+                say(s, "fmi2SetReal: %s = %g: must be > 0", PAR_NAMES[k], v[i]);
                 return fmi2Error;
             }
             s->p[k] = v[i];
             if (k == P_X0) s->x = v[i];
             if (k == P_V0) s->v = v[i];
         } else {
-            say(s, fmi2Error, "fmi2SetReal: value reference %u is not an input or a parameter", (unsigned)r);
+            say(s, "fmi2SetReal: value reference %u is not an input or a parameter", (unsigned)r);
             return fmi2Error;
         }
     }
     return fmi2OK;
-}
-
-static fmi2Status none(fmi2Component c, const char *fn) {
-    say((Mass *)c, fmi2Error, "%s: this FMU has no variables of that type", fn);
-    return fmi2Error;
-}
-
-fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[]) {
-    (void)vr; (void)v;
-    return n ? none(c, "fmi2GetInteger") : fmi2OK;
-}
-fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[]) {
-    (void)vr; (void)v;
-    return n ? none(c, "fmi2GetBoolean") : fmi2OK;
-}
-fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[]) {
-    (void)vr; (void)v;
-    return n ? none(c, "fmi2GetString") : fmi2OK;
-}
-fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer v[]) {
-    (void)vr; (void)v;
-    return n ? none(c, "fmi2SetInteger") : fmi2OK;
-}
-fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean v[]) {
-    (void)vr; (void)v;
-    return n ? none(c, "fmi2SetBoolean") : fmi2OK;
-}
-fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String v[]) {
-    (void)vr; (void)v;
-    return n ? none(c, "fmi2SetString") : fmi2OK;
-}
-
-fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *st) {
-    Mass *s = (Mass *)c;
-    Mass *copy = *st ? (Mass *)*st : (Mass *)malloc(sizeof(Mass));
-    if (!copy) {
-        say(s, fmi2Error, "fmi2GetFMUstate: out of memory");
-        return fmi2Error;
-    }
-    *copy = *s;
-    *st = copy;
-    return fmi2OK;
-}
-
-fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate st) {
-    Mass *s = (Mass *)c;
-    if (!st) {
-        say(s, fmi2Error, "fmi2SetFMUstate: no state");
-        return fmi2Error;
-    }
-    *s = *(const Mass *)st;
-    return fmi2OK;
-}
-
-fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *st) {
-    (void)c;
-    if (st) {
-        free(*st);
-        *st = NULL;
-    }
-    return fmi2OK;
-}
-
-fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate st, size_t *n) {
-    (void)st; (void)n;
-    say((Mass *)c, fmi2Error, "fmi2SerializedFMUstateSize: serialization is not supported");
-    return fmi2Error;
-}
-fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate st, fmi2Byte b[], size_t n) {
-    (void)st; (void)b; (void)n;
-    say((Mass *)c, fmi2Error, "fmi2SerializeFMUstate: serialization is not supported");
-    return fmi2Error;
-}
-fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n, fmi2FMUstate *st) {
-    (void)b; (void)n; (void)st;
-    say((Mass *)c, fmi2Error, "fmi2DeSerializeFMUstate: serialization is not supported");
-    return fmi2Error;
-}
-
-fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference a[], size_t na,
-                                        const fmi2ValueReference b[], size_t nb, const fmi2Real dv[], fmi2Real r[]) {
-    (void)a; (void)na; (void)b; (void)nb; (void)dv; (void)r;
-    say((Mass *)c, fmi2Error, "fmi2GetDirectionalDerivative: not supported");
-    return fmi2Error;
 }
 
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
@@ -320,11 +172,11 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference
     Mass *s = (Mass *)c;
     for (size_t i = 0; i < n; i++) {
         if (o[i] != 1) {
-            say(s, fmi2Error, "fmi2SetRealInputDerivatives: order %d: only order 1 is supported", (int)o[i]);
+            say(s, "fmi2SetRealInputDerivatives: order %d: only order 1 is supported", (int)o[i]);
             return fmi2Error;
         }
         if (vr[i] < VR_IN || vr[i] >= VR_IN + NIN) {
-            say(s, fmi2Error, "fmi2SetRealInputDerivatives: value reference %u is not a Real input", (unsigned)vr[i]);
+            say(s, "fmi2SetRealInputDerivatives: value reference %u is not a Real input", (unsigned)vr[i]);
             return fmi2Error;
         }
     }
@@ -332,68 +184,15 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference
     return fmi2OK;
 }
 
-fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
-                                        const fmi2Integer o[], fmi2Real v[]) {
-    (void)vr; (void)n; (void)o; (void)v;
-    say((Mass *)c, fmi2Error, "fmi2GetRealOutputDerivatives: not supported (maxOutputDerivativeOrder 0)");
-    return fmi2Error;
-}
-
-fmi2Status fmi2CancelStep(fmi2Component c) {
-    say((Mass *)c, fmi2Error, "fmi2CancelStep: steps are not asynchronous");
-    return fmi2Error;
-}
-
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet) {
     Mass *s = (Mass *)c;
     (void)noSet;
-    if (!s->initialized) {
-        say(s, fmi2Error, "fmi2DoStep: called before fmi2ExitInitializationMode");
-        return fmi2Error;
-    }
-    if (!(h > 0.0)) {
-        say(s, fmi2Error, "fmi2DoStep: communication step size %g s: must be > 0", h);
-        return fmi2Error;
-    }
+    if (!do_step_checks(s, h)) return fmi2Error;
     rk4(s, h);
     for (int i = 0; i < NIN; i++) {
         s->u[i] += s->du[i] * h;
         s->du[i] = 0.0;
     }
-    s->time = t + h;
+    s->b.time = t + h;
     return fmi2OK;
-}
-
-fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind k, fmi2Status *v) {
-    (void)k; (void)v;
-    say((Mass *)c, fmi2Error, "fmi2GetStatus: steps are not asynchronous");
-    return fmi2Error;
-}
-fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind k, fmi2Real *v) {
-    Mass *s = (Mass *)c;
-    if (k != fmi2LastSuccessfulTime) {
-        say(s, fmi2Error, "fmi2GetRealStatus: only fmi2LastSuccessfulTime");
-        return fmi2Error;
-    }
-    *v = s->time;
-    return fmi2OK;
-}
-fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind k, fmi2Integer *v) {
-    (void)k; (void)v;
-    say((Mass *)c, fmi2Error, "fmi2GetIntegerStatus: not supported");
-    return fmi2Error;
-}
-fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind k, fmi2Boolean *v) {
-    Mass *s = (Mass *)c;
-    if (k != fmi2Terminated) {
-        say(s, fmi2Error, "fmi2GetBooleanStatus: only fmi2Terminated");
-        return fmi2Error;
-    }
-    *v = fmi2False;
-    return fmi2OK;
-}
-fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind k, fmi2String *v) {
-    (void)k; (void)v;
-    say((Mass *)c, fmi2Error, "fmi2GetStringStatus: not supported");
-    return fmi2Error;
 }
