@@ -27,6 +27,10 @@ from cosim_support import write_document
 from coupling_fmus import AffineLoop, TwoMass, build_affine, build_mass, two_mass_document
 
 
+#: A loop whose fixed-point iteration needs more iterations as the run goes on (see its test).
+MID_RUN = AffineLoop(0.5, 0.8, (1.0, -1.5, 0.5, 3.0), (-2.0, 0.0, 0.0, 1.0))
+
+
 @pytest.fixture(scope="module")
 def mass_fmus(tmp_path_factory) -> tuple[Path, Path]:
     return build_mass(tmp_path_factory.mktemp("mass"))
@@ -119,20 +123,38 @@ def test_a_loop_that_expands_diverges_under_fixed_point_and_converges_under_newt
 
 
 def test_a_loop_failing_mid_run_keeps_the_rows_before_it(affine_fmu, tmp_path):
-    """The iteration limit met at a later step (a relaxed fixed point whose contraction is too slow for
-    the first guess there): the run ends with one line naming the loop, the step and the time; the rows up
-    to it are on disk, each solved."""
-    loop = AffineLoop(0.5, 0.8, (1.0, 0.3, 0.5, 30.0), (-2.0, 0.0, 0.2, 70.0))
-    doc = loop.document(affine_fmu, stop=1.0, step=0.01)
+    """The iteration limit met at a later step: b1(t) = 1 - 1.5 t + 0.5 sin 3t (no slope at t = 0), so the
+    error of the first guess (the inputs extrapolated from the last two steps) grows with |sin 3t| and
+    the fixed point (contracting by sqrt(0.4) per iteration) needs more iterations as t grows; at 33 the
+    run ends at a step after the first tens with one line naming the loop, the step and the time; the rows
+    up to it are on disk, each solved."""
+    doc = MID_RUN.document(affine_fmu, stop=1.0, step=0.01)
     plan = system.resolve(scenario.parse(doc, "loop.toml"))
     res = execution.run(plan, tmp_path / "x", progress=False,
-                        algorithm=Iterated(IterationSpec("fixed-point", tolerance=1e-10, max_iterations=12)))
+                        algorithm=Iterated(IterationSpec("fixed-point", tolerance=1e-10, max_iterations=33)))
     assert res.status == "failed", res.message
     assert "the coupling loop one <-> two did not converge at step" in res.message and "t = " in res.message
     sig = np.load(tmp_path / "x" / "signals.npy")
-    assert 1 <= len(sig) < 101
+    assert 20 <= len(sig) < 101
+    loop = MID_RUN
     y1, _ = loop.solution(sig["time"])
     assert np.max(np.abs(sig["one.y"] - y1)) <= 1e-8
+
+
+def test_a_loop_failing_mid_run_exits_1_with_one_line_and_the_rows_on_disk(affine_fmu, tmp_path, capsys):
+    """The same failure from the command line: exit code 1, the error's line naming the loop and the step
+    and the run's line saying where the rows are; signals.npy and summary.json written with them."""
+    doc = MID_RUN.document(affine_fmu, stop=1.0, step=0.01)
+    doc["experiment"].update(algorithm="iterated", iteration={"method": "fixed-point", "max_iterations": 33})
+    path = write_document(tmp_path / "fails.toml", doc)
+    code, _, err = _cli(capsys, "run", str(path), "--out", str(tmp_path / "o"), "--quiet")
+    lines = err.strip().splitlines()
+    assert code == 1 and len(lines) == 2, err
+    assert lines[0].startswith("wmr-cosim: run failed: the coupling loop one <-> two did not converge at step")
+    assert "fails.toml: failed after" in lines[1] and "what was recorded is in" in lines[1]
+    sig = np.load(tmp_path / "o" / "signals.npy")
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["status"] == "failed" and 20 <= len(sig) < 101
 
 
 def _cli(capsys, *argv: str) -> tuple[int, str, str]:
