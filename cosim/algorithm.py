@@ -105,7 +105,8 @@ class InstanceIO:
     other: list[Callable[[], int]] = field(default_factory=list)  # connections other than Float64 -> Float64
     feed: Callable[[int], int] | None = None       # tabulated inputs of step k (wiring.table_feeder)
     # the instance's state and input derivatives, for the algorithms that roll steps back and iterate
-    # (cosim.fmu_instance: get_state, set_state, free_state, allow_rollback, set_input_derivatives)
+    # (cosim.fmu_instance: get_state, set_state, free_state, allow_rollback, set_input_derivatives,
+    # directional_derivative)
     can_roll_back: bool = False
     can_interpolate: bool = False
     get_state: Callable[[], Any] | None = None
@@ -113,6 +114,8 @@ class InstanceIO:
     free_state: Callable[[Any], None] | None = None
     allow_rollback: Callable[[], None] | None = None
     set_input_derivatives: Callable[[list[int], list[float]], int] | None = None
+    provides_directional: bool = False
+    directional_derivative: Callable[[list[int], list[int], list[float]], tuple[int, list[float]]] | None = None
 
     @property
     def in_val(self) -> Doubles:

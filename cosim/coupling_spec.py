@@ -14,6 +14,11 @@ from typing import Any
 #: finite-difference Jacobian (a chord: the Jacobian of a step's first iteration, made anew when the
 #: residual stops shrinking).
 ITERATION_METHODS = ("fixed-point", "newton")
+#: Where Newton's Jacobian comes from: forward differences of the loop's step (one more evaluation per
+#: coupling input), or the FMUs' directional derivatives of their outputs by their inputs at the end of the
+#: step (no evaluation; the direct, algebraic part of the dependence only: exact for an algebraic loop, an
+#: approximation where the outputs also depend on the inputs through the step's dynamics).
+JACOBIANS = ("finite-differences", "directional")
 #: How a loop's coupling inputs vary over the step while it is iterated: held at the value being iterated
 #: (the value at the end of the step, implicit: first order), or linear from the value at the start of the
 #: step to it (fmi2SetRealInputDerivatives: second order; only FMUs that can interpolate their inputs).
@@ -35,10 +40,12 @@ class IterationSpec:
     max_iterations: int = 20          # evaluations of the loop's step per macro step, at least 1
     relaxation: float = 1.0           # fixed point: u <- u + relaxation * r, 0 < relaxation <= 1
     inputs: str = "hold"              # INPUT_MODES
+    jacobian: str = "finite-differences"   # JACOBIANS (Newton only)
 
     def describe(self) -> str:
         relax = f", relaxation {self.relaxation:g}" if self.method == "fixed-point" else ""
-        return (f"{self.method}{relax}, tolerance {self.tolerance:g}, at most {self.max_iterations} iterations, "
+        jac = ", Jacobian from directional derivatives" if self.method == "newton" and self.jacobian == "directional" else ""
+        return (f"{self.method}{relax}{jac}, tolerance {self.tolerance:g}, at most {self.max_iterations} iterations, "
                 f"inputs {self.inputs}")
 
     def as_dict(self) -> dict[str, Any]:
@@ -86,7 +93,7 @@ def _positive(key: str, value: Any) -> float:
 
 def iteration_spec(table: dict[str, Any], where: str = "experiment.iteration") -> IterationSpec:
     """An :class:`IterationSpec` from a table of its keys (all optional); ValueError naming a bad key."""
-    known = {"method", "tolerance", "max_iterations", "relaxation", "inputs"}
+    known = {"method", "tolerance", "max_iterations", "relaxation", "inputs", "jacobian"}
     for k in table:
         if k not in known:
             raise ValueError(f"{where}.{k}: unknown key (known: {', '.join(sorted(known))})")
@@ -104,7 +111,12 @@ def iteration_spec(table: dict[str, Any], where: str = "experiment.iteration") -
     inputs = str(table.get("inputs", d.inputs)).lower()
     if inputs not in INPUT_MODES:
         raise ValueError(f"{where}.inputs: {inputs!r}: must be one of {', '.join(INPUT_MODES)}")
-    return IterationSpec(method, tol, n, relax, inputs)
+    jacobian = str(table.get("jacobian", d.jacobian)).lower()
+    if jacobian not in JACOBIANS:
+        raise ValueError(f"{where}.jacobian: {jacobian!r}: must be one of {', '.join(JACOBIANS)}")
+    if jacobian != d.jacobian and method != "newton":
+        raise ValueError(f"{where}.jacobian: {jacobian!r} is Newton's; method {method!r} uses none")
+    return IterationSpec(method, tol, n, relax, inputs, jacobian)
 
 
 def adaptive_spec(table: dict[str, Any], interval: float | None = None,

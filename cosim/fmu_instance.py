@@ -27,7 +27,9 @@ The contract, for an implementation (a subclass of :class:`FmuInstance`):
    ``can_get_and_set_state`` is true, for the algorithms that roll steps back; elsewhere they raise
    RunError.  Such an algorithm calls :meth:`~FmuInstance.allow_rollback` first, and may give the
    inputs' derivatives over a step (:meth:`~FmuInstance.set_input_derivatives`) where
-   ``can_interpolate_inputs`` is true.
+   ``can_interpolate_inputs`` is true, and ask the partial derivatives of outputs with respect to inputs
+   at the current point (:meth:`~FmuInstance.directional_derivative`) where
+   ``provides_directional_derivative`` is true.
 7. ``n_errors`` counts the messages of status Discard or worse the FMU has logged; ``log_lines`` and
    ``received`` the lines kept and received; :meth:`~FmuInstance.last_log` the last few, for messages.
 """
@@ -145,6 +147,17 @@ class FmuInstance(ABC):
         """The first derivatives [unit/s] of these Float64 inputs over the next step (fmi2SetRealInputDerivatives,
         order 1): the FMI status."""
         raise RunError(f"{self.name}: this instance cannot interpolate its inputs", self.name)
+
+    @property
+    def provides_directional_derivative(self) -> bool:
+        """The instance gives partial derivatives of its outputs by its inputs (:meth:`directional_derivative`)."""
+        return False
+
+    def directional_derivative(self, unknowns: list[int], knowns: list[int], seed: list[float]) -> tuple[int, list[float]]:
+        """(the FMI status, d unknowns = J seed): the directional derivative at the current point of the
+        outputs ``unknowns`` by the inputs ``knowns`` (value references) along ``seed``
+        (fmi2GetDirectionalDerivative)."""
+        raise RunError(f"{self.name}: this instance gives no directional derivatives", self.name)
 
     # ------------------------------------------------------------------ log and failures
     @abstractmethod

@@ -265,6 +265,26 @@ class Instance(FmuInstance):
         return fn(ctypes.c_void_p(self.c), vr_array(vrs), ctypes.c_size_t(n), (ctypes.c_int * n)(*([1] * n)),
                   real_array(values))
 
+    @property
+    def provides_directional_derivative(self) -> bool:
+        """FMI 2.0 co-simulation that declares providesDirectionalDerivative (FMI 3.0's are not used: no
+        FMI 3.0 co-simulation FMU here declares them, so that call is untested)."""
+        cs = self.md.coSimulation
+        return self.fmi_version == 2 and cs is not None and bool(getattr(cs, "providesDirectionalDerivative", False))
+
+    def directional_derivative(self, unknowns: list[int], knowns: list[int], seed: list[float]) -> tuple[int, list[float]]:
+        """fmi2GetDirectionalDerivative."""
+        if not self.provides_directional_derivative:
+            return super().directional_derivative(unknowns, knowns, seed)
+        fn = self.__dict__.get("_dd")
+        if fn is None:
+            fn = self._dd = raw(self.fmu.dll, "fmi2GetDirectionalDerivative")
+        nu, nk = len(unknowns), len(knowns)
+        out = (ctypes.c_double * max(1, nu))()
+        st = fn(ctypes.c_void_p(self.c), vr_array(unknowns), ctypes.c_size_t(nu), vr_array(knowns),
+                ctypes.c_size_t(nk), real_array(seed), out)
+        return int(st), list(out[:nu])
+
     def accessor(self, fmi_type: str, op: str) -> tuple[Any, Any]:
         ctype, tname = ACCESS[2][fmi_type]
         fn, c = raw(self.fmu.dll, f"fmi2{op}{tname}"), ctypes.c_void_p(self.c)

@@ -496,6 +496,20 @@ class IsolatedInstance(FmuInstance):
         return int(self._call("setting input derivatives", "set_input_derivatives", list(vrs), list(values),
                               t=self.child.t))
 
+    @property
+    def provides_directional_derivative(self) -> bool:
+        """FMI 2.0 co-simulation that declares providesDirectionalDerivative (asked of the child)."""
+        cs = self.md.coSimulation
+        return (self.solver is None and self.fmi_version == 2 and cs is not None
+                and bool(getattr(cs, "providesDirectionalDerivative", False)))
+
+    def directional_derivative(self, unknowns: list[int], knowns: list[int], seed: list[float]) -> tuple[int, list[float]]:
+        if not self.provides_directional_derivative:
+            return super().directional_derivative(unknowns, knowns, seed)
+        st, values = self._call("directional derivatives", "directional_derivative", list(unknowns), list(knowns),
+                                list(seed), t=self.child.t)
+        return int(st), list(values)
+
     def call_name(self, call: Call) -> str:
         if call is Call.DO_STEP and self.solver is not None:
             return f"the integration ({self.solver.name})"

@@ -55,6 +55,8 @@ class Unknown:
     slot: int
     factor: float
     offset: float
+    src_i: int = -1      # the instance whose output feeds it
+    src_vr: int = -1     # ... and that output's value reference
 
     def g(self) -> float:
         """G of the output now in the row."""
@@ -109,7 +111,7 @@ def find_loops(ios: list[InstanceIO]) -> tuple[list[list[int]], list[Loop]]:
             continue
         mine = set(comp)
         unknowns = [Unknown(i, c.pos, ios[i].in_vr[c.pos] if c.pos < len(ios[i].in_vr) else -1, c.src, c.slot,
-                            c.factor, c.offset)   # (the reference: for the derivatives, FMI 2.0 scalars only)
+                            c.factor, c.offset, owner[id(c.src)], ios[owner[id(c.src)]].out_vr[c.slot])
                     for i in comp for c in ios[i].copies if owner.get(id(c.src)) in mine]
         loops.append(Loop(comp, unknowns, [ios[i].name for i in comp]))
     return comps, loops
@@ -122,9 +124,10 @@ class LoopSolver:
         self.spec = spec
 
     def solve(self, loop: Loop, evaluate: Callable[[list[float]], list[float]], g0: list[float],
-              guess: list[float]) -> list[float]:
+              guess: list[float], directional: Callable[[], np.ndarray] | None = None) -> list[float]:
         """The coupling inputs that meet the tolerance, the last evaluation's outputs left in the row;
-        ``evaluate(u)`` gives G(y(u)).  NotConverged when it fails."""
+        ``evaluate(u)`` gives G(y(u)); ``directional()``, where given, Newton's Jacobian dr/du from the
+        FMUs' directional derivatives at the last evaluation.  NotConverged when it fails."""
         spec = self.spec
         u = list(guess)
         n = len(u)
@@ -150,7 +153,11 @@ class LoopSolver:
                 u = [ui + w * ri for ui, ri in zip(u, r)]
             else:
                 if loop.jac is None or err > 0.5 * err_prev:
-                    loop.jac = self.jacobian(loop, evaluate, u, r)
+                    if directional is not None:
+                        loop.jac = directional()
+                        loop.jacobians += 1
+                    else:
+                        loop.jac = self.jacobian(loop, evaluate, u, r)
                 try:
                     du = np.linalg.solve(loop.jac, -np.asarray(r))
                 except np.linalg.LinAlgError:
@@ -262,8 +269,9 @@ class IteratedStep:
                     raise NotConverged("")
             return [x.g() for x in lp.unknowns]
 
+        dd = (lambda: self.directional(lp, t + h)) if spec.jacobian == "directional" else None
         try:
-            u = self.solver.solve(lp, evaluate, g0, guess)
+            u = self.solver.solve(lp, evaluate, g0, guess, dd)
         except NotConverged as exc:
             if fail_box:
                 return fail_box[0]
@@ -277,6 +285,27 @@ class IteratedStep:
         lp.u_prev, lp.u_end, lp.h_prev = start, u, h
         lp.steps += 1
         return None
+
+    def directional(self, lp: Loop, t: float) -> np.ndarray:
+        """dr/du = D - I, D[m, j] = factor_m * d y_m / d u_j from the directional derivatives of the
+        instance owning both (zero across instances: an instance's outputs depend on its own inputs only)
+        at the current point (RunError where a call fails)."""
+        ios = self.stepper.ios
+        n = len(lp.unknowns)
+        jac = -np.eye(n)
+        for j, xj in enumerate(lp.unknowns):
+            rows = [m for m, xm in enumerate(lp.unknowns) if xm.src_i == xj.i]
+            if not rows:
+                continue
+            io = ios[xj.i]
+            assert io.directional_derivative is not None
+            st, col = io.directional_derivative([lp.unknowns[m].src_vr for m in rows], [xj.vr], [1.0])
+            if st:
+                raise RunError(f"{io.name}: the directional derivative returned status {st} at t = {t:.9g} s",
+                               io.name, t)
+            for m, v in zip(rows, col):
+                jac[m, j] += lp.unknowns[m].factor * v
+        return jac
 
     def derivatives(self, lp: Loop, i: int, k: int, t: float, h: float, start: list[float], u: list[float]
                     ) -> Failure | None:
@@ -313,8 +342,9 @@ class IteratedStep:
 
             g0 = [x.g() for x in lp.unknowns]
             counts = (lp.iterations, lp.max_iterations, lp.evaluations, dict(lp.histogram))
+            dd = (lambda lp=lp: self.directional(lp, t0)) if self.spec.jacobian == "directional" else None
             try:
-                self.solver.solve(lp, evaluate, g0, g0)
+                self.solver.solve(lp, evaluate, g0, g0, dd)
             except NotConverged as exc:
                 if fail_box:
                     f = fail_box[0]

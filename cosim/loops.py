@@ -217,6 +217,18 @@ def check_iteration(sc: "Scenario", insts: dict[str, "InstancePlan"], c: Couplin
                                 f"{ip.model.path.name} cannot get and set its state through its {ip.interface} "
                                 f"interface (canGetAndSetFMUstate is false), and {need[name]}")
     iterated = algorithm == "iterated" or (sc.adaptive is not None and sc.adaptive.coupling == "iterated")
+    if iterated and sc.iteration is not None and sc.iteration.jacobian == "directional":
+        for lp in c.loops:
+            for name in lp:
+                ip = insts[name]
+                cs = ip.model.md.coSimulation
+                if not (ip.interface == CO_SIMULATION and ip.model.fmi == 2 and cs is not None
+                        and getattr(cs, "providesDirectionalDerivative", False)):
+                    raise ScenarioError(sc.file, "experiment.iteration.jacobian",
+                                        f"\"directional\" needs every instance of the coupling loop "
+                                        f"{' <-> '.join(lp)} to give directional derivatives (an FMI 2.0 "
+                                        f"co-simulation FMU that declares providesDirectionalDerivative): {name} "
+                                        f"({ip.model.path.name}, {ip.interface}) does not")
     if iterated and sc.iteration is not None and sc.iteration.inputs == "linear":
         for lp in c.loops:
             for name in lp:

@@ -567,7 +567,7 @@ def _with_version(root) -> bytes:
 #: The keys of this master's Iteration and Adaptive annotations that are integers (the others are numbers
 #: or words).
 _INTEGER_KEYS = {"max_iterations"}
-_WORD_KEYS = {"method", "inputs", "coupling"}
+_WORD_KEYS = {"method", "inputs", "coupling", "jacobian"}
 
 
 def _stepping_tables(exp, where: str) -> dict[str, dict[str, Any]]:

@@ -84,7 +84,9 @@ def instance_io(plan: Plan, name: str, inst: FmuInstance, layout: RowLayout, wir
                           [ip for ip in plan.inputs if ip.instance == name and not is_f64(ip.var)]),
         can_roll_back=inst.can_get_and_set_state, can_interpolate=inst.can_interpolate_inputs,
         get_state=inst.get_state, set_state=inst.set_state, free_state=inst.free_state,
-        allow_rollback=inst.allow_rollback, set_input_derivatives=inst.set_input_derivatives)
+        allow_rollback=inst.allow_rollback, set_input_derivatives=inst.set_input_derivatives,
+        provides_directional=inst.provides_directional_derivative,
+        directional_derivative=inst.directional_derivative)
 
 
 def recorded_getters(inst: FmuInstance, recs: list[RecordPlan], lay: RowLayout) -> list[RecordedGetter]:

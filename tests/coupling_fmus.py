@@ -23,7 +23,7 @@ _HEAD = """<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription fmiVersion="2.0" modelName="{name}" guid="{{coupling-{name}}}" generationTool="wmr-cosim tests"
   variableNamingConvention="flat" numberOfEventIndicators="0">
   <CoSimulation modelIdentifier="{name}" canHandleVariableCommunicationStepSize="true" canGetAndSetFMUstate="true"
-    canInterpolateInputs="true" maxOutputDerivativeOrder="0"/>
+    canInterpolateInputs="true" maxOutputDerivativeOrder="0"{extra}/>
   <LogCategories><Category name="logStatusError"/></LogCategories>
   <DefaultExperiment startTime="0" stopTime="1" stepSize="0.001"/>
   <ModelVariables>
@@ -37,16 +37,17 @@ def _var(name: str, vr: int, causality: str, unit: str = "", start: float | None
             f"<Real{attrs}/></ScalarVariable>\n")
 
 
-def _description(name: str, variables: list[tuple[Any, ...]], outputs: dict[str, list[str] | None]) -> str:
+def _description(name: str, variables: list[tuple[Any, ...]], outputs: dict[str, list[str] | None],
+                 extra: str = "") -> str:
     """The model description: ``variables`` (name, vr, causality, unit, start) in index order, ``outputs``
     the inputs each output depends on directly (None: no ``dependencies`` attribute, which says that the
-    output depends on every input)."""
+    output depends on every input); ``extra``: more attributes of the CoSimulation element."""
     index = {v[0]: i + 1 for i, v in enumerate(variables)}
     body = "".join(_var(*v) for v in variables)
     deps = "".join(f'<Unknown index="{index[o]}"/>' if d is None else
                    f'<Unknown index="{index[o]}" dependencies="{" ".join(str(index[i]) for i in d)}"/>'
                    for o, d in outputs.items())
-    return (_HEAD.format(name=name) + body + "  </ModelVariables>\n  <ModelStructure>\n"
+    return (_HEAD.format(name=name, extra=extra) + body + "  </ModelVariables>\n  <ModelStructure>\n"
             f"    <Outputs>{deps}</Outputs>\n    <InitialUnknowns>{deps}</InitialUnknowns>\n"
             "  </ModelStructure>\n</fmiModelDescription>\n")
 
@@ -135,10 +136,13 @@ def build_mass(out: Path) -> tuple[Path, Path]:
     return body, coupler
 
 
-def build_affine(out: Path, name: str = "Affine", dependencies: tuple[str, ...] | None = ("u",)) -> Path:
+def build_affine(out: Path, name: str = "Affine", dependencies: tuple[str, ...] | None = ("u",),
+                 directional: bool = True) -> Path:
     """``out/<name>.fmu``, its output declared to depend directly on ``dependencies`` (None: the attribute
-    left out)."""
-    return build_c_fmu(C_FMUS / "affine.c", _description(name, AFFINE_VARIABLES, {"y": None if dependencies is None else list(dependencies)}), out, name)
+    left out), declaring providesDirectionalDerivative if ``directional`` (the binary gives them always)."""
+    md = _description(name, AFFINE_VARIABLES, {"y": None if dependencies is None else list(dependencies)},
+                      ' providesDirectionalDerivative="true"' if directional else "")
+    return build_c_fmu(C_FMUS / "affine.c", md, out, name)
 
 
 def two_mass_document(fmus: tuple[Path, Path], system: TwoMass, *, stop: float, step: float) -> dict[str, Any]:

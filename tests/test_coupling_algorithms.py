@@ -186,22 +186,26 @@ def test_the_step_size_control_rolls_back_model_exchange_isolated_and_fmi3_insta
     assert np.max(np.abs(f3["v.x0"] - base["v.x0"])) < 1e-9 and np.max(np.abs(f3["v.x1"] - base["v.x1"])) < 1e-9
 
 
-@pytest.mark.parametrize("version, fields, why", [
-    ("fmi3", {}, "A (Feedthrough.fmu, co-simulation) does not"),
-    ("fmi2", {"interface": "model-exchange", "solver": "rk4"}, "A (Feedthrough.fmu, model-exchange) does not"),
+@pytest.mark.parametrize("version, fields, key, why", [
+    ("fmi3", {}, "inputs", "A (Feedthrough.fmu, co-simulation) does not"),
+    ("fmi2", {"interface": "model-exchange", "solver": "rk4"}, "inputs", "A (Feedthrough.fmu, model-exchange) does not"),
+    ("fmi2", {}, "jacobian", "A (Feedthrough.fmu, co-simulation) does not"),
+    ("fmi3", {}, "jacobian", "A (Feedthrough.fmu, co-simulation) does not"),
 ])
-def test_linear_inputs_where_an_instance_cannot_take_derivatives_are_refused_at_check(version, fields, why):
+def test_what_an_instance_cannot_give_is_refused_at_check(version, fields, key, why):
     """FMI 3.0 has no input derivatives, and a Model Exchange instance holds its inputs: the iterated
-    coupling with linear inputs is refused naming the loop and the instance (it would run first order)."""
+    coupling with linear inputs is refused naming the loop and the instance (it would run first order);
+    Feedthrough declares no directional derivatives: Newton's directional Jacobian is refused alike."""
     from wmr_cosim.cosim.errors import ScenarioError
 
     fmu = str(REF / version / "Feedthrough.fmu")
+    table = {"inputs": "linear"} if key == "inputs" else {"jacobian": "directional"}
     doc = {"experiment": {"start": 0.0, "stop": 0.1, "step": 0.01, "algorithm": "iterated",
-                          "iteration": {"inputs": "linear"}},
+                          "iteration": table},
            "instances": {"A": {"fmu": fmu, **fields}, "B": {"fmu": fmu}},
            "connections": [{"from": f"A.{OUT}", "to": f"B.{IN}"}, {"from": f"B.{OUT}", "to": f"A.{IN}",
                                                                   "factor": 0.5}]}
     with pytest.raises(ScenarioError) as err:
         system.resolve(scenario.parse(doc, "ring.toml"))
-    assert err.value.field == "experiment.iteration.inputs"
+    assert err.value.field == f"experiment.iteration.{key}"
     assert "coupling loop A <-> B" in str(err.value) and why in str(err.value)

@@ -11,12 +11,13 @@
  * parameters) is its state: fmi2GetFMUstate copies it (serialization is not supported).  The input may be
  * given a first derivative (fmi2SetRealInputDerivatives, order 1): over a step the input then moves
  * linearly, and the output at the end of the step is that of the input u + du h.  Parameters are fixed:
- * settable before fmi2ExitInitializationMode only.
+ * settable before fmi2ExitInitializationMode only.  fmi2GetDirectionalDerivative gives dy/du = a.
  */
 #include <math.h>
 
 typedef struct Affine Affine;
 #define MODEL Affine
+#define MODEL_DIRECTIONAL_DERIVATIVE
 #include "cs_common.h"
 
 #define NPAR 5
@@ -87,6 +88,28 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference
             return fmi2Error;
         }
         s->du = v[i];
+    }
+    return fmi2OK;
+}
+
+/* The output's derivative by the input: a (the only unknown y, the only known u). */
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference unknowns[], size_t nu,
+                                        const fmi2ValueReference knowns[], size_t nk, const fmi2Real seed[],
+                                        fmi2Real out[]) {
+    Affine *s = (Affine *)c;
+    for (size_t i = 0; i < nu; i++) {
+        if (unknowns[i] != VR_Y) {
+            say(s, "fmi2GetDirectionalDerivative: unknown %u is not the output y", (unsigned)unknowns[i]);
+            return fmi2Error;
+        }
+        out[i] = 0.0;
+        for (size_t j = 0; j < nk; j++) {
+            if (knowns[j] != VR_U) {
+                say(s, "fmi2GetDirectionalDerivative: known %u is not the input u", (unsigned)knowns[j]);
+                return fmi2Error;
+            }
+            out[i] += s->p[P_A] * seed[j];
+        }
     }
     return fmi2OK;
 }

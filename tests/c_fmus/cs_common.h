@@ -7,6 +7,8 @@
  *     static void model_reset(MODEL *s);   -- the parameters' defaults and the initial state
  *     static size_t model_size(void);      -- sizeof(MODEL), the struct being complete only there
  *
+ * and defines MODEL_DIRECTIONAL_DERIVATIVE if it gives fmi2GetDirectionalDerivative itself.
+ *
  * What is here: the logger (say), instantiation (co-simulation only), set-up (the start time), the modes,
  * reset, the FMU state as a copy of the instance struct (no serialization), the types the models have
  * none of (Integer, Boolean, String: an error if asked for any), the statuses (fmi2LastSuccessfulTime, not
@@ -171,11 +173,13 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n
     (void)b; (void)n; (void)st;
     return unsupported(c, "fmi2DeSerializeFMUstate: serialization is not supported");
 }
+#ifndef MODEL_DIRECTIONAL_DERIVATIVE
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference a[], size_t na,
                                         const fmi2ValueReference b[], size_t nb, const fmi2Real dv[], fmi2Real r[]) {
     (void)a; (void)na; (void)b; (void)nb; (void)dv; (void)r;
     return unsupported(c, "fmi2GetDirectionalDerivative: not supported");
 }
+#endif
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
                                         const fmi2Integer o[], fmi2Real v[]) {
     (void)vr; (void)n; (void)o; (void)v;
