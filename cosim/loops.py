@@ -199,8 +199,10 @@ def describe(c: Coupling, algorithm: str) -> list[str]:
 
 def check_iteration(sc: "Scenario", insts: dict[str, "InstancePlan"], c: Coupling) -> None:
     """An algorithm that rolls instances back needs their interface to get and set the FMU state: the
-    iterated coupling every instance of a coupling loop, the step-size control every instance.  Otherwise
-    one ScenarioError naming the instance."""
+    iterated coupling every instance of a coupling loop, the step-size control every instance; the
+    iteration's linear inputs and directional Jacobian need what every loop instance declares (FMI 2.0
+    co-simulation, canInterpolateInputs, providesDirectionalDerivative).  Otherwise one ScenarioError
+    naming the instance."""
     algorithm = sc.algorithm
     if algorithm == "adaptive":
         need = {n: "the step-size control (algorithm = \"adaptive\") rolls back every instance when it rejects "
@@ -217,27 +219,21 @@ def check_iteration(sc: "Scenario", insts: dict[str, "InstancePlan"], c: Couplin
                                 f"{ip.model.path.name} cannot get and set its state through its {ip.interface} "
                                 f"interface (canGetAndSetFMUstate is false), and {need[name]}")
     iterated = algorithm == "iterated" or (sc.adaptive is not None and sc.adaptive.coupling == "iterated")
-    if iterated and sc.iteration is not None and sc.iteration.jacobian == "directional":
+    if not iterated or sc.iteration is None:
+        return
+    for key, value, flag, gives in (("jacobian", "directional", "providesDirectionalDerivative",
+                                     "give directional derivatives"),
+                                    ("inputs", "linear", "canInterpolateInputs", "take its inputs' derivatives")):
+        if getattr(sc.iteration, key) != value:
+            continue
         for lp in c.loops:
             for name in lp:
                 ip = insts[name]
                 cs = ip.model.md.coSimulation
                 if not (ip.interface == CO_SIMULATION and ip.model.fmi == 2 and cs is not None
-                        and getattr(cs, "providesDirectionalDerivative", False)):
-                    raise ScenarioError(sc.file, "experiment.iteration.jacobian",
-                                        f"\"directional\" needs every instance of the coupling loop "
-                                        f"{' <-> '.join(lp)} to give directional derivatives (an FMI 2.0 "
-                                        f"co-simulation FMU that declares providesDirectionalDerivative): {name} "
-                                        f"({ip.model.path.name}, {ip.interface}) does not")
-    if iterated and sc.iteration is not None and sc.iteration.inputs == "linear":
-        for lp in c.loops:
-            for name in lp:
-                ip = insts[name]
-                cs = ip.model.md.coSimulation
-                if not (ip.interface == CO_SIMULATION and ip.model.fmi == 2 and cs is not None
-                        and getattr(cs, "canInterpolateInputs", False)):
-                    raise ScenarioError(sc.file, "experiment.iteration.inputs",
-                                        f"\"linear\" needs every instance of the coupling loop {' <-> '.join(lp)} "
-                                        f"to take its inputs' derivatives (an FMI 2.0 co-simulation FMU that "
-                                        f"declares canInterpolateInputs): {name} ({ip.model.path.name}, "
-                                        f"{ip.interface}) does not")
+                        and getattr(cs, flag, False)):
+                    raise ScenarioError(sc.file, f"experiment.iteration.{key}",
+                                        f"\"{value}\" needs every instance of the coupling loop "
+                                        f"{' <-> '.join(lp)} to {gives} (an FMI 2.0 co-simulation FMU that "
+                                        f"declares {flag}): {name} ({ip.model.path.name}, {ip.interface}) "
+                                        "does not")
