@@ -115,6 +115,7 @@ class InstanceIO:
     allow_rollback: Callable[[], None] | None = None
     set_input_derivatives: Callable[[list[int], list[float]], int] | None = None
     provides_directional: bool = False
+    decimation: int = 1                            # it steps every this many base steps (its own step)
     directional_derivative: Callable[[list[int], list[int], list[float]], tuple[int, list[float]]] | None = None
 
     @property

@@ -34,8 +34,9 @@ from typing import Any, Callable
 import numpy as np
 
 from .algorithm import Algorithm, Clock, InstanceIO, algorithm_for
+from .multirate import MultiRate
 from .access import VariableAccess
-from .errors import CosimError, RunError
+from .errors import CosimError, RunError, ScenarioError
 from .failure import Call, Failure, FmiStatus, InstanceLost
 from .fmu_instance import FmuInstance
 from .interrupt import Interrupt
@@ -59,6 +60,14 @@ class FmuEnded(Exception):
         self.name, self.t, self.recorded = name, t, recorded
 
 
+def _algorithm(plan: Plan) -> Algorithm:
+    """The algorithm object of a plan: the scenario's, at each instance's own rate where one has one."""
+    sc = plan.scenario
+    if any(ip.decimation > 1 for ip in plan.instances.values()):
+        return MultiRate(sc.algorithm)
+    return algorithm_for(sc.algorithm, sc.iteration, sc.adaptive)
+
+
 class Execution:
     """One run of a plan, stepped by its driver (see the module's docstring).
 
@@ -75,7 +84,13 @@ class Execution:
         start, _, step = sc.times()
         self.plan = plan
         self.clock = Clock(start, step, plan.n_steps, sc.decimation)
-        self.algorithm = algorithm if algorithm is not None else algorithm_for(sc.algorithm, sc.iteration, sc.adaptive)
+        self.algorithm = algorithm if algorithm is not None else _algorithm(plan)
+        slow = [n for n, ip in plan.instances.items() if ip.decimation > 1]
+        if slow and not isinstance(self.algorithm, MultiRate):
+            raise ScenarioError(sc.file, f"instances.{slow[0]}.step",
+                                f"{slow[0]} steps at its own rate, and the algorithm given "
+                                f"({type(self.algorithm).__name__}) steps every instance at every step "
+                                "(cosim.multirate.MultiRate steps them at their rates)")
         self.progress, self.timing, self.check_inputs, self.keep_signals = progress, timing, check_inputs, keep_signals
         self.pacer = Pacer(real_time) if real_time is not None else None
         self.columns = ["time"] + [r.column for r in plan.record]

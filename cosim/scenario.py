@@ -37,7 +37,7 @@ _INPUTS_KEYS = {"file", "interpolation"}
 _EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps", "max_internal_steps",
                     "iteration", "adaptive"}
 _INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "override_declared_units", "description", "logging", "isolate",
-                  "step_timeout", "tolerance", "interface", *SOLVER_KEYS}
+                  "step_timeout", "tolerance", "interface", "step", *SOLVER_KEYS}
 _CONNECTION_KEYS = {"from", "to", "factor", "offset", "convert", "threshold"}
 _RECORD_KEYS = {"variables", "decimation", "csv", "max_bytes"}
 _RUN_KEYS = {"name", "description", "parameters", "carry"}
@@ -71,6 +71,7 @@ class InstanceSpec:
     solver: str | None = None           # a Model Exchange instance's integrator (cosim.integrators.SOLVERS)
     max_step: float | None = None       # [s] its largest internal step
     event_tolerance: float | None = None   # [s] the width to which Euler and RK4 locate a state event
+    step: float | None = None           # [s] its own communication step, a whole multiple of the experiment's
 
 
 @dataclass
@@ -411,11 +412,11 @@ def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:
         if logging not in LOGGING:
             raise ScenarioError(file, f"{fld}.logging", f"{logging!r}: must be one of {', '.join(LOGGING)}")
         flag = {key: _flag(file, f"{fld}.{key}", inst.get(key, False)) for key in ("isolate", "override_declared_units")}
-        timeout, tol = (_num(file, f"{fld}.{key}", inst[key], positive=True) if inst.get(key) is not None else None
-                        for key in ("step_timeout", "tolerance"))
+        timeout, tol, own_step = (_num(file, f"{fld}.{key}", inst[key], positive=True) if inst.get(key) is not None
+                                  else None for key in ("step_timeout", "tolerance", "step"))
         sc.instances[iname] = InstanceSpec(iname, fmu, path, dict(params), dict(names), dict(units), logging,
                                            flag["isolate"], timeout, flag["override_declared_units"], tol,
-                                           **_interface_fields(file, fld, inst))
+                                           **_interface_fields(file, fld, inst), step=own_step)
 
 
     exp = doc.get("experiment") or {}

@@ -290,7 +290,7 @@ def _write_ssd(plan: Plan, name: str, resources: dict[Path, str], conns, with_pa
         ssd.top_level_metadata.generationTool = "wmr-cosim"
         system = System(name=name)
         for inst, ip in plan.instances.items():
-            comp = Component()
+            comp = _RatedComponent(ip.spec.step if ip.decimation > 1 else None)
             comp.name, comp.component_type, comp.source = inst, FMU_MIME, resources[ip.model.path.resolve()]
             if ip.interface == MODEL_EXCHANGE:
                 comp.implementation = "ModelExchange"
@@ -317,6 +317,27 @@ def _write_ssd(plan: Plan, name: str, resources: dict[Path, str], conns, with_pa
         ssd.default_experiment = _default_experiment(plan.scenario)
         for u in units.values():
             ssd.units.add_unit(Unit(u.name, base_unit=BaseUnit(_unit_base(u))))
+
+
+def _RatedComponent(step: float | None):
+    """A pyssp-standard Component that also writes OSP's StepSizeHint annotation for an instance with a
+    step of its own (libcosim takes its decimation factor from it; this master reads it back)."""
+    from lxml import etree as ET
+    from pyssp_standard.common_content_ssc import Annotation, Annotations
+    from pyssp_standard.ssd import Component
+
+    class Rated(Component):
+        def as_element(self):
+            element = super().as_element()
+            if step is not None:
+                osp = Annotation(OSP_TYPE)
+                ET.SubElement(osp.root, f"{{{OSP_NS}}}StepSizeHint", value=_fmt(step))
+                annotations = Annotations("ssd")
+                annotations.add_annotation(osp)
+                element.append(annotations.element())
+            return element
+
+    return Rated()
 
 
 def _system_annotations(sc: Scenario, held: list[tuple[str, Any, str]]) -> list:
@@ -783,10 +804,20 @@ def _components(system, path: Path, arch: Path, limits: ArchiveLimits
             if real is not None and real.get("unit"):
                 units[cn] = real.get("unit")
         instances[cname] = {"fmu": str(fmu), "parameters": {}, "units": units,
-                            **_implementation(where, fld, src, model, implementation)}
+                            **_implementation(where, fld, src, model, implementation), **_step_hint(comp, where, fld)}
         comp_params += [(cname, p, v) for p, v in _bindings(comp, arch, where)]
 
     return instances, connectors, comp_params
+
+
+def _step_hint(comp, where: str, fld: str) -> dict[str, float]:
+    """The instance's own ``step`` from OSP's StepSizeHint annotation on the component ({} without one)."""
+    for hint in comp.iterfind(f"ssd:Annotations/ssc:Annotation[@type='{OSP_TYPE}']/{{{OSP_NS}}}StepSizeHint", NS):
+        try:
+            return {"step": float(hint.get("value"))}
+        except (TypeError, ValueError):
+            raise ScenarioError(where, f"{fld}.StepSizeHint", f"{hint.get('value')!r} is not a number") from None
+    return {}
 
 
 #: An SSD component's ``implementation`` -> the instance's ``interface`` ("any", the default: none given,

@@ -86,7 +86,7 @@ def instance_io(plan: Plan, name: str, inst: FmuInstance, layout: RowLayout, wir
         get_state=inst.get_state, set_state=inst.set_state, free_state=inst.free_state,
         allow_rollback=inst.allow_rollback, set_input_derivatives=inst.set_input_derivatives,
         provides_directional=inst.provides_directional_derivative,
-        directional_derivative=inst.directional_derivative)
+        directional_derivative=inst.directional_derivative, decimation=plan.instances[name].decimation)
 
 
 def recorded_getters(inst: FmuInstance, recs: list[RecordPlan], lay: RowLayout) -> list[RecordedGetter]:

@@ -49,13 +49,21 @@ class InstancePlan:
     tolerance: float | None = None   # what its set-up gets: the instance's, else the experiment's, else the FMU's own
     interface: str = CO_SIMULATION    # the FMU's interface the run uses ("co-simulation" | "model-exchange")
     solver: SolverSpec | None = None  # model exchange: the master's integrator of it (None for co-simulation)
+    decimation: int = 1               # it steps every this many of the experiment's steps (its own ``step``)
 
     def our_name(self, var: Variable) -> str:
         return self.theirs_to_ours.get(var.name, var.name)
 
     def describe(self) -> str:
         """How it runs, in words (``check`` prints it): "co-simulation", or "model exchange, cvode, rtol
-        1e-05" with the integrator's settings (largest step [s]; Euler's and RK4's event tolerance [s])."""
+        1e-05" with the integrator's settings (largest step [s]; Euler's and RK4's event tolerance [s]);
+        then its own rate where it has one ("steps of 0.008 s, every 4th step")."""
+        text = self._interface_words()
+        if self.decimation > 1 and self.spec.step is not None:
+            text += f"; steps of {self.spec.step:g} s, every {self.decimation} base steps"
+        return text
+
+    def _interface_words(self) -> str:
         if self.solver is None:
             return INTERFACE_NAMES[self.interface]
         sv = self.solver
@@ -526,6 +534,7 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
     _solvers(sc, insts)
     internal = _internal_steps(sc, insts)
     conns, driven = _connection_plans(sc, insts)
+    _rates(sc, insts, conns)
     coupled = coupling([n for n in sc.order], insts, conns)
     check_iteration(sc, insts, coupled)
     _check_stepping(sc)
@@ -540,6 +549,39 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
                 conditions, notes, internal, sc.archive_limits, coupled)
     _check_recording_size(plan)
     return plan
+
+
+def _rates(sc: Scenario, insts: dict[str, InstancePlan], conns: list[ConnectionPlan]) -> None:
+    """Each instance's own step: a whole multiple d of the experiment's step (its decimation), the run a
+    whole number of its steps; two connected instances' rates divide one another (then every value
+    exchanged is the latest at the receiver's step points, as libcosim exchanges them); only the fixed-step
+    one-pass algorithms step instances at their own rates."""
+    start, stop, base = sc.times()
+    n_steps = int(round((stop - start) / base))
+    for name, ip in insts.items():
+        own = ip.spec.step
+        if own is None:
+            continue
+        fld = f"instances.{name}.step"
+        d = own / base
+        m = int(round(d))
+        if m < 1 or abs(d - m) > 1e-9 * max(1.0, d):
+            raise ScenarioError(sc.file, fld, f"{own!r} s is not a whole multiple of the experiment's step "
+                                              f"{base!r} s")
+        if n_steps % m:
+            raise ScenarioError(sc.file, fld, f"{own!r} s does not divide the run {start!r}..{stop!r} s "
+                                              f"({n_steps} steps of {base!r} s) into whole steps")
+        if m > 1 and sc.algorithm not in ("gauss-seidel", "jacobi"):
+            raise ScenarioError(sc.file, fld, f"algorithm {sc.algorithm!r} steps every instance at every step; "
+                                              "instances at their own rates run under \"gauss-seidel\" or "
+                                              "\"jacobi\"")
+        ip.decimation = m
+    for c in conns:
+        a, b = insts[c.src].decimation, insts[c.dst].decimation
+        if a % b and b % a:
+            raise ScenarioError(sc.file, f"connections[{c.spec.index}]",
+                                f"{c.src} steps every {a} and {c.dst} every {b} of the experiment's steps: "
+                                f"connected instances' rates must divide one another")
 
 
 def _check_stepping(sc: Scenario) -> None:

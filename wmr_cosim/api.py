@@ -125,8 +125,9 @@ class Simulation:
                  **parameters: Any) -> "Simulation":
         """Add an instance: ``fmu`` a model name (WmrPlant, WmrSensor, WmrController, WmrCPlant) or a path
         to an .fmu; keyword arguments are its parameters and start values; ``fields``: the other keys of
-        ``[instances.NAME]`` (``logging``, ``isolate``, ``tolerance``, ``interface``, ``solver``,
-        ``max_step`` [s], ``event_tolerance`` [s], ...), checked as a scenario file's:
+        ``[instances.NAME]`` (``logging``, ``isolate``, ``tolerance``, ``step`` [s] (its own rate, a whole
+        multiple of the experiment's step), ``interface``, ``solver``, ``max_step`` [s],
+        ``event_tolerance`` [s], ...), checked as a scenario file's:
         ``.instance("plant", "Plant.fmu", fields={"solver": "rk4", "max_step": 1e-3})`` runs it as model
         exchange with RK4."""
         fmu = str(Path(fmu).resolve()) if scenario.is_path(str(fmu)) else str(fmu)
