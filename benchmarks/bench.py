@@ -82,6 +82,11 @@ NAME:
             *_instance_steps_* (every FMU step, the adaptive's three per macro step and the iterations'
             included) and *_wall_s_* of both runs.  ``--repeats`` is not used.
 
+    parallel  Jacobi over N isolated C FMUs (the probe FMU of the tests, built with BURN_US=50: each step
+            computes for 50 us) in a chain, 4,000 steps of 1 ms, for N = 2 and 4: serial (workers = 1) and
+            stepped at once (workers = N), interleaved, medians: us_per_step_serial_N, us_per_step_parallel_N,
+            speedup_N (target >= 1.7 for N = 2 on 2 cores) and same_results_N (bit for bit).
+
 ``--against REV`` runs NAME in this checkout and in a worktree of commit REV, interleaved, ``--rounds``
 fresh processes each of ``--repeats`` runs (benchmarks/against.py): each figure's median over the rounds for
 both and their ratio, this / that.
@@ -864,11 +869,54 @@ def bench_adaptive(repeats: int) -> dict[str, Any]:
     return figures
 
 
+def bench_parallel(repeats: int) -> dict[str, Any]:
+    """Parallel Jacobi over isolated C FMUs against serial Jacobi (see the module's docstring)."""
+    import tempfile
+    from pathlib import Path
+
+    import numpy as np
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from c_fmu_support import build_probe
+
+    from wmr_cosim.cosim import execution, scenario, system
+
+    figures: dict[str, Any] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        probe = build_probe(Path(tmp) / "fmu", "Burn", BURN_US=50)
+        for n in (2, 4):
+            names = [f"p{i}" for i in range(n)]
+            doc = {"experiment": {"start": 0.0, "stop": 4.0, "step": 0.001, "algorithm": "jacobi"},
+                   "instances": {m: {"fmu": str(probe), "isolate": True} for m in names},
+                   "connections": [{"from": f"{a}.y", "to": f"{b}.u"} for a, b in zip(names, names[1:])],
+                   "record": {"variables": [f"{m}.y" for m in names]}}
+            walls: dict[int, list[float]] = {1: [], n: []}
+            rows: dict[int, bytes] = {}
+            for r in range(max(1, repeats)):
+                for w in (1, n) if r % 2 == 0 else (n, 1):
+                    doc["experiment"]["workers"] = w
+                    plan = system.resolve(scenario.parse(doc, "parallel.toml"))
+                    out = Path(tmp) / f"n{n}w{w}r{r}"
+                    res = execution.run(plan, out, progress=False)
+                    if res.status != "ok":
+                        raise SystemExit(f"parallel bench (N = {n}, workers = {w}): {res.message}")
+                    walls[w].append(res.wall_s)
+                    rows[w] = np.load(out / "signals.npy").tobytes()
+            steps = 4000
+            serial, par = (statistics.median(walls[w]) / steps * 1e6 for w in (1, n))
+            figures[f"us_per_step_serial_{n}"] = round(serial, 2)
+            figures[f"us_per_step_parallel_{n}"] = round(par, 2)
+            figures[f"speedup_{n}"] = round(serial / par, 3)
+            figures[f"same_results_{n}"] = rows[1] == rows[n]
+    figures["cores"] = __import__("os").cpu_count()
+    return figures
+
+
 BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "fmi3": bench_fmi3, "paper": bench_paper,
            "sweep": bench_sweep, "interop": bench_interop, "archive": bench_archive, "loader": bench_loader,
            "isolation": bench_isolation, "scripting": bench_scripting, "mutation": bench_mutation,
            "bugs": bench_bugs, "exit": bench_exit, "me": bench_me,
-           "adaptive": bench_adaptive}
+           "adaptive": bench_adaptive, "parallel": bench_parallel}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -65,6 +65,9 @@ def _algorithm(plan: Plan) -> Algorithm:
     sc = plan.scenario
     if any(ip.decimation > 1 for ip in plan.instances.values()):
         return MultiRate(sc.algorithm)
+    if sc.workers > 1:
+        from .parallel import ParallelJacobi
+        return ParallelJacobi(sc.workers)
     return algorithm_for(sc.algorithm, sc.iteration, sc.adaptive)
 
 

@@ -64,6 +64,11 @@ class FastPath:
     get_tail: tuple[Any, ...] = ()
     terminated: ctypes.c_bool | None = None   # set by a step after which the FMU ended the simulation
     last_time: ctypes.c_double | None = None  # its last successful time [s] (with ``terminated``)
+    # a step in two halves, for stepping several instances at once (an isolated instance: the request
+    # written, then the answer awaited): ``start_step(c, t, h)``, then ``finish_step(spin)`` -> the status
+    # (``spin`` False: wait without polling)
+    start_step: Callable[..., None] | None = None
+    finish_step: Callable[[bool], int] | None = None
 
 
 class FmuInstance(ABC):

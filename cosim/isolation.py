@@ -174,14 +174,23 @@ class Child:
 
     def step(self, t: float, h: float) -> int:
         """fmi2SetReal (the inputs in place), fmi2DoStep, fmi2GetReal in the child; the status."""
+        self.start(t, h)
+        return self.finish()
+
+    def start(self, t: float, h: float) -> None:
+        """The step's request: the child sets, steps and gets while the master does something else."""
         self.time.value, self.h.value, self.t = t, h, t
         try:
             os.write(self.step_w, b"s")
         except BrokenPipeError:
             raise ChildDied(self._died()) from None
+
+    def finish(self, spin: bool = True) -> int:
+        """The answer to the step started: its status.  ``spin`` False: block at once (while the children
+        stepped at once need the cores)."""
         fd = self.done_r
         yield_ = os.sched_yield if self.spin < 0 else None
-        for _ in range(abs(self.spin)):
+        for _ in range(abs(self.spin) if spin else 0):
             if yield_ is not None:
                 yield_()
             try:
@@ -582,6 +591,23 @@ class IsolatedInstance(FmuInstance):
                 return 0
             return s
 
+        def start_step(c: Any, T: Any, H: Any) -> None:
+            mode["stepping"] = True
+            try:
+                child.start(T.value, H.value)
+            except ChildDied as exc:
+                raise self.died(exc, step_name, T.value) from None
+
+        def finish_step(spin: bool = True) -> int:
+            try:
+                s = child.finish(spin)
+            except ChildDied as exc:
+                raise self.died(exc, step_name, child.t) from None
+            if s == SLOT_TERMINATED and terminated is not None:
+                terminated.value = True
+                return 0
+            return s
+
         def get_real(c: Any, vrs: Any, n: Any, out: Any) -> int:
             if not mode["stepping"]:
                 s = self._call("getting outputs", "get_outputs")
@@ -591,7 +617,8 @@ class IsolatedInstance(FmuInstance):
                 ctypes.memmove(out, outputs, size)
             return 0
         return FastPath(ctypes.c_void_p(0), set_real, do_step, get_real, inputs, terminated=terminated,
-                        last_time=ctypes.c_double(math.nan) if terminated is not None else None)
+                        last_time=ctypes.c_double(math.nan) if terminated is not None else None,
+                        start_step=start_step, finish_step=finish_step)
 
     def accessor(self, fmi_type: str, op: str) -> tuple[Any, Any]:
         """(call, ctype) as :meth:`.fmu_instance.FmuInstance.accessor`, through the control channel."""

@@ -35,7 +35,7 @@ _TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "r
              "variants", "inputs", "limits"}
 _INPUTS_KEYS = {"file", "interpolation"}
 _EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps", "max_internal_steps",
-                    "iteration", "adaptive"}
+                    "iteration", "adaptive", "workers"}
 _INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "override_declared_units", "description", "logging", "isolate",
                   "step_timeout", "tolerance", "interface", "step", *SOLVER_KEYS}
 _CONNECTION_KEYS = {"from", "to", "factor", "offset", "convert", "threshold"}
@@ -131,6 +131,7 @@ class Scenario:
     algorithm: str = "gauss-seidel"
     iteration: IterationSpec | None = None   # [experiment.iteration]: algorithm "iterated" (or adaptive over it)
     adaptive: AdaptiveSpec | None = None     # [experiment.adaptive]: algorithm "adaptive"
+    workers: int = 1                         # instances stepped at once (Jacobi; isolated instances)
     order: list[str] = field(default_factory=list)
     instances: dict[str, InstanceSpec] = field(default_factory=dict)
     connections: list[ConnectionSpec] = field(default_factory=list)
@@ -337,6 +338,8 @@ def _parse_experiment(sc: Scenario, doc: dict[str, Any]) -> None:
         sc.max_steps = _count(file, "experiment.max_steps", exp["max_steps"])
     if "max_internal_steps" in exp:
         sc.max_internal_steps = _count(file, "experiment.max_internal_steps", exp["max_internal_steps"])
+    if "workers" in exp:
+        sc.workers = _count(file, "experiment.workers", exp["workers"])
     if sc.start is not None and sc.stop is not None and sc.step is not None:
         check_experiment(sc)
     sc.algorithm = str(exp.get("algorithm", "gauss-seidel")).lower()

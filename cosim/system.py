@@ -535,6 +535,7 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
     internal = _internal_steps(sc, insts)
     conns, driven = _connection_plans(sc, insts)
     _rates(sc, insts, conns)
+    _workers(sc, insts, notes)
     coupled = coupling([n for n in sc.order], insts, conns)
     check_iteration(sc, insts, coupled)
     _check_stepping(sc)
@@ -549,6 +550,25 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
                 conditions, notes, internal, sc.archive_limits, coupled)
     _check_recording_size(plan)
     return plan
+
+
+def _workers(sc: Scenario, insts: dict[str, InstancePlan], notes: list[str]) -> None:
+    """Stepping instances at once is Jacobi's (under Gauss-Seidel each instance waits for the one before)
+    at one rate, and overlaps the steps of isolated instances; a note says which step at once."""
+    if sc.workers == 1:
+        return
+    if sc.algorithm != "jacobi":
+        raise ScenarioError(sc.file, "experiment.workers", f"{sc.workers}: stepping instances at once is "
+                                                           f"algorithm \"jacobi\"'s, not {sc.algorithm!r}")
+    slow = [n for n, ip in insts.items() if ip.decimation > 1]
+    if slow:
+        raise ScenarioError(sc.file, "experiment.workers", f"{sc.workers}: {slow[0]} steps at its own rate; "
+                                                           "instances at their own rates step one at a time")
+    apart = [n for n in sc.order if insts[n].spec.isolate]
+    here = [n for n in sc.order if not insts[n].spec.isolate]
+    notes.append(f"workers = {sc.workers}: " + (f"{', '.join(apart)} (isolated) step at once, up to "
+                                                 f"{sc.workers} together" if apart else "no instance is isolated")
+                 + (f"; in this process meanwhile, one after another: {', '.join(here)}" if here else ""))
 
 
 def _rates(sc: Scenario, insts: dict[str, InstancePlan], conns: list[ConnectionPlan]) -> None:

@@ -12,9 +12,11 @@
  *   TERMINATE_AT=t   from t on, fmi2DoStep returns Discard with fmi2Terminated true
  *   SEGFAULT_AT=t, ABORT_AT=t, EXIT_AT=t, HANG_AT=t, JUNK_AT=t   crash, abort, exit(3), loop forever, or
  *                    write junk to stdout, at the first step from t on
+ *   BURN_US=n        every fmi2DoStep computes for about n microseconds of CPU time (a heavy FMU)
  */
 #include <signal.h>
 #include <stdio.h>
+#include <time.h>
 #include <stdlib.h>
 #include <string.h>
 #include "fmi2Functions.h"
@@ -152,6 +154,15 @@ fmi2Status fmi2CancelStep(fmi2Component c) { return fmi2Error; }
 
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet) {
     Probe *s = (Probe *)c;
+#ifdef BURN_US
+    {   /* busy for BURN_US microseconds of this thread's CPU time */
+        struct timespec a, b;
+        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &a);
+        do {
+            clock_gettime(CLOCK_THREAD_CPUTIME_ID, &b);
+        } while ((b.tv_sec - a.tv_sec) * 1e6 + (b.tv_nsec - a.tv_nsec) * 1e-3 < BURN_US);
+    }
+#endif
 #ifdef TERMINATE_AT
     if (t >= TERMINATE_AT - 1e-9) { s->terminated = 1; return fmi2Discard; }
 #endif

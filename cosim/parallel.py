@@ -1,0 +1,100 @@
+"""Jacobi with instances stepped at once (``[experiment] workers = N``, N > 1, algorithm "jacobi").
+
+Every instance's inputs are set from the previous step's outputs, then the instances step, then every
+output is read, as in the serial Jacobi step; what differs is only when the steps run.  An instance hosted
+in a child process (``isolate = true``) steps in two halves: the master writes the request to each of up
+to N children, steps the instances in this process meanwhile (one after another: an FMU in this process
+runs on the master's thread), and then waits for the children's answers.  Each FMU gets the same calls
+with the same values as in the serial run, so the results are the serial Jacobi run's bit for bit.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from .algorithm import Algorithm, Clock, InstanceIO
+from .failure import Call, Failure
+from .stepper import Stepper
+
+if TYPE_CHECKING:
+    from .wiring import RowLayout
+
+
+class ParallelJacobi(Algorithm):
+    """Jacobi, the isolated instances' steps overlapping (see the module's docstring)."""
+
+    name = "jacobi"
+
+    def __init__(self, workers: int = 2) -> None:
+        if workers < 1:
+            raise ValueError(f"workers: {workers}: must be at least 1")
+        self.workers = workers
+
+    def setup(self, ios: list[InstanceIO], clock: Clock, layout: "RowLayout", chunk: list[bytes],
+              check_inputs: bool = True) -> None:
+        self.clock = clock
+        self.stepper = Stepper(ios, clock, layout, chunk, check_inputs)
+        self.split = [i for i, io in enumerate(ios) if io.fast.start_step is not None]
+        self.serial = [i for i, io in enumerate(ios) if io.fast.start_step is None]
+
+    def inputs_changed(self) -> None:
+        """Nothing to redo: every step reads the copies as they are."""
+
+    def advance(self, k0: int, k1: int) -> Failure | None:
+        c = self.clock
+        for k in range(k0, k1):
+            fail = self._step(k, c.start + k * c.step, c.step) or self.stepper.record(k)
+            if fail is not None:
+                return fail
+        return None
+
+    def _step(self, k: int, t: float, h: float) -> Failure | None:
+        st, ios = self.stepper, self.stepper.ios
+        for i in range(len(ios)):
+            fail = st.set_inputs(i, k, t)
+            if fail is not None:
+                return fail
+        st.T.value, st.H.value = t, h
+        n = self.workers
+        first = True
+        for b in range(0, max(1, len(self.split)), n):
+            batch = self.split[b:b + n]
+            for i in batch:
+                f = ios[i].fast
+                assert f.start_step is not None
+                f.start_step(f.c, st.T, st.H)
+            if first:               # the instances in this process step while the first batch does
+                first = False
+                for i in self.serial:
+                    fail = st.do_step(i, k, t, h)
+                    if fail is not None:
+                        self._drain(batch)
+                        return fail
+            for j, i in enumerate(batch):
+                f = ios[i].fast
+                assert f.finish_step is not None
+                s = f.finish_step(False)
+                st.n_do_steps += 1
+                if s:
+                    self._drain(batch[j + 1:])
+                    return Failure(k, ios[i].name, Call.DO_STEP, s, t)
+        for i in range(len(ios)):
+            fail = st.get_outputs(i, k, t + h)
+            if fail is not None:
+                return fail
+        return None
+
+    def _drain(self, started: list[int]) -> None:
+        """The answers of steps started before a failure (so that the children are idle again)."""
+        for i in started:
+            f = self.stepper.ios[i].fast
+            if f.finish_step is not None:
+                try:
+                    f.finish_step(False)
+                except Exception:   # (a child that died too: its own error is not the first)
+                    pass
+
+    def summary(self) -> dict[str, Any] | None:
+        ios = self.stepper.ios if hasattr(self, "stepper") else []
+        return {"algorithm": "jacobi", "workers": self.workers,
+                "stepped_at_once": [ios[i].name for i in getattr(self, "split", [])],
+                "in_this_process": [ios[i].name for i in getattr(self, "serial", [])]}
