@@ -178,7 +178,8 @@ class Child:
         return self.finish()
 
     def start(self, t: float, h: float) -> None:
-        """The step's request: the child sets, steps and gets while the master does something else."""
+        """A step's request: the child sets the inputs (in place), steps and gets the outputs while the
+        master does something else; :meth:`finish` waits for it."""
         self.time.value, self.h.value, self.t = t, h, t
         try:
             os.write(self.step_w, b"s")
@@ -580,17 +581,6 @@ class IsolatedInstance(FmuInstance):
                 return 0            # the inputs are in place: the child sets them with the step
             return self._call("setting inputs", "set_inputs")
 
-        def do_step(c: Any, T: Any, H: Any) -> int:
-            mode["stepping"] = True
-            try:
-                s = child.step(T.value, H.value)
-            except ChildDied as exc:
-                raise self.died(exc, step_name, T.value) from None
-            if s == SLOT_TERMINATED and terminated is not None:
-                terminated.value = True
-                return 0
-            return s
-
         def start_step(c: Any, T: Any, H: Any) -> None:
             mode["stepping"] = True
             try:
@@ -607,6 +597,10 @@ class IsolatedInstance(FmuInstance):
                 terminated.value = True
                 return 0
             return s
+
+        def do_step(c: Any, T: Any, H: Any) -> int:
+            start_step(c, T, H)
+            return finish_step(True)
 
         def get_real(c: Any, vrs: Any, n: Any, out: Any) -> int:
             if not mode["stepping"]:
