@@ -100,9 +100,13 @@ def test_check_says_who_steps_at_once(probes, tmp_path, capsys):
     ({"workers": 0}, "experiment.workers: 0: must be an integer >= 1"),
     ({"workers": 1.5}, "experiment.workers: 1.5: must be an integer >= 1"),
     ({"workers": 2, "algorithm": "gauss-seidel"}, "stepping instances at once is algorithm \"jacobi\"'s"),
+    ({"workers": 2, "rate": 0.002}, "ft steps at its own rate; instances at their own rates step one at a time"),
 ])
 def test_bad_workers_are_one_line_exit_2(probes, tmp_path, capsys, change, words):
     doc = ring(probes["burn"], 2, 2)
+    change = dict(change)
+    if "rate" in change:
+        doc["instances"]["ft"]["step"] = change.pop("rate")
     doc["experiment"].update(change)
     path = write_document(tmp_path / "bad.toml", doc)
     for command in ("check", "run"):
