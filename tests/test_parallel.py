@@ -86,6 +86,14 @@ def _cli(capsys, *argv: str) -> tuple[int, str, str]:
 
 
 def test_check_says_who_steps_at_once(probes, tmp_path, capsys):
+    """From the file's workers, and from --workers (--parallel) over a file that says 1."""
+    path = write_document(tmp_path / "p.toml", ring(probes["burn"], 2, 1))
+    code, out, _ = _cli(capsys, "check", str(path))
+    assert code == 0 and "note: workers" not in out
+    code, out, _ = _cli(capsys, "check", str(path), "--parallel", "2")
+    assert code == 0 and "note: workers = 2: p0, p1 (isolated) step at once" in out
+    code, _, err = _cli(capsys, "check", str(path), "--workers", "0")
+    assert code == 2 and "experiment.workers: 0: must be an integer >= 1" in err
     path = write_document(tmp_path / "p.toml", ring(probes["burn"], 2, 2))
     code, out, _ = _cli(capsys, "check", str(path))
     assert code == 0

@@ -131,7 +131,8 @@ def _real_time(text: str) -> float:
 
 
 #: The experiment options of run and check: option -> the field of [experiment] it sets.
-EXPERIMENT_OPTIONS = {"start": "experiment.start", "stop": "experiment.stop", "step": "experiment.step"}
+EXPERIMENT_OPTIONS = {"start": "experiment.start", "stop": "experiment.stop", "step": "experiment.step",
+                      "workers": "experiment.workers"}
 #: What a scenario file, an SSP archive and one FMU end in (the positional argument of run and check).
 SCENARIO_SUFFIXES = (".toml", ".ssp", ".fmu")
 #: How to run each other kind of file that may be given as a scenario (cosim.errors.OtherFileError).
@@ -424,7 +425,7 @@ def _solver_options(p: argparse.ArgumentParser) -> None:
 
 
 def _experiment_options(p: argparse.ArgumentParser) -> None:
-    """--start, --stop, --step and --record of run and check (with FMPy's names as aliases)."""
+    """--start, --stop, --step, --workers and --record of run and check (with FMPy's names as aliases)."""
     what = "of the scenario, the SSP archive or the FMU's default experiment"
     p.add_argument("--start", "--start-time", dest="start", type=float, default=None, metavar="T",
                    help=f"start time [s]: sets experiment.start (default: that {what})")
@@ -432,6 +433,8 @@ def _experiment_options(p: argparse.ArgumentParser) -> None:
                    help=f"stop time [s]: sets experiment.stop (default: that {what})")
     p.add_argument("--step", "--output-interval", dest="step", type=float, default=None, metavar="H",
                    help=f"communication step [s]: sets experiment.step (default: that {what})")
+    p.add_argument("--workers", "--parallel", dest="workers", type=int, default=None, metavar="N",
+                   help="Jacobi: up to N isolated instances step at once: sets experiment.workers (default 1)")
     p.add_argument("--record", "--output-variables", dest="record", nargs="+", action="extend", default=None,
                    metavar="VAR", help="the variables to record, as [record] variables: names or patterns "
                                        "(plant.x_A, \"controller.W*\", \"*.*\"); replaces the file's list")
