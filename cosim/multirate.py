@@ -25,6 +25,7 @@ Tabulated inputs are sampled at the start of the instance's step.
 """
 from __future__ import annotations
 
+import time
 from typing import TYPE_CHECKING, Any
 
 from .algorithm import Algorithm, Clock, InstanceIO
@@ -51,6 +52,7 @@ class MultiRate(Algorithm):
         self.stepper = Stepper(ios, clock, layout, chunk, check_inputs)
         self.dec = [io.decimation for io in ios]
         self.steps = [0] * len(ios)
+        self.spent = [0.0] * len(ios)      # [s] wall time in each instance's steps
 
     def inputs_changed(self) -> None:
         """Nothing to redo: every pass reads the copies as they are."""
@@ -70,7 +72,12 @@ class MultiRate(Algorithm):
             if (k + 1) % d == 0:      # its step from t_{k+1-d} ends with this base step: taken now
                 k0 = k + 1 - d
                 t0 = t if d == 1 else c.start + k0 * c.step
-                fail = st.set_inputs(i, k0, t0) or st.do_step(i, k0, t0, d * h) or st.get_outputs(i, k, t + h)
+                fail = st.set_inputs(i, k0, t0)
+                if fail is None:
+                    w = time.perf_counter()
+                    fail = st.do_step(i, k0, t0, d * h)
+                    self.spent[i] += time.perf_counter() - w
+                fail = fail or st.get_outputs(i, k, t + h)
                 if fail is not None:
                     return fail
                 steps[i] += 1
@@ -84,7 +91,9 @@ class MultiRate(Algorithm):
             if fail is not None:
                 return fail
         for i in now:
+            w = time.perf_counter()
             fail = st.do_step(i, k, t, dec[i] * h)
+            self.spent[i] += time.perf_counter() - w
             if fail is not None:
                 return fail
             steps[i] += 1
@@ -98,5 +107,6 @@ class MultiRate(Algorithm):
     def summary(self) -> dict[str, Any] | None:
         ios = self.stepper.ios if hasattr(self, "stepper") else []
         h = self.clock.step if hasattr(self, "clock") else 0.0
-        return {"algorithm": self.kind, "rates": {io.name: {"step": d * h, "decimation": d, "steps": n}
-                                                  for io, d, n in zip(ios, self.dec, self.steps)}}
+        return {"algorithm": self.kind,
+                "rates": {io.name: {"step": d * h, "decimation": d, "steps": n, "step_time_s": round(w, 6)}
+                          for io, d, n, w in zip(ios, self.dec, self.steps, self.spent)}}

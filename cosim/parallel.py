@@ -9,6 +9,7 @@ with the same values as in the serial run, so the results are the serial Jacobi 
 """
 from __future__ import annotations
 
+import time
 from typing import TYPE_CHECKING, Any
 
 from .algorithm import Algorithm, Clock, InstanceIO
@@ -35,6 +36,7 @@ class ParallelJacobi(Algorithm):
         self.stepper = Stepper(ios, clock, layout, chunk, check_inputs)
         self.split = [i for i, io in enumerate(ios) if io.fast.start_step is not None]
         self.serial = [i for i, io in enumerate(ios) if io.fast.start_step is None]
+        self.spent = [0.0] * len(ios)   # [s] wall time from each step's start to its end (overlapping)
 
     def inputs_changed(self) -> None:
         """Nothing to redo: every step reads the copies as they are."""
@@ -56,8 +58,10 @@ class ParallelJacobi(Algorithm):
         st.T.value, st.H.value = t, h
         n = self.workers
         first = True
+        spent, clock = self.spent, time.perf_counter
         for b in range(0, max(1, len(self.split)), n):
             batch = self.split[b:b + n]
+            w0 = clock()
             for i in batch:
                 f = ios[i].fast
                 assert f.start_step is not None
@@ -65,7 +69,9 @@ class ParallelJacobi(Algorithm):
             if first:               # the instances in this process step while the first batch does
                 first = False
                 for i in self.serial:
+                    w = clock()
                     fail = st.do_step(i, k, t, h)
+                    spent[i] += clock() - w
                     if fail is not None:
                         self._drain(batch)
                         return fail
@@ -73,6 +79,7 @@ class ParallelJacobi(Algorithm):
                 f = ios[i].fast
                 assert f.finish_step is not None
                 s = f.finish_step(False)
+                spent[i] += clock() - w0
                 st.n_do_steps += 1
                 if s:
                     self._drain(batch[j + 1:])
@@ -97,4 +104,5 @@ class ParallelJacobi(Algorithm):
         ios = self.stepper.ios if hasattr(self, "stepper") else []
         return {"algorithm": "jacobi", "workers": self.workers,
                 "stepped_at_once": [ios[i].name for i in getattr(self, "split", [])],
-                "in_this_process": [ios[i].name for i in getattr(self, "serial", [])]}
+                "in_this_process": [ios[i].name for i in getattr(self, "serial", [])],
+                "step_time_s": {io.name: round(w, 6) for io, w in zip(ios, getattr(self, "spent", []))}}

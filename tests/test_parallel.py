@@ -57,6 +57,8 @@ def test_stepping_at_once_gives_the_serial_rows_bit_for_bit(probes, tmp_path, n,
     st = resn.summary["stepping"]
     assert st["workers"] == workers and st["stepped_at_once"] == [f"p{i}" for i in range(n)]
     assert st["in_this_process"] == ["ft"]
+    assert sorted(st["step_time_s"]) == sorted([f"p{i}" for i in range(n)] + ["ft"])
+    assert all(0.0 < w < resn.wall_s for w in st["step_time_s"].values())
 
 
 def test_isolated_and_in_process_instances_mixed(probes, tmp_path):
