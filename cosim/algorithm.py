@@ -108,13 +108,11 @@ class InstanceIO:
     # (cosim.fmu_instance: get_state, set_state, free_state, allow_rollback, set_input_derivatives,
     # directional_derivative)
     can_roll_back: bool = False
-    can_interpolate: bool = False
     get_state: Callable[[], Any] | None = None
     set_state: Callable[[Any], None] | None = None
     free_state: Callable[[Any], None] | None = None
     allow_rollback: Callable[[], None] | None = None
     set_input_derivatives: Callable[[list[int], list[float]], int] | None = None
-    provides_directional: bool = False
     decimation: int = 1                            # it steps every this many base steps (its own step)
     directional_derivative: Callable[[list[int], list[int], list[float]], tuple[int, list[float]]] | None = None
 

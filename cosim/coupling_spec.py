@@ -2,7 +2,8 @@
 (``[experiment.iteration]``) and the step-size control (``[experiment.adaptive]``).
 
 Both are plain values, checked where they are made (:func:`iteration_spec`, :func:`adaptive_spec`): a bad
-value is one :class:`ValueError` naming the key, which the scenario reader turns into its one-line error.
+value is one :class:`SpecError` (a ValueError) naming the key, which the scenario reader turns into its
+one-line error.
 """
 from __future__ import annotations
 
@@ -26,6 +27,14 @@ INPUT_MODES = ("hold", "linear")
 #: The step that the step-size control takes and estimates: one pass (Gauss-Seidel or Jacobi) or the
 #: iterated step.
 ADAPTIVE_COUPLINGS = ("gauss-seidel", "jacobi", "iterated")
+
+
+class SpecError(ValueError):
+    """A bad setting: ``key`` (e.g. "experiment.iteration.tolerance") and ``reason``."""
+
+    def __init__(self, key: str, reason: str) -> None:
+        super().__init__(f"{key}: {reason}")
+        self.key, self.reason = key, reason
 
 
 @dataclass(frozen=True)
@@ -87,7 +96,7 @@ class AdaptiveSpec:
 
 def _positive(key: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-        raise ValueError(f"{key}: {value!r}: must be a number > 0")
+        raise SpecError(key, f"{value!r}: must be a number > 0")
     return float(value)
 
 
@@ -96,26 +105,26 @@ def iteration_spec(table: dict[str, Any], where: str = "experiment.iteration") -
     known = {"method", "tolerance", "max_iterations", "relaxation", "inputs", "jacobian"}
     for k in table:
         if k not in known:
-            raise ValueError(f"{where}.{k}: unknown key (known: {', '.join(sorted(known))})")
+            raise SpecError(f"{where}.{k}", f"unknown key (known: {', '.join(sorted(known))})")
     d = IterationSpec()
     method = str(table.get("method", d.method)).lower()
     if method not in ITERATION_METHODS:
-        raise ValueError(f"{where}.method: {method!r}: must be one of {', '.join(ITERATION_METHODS)}")
+        raise SpecError(f"{where}.method", f"{method!r}: must be one of {', '.join(ITERATION_METHODS)}")
     tol = _positive(f"{where}.tolerance", table["tolerance"]) if "tolerance" in table else d.tolerance
     n = table.get("max_iterations", d.max_iterations)
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-        raise ValueError(f"{where}.max_iterations: {n!r}: must be an integer >= 1")
+        raise SpecError(f"{where}.max_iterations", f"{n!r}: must be an integer >= 1")
     relax = _positive(f"{where}.relaxation", table["relaxation"]) if "relaxation" in table else d.relaxation
     if relax > 1.0:
-        raise ValueError(f"{where}.relaxation: {relax!r}: must be in (0, 1]")
+        raise SpecError(f"{where}.relaxation", f"{relax!r}: must be in (0, 1]")
     inputs = str(table.get("inputs", d.inputs)).lower()
     if inputs not in INPUT_MODES:
-        raise ValueError(f"{where}.inputs: {inputs!r}: must be one of {', '.join(INPUT_MODES)}")
+        raise SpecError(f"{where}.inputs", f"{inputs!r}: must be one of {', '.join(INPUT_MODES)}")
     jacobian = str(table.get("jacobian", d.jacobian)).lower()
     if jacobian not in JACOBIANS:
-        raise ValueError(f"{where}.jacobian: {jacobian!r}: must be one of {', '.join(JACOBIANS)}")
+        raise SpecError(f"{where}.jacobian", f"{jacobian!r}: must be one of {', '.join(JACOBIANS)}")
     if jacobian != d.jacobian and method != "newton":
-        raise ValueError(f"{where}.jacobian: {jacobian!r} is Newton's; method {method!r} uses none")
+        raise SpecError(f"{where}.jacobian", f"{jacobian!r} is Newton's; method {method!r} uses none")
     return IterationSpec(method, tol, n, relax, inputs, jacobian)
 
 
@@ -126,13 +135,13 @@ def adaptive_spec(table: dict[str, Any], interval: float | None = None,
     known = {"rtol", "atol", "min_step", "max_step", "initial_step", "coupling"}
     for k in table:
         if k not in known:
-            raise ValueError(f"{where}.{k}: unknown key (known: {', '.join(sorted(known))})")
+            raise SpecError(f"{where}.{k}", f"unknown key (known: {', '.join(sorted(known))})")
     d = AdaptiveSpec()
     vals = {k: (_positive(f"{where}.{k}", table[k]) if k in table else getattr(d, k))
             for k in ("rtol", "atol", "min_step", "max_step", "initial_step")}
     coupling = str(table.get("coupling", d.coupling)).lower()
     if coupling not in ADAPTIVE_COUPLINGS:
-        raise ValueError(f"{where}.coupling: {coupling!r}: must be one of {', '.join(ADAPTIVE_COUPLINGS)}")
+        raise SpecError(f"{where}.coupling", f"{coupling!r}: must be one of {', '.join(ADAPTIVE_COUPLINGS)}")
     spec = AdaptiveSpec(vals["rtol"], vals["atol"], vals["min_step"], vals["max_step"], vals["initial_step"],
                         coupling)
     check_adaptive(spec, interval, where)
@@ -143,11 +152,11 @@ def check_adaptive(spec: AdaptiveSpec, interval: float | None, where: str = "exp
     """The step bounds agree with each other and with the output interval [s] (when known)."""
     lo, hi = spec.min_step, spec.max_step
     if lo is not None and hi is not None and lo > hi:
-        raise ValueError(f"{where}.min_step: {lo!r} s is larger than max_step {hi!r} s")
+        raise SpecError(f"{where}.min_step", f"{lo!r} s is larger than max_step {hi!r} s")
     if interval is not None:
         if hi is not None and hi > interval * (1 + 1e-12):
-            raise ValueError(f"{where}.max_step: {hi!r} s is longer than the output interval (experiment.step "
+            raise SpecError(f"{where}.max_step", f"{hi!r} s is longer than the output interval (experiment.step "
                              f"{interval!r} s), on which every step lands")
         if lo is not None and lo > interval * (1 + 1e-12):
-            raise ValueError(f"{where}.min_step: {lo!r} s is longer than the output interval (experiment.step "
+            raise SpecError(f"{where}.min_step", f"{lo!r} s is longer than the output interval (experiment.step "
                              f"{interval!r} s)")

@@ -32,7 +32,7 @@ from fmpy.fmi1 import FMICallException
 
 from .errors import RunError
 from .fmu_instance import FastPath, FmuInstance, status_label
-from .model import Variable
+from .model import Variable, fmi2_cs_declares
 
 from fmpy import calloc, free   # the C calloc/free FMPy hands to FMUs
 
@@ -251,8 +251,7 @@ class Instance(FmuInstance):
     @property
     def can_interpolate_inputs(self) -> bool:
         """FMI 2.0 co-simulation: canInterpolateInputs (FMI 3.0 has no input derivatives)."""
-        cs = self.md.coSimulation
-        return self.fmi_version == 2 and cs is not None and bool(getattr(cs, "canInterpolateInputs", False))
+        return fmi2_cs_declares(self.md, "canInterpolateInputs")
 
     def set_input_derivatives(self, vrs: list[int], values: list[float]) -> int:
         """fmi2SetRealInputDerivatives of order 1."""
@@ -269,8 +268,7 @@ class Instance(FmuInstance):
     def provides_directional_derivative(self) -> bool:
         """FMI 2.0 co-simulation that declares providesDirectionalDerivative (FMI 3.0's are not used: no
         FMI 3.0 co-simulation FMU here declares them, so that call is untested)."""
-        cs = self.md.coSimulation
-        return self.fmi_version == 2 and cs is not None and bool(getattr(cs, "providesDirectionalDerivative", False))
+        return fmi2_cs_declares(self.md, "providesDirectionalDerivative")
 
     def directional_derivative(self, unknowns: list[int], knowns: list[int], seed: list[float]) -> tuple[int, list[float]]:
         """fmi2GetDirectionalDerivative."""

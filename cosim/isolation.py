@@ -42,7 +42,7 @@ from .failure import Call, InstanceLost
 from .fmu_instance import FastPath, FmuInstance
 from .integrators import SolverSpec
 from .instance import ACCESS
-from .model import declares_state
+from .model import declares_state, fmi2_cs_declares
 
 #: Header of the step slot: status (int64), t (float64), h (float64), then inputs and outputs (float64).
 _HEAD = 24
@@ -495,9 +495,7 @@ class IsolatedInstance(FmuInstance):
     def can_interpolate_inputs(self) -> bool:
         """FMI 2.0 co-simulation that declares canInterpolateInputs (the child sets the derivatives after
         the step's inputs)."""
-        cs = self.md.coSimulation
-        return (self.solver is None and self.fmi_version == 2 and cs is not None
-                and bool(getattr(cs, "canInterpolateInputs", False)))
+        return self.solver is None and fmi2_cs_declares(self.md, "canInterpolateInputs")
 
     def set_input_derivatives(self, vrs: list[int], values: list[float]) -> int:
         """fmi2SetRealInputDerivatives of order 1, in the child, for the next step."""
@@ -509,9 +507,7 @@ class IsolatedInstance(FmuInstance):
     @property
     def provides_directional_derivative(self) -> bool:
         """FMI 2.0 co-simulation that declares providesDirectionalDerivative (asked of the child)."""
-        cs = self.md.coSimulation
-        return (self.solver is None and self.fmi_version == 2 and cs is not None
-                and bool(getattr(cs, "providesDirectionalDerivative", False)))
+        return self.solver is None and fmi2_cs_declares(self.md, "providesDirectionalDerivative")
 
     def directional_derivative(self, unknowns: list[int], knowns: list[int], seed: list[float]) -> tuple[int, list[float]]:
         if not self.provides_directional_derivative:

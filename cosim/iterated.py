@@ -34,11 +34,11 @@ from typing import TYPE_CHECKING, Any, Callable, cast
 
 import numpy as np
 
-from .algorithm import Algorithm, Clock, InstanceIO
+from .algorithm import Clock, InstanceIO
 from .coupling_spec import IterationSpec
 from .errors import RunError
 from .failure import Call, Failure
-from .stepper import Stepper, components, feeders, is_loop
+from .stepper import Stepper, SteppedAlgorithm, components, feeders, is_loop
 
 if TYPE_CHECKING:
     from .wiring import RowLayout
@@ -76,12 +76,19 @@ class Loop:
     h_prev: float = 0.0
     jac: np.ndarray | None = None             # Newton's Jacobian, kept while it serves
     steps: int = 0
-    iterations: int = 0
-    max_iterations: int = 0
     jacobians: int = 0
     evaluations: int = 0                      # every step of the loop's instances, the Jacobian's included
     worst_residual: float = 0.0               # the largest residual accepted
     histogram: dict[int, int] = field(default_factory=dict)   # iterations -> the steps that took that many
+
+    @property
+    def iterations(self) -> int:
+        """The iterations of all its steps."""
+        return sum(n * c for n, c in self.histogram.items())
+
+    @property
+    def max_iterations(self) -> int:
+        return max(self.histogram, default=0)
 
     @property
     def label(self) -> str:
@@ -123,14 +130,13 @@ class LoopSolver:
     def __init__(self, spec: IterationSpec) -> None:
         self.spec = spec
 
-    def solve(self, loop: Loop, evaluate: Callable[[list[float]], list[float]], g0: list[float],
+    def solve(self, loop: Loop, evaluate: Callable[[list[float]], list[float]],
               guess: list[float], directional: Callable[[], np.ndarray] | None = None) -> list[float]:
         """The coupling inputs that meet the tolerance, the last evaluation's outputs left in the row;
         ``evaluate(u)`` gives G(y(u)); ``directional()``, where given, Newton's Jacobian dr/du from the
         FMUs' directional derivatives at the last evaluation.  NotConverged when it fails."""
         spec = self.spec
         u = list(guess)
-        n = len(u)
         err_prev = math.inf
         for it in range(1, spec.max_iterations + 1):
             g = evaluate(u)
@@ -138,9 +144,7 @@ class LoopSolver:
             r = [gi - ui for gi, ui in zip(g, u)]
             err = max((abs(ri) / (1.0 + abs(gi)) for ri, gi in zip(r, g)), default=0.0)
             if err <= spec.tolerance:
-                loop.iterations += it
                 loop.histogram[it] = loop.histogram.get(it, 0) + 1
-                loop.max_iterations = max(loop.max_iterations, it)
                 loop.worst_residual = max(loop.worst_residual, err)
                 return u
             if not math.isfinite(err):
@@ -206,8 +210,7 @@ class IteratedStep:
         for lp in loops:
             prev = self.old.get(tuple(lp.names))
             if prev is not None:
-                for f in ("steps", "iterations", "max_iterations", "jacobians", "evaluations", "worst_residual",
-                          "histogram"):
+                for f in ("steps", "jacobians", "evaluations", "worst_residual", "histogram"):
                     setattr(lp, f, getattr(prev, f))
             self.old[tuple(lp.names)] = lp
             self.loops[lp.members[0]] = lp
@@ -271,7 +274,7 @@ class IteratedStep:
 
         dd = (lambda: self.directional(lp, t + h)) if spec.jacobian == "directional" else None
         try:
-            u = self.solver.solve(lp, evaluate, g0, guess, dd)
+            u = self.solver.solve(lp, evaluate, guess, dd)
         except NotConverged as exc:
             if fail_box:
                 return fail_box[0]
@@ -341,10 +344,10 @@ class IteratedStep:
                 return [x.g() for x in lp.unknowns]
 
             g0 = [x.g() for x in lp.unknowns]
-            counts = (lp.iterations, lp.max_iterations, lp.evaluations, dict(lp.histogram))
+            before = (lp.iterations, lp.evaluations, dict(lp.histogram))
             dd = (lambda lp=lp: self.directional(lp, t0)) if self.spec.jacobian == "directional" else None
             try:
-                self.solver.solve(lp, evaluate, g0, g0, dd)
+                self.solver.solve(lp, evaluate, g0, dd)
             except NotConverged as exc:
                 if fail_box:
                     f = fail_box[0]
@@ -352,12 +355,12 @@ class IteratedStep:
                                    "(initialisation)", f.instance, t0) from None
                 raise RunError(f"the coupling loop {lp.label} did not converge at initialisation (t = {t0:.9g} s): "
                                f"{exc}", lp.names[0], t0) from None
-            self.initial_iterations += lp.iterations - counts[0]
-            lp.iterations, lp.max_iterations, lp.evaluations, lp.histogram = counts
+            self.initial_iterations += lp.iterations - before[0]
+            _, lp.evaluations, lp.histogram = before
             lp.jac = None   # (the Jacobian of the algebraic part alone is not the step's)
 
 
-class Iterated(Algorithm):
+class Iterated(SteppedAlgorithm):
     """Fixed step, every coupling loop iterated (see the module's docstring)."""
 
     name = "iterated"
@@ -375,22 +378,16 @@ class Iterated(Algorithm):
 
     def setup(self, ios: list[InstanceIO], clock: Clock, layout: "RowLayout", chunk: list[bytes],
               check_inputs: bool = True) -> None:
-        self.clock = clock
-        self.stepper = Stepper(ios, clock, layout, chunk, check_inputs)
+        super().setup(ios, clock, layout, chunk, check_inputs)
         self.step = IteratedStep(self.stepper, self.spec)
 
     def inputs_changed(self) -> None:
         assert self.step is not None
         self.step.refresh()
 
-    def advance(self, k0: int, k1: int) -> Failure | None:
+    def take(self, k: int, t: float, h: float) -> Failure | None:
         assert self.step is not None
-        c = self.clock
-        for k in range(k0, k1):
-            fail = self.step.step(k, c.start + k * c.step, c.step) or self.stepper.record(k)
-            if fail is not None:
-                return fail
-        return None
+        return self.step.step(k, t, h)
 
     def summary(self) -> dict[str, Any] | None:
         loops = list(self.step.old.values()) if self.step is not None else []

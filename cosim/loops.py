@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Iterable
 
 from .errors import ScenarioError
+from .model import fmi2_cs_declares
 from .scenario import CO_SIMULATION
 
 if TYPE_CHECKING:
@@ -229,9 +230,7 @@ def check_iteration(sc: "Scenario", insts: dict[str, "InstancePlan"], c: Couplin
         for lp in c.loops:
             for name in lp:
                 ip = insts[name]
-                cs = ip.model.md.coSimulation
-                if not (ip.interface == CO_SIMULATION and ip.model.fmi == 2 and cs is not None
-                        and getattr(cs, flag, False)):
+                if not (ip.interface == CO_SIMULATION and fmi2_cs_declares(ip.model.md, flag)):
                     raise ScenarioError(sc.file, f"experiment.iteration.{key}",
                                         f"\"{value}\" needs every instance of the coupling loop "
                                         f"{' <-> '.join(lp)} to {gives} (an FMI 2.0 co-simulation FMU that "

@@ -116,6 +116,14 @@ def declares_state(element: Any) -> bool:
                                         getattr(element, "canGetAndSetFMUState", False))
 
 
+def fmi2_cs_declares(md: Any, flag: str) -> bool:
+    """Whether a model description (FMPy's) is FMI 2.0 with a co-simulation interface that declares the
+    capability ``flag`` (canInterpolateInputs, providesDirectionalDerivative: what the master uses of FMI
+    2.0 only)."""
+    cs = getattr(md, "coSimulation", None)
+    return str(md.fmiVersion).startswith("2") and cs is not None and bool(getattr(cs, flag, False))
+
+
 @dataclass
 class FmuModel:
     """An FMU file and its model description (FMI 2.0 or 3.0, co-simulation and/or model exchange,

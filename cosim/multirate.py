@@ -28,15 +28,15 @@ from __future__ import annotations
 import time
 from typing import TYPE_CHECKING, Any
 
-from .algorithm import Algorithm, Clock, InstanceIO
+from .algorithm import Clock, InstanceIO
 from .failure import Failure
-from .stepper import Stepper
+from .stepper import SteppedAlgorithm
 
 if TYPE_CHECKING:
     from .wiring import RowLayout
 
 
-class MultiRate(Algorithm):
+class MultiRate(SteppedAlgorithm):
     """Gauss-Seidel or Jacobi with each instance at its own rate (see the module's docstring)."""
 
     def __init__(self, kind: str = "gauss-seidel") -> None:
@@ -48,23 +48,13 @@ class MultiRate(Algorithm):
 
     def setup(self, ios: list[InstanceIO], clock: Clock, layout: "RowLayout", chunk: list[bytes],
               check_inputs: bool = True) -> None:
-        self.clock = clock
-        self.stepper = Stepper(ios, clock, layout, chunk, check_inputs)
+        super().setup(ios, clock, layout, chunk, check_inputs)
         self.dec = [io.decimation for io in ios]
         self.steps = [0] * len(ios)
         self.spent = [0.0] * len(ios)      # [s] wall time in each instance's steps
 
-    def inputs_changed(self) -> None:
-        """Nothing to redo: every pass reads the copies as they are."""
-
-    def advance(self, k0: int, k1: int) -> Failure | None:
-        c = self.clock
-        step = self._gauss_seidel if self.kind == "gauss-seidel" else self._jacobi
-        for k in range(k0, k1):
-            fail = step(k, c.start + k * c.step, c.step) or self.stepper.record(k)
-            if fail is not None:
-                return fail
-        return None
+    def take(self, k: int, t: float, h: float) -> Failure | None:
+        return self._gauss_seidel(k, t, h) if self.kind == "gauss-seidel" else self._jacobi(k, t, h)
 
     def _gauss_seidel(self, k: int, t: float, h: float) -> Failure | None:
         st, dec, steps, c = self.stepper, self.dec, self.steps, self.clock

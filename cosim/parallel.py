@@ -12,15 +12,15 @@ from __future__ import annotations
 import time
 from typing import TYPE_CHECKING, Any
 
-from .algorithm import Algorithm, Clock, InstanceIO
+from .algorithm import Clock, InstanceIO
 from .failure import Call, Failure
-from .stepper import Stepper
+from .stepper import SteppedAlgorithm
 
 if TYPE_CHECKING:
     from .wiring import RowLayout
 
 
-class ParallelJacobi(Algorithm):
+class ParallelJacobi(SteppedAlgorithm):
     """Jacobi, the isolated instances' steps overlapping (see the module's docstring)."""
 
     name = "jacobi"
@@ -32,24 +32,12 @@ class ParallelJacobi(Algorithm):
 
     def setup(self, ios: list[InstanceIO], clock: Clock, layout: "RowLayout", chunk: list[bytes],
               check_inputs: bool = True) -> None:
-        self.clock = clock
-        self.stepper = Stepper(ios, clock, layout, chunk, check_inputs)
+        super().setup(ios, clock, layout, chunk, check_inputs)
         self.split = [i for i, io in enumerate(ios) if io.fast.start_step is not None]
         self.serial = [i for i, io in enumerate(ios) if io.fast.start_step is None]
         self.spent = [0.0] * len(ios)   # [s] wall time from each step's start to its end (overlapping)
 
-    def inputs_changed(self) -> None:
-        """Nothing to redo: every step reads the copies as they are."""
-
-    def advance(self, k0: int, k1: int) -> Failure | None:
-        c = self.clock
-        for k in range(k0, k1):
-            fail = self._step(k, c.start + k * c.step, c.step) or self.stepper.record(k)
-            if fail is not None:
-                return fail
-        return None
-
-    def _step(self, k: int, t: float, h: float) -> Failure | None:
+    def take(self, k: int, t: float, h: float) -> Failure | None:
         st, ios = self.stepper, self.stepper.ios
         for i in range(len(ios)):
             fail = st.set_inputs(i, k, t)

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from .archive import DEFAULT_LIMITS, ArchiveLimits, LimitOverrides, parse_limits
-from .coupling_spec import AdaptiveSpec, IterationSpec, adaptive_spec, iteration_spec
+from .coupling_spec import AdaptiveSpec, IterationSpec, SpecError, adaptive_spec, iteration_spec
 from .errors import OtherFileError, ScenarioError
 from .integrators import SOLVERS
 from .kinds import FileKind, file_kind
@@ -369,9 +369,8 @@ def _parse_stepping(sc: Scenario, exp: dict[str, Any]) -> None:
                 raise ScenarioError(file, "experiment.adaptive",
                                     f"is read by algorithm = \"adaptive\" only, not by {sc.algorithm!r}")
             sc.adaptive = adaptive_spec(table, sc.step)
-    except ValueError as exc:
-        fld, _, msg = str(exc).partition(": ")
-        raise ScenarioError(file, fld, msg) from None
+    except SpecError as exc:
+        raise ScenarioError(file, exc.key, exc.reason) from None
 
 
 def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:

@@ -82,10 +82,8 @@ def instance_io(plan: Plan, name: str, inst: FmuInstance, layout: RowLayout, wir
         other=[discrete_copier(instances, c) for c in plan.connections if c.dst == name and not is_real(c)],
         feed=table_feeder(inst, wiring.tables.get(name),
                           [ip for ip in plan.inputs if ip.instance == name and not is_f64(ip.var)]),
-        can_roll_back=inst.can_get_and_set_state, can_interpolate=inst.can_interpolate_inputs,
-        get_state=inst.get_state, set_state=inst.set_state, free_state=inst.free_state,
+        can_roll_back=inst.can_get_and_set_state, get_state=inst.get_state, set_state=inst.set_state, free_state=inst.free_state,
         allow_rollback=inst.allow_rollback, set_input_derivatives=inst.set_input_derivatives,
-        provides_directional=inst.provides_directional_derivative,
         directional_derivative=inst.directional_derivative, decimation=plan.instances[name].decimation)
 
 

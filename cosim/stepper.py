@@ -11,9 +11,10 @@ and the coupling structure of the copies: which instance's outputs feed which in
 from __future__ import annotations
 
 import ctypes
+from abc import abstractmethod
 from typing import TYPE_CHECKING, Any
 
-from .algorithm import Clock, InstanceIO
+from .algorithm import Algorithm, Clock, InstanceIO
 from .errors import RunError
 from .failure import Call, Failure
 from .loops import strongly_connected
@@ -198,3 +199,29 @@ class Stepper:
             free_state = self.ios[i].free_state
             assert free_state is not None
             free_state(st)
+
+
+class SteppedAlgorithm(Algorithm):
+    """A fixed-step algorithm whose steps a :class:`Stepper` takes in plain Python (the iterated coupling,
+    instances at their own rates, instances stepped at once): step k, then its row; a subclass gives the
+    step (:meth:`take`) and whatever it keeps beside the stepper (:meth:`setup`, calling this one)."""
+
+    def setup(self, ios: list[InstanceIO], clock: Clock, layout: "RowLayout", chunk: list[bytes],
+              check_inputs: bool = True) -> None:
+        self.clock = clock
+        self.stepper = Stepper(ios, clock, layout, chunk, check_inputs)
+
+    def inputs_changed(self) -> None:
+        """Nothing to redo where every step reads the copies as they are."""
+
+    def advance(self, k0: int, k1: int) -> Failure | None:
+        c = self.clock
+        for k in range(k0, k1):
+            fail = self.take(k, c.start + k * c.step, c.step) or self.stepper.record(k)
+            if fail is not None:
+                return fail
+        return None
+
+    @abstractmethod
+    def take(self, k: int, t: float, h: float) -> Failure | None:
+        """Step k, from t [s] over the base step h [s]."""

@@ -26,7 +26,7 @@ import numpy as np
 from .archive import DEFAULT_LIMITS, ArchiveLimits
 from .errors import CosimError, FmuLoadError, ScenarioError
 from .inputs import InputPlan, read_inputs
-from .coupling_spec import check_adaptive
+from .coupling_spec import SpecError, check_adaptive
 from .integrators import DEFAULT_EVENT_TOLERANCE, DEFAULT_RTOL, SolverSpec
 from .loops import Coupling, check_iteration, coupling
 from .model import INTERFACE_NAMES, PY_TYPES, FmuModel, Variable, load_model
@@ -57,9 +57,9 @@ class InstancePlan:
     def describe(self) -> str:
         """How it runs, in words (``check`` prints it): "co-simulation", or "model exchange, cvode, rtol
         1e-05" with the integrator's settings (largest step [s]; Euler's and RK4's event tolerance [s]);
-        then its own rate where it has one ("steps of 0.008 s, every 4th step")."""
+        then its own rate where it has one ("steps of 0.008 s, every 4 base steps")."""
         text = self._interface_words()
-        if self.decimation > 1 and self.spec.step is not None:
+        if self.decimation > 1:
             text += f"; steps of {self.spec.step:g} s, every {self.decimation} base steps"
         return text
 
@@ -536,7 +536,7 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
     conns, driven = _connection_plans(sc, insts)
     _rates(sc, insts, conns)
     _workers(sc, insts, notes)
-    coupled = coupling([n for n in sc.order], insts, conns)
+    coupled = coupling(sc.order, insts, conns)
     check_iteration(sc, insts, coupled)
     _check_stepping(sc)
     record, not_recorded = _record(sc, insts)
@@ -611,9 +611,8 @@ def _check_stepping(sc: Scenario) -> None:
         return
     try:
         check_adaptive(sc.adaptive, sc.times()[2])
-    except ValueError as exc:
-        fld, _, msg = str(exc).partition(": ")
-        raise ScenarioError(sc.file, fld, msg) from None
+    except SpecError as exc:
+        raise ScenarioError(sc.file, exc.key, exc.reason) from None
 
 
 def _planned_copy(sc: Scenario, force: bool | None, isolate_all: bool) -> Scenario:
