@@ -927,11 +927,23 @@ def main(argv: list[str] | None = None) -> int:
                     "interleaved: --rounds processes each, of --repeats runs (benchmarks/against.py)")
     ap.add_argument("--rounds", type=int, default=5, help="with --against: processes per tree")
     args = ap.parse_args(argv)
-    if args.against:
-        from against import against
-        figures = against(args.name, args.against, args.rounds, args.repeats)
-    else:
-        figures = BENCHES[args.name](args.repeats)
+    try:
+        if args.against:
+            from against import against
+            figures = against(args.name, args.against, args.rounds, args.repeats)
+        else:
+            figures = BENCHES[args.name](args.repeats)
+    except ModuleNotFoundError as exc:
+        from pathlib import Path
+
+        top = (exc.name or "").split(".")[0]
+        here = Path(__file__).resolve().parents[1]
+        if not top or any((here / d / f"{top}.py").is_file() for d in ("benchmarks", "tests")):
+            raise
+        extra = "mutation" if top == "mutmut" else "bench"
+        print(f"bench.py {args.name}: needs {top}: pip install -e \".[{extra}]\" (docs/benchmarks.md)",
+              file=sys.stderr)
+        return 2
     print(f"# {args.name} on {platform.python_implementation()} {platform.python_version()}, "
           f"{platform.machine()}", file=sys.stderr, flush=True)
     print(json.dumps({"bench": args.name, **figures}))

@@ -114,7 +114,7 @@ class Adaptive(Algorithm):
     def advance(self, k0: int, k1: int) -> Failure | None:
         c = self.clock
         for k in range(k0, k1):
-            fail = self.interval(k, c.start + k * c.step, c.start + (k + 1) * c.step) or self.stepper.record(k)
+            fail = self.interval(k, c.time(k), c.time(k + 1)) or self.stepper.record(k)
             if fail is not None:
                 return fail
         return None

@@ -37,6 +37,7 @@ Measured on the G1 system, this is faster than a plain loop over the instances m
 from __future__ import annotations
 
 import ctypes
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Callable, NamedTuple
@@ -65,15 +66,38 @@ class Copy(NamedTuple):
 @dataclass(frozen=True)
 class Clock:
     """The communication grid: t_k = start + k step [s] for k = 0 .. n_steps; every ``decimation``-th
-    step (and the last) is recorded."""
+    step (and the last) is recorded.  With a short ``last`` step [s] (a step that does not divide the run),
+    the last point is ``stop``, reached by a step of that length from t_{n_steps - 1}."""
 
     start: float
     step: float
     n_steps: int
     decimation: int = 1
+    last: float | None = None   # [s] the length of a short last step (None: every step is ``step`` long)
+    stop: float | None = None   # [s] the last point when the last step is short
 
     def time(self, k: int) -> float:
+        """t_k [s]."""
+        if self.last is not None and k == self.n_steps and self.stop is not None:
+            return self.stop
         return self.start + k * self.step
+
+    def length(self, k: int) -> float:
+        """The length [s] of step k (from t_k to t_{k+1})."""
+        return self.last if self.last is not None and k == self.n_steps - 1 else self.step
+
+    def step_of(self, t: float) -> int:
+        """The point k nearest to the time t [s] (the last point for a time within a millionth of a step of
+        it)."""
+        if self.last is not None and abs(t - self.time(self.n_steps)) <= 1e-6 * self.step:
+            return self.n_steps
+        return int(round((t - self.start) / self.step))
+
+    def steps_before(self, t: float) -> int:
+        """How many steps end at or before the time t [s]."""
+        if self.last is not None and t >= self.time(self.n_steps) - 1e-9 * self.step:
+            return self.n_steps
+        return min(self.n_steps, int(math.floor((t - self.start) / self.step + 1e-9)))
 
 
 @dataclass
@@ -278,14 +302,15 @@ class LoopSource:
             self.w(f"{ind}s = getr_{i}(c_{i}, outvr_{i}, nout_{i}, out_{i}{self.args('ga', i, io.fast.get_tail)})")
             self.w(f"{ind}if s: return Failure(k + 1, name_{i}, Call.GET_REAL, s)")
 
-    def record(self, ios: list[InstanceIO], dec: int, n_double: int) -> None:
-        """The row of t_{k+1}, when the step is recorded; then the end of a simulation an FMU ended."""
+    def record(self, ios: list[InstanceIO], dec: int, n_double: int, short: bool = False) -> None:
+        """The row of t_{k+1}, when the step is recorded (``short``: the last step is short, its row at the
+        stop time); then the end of a simulation an FMU ended."""
         ends = any(io.fast.terminated is not None for io in ios)
         if dec > 1:
             self.w(f"        if (k + 1) % dec == 0 or k + 1 == n_steps{' or ended is not None' if ends else ''}:")
         else:
             self.w("        if True:")
-        self.w("            row[0] = t0 + (k + 1) * h")
+        self.w("            row[0] = t0 + (k + 1) * h" if not short else "            row[0] = t_stop if k == k_last else t0 + (k + 1) * h")
         for i, io in enumerate(ios):
             for j, x in enumerate(io.extras):
                 names = [self.bind(f"x{w}_{i}_{j}", v) for w, v in zip("gvnbc", (x.get, x.vrs, x.n, x.buf, x.nv))]
@@ -317,7 +342,11 @@ def compile_loop(ios: list[InstanceIO], body: Callable[[LoopSource, list[Instanc
     head = s.lines
     s.lines = []
     body(s, ios, "        ")
-    s.record(ios, clock.decimation, layout.n_double)
+    short = clock.last is not None
+    if short:   # the last step is short (only then is this compared at every step)
+        s.env.update({"k_last": clock.n_steps - 1, "h_last": float(clock.length(clock.n_steps - 1)),
+                      "t_stop": float(clock.time(clock.n_steps))})
+    s.record(ios, clock.decimation, layout.n_double, short)
     step_lines, s.lines = s.lines, head
     # every bound value becomes a keyword default: a fast local inside the loop
     s.w(f"def loop(k0, k1, *, {', '.join(f'{n}={n}' for n in s.env)}):")
@@ -325,6 +354,8 @@ def compile_loop(ios: list[InstanceIO], body: Callable[[LoopSource, list[Instanc
     s.w("    ended = None")
     s.w("    for k in range(k0, k1):")
     s.w("        Tv.value = t0 + k * h")
+    if short:
+        s.w("        H.value = h_last if k == k_last else h")
     s.lines += step_lines
     s.w("    return None")
     src = "\n".join(s.lines)

@@ -2,7 +2,9 @@
 
 Refused: absolute paths, drive letters, '..' components, backslash tricks, and symbolic links (FMPy's
 extract refuses only absolute paths; Python's zipfile silently rewrites '../x' to 'x'; a symlink entry
-becomes a plain file).
+becomes a plain file).  A '..' anywhere in an entry's path is refused, also one that stays inside the
+folder ('resources/a/../b'): no tool writes such names, and one rule with nothing to work out leaves
+nothing to get wrong; the message says whether the entry would have escaped.
 
 Decompression bombs are refused too.  An archive whose directory declares more than ``max_size`` bytes
 unpacked in all, or more than ``max_ratio`` times the archive's size on disk, is refused from its
@@ -192,7 +194,8 @@ def check_archive(path: str | os.PathLike, limits: ArchiveLimits | None = None,
 
 
 def check_entries(label: str, infos: list[zipfile.ZipInfo]) -> None:
-    """FmuLoadError naming ``label`` and the first entry that is absolute, climbs out with '..' or is a link."""
+    """FmuLoadError naming ``label`` and the first entry that is absolute, has a '..' component anywhere in
+    its path (whether or not it would climb out of the folder) or is a link."""
     for info in infos:
         name = info.filename
         p = PurePosixPath(name.replace("\\", "/"))
@@ -200,9 +203,22 @@ def check_entries(label: str, infos: list[zipfile.ZipInfo]) -> None:
         if name.startswith(("/", "\\")) or (len(name) > 1 and name[1] == ":"):
             raise FmuLoadError(f"{label}: refused: entry '{name}' has an absolute path")
         if ".." in p.parts:
-            raise FmuLoadError(f"{label}: refused: entry '{name}' would extract outside its folder")
+            why = "would extract outside its folder" if escapes(p.parts) else \
+                "has a '..' component (refused even where it stays inside the folder)"
+            raise FmuLoadError(f"{label}: refused: entry '{name}' {why}")
         if stat.S_ISLNK(mode):
             raise FmuLoadError(f"{label}: refused: entry '{name}' is a symbolic link")
+
+
+def escapes(parts: tuple[str, ...]) -> bool:
+    """Whether a relative path of these parts (a PurePosixPath's: no '.' or empty ones), normalised, climbs
+    above its folder ('a/../../x' does, 'a/../x' and 'a/..' do not)."""
+    depth = 0
+    for part in parts:
+        depth += -1 if part == ".." else 1
+        if depth < 0:
+            return True
+    return False
 
 
 def _copy_member(label: str, zf: zipfile.ZipFile, info: zipfile.ZipInfo, sink: IO[bytes] | None,

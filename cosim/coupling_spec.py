@@ -11,6 +11,8 @@ import math
 from dataclasses import asdict, dataclass
 from typing import Any
 
+from .words import count
+
 #: How a loop's coupling inputs are iterated: fixed point with relaxation, or Newton's method with a
 #: finite-difference Jacobian (a chord: the Jacobian of a step's first iteration, made anew when the
 #: residual stops shrinking).
@@ -27,6 +29,9 @@ INPUT_MODES = ("hold", "linear")
 #: The step that the step-size control takes and estimates: one pass (Gauss-Seidel or Jacobi) or the
 #: iterated step.
 ADAPTIVE_COUPLINGS = ("gauss-seidel", "jacobi", "iterated")
+#: The keys of ``[experiment.iteration]`` and of ``[experiment.adaptive]`` (all optional).
+ITERATION_KEYS = frozenset({"method", "tolerance", "max_iterations", "relaxation", "inputs", "jacobian"})
+ADAPTIVE_KEYS = frozenset({"rtol", "atol", "min_step", "max_step", "initial_step", "coupling"})
 
 
 class SpecError(ValueError):
@@ -54,8 +59,8 @@ class IterationSpec:
     def describe(self) -> str:
         relax = f", relaxation {self.relaxation:g}" if self.method == "fixed-point" else ""
         jac = ", Jacobian from directional derivatives" if self.method == "newton" and self.jacobian == "directional" else ""
-        return (f"{self.method}{relax}{jac}, tolerance {self.tolerance:g}, at most {self.max_iterations} iterations, "
-                f"inputs {self.inputs}")
+        return (f"{self.method}{relax}{jac}, tolerance {self.tolerance:g}, at most "
+                f"{count(self.max_iterations, 'iteration')}, inputs {self.inputs}")
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -102,10 +107,9 @@ def _positive(key: str, value: Any) -> float:
 
 def iteration_spec(table: dict[str, Any], where: str = "experiment.iteration") -> IterationSpec:
     """An :class:`IterationSpec` from a table of its keys (all optional); ValueError naming a bad key."""
-    known = {"method", "tolerance", "max_iterations", "relaxation", "inputs", "jacobian"}
     for k in table:
-        if k not in known:
-            raise SpecError(f"{where}.{k}", f"unknown key (known: {', '.join(sorted(known))})")
+        if k not in ITERATION_KEYS:
+            raise SpecError(f"{where}.{k}", f"unknown key (known: {', '.join(sorted(ITERATION_KEYS))})")
     d = IterationSpec()
     method = str(table.get("method", d.method)).lower()
     if method not in ITERATION_METHODS:
@@ -132,10 +136,9 @@ def adaptive_spec(table: dict[str, Any], interval: float | None = None,
                   where: str = "experiment.adaptive") -> AdaptiveSpec:
     """An :class:`AdaptiveSpec` from a table of its keys (all optional), checked against the output
     interval [s] when it is known; ValueError naming a bad key."""
-    known = {"rtol", "atol", "min_step", "max_step", "initial_step", "coupling"}
     for k in table:
-        if k not in known:
-            raise SpecError(f"{where}.{k}", f"unknown key (known: {', '.join(sorted(known))})")
+        if k not in ADAPTIVE_KEYS:
+            raise SpecError(f"{where}.{k}", f"unknown key (known: {', '.join(sorted(ADAPTIVE_KEYS))})")
     d = AdaptiveSpec()
     vals = {k: (_positive(f"{where}.{k}", table[k]) if k in table else getattr(d, k))
             for k in ("rtol", "atol", "min_step", "max_step", "initial_step")}

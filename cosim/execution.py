@@ -37,6 +37,7 @@ from .algorithm import Algorithm, Clock, InstanceIO, algorithm_for
 from .multirate import MultiRate
 from .access import VariableAccess
 from .errors import CosimError, RunError, ScenarioError
+from .event_log import ended_entry, instance_entries, table
 from .failure import Call, Failure, FmiStatus, InstanceLost
 from .fmu_instance import FmuInstance
 from .interrupt import Interrupt
@@ -86,7 +87,7 @@ class Execution:
         sc = plan.scenario
         start, _, step = sc.times()
         self.plan = plan
-        self.clock = Clock(start, step, plan.n_steps, sc.decimation)
+        self.clock = Clock(start, step, plan.n_steps, sc.decimation, plan.last_step, sc.stop)
         self.algorithm = algorithm if algorithm is not None else _algorithm(plan)
         slow = [n for n, ip in plan.instances.items() if ip.decimation > 1]
         if slow and not isinstance(self.algorithm, MultiRate):
@@ -102,6 +103,7 @@ class Execution:
         self.observers: list[Observer] = []        # the script's, called after the built-in ones
         self.manipulators: list[Manipulator] = []
         self.status, self.message = RunStatus.OK, ""
+        self._instance_events: list[dict[str, Any]] = []   # the instances' entries of the event table
         self.result: RunResult | None = None
         self.k_done = 0
         self.setup_s = self.wall_s = 0.0
@@ -419,7 +421,7 @@ class Execution:
         elif isinstance(exc, KeyboardInterrupt):
             last = self._recorder.rows.last_time() if self._recorder is not None and self._in_step else None
             if last is not None:   # the steps completed inside the interrupted segment
-                self.k_done = max(self.k_done, int(round((last - self.clock.start) / self.clock.step)))
+                self.k_done = max(self.k_done, self.clock.step_of(last))
             self._set_status(RunStatus.INTERRUPTED, f"interrupted by the user at t = {self.time:.6g} s")
         elif isinstance(exc, CosimError):
             if isinstance(exc, InstanceLost) and exc.time is not None:   # a child died inside a segment
@@ -434,12 +436,12 @@ class Execution:
         self._finish()
 
     def _step_of(self, t: float) -> int:
-        return int(round((t - self.clock.start) / self.clock.step))
+        return self.clock.step_of(t)
 
     def _fmu_ended(self, s: FmuEnded) -> None:
         """An FMU ended the simulation at ``s.t``: the row at that time, unless it is the last row recorded
         (the FMU ended the simulation at a communication point without advancing)."""
-        self.k_done = min(self.clock.n_steps, int(math.floor((s.t - self.clock.start) / self.clock.step + 1e-9)))
+        self.k_done = self.clock.steps_before(s.t)
         try:
             assert self._layout is not None and self._recorder is not None
             if not s.recorded and (s.t - self._layout.row[0]) / self.clock.step > 1e-9:
@@ -447,6 +449,7 @@ class Execution:
                 self._layout.row[0] = s.t
                 self._recorder.rows.chunk.append(bytes(self._layout.buf))
             self._set_status(RunStatus.TERMINATED, f"terminated by FMU {s.name} at t = {s.t:.6g} s")
+            self._instance_events.append(ended_entry(s.name, s.t))
         except RunError as exc:
             self._set_status(RunStatus.FAILED, str(exc))
 
@@ -464,6 +467,8 @@ class Execution:
                         self.k_done = min(self.k_done, self._step_of(exc.time))
                     if self.status != RunStatus.FAILED:
                         self._set_status(RunStatus.FAILED, str(exc))
+            self._instance_events = [e for n, inst in self.instances.items()
+                                     for e in instance_entries(n, inst.handled_events())] + self._instance_events
             for inst in self.instances.values():
                 inst.shutdown()
             if self._recorder is not None:
@@ -478,11 +483,12 @@ class Execution:
         t_end = self.time
         if self.status == RunStatus.TERMINATED:
             t_end = final.get("time", t_end)
+        events, left_out = table(self.events, self._instance_events)
         res = RunResult(self.status, self.message, self.k_done, t_end, self.wall_s, self.setup_s,
                         self.folder.path if self.folder.keep else None, self.columns, final,
-                        self._fmi_acc[0] if self.timing else None, self.events,
+                        self._fmi_acc[0] if self.timing else None, events,
                         self.pacer.summary() if self.pacer is not None else None)
-        res.stepping = self.algorithm.summary()
+        res.stepping, res.events_left_out = self.algorithm.summary(), left_out
         logs = {n: (i.log_lines, i.received) for n, i in self.instances.items()}
         write_results(self.folder, self.plan, res, self._recorder.file.rows if self._recorder else 0, logs)
         res.scenario = _read_json(self.folder.path / "scenario.json")

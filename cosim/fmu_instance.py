@@ -123,6 +123,11 @@ class FmuInstance(ABC):
         """After a Discard from the step: the FMU's last successful time [s] if it ended the simulation."""
         return None
 
+    def handled_events(self) -> list[tuple[float, str]]:
+        """The events handled in this instance so far, (time [s], kind) in order: a model exchange FMU's
+        time, state, step and input events (see :mod:`.me_instance`); none for co-simulation."""
+        return []
+
     # ------------------------------------------------------------------ state (rollback)
     @property
     def can_get_and_set_state(self) -> bool:

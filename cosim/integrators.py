@@ -77,6 +77,13 @@ def crossed(before: Sequence[float], after: Sequence[float]) -> bool:
     return any((a > 0.0) != (b > 0.0) for a, b in zip(before, after))
 
 
+#: What CVODE's root function gives for an event indicator that is exactly 0: the negative number nearest
+#: to it, since 0 is in the domain z <= 0.  (CVODE looks for sign changes and takes a zero as a root or,
+#: at its start, leaves that component out until it moves away: an indicator starting at 0 and rising
+#: would be no root, one touching 0 from below would be one.)
+ZERO_SIDE = -math.ulp(0.0)
+
+
 class Integrator(ABC):
     """Advances the states of one FMU from ``t`` towards ``t_out``."""
 
@@ -112,7 +119,8 @@ class Cvode(Integrator):
     """CVODE (SUNDIALS, through FMPy's bindings) with the settings FMPy's own simulation uses: BDF, a dense
     linear solver, relative tolerance ``rtol``, absolute tolerance ``rtol`` times each state's nominal,
     largest step ``max_step`` [s], root finding on every event indicator (CVODE returns the root on the far
-    side of the crossing, located to about 100 machine epsilons of t).  Normal mode: CVODE may step past
+    side of the crossing, located to about 100 machine epsilons of t), each indicator seen in its FMI
+    domain (a zero as :data:`ZERO_SIDE`, on the side of z <= 0).  Normal mode: CVODE may step past
     ``t_out`` internally and interpolates back; ``Equations.completed`` is called at each time returned.
     A failing FMU call in the right-hand side is returned to CVODE as unrecoverable (Error, Fatal) or
     recoverable (Discard: CVODE retries with a smaller step)."""
@@ -187,6 +195,9 @@ class Cvode(Integrator):
             eq.check(eq.get_z(gout), 5)
         except IntegrationError as exc:
             return self._fail(exc)
+        for i in range(eq.nz):     # (a zero is in the domain z <= 0: see ZERO_SIDE)
+            if gout[i] == 0.0:
+                gout[i] = ZERO_SIDE
         return 0
 
     def reset(self, t: float) -> None:

@@ -37,6 +37,7 @@ from multiprocessing import shared_memory
 from pathlib import Path
 from typing import Any
 
+from .binary import load_failure
 from .errors import RunError
 from .failure import Call, InstanceLost
 from .fmu_instance import FastPath, FmuInstance
@@ -283,7 +284,8 @@ class _Server:
 
     def step(self, t: float, h: float) -> int:
         """Set the inputs (and the derivatives given for this step), do the step, get the outputs: the
-        status (or SLOT_TERMINATED)."""
+        status (or SLOT_TERMINATED, the FMU's last successful time written in the slot's time, the outputs
+        not read).  After a status other than OK the outputs are not read either."""
         s = self.set_inputs()
         if s:
             return s
@@ -299,6 +301,10 @@ class _Server:
         if s:
             return s
         if fp.terminated is not None and fp.terminated.value:
+            # the FMU's last successful time in the slot's time; the master asks for the outputs (as in
+            # process, where the loop reads them after the step): a failure to give them is its to report
+            last = fp.last_time.value if fp.last_time is not None else math.nan
+            ctypes.c_double.from_address(self.addr + 8).value = last if math.isfinite(last) else t + h
             return SLOT_TERMINATED
         return self.get_outputs()
 
@@ -360,13 +366,22 @@ def _serve(argv: list[str]) -> int:
     from .me_instance import model_exchange
 
     md = read_model_description(os.path.join(fmu_dir, "modelDescription.xml"), validate=False)
+    ctl_in = os.fdopen(c_r, "rb", buffering=0)
     inst: FmuInstance
-    if len(argv) > 10 and argv[10]:   # a model exchange instance, with its integrator's settings
-        inst = model_exchange(name, md, fmu_dir, log_path or None, logging, SolverSpec(**json.loads(argv[10])))
-    else:
-        inst = (Instance3 if md.fmiVersion.startswith("3") else Instance)(name, md, fmu_dir, log_path or None, logging)
+    try:
+        if len(argv) > 10 and argv[10]:   # a model exchange instance, with its integrator's settings
+            inst = model_exchange(name, md, fmu_dir, log_path or None, logging, SolverSpec(**json.loads(argv[10])))
+        else:
+            inst = (Instance3 if md.fmiVersion.startswith("3") else Instance)(name, md, fmu_dir, log_path or None,
+                                                                              logging)
+    except Exception as exc:   # the binary does not load: the first request gets the loader's reason
+        if len(head := ctl_in.read(8)) == 8:
+            ctl_in.read(struct.unpack("<q", head)[0])
+            data = pickle.dumps(("error", f"cannot load the FMU: {load_failure(exc, fmu_dir)}"))
+            os.write(c_w, struct.pack("<q", len(data)) + data)
+        return 1
     server = _Server(shm, inst)
-    return _loop(server, os.fdopen(c_r, "rb", buffering=0), c_w, s_r, d_w, spin)
+    return _loop(server, ctl_in, c_w, s_r, d_w, spin)
 
 
 def _loop(server: _Server, ctl_in: Any, c_w: int, s_r: int, d_w: int, spin: int) -> int:
@@ -529,6 +544,14 @@ class IsolatedInstance(FmuInstance):
         except (ChildDied, RuntimeError):
             return None
 
+    def handled_events(self) -> list[tuple[float, str]]:
+        if self.solver is None or self.dead:
+            return []
+        try:
+            return [(float(t), str(k)) for t, k in self.child.call("handled_events")]
+        except (ChildDied, RuntimeError):
+            return []
+
     def get_state(self) -> Any:
         return self._call("saving the state", "get_state", t=self.child.t)
 
@@ -569,8 +592,11 @@ class IsolatedInstance(FmuInstance):
         child, size = self.child, 8 * n_out
         # FMI 3.0's terminateSimulation, and a model exchange FMU's
         terminated = ctypes.c_bool(False) if self.fmi_version == 3 or self.solver is not None else None
-        mode = {"stepping": False}
+        # stepping: the step loop has begun (the child sets the inputs with each step); fresh: the last step
+        # left the outputs in the slot (the child reads them after an OK step only)
+        mode = {"stepping": False, "fresh": False}
         step_name = self.call_name(Call.DO_STEP)
+        last_time = ctypes.c_double(math.nan) if terminated is not None else None
 
         def set_real(*args: Any) -> int:
             if mode["stepping"]:
@@ -589,8 +615,9 @@ class IsolatedInstance(FmuInstance):
                 s = child.finish(spin)
             except ChildDied as exc:
                 raise self.died(exc, step_name, child.t) from None
-            if s == SLOT_TERMINATED and terminated is not None:
-                terminated.value = True
+            mode["fresh"] = s == 0   # (the child reads the outputs after an OK step only)
+            if s == SLOT_TERMINATED and terminated is not None and last_time is not None:
+                terminated.value, last_time.value = True, child.time.value   # (its outputs asked for after)
                 return 0
             return s
 
@@ -599,7 +626,7 @@ class IsolatedInstance(FmuInstance):
             return finish_step(True)
 
         def get_real(c: Any, vrs: Any, n: Any, out: Any) -> int:
-            if not mode["stepping"]:
+            if not (mode["stepping"] and mode["fresh"]):   # (before stepping; after a step that did not read them)
                 s = self._call("getting outputs", "get_outputs")
                 if s:
                     return s
@@ -607,8 +634,7 @@ class IsolatedInstance(FmuInstance):
                 ctypes.memmove(out, outputs, size)
             return 0
         return FastPath(ctypes.c_void_p(0), set_real, do_step, get_real, inputs, terminated=terminated,
-                        last_time=ctypes.c_double(math.nan) if terminated is not None else None,
-                        start_step=start_step, finish_step=finish_step)
+                        last_time=last_time, start_step=start_step, finish_step=finish_step)
 
     def accessor(self, fmi_type: str, op: str) -> tuple[Any, Any]:
         """(call, ctype) as :meth:`.fmu_instance.FmuInstance.accessor`, through the control channel."""

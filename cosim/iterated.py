@@ -39,6 +39,7 @@ from .coupling_spec import IterationSpec
 from .errors import RunError
 from .failure import Call, Failure
 from .stepper import Stepper, SteppedAlgorithm, components, feeders, is_loop
+from .words import count
 
 if TYPE_CHECKING:
     from .wiring import RowLayout
@@ -148,9 +149,9 @@ class LoopSolver:
                 loop.worst_residual = max(loop.worst_residual, err)
                 return u
             if not math.isfinite(err):
-                raise NotConverged(f"the iterate is no longer finite after {it} iterations ({spec.method})")
+                raise NotConverged(f"the iterate is no longer finite after {count(it, 'iteration')} ({spec.method})")
             if it == spec.max_iterations:
-                raise NotConverged(f"residual {err:.3g} after {it} iterations ({spec.method}, tolerance "
+                raise NotConverged(f"residual {err:.3g} after {count(it, 'iteration')} ({spec.method}, tolerance "
                                    f"{spec.tolerance:g})")
             if spec.method == "fixed-point":
                 w = spec.relaxation
@@ -165,10 +166,10 @@ class LoopSolver:
                 try:
                     du = np.linalg.solve(loop.jac, -np.asarray(r))
                 except np.linalg.LinAlgError:
-                    raise NotConverged(f"the Jacobian is singular after {it} iterations (newton)") from None
+                    raise NotConverged(f"the Jacobian is singular after {count(it, 'iteration')} (newton)") from None
                 u = [ui + float(d) for ui, d in zip(u, du)]
             if not all(math.isfinite(x) for x in u):
-                raise NotConverged(f"the iterate is no longer finite after {it} iterations ({spec.method})")
+                raise NotConverged(f"the iterate is no longer finite after {count(it, 'iteration')} ({spec.method})")
             err_prev = err
         raise AssertionError("unreachable")   # (the last iteration returns or raises)
 

@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from .condition import compile_condition
 from .errors import CosimError
+from .event_log import scenario_entry
 from .model import Variable
 from .system import EventPlan, Plan
 from .wiring import Wiring, is_f64
@@ -52,21 +53,13 @@ class Actuator:
 
     def __init__(self, plan: Plan, instances: dict[str, "FmuInstance"], wiring: Wiring) -> None:
         self.plan, self.instances, self.wiring = plan, instances, wiring
-        self.log: list[dict[str, Any]] = []            # every event that acted: time, event, action, ...
+        self.log: list[dict[str, Any]] = []            # every event that acted (see .event_log)
         self.discrete: dict[tuple[str, int], Any] = {}  # values set on non-Real inputs, held until the next
 
     def event(self, ev: EventPlan, k: int, t: float, fired: float | None) -> bool:
         """One event's action before the step from t_k [s], written to the event log; whether the copies
         changed.  ``fired``: the time its condition became true."""
-        entry: dict[str, Any] = {"time": t, "event": ev.index, "action": ev.action}
-        if ev.ref is not None:
-            entry["variable"] = ev.ref
-        if ev.value is not None:
-            entry["value"] = ev.value
-        if fired is not None:
-            entry["when"] = ev.when
-            entry["condition_time"] = fired
-        self.log.append(entry)
+        self.log.append(scenario_entry(ev, t, fired))
         if ev.action == "stop":
             raise EventStop(ev.index, t, k)
         assert ev.instance is not None and ev.var is not None

@@ -113,6 +113,10 @@ class ModelExchange:
         except IntegrationError as exc:
             raise self._integration_error(exc, self.t) from None
 
+    def handled_events(self) -> list[tuple[float, str]]:
+        """Time, state, step and input events, in order (not the event mode entered to set values)."""
+        return [e for e in self.events if e[1] != "set"]
+
     def shutdown(self) -> None:
         if self.integrator is not None:
             self.integrator.free()

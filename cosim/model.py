@@ -13,6 +13,7 @@ from xml.parsers import expat
 from fmpy import read_model_description
 
 from .archive import ArchiveLimits, check_archive
+from .binary import library_problem
 from .errors import FmuLoadError
 from .scenario import CO_SIMULATION, MODEL_EXCHANGE
 from .units import Unit, lookup, units_of
@@ -274,34 +275,39 @@ def fmi_version(path: Path) -> str:
     return "?"
 
 
-def _binary_problem(path: Path, names: list[str], identifier: str, fmi: int = 2) -> str | None:
-    """None if the archive (its entries ``names``) holds the binary for this platform named by the model
-    identifier, else why not (one line, starting with ``path``)."""
+def _binary_problem(path: Path, zf: zipfile.ZipFile, identifier: str, fmi: int, interface: str
+                    ) -> tuple[str, bool] | None:
+    """None if the archive ``zf`` holds the binary for this platform named by the model identifier, a
+    shared library of this platform that exports the FMI functions of ``interface``
+    (:func:`.binary.library_problem`), else why not (one line, starting with ``path``) and whether the
+    file is there (then it cannot be loaded)."""
     from fmpy import sharedLibraryExtension
 
+    names = zf.namelist()
     platform = PLATFORMS[fmi]
     want = f"binaries/{platform}/{identifier}{sharedLibraryExtension}"
     if want in names:
-        return None
+        why = library_problem(zf.read(want), fmi, interface)
+        return None if why is None else (f"{path}: {want} cannot be loaded: {why}", True)
     here = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") >= 2})
     others = [n for n in names if n.startswith(f"binaries/{platform}/") and n.endswith(sharedLibraryExtension)]
     if others:
         return (f"{path}: no {want} (the binary for this platform must be named after the model "
-                f"identifier {identifier!r}; the archive has {others[0]})")
+                f"identifier {identifier!r}; the archive has {others[0]})", False)
     return (f"{path}: no binary for this platform ({platform}): the FMU has binaries for "
-            f"{', '.join(here) or 'no platform'} (a source-only or other-platform FMU cannot run here)")
+            f"{', '.join(here) or 'no platform'} (a source-only or other-platform FMU cannot run here)", False)
 
 
 def _missing_binaries(path: Path, model: FmuModel) -> dict[str, str]:
-    """For each interface the FMU declares whose binary is missing, why; FmuLoadError when every declared
-    interface lacks its binary (the co-simulation one's reason first)."""
+    """For each interface the FMU declares whose binary is missing or cannot be loaded, why (reported when
+    an instance uses that interface: :meth:`FmuModel.check_binary`); FmuLoadError when the archive holds
+    the binary of no declared interface (the co-simulation one's reason first)."""
     with zipfile.ZipFile(path) as zf:
-        names = zf.namelist()
-    missing = {i: why for i in model.interfaces
-               if (why := _binary_problem(path, names, model.identifier_of(i), model.fmi)) is not None}
-    if len(missing) == len(model.interfaces):
-        raise FmuLoadError(next(iter(missing.values())))
-    return missing
+        found = {i: p for i in model.interfaces
+                 if (p := _binary_problem(path, zf, model.identifier_of(i), model.fmi, i)) is not None}
+    if len(found) == len(model.interfaces) and not any(present for _, present in found.values()):
+        raise FmuLoadError(next(iter(found.values()))[0])
+    return {i: why for i, (why, _) in found.items()}
 
 
 def _interfaces_checked(path: Path, md: Any) -> None:

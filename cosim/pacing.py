@@ -10,6 +10,8 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable
 
+from .words import count
+
 
 @dataclass
 class Pacer:
@@ -59,6 +61,6 @@ class Pacer:
     def describe(self) -> str:
         """One line for the end of a run."""
         if not self.overruns:
-            return f"real time x{self.factor:g}: no overruns in {self.steps} steps"
+            return f"real time x{self.factor:g}: no overruns in {count(self.steps, 'step')}"
         return (f"real time x{self.factor:g}: {self.overruns} of {self.steps} steps finished late "
                 f"(by up to {self.late_max_s * 1e3:.3g} ms, {self.late_sum_s / self.overruns * 1e3:.3g} ms on average)")

@@ -50,28 +50,35 @@ class ParallelJacobi(SteppedAlgorithm):
         for b in range(0, max(1, len(self.split)), n):
             batch = self.split[b:b + n]
             w0 = clock()
-            for i in batch:
-                f = ios[i].fast
-                assert f.start_step is not None
-                f.start_step(f.c, st.T, st.H)
-            if first:               # the instances in this process step while the first batch does
-                first = False
-                for i in self.serial:
-                    w = clock()
-                    fail = st.do_step(i, k, t, h)
-                    spent[i] += clock() - w
-                    if fail is not None:
-                        self._drain(batch)
-                        return fail
-            for j, i in enumerate(batch):
-                f = ios[i].fast
-                assert f.finish_step is not None
-                s = f.finish_step(False)
-                spent[i] += clock() - w0
-                st.n_do_steps += 1
-                if s:
-                    self._drain(batch[j + 1:])
-                    return Failure(k, ios[i].name, Call.DO_STEP, s, t)
+            started: list[int] = []   # the steps requested and not yet answered
+            try:
+                for i in batch:
+                    f = ios[i].fast
+                    assert f.start_step is not None
+                    f.start_step(f.c, st.T, st.H)
+                    started.append(i)
+                if first:               # the instances in this process step while the first batch does
+                    first = False
+                    for i in self.serial:
+                        w = clock()
+                        fail = st.do_step(i, k, t, h)
+                        spent[i] += clock() - w
+                        if fail is not None:
+                            self._drain(started)
+                            return fail
+                while started:
+                    i = started.pop(0)
+                    f = ios[i].fast
+                    assert f.finish_step is not None
+                    s = f.finish_step(False)
+                    spent[i] += clock() - w0
+                    st.n_do_steps += 1
+                    if s:
+                        self._drain(started)
+                        return Failure(k, ios[i].name, Call.DO_STEP, s, t)
+            except BaseException:   # a child that died, a Ctrl-C: the other steps started are answered first
+                self._drain(started)
+                raise
         for i in range(len(ios)):
             fail = st.get_outputs(i, k, t + h)
             if fail is not None:
@@ -79,8 +86,10 @@ class ParallelJacobi(SteppedAlgorithm):
         return None
 
     def _drain(self, started: list[int]) -> None:
-        """The answers of steps started before a failure (so that the children are idle again)."""
-        for i in started:
+        """The answers of steps started and not answered before a failure (so that the children are idle
+        again); ``started`` is emptied."""
+        while started:
+            i = started.pop(0)
             f = self.stepper.ios[i].fast
             if f.finish_step is not None:
                 try:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+from decimal import Decimal
 from pathlib import Path
 from typing import IO, Any
 
@@ -194,9 +195,31 @@ class RowBuffer:
         self.recorder.append(cols)
 
 
-def write_csv(npy_path: str | os.PathLike, csv_path: str | os.PathLike, chunk: int = CSV_CHUNK) -> None:
+def _decimals(x: float) -> int:
+    """The digits after the decimal point of ``x`` as Python writes it (0.002 -> 3, 1e-05 -> 5, 2.0 -> 0)."""
+    exponent = Decimal(repr(float(x))).as_tuple().exponent
+    return -exponent if isinstance(exponent, int) and exponent < 0 else 0
+
+
+def grid_times(times: np.ndarray, start: float, step: float) -> np.ndarray:
+    """The recorded times as the grid's: a time within rounding of a point ``start + k * step`` becomes
+    that point written with the decimals of ``start`` and ``step`` (0.30000000000000004 -> 0.3 for a step
+    of 0.002); a time off the grid (an FMU that ended the run between two points), and every time when
+    those decimals are more than a float64 holds, stays as recorded."""
+    d = max(_decimals(start), _decimals(step))
+    if d > 15:
+        return times
+    rounded = np.round(times, d)
+    near = np.abs(rounded - times) <= np.maximum(1e-9 * step, 64 * np.spacing(np.abs(times)))
+    return np.where(near, rounded, times)
+
+
+def write_csv(npy_path: str | os.PathLike, csv_path: str | os.PathLike, chunk: int = CSV_CHUNK, *,
+              start: float = 0.0, step: float | None = None) -> None:
     """The recording as CSV (header row of column names; floats at full precision, integers as integers,
-    booleans as 0/1), converted ``chunk`` rows at a time and renamed into place when complete."""
+    booleans as 0/1), converted ``chunk`` rows at a time and renamed into place when complete.  With the
+    grid's ``step`` (and ``start``) [s], the time column is written as the grid's times
+    (:func:`grid_times`: 0.3, not 0.30000000000000004); the .npy file keeps the values as computed."""
     data = np.load(npy_path, mmap_mode="r")
     names = data.dtype.names or ()
     csv_path = Path(csv_path)
@@ -210,6 +233,8 @@ def write_csv(npy_path: str | os.PathLike, csv_path: str | os.PathLike, chunk: i
                 # booleans as 0/1; integers as Python ints (an unsigned 64-bit value in full)
                 cols = [part[n].astype(np.int64).tolist() if data.dtype[n].kind == "b" else part[n].tolist()
                         for n in names]
+                if step is not None and "time" in names:
+                    cols[names.index("time")] = grid_times(np.asarray(part["time"]), start, step).tolist()
                 fh.writelines(line % row + "\n" for row in zip(*cols))
         os.replace(tmp, csv_path)
     except BaseException:  # interrupted or failed: no partial file left behind

@@ -1,6 +1,6 @@
 """A run's results: its folder (made, locked, emptied of an earlier run's files, or temporary), the
-resolved scenario written before the first step, and at the end signals.csv, summary.json and the
-:class:`RunResult` the drivers get."""
+resolved scenario written before the first step, and at the end signals.csv, signals.mat (when asked),
+summary.json and the :class:`RunResult` the drivers get."""
 from __future__ import annotations
 
 import dataclasses
@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from .matfile import layout, write_mat
 from .recording import OutputLock, make_folder, write_csv, write_json
 from .status import RunStatus
 from .system import Plan
@@ -31,12 +32,13 @@ class RunResult:
     columns: list[str]
     final: dict[str, float] = field(default_factory=dict)
     fmi_s: float | None = None  # time inside FMI calls (only with timing=True)
-    events: list[dict[str, Any]] = field(default_factory=list)   # the event log: time, event, action, ...
+    events: list[dict[str, Any]] = field(default_factory=list)   # the event table (.event_log): time, source, kind, what
     real_time: dict[str, Any] | None = None   # pacing: factor, steps, overruns, late_max_s, late_mean_s
     summary: dict[str, Any] = field(default_factory=dict)      # summary.json
     scenario: dict[str, Any] = field(default_factory=dict)     # scenario.json (the scenario as resolved)
     signals: np.ndarray | None = None   # the recording in memory (when the execution was asked to keep it)
     stepping: dict[str, Any] | None = None   # the algorithm's own counts (iterations, accepted/rejected steps)
+    events_left_out: int = 0   # entries of the event table beyond its limit (.event_log.MAX_ENTRIES)
 
 
 class ResultsFolder:
@@ -53,7 +55,7 @@ class ResultsFolder:
         """logs/ made, stale signals, summary and logs removed, scenario.json written."""
         out = self.path
         (out / "logs").mkdir(exist_ok=True)
-        for stale in ("signals.npy", "signals.csv", "summary.json"):
+        for stale in ("signals.npy", "signals.csv", "signals.mat", "summary.json"):
             (out / stale).unlink(missing_ok=True)
         for old in (out / "logs").glob("*.log"):
             old.unlink()
@@ -87,7 +89,8 @@ def summary(plan: Plan, res: RunResult, rows: int, logs: dict[str, tuple[int, in
     sc = plan.scenario
     return {
         "status": res.status, "message": res.message, "steps": res.steps, "n_steps": plan.n_steps,
-        "t_end": res.t_end, "step": sc.step, "algorithm": sc.algorithm, "wall_s": round(res.wall_s, 6),
+        "t_end": res.t_end, "step": sc.step, **({"last_step": plan.last_step} if plan.last_step is not None else {}),
+        "algorithm": sc.algorithm, "wall_s": round(res.wall_s, 6),
         "setup_s": round(res.setup_s, 6),
         "us_per_step": round(res.wall_s / res.steps * 1e6, 3) if res.steps else None,
         "rows": rows,
@@ -98,6 +101,7 @@ def summary(plan: Plan, res: RunResult, rows: int, logs: dict[str, tuple[int, in
         "columns": plan.columns(),
         "not_recorded": plan.not_recorded,
         "events": res.events,
+        **({"events_left_out": res.events_left_out} if res.events_left_out else {}),
         **({"real_time": res.real_time} if res.real_time is not None else {}),
         **({"stepping": res.stepping} if res.stepping is not None else {}),
     }
@@ -105,9 +109,13 @@ def summary(plan: Plan, res: RunResult, rows: int, logs: dict[str, tuple[int, in
 
 def write_results(folder: ResultsFolder, plan: Plan, res: RunResult, rows: int,
                   logs: dict[str, tuple[int, int]]) -> None:
-    """signals.csv (when the scenario asks for it and the folder is kept) and summary.json."""
+    """signals.csv and signals.mat (each when the scenario asks for it, the folder is kept and something
+    was recorded) and summary.json."""
     if res.final and folder.keep and plan.scenario.csv:
-        write_csv(folder.signals, folder.path / "signals.csv")
+        write_csv(folder.signals, folder.path / "signals.csv", start=plan.scenario.start or 0.0,
+                  step=plan.scenario.step)
+    if res.final and folder.keep and plan.scenario.mat:
+        write_mat(folder.path / "signals.mat", np.load(folder.signals, mmap_mode="r"), layout(plan))
     res.summary = summary(plan, res, rows, logs)
     write_json(folder.path / "summary.json", res.summary)
 

@@ -15,7 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from .archive import DEFAULT_LIMITS, ArchiveLimits, LimitOverrides, parse_limits
-from .coupling_spec import AdaptiveSpec, IterationSpec, SpecError, adaptive_spec, iteration_spec
+from .coupling_spec import (ADAPTIVE_KEYS, ITERATION_KEYS, AdaptiveSpec, IterationSpec, SpecError, adaptive_spec,
+                            iteration_spec)
 from .errors import OtherFileError, ScenarioError
 from .integrators import SOLVERS
 from .kinds import FileKind, file_kind
@@ -39,7 +40,7 @@ _EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", 
 _INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "override_declared_units", "description", "logging", "isolate",
                   "step_timeout", "tolerance", "interface", "step", *SOLVER_KEYS}
 _CONNECTION_KEYS = {"from", "to", "factor", "offset", "convert", "threshold"}
-_RECORD_KEYS = {"variables", "decimation", "csv", "max_bytes"}
+_RECORD_KEYS = {"variables", "decimation", "csv", "mat", "max_bytes"}
 _RUN_KEYS = {"name", "description", "parameters", "carry"}
 _VARIANT_KEYS = {"description", "parameters"}
 _EVENT_KEYS = {"time", "when", "trigger", "delay", "variable", "action", "value"}
@@ -139,12 +140,15 @@ class Scenario:
     decimation: int = 1
     events: list[EventSpec] = field(default_factory=list)
     csv: bool = True
+    mat: bool = False               # also signals.mat, Dymola's result layout (cosim.matfile)
     runs: list[RunSpec] = field(default_factory=list)
     variants: dict[str, dict[str, Any]] = field(default_factory=dict)
     inputs_file: Path | None = None                      # a CSV table of input signals
     interpolation: dict[str, str] = field(default_factory=dict)  # column -> "linear" | "hold"
     data: dict[str, Any] = field(default_factory=dict)  # the merged document, as run
     archive_limits: ArchiveLimits = DEFAULT_LIMITS      # how far its FMU and SSP archives may unpack ([limits])
+    notes: list[str] = field(default_factory=list)      # what check and run print of it (a table not read)
+    tools_choice: set[str] = field(default_factory=set)  # fields given as 0, "the tool's choice" (TOOLS_CHOICE)
 
     def times(self) -> tuple[float, float, float]:
         """start, stop and step [s] once all three are known (given, or filled in by the resolution);
@@ -312,7 +316,8 @@ def parse(doc: dict[str, Any], file: str, resolver=None, limits: LimitOverrides 
     archives and documents built in code all come through here, so every check exists once.
 
     ``resolver(model_name) -> Path | None`` turns an FMU given by model name (e.g. ``WmrPlant``) into a
-    file; without one, every ``fmu`` must be a path.  ``limits``: the caller's archive limits, each given
+    file; without one, every ``fmu`` must be a path.  A resolver's attribute ``model_names`` (where it has
+    one) lists the names it knows, for the suggestion when a name is not one of them.  ``limits``: the caller's archive limits, each given
     one over the document's ``[limits]`` (the scenario's ``archive_limits``).
     """
     sc = Scenario(file=file, data=doc, archive_limits=parse_limits(file, doc.get("limits"), limits))
@@ -333,6 +338,9 @@ def _parse_experiment(sc: Scenario, doc: dict[str, Any]) -> None:
     _keys(file, "experiment", exp, _EXPERIMENT_KEYS)
     for key in ("start", "stop", "step", "tolerance"):
         if key in exp:
+            if key in TOOLS_CHOICE and not isinstance(exp[key], bool) and exp[key] == 0:
+                sc.tools_choice.add(key)   # left to this master: filled in when the FMUs are known
+                continue
             setattr(sc, key, _num(file, f"experiment.{key}", exp[key], positive=key in ("step", "tolerance")))
     if "max_steps" in exp:
         sc.max_steps = _count(file, "experiment.max_steps", exp["max_steps"])
@@ -349,8 +357,9 @@ def _parse_experiment(sc: Scenario, doc: dict[str, Any]) -> None:
 
 
 def _parse_stepping(sc: Scenario, exp: dict[str, Any]) -> None:
-    """[experiment.iteration] and [experiment.adaptive]: the settings of the algorithm that uses them (a
-    table the algorithm would not read is refused: it would be silently ignored)."""
+    """[experiment.iteration] and [experiment.adaptive]: the settings of the algorithm that uses them,
+    checked as given.  A table the algorithm does not read (the algorithm switched to "gauss-seidel" with
+    ``--set``, say) is checked too but left unused, and a note says so (``check`` and ``run`` print it)."""
     file = sc.file
     try:
         if "iteration" in exp:
@@ -358,17 +367,20 @@ def _parse_stepping(sc: Scenario, exp: dict[str, Any]) -> None:
             iterated = sc.algorithm == "iterated" or (
                 sc.algorithm == "adaptive" and
                 str(_table(file, "experiment.adaptive", exp.get("adaptive")).get("coupling", "")).lower() == "iterated")
-            if not iterated:
-                raise ScenarioError(file, "experiment.iteration",
-                                    f"is read by algorithm = \"iterated\" (or \"adaptive\" with coupling = "
-                                    f"\"iterated\") only, not by {sc.algorithm!r}")
-            sc.iteration = iteration_spec(table)
+            spec = iteration_spec(table)
+            if iterated:
+                sc.iteration = spec
+            else:
+                sc.notes.append(f"[experiment.iteration] is not read under algorithm = {sc.algorithm!r} (it is read "
+                                "by \"iterated\", and by \"adaptive\" with coupling = \"iterated\")")
         if "adaptive" in exp:
             table = _table(file, "experiment.adaptive", exp["adaptive"])
-            if sc.algorithm != "adaptive":
-                raise ScenarioError(file, "experiment.adaptive",
-                                    f"is read by algorithm = \"adaptive\" only, not by {sc.algorithm!r}")
-            sc.adaptive = adaptive_spec(table, sc.step)
+            spec_a = adaptive_spec(table, sc.step)
+            if sc.algorithm == "adaptive":
+                sc.adaptive = spec_a
+            else:
+                sc.notes.append(f"[experiment.adaptive] is not read under algorithm = {sc.algorithm!r} (it is read "
+                                "by \"adaptive\")")
     except SpecError as exc:
         raise ScenarioError(file, exc.key, exc.reason) from None
 
@@ -398,7 +410,8 @@ def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:
         else:
             path = resolver(fmu) if resolver is not None else None
             if path is None:
-                raise ScenarioError(file, f"{fld}.fmu", f"unknown model name {fmu!r} and not a path to an .fmu file")
+                raise ScenarioError(file, f"{fld}.fmu", f"unknown model name {fmu!r} and not a path to an .fmu file"
+                                                        f"{did_you_mean(fmu, getattr(resolver, 'model_names', ()))}")
         params = _table(file, f"{fld}.parameters", inst.get("parameters"))
         names = _table(file, f"{fld}.names", inst.get("names"))
         for their, ours in names.items():
@@ -481,7 +494,7 @@ def _parse_connections(sc: Scenario, doc: dict[str, Any]) -> None:
 
 
 def _parse_record(sc: Scenario, doc: dict[str, Any]) -> None:
-    """[record]: the variables (names or patterns), decimation, CSV."""
+    """[record]: the variables (names or patterns), decimation, CSV, MAT."""
     file = sc.file
     rec = _table(file, "record", doc.get("record"))
     _keys(file, "record", rec, _RECORD_KEYS)
@@ -497,6 +510,10 @@ def _parse_record(sc: Scenario, doc: dict[str, Any]) -> None:
     if not isinstance(csv, bool):
         raise ScenarioError(file, "record.csv", f"{csv!r}: must be true or false")
     sc.csv = csv
+    mat = rec.get("mat", False)
+    if not isinstance(mat, bool):
+        raise ScenarioError(file, "record.mat", f"{mat!r}: must be true or false")
+    sc.mat = mat
     if "max_bytes" in rec:
         sc.max_bytes = _count(file, "record.max_bytes", rec["max_bytes"])
 
@@ -617,30 +634,88 @@ def _parse_events(sc: Scenario, doc: dict[str, Any]) -> None:
 
 
 def check_experiment(sc: Scenario, where: str = "experiment") -> None:
-    """The run's times: stop after start, a step that divides the run into whole steps."""
+    """The run's times: stop after start, a finite number of steps (a step that does not divide the run
+    ends it with a short last step: see :func:`steps_of`; whether every instance can take one is checked
+    with the FMUs)."""
     file = sc.file
     start, stop, step = sc.times()
     if stop <= start:
         raise ScenarioError(file, f"{where}.stop", f"{stop!r} is not after the start {start!r}")
-    n = (stop - start) / step
-    if not math.isfinite(n) or abs(n - round(n)) > 1e-6 * max(1.0, n):
-        raise ScenarioError(file, f"{where}.step",
-                            f"{step!r} s does not divide the run {start!r}..{stop!r} s into whole steps")
+    if not math.isfinite((stop - start) / step):
+        raise ScenarioError(file, f"{where}.step", f"{step!r} s: not a finite number of steps from {start!r} to "
+                                                   f"{stop!r} s")
 
+
+def steps_of(start: float, stop: float, step: float) -> tuple[int, float | None]:
+    """The number of communication steps from ``start`` to ``stop`` [s] and the length [s] of a short last
+    step (None when ``step`` divides the run into whole steps, to within 1e-6 of a step): the steps from
+    start + k step, k = 0 .. n - 2, then the last one to ``stop``, as FMPy ends a run."""
+    n = (stop - start) / step
+    whole = round(n)
+    if abs(n - whole) <= 1e-6 * max(1.0, n) and whole >= 1:
+        return int(whole), None
+    n_steps = int(math.ceil(n))
+    return n_steps, stop - (start + (n_steps - 1) * step)
+
+
+
+#: The [experiment] fields that 0 leaves to the master, as the FMI Cross-Check's option files say
+#: "StepSize 0" and "RelTol 0": the step the FMUs' default experiments give, else (stop - start) / 500 as
+#: FMPy chooses; the tolerance each FMU's own (see :func:`cosim.system.resolve`, which notes the value used).
+TOOLS_CHOICE = ("step", "tolerance")
 
 
 #: The tables whose fields ``--set`` may also set ("experiment.stop=5", "record.variables=[...]"), with
 #: their fields; an instance of the same name takes precedence.
 SET_TABLES = {"experiment": _EXPERIMENT_KEYS, "record": _RECORD_KEYS}
+#: The tables inside those whose keys ``--set`` may set ("experiment.iteration.method=newton"), with their
+#: keys; the table is made when the document has none.
+SET_SUBTABLES = {("experiment", "iteration"): ITERATION_KEYS, ("experiment", "adaptive"): ADAPTIVE_KEYS}
+
+
+def _subtable(doc: dict[str, Any], file: str, path: tuple[str, ...]) -> dict[str, Any]:
+    """The table at ``path`` ("experiment", "iteration") of the document, made where it is missing;
+    ScenarioError naming it where the document has something else there."""
+    table = doc
+    for i, key in enumerate(path):
+        table = table.setdefault(key, {})
+        if not isinstance(table, dict):
+            raise ScenarioError(file, ".".join(path[:i + 1]), "must be a table")
+    return table
+
+
+def _set_table_field(doc: dict[str, Any], file: str, fld: str, inst: str, var: str, value: Any) -> None:
+    """``--set experiment.FIELD=VALUE`` (or record.FIELD, or a key of a table inside one:
+    experiment.iteration.method): the field set in the document, made where missing, for the scenario's
+    checks to judge as the file's own; an unknown field refused naming the ``--set``."""
+    head, dot, key = var.partition(".")
+    if dot and (inst, head) in SET_SUBTABLES:
+        known = SET_SUBTABLES[(inst, head)]
+        if key not in known:
+            raise ScenarioError(file, fld, f"unknown {inst}.{head} field {key!r} (allowed: "
+                                           f"{', '.join(sorted(known))}){did_you_mean(key, known)}")
+        _subtable(doc, file, (inst, head))[key] = value
+        return
+    if var not in SET_TABLES[inst]:
+        nested = "".join(f", {t}.KEY" for s, t in SET_SUBTABLES if s == inst)
+        raise ScenarioError(file, fld, f"unknown {inst} field {var!r} (allowed: {', '.join(sorted(SET_TABLES[inst]))}"
+                                       f"{nested}){did_you_mean(var, SET_TABLES[inst])}")
+    insts = doc["instances"]
+    if (inst, var) == ("record", "variables"):   # one name alone; with one instance, its variables
+        value = [value] if isinstance(value, str) else value
+        if isinstance(value, list) and len(insts) == 1:
+            value = [f"{next(iter(insts))}.{v}" if isinstance(v, str) and "." not in v else v for v in value]
+    _subtable(doc, file, (inst,))[var] = value
 
 
 def apply_overrides(doc: dict[str, Any], overrides: dict[str, Any] | None, file: str) -> dict[str, Any]:
     """Set ``overrides`` ({'inst.param': value}, from ``--set`` or the API) as parameters in a document.
 
     A key without an instance (``"e"``) is the variable of the document's one instance (refused when it
-    has several); ``"experiment.FIELD"`` and ``"record.FIELD"`` set a field of [experiment] or [record]
-    (unless an instance is so named), checked as the file's own values are (``record.variables``: a name
-    alone is the variable of the one instance, as in a key)."""
+    has several); ``"experiment.FIELD"`` and ``"record.FIELD"`` set a field of [experiment] or [record],
+    and ``"experiment.iteration.KEY"``, ``"experiment.adaptive.KEY"`` a key of those tables, made when
+    missing (unless an instance is so named), checked as the file's own values are (``record.variables``:
+    a name alone is the variable of the one instance, as in a key)."""
     for ref, value in (overrides or {}).items():
         fld = f"--set {ref}"
         insts = doc.setdefault("instances", {})
@@ -650,17 +725,7 @@ def apply_overrides(doc: dict[str, Any], overrides: dict[str, Any] | None, file:
         if not isinstance(insts, dict):
             raise ScenarioError(file, "instances", "must be a table")
         if inst not in insts and inst in SET_TABLES:
-            if var not in SET_TABLES[inst]:
-                raise ScenarioError(file, fld, f"unknown {inst} field {var!r} (allowed: "
-                                               f"{', '.join(sorted(SET_TABLES[inst]))}){did_you_mean(var, SET_TABLES[inst])}")
-            table = doc.setdefault(inst, {})
-            if not isinstance(table, dict):
-                raise ScenarioError(file, inst, "must be a table")
-            if (inst, var) == ("record", "variables"):   # one name alone; with one instance, its variables
-                value = [value] if isinstance(value, str) else value
-                if isinstance(value, list) and len(insts) == 1:
-                    value = [f"{next(iter(insts))}.{v}" if isinstance(v, str) and "." not in v else v for v in value]
-            table[var] = value
+            _set_table_field(doc, file, fld, inst, var, value)
             continue
         if inst not in insts:
             raise ScenarioError(file, fld, f"unknown instance {inst!r}"

@@ -10,16 +10,19 @@ nothing changes, exit initialisation mode.
 from __future__ import annotations
 
 import ctypes
+import os
 import time as _time
 from pathlib import Path
 from typing import Any, Callable
 
 from .algorithm import InstanceIO, RecordedGetter
 from .archive import safe_extract
+from .binary import load_failure
+from .errors import CosimError, FmuLoadError
 from .fmu_instance import FmuInstance
 from .instance import Instance, Instance3, vr_array
 from .me_instance import model_exchange
-from .system import Plan, RecordPlan
+from .system import InstancePlan, Plan, RecordPlan
 from .wiring import RowLayout, Wiring, discrete_copier, is_f64, is_real, table_feeder
 
 
@@ -34,17 +37,30 @@ def load_instances(plan: Plan, work: Path, logs: Path) -> dict[str, FmuInstance]
         p = ip.model.path.resolve()
         if p not in unz:
             unz[p] = str(safe_extract(p, work / f"{len(unz)}_{p.stem}", plan.archive_limits))
-        log = logs / f"{name}.log"
+        instances[name] = _host(name, ip, unz[p], logs / f"{name}.log", n_isolated)
+    return instances
+
+
+def _host(name: str, ip: InstancePlan, unzipdir: str, log: Path, n_isolated: int) -> FmuInstance:
+    """Instance ``name`` hosted: in a child process, as model exchange, or as co-simulation here.  A binary
+    the loader refuses (``check`` reads its header and exports, not what it links against) ends the run
+    with one line naming the instance, the FMU and the loader's reason; FMPy changes the working folder to
+    the binary's for the load and leaves it there when the load fails: it is restored here."""
+    cwd = os.getcwd()
+    try:
         if ip.spec.isolate:
             from .isolation import IsolatedInstance, spin_for
-            instances[name] = IsolatedInstance(name, ip.model.md, unz[p], log, ip.spec.logging,
-                                               ip.spec.step_timeout or 60.0, spin_for(n_isolated), ip.solver)
-        elif ip.solver is not None:   # model exchange
-            instances[name] = model_exchange(name, ip.model.md, unz[p], log, ip.spec.logging, ip.solver)
-        else:
-            cls = Instance3 if ip.model.fmi == 3 else Instance
-            instances[name] = cls(name, ip.model.md, unz[p], log, ip.spec.logging)
-    return instances
+            return IsolatedInstance(name, ip.model.md, unzipdir, log, ip.spec.logging,
+                                    ip.spec.step_timeout or 60.0, spin_for(n_isolated), ip.solver)
+        if ip.solver is not None:   # model exchange
+            return model_exchange(name, ip.model.md, unzipdir, log, ip.spec.logging, ip.solver)
+        cls = Instance3 if ip.model.fmi == 3 else Instance
+        return cls(name, ip.model.md, unzipdir, log, ip.spec.logging)
+    except CosimError:
+        raise
+    except Exception as exc:   # FMPy raises a plain Exception when the library does not load
+        os.chdir(cwd)
+        raise FmuLoadError(f"{name}: {ip.model.path.name}: {load_failure(exc, unzipdir)}") from None
 
 
 def recorded_types(plan: Plan) -> list[str]:

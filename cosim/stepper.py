@@ -150,7 +150,7 @@ class Stepper:
         clock, lay = self.clock, self.layout
         ended = self.ended()
         if (k + 1) % clock.decimation == 0 or k + 1 == clock.n_steps or ended is not None:
-            lay.row[0] = clock.start + (k + 1) * clock.step
+            lay.row[0] = clock.time(k + 1)
             for io in self.ios:
                 for x in io.extras:
                     s = x.get(x.vrs, x.n, x.buf, x.nv)
@@ -217,7 +217,7 @@ class SteppedAlgorithm(Algorithm):
     def advance(self, k0: int, k1: int) -> Failure | None:
         c = self.clock
         for k in range(k0, k1):
-            fail = self.take(k, c.start + k * c.step, c.step) or self.stepper.record(k)
+            fail = self.take(k, c.time(k), c.length(k)) or self.stepper.record(k)
             if fail is not None:
                 return fail
         return None

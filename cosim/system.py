@@ -19,7 +19,7 @@ import dataclasses
 import math
 import re
 from dataclasses import dataclass, field
-from typing import Any, cast
+from typing import Any, Callable, cast
 
 import numpy as np
 
@@ -28,10 +28,11 @@ from .errors import CosimError, FmuLoadError, ScenarioError
 from .inputs import InputPlan, read_inputs
 from .coupling_spec import SpecError, check_adaptive
 from .integrators import DEFAULT_EVENT_TOLERANCE, DEFAULT_RTOL, SolverSpec
+from .kinds import FileKind, file_kind
 from .loops import Coupling, check_iteration, coupling
 from .model import INTERFACE_NAMES, PY_TYPES, FmuModel, Variable, load_model
 from .scenario import (CO_SIMULATION, MODEL_EXCHANGE, SOLVER_KEYS, ConnectionSpec, InstanceSpec, Scenario,
-                       check_experiment, split_ref)
+                       check_experiment, split_ref, steps_of)
 from .suggest import did_you_mean
 from .units import conversion, lookup, same_unit, units_of
 
@@ -137,6 +138,7 @@ class Plan:
     internal_steps: dict[str, int] = field(default_factory=dict)   # instance -> its fixed internal steps over the run
     archive_limits: ArchiveLimits = DEFAULT_LIMITS   # the scenario's: what extracting its FMUs may unpack
     coupling: Coupling = field(default_factory=Coupling)   # its coupling loops and algebraic loops
+    last_step: float | None = None   # [s] a short last step, where the step does not divide the run
 
     @property
     def watched(self) -> list[tuple[str, Variable]]:
@@ -216,24 +218,36 @@ def check_carried(file: str, fld: str, plan: Plan, ref: str, value: Any) -> None
     checked_value(file, fld, var, value, check_range=False)
 
 
-def variable(file: str, fld: str, inst: InstancePlan, name: str) -> Variable:
+#: What fits the place a variable is named in, for the suggestion of a misspelt name: what a connection
+#: reads, what it drives, what an instance's ``parameters`` (and ``--set``) set.
+OUTPUTS: Callable[[Variable], bool] = lambda v: v.causality == "output"
+INPUTS: Callable[[Variable], bool] = lambda v: v.causality == "input"
+PARAMETERS: Callable[[Variable], bool] = lambda v: v.causality == "parameter"
+
+
+def variable(file: str, fld: str, inst: InstancePlan, name: str,
+             fits: Callable[[Variable], bool] | None = None) -> Variable:
     """The variable the scenario calls ``name`` in instance ``inst`` (through its name map), or
-    ScenarioError naming ``file`` and ``fld`` (with the nearest names)."""
+    ScenarioError naming ``file`` and ``fld`` with the nearest name among the variables that ``fits`` the
+    place (:data:`INPUTS`, :data:`OUTPUTS`, :data:`PARAMETERS`; None: any)."""
     theirs = inst.ours_to_theirs.get(name, name)
     var = inst.model.variables.get(theirs)
     if var is None:
         mapped = f" (mapped to {theirs!r})" if theirs != name else ""
+        known = (inst.our_name(v) for v in inst.model.variables.values() if fits is None or fits(v))
         raise ScenarioError(file, fld, f"{inst.name} ({inst.model.path.name}) has no variable {name!r}{mapped}"
-                                       f"{did_you_mean(name, map(inst.our_name, inst.model.variables.values()))}")
+                                       f"{did_you_mean(name, known)}")
     return var
 
 
 _ELEMENT = re.compile(r"^(.*)\[(\d+(?:,\d+)*)\]$")
 
 
-def _element(file: str, fld: str, inst: InstancePlan, name: str) -> tuple[Variable, int | None]:
+def _element(file: str, fld: str, inst: InstancePlan, name: str,
+             fits: Callable[[Variable], bool] | None = None) -> tuple[Variable, int | None]:
     """A variable, or one element of an FMI 3.0 array (``y[2]``, ``A[1,2]``: 1-based, row-major) with its
-    flat index; an FMI name that is itself spelled with brackets (FMI 2.0's ``x[1]``) is a variable."""
+    flat index; an FMI name that is itself spelled with brackets (FMI 2.0's ``x[1]``) is a variable
+    (``fits``: see :func:`variable`)."""
     theirs = inst.ours_to_theirs.get(name, name)
     if theirs in inst.model.variables:
         return inst.model.variables[theirs], None
@@ -248,7 +262,7 @@ def _element(file: str, fld: str, inst: InstancePlan, name: str) -> tuple[Variab
             for i, d in zip(idx, base.shape):
                 flat = flat * d + (i - 1)
             return base, flat
-    return variable(file, fld, inst, name), None
+    return variable(file, fld, inst, name, fits), None
 
 
 def unit_of(inst: InstancePlan, var: Variable):
@@ -304,9 +318,10 @@ def _connection_types(file: str, fld: str, c: ConnectionSpec, svar: Variable, dv
     return 1.0, 0.0
 
 
-def _experiment(sc: Scenario, models: dict[str, FmuModel]) -> None:
+def _experiment(sc: Scenario, models: dict[str, FmuModel], notes: list[str]) -> None:
     """Fill start, stop and step the scenario leaves open from the FMUs' default experiments (refused
-    where they disagree), then check the run's times.  (A tolerance is each FMU's own: see
+    where they disagree; a step given as 0 with none there is (stop - start) / 500, and ``notes`` says
+    which value 0 took), then check the run's times.  (A tolerance is each FMU's own: see
     :func:`_tolerances`.)"""
     attrs = {"start": "startTime", "stop": "stopTime", "step": "stepSize"}
     for key, attr in attrs.items():
@@ -326,8 +341,13 @@ def _experiment(sc: Scenario, models: dict[str, FmuModel]) -> None:
             setattr(sc, key, next(iter(found.values())))
         elif key == "start":
             sc.start = 0.0
+        elif key == "step" and key in sc.tools_choice and sc.stop is not None and sc.start is not None:
+            sc.step = (sc.stop - sc.start) / 500   # FMPy's choice (start and stop are filled in by now)
         elif key in ("stop", "step"):
             raise ScenarioError(sc.file, f"experiment.{key}", "not given, and no FMU's default experiment gives one")
+        if key in sc.tools_choice:
+            how = "the FMUs' default experiment" if found else "(stop - start) / 500, as FMPy chooses"
+            notes.append(f"experiment.{key} = 0 (the tool's choice): {getattr(sc, key)!r} s, {how}")
     check_experiment(sc)
     start, stop, step = sc.times()
     n = (stop - start) / step
@@ -352,19 +372,40 @@ def _internal_steps(sc: Scenario, insts: dict[str, InstancePlan]) -> dict[str, i
             raise ScenarioError(sc.file, "experiment.stop", f"{name} ({ip.model.path.name}) takes fixed internal steps "
                                                             f"of {h:g} s: {n:.3g} from {start!r} to {stop!r} s, "
                                                             f"more than max_internal_steps = {sc.max_internal_steps} "
-                                                            "(a shorter run: experiment.stop or --stop; or raise "
+                                                            f"({_variable_step_hint(sc, ip)}a shorter run: "
+                                                            "experiment.stop or --stop; or raise "
                                                             "experiment.max_internal_steps, or --force)")
         out[name] = int(math.ceil(n - 1e-9))
     return out
 
 
-def _tolerances(sc: Scenario, insts: dict[str, InstancePlan]) -> None:
+def _variable_step_hint(sc: Scenario, ip: InstancePlan) -> str:
+    """For an FMU refused for its fixed internal steps that has a Model Exchange interface too: how to run
+    that one instead, which the master integrates with steps of its own ("--solver cvode" for one FMU run
+    alone, the instance's ``solver`` in a scenario); "" for one without."""
+    if not ip.model.has_me:
+        return ""
+    if file_kind(sc.file) is FileKind.FMU:
+        how = "--solver cvode"
+    elif ip.spec.interface == CO_SIMULATION:
+        how = f'instances.{ip.name}.interface = "model-exchange" and solver = "cvode"'
+    else:
+        how = f'instances.{ip.name}.solver = "cvode"'
+    return f"it also has a Model Exchange interface, which the master integrates with steps of its own: {how}; or "
+
+
+def _tolerances(sc: Scenario, insts: dict[str, InstancePlan], notes: list[str]) -> None:
     """Each FMU's solver tolerance: its instance's ``tolerance``, else the experiment's, else the one of
-    its own default experiment, else none (toleranceDefined false)."""
+    its own default experiment, else none (toleranceDefined false); a note of the values the experiment's
+    tolerance given as 0 left."""
     for ip in insts.values():
         de = ip.model.md.defaultExperiment
         own = getattr(de, "tolerance", None) if de is not None else None
         ip.tolerance = next((float(t) for t in (ip.spec.tolerance, sc.tolerance, own) if t is not None), None)
+    if "tolerance" in sc.tools_choice:
+        each = ", ".join(f"{n} {'none' if ip.tolerance is None else repr(ip.tolerance)}" for n, ip in insts.items())
+        notes.append(f"experiment.tolerance = 0 (the tool's choice): each FMU's own ({each}; a model exchange "
+                        f"integrator without one takes rtol {DEFAULT_RTOL!r})")
 
 
 def _record(sc: Scenario, insts: dict[str, InstancePlan]) -> tuple[list[RecordPlan], list[str]]:
@@ -424,7 +465,7 @@ def _inputs(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str
             if len(insts) != 1:
                 raise ScenarioError(file, f"inputs.{col}", "a column must be named \"instance.variable\"")
             inst, name = next(iter(insts)), col
-        var = variable(file, f"inputs.{col}", insts[inst], name)
+        var = variable(file, f"inputs.{col}", insts[inst], name, INPUTS)
         if var.causality != "input":
             raise ScenarioError(file, f"inputs.{col}", f"{var.name} is {var.causality}, not an input")
         if (inst, var.name) in driven:
@@ -439,8 +480,7 @@ def _inputs(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str
             raise ScenarioError(file, exc.field, f"{exc.reason} (a column of {sc.inputs_file})") from None
 
     start, stop, step = sc.times()
-    n_steps = int(round((stop - start) / step))
-    grid = start + np.arange(n_steps) * step
+    grid = start + np.arange(steps_of(start, stop, step)[0]) * step
     return read_inputs(sc.inputs_file, file, sc.interpolation, column, grid)
 
 
@@ -462,6 +502,10 @@ def _events(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str
                 raise ScenarioError(file, f"{fld}.time", f"{e.time!r} is outside the run {start!r}..{stop!r} s "
                                                          "(an event at the stop time would never act)")
             k = int(math.ceil((e.time - start) / step - 1e-9))
+            if k >= steps_of(start, stop, step)[0]:
+                raise ScenarioError(file, f"{fld}.time", f"{e.time!r} is inside the short last step, after the "
+                                                         f"last point of the step's grid before the stop {stop!r} "
+                                                         "s: it would never act")
         reads = _condition_reads(file, f"{fld}.when", e, insts) if e.condition is not None else {}
         if e.action == "stop":
             events.append(EventPlan(e.time, k, None, None, "stop", None, None, e.index, e.when, e.condition,
@@ -529,25 +573,25 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
     give filled in (``plan.scenario``)."""
     sc = _planned_copy(sc, force, isolate_all)
     insts, notes = _instance_plans(sc)
-    _experiment(sc, {n: ip.model for n, ip in insts.items()})
-    _tolerances(sc, insts)
+    _experiment(sc, {n: ip.model for n, ip in insts.items()}, notes)
+    _tolerances(sc, insts, notes)
     _solvers(sc, insts)
     internal = _internal_steps(sc, insts)
     conns, driven = _connection_plans(sc, insts)
     _rates(sc, insts, conns)
     _workers(sc, insts, notes)
     coupled = coupling(sc.order, insts, conns)
+    _check_stepping(sc, insts)
     check_iteration(sc, insts, coupled)
-    _check_stepping(sc)
     record, not_recorded = _record(sc, insts)
     inputs = _inputs(sc, insts, driven)
     start, stop, step = sc.times()
-    n_steps = int(round((stop - start) / step))
+    n_steps, last_step = steps_of(start, stop, step)
     checked = _events(sc, insts, driven, inputs)
     events = sorted((ev for ev in checked if ev.condition is None), key=lambda ev: ev.step)  # stable within a step
     conditions = [ev for ev in checked if ev.condition is not None]
     plan = Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs, not_recorded,
-                conditions, notes, internal, sc.archive_limits, coupled)
+                conditions, notes, internal, sc.archive_limits, coupled, last_step)
     _check_recording_size(plan)
     return plan
 
@@ -577,7 +621,7 @@ def _rates(sc: Scenario, insts: dict[str, InstancePlan], conns: list[ConnectionP
     exchanged is the latest at the receiver's step points, as libcosim exchanges them); only the fixed-step
     one-pass algorithms step instances at their own rates."""
     start, stop, base = sc.times()
-    n_steps = int(round((stop - start) / base))
+    n_steps, last = steps_of(start, stop, base)
     for name, ip in insts.items():
         own = ip.spec.step
         if own is None:
@@ -588,7 +632,7 @@ def _rates(sc: Scenario, insts: dict[str, InstancePlan], conns: list[ConnectionP
         if m < 1 or abs(d - m) > 1e-9 * max(1.0, d):
             raise ScenarioError(sc.file, fld, f"{own!r} s is not a whole multiple of the experiment's step "
                                               f"{base!r} s")
-        if n_steps % m:
+        if n_steps % m or (last is not None and m > 1):
             raise ScenarioError(sc.file, fld, f"{own!r} s does not divide the run {start!r}..{stop!r} s "
                                               f"({n_steps} steps of {base!r} s) into whole steps")
         if m > 1 and sc.algorithm not in ("gauss-seidel", "jacobi"):
@@ -604,9 +648,29 @@ def _rates(sc: Scenario, insts: dict[str, InstancePlan], conns: list[ConnectionP
                                 f"connected instances' rates must divide one another")
 
 
-def _check_stepping(sc: Scenario) -> None:
-    """The step-size control's bounds against the output interval (known only now, when the FMUs' default
-    experiments may give the step)."""
+def _check_stepping(sc: Scenario, insts: dict[str, InstancePlan]) -> None:
+    """The step-size control, and a short last step (a step that does not divide the run), vary an
+    instance's communication step: refused, naming the instance, where a co-simulation FMU declares it
+    cannot take steps of varying length (canHandleVariableCommunicationStepSize false: a sampled-data block
+    whose sample period is its step); then the step-size control's bounds against the output interval (known only now, when the FMUs' default experiments may
+    give the step)."""
+    start, stop, step = sc.times()
+    last = steps_of(start, stop, step)[1]
+    for name in sc.order:
+        ip = insts[name]
+        if ip.interface != CO_SIMULATION or ip.model.can_vary_step:
+            continue
+        cannot = (f"{ip.model.path.name} declares canHandleVariableCommunicationStepSize = false (it takes steps "
+                  "of one length only)")
+        if sc.algorithm == "adaptive":
+            raise ScenarioError(sc.file, f"instances.{name}",
+                                f"{cannot}, and the step-size control (algorithm = \"adaptive\") varies every "
+                                "instance's step: run it under a fixed-step algorithm")
+        if last is not None:
+            raise ScenarioError(sc.file, "experiment.stop",
+                                f"the step {step!r} s does not divide the run {start!r}..{stop!r} s, which would "
+                                f"end with a short step of {last:.6g} s; {name}: {cannot}: give a stop time on "
+                                "the step's grid")
     if sc.adaptive is None:
         return
     try:
@@ -662,7 +726,7 @@ def _instance_plan(sc: Scenario, name: str, spec: InstanceSpec, notes: list[str]
             notes.append(note)
     for pname, value in spec.parameters.items():
         fld = f"instances.{name}.parameters.{pname}"
-        var = variable(file, fld, ip, pname)
+        var = variable(file, fld, ip, pname, PARAMETERS)
         reason = var.settable()
         if reason:
             raise ScenarioError(file, fld, reason)
@@ -722,8 +786,8 @@ def _connection_plan(file: str, c: ConnectionSpec, insts: dict[str, InstancePlan
     fld = f"connections[{c.index}]"
     si, sv = split_ref(file, f"{fld}.from", c.src)
     di, dv = split_ref(file, f"{fld}.to", c.dst)
-    svar, src_elem = _element(file, f"{fld}.from", insts[si], sv)
-    dvar, dst_elem = _element(file, f"{fld}.to", insts[di], dv)
+    svar, src_elem = _element(file, f"{fld}.from", insts[si], sv, OUTPUTS)
+    dvar, dst_elem = _element(file, f"{fld}.to", insts[di], dv, INPUTS)
     if dst_elem is not None:
         raise ScenarioError(file, f"{fld}.to", f"{c.dst}: an element of an input array cannot be a target "
                                                f"(connect the whole array {dvar.name})")

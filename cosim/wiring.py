@@ -191,24 +191,30 @@ class Wiring:
         return arr
 
     def copies(self, inst: str) -> list[Copy]:
-        """The copies that set ``inst``'s Real inputs, with the overrides in force."""
+        """The copies that set ``inst``'s Real inputs, with the overrides in force: an override of the input
+        replaces its value; else what its connection carries (the source output's override as it is, or the
+        output with its bias through the connection's transform) plus the input's own bias (in the input's
+        unit), the two biases adding up.  An override is read from an array of its own, so that a new value
+        needs no new loop."""
         out = []
         for pos, (vr, _) in enumerate(self.values[inst]):
             _, arr, i, f, o = self.base[(inst, pos)]
             key = (inst, vr, "input")
             ov = self.overrides.get(key)
-            if ov is None and (inst, pos) in self.feeds:
-                src, svr = self.feeds[(inst, pos)]
-                key = (src, svr, "output")
-                ov = self.overrides.get(key)
-                if ov is not None and ov[0] == "bias":  # a bias on the output, before the connection's transform
-                    ov = ("bias", ov[1] * f)
-            if ov is None:
-                out.append(Copy(pos, arr, i, f, o))
-            elif ov[0] == "override":   # read from an array of its own, so a new value needs no new loop
+            if ov is not None and ov[0] == "override":
                 out.append(Copy(pos, self._held_value(key, ov[1]), 0, 1.0, 0.0))
-            else:
-                out.append(Copy(pos, arr, i, f, o + ov[1]))
+                continue
+            bias = ov[1] if ov is not None else 0.0
+            if (inst, pos) in self.feeds:
+                src, svr = self.feeds[(inst, pos)]
+                okey = (src, svr, "output")
+                oov = self.overrides.get(okey)
+                if oov is not None and oov[0] == "override":
+                    out.append(Copy(pos, self._held_value(okey, oov[1]), 0, 1.0, bias))
+                    continue
+                if oov is not None:     # a bias on the output, before the connection's transform
+                    bias += oov[1] * f
+            out.append(Copy(pos, arr, i, f, o + bias))
         return out
 
     def bad_input(self, name: str, in_vr: ctypes.Array[ctypes.c_uint], copies: list[Copy], t: float) -> RunError:

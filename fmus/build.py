@@ -38,6 +38,7 @@ Platforms: only the binaries built and tested here ship (``binaries/linux64``; F
 """
 from __future__ import annotations
 
+import ast
 import functools
 import hashlib
 import os
@@ -94,12 +95,32 @@ class Plan:
         return self.digest[:8]
 
     @property
+    def options(self) -> tuple[str, ...]:
+        """pythonfmu's build options: :data:`BUILD_OPTIONS`, and ``--no-variable-step`` for a slave that
+        declares ``variable_step = False`` (the builder writes canHandleVariableCommunicationStepSize from
+        its options, over what the slave's model description says)."""
+        return BUILD_OPTIONS + (() if variable_step(self.script) else ("--no-variable-step",))
+
+    @property
     def package(self) -> str:
         return f"wmrfmu_{self.short}_{self.hash8}"
 
     @property
     def module(self) -> str:
         return f"wmr_{self.short}_slave_{self.hash8}"
+
+
+def variable_step(script: Path) -> bool:
+    """Whether the slave class of ``script`` takes steps of any length: its class attribute
+    ``variable_step`` (see fmi_decl.SlaveCore), read from the source without importing it."""
+    for node in ast.walk(ast.parse(script.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ClassDef):
+            for stmt in node.body:
+                if (isinstance(stmt, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "variable_step"
+                                                         for t in stmt.targets)
+                        and isinstance(stmt.value, ast.Constant)):
+                    return bool(stmt.value.value)
+    return True
 
 
 def _components_dir() -> Path:
@@ -477,7 +498,7 @@ def build_all(out_dir: Path | None = None, force: bool = False, models: tuple[st
             script = _stage(p, stage)
             dest = stage / "out"
             cmd = [sys.executable, "-m", "pythonfmu" if p.fmi == 2 else "pythonfmu3", "build", "-f", str(script),
-                   "-d", str(dest), *BUILD_OPTIONS, str(stage / p.package)]
+                   "-d", str(dest), *p.options, str(stage / p.package)]
             env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
             procs.append((p, fmu, dest, subprocess.Popen(cmd, cwd=stage, env=env, stdout=subprocess.PIPE,
                                                           stderr=subprocess.STDOUT, text=True)))

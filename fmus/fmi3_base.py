@@ -226,7 +226,7 @@ class WmrSlave(SlaveCore, Fmi3Slave):
         pkg = __name__.rpartition(".")[0]
         root.set("version", "development" if pkg.startswith("wmr_cosim") else pkg.rpartition("_")[2])
         cs = root.find("CoSimulation")
-        cs.set("canHandleVariableCommunicationStepSize", "true")
+        cs.set("canHandleVariableCommunicationStepSize", "true" if self.variable_step else "false")
         cs.set("canGetAndSetFMUState", "true")
         cs.set("canSerializeFMUState", "true")
         for tag in ("UnitDefinitions", "ModelVariables", "ModelStructure"):

@@ -239,6 +239,7 @@ class WmrSlave(SlaveCore, Fmi2Slave):
             SubElement(SubElement(units, "Unit", {"name": name}), "BaseUnit",
                        {k: str(e) for k, e in UNITS[name].items()})
         cosim = root.find("CoSimulation")
+        cosim.set("canHandleVariableCommunicationStepSize", "true" if self.variable_step else "false")
         root.insert(list(root).index(cosim) + 1, units)
         # ModelStructure: Outputs and InitialUnknowns with their true dependencies (1-based indices)
         structure = root.find("ModelStructure")

@@ -54,6 +54,10 @@ DISPLAY_UNITS: dict[str, dict[str, float]] = {
 #: within STEP_RTOL * |t| of round(t / h) * h is that multiple, so a master that accumulates time sees
 #: the times k h of the direct loop.
 STEP_RTOL = 1e-9
+#: Relative tolerance within which a step of a slave that takes steps of one length only (``variable_step``
+#: false) is its sample period: a host that accumulates time in floating point ends its last step a little
+#: short (OMSimulator's last step of G1 is 1.5e-11 s short of 2 ms after 25,000 steps: 7.6e-9 relative).
+FIXED_STEP_RTOL = 1e-6
 
 
 _KINDS = ("Real", "Integer", "Boolean", "String")
@@ -166,6 +170,11 @@ class SlaveCore:
     ``_DISCARD`` to its pythonfmu's Discard status and may extend :meth:`_after_restore`."""
 
     _DISCARD: Any = None
+    #: Whether it takes communication steps of any length (canHandleVariableCommunicationStepSize).  A
+    #: sampled-data block (the sensor chain, the controller) samples at the end of every step: its sample
+    #: period is the step, so a step of another length changes what it computes.  Such a slave declares
+    #: false and refuses (Discard) a step whose length differs from its first one.
+    variable_step: bool = True
 
     def _before_step(self, current_time: float, h: float) -> float | None:
         """Refuse a step after a failed one; snap or adopt a new step size; apply tunable parameters."""
@@ -176,6 +185,13 @@ class SlaveCore:
         if h != self._h:
             if abs(h - self._h) <= STEP_RTOL * self._h:
                 h = self._h
+            elif not self.variable_step and abs(h - self._h) <= FIXED_STEP_RTOL * self._h:
+                h = self._h   # (False while _h is NaN: the first step sets the period)
+            elif not self.variable_step and not math.isnan(self._h):
+                self.log(f"{self.modelName} instance {self.instance_name}: step of h = {h!r} s at t = "
+                         f"{current_time!r} s refused: it samples every {self._h!r} s (its first step) and "
+                         "declares canHandleVariableCommunicationStepSize = false", self._DISCARD)
+                return None
             elif h > 0.0 and math.isfinite(h):
                 self._h = h
             else:

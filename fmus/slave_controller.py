@@ -103,6 +103,7 @@ _OUT = {  # CONTROLLER_OUTPUTS name: (unit, description, inputs it depends on di
 class WmrController(WmrSlave):
     description = ("Controller of the wheeled mobile robot: odometry, kinematic planner (26)-(32), (50) and "
                    "ADP H-infinity critic (45)-(51) with RLS adaptation")
+    variable_step = False   # a sampled-data block: its sample period is the communication step
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)

@@ -32,6 +32,7 @@ _OUT = {  # SENSOR_OUTPUTS name: (kind, unit, description, wheel)
 
 class WmrSensor(WmrSlave):
     description = "Sensor chain of the two drive wheels: quantised encoders, increment velocity (42), filter (43), wheel angle"
+    variable_step = False   # a sampled-data block: its sample period is the communication step
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)

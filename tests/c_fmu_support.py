@@ -63,3 +63,82 @@ def build_c_fmu(src: Path, model_description: str, out: Path, name: str, **defin
         zf.write(so, f"binaries/linux64/{name}.so")
     so.unlink()
     return fmu
+
+
+# ---------------------------------------------------------------------------------------------- Ramp
+#: The Ramp model (tests/c_fmus/ramp/: x' = s from x = 0, x its event indicator; a reset and an end of the
+#: simulation at time events), on the Reference FMUs' common code.
+RAMP = Path(__file__).resolve().parent / "c_fmus" / "ramp"
+REFERENCE_COMMON = Path(__file__).resolve().parent / "data" / "reference-fmus" / "common"
+RAMP_TOKEN = "{6b0c7a52-4a5e-4f1c-9c1e-52a3c7d0ramp}"
+RAMP_PARAMETERS = (("s", 3, 1.0), ("T_reset", 4, -1.0), ("s_after", 5, 1.0), ("T_stop", 6, 1e300))
+
+RAMP_FMI3 = f"""<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="3.0" modelName="Ramp" generationTool="wmr-cosim tests" instantiationToken="{RAMP_TOKEN}">
+  <ModelExchange modelIdentifier="Ramp"/>
+  <CoSimulation modelIdentifier="Ramp" canHandleVariableCommunicationStepSize="true" fixedInternalStepSize="1e-3"/>
+  <LogCategories><Category name="logEvents"/><Category name="logStatusError"/></LogCategories>
+  <DefaultExperiment startTime="0" stopTime="1" stepSize="0.01"/>
+  <ModelVariables>
+    <Float64 name="time" valueReference="0" causality="independent" variability="continuous"/>
+    <Float64 name="x" valueReference="1" causality="output" variability="continuous" initial="exact" start="0"/>
+    <Float64 name="der(x)" valueReference="2" causality="local" variability="continuous" initial="calculated" derivative="1"/>
+{"".join(f'    <Float64 name="{n}" valueReference="{vr}" causality="parameter" variability="fixed" initial="exact" start="{v!r}"/>{chr(10)}' for n, vr, v in RAMP_PARAMETERS)}    <Float64 name="crossings" valueReference="7" causality="output" variability="discrete" initial="calculated"/>
+  </ModelVariables>
+  <ModelStructure>
+    <Output valueReference="1" dependencies=""/>
+    <Output valueReference="7" dependencies=""/>
+    <ContinuousStateDerivative valueReference="2" dependencies=""/>
+    <InitialUnknown valueReference="2" dependencies=""/>
+    <InitialUnknown valueReference="7" dependencies=""/>
+    <EventIndicator valueReference="1" dependencies=""/>
+  </ModelStructure>
+</fmiModelDescription>
+"""
+
+RAMP_FMI2 = f"""<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="2.0" modelName="Ramp" guid="{RAMP_TOKEN}" generationTool="wmr-cosim tests"
+  variableNamingConvention="structured" numberOfEventIndicators="1">
+  <ModelExchange modelIdentifier="Ramp"/>
+  <CoSimulation modelIdentifier="Ramp" canHandleVariableCommunicationStepSize="true"/>
+  <LogCategories><Category name="logEvents"/><Category name="logStatusError"/></LogCategories>
+  <DefaultExperiment startTime="0" stopTime="1" stepSize="0.01"/>
+  <ModelVariables>
+    <ScalarVariable name="time" valueReference="0" causality="independent" variability="continuous"><Real/></ScalarVariable>
+    <ScalarVariable name="x" valueReference="1" causality="output" variability="continuous" initial="exact"><Real start="0"/></ScalarVariable>
+    <ScalarVariable name="der(x)" valueReference="2" causality="local" variability="continuous" initial="calculated"><Real derivative="2"/></ScalarVariable>
+{"".join(f'    <ScalarVariable name="{n}" valueReference="{vr}" causality="parameter" variability="fixed" initial="exact"><Real start="{v!r}"/></ScalarVariable>{chr(10)}' for n, vr, v in RAMP_PARAMETERS)}    <ScalarVariable name="crossings" valueReference="7" causality="output" variability="discrete" initial="calculated"><Real/></ScalarVariable>
+  </ModelVariables>
+  <ModelStructure>
+    <Outputs><Unknown index="2" dependencies=""/><Unknown index="8" dependencies=""/></Outputs>
+    <Derivatives><Unknown index="3" dependencies=""/></Derivatives>
+    <InitialUnknowns><Unknown index="3" dependencies=""/><Unknown index="8" dependencies=""/></InitialUnknowns>
+  </ModelStructure>
+</fmiModelDescription>
+"""
+
+
+def build_ramp(out: Path, version: int) -> Path:
+    """``out/fmi<version>/Ramp.fmu`` (version 2 or 3, co-simulation and model exchange): tests/c_fmus/ramp/
+    compiled with the Reference FMUs' common code against the FMI headers FMPy ships."""
+    import fmpy
+
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        pytest.skip("no C compiler on this machine")
+    folder = out / f"fmi{version}"
+    folder.mkdir(parents=True, exist_ok=True)
+    so = folder / "Ramp.so"
+    sources = [RAMP / "model.c", REFERENCE_COMMON / "cosimulation.c", REFERENCE_COMMON / f"fmi{version}Functions.c"]
+    flags = [f"-DFMI_VERSION={version}", "-DDISABLE_PREFIX", f"-I{Path(fmpy.__file__).parent / 'c-code'}",
+             f"-I{RAMP}", f"-I{REFERENCE_COMMON}"]
+    p = subprocess.run([cc, "-shared", "-fPIC", "-O1", *flags, *map(str, sources), "-o", str(so), "-lm"],
+                       capture_output=True, text=True)
+    if p.returncode:
+        raise RuntimeError(p.stderr)
+    fmu = folder / "Ramp.fmu"
+    with zipfile.ZipFile(fmu, "w") as zf:
+        zf.writestr("modelDescription.xml", RAMP_FMI3 if version == 3 else RAMP_FMI2)
+        zf.write(so, f"binaries/{'x86_64-linux' if version == 3 else 'linux64'}/Ramp.so")
+    so.unlink()
+    return fmu

@@ -141,7 +141,7 @@ def test_pacer_without_overruns_says_so(monkeypatch):
     p.start(0.0)
     clock.now += 0.1
     p.wait(0.1)
-    assert p.describe() == "real time x0.5: no overruns in 1 steps" and p.summary()["late_mean_s"] == 0.0
+    assert p.describe() == "real time x0.5: no overruns in 1 step" and p.summary()["late_mean_s"] == 0.0
 
 
 @pytest.mark.parametrize("factor", [0, -1, float("nan"), float("inf")])

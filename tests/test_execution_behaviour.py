@@ -111,6 +111,11 @@ def _summary(out: Path) -> dict:
     return json.loads((out / "summary.json").read_text())
 
 
+def _scenario_fields(events: list[dict]) -> list[dict]:
+    """The entries of the event table without the fields every entry has (source, kind, what)."""
+    return [{k: v for k, v in e.items() if k not in ("source", "kind", "what")} for e in events]
+
+
 # ---------------------------------------------------------------------- runs that end early
 def test_ctrl_c_ends_the_run_at_the_next_segment_with_the_steps_done(probe, tmp_path):
     """The first SIGINT (here raised inside an FMU's step at t = 1.25 s) only sets a flag; the run stops
@@ -164,6 +169,7 @@ def test_an_fmu_ending_the_simulation_ends_the_run_at_its_time(probe, tmp_path, 
     fmu = probe(TERMINATE_AT=1.25) if last_time else probe(TERMINATE_AT=1.25, NO_LAST_TIME=True)
     res = _run(_sim(fmu, start=1.0, stop=1.5, record=("probe.y", "probe.n")), tmp_path / "out")
     assert (res.status, res.message) == ("terminated", "terminated by FMU probe at t = 1.25 s")
+    assert res.events == [{"time": 1.25, "source": "probe", "kind": "terminate", "what": "the FMU ended the simulation"}]
     assert for_status(res.status) == 0 and res.steps == 25 and res.t_end == 1.25
     d = np.load(tmp_path / "out" / "signals.npy")   # the row at 1.25 s once
     assert len(d) == 26 and d["time"][-1] == 1.25 and d["probe.n"][-1] == 25 and np.all(np.diff(d["time"]) > 0)
@@ -343,7 +349,10 @@ def test_the_event_log_names_variable_and_value_when_the_event_has_them(probe, t
     sim.event(time=1.3, action="stop")
     res = _run(sim, tmp_path / "out")
     assert (res.status, res.message, res.steps, for_status(res.status)) == ("stopped", "stopped by events[2] at t = 1.3 s", 30, 0)
-    assert res.events == [{"time": pytest.approx(1.1), "event": 0, "action": "override", "variable": "probe.u",
+    assert [(e["source"], e["kind"], e["what"]) for e in res.events] == [
+        ("events[0]", "scenario", "override probe.u = 2.0"), ("events[1]", "scenario", "reset probe.u"),
+        ("events[2]", "scenario", "stop")]
+    assert _scenario_fields(res.events) == [{"time": pytest.approx(1.1), "event": 0, "action": "override", "variable": "probe.u",
                            "value": 2.0},
                           {"time": pytest.approx(1.2), "event": 1, "action": "reset", "variable": "probe.u"},
                           {"time": pytest.approx(1.3), "event": 2, "action": "stop"}]
@@ -503,9 +512,12 @@ def test_scenario_and_summary_files_of_a_run(tmp_path):
     wall, setup, per_step = summary.pop("wall_s"), summary.pop("setup_s"), summary.pop("us_per_step")
     assert wall == round(res.wall_s, 6) and setup == round(res.setup_s, 6)
     assert per_step == round(res.wall_s / 5 * 1e6, 3) and per_step > 0
-    events = [{"time": 1.02, "event": 1, "action": "bias", "variable": "a.Int32_input", "value": 1,
-               "when": "b.Float64_continuous_output > 3", "condition_time": 1.0},
-              {"time": 1.04, "event": 0, "action": "override", "variable": "a.Int32_input", "value": 3}]
+    events = [{"time": 1.02, "source": "events[1]", "kind": "condition", "event": 1, "action": "bias",
+               "variable": "a.Int32_input", "value": 1, "when": "b.Float64_continuous_output > 3",
+               "condition_time": 1.0,
+               "what": "bias a.Int32_input = 1 (when b.Float64_continuous_output > 3: true at t = 1 s)"},
+              {"time": 1.04, "source": "events[0]", "kind": "scenario", "event": 0, "action": "override",
+               "variable": "a.Int32_input", "value": 3, "what": "override a.Int32_input = 3"}]
     final = {"time": 1.1, "b.Float64_continuous_output": 3.5, "a.Int32_output": 3}
     counts = {"fmu": fmu, "model": "Feedthrough", "interface": "co-simulation", "log_lines": 0, "log_received": 0}
     assert summary == {"status": "ok", "message": "", "steps": 5, "n_steps": 5, "t_end": 1.1, "step": 0.02,
@@ -643,7 +655,8 @@ def test_condition_events_fire_on_rising_edges_with_their_delay(probe, tmp_path)
     assert np.load(tmp_path / "out" / "signals.npy")["b.y"].tolist() == [0.0, 101.0, 102.0, 103.0, 105.0, 106.0,
                                                                          117.0, 118.0, 120.0, 121.0, 122.0]
     bias = {"action": "bias", "variable": "b.u"}
-    assert res.events == [
+    assert {e["kind"] for e in res.events if "when" in e} == {"condition"}
+    assert _scenario_fields(res.events) == [
         {"time": 1.0, "event": 5, **bias, "value": 100.0, "when": "t >= 1.0", "condition_time": 1.0},
         {"time": 1.02, "event": 0, "action": "override", "variable": "a.u", "value": 1.0},
         {"time": 1.03, "event": 3, **bias, "value": 1.0, "when": "a.u > 0.5", "condition_time": 1.03},

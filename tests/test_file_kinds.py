@@ -27,7 +27,7 @@ def test_a_protocol_with_an_upper_case_suffix_is_checked_as_a_protocol(tmp_path,
                     'carry = { "d.k" = "a.d.x" }\n')
     assert main(["check", str(path)]) == 0
     out = capsys.readouterr().out
-    assert "run a: ok" in out and "run b: ok: 2 steps, 1 recorded variables, 1 carried values" in out
+    assert "run a: ok" in out and "run b: ok: 2 steps, 1 recorded variable, 1 carried value" in out
 
 
 def test_an_fmu_with_an_upper_case_suffix_takes_an_input_table(tmp_path, capsys):

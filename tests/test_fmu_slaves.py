@@ -194,16 +194,36 @@ def test_accumulated_time_and_jittered_steps_reproduce_exact_steps():
     assert abs(t - 3000 * H) > 0.0  # the accumulated time did drift from k h
 
 
-def test_any_step_size_is_accepted():
-    s = started(WmrSensor)
-    ref = Sensor()
+def test_the_plant_accepts_any_step_size():
+    p = started(WmrPlant)
     for k in range(100):
         h = 0.001 if k < 50 else 0.004
-        assert s.do_step(k * h, h)
-        ref.step(h, 0.0, 0.0)
-    # a last step shortened as OMSimulator does (1.5e-11 s): accepted and discretised for that step
-    s.set_real([s.vr("alpha1")], [0.01])
-    assert s.do_step(0.2, 0.004 - 1.5e-11)
-    assert all(math.isfinite(v) for v in outputs(s).values())
-    assert not s.do_step(0.3, 0.0)
-    assert any("step size h = 0.0 s" in m for m in log_text(s))
+        assert p.do_step(k * h, h)
+    assert all(math.isfinite(v) for v in outputs(p).values())
+    assert not p.do_step(0.3, 0.0)
+    assert any("step size h = 0.0 s" in m for m in log_text(p))
+
+
+@pytest.mark.parametrize("cls", [WmrSensor, WmrController])
+def test_a_sampled_data_slave_takes_steps_of_its_first_length_only(cls):
+    """Its sample period is its first step: a step of another length is refused (Discard, the reason in the
+    log); one within a millionth of it, as the last step of a host that accumulates time in floating point
+    (OMSimulator's: 1.5e-11 s short of 2 ms), is a step of that period."""
+    s = started(cls)
+    for k in range(10):
+        assert s.do_step(k * 0.002, 0.002)
+    before = dict(outputs(s))
+    assert not s.do_step(0.02, 0.001)
+    assert any("step of h = 0.001 s at t = 0.02 s refused: it samples every 0.002 s" in m for m in log_text(s))
+    assert outputs(s) == before
+
+
+@pytest.mark.parametrize("short", [1.5e-11, 1.9e-9])
+def test_a_step_a_floating_point_hair_short_is_the_sample_period(short):
+    s, ref = started(WmrSensor), started(WmrSensor)
+    for k in range(10):
+        s.set_real([s.vr("alpha1")], [0.01 * k])
+        ref.set_real([ref.vr("alpha1")], [0.01 * k])
+        assert s.do_step(k * 0.002, 0.002 - (short if k == 9 else 0.0)) and ref.do_step(k * 0.002, 0.002)
+    assert outputs(s) == outputs(ref)
+    assert not s.do_step(0.02, 0.002 * (1 - 2e-6))

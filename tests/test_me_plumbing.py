@@ -206,8 +206,8 @@ def test_a_bad_interface_or_solver_field_is_one_line_naming_it(case, fmus, tmp_p
     assert not (tmp_path / "out").exists()
 
 
-def test_an_experiment_tolerance_not_above_zero_is_refused(fmus, tmp_path, capsys):
-    path = _toml(tmp_path, fmus["me"], experiment="stop = 0.1\nstep = 0.01\ntolerance = 0.0\n")
+def test_an_experiment_tolerance_below_zero_is_refused(fmus, tmp_path, capsys):
+    path = _toml(tmp_path, fmus["me"], experiment="stop = 0.1\nstep = 0.01\ntolerance = -1e-6\n")
     _one_line(capsys, main(["check", str(path)]), [str(path), "experiment.tolerance", "must be > 0"])
 
 

@@ -5,7 +5,9 @@ from __future__ import annotations
 import pytest
 
 from cosim_support import FakeClock
-from wmr_cosim.cosim import pacing
+from wmr_cosim.cosim import pacing, scenario, system
+from wmr_cosim.cosim.execution import Execution
+from wmr_cosim.cosim.observers import Observer
 
 
 @pytest.fixture
@@ -63,3 +65,80 @@ def test_the_average_lateness_is_shown_in_milliseconds(clock):
     clock.now = 1.0 + 0.0999            # 99.9 ms late
     p.wait(1.0)
     assert p.describe() == "real time x1: 1 of 1 steps finished late (by up to 99.9 ms, 99.9 ms on average)"
+
+
+# ---------------------------------------------------------------------- through a run
+class _Work(Observer):
+    """Each step's work on the fake wall clock: ``work[k]`` [s] (else ``default``) passes before the step's
+    pacing (observers are called before it)."""
+
+    per_step = True
+
+    def __init__(self, clock: FakeClock, work: dict[int, float], default: float) -> None:
+        self.clock, self.work, self.default = clock, work, default
+
+    def stepped(self, ex: Execution, k: int) -> None:
+        self.clock.now += self.work.get(k, self.default)
+
+
+def test_each_step_of_a_run_completes_no_earlier_than_its_due_time(clock, tmp_path):
+    """A run from 0.5 s in steps of h = 10 ms at 4x real time, each step taking 1 ms of wall time, step 4
+    taking 9 ms: step k completes (the pacing returns) exactly at its due time wall0 + k h / 4 = wall0 +
+    2.5 k ms; steps 4 to 8 are late (never held, never skipped), and since the due times are absolute,
+    steps 9 and 10 are back on them."""
+    from reference_fmus import REF
+
+    doc = {"experiment": {"start": 0.5, "stop": 0.6, "step": 0.01},
+           "instances": {"d": {"fmu": str(REF / "fmi2" / "Dahlquist.fmu")}}, "record": {"variables": ["d.x"]}}
+    clock.now = 1000.0
+    ex = Execution(system.resolve(scenario.parse(doc, "paced.toml")), tmp_path / "out", real_time=4.0)
+    assert ex.pacer is not None
+    ex.pacer._clock = clock
+    done: list[tuple[float, float]] = []     # (simulated time, wall time) when each step's pacing returned
+    wait = ex.pacer.wait
+
+    def recorded(t: float) -> None:
+        wait(t)
+        done.append((t, clock.now))
+    ex.pacer.wait = recorded                 # type: ignore[method-assign]
+    ex.initialize()
+    ex.add_observer(_Work(clock, {4: 0.009}, 0.001))
+    wall0 = clock.now                        # the clock starts with the first step
+    try:
+        assert ex.simulate_until() == "ok"
+    finally:
+        res = ex.close()
+    assert res.status == "ok" and [t for t, _ in done] == pytest.approx([0.5 + 0.01 * k for k in range(1, 11)])
+    late = {4: 0.0165, 5: 0.0175, 6: 0.0185, 7: 0.0195, 8: 0.0205}   # [s] after wall0: the work's own end
+    for k, (_, wall) in enumerate(done, start=1):
+        due = wall0 + k * 0.01 / 4.0
+        assert wall >= due - 1e-12, (k, wall - wall0)                          # never before its due time
+        assert wall == pytest.approx(wall0 + late.get(k, k * 0.0025), abs=1e-12), (k, wall - wall0)
+    assert (ex.pacer.steps, ex.pacer.overruns) == (10, 5)
+    assert ex.pacer.late_max_s == pytest.approx(0.0165 - 0.01, abs=1e-12)
+    assert ex.pacer.late_sum_s == pytest.approx(0.0065 + 0.005 + 0.0035 + 0.002 + 0.0005, abs=1e-12)
+
+
+def test_the_clock_of_a_run_stepped_in_parts_starts_once(clock, tmp_path):
+    """Stepped in two calls with a pause of 1 s between them (the Python API's run.step): the due times
+    stay those of the first call's clock, so the steps after the pause are late until it is made up, none
+    held; each step takes no wall time here."""
+    from reference_fmus import REF
+
+    doc = {"experiment": {"start": 0.0, "stop": 2.0, "step": 0.5},
+           "instances": {"d": {"fmu": str(REF / "fmi2" / "Dahlquist.fmu")}}, "record": {"variables": ["d.x"]}}
+    clock.now = 10.0
+    ex = Execution(system.resolve(scenario.parse(doc, "paced.toml")), tmp_path / "out", real_time=1.0)
+    assert ex.pacer is not None
+    ex.pacer._clock = clock
+    ex.initialize()
+    try:
+        ex.step(2)                       # due at 10.5 and 11
+        assert clock.now == pytest.approx(11.0, abs=1e-12) and ex.pacer.overruns == 0
+        clock.now += 1.0                 # the script pauses: 12 s
+        ex.step(2)                       # due at 11.5 (late by 0.5 s) and 12 (on time)
+        assert clock.now == pytest.approx(12.0, abs=1e-12)
+        assert (ex.pacer.steps, ex.pacer.overruns) == (4, 1)
+        assert ex.pacer.late_max_s == pytest.approx(0.5, abs=1e-12)
+    finally:
+        ex.close()

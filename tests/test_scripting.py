@@ -99,8 +99,9 @@ def test_stop_ends_the_run_cleanly_and_names_the_event(g1, quiet, tmp_path):
     assert summary["status"] == "stopped"
     assert summary["message"] == f"stopped by events[0] at t = {t_stop:.6g} s"
     assert summary["steps"] == round(t_stop / H) and summary["t_end"] == pytest.approx(t_stop)
-    assert summary["events"] == [{"time": t_stop, "event": 0, "action": "stop", "when": "plant.y_A >= 1.5 or t > 13",
-                                  "condition_time": t_stop}]
+    assert summary["events"] == [{"time": t_stop, "source": "events[0]", "kind": "condition", "event": 0,
+                                  "action": "stop", "when": "plant.y_A >= 1.5 or t > 13", "condition_time": t_stop,
+                                  "what": f"stop (when plant.y_A >= 1.5 or t > 13: true at t = {t_stop:.9g} s)"}]
     sig = np.load(tmp_path / "out" / "signals.npy")
     assert sig["time"][-1] == pytest.approx(t_stop) and len(sig) == summary["steps"] + 1
 

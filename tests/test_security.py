@@ -426,7 +426,7 @@ def test_the_sweep_command_listens_on_the_loopback_address_only(tmp_path):
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    assert proc.returncode == 0 and "1 points (1 ok)" in out, err
+    assert proc.returncode == 0 and "1 point (1 ok)" in out, err
     m = re.search(r"dask dashboard: http://127\.0\.0\.1:(\d+)/status", err)
     assert m, err
     assert (proc.pid, "127.0.0.1", int(m.group(1))) in socks
@@ -508,7 +508,7 @@ def test_a_sweep_on_a_tls_scheduler(tmp_path):
             assert all(w.startswith("tls://") for w in c.scheduler_info()["workers"])
         f = _sweep_file(tmp_path)
         p = _cli("sweep", f, "--out", tmp_path / "out", "--scheduler", addr, "--quiet", *tls, env=env)
-        assert p.returncode == 0 and "1 points (1 ok)" in p.stdout, p.stderr
+        assert p.returncode == 0 and "1 point (1 ok)" in p.stdout, p.stderr
         # without the certificates, or in clear text, the scheduler cannot be used
         for args in (("--scheduler", addr), ("--scheduler", f"tcp://127.0.0.1:{port}")):
             p = _cli("sweep", f, "--out", tmp_path / "out2", "--quiet", *args, env=env, timeout=120)

@@ -11,6 +11,7 @@ from typing import Any
 import pytest
 from lxml import etree as ET
 
+from reference_fmus import PLATFORM, REF
 from wmr_cosim.cosim import scenario, ssp, system
 from wmr_cosim.cosim.errors import CosimError, ScenarioError
 from wmr_cosim.cosim.ssp import NS, OSP_NS, OWN_NS, export_ssp, is_ssp, load_ssp, validate_xml
@@ -24,9 +25,16 @@ COLOR = ('<TypeDefinitions><SimpleType name="Color"><Enumeration><Item name="red
          '<Item name="green" value="2"/></Enumeration></SimpleType></TypeDefinitions>')
 
 
+def _stub_binary(version: str) -> bytes:
+    """A shared library of this platform that exports the FMI functions (the Reference FMU Dahlquist's): a
+    binary check reads its header and exports; these FMUs are exported, never run."""
+    with zipfile.ZipFile(REF / version / "Dahlquist.fmu") as zf:
+        return zf.read(f"binaries/{PLATFORM[version]}/Dahlquist.so")
+
+
 def _fmu2(path: Path, variables: list[tuple[str, str, str, str, str]]) -> Path:
     """An FMI 2.0 co-simulation FMU with ``variables`` (name, type, causality, variability, extra
-    attributes of the type element) and an empty binary (enough to load it, not to run it)."""
+    attributes of the type element) and another FMU's binary (enough to load it, not to run it)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     ident = path.stem
     rows, outs = [], []
@@ -42,7 +50,7 @@ def _fmu2(path: Path, variables: list[tuple[str, str, str, str, str]]) -> Path:
           f'<ModelStructure><Outputs>{"".join(outs)}</Outputs></ModelStructure></fmiModelDescription>')
     with zipfile.ZipFile(path, "w") as zf:
         zf.writestr("modelDescription.xml", md)
-        zf.writestr(f"binaries/linux64/{ident}.so", b"")
+        zf.writestr(f"binaries/linux64/{ident}.so", _stub_binary("fmi2"))
     return path
 
 
@@ -64,7 +72,7 @@ def _fmu3(path: Path, variables: list[tuple[str, str, str, str, str]]) -> Path:
           f'<ModelStructure>{"".join(outs)}</ModelStructure></fmiModelDescription>')
     with zipfile.ZipFile(path, "w") as zf:
         zf.writestr("modelDescription.xml", md)
-        zf.writestr(f"binaries/x86_64-linux/{ident}.so", b"")
+        zf.writestr(f"binaries/x86_64-linux/{ident}.so", _stub_binary("fmi3"))
     return path
 
 

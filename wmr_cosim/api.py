@@ -30,6 +30,7 @@ import numpy as np
 from .cosim import scenario, system
 from .cosim.errors import CosimError, RunError, ScenarioError
 from .cosim.kinds import FileKind, file_kind
+from .cosim.matfile import MatLayout, layout, write_mat
 from .cosim.status import RunStatus
 from .cosim.execution import Execution
 
@@ -51,6 +52,7 @@ class Result:
     scenario: dict[str, Any]
     out_dir: Path | None             # None: the results folder was temporary and is gone
     events: list[dict[str, Any]] = field(default_factory=list)   # the event log: time, event, action, ...
+    mat_layout: MatLayout | None = field(default=None, repr=False)   # descriptions, units, constants (MAT)
 
     @property
     def ok(self) -> bool:
@@ -74,6 +76,15 @@ class Result:
             raise ImportError("Result.dataframe() needs pandas: pip install pandas "
                               "(result.signals is the same data as a numpy array)") from None
         return pd.DataFrame(self.signals).set_index("time")
+
+    def write_mat(self, path: str | Path) -> Path:
+        """Write the signals to ``path`` in Dymola's result layout (MAT v4: ``Aclass``, ``name``,
+        ``description`` with each unit as ``text [unit]``, ``dataInfo``, ``data_1`` the parameters the
+        scenario sets, ``data_2`` time [s] and every recorded column as float64), as ``[record] mat = true``
+        writes signals.mat; DyMat, OMEdit and ``scipy.io.loadmat`` read it.  Returns the path; ValueError
+        when nothing was recorded."""
+        spec = self.mat_layout or MatLayout.from_columns(self.summary.get("columns", {}))
+        return write_mat(path, self.signals, spec)
 
 
 class Simulation:
@@ -152,14 +163,18 @@ class Simulation:
         self.document.setdefault("connections", []).append(c)
         return self
 
-    def record(self, *variables: str, decimation: int | None = None, csv: bool | None = None) -> "Simulation":
-        """Record these variables (names or patterns such as ``"controller.W*"``; added to the list)."""
+    def record(self, *variables: str, decimation: int | None = None, csv: bool | None = None,
+               mat: bool | None = None) -> "Simulation":
+        """Record these variables (names or patterns such as ``"controller.W*"``; added to the list);
+        ``csv``, ``mat``: whether the results folder gets signals.csv, signals.mat (``[record]`` csv, mat)."""
         rec = self.document.setdefault("record", {})
         rec["variables"] = list(rec.get("variables", [])) + list(variables)
         if decimation is not None:
             rec["decimation"] = decimation
         if csv is not None:
             rec["csv"] = csv
+        if mat is not None:
+            rec["mat"] = mat
         return self
 
     def event(self, **fields: Any) -> "Simulation":
@@ -339,6 +354,6 @@ class Run:
         if self.result is None:
             signals = r.signals if r.signals is not None else np.zeros(0, dtype=[("time", "f8")])
             self.result = Result(r.status, r.message, r.steps, r.t_end, signals, r.summary, r.scenario,
-                                 r.out_dir, list(r.events))
+                                 r.out_dir, list(r.events), layout(self.plan))
         if raise_on_failure and self.result.status == RunStatus.FAILED:
             raise RunError(self.result.message)

@@ -25,6 +25,7 @@ from .cosim.kinds import FileKind, file_kind, named_kind
 from .cosim.loops import describe as describe_coupling
 from .cosim.scenario import parse_value
 from .cosim.suggest import did_you_mean
+from .cosim.words import count
 from .exit_codes import OK as EXIT_OK, RUN_FAILED as EXIT_FAILED, for_error, for_status, for_statuses
 from .scenario_files import scenario_path
 
@@ -74,7 +75,7 @@ def cmd_direct(args: argparse.Namespace) -> int:
     m.update(task=args.task, status=res.status, steps=res.steps, wall_s=round(res.wall_s, 3))
     ref = paper.rmse_table(args.task)["learn"]
     if not args.json:
-        print(f"{args.task}: direct loop, {res.steps} steps of {args.step} s in {res.wall_s:.2f} s "
+        print(f"{args.task}: direct loop, {count(res.steps, 'step')} of {args.step} s in {res.wall_s:.2f} s "
               f"({res.wall_s / max(res.steps, 1) * 1e6:.1f} us/step), status {res.status} {res.message}")
         print(f"{'RMSE':10s} {'ours':>8s} {'paper':>8s} {'ratio':>6s}")
         for i, (name, val) in enumerate([("e_1", m["rmse_e"][0]), ("e_2", m["rmse_e"][1]),
@@ -169,32 +170,66 @@ def instance_fields(args: argparse.Namespace) -> dict[str, Any]:
     return fields
 
 
+#: The values of run --format: what the results folder gets beside signals.npy (always written).
+RESULT_FORMATS = ("csv", "npy", "mat")
+
+
+def format_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """The fields of [record] that ``run --format`` sets (``record.csv``, ``record.mat``: exactly the formats
+    named, repeated or comma-separated); {} without --format; UsageError naming an unknown format."""
+    if not getattr(args, "format", None):
+        return {}
+    chosen = [f.strip().lower() for item in args.format for f in item.split(",")]
+    for f in chosen:
+        if f not in RESULT_FORMATS:
+            raise UsageError(f"--format {f!r}: must be one of {', '.join(RESULT_FORMATS)}"
+                             f"{did_you_mean(f, RESULT_FORMATS)}")
+    return {"record.csv": "csv" in chosen, "record.mat": "mat" in chosen}
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     """Run a scenario through the co-simulation master."""
-    from .runner import default_out, is_fmu, is_scenario, run_scenario
+    from .runner import default_out, is_fmu, run_scenario
 
     out = args.out if args.out is not None else default_out(args.scenario)
-    overrides = experiment_overrides(args)
+    overrides = {**experiment_overrides(args), **format_overrides(args)}
     fields = instance_fields(args)
-    parsed = None
-    if is_scenario(args.scenario):
-        from .runner import read_scenario
-
-        parsed = read_scenario(args.scenario, args.limits)
-        parsed.variant_parameters(args.variant)
-        if parsed.scenario.runs:  # a protocol: every run, in order, into OUT/<run>
-            return _run_protocol(args, parsed, out, overrides)
-        if args.variant is not None:
-            raise UsageError(f"--variant {args.variant}: {args.scenario} declares no runs")
-    elif args.variant is not None:
-        raise UsageError(f"--variant {args.variant}: only a scenario file (.toml) declares variants")
+    parsed = scenario_file(args)
+    if parsed is not None and parsed.scenario.runs:  # a protocol: every run, in order, into OUT/<run>
+        return _run_protocol(args, parsed, out, overrides)
     if args.input is not None and not is_fmu(args.scenario):
         raise UsageError("--input applies to a single FMU (.fmu); a scenario file says it in [inputs]")
     res = run_scenario(args.scenario, out, overrides, progress=False if args.quiet else None, inputs=args.input,
                        force=args.force, isolate=args.isolate, real_time=args.real_time, limits=args.limits,
-                       parsed=parsed, fields=fields)
+                       parsed=parsed, fields=fields, on_plan=lambda plan: _print_notes(plan.scenario.notes))
     _report_run(args, res, out)
     return for_status(res.status)
+
+
+def scenario_file(args: argparse.Namespace) -> Any:
+    """The scenario file of ``run`` and ``check`` read once (a protocol's
+    :class:`~wmr_cosim.cosim.protocol.Protocol`; None for an FMU or an SSP archive), with the options that
+    apply to a protocol only judged alike for both commands: ``--variant`` must name a variant the file
+    declares, of a file that declares runs; ``--real-time`` paces a single run, not a protocol's runs."""
+    from .runner import is_scenario, read_scenario
+
+    if not is_scenario(args.scenario):
+        if args.variant is not None:
+            raise UsageError(f"--variant {args.variant}: only a scenario file (.toml) declares variants")
+        return None
+    parsed = read_scenario(args.scenario, args.limits)
+    parsed.variant_parameters(args.variant)
+    if args.variant is not None and not parsed.scenario.runs:
+        raise UsageError(f"--variant {args.variant}: {args.scenario} declares no runs")
+    if args.real_time is not None and parsed.scenario.runs:
+        raise UsageError("--real-time paces a single run, not a protocol's runs")
+    return parsed
+
+
+def _print_notes(notes: list[str]) -> None:
+    """What ``run`` says of the scenario before it runs (a table its algorithm does not read), on stderr."""
+    for note in notes:
+        print(f"wmr-cosim: note: {note}", file=sys.stderr)
 
 
 def _run_protocol(args: argparse.Namespace, parsed: Any, out: Path, overrides: dict[str, Any]) -> int:
@@ -202,13 +237,13 @@ def _run_protocol(args: argparse.Namespace, parsed: Any, out: Path, overrides: d
     judged by analysis.divergence; one line per run."""
     from .runner import run_protocol
 
-    if args.real_time is not None:
-        raise UsageError("--real-time paces a single run, not a protocol's runs")
+    _print_notes(parsed.with_parameters(overrides).notes)
     results = run_protocol(parsed, out, variant=args.variant, overrides=overrides,
                            progress=False if args.quiet else None, force=args.force, isolate=args.isolate)
     for name, r in results.items():
         if r.status == RunStatus.OK:
-            print(f"{args.scenario} [{name}]: ok, {r.steps} steps in {r.wall_s:.2f} s; results in {out / name}")
+            print(f"{args.scenario} [{name}]: ok, {count(r.steps, 'step')} in {r.wall_s:.2f} s; "
+                  f"results in {out / name}")
         else:
             print(f"wmr-cosim: run {name} {r.status}: {r.message}", file=sys.stderr)
     return for_statuses(r.status for r in results.values())
@@ -224,12 +259,21 @@ def _report_run(args: argparse.Namespace, res: Any, out: Path) -> None:
                  if rt["overruns"] else ""))
     if RunStatus(res.status).ended_well:
         how = "ok" if res.status == RunStatus.OK else res.message
-        print(f"{args.scenario}: {how}, {res.steps} steps to t = {res.t_end:g} s in {res.wall_s:.2f} s{per} "
+        print(f"{args.scenario}: {how}, {count(res.steps, 'step')} to t = {res.t_end:g} s in {res.wall_s:.2f} s{per} "
               f"(set-up {res.setup_s:.2f} s); results in {out}")
     else:
         print(f"wmr-cosim: run {res.status}: {res.message}", file=sys.stderr)
-        print(f"{args.scenario}: {res.status} after {res.steps} steps (t = {res.t_end:g} s); "
-              f"what was recorded is in {out}", file=sys.stderr)
+        print(f"{args.scenario}: {res.status} after {count(res.steps, 'step')} (t = {res.t_end:g} s); "
+              f"{_what_was_recorded(res, out)}", file=sys.stderr)
+
+
+def _what_was_recorded(res: Any, out: Path) -> str:
+    """Where a run that failed left its rows: signals.npy with the rows recorded up to the failure, or
+    none at all (a run that failed before its first row: only its logs and scenario.json are there)."""
+    rows = int((res.summary or {}).get("rows") or 0)
+    if rows and (out / "signals.npy").is_file():
+        return f"what was recorded ({count(rows, 'row')}, to t = {res.t_end:g} s) is in {out}"
+    return f"nothing was recorded (its logs are in {out / 'logs'})"
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -238,20 +282,19 @@ def cmd_check(args: argparse.Namespace) -> int:
 
     overrides = experiment_overrides(args)
     fields = instance_fields(args)
-    f, lim = args.force, args.limits
+    f, lim, iso = args.force, args.limits, args.isolate
     if args.input is not None and not is_fmu(args.scenario):
         raise UsageError("--input applies to a single FMU (.fmu); a scenario file says it in [inputs]")
+    parsed = scenario_file(args)
     kind = file_kind(args.scenario)
     if kind is FileKind.SSP:
-        with ssp_plan(args.scenario, overrides, f, limits=lim) as plan:
+        with ssp_plan(args.scenario, overrides, f, iso, limits=lim) as plan:
             _report_check(args, plan)
     elif kind is FileKind.FMU:
-        _report_check(args, fmu_plan(args.scenario, overrides, args.input, force=f, limits=lim, fields=fields))
+        _report_check(args, fmu_plan(args.scenario, overrides, args.input, force=f, isolate=iso, limits=lim,
+                                     fields=fields))
     else:
-        from .runner import read_scenario
-
-        parsed = read_scenario(args.scenario, lim)
-        _report_check(args, load_plan(args.scenario, overrides, f, parsed=parsed))
+        _report_check(args, load_plan(args.scenario, overrides, f, iso, parsed=parsed))
         _check_runs(args, parsed, overrides)
     return EXIT_OK
 
@@ -260,10 +303,12 @@ def _report_check(args: argparse.Namespace, plan: Any) -> None:
     """What ``check`` prints of a checked plan: its verdict and sizes, how each instance runs (its
     interface; for model exchange, the integrator), then its notes."""
     sc = plan.scenario
-    print(f"{args.scenario}: ok: {len(plan.instances)} instances ({', '.join(plan.order)}), "
-          f"{len(plan.connections)} connections, {len(plan.record)} recorded variables, "
-          f"{len(plan.events) + len(plan.conditions)} events, "
-          f"{plan.n_steps} steps of {sc.step:g} s ({sc.algorithm}); signals.npy about "
+    print(f"{args.scenario}: ok: {count(len(plan.instances), 'instance')} ({', '.join(plan.order)}), "
+          f"{count(len(plan.connections), 'connection')}, {count(len(plan.record), 'recorded variable')}, "
+          f"{count(len(plan.events) + len(plan.conditions), 'event')}, "
+          f"{count(plan.n_steps, 'step')} of {sc.step:g} s"
+          f"{'' if plan.last_step is None else f' (the last {plan.last_step:.6g} s, to the stop time)'} "
+          f"({sc.algorithm}); signals.npy about "
           f"{_size(plan.output_bytes)}{' (and signals.csv about ' + _size(3 * plan.output_bytes) + ')' if sc.csv else ''}")
     for name, ip in plan.instances.items():
         print(f"  {name}: {ip.describe()}")
@@ -273,7 +318,7 @@ def _report_check(args: argparse.Namespace, plan: Any) -> None:
         print(f"  {line}")
     if plan.not_recorded:
         print(f"note: String outputs are not recorded: {', '.join(plan.not_recorded)}")
-    for note in plan.notes:
+    for note in [*sc.notes, *plan.notes]:
         print(f"note: {note}")
     for name, n in plan.internal_steps.items():
         print(f"note: {name} takes fixed internal steps of {plan.instances[name].model.internal_step:g} s: "
@@ -301,11 +346,11 @@ def _check_runs(args: argparse.Namespace, parsed: Any, overrides: dict[str, Any]
     sc = parsed.scenario
     if not sc.runs:
         return
-    plans = check_protocol(parsed, variant=args.variant, overrides=overrides, force=args.force)
+    plans = check_protocol(parsed, variant=args.variant, overrides=overrides, force=args.force, isolate=args.isolate)
     carries = {r.name: len(r.carry) for r in sc.runs}
     for name, plan in plans.items():
-        print(f"  run {name}: ok: {plan.n_steps} steps, {len(plan.record)} recorded variables"
-              + (f", {carries[name]} carried values" if carries[name] else ""))
+        print(f"  run {name}: ok: {count(plan.n_steps, 'step')}, {count(len(plan.record), 'recorded variable')}"
+              + (f", {count(carries[name], 'carried value')}" if carries[name] else ""))
 
 
 def _size(n: float) -> str:
@@ -336,9 +381,23 @@ def cmd_info(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_plot(args: argparse.Namespace) -> int:
+    """Draw recorded signals of a results folder against time [s], the events as vertical lines."""
+    from .plot import PlotError, plot_results
+
+    try:
+        done = plot_results(args.results, args.variables or None, out=args.out, show=args.show)
+    except PlotError as exc:
+        raise UsageError(str(exc)) from None
+    print(f"{args.results}: {', '.join(done.variables)} drawn in {done.path}")
+    if done.note:
+        print(f"wmr-cosim: note: {done.note}", file=sys.stderr)
+    return EXIT_OK
+
+
 def cmd_paper(args: argparse.Namespace) -> int:
     """Every experiment of section 5 through the FMU co-simulation, with analysis, figures and a report."""
-    from .paper_job import run_paper
+    from .paper_job import exit_code, run_paper, unfinished_runs
 
     r = run_paper(args.out, variant=args.variant, compare=not args.no_compare, workers=args.workers,
                   manifest=args.manifest, progress=False if args.quiet else None, robustness=args.robustness,
@@ -357,7 +416,11 @@ def cmd_paper(args: argparse.Namespace) -> int:
         if v != m["variant"]:
             print(f"variant {v}: {mv['fidelity']['within_1_5']} cells within 1.5x; diverged runs: "
                   f"{', '.join(mv['diverged_runs']) or 'none'}")
-    return EXIT_OK if not m["diverged_runs"] else EXIT_FAILED
+    for v, mv in r["variants"].items():
+        if unfinished_runs(mv):
+            print(f"wmr-cosim paper: variant {v}: runs that did not finish: {', '.join(unfinished_runs(mv))}",
+                  file=sys.stderr)
+    return exit_code(r["variants"], m["variant"])
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
@@ -369,7 +432,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     df = run_sweep(args.sweep, out, progress=False if args.quiet else None, archive_limits=args.limits,
                    **cluster_options(args))
     counts = df["status"].value_counts().to_dict()
-    print(f"{args.sweep}: {len(df)} points ({', '.join(f'{v} {k}' for k, v in sorted(counts.items()))}); "
+    print(f"{args.sweep}: {count(len(df), 'point')} ({', '.join(f'{v} {k}' for k, v in sorted(counts.items()))}); "
           f"results in {out} (results.parquet, results.csv, figures/)")
     return EXIT_OK
 
@@ -424,6 +487,18 @@ def _solver_options(p: argparse.ArgumentParser) -> None:
                         "max_step")
 
 
+def _run_options(p: argparse.ArgumentParser, check: bool = False) -> None:
+    """--isolate and --real-time of run, which check takes too, to judge what run with them would run."""
+    how = "check as `run --isolate` would run: " if check else ""
+    p.add_argument("--isolate", action="store_true",
+                   help=f"{how}host every FMU in a child process of its own: a crash or hang is reported, not fatal "
+                        "(instances can also say isolate = true)")
+    p.add_argument("--real-time", nargs="?", const=1.0, default=None, type=_real_time, metavar="FACTOR",
+                   help=("check as `run --real-time` would run (a single run, not a protocol's runs): " if check
+                         else "") + "pace the steps to the wall clock at FACTOR x real time (default 1); steps that "
+                                    "finish late are counted and reported, never skipped")
+
+
 def _experiment_options(p: argparse.ArgumentParser) -> None:
     """--start, --stop, --step, --workers and --record of run and check (with FMPy's names as aliases)."""
     what = "of the scenario, the SSP archive or the FMU's default experiment"
@@ -467,6 +542,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_build(sub)
     _add_run(sub)
     _add_check(sub)
+    _add_plot(sub)
     _add_export_ssp(sub)
     _add_info(sub)
     _add_paper(sub)
@@ -529,12 +605,12 @@ def _add_run(sub: Any) -> None:
     _solver_options(r)
     r.add_argument("--force", action="store_true",
                    help="run even beyond the limits of steps (experiment.max_steps) and recording size (record.max_bytes)")
-    r.add_argument("--isolate", action="store_true",
-                   help="host every FMU in a child process of its own: a crash or hang is reported, not fatal "
-                        "(instances can also say isolate = true)")
-    r.add_argument("--real-time", nargs="?", const=1.0, default=None, type=_real_time, metavar="FACTOR",
-                   help="pace the steps to the wall clock at FACTOR x real time (default 1); steps that finish "
-                        "late are counted and reported, never skipped")
+    _run_options(r)
+    r.add_argument("--format", action="append", default=None, metavar="FORMAT",
+                   help="what the results folder gets beside signals.npy (always written): csv (signals.csv), mat "
+                        "(signals.mat, Dymola's result layout, MAT v4) or npy (nothing more); repeat it or separate "
+                        "by commas for several (--format csv,mat); default: as the scenario's [record] csv and mat "
+                        "say (signals.csv)")
     r.set_defaults(func=cmd_run, subparser=r)
 
 
@@ -551,8 +627,27 @@ def _add_check(sub: Any) -> None:
                    help="one FMU only: input signals, checked as `run --input` reads them")
     _experiment_options(c)
     _solver_options(c)
+    _run_options(c, check=True)
     c.add_argument("--variant", default=None, help="a protocol's variant ([variants.NAME]): check its runs with it")
     c.set_defaults(func=cmd_check, subparser=c)
+
+
+def _add_plot(sub: Any) -> None:
+    """The ``plot`` command."""
+    p = sub.add_parser("plot", help="draw recorded signals of a results folder against time",
+                       description="Draw recorded signals of a results folder (what `run` writes: signals.npy, "
+                                   "summary.json, scenario.json) against time, one subplot per unit, the events of "
+                                   "the run as vertical lines; write the figure (default RESULTS/plot.png). Exit "
+                                   "code 0, or 2 for a folder without signals.npy or a variable not recorded.")
+    p.add_argument("results", type=Path, metavar="RESULTS", help="a results folder of `wmr-cosim run`")
+    p.add_argument("variables", nargs="*", metavar="VARIABLE",
+                   help="recorded variables to draw: names, or patterns such as 'controller.W*' (default: the "
+                        "first 4 recorded, in the order of summary.json's columns)")
+    p.add_argument("--out", type=Path, default=None, metavar="FILE.png",
+                   help="the figure to write (default RESULTS/plot.png; .pdf, .svg, ... by the suffix)")
+    p.add_argument("--show", action="store_true",
+                   help="also open a window (where there is a display; without one, only the file is written)")
+    p.set_defaults(func=cmd_plot, subparser=p)
 
 
 def _add_export_ssp(sub: Any) -> None:
@@ -592,8 +687,9 @@ def _add_paper(sub: Any) -> None:
                         description="Run every experiment of section 5 of the paper (G1, G2, G3, LINE; each a "
                                     "learning run, a frozen-weights run on the reference floor and one on foam) "
                                     "through the FMU co-simulation, in parallel processes; analyse them and write "
-                                    "report.md, report.html, metrics.json and figures/ into DIR. Exit code 0, or 1 if "
-                                    "a run of the chosen variant diverged.")
+                                    "report.md, report.html, metrics.json and figures/ into DIR. Exit code 1 if a "
+                                    "run of the chosen variant diverged or did not finish, or a run of the compared "
+                                    "variant did not finish (its diverged runs are reported, not an error); else 0.")
     pp.add_argument("--out", type=Path, default=Path("results/paper"), metavar="DIR",
                     help="output folder (default results/paper)")
     pp.add_argument("--variant", default="freeze", choices=("freeze", "printed"),

@@ -37,6 +37,28 @@ def run_line(variant: str, task: str, run: str, res: Any) -> str:
     return f"wmr-cosim paper: {variant} {task} {run}: {how}, {res.setup_s + res.wall_s:.1f} s"
 
 
+def build_fmus(fmi: int = 2, out_dir: Path | None = None, progress: bool = True) -> dict[str, Path]:
+    """Our three FMUs of FMI version ``fmi`` (WmrPlant, WmrSensor, WmrController, or their FMI 3.0 versions)
+    built into ``out_dir`` (default: where model names resolve, fmus.build.default_out_dir) where missing or
+    out of date; {model: .fmu}.  When any has to be built (a first run, or its sources changed), one line
+    on stderr says which and where first, unless ``progress`` is False: a build takes a while, and the job
+    says nothing else until its first run ends.  CosimError (one line) when a build fails."""
+    from .cosim.errors import CosimError
+    from .fmus.build import BuildError, build_all, default_out_dir, models_for, up_to_date
+
+    out = Path(out_dir) if out_dir is not None else default_out_dir()
+    models = models_for(fmi)
+    stale = [m for m, current in up_to_date(out, models).items() if not current]
+    if stale and progress:
+        why = "first run" if not any((out / f"{m}.fmu").is_file() for m in stale) else "their sources changed"
+        print(f"wmr-cosim paper: building the FMUs ({why}): {', '.join(stale)} into {out}", file=sys.stderr,
+              flush=True)
+    try:
+        return build_all(out, models=models)
+    except BuildError as exc:
+        raise CosimError(f"building {', '.join(stale)}: {' '.join(str(exc).split())}") from None
+
+
 def _task_job(task: str, file: str, folder: str, variant: str, fmi: int = 2, progress: bool = False,
               archive_limits: LimitOverrides | None = None) -> dict[str, Any]:
     """One task's protocol in a worker process: {run: {status, message, wall_s, setup_s}}; ``fmi`` 3 runs it
@@ -94,6 +116,30 @@ def analyse(folder: Path, statuses: dict[str, dict[str, dict[str, Any]]]) -> tup
     return out, signals, dist
 
 
+#: The statuses of a run that finished (``diverged``: it ran to its end, and analysis.divergence rejects it).
+FINISHED = (RunStatus.OK, RunStatus.DIVERGED)
+
+
+def unfinished_runs(m: dict[str, Any]) -> list[str]:
+    """The runs ("G1.frozen") of one variant's metrics that did not run to their end: failed (an FMU error,
+    a non-finite value), interrupted, or missing."""
+    return [f"{t}.{r}" for t, runs in m["tasks"].items() for r in RUNS
+            if runs.get(r, {}).get("status", "missing") not in FINISHED]
+
+
+def exit_code(variants: dict[str, dict[str, Any]], variant: str) -> int:
+    """The exit code of ``wmr-cosim paper`` from the metrics of each variant run ({variant: metrics}):
+    1 when a run of the chosen ``variant`` (``--variant``, the one the report describes) diverged or did not
+    finish, or a run of a compared variant did not finish (an error is an error whichever variant it is
+    of); else 0.  A compared variant's diverged runs are a result the report shows and the command prints,
+    not a failure of the job (the printed reading diverges on six of its runs)."""
+    from .exit_codes import OK, RUN_FAILED
+
+    if variants[variant]["diverged_runs"] or any(unfinished_runs(m) for m in variants.values()):
+        return RUN_FAILED
+    return OK
+
+
 def foam_change(run: Path) -> list[float] | None:
     """The friction change the foam run assumed, [da1, da2] [N.m], from its resolved scenario (None if not
     recorded)."""
@@ -142,15 +188,11 @@ def run_paper(out: str | os.PathLike = "results/paper", variant: str = "freeze",
 def _run_paper(out: Path, variant: str, compare: bool, workers: int | None, manifest: str | os.PathLike | None,
                progress: bool | None, figures: bool, robustness: bool, robustness_grid: Any, fmi: int,
                archive_limits: LimitOverrides | None) -> dict[str, Any]:
-    from .runner import resolver
-
-    resolve_model = resolver(fmi)
     tasks = task_files(manifest)
     variants = [variant] + ([v for v in VARIANTS if v != variant] if compare else [])
     progress = progress is not False     # one line per finished run, also when stderr is not a terminal
     t0 = time.perf_counter()
-    for model in ("WmrPlant", "WmrSensor", "WmrController"):  # build once, before the workers start
-        resolve_model(model)
+    build_fmus(fmi, progress=progress)   # once, before the workers start
     folders = {v: out / "runs" if v == variant else out / "variants" / v / "runs" for v in variants}
     jobs = [(task, str(f), str(folders[v] / task), v, fmi, progress, archive_limits)
             for v in variants for task, f in tasks.items()]

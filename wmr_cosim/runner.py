@@ -17,13 +17,14 @@ from .cosim.protocol import Protocol
 from .cosim.status import RunStatus
 from .cosim.errors import CosimError, ScenarioError
 from .cosim.scenario import parse_set
+from .fmus.build import FMI_VERSION
 
 
 def resolve_model(name: str) -> Path | None:
     """Our FMU for a model name (WmrPlant, WmrSensor, WmrController; their FMI 3.0 versions WmrPlant3,
     WmrSensor3, WmrController3; WmrCPlant, the plant in C), built when missing or when its sources changed;
     None for any other name."""
-    from .fmus.build import FMI_VERSION, BuildError, build_all
+    from .fmus.build import BuildError, build_all
 
     if name == "WmrCPlant":
         from .fmus.cplant_build import CBuildError, build_c_plant
@@ -39,6 +40,11 @@ def resolve_model(name: str) -> Path | None:
         raise CosimError(f"building {name}: {' '.join(str(exc).split())}") from None
 
 
+#: The model names :func:`resolve_model` knows (the suggestion for a misspelt one reads them).
+MODEL_NAMES = (*FMI_VERSION, "WmrCPlant")
+resolve_model.model_names = MODEL_NAMES  # type: ignore[attr-defined]
+
+
 def resolver(fmi: int = 2) -> Callable[[str], Path | None]:
     """A model-name resolver for FMI version ``fmi``: 2 is :func:`resolve_model`; 3 resolves our FMI 2.0
     model names (WmrPlant, WmrSensor, WmrController) to their FMI 3.0 versions (WmrPlant3, ...), so a
@@ -49,7 +55,11 @@ def resolver(fmi: int = 2) -> Callable[[str], Path | None]:
         raise CosimError(f"FMI version {fmi}: 2 or 3")
     from .fmus.build import SLAVES3
     to3 = {v: k for k, v in SLAVES3.items()}
-    return lambda name: resolve_model(to3.get(name, name))
+
+    def resolve3(name: str) -> Path | None:
+        return resolve_model(to3.get(name, name))
+    resolve3.model_names = MODEL_NAMES  # type: ignore[attr-defined]
+    return resolve3
 
 
 def carry_fmi3(carry: dict[str, str], finals: dict[str, dict[str, float]]) -> dict[str, Any]:
@@ -249,20 +259,26 @@ def run_scenario(path: str | Path, out: str | Path | None = None, overrides: dic
                  progress: bool | None = None, inputs: str | Path | None = None, stop: float | None = None,
                  step: float | None = None, force: bool = False, isolate: bool = False,
                  real_time: float | None = None, limits: LimitOverrides | None = None,
-                 parsed: Protocol | None = None, fields: dict[str, Any] | None = None) -> execution.RunResult:
+                 parsed: Protocol | None = None, fields: dict[str, Any] | None = None,
+                 on_plan: Callable[[system.Plan], None] | None = None) -> execution.RunResult:
     """Run a scenario file (.toml), an SSP archive (.ssp) or one FMU alone (.fmu); ``isolate`` hosts every
     instance in a child process of its own; ``real_time=FACTOR`` paces the steps to the wall clock;
     ``limits``: the caller's archive limits; ``parsed``: a scenario file already read (see :func:`load_plan`);
-    ``fields``: one FMU alone: more keys of its instance (``solver``, ``max_step``: see :func:`fmu_plan`)."""
+    ``fields``: one FMU alone: more keys of its instance (``solver``, ``max_step``: see :func:`fmu_plan`);
+    ``on_plan``: called with the checked plan before the run starts (the command line prints its notes)."""
     out = out if out is not None else default_out(path)
+    seen = on_plan or (lambda plan: None)
+
+    def run(plan: system.Plan) -> execution.RunResult:
+        seen(plan)
+        return execution.run(plan, out, progress=progress, real_time=real_time)
+
     if is_fmu(path):
-        return execution.run(fmu_plan(path, overrides, inputs, stop, step, force, isolate, limits, fields), out,
-                             progress=progress, real_time=real_time)
+        return run(fmu_plan(path, overrides, inputs, stop, step, force, isolate, limits, fields))
     if ssp.is_ssp(path):
         with ssp_plan(path, overrides, force, isolate, limits) as plan:
-            return execution.run(plan, out, progress=progress, real_time=real_time)
-    plan = load_plan(path, overrides, force, isolate, limits, parsed)
-    return judge_run(execution.run(plan, out, progress=progress, real_time=real_time))
+            return run(plan)
+    return judge_run(run(load_plan(path, overrides, force, isolate, limits, parsed)))
 
 
 def describe_fmu(path: str | Path, limits: LimitOverrides | None = None) -> str:

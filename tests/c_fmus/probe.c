@@ -10,6 +10,7 @@
  *   VERBOSE          logs a message of status OK in category "logAll" at every step when that category
  *                    is enabled (FMUSDK with logging on)
  *   TERMINATE_AT=t   from t on, fmi2DoStep returns Discard with fmi2Terminated true
+ *   ERROR_AT=t       from t on, fmi2DoStep logs an error and returns Error
  *   SEGFAULT_AT=t, ABORT_AT=t, EXIT_AT=t, HANG_AT=t, JUNK_AT=t   crash, abort, exit(3), loop forever, or
  *                    write junk to stdout, at the first step from t on
  *   BURN_US=n        every fmi2DoStep computes for about n microseconds of CPU time (a heavy FMU)
@@ -165,6 +166,9 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet
 #endif
 #ifdef TERMINATE_AT
     if (t >= TERMINATE_AT - 1e-9) { s->terminated = 1; return fmi2Discard; }
+#endif
+#ifdef ERROR_AT
+    if (t >= ERROR_AT - 1e-9) { say(s, fmi2Error, "logStatusError", "fmi2DoStep: the error asked for"); return fmi2Error; }
 #endif
 #ifdef SEGFAULT_AT
     if (t >= SEGFAULT_AT - 1e-9) raise(SIGSEGV);

@@ -1,0 +1,97 @@
+"""What an FMU's binary is, read from its bytes without loading it: a shared library of this platform
+(ELF: 64-bit, little-endian, a shared object for x86-64; PE: a DLL for x64) that exports the FMI
+functions an interface needs.  ``check`` refuses a binary the loader would refuse, before any instance
+is made, without running the library's code (loading it would run its constructors)."""
+from __future__ import annotations
+
+import os
+import struct
+import sys
+
+#: The FMI functions each interface's binary must export (a binary FMU's functions are not prefixed): the
+#: ones the master calls first and at every step of that interface.
+REQUIRED = {
+    (2, "co-simulation"): ("fmi2Instantiate", "fmi2DoStep"),
+    (2, "model-exchange"): ("fmi2Instantiate", "fmi2GetDerivatives"),
+    (3, "co-simulation"): ("fmi3InstantiateCoSimulation", "fmi3DoStep"),
+    (3, "model-exchange"): ("fmi3InstantiateModelExchange", "fmi3GetContinuousStateDerivatives"),
+}
+
+_ELF_MACHINES = {3: "x86 (32-bit)", 40: "ARM", 62: "x86-64", 183: "AArch64", 243: "RISC-V"}
+_ELF_TYPES = {1: "a relocatable object", 2: "an executable", 3: "a shared object", 4: "a core file"}
+_ET_DYN, _EM_X86_64, _SHT_DYNSYM = 3, 62, 11
+
+
+def library_problem(data: bytes, fmi: int, interface: str, platform: str = sys.platform) -> str | None:
+    """None if ``data`` is a shared library the loader of ``platform`` (``sys.platform``) can load and
+    that exports the FMI functions of ``interface`` (FMI version ``fmi``), else why not (a phrase).  On a
+    platform whose format is not read here (macOS), None."""
+    if platform.startswith("linux"):
+        return _elf_problem(data, REQUIRED[(fmi, interface)])
+    if platform == "win32":
+        return _pe_problem(data)
+    return None
+
+
+def _elf_problem(data: bytes, required: tuple[str, ...]) -> str | None:
+    if data[:4] != b"\x7fELF":
+        return f"not an ELF shared library (it begins {data[:8]!r})"
+    if len(data) < 64:
+        return f"a truncated ELF file ({len(data)} bytes)"
+    if data[4] != 2 or data[5] != 1:
+        return "not a 64-bit little-endian ELF file (class %d, data %d)" % (data[4], data[5])
+    e_type, e_machine = struct.unpack_from("<HH", data, 16)
+    if e_machine != _EM_X86_64:
+        return f"an ELF file for {_ELF_MACHINES.get(e_machine, f'machine {e_machine}')}, not x86-64"
+    if e_type != _ET_DYN:
+        return f"{_ELF_TYPES.get(e_type, f'an ELF file of type {e_type}')}, not a shared object"
+    exported = _elf_exports(data)
+    if exported is None:
+        return "a truncated or malformed ELF file (its section headers lie outside it)"
+    missing = [f for f in required if f not in exported]
+    if missing:
+        return f"exports no {', '.join(missing)}"
+    return None
+
+
+def _elf_exports(data: bytes) -> set[str] | None:
+    """The names of the symbols an ELF64 file defines in its dynamic symbol table, or None if its
+    section headers do not fit in it."""
+    (shoff,) = struct.unpack_from("<Q", data, 40)
+    shentsize, shnum = struct.unpack_from("<HH", data, 58)
+    if shentsize < 64 or shoff + shnum * shentsize > len(data):
+        return None
+    sections = [struct.unpack_from("<IIQQQQIIQQ", data, shoff + i * shentsize) for i in range(shnum)]
+    names: set[str] = set()
+    for _, sh_type, _, _, off, size, link, _, _, entsize in sections:
+        if sh_type != _SHT_DYNSYM or link >= shnum or entsize < 24:
+            continue
+        str_off, str_size = sections[link][4], sections[link][5]
+        if off + size > len(data) or str_off + str_size > len(data):
+            return None
+        for at in range(off, off + size - entsize + 1, entsize):
+            st_name, _, _, st_shndx = struct.unpack_from("<IBBH", data, at)
+            if st_shndx != 0 and st_name < str_size:   # defined here
+                end = data.find(b"\0", str_off + st_name, str_off + str_size)
+                names.add(data[str_off + st_name:end if end >= 0 else str_off + str_size].decode("latin-1"))
+    return names
+
+
+def _pe_problem(data: bytes) -> str | None:
+    if data[:2] != b"MZ" or len(data) < 64:
+        return f"not a Windows DLL (it begins {data[:8]!r})"
+    (pe,) = struct.unpack_from("<I", data, 0x3C)
+    if data[pe:pe + 4] != b"PE\0\0" or pe + 24 > len(data):
+        return "not a Windows DLL (no PE header)"
+    machine, _, _, _, _, _, characteristics = struct.unpack_from("<HHIIIHH", data, pe + 4)
+    if machine != 0x8664:
+        return f"a Windows binary for machine 0x{machine:04x}, not x64"
+    if not characteristics & 0x2000:
+        return "a Windows executable, not a DLL"
+    return None
+
+
+def load_failure(exc: BaseException, unzipdir: str) -> str:
+    """The loader's reason for refusing an FMU's binary, from FMPy's exception, in one line with the
+    paths inside the extracted archive made relative to it."""
+    return " ".join(str(exc).replace(unzipdir.rstrip(os.sep) + os.sep, "").split())

@@ -1,0 +1,95 @@
+"""Archive safety (cosim.archive) for entries with '..' anywhere in their path, not only as its first part:
+refused before anything is written, by the library (check_archive, safe_extract, check_entries) and by
+``wmr-cosim check`` (exit 2, one line naming the archive and the entry).  The rule is any '..' component:
+one that climbs out of the folder ('resources/a/../../../x') is named as such, one that stays inside it
+('resources/a/..', 'resources/a/../../x') is refused all the same."""
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from cosim_support import write_scenario
+from reference_fmus import REF
+from wmr_cosim import cli
+from wmr_cosim.cosim.archive import check_archive, check_entries, escapes, safe_extract
+from wmr_cosim.cosim.errors import FmuLoadError
+
+OUTSIDE = "would extract outside its folder"
+INSIDE = "has a '..' component (refused even where it stays inside the folder)"
+ENTRIES = [
+    ("resources/a/../../../x.txt", OUTSIDE),      # climbs out in its middle
+    ("resources/a/b/c/../../../../../x.txt", OUTSIDE),   # climbs out at its last '..'
+    ("resources\\a\\..\\..\\..\\x.txt", OUTSIDE),  # the same with backslashes
+    ("resources/a/../../x.txt", INSIDE),          # back to the top, not above it
+    ("resources/a/..", INSIDE),                   # stays inside
+    ("resources/a/../b.txt", INSIDE),
+]
+
+
+def _with_entry(dst: Path, entry: str) -> Path:
+    """The Reference FMU Feedthrough (FMI 2.0) with one more entry, ``entry``, holding a few bytes."""
+    with zipfile.ZipFile(REF / "fmi2" / "Feedthrough.fmu") as zi, zipfile.ZipFile(dst, "w") as zo:
+        for info in zi.infolist():
+            zo.writestr(info, zi.read(info))
+        zo.writestr(zipfile.ZipInfo(entry), b"escaped")
+    return dst
+
+
+def _tree(root: Path) -> list[Path]:
+    return sorted(root.rglob("*"))
+
+
+@pytest.mark.parametrize("entry, why", ENTRIES)
+def test_an_entry_with_dotdot_anywhere_is_refused_before_anything_is_written(tmp_path, entry, why):
+    box = tmp_path / "a" / "b" / "c" / "box"      # deep enough that nothing escaping could leave tmp_path
+    box.mkdir(parents=True)
+    fmu = _with_entry(box / "Feedthrough.fmu", entry)
+    assert zipfile.ZipFile(fmu).namelist()[-1] == entry
+    message = f"{fmu}: refused: entry '{entry}' {why}"
+    before = _tree(tmp_path)
+    with pytest.raises(FmuLoadError) as exc:
+        check_archive(fmu)
+    assert str(exc.value) == message
+    (box / "existing").mkdir()
+    before = _tree(tmp_path)
+    for dest in (box / "new" / "folder", box / "existing"):
+        with pytest.raises(FmuLoadError) as exc:
+            safe_extract(fmu, dest)
+        assert str(exc.value) == message
+        assert _tree(tmp_path) == before           # nothing extracted, no folder made
+    with pytest.raises(FmuLoadError) as exc:
+        check_entries("label", [zipfile.ZipInfo("modelDescription.xml"), zipfile.ZipInfo(entry)])
+    assert str(exc.value) == f"label: refused: entry '{entry}' {why}"
+
+
+def test_entries_without_dotdot_pass():
+    check_entries("label", [zipfile.ZipInfo(n) for n in ("modelDescription.xml", "resources/a..b/c..",
+                                                          "resources/..a/b", "resources/./x", "sources/")])
+
+
+@pytest.mark.parametrize("path, out", [("../x", True), ("a/../../x", True), ("a/b/../../../x", True),
+                                       ("a/..", False), ("a/../b", False), ("a/b/../../c", False),
+                                       ("a/../b/../..", True), ("a/b/c", False)])
+def test_escapes_follows_the_normalised_path(path, out):
+    from pathlib import PurePosixPath
+
+    assert escapes(PurePosixPath(path).parts) is out
+
+
+@pytest.mark.parametrize("entry, why", [ENTRIES[0], ENTRIES[4]])
+def test_check_refuses_it_in_one_line_with_exit_2(tmp_path, capsys, entry, why):
+    """``wmr-cosim check`` of a scenario with such an FMU, and of the FMU alone: exit 2, one line naming the
+    archive and the entry, nothing written."""
+    fmu = _with_entry(tmp_path / "Feedthrough.fmu", entry)
+    scen = write_scenario(tmp_path / "s.toml", f'[experiment]\nstop = 0.1\nstep = 0.01\n'
+                                               f'[instances.ft]\nfmu = "{fmu}"\n')
+    before = _tree(tmp_path)
+    for target in (scen, fmu):
+        code = cli.main(["check", str(target)])
+        out, err = capsys.readouterr()
+        lines = err.strip().splitlines()
+        assert code == 2 and len(lines) == 1, err
+        assert f"{fmu}: refused: entry '{entry}' {why}" in lines[0], lines[0]
+        assert _tree(tmp_path) == before
