@@ -593,7 +593,7 @@ class IsolatedInstance(FmuInstance):
         # FMI 3.0's terminateSimulation, and a model exchange FMU's
         terminated = ctypes.c_bool(False) if self.fmi_version == 3 or self.solver is not None else None
         # stepping: the step loop has begun (the child sets the inputs with each step); fresh: the last step
-        # left the outputs in the slot (the child reads them after an OK step only)
+        # left the outputs in the slot (the child reads them after an OK step only; none before the first)
         mode = {"stepping": False, "fresh": False}
         step_name = self.call_name(Call.DO_STEP)
         last_time = ctypes.c_double(math.nan) if terminated is not None else None
@@ -626,7 +626,7 @@ class IsolatedInstance(FmuInstance):
             return finish_step(True)
 
         def get_real(c: Any, vrs: Any, n: Any, out: Any) -> int:
-            if not (mode["stepping"] and mode["fresh"]):   # (before stepping; after a step that did not read them)
+            if not mode["fresh"]:   # (before the first step; after a step that did not read them)
                 s = self._call("getting outputs", "get_outputs")
                 if s:
                     return s
