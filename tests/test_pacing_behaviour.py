@@ -81,19 +81,27 @@ class _Work(Observer):
         self.clock.now += self.work.get(k, self.default)
 
 
+def _paced_dahlquist(clock, tmp_path, start: float, stop: float, step: float, factor: float, now: float) -> Execution:
+    """An execution of the Reference FMU Dahlquist from ``start`` to ``stop`` [s] in steps of ``step`` [s],
+    paced at ``factor`` x real time by the fake ``clock`` (set to ``now`` [s])."""
+    from reference_fmus import REF
+
+    doc = {"experiment": {"start": start, "stop": stop, "step": step},
+           "instances": {"d": {"fmu": str(REF / "fmi2" / "Dahlquist.fmu")}}, "record": {"variables": ["d.x"]}}
+    clock.now = now
+    ex = Execution(system.resolve(scenario.parse(doc, "paced.toml")), tmp_path / "out", real_time=factor)
+    assert ex.pacer is not None
+    ex.pacer._clock = clock
+    return ex
+
+
 def test_each_step_of_a_run_completes_no_earlier_than_its_due_time(clock, tmp_path):
     """A run from 0.5 s in steps of h = 10 ms at 4x real time, each step taking 1 ms of wall time, step 4
     taking 9 ms: step k completes (the pacing returns) exactly at its due time wall0 + k h / 4 = wall0 +
     2.5 k ms; steps 4 to 8 are late (never held, never skipped), and since the due times are absolute,
     steps 9 and 10 are back on them."""
-    from reference_fmus import REF
-
-    doc = {"experiment": {"start": 0.5, "stop": 0.6, "step": 0.01},
-           "instances": {"d": {"fmu": str(REF / "fmi2" / "Dahlquist.fmu")}}, "record": {"variables": ["d.x"]}}
-    clock.now = 1000.0
-    ex = Execution(system.resolve(scenario.parse(doc, "paced.toml")), tmp_path / "out", real_time=4.0)
+    ex = _paced_dahlquist(clock, tmp_path, 0.5, 0.6, 0.01, 4.0, 1000.0)
     assert ex.pacer is not None
-    ex.pacer._clock = clock
     done: list[tuple[float, float]] = []     # (simulated time, wall time) when each step's pacing returned
     wait = ex.pacer.wait
 
@@ -123,14 +131,8 @@ def test_the_clock_of_a_run_stepped_in_parts_starts_once(clock, tmp_path):
     """Stepped in two calls with a pause of 1 s between them (the Python API's run.step): the due times
     stay those of the first call's clock, so the steps after the pause are late until it is made up, none
     held; each step takes no wall time here."""
-    from reference_fmus import REF
-
-    doc = {"experiment": {"start": 0.0, "stop": 2.0, "step": 0.5},
-           "instances": {"d": {"fmu": str(REF / "fmi2" / "Dahlquist.fmu")}}, "record": {"variables": ["d.x"]}}
-    clock.now = 10.0
-    ex = Execution(system.resolve(scenario.parse(doc, "paced.toml")), tmp_path / "out", real_time=1.0)
+    ex = _paced_dahlquist(clock, tmp_path, 0.0, 2.0, 0.5, 1.0, 10.0)
     assert ex.pacer is not None
-    ex.pacer._clock = clock
     ex.initialize()
     try:
         ex.step(2)                       # due at 10.5 and 11
