@@ -66,36 +66,37 @@ class Copy(NamedTuple):
 @dataclass(frozen=True)
 class Clock:
     """The communication grid: t_k = start + k step [s] for k = 0 .. n_steps; every ``decimation``-th
-    step (and the last) is recorded.  With a short ``last`` step [s] (a step that does not divide the run),
-    the last point is ``stop``, reached by a step of that length from t_{n_steps - 1}."""
+    step (and the last) is recorded.  Where the step does not divide the run, ``stop`` [s] is given: the
+    last point, reached by a short step from t_{n_steps - 1}."""
 
     start: float
     step: float
     n_steps: int
     decimation: int = 1
-    last: float | None = None   # [s] the length of a short last step (None: every step is ``step`` long)
-    stop: float | None = None   # [s] the last point when the last step is short
+    stop: float | None = None   # [s] the last point when the last step is short (None: every step is ``step``)
 
     def time(self, k: int) -> float:
         """t_k [s]."""
-        if self.last is not None and k == self.n_steps and self.stop is not None:
+        if self.stop is not None and k == self.n_steps:
             return self.stop
         return self.start + k * self.step
 
     def length(self, k: int) -> float:
         """The length [s] of step k (from t_k to t_{k+1})."""
-        return self.last if self.last is not None and k == self.n_steps - 1 else self.step
+        if self.stop is not None and k == self.n_steps - 1:
+            return self.stop - self.time(k)
+        return self.step
 
     def step_of(self, t: float) -> int:
         """The point k nearest to the time t [s] (the last point for a time within a millionth of a step of
         it)."""
-        if self.last is not None and abs(t - self.time(self.n_steps)) <= 1e-6 * self.step:
+        if self.stop is not None and abs(t - self.stop) <= 1e-6 * self.step:
             return self.n_steps
         return int(round((t - self.start) / self.step))
 
     def steps_before(self, t: float) -> int:
         """How many steps end at or before the time t [s]."""
-        if self.last is not None and t >= self.time(self.n_steps) - 1e-9 * self.step:
+        if self.stop is not None and t >= self.stop - 1e-9 * self.step:
             return self.n_steps
         return min(self.n_steps, int(math.floor((t - self.start) / self.step + 1e-9)))
 
@@ -310,7 +311,7 @@ class LoopSource:
             self.w(f"        if (k + 1) % dec == 0 or k + 1 == n_steps{' or ended is not None' if ends else ''}:")
         else:
             self.w("        if True:")
-        self.w("            row[0] = t0 + (k + 1) * h" if not short else "            row[0] = t_stop if k == k_last else t0 + (k + 1) * h")
+        self.w("            row[0] = " + ("t_stop if k == k_last else t0 + (k + 1) * h" if short else "t0 + (k + 1) * h"))
         for i, io in enumerate(ios):
             for j, x in enumerate(io.extras):
                 names = [self.bind(f"x{w}_{i}_{j}", v) for w, v in zip("gvnbc", (x.get, x.vrs, x.n, x.buf, x.nv))]
@@ -342,7 +343,7 @@ def compile_loop(ios: list[InstanceIO], body: Callable[[LoopSource, list[Instanc
     head = s.lines
     s.lines = []
     body(s, ios, "        ")
-    short = clock.last is not None
+    short = clock.stop is not None
     if short:   # the last step is short (only then is this compared at every step)
         s.env.update({"k_last": clock.n_steps - 1, "h_last": float(clock.length(clock.n_steps - 1)),
                       "t_stop": float(clock.time(clock.n_steps))})

@@ -87,7 +87,7 @@ class Execution:
         sc = plan.scenario
         start, _, step = sc.times()
         self.plan = plan
-        self.clock = Clock(start, step, plan.n_steps, sc.decimation, plan.last_step, sc.stop)
+        self.clock = Clock(start, step, plan.n_steps, sc.decimation, None if plan.last_step is None else sc.stop)
         self.algorithm = algorithm if algorithm is not None else _algorithm(plan)
         slow = [n for n, ip in plan.instances.items() if ip.decimation > 1]
         if slow and not isinstance(self.algorithm, MultiRate):

@@ -317,8 +317,9 @@ def parse(doc: dict[str, Any], file: str, resolver=None, limits: LimitOverrides 
 
     ``resolver(model_name) -> Path | None`` turns an FMU given by model name (e.g. ``WmrPlant``) into a
     file; without one, every ``fmu`` must be a path.  A resolver's attribute ``model_names`` (where it has
-    one) lists the names it knows, for the suggestion when a name is not one of them.  ``limits``: the caller's archive limits, each given
-    one over the document's ``[limits]`` (the scenario's ``archive_limits``).
+    one) lists the names it knows, for the suggestion when a name is not one of them.  ``limits``: the
+    caller's archive limits, each given one over the document's ``[limits]`` (the scenario's
+    ``archive_limits``).
     """
     sc = Scenario(file=file, data=doc, archive_limits=parse_limits(file, doc.get("limits"), limits))
     _parse_experiment(sc, doc)
@@ -656,7 +657,6 @@ def steps_of(start: float, stop: float, step: float) -> tuple[int, float | None]
         return int(whole), None
     n_steps = int(math.ceil(n))
     return n_steps, stop - (start + (n_steps - 1) * step)
-
 
 
 #: The [experiment] fields that 0 leaves to the master, as the FMI Cross-Check's option files say

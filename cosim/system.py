@@ -405,7 +405,7 @@ def _tolerances(sc: Scenario, insts: dict[str, InstancePlan], notes: list[str]) 
     if "tolerance" in sc.tools_choice:
         each = ", ".join(f"{n} {'none' if ip.tolerance is None else repr(ip.tolerance)}" for n, ip in insts.items())
         notes.append(f"experiment.tolerance = 0 (the tool's choice): each FMU's own ({each}; a model exchange "
-                        f"integrator without one takes rtol {DEFAULT_RTOL!r})")
+                     f"integrator without one takes rtol {DEFAULT_RTOL!r})")
 
 
 def _record(sc: Scenario, insts: dict[str, InstancePlan]) -> tuple[list[RecordPlan], list[str]]:
@@ -492,6 +492,7 @@ def _events(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str
     and types checked here)."""
     file = sc.file
     start, stop, step = sc.times()
+    n_steps = steps_of(start, stop, step)[0]
     tabled = {(ip.instance, ip.var.name) for ip in inputs}
     events: list[EventPlan] = []
     for e in sc.events:
@@ -502,7 +503,7 @@ def _events(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str
                 raise ScenarioError(file, f"{fld}.time", f"{e.time!r} is outside the run {start!r}..{stop!r} s "
                                                          "(an event at the stop time would never act)")
             k = int(math.ceil((e.time - start) / step - 1e-9))
-            if k >= steps_of(start, stop, step)[0]:
+            if k >= n_steps:
                 raise ScenarioError(file, f"{fld}.time", f"{e.time!r} is inside the short last step, after the "
                                                          f"last point of the step's grid before the stop {stop!r} "
                                                          "s: it would never act")
@@ -652,8 +653,8 @@ def _check_stepping(sc: Scenario, insts: dict[str, InstancePlan]) -> None:
     """The step-size control, and a short last step (a step that does not divide the run), vary an
     instance's communication step: refused, naming the instance, where a co-simulation FMU declares it
     cannot take steps of varying length (canHandleVariableCommunicationStepSize false: a sampled-data block
-    whose sample period is its step); then the step-size control's bounds against the output interval (known only now, when the FMUs' default experiments may
-    give the step)."""
+    whose sample period is its step); then the step-size control's bounds against the output interval
+    (known only now, when the FMUs' default experiments may give the step)."""
     start, stop, step = sc.times()
     last = steps_of(start, stop, step)[1]
     for name in sc.order:
