@@ -185,13 +185,13 @@ class SlaveCore:
         if h != self._h:
             if abs(h - self._h) <= STEP_RTOL * self._h:
                 h = self._h
-            elif not self.variable_step and abs(h - self._h) <= FIXED_STEP_RTOL * self._h:
-                h = self._h   # (False while _h is NaN: the first step sets the period)
-            elif not self.variable_step and not math.isnan(self._h):
-                self.log(f"{self.modelName} instance {self.instance_name}: step of h = {h!r} s at t = "
-                         f"{current_time!r} s refused: it samples every {self._h!r} s (its first step) and "
-                         "declares canHandleVariableCommunicationStepSize = false", self._DISCARD)
-                return None
+            elif not self.variable_step and not math.isnan(self._h):   # (the first step sets the period)
+                if abs(h - self._h) > FIXED_STEP_RTOL * self._h:
+                    self.log(f"{self.modelName} instance {self.instance_name}: step of h = {h!r} s at t = "
+                             f"{current_time!r} s refused: it samples every {self._h!r} s (its first step) and "
+                             "declares canHandleVariableCommunicationStepSize = false", self._DISCARD)
+                    return None
+                h = self._h
             elif h > 0.0 and math.isfinite(h):
                 self._h = h
             else:
