@@ -27,7 +27,7 @@ NAME:
             master and third-party masters, each in a fresh process as its users run it, with its defaults
             (wmr_cosim.interop): peers = wall seconds per master (median of up to 3 runs; creating the
             execution, initialisation and 25,000 steps, recording included; not importing the library):
-            ours (load_ssp + resolve + execution.run, signals.npy), libcosim (from_ssp_file, time-series
+            ours (load_ssp + resolve + cosim.run, signals.npy), libcosim (from_ssp_file, time-series
             observer), ecos (EcosSimulation, CSV writer, step(n)), fmpy_ssp (simulate_ssp), and ecos_pinned
             (ecos with its process pinned to one core); c_plant_s = ours with the C plant (WmrCPlant.fmu)
             in place of the Python plant.  Target: ours the fastest of the default runs, and within 10 % of
@@ -130,22 +130,22 @@ ANALYSIS_RECORD = ["plant.x_A", "plant.y_A", "plant.beta", "plant.dF*", "control
 
 
 def bench_cosim(repeats: int) -> dict[str, float]:
-    from wmr_cosim.cosim import execution, scenario, system
+    from wmr_cosim import cosim
     from wmr_cosim.runner import resolve_model
 
     root = __import__("pathlib").Path(__file__).resolve().parents[1]
-    sc = scenario.load(root / "scenarios" / "g1_learn.toml", resolve_model)
+    sc = cosim.load(root / "scenarios" / "g1_learn.toml", resolve_model)
     sc.record = ANALYSIS_RECORD
-    plan = system.resolve(sc)
+    plan = cosim.resolve(sc)
     walls, setups = [], []
     res = None
     for _ in range(repeats):
-        res = execution.run(plan, None, progress=False)
+        res = cosim.run(plan, None, progress=False)
         if res.status != "ok":
             raise SystemExit(f"co-simulation failed: {res.message}")
         walls.append(res.wall_s)
         setups.append(res.setup_s)
-    timed = [execution.run(plan, None, progress=False, timing=True) for _ in range(max(1, repeats // 2))]
+    timed = [cosim.run(plan, None, progress=False, timing=True) for _ in range(max(1, repeats // 2))]
     overhead = statistics.median((r.wall_s - r.fmi_s) / r.steps / len(plan.instances) * 1e6 for r in timed)
     cosim_s = statistics.median(walls)
     return {"cosim_s": round(cosim_s, 4), "cosim_setup_s": round(statistics.median(setups), 4),
@@ -157,9 +157,9 @@ def bench_cosim(repeats: int) -> dict[str, float]:
 def plain_algorithm():
     """Gauss-Seidel with its loop written as a plain loop over the instances, making the same raw ctypes
     calls as the generated one (Real connections only: what G1 needs): the yardstick that decides whether
-    generating the loop pays for itself.  An algorithm object of its own (cosim.algorithm's interface)."""
-    from wmr_cosim.cosim.algorithm import GaussSeidel
-    from wmr_cosim.cosim.failure import Call, Failure
+    generating the loop pays for itself.  An algorithm object of its own (cosim.stepping.algorithm's interface)."""
+    from wmr_cosim.cosim.stepping.generated import GaussSeidel
+    from wmr_cosim.cosim.instances.failure import Call, Failure
 
     class PlainGaussSeidel(GaussSeidel):
         def compile(self):
@@ -207,18 +207,18 @@ def plain_algorithm():
 
 def bench_plain(repeats: int) -> dict[str, float]:
     """G1 as in bench_cosim, with the plain loop in place of the generated one (interleaved runs)."""
-    from wmr_cosim.cosim import execution, scenario, system
-    from wmr_cosim.cosim.algorithm import GaussSeidel
+    from wmr_cosim import cosim
+    from wmr_cosim.cosim.stepping.generated import GaussSeidel
     from wmr_cosim.runner import resolve_model
 
     root = __import__("pathlib").Path(__file__).resolve().parents[1]
-    sc = scenario.load(root / "scenarios" / "g1_learn.toml", resolve_model)
+    sc = cosim.load(root / "scenarios" / "g1_learn.toml", resolve_model)
     sc.record = ANALYSIS_RECORD
-    plan = system.resolve(sc)
+    plan = cosim.resolve(sc)
     walls: dict[str, list[float]] = {"generated": [], "plain": []}
     for _ in range(repeats):
         for kind, make in (("generated", GaussSeidel), ("plain", plain_algorithm)):
-            walls[kind].append(execution.run(plan, None, progress=False, algorithm=make()).wall_s)
+            walls[kind].append(cosim.run(plan, None, progress=False, algorithm=make()).wall_s)
     g, p = statistics.median(walls["generated"]), statistics.median(walls["plain"])
     return {"cosim_plain_us_per_step": round(p / plan.n_steps * 1e6, 2),
             "cosim_generated_us_per_step": round(g / plan.n_steps * 1e6, 2),
@@ -228,19 +228,19 @@ def bench_plain(repeats: int) -> dict[str, float]:
 def bench_fmi3(repeats: int) -> dict[str, float]:
     """G1 through the FMI 3.0 FMUs and through the FMI 2.0 ones, runs interleaved (the machine's load
     drifts): the stepping loop's time per step, median of the repeats."""
-    from wmr_cosim.cosim import execution, scenario, system
+    from wmr_cosim import cosim
     from wmr_cosim.runner import resolver
 
     root = __import__("pathlib").Path(__file__).resolve().parents[1]
     plans = {}
     for fmi in (2, 3):
-        sc = scenario.load(root / "scenarios" / "g1_learn.toml", resolver(fmi))
+        sc = cosim.load(root / "scenarios" / "g1_learn.toml", resolver(fmi))
         sc.record = ANALYSIS_RECORD
-        plans[fmi] = system.resolve(sc)
+        plans[fmi] = cosim.resolve(sc)
     walls: dict[int, list[float]] = {2: [], 3: []}
     for _ in range(repeats):
         for fmi in (2, 3):
-            res = execution.run(plans[fmi], None, progress=False)
+            res = cosim.run(plans[fmi], None, progress=False)
             if res.status != "ok":
                 raise SystemExit(f"co-simulation (FMI {fmi}) failed: {res.message}")
             walls[fmi].append(res.wall_s)
@@ -295,7 +295,7 @@ def bench_sweep(repeats: int) -> dict[str, float]:
     for n in (1, 2):
         with tempfile.TemporaryDirectory() as tmp, Cluster(workers=n) as cl:
             startups.append(cl.startup_s)
-            cl.client.run(lambda: __import__("wmr_cosim.cosim.execution"))  # imports warm, as in a long sweep
+            cl.client.run(lambda: __import__("wmr_cosim.cosim.runtime.execution"))  # imports warm, as in a long sweep
             t0 = time.perf_counter()
             df = run_sweep(f, tmp, cluster=cl, progress=False)
             figures[f"sweep_{n}w_s"] = round(time.perf_counter() - t0, 3)
@@ -312,8 +312,8 @@ def bench_interop(repeats: int) -> dict[str, float]:
     import tempfile
     from pathlib import Path
 
-    from wmr_cosim.cosim import scenario, system
-    from wmr_cosim.cosim.ssp import export_ssp
+    from wmr_cosim import cosim
+    from wmr_cosim.cosim.plan.ssp import export_ssp
     from wmr_cosim.interop import SIGNALS, run_peer
     from wmr_cosim.runner import resolve_model
 
@@ -323,9 +323,9 @@ def bench_interop(repeats: int) -> dict[str, float]:
     with tempfile.TemporaryDirectory() as tmp:
         archives = {}
         for key, scen in (("python", "g1_learn.toml"), ("c", "g1_c_plant.toml")):
-            sc = scenario.load(root / "scenarios" / scen, resolve_model)
+            sc = cosim.load(root / "scenarios" / scen, resolve_model)
             sc.algorithm, sc.record = "jacobi", list(SIGNALS)
-            archives[key] = export_ssp(system.resolve(sc), Path(tmp) / f"{key}.ssp")
+            archives[key] = export_ssp(cosim.resolve(sc), Path(tmp) / f"{key}.ssp")
         walls: dict[str, list[float]] = {}
         steps = {}
         for _ in range(n):  # interleaved, so that a slow phase of the machine hits every master alike
@@ -446,15 +446,15 @@ def bench_generic(repeats: int) -> dict[str, Any]:
 
     import numpy as np
 
-    from wmr_cosim.cosim import scenario, system
-    from wmr_cosim.cosim.ssp import export_ssp
+    from wmr_cosim import cosim
+    from wmr_cosim.cosim.plan.ssp import export_ssp
     from wmr_cosim.interop import run_peer
 
     n = max(1, min(repeats, 5))
     signals = ["d.x", "f1.Float64_continuous_output", "f2.Float64_continuous_output"]
     walls: dict[str, list[float]] = {}
     with tempfile.TemporaryDirectory() as tmp:
-        plan = system.resolve(scenario.load(_generic_scenario(tmp)))
+        plan = cosim.resolve(cosim.load(_generic_scenario(tmp)))
         ssp = export_ssp(plan, Path(tmp) / "chain.ssp")
         stop, h = plan.scenario.stop, plan.scenario.step
         results = {}
@@ -488,8 +488,8 @@ def bench_archive(repeats: int) -> dict[str, float]:
     import zipfile
     from pathlib import Path
 
-    from wmr_cosim.cosim.archive import check_archive, safe_extract
-    from wmr_cosim.cosim.errors import FmuLoadError
+    from wmr_cosim.cosim.model.archive import check_archive, safe_extract
+    from wmr_cosim.cosim.messages.errors import FmuLoadError
     from wmr_cosim.runner import resolve_model
 
     fmus = [resolve_model(m) for m in ("WmrPlant", "WmrSensor", "WmrController")]
@@ -545,7 +545,7 @@ def bench_isolation(repeats: int) -> dict[str, Any]:
     FMUs isolated (each in a child process), interleaved, medians: isolated_us_per_fmu_step_overhead =
     (isolated wall - in-process wall) / steps / isolated FMUs (target <= 15 us); same_results (bit for bit)."""
 
-    from wmr_cosim.cosim import execution, scenario, system
+    from wmr_cosim import cosim
     from wmr_cosim.runner import resolve_model
 
     root = __import__("pathlib").Path(__file__).resolve().parents[1]
@@ -553,12 +553,12 @@ def bench_isolation(repeats: int) -> dict[str, Any]:
     finals: dict[str, dict] = {}
     for _ in range(max(1, repeats)):
         for kind in walls:
-            sc = scenario.load(root / "scenarios" / "g1_learn.toml", resolve_model)
+            sc = cosim.load(root / "scenarios" / "g1_learn.toml", resolve_model)
             sc.record = ANALYSIS_RECORD
-            plan = system.resolve(sc)
+            plan = cosim.resolve(sc)
             for n, ip in plan.instances.items():
                 ip.spec.isolate = kind == "all" or (kind == "plant" and n == "plant")
-            r = execution.run(plan, None, progress=False)
+            r = cosim.run(plan, None, progress=False)
             if r.status != "ok":
                 raise SystemExit(f"{kind}: {r.message}")
             walls[kind].append(r.wall_s)
@@ -753,25 +753,25 @@ def bench_me(repeats: int) -> dict[str, Any]:
     me_rk4_to_cs, and the final pose's distance from the co-simulation plant's [m]."""
     import numpy as np
 
-    from wmr_cosim.cosim import execution, scenario, system
+    from wmr_cosim import cosim
     from wmr_cosim.runner import resolve_model
 
     root = __import__("pathlib").Path(__file__).resolve().parents[1]
     plans = {}
     for key, file, fields in (("cs", "g1_c_plant.toml", {}), ("me_cvode", "g1_c_plant_me.toml", {}),
                               ("me_rk4", "g1_c_plant_me.toml", {"solver": "rk4", "max_step": 0.001})):
-        sc = scenario.load(root / "scenarios" / file, resolve_model)
+        sc = cosim.load(root / "scenarios" / file, resolve_model)
         sc.record = ANALYSIS_RECORD
         for k, v in fields.items():
             setattr(sc.instances["plant"], k, v)
-        plans[key] = system.resolve(sc)
+        plans[key] = cosim.resolve(sc)
     walls: dict[str, list[float]] = {k: [] for k in plans}
     final: dict[str, Any] = {}
     with __import__("tempfile").TemporaryDirectory() as tmp:
         for r in range(repeats):
             for key, plan in plans.items():
                 out = __import__("pathlib").Path(tmp) / f"{key}_{r}"
-                res = execution.run(plan, out, progress=False)
+                res = cosim.run(plan, out, progress=False)
                 if res.status != "ok":
                     raise SystemExit(f"G1 ({key}) failed: {res.message}")
                 walls[key].append(res.wall_s)
@@ -798,11 +798,11 @@ def bench_adaptive(repeats: int) -> dict[str, Any]:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
     from coupling_fmus import TwoMass, build_mass, two_mass_document
 
-    from wmr_cosim.cosim import execution, scenario, system
-    from wmr_cosim.cosim.adaptive import Adaptive
-    from wmr_cosim.cosim.algorithm import GaussSeidel
-    from wmr_cosim.cosim.coupling_spec import AdaptiveSpec, IterationSpec
-    from wmr_cosim.cosim.iterated import Iterated
+    from wmr_cosim import cosim
+    from wmr_cosim.cosim.stepping import table as algorithms
+    from wmr_cosim.cosim.stepping.generated import GaussSeidel
+    from wmr_cosim.cosim.stepping.settings import AdaptiveSpec, IterationSpec
+    from wmr_cosim.cosim.stepping.iterated import Iterated
 
     tm = TwoMass(x1=0.0, v1=3.0, kk=1e4, gap=0.05, h_int=1e-5)
     stop, interval = 2.0, 0.01
@@ -816,10 +816,10 @@ def bench_adaptive(repeats: int) -> dict[str, Any]:
         runs = [0]
 
         def run(alg: Any, step: float) -> tuple[np.ndarray, Any]:
-            plan = system.resolve(scenario.parse(two_mass_document(fmus, tm, stop=stop, step=step), "two.toml"))
+            plan = cosim.resolve(cosim.parse(two_mass_document(fmus, tm, stop=stop, step=step), "two.toml"))
             runs[0] += 1
             out = Path(tmp) / f"run{runs[0]}"
-            res = execution.run(plan, out, progress=False, algorithm=alg)
+            res = cosim.run(plan, out, progress=False, algorithm=alg)
             if res.status != "ok":
                 raise SystemExit(f"the two-mass run failed: {res.message}")
             sig = np.load(out / "signals.npy")
@@ -851,7 +851,8 @@ def bench_adaptive(repeats: int) -> dict[str, Any]:
             figures[f"{key}_wall_s_fixed"] = round(res.wall_s, 3)
             for k in range(2, 9):
                 tol = 10.0 ** -k
-                sig, res = run(Adaptive(AdaptiveSpec(rtol=tol, atol=tol, coupling=coupling), linear), interval)
+                spec = AdaptiveSpec(rtol=tol, atol=tol, coupling=coupling)
+                sig, res = run(algorithms.make("adaptive", linear, spec), interval)
                 if error(sig) <= accuracy:
                     break
             st = res.summary["stepping"]
@@ -879,7 +880,7 @@ def bench_parallel(repeats: int) -> dict[str, Any]:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
     from c_fmu_support import build_probe
 
-    from wmr_cosim.cosim import execution, scenario, system
+    from wmr_cosim import cosim
 
     figures: dict[str, Any] = {}
     with tempfile.TemporaryDirectory() as tmp:
@@ -895,9 +896,9 @@ def bench_parallel(repeats: int) -> dict[str, Any]:
             for r in range(max(1, repeats)):
                 for w in (1, n) if r % 2 == 0 else (n, 1):
                     doc["experiment"]["workers"] = w
-                    plan = system.resolve(scenario.parse(doc, "parallel.toml"))
+                    plan = cosim.resolve(cosim.parse(doc, "parallel.toml"))
                     out = Path(tmp) / f"n{n}w{w}r{r}"
-                    res = execution.run(plan, out, progress=False)
+                    res = cosim.run(plan, out, progress=False)
                     if res.status != "ok":
                         raise SystemExit(f"parallel bench (N = {n}, workers = {w}): {res.message}")
                     walls[w].append(res.wall_s)

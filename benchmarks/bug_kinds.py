@@ -217,8 +217,9 @@ def staged(rel: str) -> Path:
 def tests_of(rel: str) -> list[str]:
     """The test files that import the module ``rel`` sits in (by its name), fastest files are not known: all."""
     folder, name = rel.split("/", 1)
-    mod = name[:-3]
-    pat = re.compile(rf"\b{folder}\b[\w.]*(\.{mod}\b| import [^\n]*\b{mod}\b)")
+    parts = name[:-3].split("/")        # (a module in a folder of the package: cosim/model/units.py)
+    dotted, package = re.escape(".".join(parts)), "".join(rf"\.{p}" for p in parts[:-1])
+    pat = re.compile(rf"\b{folder}\b[\w.]*(\.{dotted}\b|{package} import [^\n]*\b{parts[-1]}\b)")
     return sorted(f"tests/{p.name}" for p in (ROOT / "tests").glob("test_*.py")
                   if pat.search(p.read_text(encoding="utf-8")) and f"--ignore=tests/{p.name}" not in FAST)
 

@@ -201,7 +201,7 @@ def survivor_diffs(names: list[str]) -> str:
 _CHECK_DRIVER = r"""
 import json, os, sys, time
 import numpy, fmpy, pytest
-import wmr_cosim.cosim.execution, wmr_cosim.cosim.ssp, wmr_cosim.cosim.isolation, wmr_cosim.api
+import wmr_cosim.cosim.runtime.execution, wmr_cosim.cosim.plan.ssp, wmr_cosim.cosim.instances.isolation, wmr_cosim.api
 names, files, limit = json.loads(sys.argv[1]), json.loads(sys.argv[2]), float(sys.argv[3])
 for name in names:
     pid = os.fork()
@@ -297,7 +297,7 @@ def load_unreachable() -> dict[str, str]:
 
 
 def _module_of(name: str) -> str:
-    """The module of a mutant's name (``wmr_cosim.cosim.ssp.x__typed__mutmut_9`` -> ``wmr_cosim.cosim.ssp``)."""
+    """The module of a mutant's name (``wmr_cosim.cosim.plan.ssp.x__typed__mutmut_9`` -> ``wmr_cosim.cosim.plan.ssp``)."""
     return name.split(".x_")[0].split(".xǁ")[0]
 
 
@@ -568,7 +568,7 @@ def run(only: list[str] | None = None, fresh: bool = False, max_children: int | 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--only", action="append", help="mutate only these staged paths (glob, repeatable), "
-                    "e.g. 'wmr_cosim/cosim/wiring.py'")
+                    "e.g. 'wmr_cosim/cosim/plan/wiring.py'")
     ap.add_argument("--fresh", action="store_true", help="forget mutmut's earlier results")
     ap.add_argument("--keep-survivors", action="store_true",
                     help="do not test again the mutants that survived the last run")

@@ -1,1 +1,41 @@
-"""The co-simulation master on FMPy: generic, knows nothing about robots."""
+"""The co-simulation master on FMPy: generic, knows nothing about robots.
+
+Its folders are its concepts, from the bottom up (each imports only those below it):
+
+* ``messages``: errors, counts in words, suggestions;
+* ``model``: what an FMU is before it runs (model description, binary, archive, units, file kinds);
+* ``instances``: the instance contract and its implementations (in process, Model Exchange, isolated);
+* ``stepping``: the algorithm contract, the table of algorithms and the algorithms;
+* ``scenario``: scenario documents (TOML, conditions, input tables);
+* ``plan``: a scenario resolved against its FMUs (records, coupling structure, wiring, SSP);
+* ``results``: the recording and the results folder;
+* ``runtime``: the execution, its observers and manipulators, start-up, pacing, protocols.
+
+This face exports what the application and users' scripts use; each folder's face exports its own.
+"""
+from __future__ import annotations
+
+from .instances import SOLVERS, SolverSpec
+from .messages import (CosimError, FmuLoadError, OtherFileError, OutputError, RunError, ScenarioError, close_names,
+                       count, did_you_mean)
+from .model import (CO_SIMULATION, DEFAULT_LIMITS, MODEL_EXCHANGE, ArchiveLimits, FileKind, FmuModel, LimitOverrides,
+                    Variable, check_archive, file_kind, fmi_version, limit_overrides, load_model, named_kind)
+from .plan import Plan, describe_coupling, export_remarks, export_ssp, is_ssp, load_ssp, resolve
+from .results import MatLayout, OutputLock, RunResult, RunStatus, layout, make_folder, write_json, write_mat
+from .runtime import (Execution, Manipulator, Observer, Protocol, check_protocol, plan_runs, read_protocol, run,
+                      run_protocol)
+from .scenario import Scenario, apply_overrides, is_path, load, parse, parse_set, parse_value, read_document
+from .stepping import (Adaptive, AdaptiveSpec, Algorithm, GaussSeidel, Iterated, IterationSpec, Jacobi, MultiRate,
+                       ParallelJacobi, describe_settings)
+
+__all__ = [
+    "Adaptive", "AdaptiveSpec", "Algorithm", "ArchiveLimits", "CO_SIMULATION", "check_archive", "check_protocol",
+    "close_names", "CosimError", "count", "DEFAULT_LIMITS", "describe_coupling", "describe_settings",
+    "did_you_mean", "Execution", "export_remarks", "export_ssp", "file_kind", "FileKind", "fmi_version",
+    "FmuLoadError", "FmuModel", "GaussSeidel", "is_path", "is_ssp", "Iterated", "IterationSpec", "Jacobi",
+    "layout", "limit_overrides", "LimitOverrides", "load", "load_model", "load_ssp", "Manipulator", "MatLayout",
+    "MODEL_EXCHANGE", "make_folder", "MultiRate", "named_kind", "Observer", "OtherFileError", "OutputError",
+    "OutputLock", "ParallelJacobi", "parse", "parse_set", "parse_value", "Plan", "plan_runs", "Protocol",
+    "read_document", "read_protocol", "resolve", "run", "run_protocol", "RunError", "RunResult", "RunStatus",
+    "Scenario", "ScenarioError", "SOLVERS", "SolverSpec", "Variable", "write_json", "write_mat",
+]

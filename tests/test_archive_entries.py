@@ -1,4 +1,4 @@
-"""Archive safety (cosim.archive) for entries with '..' anywhere in their path, not only as its first part:
+"""Archive safety (cosim.model.archive) for entries with '..' anywhere in their path, not only as its first part:
 refused before anything is written, by the library (check_archive, safe_extract, check_entries) and by
 ``wmr-cosim check`` (exit 2, one line naming the archive and the entry).  The rule is any '..' component:
 one that climbs out of the folder ('resources/a/../../../x') is named as such, one that stays inside it
@@ -13,8 +13,8 @@ import pytest
 from cosim_support import write_scenario
 from reference_fmus import REF
 from wmr_cosim import cli
-from wmr_cosim.cosim.archive import check_archive, check_entries, escapes, safe_extract
-from wmr_cosim.cosim.errors import FmuLoadError
+from wmr_cosim.cosim.model.archive import check_archive, check_entries, escapes, safe_extract
+from wmr_cosim.cosim.messages.errors import FmuLoadError
 
 OUTSIDE = "would extract outside its folder"
 INSIDE = "has a '..' component (refused even where it stays inside the folder)"

@@ -198,7 +198,7 @@ def test_unicode_instance_names_run_everywhere(sandbox, capsys):
 
 
 def test_a_second_run_into_the_same_folder_is_refused(sandbox, capsys):
-    from wmr_cosim.cosim.recording import OutputLock
+    from wmr_cosim.cosim.results.recording import OutputLock
 
     work, _ = sandbox
     good = work / "good.toml"
@@ -322,7 +322,7 @@ def test_the_csv_writer_needs_bounded_memory(sandbox):
 
 
 def test_sweep_gamma_search_and_paper_folders_are_locked_too(sandbox, capsys):
-    from wmr_cosim.cosim.recording import OutputLock
+    from wmr_cosim.cosim.results.recording import OutputLock
 
     work, _ = sandbox
     root = Path(__file__).resolve().parents[1] / "scenarios"

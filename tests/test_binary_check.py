@@ -1,5 +1,5 @@
 """An FMU whose binary cannot be loaded is refused at ``check``, one line naming the instance, the file and
-the reason, for co-simulation and model exchange, FMI 2.0 and 3.0 (cosim/binary.py reads the library's
+the reason, for co-simulation and model exchange, FMI 2.0 and 3.0 (cosim/model/binary.py reads the library's
 header and exports); a binary that passes that reading and still fails to load (a library it links
 against is missing) ends ``run`` in one line naming the instance and the loader's reason."""
 from __future__ import annotations
@@ -14,8 +14,8 @@ import pytest
 
 from reference_fmus import DATA, PLATFORM, REF
 from wmr_cosim.cli import main
-from wmr_cosim.cosim.binary import REQUIRED, library_problem
-from wmr_cosim.cosim.model import load_model
+from wmr_cosim.cosim.model.binary import REQUIRED, library_problem
+from wmr_cosim.cosim.model.description import load_model
 
 
 def _one_line(capsys) -> str:

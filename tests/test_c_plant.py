@@ -16,7 +16,7 @@ import pytest
 from cosim_support import ROOT
 from wmr_cosim.components.metrics import run_metrics
 from wmr_cosim.components.plant import Plant, PlantParams
-from wmr_cosim.cosim import execution, scenario, system
+from wmr_cosim import cosim
 from wmr_cosim.fmus import cplant_build
 
 G1_C = ROOT / "scenarios" / "g1_c_plant.toml"
@@ -152,18 +152,18 @@ def test_bad_parameter_is_an_error_with_a_message(c_plant, tmp_path):
 @pytest.fixture(scope="module")
 def python_plant_run(resolver, tmp_path_factory):
     out = tmp_path_factory.mktemp("py")
-    res = execution.run(system.resolve(scenario.load(G1, resolver)), out, progress=False)
+    res = cosim.run(cosim.resolve(cosim.load(G1, resolver)), out, progress=False)
     assert res.status == "ok", res.message
     return np.load(out / "signals.npy")
 
 
 @pytest.mark.slow
 def test_swapped_into_g1_with_a_name_map_it_gives_the_same_metrics(resolver, tmp_path, python_plant_run):
-    plan = system.resolve(scenario.load(G1_C, resolver))
+    plan = cosim.resolve(cosim.load(G1_C, resolver))
     conv = {c.spec.src: (c.factor, c.offset) for c in plan.connections}
     assert conv["plant.alpha1"] == (math.pi / 180, 0.0)              # deg -> rad into the sensor
     assert plan.instances["plant"].model.model_name == "WmrCPlant"
-    res = execution.run(plan, tmp_path, progress=False)
+    res = cosim.run(plan, tmp_path, progress=False)
     assert res.status == "ok", res.message
     c = np.load(tmp_path / "signals.npy")
     py = python_plant_run
@@ -201,10 +201,10 @@ def test_fmpy_default_logging_still_works_after_our_master_ran(c_plant, built_fm
     scen = g1_with_paths(tmp_path, built_fmus, "[experiment]\nstop = 0.01\n")
     code = textwrap.dedent(f"""
         import gc
-        from wmr_cosim.cosim import execution, scenario, system
+        from wmr_cosim import cosim
         from fmpy import extract, read_model_description
         from fmpy.fmi2 import FMU2Slave
-        res = execution.run(system.resolve(scenario.load({str(scen)!r})), None, progress=False)
+        res = cosim.run(cosim.resolve(cosim.load({str(scen)!r})), None, progress=False)
         assert res.status == "ok", res.message
         del res
         gc.collect()

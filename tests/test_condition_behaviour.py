@@ -1,10 +1,10 @@
-"""Conditions of events (cosim.condition): the exact one-line messages of refused conditions (what the user
+"""Conditions of events (cosim.scenario.condition): the exact one-line messages of refused conditions (what the user
 sees), the nesting limit at its boundary, the tokens returned, and the type check of every operand."""
 from __future__ import annotations
 
 import pytest
 
-from wmr_cosim.cosim.condition import (MAX_DEPTH, MAX_LENGTH, ConditionError, Token, check_types,
+from wmr_cosim.cosim.scenario.condition import (MAX_DEPTH, MAX_LENGTH, ConditionError, Token, check_types,
                                        compile_condition, parse, tokenize)
 
 TYPES = {"p.x": "Real", "p.n": "Integer", "p.e": "Enumeration", "p.flag": "Boolean", "p.s": "String"}

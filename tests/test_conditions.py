@@ -1,4 +1,4 @@
-"""The condition grammar of events (cosim.condition) and real-time pacing (cosim.pacing), without FMUs:
+"""The condition grammar of events (cosim.scenario.condition) and real-time pacing (cosim.runtime.pacing), without FMUs:
 the parser against the precedence of Python's own operators, its refusals, the type check, and the pacer
 against a simulated clock."""
 from __future__ import annotations
@@ -9,8 +9,8 @@ import random
 import pytest
 
 from cosim_support import FakeClock
-from wmr_cosim.cosim import pacing
-from wmr_cosim.cosim.condition import ConditionError, check_types, compile_condition, parse, tokenize, variables
+from wmr_cosim.cosim.runtime import pacing
+from wmr_cosim.cosim.scenario.condition import ConditionError, check_types, compile_condition, parse, tokenize, variables
 
 
 def _eval(text: str, values: dict[str, float], t: float = 0.0) -> bool:

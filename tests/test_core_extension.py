@@ -9,11 +9,12 @@ import pytest
 
 from reference_fmus import fmu
 from wmr_cosim import Simulation
-from wmr_cosim.cosim import execution
-from wmr_cosim.cosim.algorithm import Algorithm, GaussSeidel
-from wmr_cosim.cosim.failure import Call, Failure
-from wmr_cosim.cosim.manipulators import Manipulator
-from wmr_cosim.cosim.observers import Observer
+from wmr_cosim import cosim
+from wmr_cosim.cosim.stepping.algorithm import Algorithm
+from wmr_cosim.cosim.stepping.generated import GaussSeidel
+from wmr_cosim.cosim.instances.failure import Call, Failure
+from wmr_cosim.cosim.runtime.manipulators import Manipulator
+from wmr_cosim.cosim.runtime.observers import Observer
 
 IN, OUT = "Float64_continuous_input", "Float64_continuous_output"
 
@@ -66,7 +67,7 @@ class BoundaryWatcher(Observer):
 
 def test_an_observer_is_called_where_it_asks_and_at_the_end():
     w = BoundaryWatcher()
-    with execution.Execution(_chain().check()) as ex:
+    with cosim.Execution(_chain().check()) as ex:
         ex.add_observer(w)
         ex.initialize()
         assert ex.simulate_until() == "ok"
@@ -114,9 +115,9 @@ def test_a_new_algorithm_in_one_class_equals_the_built_in_one_of_the_same_order_
     """Jacobi's order of instances does not matter (every input from the previous step): the hand-written
     reversed Jacobi equals the generated Jacobi bit for bit, and differs from Gauss-Seidel."""
     jac = _chain().experiment(algorithm="jacobi")
-    ours = execution.run(jac.check(), None, algorithm=ReversedJacobi())
-    built_in = execution.run(jac.check(), None)
-    gs = execution.run(_chain().check(), None, algorithm=GaussSeidel())
+    ours = cosim.run(jac.check(), None, algorithm=ReversedJacobi())
+    built_in = cosim.run(jac.check(), None)
+    gs = cosim.run(_chain().check(), None, algorithm=GaussSeidel())
     assert ours.status == built_in.status == "ok" and ours.steps == 200
     assert ours.final == built_in.final
     assert ours.final["b." + OUT] != gs.final["b." + OUT]        # Jacobi lags two steps behind d.x
@@ -137,12 +138,12 @@ class Holder(Manipulator):
 
 def test_a_new_manipulator_acts_where_it_says():
     """The override of a's connected input from t = 0.1 s equals the same override as a timed event."""
-    with execution.Execution(_chain().check()) as ex:
+    with cosim.Execution(_chain().check()) as ex:
         ex.initialize()
         ex.add_manipulator(Holder())
         ex.simulate_until()
         ours = ex.close()
     sim = _chain()
     sim.event(time=0.1, variable=f"a.{IN}", action="override", value=0.5)
-    timed = execution.run(sim.check(), None)
+    timed = cosim.run(sim.check(), None)
     assert ours.status == "ok" and ours.final == timed.final and ours.final[f"b.{OUT}"] == 0.5

@@ -10,14 +10,14 @@ from pathlib import Path
 import pytest
 
 from cosim_support import g1_with_paths
-from wmr_cosim.cosim import scenario, system
-from wmr_cosim.cosim.archive import check_archive, safe_extract
-from wmr_cosim.cosim.errors import CosimError, FmuLoadError, ScenarioError
-from wmr_cosim.cosim.units import KNOWN, conversion
+from wmr_cosim import cosim
+from wmr_cosim.cosim.model.archive import check_archive, safe_extract
+from wmr_cosim.cosim.messages.errors import CosimError, FmuLoadError, ScenarioError
+from wmr_cosim.cosim.model.units import KNOWN, conversion
 
 
 def _resolve(path: Path):
-    return system.resolve(scenario.load(path))
+    return cosim.resolve(cosim.load(path))
 
 
 def _rewrite_fmu(src: Path, dst: Path, old: str, new: str) -> Path:
@@ -130,9 +130,9 @@ def test_a_fixed_step_fmu_accepts_any_constant_step(built_fmus, tmp_path):
 def test_override_of_unknown_instance_or_parameter(built_fmus, tmp_path):
     path = g1_with_paths(tmp_path, built_fmus)
     with pytest.raises(ScenarioError, match="unknown instance 'robot'"):
-        scenario.load(path, None, {"robot.gamma": 3})
+        cosim.load(path, None, {"robot.gamma": 3})
     with pytest.raises(ScenarioError, match="no variable 'gama'"):
-        system.resolve(scenario.load(path, None, {"controller.gama": 3}))
+        cosim.resolve(cosim.load(path, None, {"controller.gama": 3}))
 
 
 def test_units_convert_or_refuse():
@@ -195,7 +195,7 @@ def test_cli_check_and_info(built_fmus, tmp_path):
 
 
 def test_protocol_errors(built_fmus, tmp_path):
-    from wmr_cosim.cosim.protocol import plan_runs, run_protocol
+    from wmr_cosim.cosim.runtime.protocol import plan_runs, run_protocol
 
     path = g1_with_paths(tmp_path, built_fmus, """
 [experiment]

@@ -151,7 +151,7 @@ def test_every_instance_terminated_and_freed_exactly_once(mode, built_fmus, fail
     that reported Fatal gets no call at all after it (FMI 2.0)."""
     from fmpy.fmi2 import FMU2Slave
 
-    from wmr_cosim.cosim import execution, scenario, system
+    from wmr_cosim import cosim
 
     calls: list[tuple[str, str]] = []
     real_term, real_free = FMU2Slave.terminate, FMU2Slave.freeInstance
@@ -168,7 +168,7 @@ def test_every_instance_terminated_and_freed_exactly_once(mode, built_fmus, fail
     monkeypatch.setattr(FMU2Slave, "freeInstance", free)
     path = _scenario(tmp_path, built_fmus, failer, mode)
     _connections_keep(path)
-    res = execution.run(system.resolve(scenario.load(path)), tmp_path / "out", progress=False)
+    res = cosim.run(cosim.resolve(cosim.load(path)), tmp_path / "out", progress=False)
     assert res.status == ("ok" if mode == "ok" else "failed")
     survivors = ["plant", "sensor", "controller"] + ([] if mode == "fatal" else ["failer"])
     for name in survivors:

@@ -9,7 +9,8 @@ import pytest
 from cosim_support import G1, build_test_fmu, g1_with_paths
 from wmr_cosim.components.direct_loop import run_direct
 from wmr_cosim.components.metrics import run_metrics
-from wmr_cosim.cosim import execution, scenario, system
+from wmr_cosim import cosim
+from wmr_cosim.cosim.scenario import document as scenario
 
 
 @pytest.fixture(scope="module")
@@ -21,7 +22,7 @@ def _run(path, resolver, out, **over):
     sc = scenario.load(path, resolver)
     for k, v in over.items():
         setattr(sc, k, v)
-    return execution.run(system.resolve(sc), out, progress=False)
+    return cosim.run(cosim.resolve(sc), out, progress=False)
 
 
 @pytest.fixture(scope="module")
@@ -159,10 +160,10 @@ def test_swapped_plant_with_other_names_and_degrees(resolver, tmp_path, swap_fmu
     _, gs = gs_run
     path = _swap_scenario(tmp_path / "swap.toml", swap_fmu,
                           'alpha1 = "deg"\nalpha2 = "deg"\nx_A = "m"\ny_A = "m"\nbeta = "rad"\nu1 = "N.m"\nu2 = "N.m"\n')
-    plan = system.resolve(scenario.load(path, resolver))
+    plan = cosim.resolve(scenario.load(path, resolver))
     conv = {c.spec.src: (c.factor, c.offset) for c in plan.connections}
     assert conv["plant.alpha1"] == (pytest.approx(math.pi / 180, rel=1e-15), 0.0)   # deg -> rad
-    res = execution.run(plan, tmp_path / "out", progress=False)
+    res = cosim.run(plan, tmp_path / "out", progress=False)
     assert res.status == "ok", res.message
     d = np.load(tmp_path / "out" / "signals.npy")
     assert "plant.alpha1" in d.dtype.names           # recorded under our names
@@ -182,9 +183,9 @@ def test_swapped_plant_with_other_names_and_degrees(resolver, tmp_path, swap_fmu
 
 def test_swapped_plant_is_checked(resolver, tmp_path, swap_fmu):
     path = _swap_scenario(tmp_path / "swap.toml", swap_fmu, 'alpha1 = "N.m"\n')
-    from wmr_cosim.cosim.errors import ScenarioError
+    from wmr_cosim.cosim.messages.errors import ScenarioError
     with pytest.raises(ScenarioError, match=r"connections\[0\]: unit mismatch: plant.alpha1 -> sensor.alpha1"):
-        system.resolve(scenario.load(path, resolver))
+        cosim.resolve(scenario.load(path, resolver))
 
 
 def test_cli_runs_every_run_of_a_protocol(built_fmus, tmp_path):

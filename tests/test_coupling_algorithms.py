@@ -10,11 +10,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from wmr_cosim.cosim import execution, scenario, system
-from wmr_cosim.cosim.adaptive import Adaptive
-from wmr_cosim.cosim.algorithm import GaussSeidel
-from wmr_cosim.cosim.coupling_spec import AdaptiveSpec, IterationSpec
-from wmr_cosim.cosim.iterated import Iterated
+from wmr_cosim import cosim
+from wmr_cosim.cosim.stepping import table as algorithms
+from wmr_cosim.cosim.stepping.generated import GaussSeidel
+from wmr_cosim.cosim.stepping.settings import AdaptiveSpec, IterationSpec
+from wmr_cosim.cosim.stepping.iterated import Iterated
 
 from reference_fmus import REF
 
@@ -22,7 +22,7 @@ OUT, IN = "Float64_continuous_output", "Float64_continuous_input"
 
 
 def ring(version: str, a: float, b: float, c: float, d: float, *, stop: float = 0.1, step: float = 0.01,
-         fields: dict[str, Any] | None = None) -> system.Plan:
+         fields: dict[str, Any] | None = None) -> cosim.Plan:
     """Two Feedthrough FMUs in a ring: B.u = a A.y + b, A.u = c B.y + d; ``fields`` added to instance A."""
     fmu = str(REF / version / "Feedthrough.fmu")
     doc = {"experiment": {"start": 0.0, "stop": stop, "step": step},
@@ -30,7 +30,7 @@ def ring(version: str, a: float, b: float, c: float, d: float, *, stop: float = 
            "connections": [{"from": f"A.{OUT}", "to": f"B.{IN}", "factor": a, "offset": b},
                            {"from": f"B.{OUT}", "to": f"A.{IN}", "factor": c, "offset": d}],
            "record": {"variables": [f"A.{OUT}", f"B.{OUT}"]}}
-    return system.resolve(scenario.parse(doc, "ring.toml"))
+    return cosim.resolve(cosim.parse(doc, "ring.toml"))
 
 
 def solution(a: float, b: float, c: float, d: float) -> tuple[float, float]:
@@ -39,8 +39,8 @@ def solution(a: float, b: float, c: float, d: float) -> tuple[float, float]:
     return ya, a * ya + b
 
 
-def run(plan: system.Plan, out: Path, alg: Any) -> tuple[execution.RunResult, np.ndarray]:
-    res = execution.run(plan, out, progress=False, algorithm=alg)
+def run(plan: cosim.Plan, out: Path, alg: Any) -> tuple[cosim.RunResult, np.ndarray]:
+    res = cosim.run(plan, out, progress=False, algorithm=alg)
     sig = np.load(out / "signals.npy") if (out / "signals.npy").is_file() else np.zeros(0)
     return res, sig
 
@@ -121,7 +121,7 @@ def test_iterated_without_a_loop_is_gauss_seidel_bit_for_bit(tmp_path):
            "connections": [{"from": "v.x0", "to": f"f.{IN}", "factor": 3.0},
                            {"from": f"f.{OUT}", "to": f"g.{IN}", "offset": 1.0}],
            "record": {"variables": ["v.x0", "v.x1", f"f.{OUT}", f"g.{OUT}"], "decimation": 3}}
-    plan = system.resolve(scenario.parse(doc, "chain.toml"))
+    plan = cosim.resolve(cosim.parse(doc, "chain.toml"))
     _, gs = run(plan, tmp_path / "gs", GaussSeidel())
     res, it = run(plan, tmp_path / "it", Iterated())
     assert res.status == "ok" and res.summary["stepping"]["loops"] == []
@@ -133,8 +133,8 @@ def test_the_step_size_control_lands_on_the_output_grid_and_counts_its_steps(tmp
     a, b, c, d = 2.0, 1.0, 0.8, -3.0
     ya, _ = solution(a, b, c, d)
     plan = ring("fmi2", a, b, c, d, stop=0.3, step=0.03)
-    res, sig = run(plan, tmp_path / "ad", Adaptive(AdaptiveSpec(initial_step=0.007, coupling="iterated"),
-                                                     IterationSpec("newton")))
+    res, sig = run(plan, tmp_path / "ad", algorithms.make("adaptive", IterationSpec("newton"),
+                                                          AdaptiveSpec(initial_step=0.007, coupling="iterated")))
     assert res.status == "ok", res.message
     assert list(sig["time"]) == [k * 0.03 for k in range(11)]
     st = res.summary["stepping"]
@@ -147,20 +147,21 @@ def test_the_step_size_control_refuses_to_go_below_its_smallest_step(tmp_path):
     """Gauss-Seidel over the diverging ring: every step's estimate is far above the tolerance; at
     min_step the run ends with one line naming the step-size control and the time."""
     plan = ring("fmi2", 2.0, 1.0, 0.8, -3.0)
-    res, _ = run(plan, tmp_path / "ad", Adaptive(AdaptiveSpec(min_step=1e-4)))
+    res, _ = run(plan, tmp_path / "ad",
+                 algorithms.make("adaptive", None, AdaptiveSpec(min_step=1e-4, coupling="gauss-seidel")))
     assert res.status == "failed"
     assert res.message.startswith("A: step-size control") or "step-size control" in res.message
     assert "min_step" in res.message and "\n" not in res.message
 
 
-def _vdp_chain(version: str, fields: dict[str, Any] | None = None) -> system.Plan:
+def _vdp_chain(version: str, fields: dict[str, Any] | None = None) -> cosim.Plan:
     """VanDerPol -> Feedthrough over 2 s, recorded every 0.1 s; ``fields`` added to the VanDerPol instance."""
     vdp, ft = str(REF / version / "VanDerPol.fmu"), str(REF / version / "Feedthrough.fmu")
     doc = {"experiment": {"start": 0.0, "stop": 2.0, "step": 0.1},
            "instances": {"v": {"fmu": vdp, **(fields or {})}, "f": {"fmu": ft}},
            "connections": [{"from": "v.x0", "to": f"f.{IN}"}],
            "record": {"variables": ["v.x0", "v.x1", f"f.{OUT}"]}}
-    return system.resolve(scenario.parse(doc, "vdp.toml"))
+    return cosim.resolve(cosim.parse(doc, "vdp.toml"))
 
 
 def test_the_step_size_control_rolls_back_model_exchange_isolated_and_fmi3_instances(tmp_path):
@@ -170,18 +171,19 @@ def test_the_step_size_control_rolls_back_model_exchange_isolated_and_fmi3_insta
     in a child process it gives the in-process rows bit for bit; FMI 3.0 gives the FMI 2.0 rows within
     1e-9."""
     me = {"interface": "model-exchange", "solver": "rk4"}
-    spec = AdaptiveSpec(rtol=1e-8, atol=1e-8)
-    base_res, base = run(_vdp_chain("fmi2", me), tmp_path / "base", Adaptive(spec))
+    spec = AdaptiveSpec(rtol=1e-8, atol=1e-8, coupling="gauss-seidel")
+    base_res, base = run(_vdp_chain("fmi2", me), tmp_path / "base", algorithms.make("adaptive", None, spec))
     assert base_res.status == "ok", base_res.message
     st = base_res.summary["stepping"]
     assert st["rejected_steps"] >= 1 and st["accepted_steps"] > 40
     _, ref = run(_vdp_chain("fmi2", {"solver": "cvode", "tolerance": 1e-11}), tmp_path / "ref", GaussSeidel())
     assert np.max(np.abs(base["v.x0"] - ref["v.x0"])) < 1e-6 and np.max(np.abs(base["v.x1"] - ref["v.x1"])) < 1e-6
     assert np.array_equal(base[f"f.{OUT}"], base["v.x0"])
-    res, iso = run(_vdp_chain("fmi2", {**me, "isolate": True}), tmp_path / "iso", Adaptive(spec))
+    res, iso = run(_vdp_chain("fmi2", {**me, "isolate": True}), tmp_path / "iso",
+                   algorithms.make("adaptive", None, spec))
     assert res.status == "ok", res.message
     assert iso.tobytes() == base.tobytes()
-    res, f3 = run(_vdp_chain("fmi3", me), tmp_path / "f3", Adaptive(spec))
+    res, f3 = run(_vdp_chain("fmi3", me), tmp_path / "f3", algorithms.make("adaptive", None, spec))
     assert res.status == "ok", res.message
     assert np.max(np.abs(f3["v.x0"] - base["v.x0"])) < 1e-9 and np.max(np.abs(f3["v.x1"] - base["v.x1"])) < 1e-9
 
@@ -196,7 +198,7 @@ def test_what_an_instance_cannot_give_is_refused_at_check(version, fields, key, 
     """FMI 3.0 has no input derivatives, and a Model Exchange instance holds its inputs: the iterated
     coupling with linear inputs is refused naming the loop and the instance (it would run first order);
     Feedthrough declares no directional derivatives: Newton's directional Jacobian is refused alike."""
-    from wmr_cosim.cosim.errors import ScenarioError
+    from wmr_cosim.cosim.messages.errors import ScenarioError
 
     fmu = str(REF / version / "Feedthrough.fmu")
     table = {"inputs": "linear"} if key == "inputs" else {"jacobian": "directional"}
@@ -206,6 +208,6 @@ def test_what_an_instance_cannot_give_is_refused_at_check(version, fields, key, 
            "connections": [{"from": f"A.{OUT}", "to": f"B.{IN}"}, {"from": f"B.{OUT}", "to": f"A.{IN}",
                                                                   "factor": 0.5}]}
     with pytest.raises(ScenarioError) as err:
-        system.resolve(scenario.parse(doc, "ring.toml"))
+        cosim.resolve(cosim.parse(doc, "ring.toml"))
     assert err.value.field == f"experiment.iteration.{key}"
     assert "coupling loop A <-> B" in str(err.value) and why in str(err.value)

@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 
 from wmr_cosim import cli
-from wmr_cosim.cosim import execution, scenario, system
-from wmr_cosim.cosim.algorithm import GaussSeidel, Jacobi
-from wmr_cosim.cosim.coupling_spec import IterationSpec
-from wmr_cosim.cosim.iterated import Iterated
-from wmr_cosim.cosim.ssp import OWN_NS, export_ssp, load_ssp
+from wmr_cosim import cosim
+from wmr_cosim.cosim.stepping.generated import GaussSeidel, Jacobi
+from wmr_cosim.cosim.stepping.settings import IterationSpec
+from wmr_cosim.cosim.stepping.iterated import Iterated
+from wmr_cosim.cosim.plan.ssp import OWN_NS, export_ssp, load_ssp
 
 from c_fmu_support import build_probe
 from cosim_support import write_document
@@ -42,8 +42,8 @@ def affine_fmu(tmp_path_factory) -> Path:
 
 
 def _run(doc: dict, out: Path, alg) -> np.ndarray:
-    plan = system.resolve(scenario.parse(doc, "coupling.toml"))
-    res = execution.run(plan, out, progress=False, algorithm=alg)
+    plan = cosim.resolve(cosim.parse(doc, "coupling.toml"))
+    res = cosim.run(plan, out, progress=False, algorithm=alg)
     assert res.status == "ok", res.message
     return np.load(out / "signals.npy")
 
@@ -112,8 +112,8 @@ def test_a_loop_that_expands_diverges_under_fixed_point_and_converges_under_newt
     line naming the loop (status failed); Newton meets the closed form to 1e-10 at every row."""
     loop = AffineLoop(2.0, 0.8, (1.0, 0.3, 0.5, 3.0), (-2.0, 0.0, 0.2, 7.0))
     doc = loop.document(affine_fmu, stop=1.0, step=0.01)
-    plan = system.resolve(scenario.parse(doc, "loop.toml"))
-    res = execution.run(plan, tmp_path / "fp", progress=False,
+    plan = cosim.resolve(cosim.parse(doc, "loop.toml"))
+    res = cosim.run(plan, tmp_path / "fp", progress=False,
                         algorithm=Iterated(IterationSpec("fixed-point", max_iterations=50)))
     assert res.status == "failed" and "\n" not in res.message
     assert "the coupling loop one <-> two did not converge at initialisation" in res.message
@@ -129,8 +129,8 @@ def test_a_loop_failing_mid_run_keeps_the_rows_before_it(affine_fmu, tmp_path):
     run ends at a step after the first tens with one line naming the loop, the step and the time; the rows
     up to it are on disk, each solved."""
     doc = MID_RUN.document(affine_fmu, stop=1.0, step=0.01)
-    plan = system.resolve(scenario.parse(doc, "loop.toml"))
-    res = execution.run(plan, tmp_path / "x", progress=False,
+    plan = cosim.resolve(cosim.parse(doc, "loop.toml"))
+    res = cosim.run(plan, tmp_path / "x", progress=False,
                         algorithm=Iterated(IterationSpec("fixed-point", tolerance=1e-10, max_iterations=33)))
     assert res.status == "failed", res.message
     assert "the coupling loop one <-> two did not converge at step" in res.message and "t = " in res.message
@@ -282,7 +282,7 @@ def test_ssp_keeps_the_settings_in_its_own_annotation(affine_fmu, tmp_path):
     doc = AffineLoop(2.0, -0.6, (1.0, 0.3, 0.5, 3.0)).document(affine_fmu, stop=0.2, step=0.01)
     doc["experiment"].update(algorithm="iterated", iteration={"method": "fixed-point", "relaxation": 0.45,
                                                               "tolerance": 1e-9, "max_iterations": 200})
-    plan = system.resolve(scenario.parse(doc, "it.toml"))
+    plan = cosim.resolve(cosim.parse(doc, "it.toml"))
     out = export_ssp(plan, tmp_path / "it.ssp")
     from lxml import etree as ET
 
@@ -293,9 +293,9 @@ def test_ssp_keeps_the_settings_in_its_own_annotation(affine_fmu, tmp_path):
     try:
         sc = arch.scenario
         assert sc.algorithm == "iterated" and sc.iteration == plan.scenario.iteration
-        again = system.resolve(sc)
-        a = execution.run(plan, tmp_path / "a", progress=False)
-        b = execution.run(again, tmp_path / "b", progress=False)
+        again = cosim.resolve(sc)
+        a = cosim.run(plan, tmp_path / "a", progress=False)
+        b = cosim.run(again, tmp_path / "b", progress=False)
         assert a.status == b.status == "ok", (a.message, b.message)
         sa, sb = np.load(tmp_path / "a" / "signals.npy"), np.load(tmp_path / "b" / "signals.npy")
         assert sa.tobytes() == sb.tobytes()
@@ -315,8 +315,8 @@ def test_the_step_size_control_puts_its_steps_where_the_contact_is(mass_fmus, tm
     more than ten times, and a tighter tolerance gives a smaller error."""
     from scipy.integrate import solve_ivp
 
-    from wmr_cosim.cosim.adaptive import Adaptive
-    from wmr_cosim.cosim.coupling_spec import AdaptiveSpec
+    from wmr_cosim.cosim.stepping import table as algorithms
+    from wmr_cosim.cosim.stepping.settings import AdaptiveSpec
 
     tm = TwoMass(x1=0.0, v1=3.0, kk=1e4, gap=0.05, h_int=1e-5)
     doc = two_mass_document(mass_fmus, tm, stop=2.0, step=0.01)
@@ -327,11 +327,12 @@ def test_the_step_size_control_puts_its_steps_where_the_contact_is(mass_fmus, tm
         z = ode.sol(sig["time"]).T
         return float(max(np.max(np.abs(sig["body.x"] - z[:, 0])), np.max(np.abs(sig["coupler.x"] - z[:, 2]))))
 
-    plan = system.resolve(scenario.parse(doc, "contact.toml"))
+    plan = cosim.resolve(cosim.parse(doc, "contact.toml"))
     errors, counts = [], []
     for tol in (1e-3, 1e-4):
-        res = execution.run(plan, tmp_path / f"a{tol}", progress=False,
-                            algorithm=Adaptive(AdaptiveSpec(rtol=tol, atol=tol)))
+        res = cosim.run(plan, tmp_path / f"a{tol}", progress=False,
+                            algorithm=algorithms.make("adaptive", None,
+                                                      AdaptiveSpec(rtol=tol, atol=tol, coupling="gauss-seidel")))
         assert res.status == "ok", res.message
         st = res.summary["stepping"]
         assert st["rejected_steps"] >= 1 and st["smallest_step"] < 0.1 * st["largest_step"]
@@ -340,7 +341,7 @@ def test_the_step_size_control_puts_its_steps_where_the_contact_is(mass_fmus, tm
     assert errors[1] < 0.6 * errors[0]
     n = counts[1]
     step = 2.0 / n
-    fixed = execution.run(system.resolve(scenario.parse(two_mass_document(mass_fmus, tm, stop=2.0, step=step),
+    fixed = cosim.run(cosim.resolve(cosim.parse(two_mass_document(mass_fmus, tm, stop=2.0, step=step),
                                                         "fixed.toml")), tmp_path / "fixed", progress=False)
     assert fixed.status == "ok", fixed.message
     assert errors[1] < 0.5 * error(np.load(tmp_path / "fixed" / "signals.npy")), (errors[1], n)
@@ -349,13 +350,14 @@ def test_the_step_size_control_puts_its_steps_where_the_contact_is(mass_fmus, tm
 def test_iterated_and_adaptive_through_isolated_instances_are_bit_for_bit(mass_fmus, tmp_path):
     """The body hosted in a child process: the iterated coupling with linear inputs (input derivatives
     through the child) and the step-size control over it (rollbacks included) give the in-process rows."""
-    from wmr_cosim.cosim.adaptive import Adaptive
-    from wmr_cosim.cosim.coupling_spec import AdaptiveSpec
+    from wmr_cosim.cosim.stepping import table as algorithms
+    from wmr_cosim.cosim.stepping.settings import AdaptiveSpec
 
     tm = TwoMass(x1=0.0, v1=3.0, kk=1e4, gap=0.05, h_int=1e-5)
     lin = IterationSpec("newton", inputs="linear")
     for name, make in (("iterated", lambda: Iterated(lin)),
-                       ("adaptive", lambda: Adaptive(AdaptiveSpec(rtol=1e-3, atol=1e-3, coupling="iterated"), lin))):
+                       ("adaptive", lambda: algorithms.make("adaptive", lin, AdaptiveSpec(rtol=1e-3, atol=1e-3,
+                                                                                       coupling="iterated")))):
         doc = two_mass_document(mass_fmus, tm, stop=0.5, step=0.01)
         base = _run(doc, tmp_path / f"{name}-in", make())
         doc["instances"]["body"]["isolate"] = True
@@ -368,16 +370,16 @@ def test_newton_with_the_fmus_directional_derivatives(affine_fmu, mass_fmus, tmp
     evaluation spent on it: the affine loops (a c = 0.4 and 1.6) meet the closed form to 1e-10 at every row
     with at most the finite-difference run's iterations (its Jacobian is exact) and fewer evaluations of
     the loop, hosted in a child process bit for bit; refused at check for FMUs that do not declare directional derivatives."""
-    from wmr_cosim.cosim.errors import ScenarioError
+    from wmr_cosim.cosim.messages.errors import ScenarioError
 
     for a1 in (0.5, 2.0):
         loop = AffineLoop(a1, 0.8, (1.0, 0.3, 0.5, 3.0), (-2.0, 0.0, 0.2, 7.0))
         doc = loop.document(affine_fmu, stop=1.0, step=0.01)
-        plan = system.resolve(scenario.parse(doc, "dd.toml"))
+        plan = cosim.resolve(cosim.parse(doc, "dd.toml"))
         counts = {}
         rows = {}
         for jac in ("finite-differences", "directional"):
-            res = execution.run(plan, tmp_path / f"{a1}-{jac}", progress=False,
+            res = cosim.run(plan, tmp_path / f"{a1}-{jac}", progress=False,
                                 algorithm=Iterated(IterationSpec("newton", tolerance=1e-12, jacobian=jac)))
             assert res.status == "ok", res.message
             (counts[jac],) = res.summary["stepping"]["loops"]
@@ -394,5 +396,5 @@ def test_newton_with_the_fmus_directional_derivatives(affine_fmu, mass_fmus, tmp
     doc = two_mass_document(mass_fmus, TwoMass(), stop=0.1, step=0.01)
     doc["experiment"].update(algorithm="iterated", iteration={"jacobian": "directional"})
     with pytest.raises(ScenarioError) as err:
-        system.resolve(scenario.parse(doc, "m.toml"))
+        cosim.resolve(cosim.parse(doc, "m.toml"))
     assert err.value.field == "experiment.iteration.jacobian" and "body (MassForce.fmu, co-simulation) does not" in str(err.value)

@@ -8,8 +8,8 @@ import pytest
 
 from cosim_support import g1_with_paths
 from wmr_cosim.cli import main
-from wmr_cosim.cosim import scenario, system
-from wmr_cosim.cosim.errors import ScenarioError
+from wmr_cosim import cosim
+from wmr_cosim.cosim.messages.errors import ScenarioError
 
 
 def _plant(fmus, extra: str) -> str:
@@ -17,7 +17,7 @@ def _plant(fmus, extra: str) -> str:
 
 
 def _plan(path):
-    return system.resolve(scenario.load(path))
+    return cosim.resolve(cosim.load(path))
 
 
 @pytest.mark.parametrize("var, unit, declared", [("alpha1", "deg", "rad"), ("x_A", "mm", "m")])
@@ -69,7 +69,7 @@ def test_override_declared_units_must_be_a_boolean(built_fmus, tmp_path):
     path = g1_with_paths(tmp_path, built_fmus, _plant(built_fmus, 'override_declared_units = "yes"\n'),
                          skip=("plant",))
     with pytest.raises(ScenarioError, match=r"instances.plant.override_declared_units: 'yes': must be true or false"):
-        scenario.load(path)
+        cosim.load(path)
 
 
 def test_the_columns_say_their_unit_and_fmu(built_fmus, tmp_path):

@@ -8,8 +8,8 @@ from concurrent.futures import ProcessPoolExecutor
 
 import pytest
 
-from wmr_cosim.cosim.errors import CosimError, FmuLoadError, OtherFileError, OutputError, RunError, ScenarioError
-from wmr_cosim.cosim.failure import InstanceLost
+from wmr_cosim.cosim.messages.errors import CosimError, FmuLoadError, OtherFileError, OutputError, RunError, ScenarioError
+from wmr_cosim.cosim.instances.failure import InstanceLost
 
 ERRORS = [CosimError("one line"), ScenarioError("s.toml", "instances.a.fmu", "file not found"),
           ScenarioError("s.toml", "", "not TOML"), OtherFileError("g.toml", "a sweep file"),

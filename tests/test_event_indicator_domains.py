@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from c_fmu_support import build_ramp
-from wmr_cosim.cosim import execution, integrators, scenario, system
+from wmr_cosim import cosim
+from wmr_cosim.cosim.instances import integrators
 
 SOLVERS = [("cvode", {}), ("euler", {"max_step": 0.01}), ("rk4", {"max_step": 0.01})]
 T_RESET = 0.1
@@ -32,7 +33,7 @@ def _events(fmu: Path, out: Path, solver: str, fields: dict[str, Any], **paramet
            "instances": {"r": {"fmu": str(fmu), "interface": "model-exchange", "solver": solver, **fields,
                                "parameters": parameters}},
            "record": {"variables": ["r.x", "r.crossings"]}}
-    ex = execution.Execution(system.resolve(scenario.parse(doc, "ramp.toml")), out)
+    ex = cosim.Execution(cosim.resolve(cosim.parse(doc, "ramp.toml")), out)
     ex.initialize()
     try:
         assert ex.simulate_until(0.2) == "ok"

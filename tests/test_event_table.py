@@ -12,7 +12,8 @@ import pytest
 from reference_fmus import REF
 from wmr_cosim import Simulation
 from wmr_cosim.cli import main
-from wmr_cosim.cosim import event_log, execution
+from wmr_cosim.cosim.results import event_log
+from wmr_cosim import cosim
 
 
 def _bounce_times(n: int, h0: float = 1.0, g: float = 9.81, e: float = 0.7) -> list[float]:
@@ -46,7 +47,7 @@ def test_bouncing_ball_under_cvode_lists_its_bounces_at_the_closed_forms_times(t
 def test_stairs_time_events_and_its_end_are_in_the_table(tmp_path):
     sim = Simulation(file="stair.toml").experiment(stop=12.0, step=0.2)
     sim.instance("stair", REF / "fmi2" / "Stair.fmu", fields={"solver": "cvode"})
-    res = execution.run(sim.check(), tmp_path / "out", progress=False)
+    res = cosim.run(sim.check(), tmp_path / "out", progress=False)
     assert res.status == "terminated"
     assert [(e["time"], e["kind"]) for e in res.events] == [(float(t), "time") for t in range(1, 10)] + [(9.0, "terminate")]
     assert {e["source"] for e in res.events} == {"stair"}
@@ -58,7 +59,7 @@ def test_the_scenarios_timed_and_condition_events_with_an_instances_events_in_ti
     sim.instance("ball", REF / "fmi2" / "BouncingBall.fmu", fields={"solver": "cvode", "tolerance": 1e-9})
     sim.event(time=0.2, variable="ball.e", action="set", value=0.8)
     sim.event(when="ball.h < 0.5", variable="ball.e", action="set", value=0.6)
-    res = execution.run(sim.check(), None, progress=False)
+    res = cosim.run(sim.check(), None, progress=False)
     assert res.status == "ok", res.message
     kinds = [(e["source"], e["kind"]) for e in res.events]
     timed, cond = kinds.index(("events[0]", "scenario")), kinds.index(("events[1]", "condition"))
@@ -75,7 +76,7 @@ def test_the_scenarios_timed_and_condition_events_with_an_instances_events_in_ti
 def test_a_co_simulation_run_has_no_instance_events(tmp_path):
     sim = Simulation(file="bb.toml").experiment(stop=1.0, step=0.01)
     sim.instance("ball", REF / "fmi2" / "BouncingBall.fmu")
-    res = execution.run(sim.check(), None, progress=False)
+    res = cosim.run(sim.check(), None, progress=False)
     assert res.status == "ok" and res.events == []
 
 

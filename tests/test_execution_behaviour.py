@@ -22,11 +22,12 @@ import pytest
 from c_fmu_support import MODEL_DESCRIPTION, SRC
 from reference_fmus import REF
 from wmr_cosim import Simulation
-from wmr_cosim.cosim import execution, startup
-from wmr_cosim.cosim.interrupt import Interrupt
-from wmr_cosim.cosim.observers import progress_bar
-from wmr_cosim.cosim.failure import Call, Failure
-from wmr_cosim.cosim.errors import CosimError, RunError
+from wmr_cosim.cosim.runtime import execution
+from wmr_cosim.cosim.runtime import startup
+from wmr_cosim.cosim.runtime.interrupt import Interrupt
+from wmr_cosim.cosim.runtime.observers import progress_bar
+from wmr_cosim.cosim.instances.failure import Call, Failure
+from wmr_cosim.cosim.messages.errors import CosimError, RunError
 from wmr_cosim.exit_codes import for_status
 
 FEEDTHROUGH = REF / "fmi2" / "Feedthrough.fmu"

@@ -7,8 +7,8 @@ import pytest
 from wmr_cosim import exit_codes
 from wmr_cosim.cli import UsageError
 from wmr_cosim.components.validation import ParameterError
-from wmr_cosim.cosim import errors
-from wmr_cosim.cosim.status import RunStatus
+from wmr_cosim.cosim.messages import errors
+from wmr_cosim.cosim.results.status import RunStatus
 
 
 @pytest.mark.parametrize("status, code", [

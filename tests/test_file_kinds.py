@@ -7,8 +7,8 @@ import pytest
 
 from reference_fmus import REF
 from wmr_cosim.cli import main
-from wmr_cosim.cosim.kinds import FileKind, file_kind, named_kind
-from wmr_cosim.cosim.scenario import is_path
+from wmr_cosim.cosim.model.kinds import FileKind, file_kind, named_kind
+from wmr_cosim.cosim.scenario.document import is_path
 
 
 @pytest.mark.parametrize("name, kind", [("a.fmu", FileKind.FMU), ("A.FMU", FileKind.FMU), ("x/s.ssp", FileKind.SSP),

@@ -12,8 +12,8 @@ import pytest
 from fmpy import read_csv, simulate_fmu
 
 from cosim_support import write_scenario
-from wmr_cosim.cosim import execution, scenario, system
-from wmr_cosim.cosim.errors import ScenarioError
+from wmr_cosim import cosim
+from wmr_cosim.cosim.messages.errors import ScenarioError
 from wmr_cosim.runner import fmu_plan
 
 from reference_fmus import REF
@@ -21,7 +21,7 @@ FMI3 = REF / "fmi3"
 
 
 def _ours(fmu: Path, tmp: Path, **kw) -> np.ndarray:
-    res = execution.run(fmu_plan(fmu, **kw), tmp / "out", progress=False)
+    res = cosim.run(fmu_plan(fmu, **kw), tmp / "out", progress=False)
     assert res.status in ("ok", "terminated"), res.message
     return np.load(tmp / "out" / "signals.npy")
 
@@ -109,7 +109,7 @@ value = 42
 [record]
 variables = ["d.x", "f3.Float64_continuous_output", "f2.Float64_continuous_output", "f2.Int32_output"]
 ''')
-    res = execution.run(system.resolve(scenario.load(path)), tmp_path / "out", progress=False)
+    res = cosim.run(cosim.resolve(cosim.load(path)), tmp_path / "out", progress=False)
     assert res.status == "ok", res.message
     d = np.load(tmp_path / "out" / "signals.npy")
     assert np.array_equal(d["f3.Float64_continuous_output"], 2.0 * d["d.x"])
@@ -133,9 +133,9 @@ to = "b.u"
 [record]
 variables = ["a.y", "b.y"]
 ''')
-    plan = system.resolve(scenario.load(path))
+    plan = cosim.resolve(cosim.load(path))
     assert [r.column for r in plan.record] == ["a.y[1]", "a.y[2]", "a.y[3]", "b.y[1]", "b.y[2]", "b.y[3]"]
-    res = execution.run(plan, tmp_path / "out", progress=False)
+    res = cosim.run(plan, tmp_path / "out", progress=False)
     assert res.status == "ok", res.message
     d = np.load(tmp_path / "out" / "signals.npy")
     assert d["a.y[3]"][0] == 3.0 and d["b.y[2]"][0] == 4.0   # b.y = C x + D u with x(0) = 0: 2 * a.y
@@ -144,7 +144,7 @@ variables = ["a.y", "b.y"]
 def test_an_fmu_with_clocks_is_refused_at_check(tmp_path):
     path = write_scenario(tmp_path / "c.toml", f'[instances.c]\nfmu = "{FMI3 / "Clocks.fmu"}"\n')
     with pytest.raises(ScenarioError, match="scheduled execution only") as exc:
-        system.resolve(scenario.load(path))
+        cosim.resolve(cosim.load(path))
     assert exc.value.field == "instances.c.fmu"
 
 
@@ -166,17 +166,17 @@ factor = 10.0
 [record]
 variables = ["a.y[2]", "f.Float64_continuous_output"]
 ''')
-    plan = system.resolve(scenario.load(path))
+    plan = cosim.resolve(cosim.load(path))
     assert [r.column for r in plan.record] == ["a.y[2]", "f.Float64_continuous_output"]
-    res = execution.run(plan, tmp_path / "out", progress=False)
+    res = cosim.run(plan, tmp_path / "out", progress=False)
     assert res.status == "ok", res.message
     d = np.load(tmp_path / "out" / "signals.npy")
     assert np.array_equal(d["f.Float64_continuous_output"], 10.0 * d["a.y[2]"]) and d["a.y[2]"][0] == 2.0
     bad = path.read_text().replace('to = "f.Float64_continuous_input"', 'to = "a.u[1]"')
     (tmp_path / "bad.toml").write_text(bad)
     with pytest.raises(ScenarioError, match="an element of an input array cannot be a target"):
-        system.resolve(scenario.load(tmp_path / "bad.toml"))
+        cosim.resolve(cosim.load(tmp_path / "bad.toml"))
     bad2 = path.read_text().replace('from = "a.y[2]"', 'from = "a.y"')
     (tmp_path / "bad2.toml").write_text(bad2)
     with pytest.raises(ScenarioError, match="arrays connect whole"):
-        system.resolve(scenario.load(tmp_path / "bad2.toml"))
+        cosim.resolve(cosim.load(tmp_path / "bad2.toml"))

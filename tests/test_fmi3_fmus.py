@@ -15,7 +15,7 @@ from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
 from cosim_support import G1, toml_value, write_scenario
-from wmr_cosim.cosim import execution, scenario, system
+from wmr_cosim import cosim
 from wmr_cosim.runner import fmu_plan
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -48,7 +48,7 @@ def _run(tmp: Path, models: dict[str, Path], name: str, stop: float, extra: str 
     text += "".join(f"[instances.{inst}]\nfmu = {toml_value(str(models[inst]))}\n"
                     for inst in ("plant", "sensor", "controller"))
     path = write_scenario(tmp / f"{name}.toml", text + extra)
-    res = execution.run(system.resolve(scenario.load(path)), tmp / name, progress=False)
+    res = cosim.run(cosim.resolve(cosim.load(path)), tmp / name, progress=False)
     assert res.status == "ok", res.message
     return np.load(tmp / name / "signals.npy")
 
@@ -237,7 +237,7 @@ def test_fmpy_simulate_fmu_runs_each_alone_as_our_master(fmus3, tmp_path, model)
     """FMPy's simulate_fmu (another FMI 3.0 host) on each FMU alone equals our master's run of it."""
     path = fmus3[model]
     plan = fmu_plan(path, stop=1.0, step=0.002)
-    res = execution.run(plan, tmp_path / "ours", progress=False)
+    res = cosim.run(plan, tmp_path / "ours", progress=False)
     assert res.status == "ok", res.message
     ours = np.load(tmp_path / "ours" / "signals.npy")
     theirs = simulate_fmu(str(path), stop_time=1.0, step_size=0.002, output_interval=0.002)
@@ -270,7 +270,7 @@ def test_ssp_export_and_import_of_a_mixed_system_with_array_parameters(built_fmu
     """A system of an FMI 2.0 plant and FMI 3.0 sensor and controller, W_init and P_init set as arrays,
     exported as SSP 1.0 (an array as one parameter per element) and run from the archive: the same
     results as from the scenario file."""
-    from wmr_cosim.cosim import ssp
+    from wmr_cosim.cosim.plan import ssp
 
     p = [50.0, 1.0, 2.0, 1.0, 60.0, 3.0, 2.0, 3.0, 70.0]
     text = (f"base = {toml_value(str(G1))}\n[experiment]\nstop = 1.0\n"
@@ -279,8 +279,8 @@ def test_ssp_export_and_import_of_a_mixed_system_with_array_parameters(built_fmu
             f"[instances.controller]\nfmu = {toml_value(str(fmus3['WmrController3']))}\n"
             f"[instances.controller.parameters]\nW_init = [0.02, 0.04, 0.06]\nP_init = {p}\n")
     path = write_scenario(tmp_path / "mixed.toml", text)
-    plan = system.resolve(scenario.load(path))
-    res = execution.run(plan, tmp_path / "toml", progress=False)
+    plan = cosim.resolve(cosim.load(path))
+    res = cosim.run(plan, tmp_path / "toml", progress=False)
     assert res.status == "ok", res.message
     archive = ssp.export_ssp(plan, tmp_path / "mixed.ssp")
     with zipfile.ZipFile(archive) as zf:
@@ -289,7 +289,7 @@ def test_ssp_export_and_import_of_a_mixed_system_with_array_parameters(built_fmu
     arch = ssp.load_ssp(archive)
     try:
         assert arch.scenario.instances["controller"].parameters["P_init"] == p
-        res = execution.run(system.resolve(arch.scenario), tmp_path / "ssp", progress=False)
+        res = cosim.run(cosim.resolve(arch.scenario), tmp_path / "ssp", progress=False)
         assert res.status == "ok", res.message
     finally:
         arch.cleanup()
@@ -303,7 +303,7 @@ def test_protocol_carry_through_fmi3_fmus_equals_fmi2(built_fmus, fmus3, tmp_pat
     """The paper's protocol (learn, then frozen with the learned W and P carried into W*_init, P*_init)
     through the FMI 3.0 FMUs (the carry gathered into W_init, P_init by runner.carry_fmi3), as
     ``wmr-cosim paper --fmi 3`` runs it: every final value equal to the FMI 2.0 run's."""
-    from wmr_cosim.cosim.protocol import run_protocol
+    from wmr_cosim.cosim.runtime.protocol import run_protocol
     from wmr_cosim.runner import carry_fmi3
 
     text = (f"base = {toml_value(str(ROOT / 'scenarios' / 'paper' / 'g1.toml'))}\n"
@@ -323,7 +323,7 @@ def test_protocol_carry_through_fmi3_fmus_equals_fmi2(built_fmus, fmus3, tmp_pat
 
 
 def test_carry_fmi3_gathers_elements_into_arrays():
-    from wmr_cosim.cosim.errors import CosimError
+    from wmr_cosim.cosim.messages.errors import CosimError
     from wmr_cosim.runner import carry_fmi3
 
     finals = {"learn": {"controller.W[1]": 1.0, "controller.W[2]": 2.0, "controller.W[3]": 3.0,

@@ -1,6 +1,7 @@
 """The layering of the packages, as import-linter contracts ([tool.importlinter] in pyproject.toml): the
-generic master (cosim/) imports nothing of the components, the FMUs or the application, and the
-components import no FMI package and nothing of wmr_cosim outside themselves.  import-linter reads the
+generic master (cosim/) imports nothing of the components, the FMUs or the application; the components
+import no FMI package and nothing of wmr_cosim outside themselves; the master's folders are layers, each
+importing only those below it; the application reaches the master through its face alone.  import-linter reads the
 source tree of this checkout (wmr_cosim/ with its links to the top-level folders), imports inside
 functions and chains through other modules included; a copy of the tree with forbidden imports added
 shows that the contracts see them."""
@@ -16,7 +17,8 @@ ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "pyproject.toml"
 #: the folders linked into wmr_cosim/ as its subpackages
 SUBPACKAGES = ("cosim", "components", "fmus", "scenarios")
-CONTRACTS = {"master": "the generic master (cosim/)", "components": "the components (components/)"}
+CONTRACTS = {"master": "the generic master (cosim/)", "components": "the components (components/)",
+             "master-layers": "the master's folders are layers", "master-face": "the application imports the master"}
 
 
 def lint_imports(tree: Path) -> subprocess.CompletedProcess:
@@ -39,7 +41,20 @@ def test_the_subpackages_are_links_in_the_package_folder():
 def test_the_layering_contracts_hold():
     p = lint_imports(ROOT)
     assert p.returncode == 0, p.stdout + p.stderr
-    assert "Contracts: 2 kept, 0 broken." in p.stdout, p.stdout
+    assert "Contracts: 4 kept, 0 broken." in p.stdout, p.stdout
+
+
+def test_the_face_contract_names_every_module_of_the_application():
+    """A module added to wmr_cosim/ later is held to the master's face too: the contract lists them all."""
+    import tomllib
+
+    contracts = tomllib.loads(CONFIG.read_text())["tool"]["importlinter"]["contracts"]
+    face = next(c for c in contracts if c["id"] == "master-face")
+    app = {"wmr_cosim"} | {f"wmr_cosim.{p.stem}" for p in (ROOT / "wmr_cosim").glob("*.py") if p.stem != "__init__"}
+    assert set(face["source_modules"]) == app
+    layers = next(c for c in contracts if c["id"] == "master-layers")
+    folders = {p.name for p in (ROOT / "cosim").iterdir() if (p / "__init__.py").is_file()}
+    assert set(layers["layers"]) == folders == {m.rpartition(".")[2] for m in face["forbidden_modules"]}
 
 
 def _tree_copy(dest: Path) -> Path:
@@ -56,13 +71,13 @@ def test_a_forbidden_import_breaks_the_contracts(tmp_path):
     (tree / "cosim" / "_forbidden.py").write_text(
         "def f():\n    from ..components import paper  # inside a function\n    return paper\n")
     (tree / "components" / "_forbidden.py").write_text(
-        "def f():\n    import fmpy\n    from ..cosim import errors\n    return fmpy, errors\n")
+        "def f():\n    import fmpy\n    from ..cosim.messages import errors\n    return fmpy, errors\n")
     p = lint_imports(tree)
     assert p.returncode == 1, p.stdout + p.stderr
-    assert "Contracts: 0 kept, 2 broken." in p.stdout, p.stdout
+    assert "Contracts: 2 kept, 2 broken." in p.stdout, p.stdout
     for line in ("wmr_cosim.cosim._forbidden -> wmr_cosim.components.paper (l.2)",
                  "wmr_cosim.components._forbidden -> fmpy (l.2)",
-                 "wmr_cosim.components._forbidden -> wmr_cosim.cosim.errors (l.3)"):
+                 "wmr_cosim.components._forbidden -> wmr_cosim.cosim.messages.errors (l.3)"):
         assert line in p.stdout, p.stdout
 
 
@@ -73,6 +88,26 @@ def test_an_application_module_imported_by_the_master_breaks_its_contract(tmp_pa
     (tree / "wmr_cosim" / "_new_module.py").write_text("X = 1\n")
     (tree / "cosim" / "_forbidden.py").write_text("from .. import _new_module\nimport wmr_cosim\n")
     p = lint_imports(tree)
-    assert p.returncode == 1 and "Contracts: 1 kept, 1 broken." in p.stdout, p.stdout + p.stderr
+    assert p.returncode == 1 and "Contracts: 3 kept, 1 broken." in p.stdout, p.stdout + p.stderr
     assert "wmr_cosim.cosim._forbidden -> wmr_cosim._new_module (l.1)" in p.stdout, p.stdout
     assert "wmr_cosim.cosim is not allowed to import wmr_cosim.api:" in p.stdout, p.stdout
+
+
+def test_a_lower_folder_importing_a_higher_one_breaks_the_layers(tmp_path):
+    """A type-only import counts: the stepping importing the plan's records (to type an argument, say)."""
+    tree = _tree_copy(tmp_path / "tree")
+    (tree / "cosim" / "stepping" / "_forbidden.py").write_text(
+        "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from ..plan.records import Plan\n")
+    p = lint_imports(tree)
+    assert p.returncode == 1 and "Contracts: 3 kept, 1 broken." in p.stdout, p.stdout + p.stderr
+    assert "wmr_cosim.cosim.stepping._forbidden -> wmr_cosim.cosim.plan.records (l.3)" in p.stdout, p.stdout
+
+
+def test_the_application_importing_a_folder_of_the_master_breaks_the_face_contract(tmp_path):
+    tree = _tree_copy(tmp_path / "tree")
+    api = tree / "wmr_cosim" / "api.py"
+    api.write_text(api.read_text() + "\n\ndef _f():\n    from .cosim.runtime.execution import Execution\n"
+                   "    return Execution\n")
+    p = lint_imports(tree)
+    assert p.returncode == 1 and "Contracts: 3 kept, 1 broken." in p.stdout, p.stdout + p.stderr
+    assert "wmr_cosim.api -> wmr_cosim.cosim.runtime.execution" in p.stdout, p.stdout

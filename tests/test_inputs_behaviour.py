@@ -1,4 +1,4 @@
-"""Tabulated inputs (cosim.inputs) without FMUs: read_inputs on small CSV files with a fake resolver, against
+"""Tabulated inputs (cosim.scenario.inputs) without FMUs: read_inputs on small CSV files with a fake resolver, against
 the module's stated contract: the one-line errors naming the scenario, the field and the reason; the type of
 each column's values; linear interpolation and hold, at steps, before the first and after the last row."""
 from __future__ import annotations
@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from wmr_cosim.cosim.errors import ScenarioError
-from wmr_cosim.cosim.inputs import read_inputs, sample_hold, sample_linear
-from wmr_cosim.cosim.model import Variable
+from wmr_cosim.cosim.messages.errors import ScenarioError
+from wmr_cosim.cosim.scenario.inputs import read_inputs, sample_hold, sample_linear
+from wmr_cosim.cosim.model.description import Variable
 
 WHERE = "scen.toml"
 

@@ -1,4 +1,4 @@
-"""One FMU instance (cosim/instance.py): what the master asks of an FMU at each step of its life cycle, what it
+"""One FMU instance (cosim/instances/in_process.py): what the master asks of an FMU at each step of its life cycle, what it
 makes of the statuses and log messages the FMU sends back, and the error messages the user then reads.
 
 Two kinds of FMU: a recording stand-in for FMPy's slave classes (it answers like FMPy, records every call
@@ -16,10 +16,10 @@ import pytest
 from fmpy.fmi1 import FMICallException
 
 from reference_fmus import REF
-from wmr_cosim.cosim import instance as instance_mod
-from wmr_cosim.cosim.errors import RunError
-from wmr_cosim.cosim.instance import Instance, Instance3
-from wmr_cosim.cosim.model import Variable, load_model
+from wmr_cosim.cosim.instances import in_process as instance_mod
+from wmr_cosim.cosim.messages.errors import RunError
+from wmr_cosim.cosim.instances.in_process import Instance, Instance3
+from wmr_cosim.cosim.model.description import Variable, load_model
 
 OK, WARNING, DISCARD, ERROR, FATAL = range(5)
 
@@ -549,7 +549,7 @@ def test_a_saved_state_restores_the_instance_so_a_step_taken_again_gives_the_sam
     the output is that of the first step after the save, and not that of the second (rolled back)."""
     import ctypes
 
-    from wmr_cosim.cosim.isolation import IsolatedInstance
+    from wmr_cosim.cosim.instances.isolation import IsolatedInstance
 
     model = load_model(REF / version / "Dahlquist.fmu")
     unz = fmpy.extract(str(model.path), str(tmp_path / "unz"))

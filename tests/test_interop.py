@@ -23,8 +23,8 @@ import pytest
 
 from cosim_support import G1
 from wmr_cosim.components.metrics import run_metrics
-from wmr_cosim.cosim import execution, scenario, system
-from wmr_cosim.cosim.ssp import export_ssp
+from wmr_cosim import cosim
+from wmr_cosim.cosim.plan.ssp import export_ssp
 from wmr_cosim.interop import SIGNALS, run_peer
 
 pytestmark = pytest.mark.slow  # six third-party masters, 50 s of G1 each
@@ -36,12 +36,12 @@ GOAL = (2.0, 5.0)
 @pytest.fixture(scope="session")
 def jacobi_reference(built_fmus, tmp_path_factory):
     """Our master's Jacobi run of scenarios/g1_learn.toml, and the same system exported as SSP."""
-    sc = scenario.load(G1, lambda name: built_fmus.get(name))
+    sc = cosim.load(G1, lambda name: built_fmus.get(name))
     sc.algorithm = "jacobi"
     sc.record = list(SIGNALS)
-    plan = system.resolve(sc)
+    plan = cosim.resolve(sc)
     d = tmp_path_factory.mktemp("interop")
-    res = execution.run(plan, d / "ref", progress=False)
+    res = cosim.run(plan, d / "ref", progress=False)
     assert res.status == "ok", res.message
     data = np.load(d / "ref" / "signals.npy")
     ssp = export_ssp(plan, d / "g1_jacobi.ssp")

@@ -1,5 +1,5 @@
-"""The master's side of an isolated FMU (cosim/isolation.py: Child, IsolatedInstance), against a fake child
-process: a short stdlib script started in place of ``python -m wmr_cosim.cosim.isolation`` with the same
+"""The master's side of an isolated FMU (cosim/instances/isolation.py: Child, IsolatedInstance), against a fake child
+process: a short stdlib script started in place of ``python -m wmr_cosim.cosim.instances.isolation`` with the same
 arguments, pipes and shared memory, that answers the same requests as the real child and can be told
 to fail (an error answer, an exit, a signal, a hang, a slow or piecewise answer).  Its model, in the step
 slot: y[0] = sum of the inputs, y[1] = t, y[2] = h, y[j] = j beyond.  It writes every request it gets to
@@ -19,10 +19,10 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
-from wmr_cosim.cosim import isolation
-from wmr_cosim.cosim.errors import RunError
-from wmr_cosim.cosim.failure import InstanceLost
-from wmr_cosim.cosim.isolation import Child, ChildDied, IsolatedInstance, spin_for
+from wmr_cosim.cosim.instances import isolation
+from wmr_cosim.cosim.messages.errors import RunError
+from wmr_cosim.cosim.instances.failure import InstanceLost
+from wmr_cosim.cosim.instances.isolation import Child, ChildDied, IsolatedInstance, spin_for
 
 FAKE_CHILD = r'''
 import json, mmap, os, pickle, select, signal, stat, struct, sys, time
@@ -199,7 +199,7 @@ def fake(tmp_path, monkeypatch):
     real = subprocess.Popen
 
     def popen(argv, **kw):
-        if list(argv[1:3]) != ["-m", "wmr_cosim.cosim.isolation"]:
+        if list(argv[1:3]) != ["-m", "wmr_cosim.cosim.instances.isolation"]:
             return real(argv, **kw)
         return real([argv[0], "-I", "-S", str(script), *argv[3:]], **kw)
 
@@ -507,7 +507,7 @@ def test_an_instance_whose_child_died_at_once(fake):
 
 
 def test_a_non_ok_status_is_reported_as_in_process(fake, tmp_path):
-    from wmr_cosim.cosim.instance import Instance
+    from wmr_cosim.cosim.instances.in_process import Instance
 
     inst = fake.instance({"log": [1, 1, 1, ["bad  input"]]}, log=tmp_path / "d.log")
     err = inst.fail_status("fmi2DoStep", 3, 0.5)

@@ -18,7 +18,8 @@ import pytest
 
 from c_fmu_support import build_ramp
 from reference_fmus import REF
-from wmr_cosim.cosim import execution, isolation, scenario, system
+from wmr_cosim import cosim
+from wmr_cosim.cosim.instances import isolation
 
 T_STOP = 0.255
 SLOPE = 2.0
@@ -42,8 +43,8 @@ def _document(fmu: Path, interface: str, isolate: bool, algorithm: str = "gauss-
             "record": {"variables": ["r.x", "r.crossings", "ft.Float64_continuous_output"]}}
 
 
-def _run(doc: dict[str, Any], out: Path) -> tuple[execution.RunResult, np.ndarray, dict[str, Any]]:
-    res = execution.run(system.resolve(scenario.parse(doc, "ramp.toml")), out, progress=False)
+def _run(doc: dict[str, Any], out: Path) -> tuple[cosim.RunResult, np.ndarray, dict[str, Any]]:
+    res = cosim.run(cosim.resolve(cosim.parse(doc, "ramp.toml")), out, progress=False)
     return res, np.load(out / "signals.npy"), json.loads((out / "summary.json").read_text())
 
 
@@ -92,8 +93,8 @@ def test_outputs_cross_the_control_channel_only_before_stepping_and_after_the_en
             asked[self.name] += 1
         return call(self, op, *args)
     monkeypatch.setattr(isolation.Child, "call", counted)
-    plan = system.resolve(scenario.parse(_document(ramps[version], interface, True), "ramp.toml"))
-    ex = execution.Execution(plan, tmp_path / "out")
+    plan = cosim.resolve(cosim.parse(_document(ramps[version], interface, True), "ramp.toml"))
+    ex = cosim.Execution(plan, tmp_path / "out")
     ex.initialize()
     try:
         initial = dict(asked)
@@ -131,8 +132,8 @@ def test_the_isolated_fast_path_gives_the_fmus_last_successful_time(ramps, tmp_p
     the time event's)."""
     seen = {}
     for isolate in (False, True):
-        plan = system.resolve(scenario.parse(_document(ramps[3], interface, isolate), "ramp.toml"))
-        ex = execution.Execution(plan, tmp_path / f"iso_{isolate}")
+        plan = cosim.resolve(cosim.parse(_document(ramps[3], interface, isolate), "ramp.toml"))
+        ex = cosim.Execution(plan, tmp_path / f"iso_{isolate}")
         ex.initialize()
         try:
             assert ex.simulate_until(0.5) == "terminated"

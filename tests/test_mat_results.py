@@ -1,4 +1,4 @@
-"""Results as MAT (Dymola's result layout, MAT v4, cosim/matfile.py): ``run --format mat`` writes
+"""Results as MAT (Dymola's result layout, MAT v4, cosim/results/matfile.py): ``run --format mat`` writes
 signals.mat beside signals.npy, which scipy.io.loadmat and DyMat read back as the recording, column for
 column (float64 bit for bit), with each variable's name, description and unit; the constants in data_1;
 ``--format`` picks what the folder gets and refuses an unknown value in one line; the API writes the same
@@ -12,7 +12,7 @@ import pytest
 import scipy.io
 
 from wmr_cosim import Simulation, cli, runner
-from wmr_cosim.cosim.matfile import MatLayout, MatVariable, write_mat
+from wmr_cosim.cosim.results.matfile import MatLayout, MatVariable, write_mat
 
 
 @pytest.fixture

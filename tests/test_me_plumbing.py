@@ -14,10 +14,10 @@ import pytest
 from reference_fmus import REF
 from wmr_cosim import Simulation
 from wmr_cosim.cli import main
-from wmr_cosim.cosim import scenario, system
-from wmr_cosim.cosim.errors import ScenarioError
-from wmr_cosim.cosim.integrators import DEFAULT_EVENT_TOLERANCE, SolverSpec
-from wmr_cosim.cosim.model import load_model
+from wmr_cosim import cosim
+from wmr_cosim.cosim.messages.errors import ScenarioError
+from wmr_cosim.cosim.instances.integrators import DEFAULT_EVENT_TOLERANCE, SolverSpec
+from wmr_cosim.cosim.model.description import load_model
 from wmr_cosim.runner import fmu_document, fmu_plan
 
 BB2, BB3 = REF / "fmi2" / "BouncingBall.fmu", REF / "fmi3" / "BouncingBall.fmu"
@@ -69,8 +69,8 @@ def _toml(tmp_path: Path, fmu: Path, fields: str = "", experiment: str = "stop =
     return path
 
 
-def _plan(path: Path) -> system.Plan:
-    return system.resolve(scenario.load(path))
+def _plan(path: Path) -> cosim.Plan:
+    return cosim.resolve(cosim.load(path))
 
 
 def _one_line(capsys, code: int, words: list[str]) -> str:
@@ -285,7 +285,7 @@ def _x(out: Path) -> tuple[np.ndarray, np.ndarray]:
 def test_run_of_a_model_exchange_only_fmu_and_with_a_solver(tmp_path, capsys):
     """Dahlquist (x' = -x, x(0) = 1) over 1 s at 0.1 s: as model exchange (CVODE, or RK4) it follows
     exp(-t) far closer than its co-simulation interface's own forward Euler."""
-    pytest.importorskip("wmr_cosim.cosim.me_instance")
+    pytest.importorskip("wmr_cosim.cosim.instances.model_exchange")
     me = me_only(DQ2, tmp_path / "Dahlquist.fmu")
     runs = {"me": [str(me)], "cs": [str(DQ2)], "rk4": [str(DQ2), "--solver", "rk4", "--max-step", "0.01"],
             "isolated": [str(DQ2), "--solver", "rk4", "--max-step", "0.01", "--isolate"]}
@@ -302,11 +302,11 @@ def test_run_of_a_model_exchange_only_fmu_and_with_a_solver(tmp_path, capsys):
 
 
 def test_the_isolated_child_builds_a_model_exchange_instance(tmp_path):
-    pytest.importorskip("wmr_cosim.cosim.me_instance")
-    from wmr_cosim.cosim.failure import Call
-    from wmr_cosim.cosim.isolation import IsolatedInstance
-    from wmr_cosim.cosim.me_instance import ModelExchange
-    from wmr_cosim.cosim.startup import load_instances
+    pytest.importorskip("wmr_cosim.cosim.instances.model_exchange")
+    from wmr_cosim.cosim.instances.failure import Call
+    from wmr_cosim.cosim.instances.isolation import IsolatedInstance
+    from wmr_cosim.cosim.instances.model_exchange import ModelExchange
+    from wmr_cosim.cosim.runtime.startup import load_instances
 
     for isolate in (False, True):
         plan = fmu_plan(DQ2, {"experiment.stop": 1.0}, isolate=isolate, fields={"solver": "euler"})
@@ -327,7 +327,7 @@ def test_the_isolated_child_builds_a_model_exchange_instance(tmp_path):
 
 def test_a_euler_run_differs_from_rk4_by_the_methods_order(tmp_path, capsys):
     """One integrator step per communication step of 0.1 s: Euler's error is of the order h, RK4's h^4."""
-    pytest.importorskip("wmr_cosim.cosim.me_instance")
+    pytest.importorskip("wmr_cosim.cosim.instances.model_exchange")
     errs = {}
     for solver in ("euler", "rk4"):
         assert main(["run", str(DQ3), "--solver", solver, "--stop", "1", "--out", str(tmp_path / solver),
@@ -357,7 +357,7 @@ def test_fmu_document_takes_instance_fields_and_names_an_me_only_fmu(fmus):
 
 
 def test_ssp_says_model_exchange_and_reads_it_back(fmus, tmp_path):
-    from wmr_cosim.cosim.ssp import export_remarks, export_ssp, load_ssp
+    from wmr_cosim.cosim.plan.ssp import export_remarks, export_ssp, load_ssp
 
     plan = _plan(_toml(tmp_path, fmus["both"], 'interface = "model-exchange"\n'))
     out = export_ssp(plan, tmp_path / "me.ssp")
@@ -366,7 +366,7 @@ def test_ssp_says_model_exchange_and_reads_it_back(fmus, tmp_path):
     arch = load_ssp(out)
     try:
         assert arch.scenario.instances["bb"].interface == "model-exchange"
-        assert system.resolve(arch.scenario).instances["bb"].interface == "model-exchange"
+        assert cosim.resolve(arch.scenario).instances["bb"].interface == "model-exchange"
     finally:
         arch.cleanup()
     cs = export_ssp(_plan(_toml(tmp_path, fmus["both"], name="cs.toml")), tmp_path / "cs.ssp")

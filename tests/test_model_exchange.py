@@ -15,10 +15,14 @@ import numpy as np
 import pytest
 from fmpy import simulate_fmu
 
-from wmr_cosim.cosim import execution, scenario, system
-from wmr_cosim.cosim.integrators import SolverSpec
-from wmr_cosim.cosim.me_instance import model_exchange
-from wmr_cosim.cosim.model import load_model
+from wmr_cosim.cosim.runtime import execution
+
+from wmr_cosim.cosim.scenario import document as scenario
+
+from wmr_cosim import cosim
+from wmr_cosim.cosim.instances.integrators import SolverSpec
+from wmr_cosim.cosim.instances.model_exchange import model_exchange
+from wmr_cosim.cosim.model.description import load_model
 from wmr_cosim.runner import fmu_document
 
 from reference_fmus import REF
@@ -28,15 +32,15 @@ ME_MODELS = [("fmi2", m) for m in ("BouncingBall", "Dahlquist", "Stair", "VanDer
                                    "StateSpace")]
 
 
-def _plan(fmu: Path, **fields: Any) -> system.Plan:
+def _plan(fmu: Path, **fields: Any) -> cosim.Plan:
     """The plan of one FMU run alone as Model Exchange, ``fields`` added to its instance."""
     doc = fmu_document(fmu)
     (inst,) = doc["instances"].values()
     inst.update({"interface": "model-exchange", **fields})
-    return system.resolve(scenario.parse(doc, str(fmu)))
+    return cosim.resolve(scenario.parse(doc, str(fmu)))
 
 
-def _run(plan: system.Plan, out: Path) -> tuple[execution.RunResult, np.ndarray]:
+def _run(plan: cosim.Plan, out: Path) -> tuple[execution.RunResult, np.ndarray]:
     res = execution.run(plan, out, progress=False)
     assert res.status in ("ok", "terminated"), res.message
     return res, np.load(out / "signals.npy")
@@ -145,7 +149,7 @@ def _bounce_times(h0: float = 1.0, g: float = 9.81, e: float = 0.7, v_min: float
         times.append(t)
 
 
-def _execute(plan: system.Plan, out: Path, name: str) -> tuple[execution.RunResult, np.ndarray,
+def _execute(plan: cosim.Plan, out: Path, name: str) -> tuple[execution.RunResult, np.ndarray,
                                                                  list[tuple[float, str]]]:
     """Run the plan through an Execution: its result, the signals and instance ``name``'s events."""
     ex = execution.Execution(plan, out)
@@ -181,7 +185,7 @@ def test_stair_counts_at_its_time_events_exactly(version, solver, tmp_path):
     plan = _plan(REF / version / "Stair.fmu", solver=solver, **({"max_step": 0.1} if solver != "cvode" else {}))
     plan.scenario.step = 0.3
     plan.scenario.stop = 9.9
-    plan = system.resolve(plan.scenario)
+    plan = cosim.resolve(plan.scenario)
     res, ours, events = _execute(plan, tmp_path / "out", "Stair")
     assert [t for t, kind in events if kind == "time"] == [float(k) for k in range(1, 10)]
     assert res.status == "terminated"
@@ -226,7 +230,7 @@ variables = ["vdp.x0", "ft.Float64_continuous_output", "plant.pos_x", "plant.pos
     return path
 
 
-def _fmpy_chain(plan: system.Plan, tmp: Path) -> dict[str, list[float]]:
+def _fmpy_chain(plan: cosim.Plan, tmp: Path) -> dict[str, list[float]]:
     """The same system as a hand-written FMPy loop: FMU2Model with FMPy's CVodeSolver for the two Model
     Exchange FMUs (restarted where an input changed), FMU2Slave for the co-simulation one, Gauss-Seidel."""
     from fmpy.fmi2 import FMU2Model, FMU2Slave
@@ -322,7 +326,7 @@ def test_a_saved_model_exchange_state_repeats_the_step_exactly(solver, isolated,
     """The C plant as Model Exchange with a torque input (in this process, and in a child): save at
     t = 0.1 s, two steps, restore, one step: bit-identical to the first step after the save, and not to
     the second."""
-    from wmr_cosim.cosim.isolation import IsolatedInstance
+    from wmr_cosim.cosim.instances.isolation import IsolatedInstance
     from wmr_cosim.runner import resolve_model
 
     model = load_model(resolve_model("WmrCPlant"))
@@ -374,7 +378,7 @@ def _g1_final(file: str, tmp: Path, **plant: Any) -> np.ndarray:
     for key, value in plant.items():
         setattr(sc.instances["plant"], key, value)
     out = tmp / f"{file}_{'_'.join(map(str, plant.values()))}"
-    _, sig = _run(system.resolve(sc), out)
+    _, sig = _run(cosim.resolve(sc), out)
     return np.array([sig["plant.x_A"][-1], sig["plant.y_A"][-1]])
 
 
@@ -429,7 +433,7 @@ def test_a_tunable_parameter_set_by_an_event_enters_event_mode_and_takes_effect(
     doc = fmu_document(REF / "fmi2" / "BouncingBall.fmu")
     doc["instances"]["BouncingBall"].update({"interface": "model-exchange", "solver": "rk4", "max_step": 1e-3})
     doc["events"] = [{"time": 1.2, "variable": "BouncingBall.e", "action": "set", "value": 0.5}]
-    plan = system.resolve(scenario.parse(doc, "events.toml"))
+    plan = cosim.resolve(scenario.parse(doc, "events.toml"))
     res, sig, events = _execute(plan, tmp_path / "out", "BouncingBall")
     assert res.status == "ok", res.message
     assert (1.2, "set") in events
@@ -466,7 +470,7 @@ def test_an_fmu_call_failing_inside_the_integration_ends_the_run_with_one_line_n
     """fmi2GetDerivatives returning Error at t >= 0.5 s (VanDerPol, patched after initialisation): the run
     fails with one line naming the instance, the integrator, the FMI call and the time of the step; the
     rows up to that time are on disk."""
-    from wmr_cosim.cosim.errors import RunError
+    from wmr_cosim.cosim.messages.errors import RunError
 
     plan = _plan(REF / "fmi2" / "VanDerPol.fmu", solver=solver)
     ex = execution.Execution(plan, tmp_path / "out")

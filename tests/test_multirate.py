@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from wmr_cosim import cli
-from wmr_cosim.cosim import execution, scenario, system
-from wmr_cosim.cosim.algorithm import GaussSeidel, Jacobi
-from wmr_cosim.cosim.errors import ScenarioError
-from wmr_cosim.cosim.ssp import OSP_NS, export_ssp, load_ssp
+from wmr_cosim import cosim
+from wmr_cosim.cosim.stepping.generated import GaussSeidel, Jacobi
+from wmr_cosim.cosim.messages.errors import ScenarioError
+from wmr_cosim.cosim.plan.ssp import OSP_NS, export_ssp, load_ssp
 
 from cosim_support import write_document
 from coupling_fmus import TwoMass, build_mass, two_mass_document
@@ -40,9 +40,9 @@ def chain(algorithm: str, f_step: float | None, stop: float = 1.0) -> dict[str, 
             "record": {"variables": ["v.x0", f"f.{OUT}"]}}
 
 
-def _run(doc: dict[str, Any], out: Path, alg: Any = None) -> tuple[execution.RunResult, np.ndarray]:
-    plan = system.resolve(scenario.parse(doc, "rates.toml"))
-    res = execution.run(plan, out, progress=False, algorithm=alg)
+def _run(doc: dict[str, Any], out: Path, alg: Any = None) -> tuple[cosim.RunResult, np.ndarray]:
+    plan = cosim.resolve(cosim.parse(doc, "rates.toml"))
+    res = cosim.run(plan, out, progress=False, algorithm=alg)
     assert res.status == "ok", res.message
     return res, np.load(out / "signals.npy")
 
@@ -88,7 +88,7 @@ def test_multi_rate_jacobi_equals_libcosim_with_its_decimation_factor(mass_fmus,
     doc = two_mass_document(mass_fmus, TwoMass(), stop=1.0, step=0.001)
     doc["experiment"]["algorithm"] = "jacobi"
     doc["instances"]["coupler"]["step"] = 0.004
-    plan = system.resolve(scenario.parse(doc, "two.toml"))
+    plan = cosim.resolve(cosim.parse(doc, "two.toml"))
     ssp = export_ssp(plan, tmp_path / "two.ssp")
     hints = [float(e.get("value")) for e in
              __import__("lxml.etree").etree.fromstring(zipfile.ZipFile(ssp).read("SystemStructure.ssd"))
@@ -105,11 +105,11 @@ def test_multi_rate_jacobi_equals_libcosim_with_its_decimation_factor(mass_fmus,
 
 
 def test_the_ssp_archive_carries_each_rate_back(tmp_path):
-    plan = system.resolve(scenario.parse(chain("jacobi", 0.04), "rates.toml"))
+    plan = cosim.resolve(cosim.parse(chain("jacobi", 0.04), "rates.toml"))
     arch = load_ssp(export_ssp(plan, tmp_path / "r.ssp"))
     try:
         assert arch.scenario.instances["f"].step == 0.04 and arch.scenario.instances["v"].step is None
-        again = system.resolve(arch.scenario)
+        again = cosim.resolve(arch.scenario)
         assert again.instances["f"].decimation == 4
     finally:
         arch.cleanup()
@@ -154,9 +154,9 @@ def test_bad_rates_are_one_line_exit_2(tmp_path, capsys, change, field, words):
 
 
 def test_an_algorithm_that_ignores_the_rates_is_refused(tmp_path):
-    plan = system.resolve(scenario.parse(chain("gauss-seidel", 0.04), "rates.toml"))
+    plan = cosim.resolve(cosim.parse(chain("gauss-seidel", 0.04), "rates.toml"))
     with pytest.raises(ScenarioError) as err:
-        execution.run(plan, tmp_path / "x", progress=False, algorithm=GaussSeidel())
+        cosim.run(plan, tmp_path / "x", progress=False, algorithm=GaussSeidel())
     assert err.value.field == "instances.f.step" and "steps at its own rate" in str(err.value)
 
 
@@ -173,12 +173,12 @@ def test_g1_with_the_plant_at_half_a_millisecond(built_fmus, tmp_path):
     path = g1_with_paths(tmp_path, built_fmus, skip=("sensor", "controller"), extra=(
         f'[instances.sensor]\nfmu = "{built_fmus["WmrSensor"]}"\nstep = 0.002\n'
         f'[instances.controller]\nfmu = "{built_fmus["WmrController"]}"\nstep = 0.002\n'))
-    slow = scenario.load(path, overrides={"experiment.step": 0.0005})
-    base = scenario.load(g1_with_paths(tmp_path, built_fmus, name="g1_base.toml"))
+    slow = cosim.load(path, overrides={"experiment.step": 0.0005})
+    base = cosim.load(g1_with_paths(tmp_path, built_fmus, name="g1_base.toml"))
     runs = {}
     for key, sc in (("base", base), ("fast_plant", slow)):
-        plan = system.resolve(sc)
-        res = execution.run(plan, tmp_path / key, progress=False)
+        plan = cosim.resolve(sc)
+        res = cosim.run(plan, tmp_path / key, progress=False)
         assert res.status == "ok", res.message
         runs[key] = np.load(tmp_path / key / "signals.npy")
     assert len(runs["fast_plant"]) == 4 * (len(runs["base"]) - 1) + 1

@@ -281,8 +281,8 @@ def test_counts_of_one_are_singular(work, capsys):
 
 
 def test_count_words():
-    from wmr_cosim.cosim.words import count
-    from wmr_cosim.cosim.coupling_spec import IterationSpec
+    from wmr_cosim.cosim.messages.words import count
+    from wmr_cosim.cosim.stepping.settings import IterationSpec
 
     assert [count(n, "instance") for n in (0, 1, 2)] == ["0 instances", "1 instance", "2 instances"]
     assert count(1, "recorded variable") == "1 recorded variable" and count(2, "entry", "entries") == "2 entries"
@@ -304,7 +304,7 @@ def test_signals_csv_writes_the_grid_times_and_npy_keeps_its_values(work, capsys
 
 
 def test_grid_times_round_only_points_of_the_grid():
-    from wmr_cosim.cosim.recording import grid_times
+    from wmr_cosim.cosim.results.recording import grid_times
 
     t = np.array([0.0, 0.30000000000000004, 0.6000000000000001, 1.0734, 1.07000000000001])
     assert grid_times(t, 0.0, 0.002).tolist() == [0.0, 0.3, 0.6, 1.0734, 1.07]

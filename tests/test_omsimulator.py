@@ -20,8 +20,8 @@ import pytest
 
 from host_tools import OMSIMULATOR, tool
 from cosim_support import G1, g1_with_paths
-from wmr_cosim.cosim import execution, scenario, system
-from wmr_cosim.cosim.ssp import export_ssp, load_ssp
+from wmr_cosim import cosim
+from wmr_cosim.cosim.plan.ssp import export_ssp, load_ssp
 
 ROOT = Path(__file__).resolve().parents[1]
 POSE = ("x_A", "y_A", "beta")
@@ -59,7 +59,7 @@ def _last_row(csv: Path) -> dict[str, float]:
 @pytest.fixture(scope="module")
 def g1_plan(built_fmus):
     """The plan of scenarios/g1_learn.toml (Gauss-Seidel) with the session's FMUs."""
-    return system.resolve(scenario.load(G1, lambda name: built_fmus.get(name)))
+    return cosim.resolve(cosim.load(G1, lambda name: built_fmus.get(name)))
 
 
 @pytest.mark.slow  # OMSimulator takes about 10 s over the 25,000 steps, our three runs 2 s each
@@ -77,10 +77,10 @@ def test_omsimulator_runs_the_exported_g1_system_as_our_jacobi_run(omsimulator, 
 
     def ours(algorithm: str, plan=None) -> np.ndarray:
         if plan is None:
-            sc = scenario.load(G1, lambda name: built_fmus.get(name))
+            sc = cosim.load(G1, lambda name: built_fmus.get(name))
             sc.algorithm = algorithm
-            plan = system.resolve(sc)
-        res = execution.run(plan, tmp_path / f"ours_{algorithm}", progress=False)
+            plan = cosim.resolve(sc)
+        res = cosim.run(plan, tmp_path / f"ours_{algorithm}", progress=False)
         assert res.status == "ok", res.message
         data = np.load(tmp_path / f"ours_{algorithm}" / "signals.npy")
         return np.array([data[f"plant.{v}"][-1] for v in POSE])
@@ -96,7 +96,7 @@ def test_omsimulator_runs_the_exported_g1_system_as_our_jacobi_run(omsimulator, 
     arch = load_ssp(archive)
     try:
         assert arch.scenario.instances["controller"].parameters["task"] == "goal"
-        assert np.array_equal(ours("from_ssp", system.resolve(arch.scenario)), gs)
+        assert np.array_equal(ours("from_ssp", cosim.resolve(arch.scenario)), gs)
     finally:
         arch.cleanup()
 
@@ -105,7 +105,7 @@ def test_omsimulator_takes_its_master_and_the_scenarios_step_from_the_archive(om
     """Imported through OMSimulator's Lua API (its command line passes a step of its own): the system is a
     co-simulation system with the fixed-step master, at the scenario's step, and nothing is refused."""
     path = g1_with_paths(tmp_path, built_fmus, "[experiment]\nstop = 1.0\nstep = 0.004\n")
-    archive = export_ssp(system.resolve(scenario.load(path)), tmp_path / "g1.ssp")
+    archive = export_ssp(cosim.resolve(cosim.load(path)), tmp_path / "g1.ssp")
     (tmp_path / "probe.lua").write_text(
         f'model, status = oms_importFile("{archive.name}")\nprint("import", model, status)\n'
         'step, status = oms_getFixedStepSize(model .. "." .. model)\nprint("step", step, status)\n'

@@ -1,13 +1,14 @@
-"""Real-time pacing (cosim.pacing) against a simulated wall clock: the due time of each step, the boundary
+"""Real-time pacing (cosim.runtime.pacing) against a simulated wall clock: the due time of each step, the boundary
 between on time and late, the first wait starting the clock, and the figures and line reported."""
 from __future__ import annotations
 
 import pytest
 
 from cosim_support import FakeClock
-from wmr_cosim.cosim import pacing, scenario, system
-from wmr_cosim.cosim.execution import Execution
-from wmr_cosim.cosim.observers import Observer
+from wmr_cosim.cosim.runtime import pacing
+from wmr_cosim import cosim
+from wmr_cosim.cosim.runtime.execution import Execution
+from wmr_cosim.cosim.runtime.observers import Observer
 
 
 @pytest.fixture
@@ -89,7 +90,7 @@ def _paced_dahlquist(clock, tmp_path, start: float, stop: float, step: float, fa
     doc = {"experiment": {"start": start, "stop": stop, "step": step},
            "instances": {"d": {"fmu": str(REF / "fmi2" / "Dahlquist.fmu")}}, "record": {"variables": ["d.x"]}}
     clock.now = now
-    ex = Execution(system.resolve(scenario.parse(doc, "paced.toml")), tmp_path / "out", real_time=factor)
+    ex = Execution(cosim.resolve(cosim.parse(doc, "paced.toml")), tmp_path / "out", real_time=factor)
     assert ex.pacer is not None
     ex.pacer._clock = clock
     return ex

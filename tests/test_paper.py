@@ -485,8 +485,8 @@ def test_a_task_job_extracts_with_the_archive_limits_it_is_given(built_fmus, tmp
     import pickle
 
     from wmr_cosim import paper_job, runner
-    from wmr_cosim.cosim.archive import LimitOverrides
-    from wmr_cosim.cosim.errors import CosimError
+    from wmr_cosim.cosim.model.archive import LimitOverrides
+    from wmr_cosim.cosim.messages.errors import CosimError
 
     monkeypatch.setattr(runner, "resolve_model", lambda name: built_fmus.get(name))
     with pytest.raises(CosimError) as err:

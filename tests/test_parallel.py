@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from wmr_cosim import cli
-from wmr_cosim.cosim import execution, scenario, system
+from wmr_cosim import cosim
 
 from c_fmu_support import build_probe
 from cosim_support import write_document
@@ -40,8 +40,8 @@ def ring(probe: Path, n: int, workers: int, isolate: tuple[bool, ...] | None = N
             "record": {"variables": [f"{m}.y" for m in names] + ["ft.Float64_continuous_output"]}}
 
 
-def _run(doc: dict[str, Any], out: Path) -> tuple[execution.RunResult, np.ndarray]:
-    res = execution.run(system.resolve(scenario.parse(doc, "par.toml")), out, progress=False)
+def _run(doc: dict[str, Any], out: Path) -> tuple[cosim.RunResult, np.ndarray]:
+    res = cosim.run(cosim.resolve(cosim.parse(doc, "par.toml")), out, progress=False)
     return res, np.load(out / "signals.npy")
 
 
@@ -74,7 +74,7 @@ def test_a_child_that_dies_while_others_step_ends_the_run_with_one_line(probes, 
     the rows before it kept, the other child answered and shut down."""
     doc = ring(probes["burn"], 2, 2)
     doc["instances"]["p1"]["fmu"] = str(probes["crash"])
-    res = execution.run(system.resolve(scenario.parse(doc, "par.toml")), tmp_path / "x", progress=False)
+    res = cosim.run(cosim.resolve(cosim.parse(doc, "par.toml")), tmp_path / "x", progress=False)
     assert res.status != "ok"
     assert "p1" in res.message and "\n" not in res.message
     sig = np.load(tmp_path / "x" / "signals.npy")

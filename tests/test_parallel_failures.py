@@ -1,4 +1,4 @@
-"""Parallel stepping (cosim.parallel: [experiment] workers = N, algorithm jacobi, isolated instances) when
+"""Parallel stepping (cosim.stepping.parallel: [experiment] workers = N, algorithm jacobi, isolated instances) when
 one instance fails while others step: every step started is answered (each child's step requests and the
 answers awaited match), the run ends cleanly with the first failure (one line naming the instance and the
 time), the rows up to the failure on disk exactly as the serial Jacobi run's, every instance's log kept, no
@@ -20,7 +20,8 @@ import psutil
 import pytest
 
 from c_fmu_support import build_probe
-from wmr_cosim.cosim import execution, isolation, scenario, system
+from wmr_cosim import cosim
+from wmr_cosim.cosim.instances import isolation
 
 NAMES = ("p0", "p1", "p2", "q")
 TAIL = "(isolated: the other instances are terminated and freed, the recording kept)"
@@ -75,15 +76,15 @@ def _children() -> list[psutil.Process]:
     out = []
     for p in psutil.Process().children(recursive=True):
         try:
-            if "wmr_cosim.cosim.isolation" in " ".join(p.cmdline()):
+            if "wmr_cosim.cosim.instances.isolation" in " ".join(p.cmdline()):
                 out.append(p)
         except psutil.NoSuchProcess:
             pass
     return out
 
 
-def _run(doc: dict[str, Any], out: Path) -> tuple[execution.RunResult, np.ndarray, dict[str, Any]]:
-    res = execution.run(system.resolve(scenario.parse(doc, "par.toml")), out, progress=False)
+def _run(doc: dict[str, Any], out: Path) -> tuple[cosim.RunResult, np.ndarray, dict[str, Any]]:
+    res = cosim.run(cosim.resolve(cosim.parse(doc, "par.toml")), out, progress=False)
     return res, np.load(out / "signals.npy"), json.loads((out / "summary.json").read_text())
 
 

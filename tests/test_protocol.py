@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from cosim_support import write_scenario
 from reference_fmus import REF as _REF
-from wmr_cosim.cosim.errors import RunError, ScenarioError
-from wmr_cosim.cosim.protocol import check_protocol, plan_runs, run_protocol
+from wmr_cosim.cosim.messages.errors import RunError, ScenarioError
+from wmr_cosim.cosim.runtime.protocol import check_protocol, plan_runs, run_protocol
 from wmr_cosim.exit_codes import RUN_FAILED, for_error
 
 DAHLQUIST = _REF / "fmi2" / "Dahlquist.fmu"
@@ -184,18 +184,18 @@ def test_a_protocol_file_is_read_once_per_command(tmp_path, monkeypatch, capsys)
     """check and run of a protocol read and parse the file once (every run's scenario is made from the
     document read), also through the command line."""
     from wmr_cosim.cli import main
-    from wmr_cosim.cosim import scenario
+    from wmr_cosim.cosim.scenario import document
 
     path = _protocol(tmp_path, RUNS)
     reads: list[str] = []
-    real = scenario.read_document
+    real = document.read_document
 
     def counted(p, *args, **kw):
         if not args:                      # (the file itself, not a base it names)
             reads.append(str(p))
         return real(p, *args, **kw)
 
-    monkeypatch.setattr(scenario, "read_document", counted)
+    monkeypatch.setattr(document, "read_document", counted)
     assert main(["check", str(path), "--variant", "slow"]) == 0
     assert "run c: ok" in capsys.readouterr().out and reads == [str(path)]
     reads.clear()
@@ -208,21 +208,21 @@ def test_isolate_is_part_of_the_plan_and_leaves_the_scenario_as_it_is(tmp_path):
     (and every other field), and a later plan of it without isolate_all is not isolated."""
     import copy
 
-    from wmr_cosim.cosim import scenario, system
+    from wmr_cosim import cosim
 
-    sc = scenario.load(_protocol(tmp_path))
+    sc = cosim.load(_protocol(tmp_path))
     before = copy.deepcopy(sc)
-    plan = system.resolve(sc, force=True, isolate_all=True)
+    plan = cosim.resolve(sc, force=True, isolate_all=True)
     assert [ip.spec.isolate for ip in plan.instances.values()] == [True]
     assert plan.scenario.instances["d"].isolate and plan.scenario.force
     assert sc == before and not sc.instances["d"].isolate and sc.start is None and not sc.force
-    assert not system.resolve(sc).instances["d"].spec.isolate
+    assert not cosim.resolve(sc).instances["d"].spec.isolate
 
 
 def test_a_change_to_a_plan_leaves_its_scenario_as_it_is(tmp_path):
-    from wmr_cosim.cosim import scenario, system
+    from wmr_cosim import cosim
 
-    sc = scenario.load(_protocol(tmp_path))
-    plan = system.resolve(sc)
+    sc = cosim.load(_protocol(tmp_path))
+    plan = cosim.resolve(sc)
     plan.instances["d"].spec.isolate = True
-    assert not sc.instances["d"].isolate and not system.resolve(sc).instances["d"].spec.isolate
+    assert not sc.instances["d"].isolate and not cosim.resolve(sc).instances["d"].spec.isolate

@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from wmr_cosim.cosim import recording
-from wmr_cosim.cosim.errors import OutputError
-from wmr_cosim.cosim.recording import NpyRecorder, RowBuffer, make_folder, write_csv
+from wmr_cosim.cosim.results import recording
+from wmr_cosim.cosim.messages.errors import OutputError
+from wmr_cosim.cosim.results.recording import NpyRecorder, RowBuffer, make_folder, write_csv
 
 COLUMNS = ["time", "a,b", 'say "hi"', "two\nlines", "plant.X", "n", "flag"]
 TYPES = ["Real", "Real", "Real", "Real", "Real", "Integer", "Boolean"]
@@ -185,7 +185,7 @@ def test_the_csv_writer_reads_the_recording_a_chunk_at_a_time(tmp_path):
 
 # ---------------------------------------------------------------------- the output lock
 def test_the_output_lock_refuses_a_second_run_naming_the_holder(tmp_path):
-    from wmr_cosim.cosim.recording import OutputLock
+    from wmr_cosim.cosim.results.recording import OutputLock
 
     with OutputLock(tmp_path) as lock:
         assert (tmp_path / ".wmr-cosim.lock").read_text() == f"{os.getpid()}\n"
@@ -202,7 +202,7 @@ def test_the_output_lock_refuses_a_second_run_naming_the_holder(tmp_path):
 
 
 def test_a_lock_file_left_by_a_killed_run_is_taken_over(tmp_path):
-    from wmr_cosim.cosim.recording import OutputLock
+    from wmr_cosim.cosim.results.recording import OutputLock
 
     (tmp_path / ".wmr-cosim.lock").write_text("999999999\nstale\n")   # no process holds its flock
     with OutputLock(tmp_path):
@@ -268,7 +268,7 @@ def test_a_non_finite_recorded_real_stops_at_its_row(tmp_path):
     """Rows are [time, x, y] as float64 then [n] as int64; the recording takes time, y, n, x (slots 0, 2, 3
     and 1): the first non-finite real (in time order, then column order) names its column, value and time,
     and the rows up to it are written."""
-    from wmr_cosim.cosim.errors import RunError
+    from wmr_cosim.cosim.messages.errors import RunError
 
     rec = NpyRecorder(tmp_path / "s.npy", ["time", "plant.y", "count", "ctrl.x"], ["Real", "Real", "Integer", "Real"])
     rows = RowBuffer(rec, [0, 2, 3, 1], 3, 1)
@@ -301,7 +301,7 @@ def test_a_flush_of_finite_rows_writes_them_all(tmp_path):
 
 # ---------------------------------------------------------------------- whole files
 def test_atomic_write_and_write_json_leave_whole_files_only(tmp_path):
-    from wmr_cosim.cosim.recording import atomic_write, write_json
+    from wmr_cosim.cosim.results.recording import atomic_write, write_json
 
     atomic_write(tmp_path / "a.txt", "text")
     atomic_write(tmp_path / "b.bin", b"\x00\x01")

@@ -19,9 +19,10 @@ from wmr_cosim.exit_codes import for_status
 from fmpy import read_csv, simulate_fmu
 
 from cosim_support import build_test_fmu, write_scenario
-from wmr_cosim.cosim import execution, scenario, system
-from wmr_cosim.cosim.errors import ScenarioError
-from wmr_cosim.cosim.model import load_model
+from wmr_cosim import cosim
+from wmr_cosim.cosim.scenario import document as scenario
+from wmr_cosim.cosim.messages.errors import ScenarioError
+from wmr_cosim.cosim.model.description import load_model
 from wmr_cosim.runner import fmu_plan
 
 from reference_fmus import REF
@@ -33,7 +34,7 @@ def _cli(*args: object) -> subprocess.CompletedProcess:
 
 
 def _ours(fmu: Path, tmp: Path, **kw) -> np.ndarray:
-    res = execution.run(fmu_plan(fmu, **kw), tmp / "out", progress=False)
+    res = cosim.run(fmu_plan(fmu, **kw), tmp / "out", progress=False)
     assert res.status in ("ok", "terminated"), res.message
     return np.load(tmp / "out" / "signals.npy")
 
@@ -111,8 +112,8 @@ def test_initialisation_exchanges_outputs_to_inputs_against_the_order(algorithm,
     """The row at the start time shows the initialised system: b gets a's output although b comes first
     (never 0.0), through the connection's linear transform, for every type."""
     for factor, offset in ((1.0, 0.0), (2.0, 1.0)):
-        plan = system.resolve(scenario.load(_feedthrough_chain(tmp_path, algorithm, factor, offset)))
-        res = execution.run(plan, tmp_path / "out", progress=False)
+        plan = cosim.resolve(scenario.load(_feedthrough_chain(tmp_path, algorithm, factor, offset)))
+        res = cosim.run(plan, tmp_path / "out", progress=False)
         assert res.status == "ok", res.message
         d = np.load(tmp_path / "out" / "signals.npy")
         assert d["a.Float64_continuous_output"][0] == 3.0
@@ -132,7 +133,7 @@ step = 0.001
 fmu = "{fmu}"
 parameters = {{ p = 5.0 }}
 ''')
-    res = execution.run(system.resolve(scenario.load(path)), tmp_path / "out", progress=False)
+    res = cosim.run(cosim.resolve(scenario.load(path)), tmp_path / "out", progress=False)
     assert res.status == "ok", res.message
     d = np.load(tmp_path / "out" / "signals.npy")
     assert np.all(d["r.y"] == 5.0)
@@ -149,7 +150,7 @@ step = 0.001
 fmu = "{fmu}"
 logging = "{level}"
 ''')
-    res = execution.run(system.resolve(scenario.load(path)), tmp_path / "out", progress=False)
+    res = cosim.run(cosim.resolve(scenario.load(path)), tmp_path / "out", progress=False)
     assert res.status == "ok", res.message
     lines = (tmp_path / "out" / "logs" / "r.log").read_text().splitlines()
     assert sum("step at t" in ln for ln in lines) == kept
@@ -168,9 +169,9 @@ names = {{ x1 = "x[1]" }}
 [record]
 variables = ["vdp.x[1]", "vdp.der(x0)", "vdp.x?"]
 ''')
-    plan = system.resolve(scenario.load(path))
+    plan = cosim.resolve(scenario.load(path))
     assert [r.column for r in plan.record] == ["vdp.x[1]", "vdp.der(x0)", "vdp.x0"]
-    res = execution.run(plan, tmp_path / "out", progress=False)
+    res = cosim.run(plan, tmp_path / "out", progress=False)
     assert res.status == "ok", res.message
     d = np.load(tmp_path / "out" / "signals.npy")
     ref = _fmpy(fmu, 0.01, stop_time=1.0, output=["x0", "x1"])
@@ -251,8 +252,8 @@ def test_a_missing_binary_is_found_by_check(kind, reason, tmp_path):
     (lambda n: n.replace("linux64", "win64").replace(".so", ".dll"), "win64"),
     (lambda n: n.replace("binaries/linux64/", "sources/"), "no platform")])
 def test_an_fmu_without_a_binary_for_this_platform_names_the_ones_it_has(rename, platforms, tmp_path):
-    from wmr_cosim.cosim.errors import FmuLoadError
-    from wmr_cosim.cosim.model import load_model
+    from wmr_cosim.cosim.messages.errors import FmuLoadError
+    from wmr_cosim.cosim.model.description import load_model
 
     fmu = _rebinary(FMI2 / "Dahlquist.fmu", tmp_path / "D.fmu", rename)
     with pytest.raises(FmuLoadError) as err:
@@ -265,10 +266,10 @@ def test_defaults_come_from_the_fmus_and_must_agree(tmp_path):
     a, b = FMI2 / "Dahlquist.fmu", FMI2 / "VanDerPol.fmu"
     path = write_scenario(tmp_path / "d.toml", f'[instances.a]\nfmu = "{a}"\n[instances.b]\nfmu = "{b}"\n')
     with pytest.raises(ScenarioError, match="default experiments disagree") as exc:
-        system.resolve(scenario.load(path))
+        cosim.resolve(scenario.load(path))
     assert exc.value.field == "experiment.stop"
     path.write_text(path.read_text() + "[experiment]\nstop = 1.0\nstep = 0.1\ntolerance = 1e-6\n")
-    plan = system.resolve(scenario.load(path))
+    plan = cosim.resolve(scenario.load(path))
     assert (plan.scenario.start, plan.scenario.tolerance, plan.n_steps) == (0.0, 1e-6, 10)
     one = fmu_plan(a)
     assert (one.scenario.stop, one.scenario.step) == (10.0, 0.1)
@@ -292,22 +293,22 @@ def test_each_fmu_gets_its_own_default_tolerance_unless_the_scenario_gives_one(t
     b = with_tolerance(FMI2 / "VanDerPol.fmu", tmp_path / "B.fmu", "1e-06")
     head = "[experiment]\nstop = 1.0\nstep = 0.1\n"
     path = write_scenario(tmp_path / "d.toml", f'{head}[instances.a]\nfmu = "{a}"\n[instances.b]\nfmu = "{b}"\n')
-    plan = system.resolve(scenario.load(path))
+    plan = cosim.resolve(scenario.load(path))
     assert (plan.instances["a"].tolerance, plan.instances["b"].tolerance) == (1e-8, 1e-6)
     path.write_text(path.read_text().replace(head, head + "tolerance = 1e-5\n"))
-    plan = system.resolve(scenario.load(path))
+    plan = cosim.resolve(scenario.load(path))
     assert (plan.instances["a"].tolerance, plan.instances["b"].tolerance) == (1e-5, 1e-5)
     path.write_text(path.read_text() + "tolerance = 1e-3\n")     # on instance b
-    plan = system.resolve(scenario.load(path))
+    plan = cosim.resolve(scenario.load(path))
     assert (plan.instances["a"].tolerance, plan.instances["b"].tolerance) == (1e-5, 1e-3)
-    res = execution.run(plan, tmp_path / "out", progress=False)
+    res = cosim.run(plan, tmp_path / "out", progress=False)
     assert res.status == "ok", res.message
     resolved = json.loads((tmp_path / "out" / "scenario.json").read_text())
     assert [resolved["instances"][n]["tolerance"] for n in "ab"] == [1e-5, 1e-3]
 
 
 # ------------------------------------------------------------------------------- C FMUs of other exporters
-def _probe_run(fmu: Path, tmp: Path, extra: str = "", name: str = "Probe") -> tuple[execution.RunResult, Path]:
+def _probe_run(fmu: Path, tmp: Path, extra: str = "", name: str = "Probe") -> tuple[cosim.RunResult, Path]:
     path = write_scenario(tmp / "probe.toml", f'''
 [experiment]
 stop = 0.5
@@ -317,7 +318,7 @@ fmu = "{fmu}"
 {extra}
 ''')
     out = tmp / "out"
-    return execution.run(system.resolve(scenario.load(path)), out, progress=False), out
+    return cosim.run(cosim.resolve(scenario.load(path)), out, progress=False), out
 
 
 def test_c_fmu_resetting_its_parameters_in_setup_experiment_gets_the_scenarios_values(tmp_path):
@@ -408,7 +409,7 @@ value = 2.0
 [record]
 variables = ["a.Int32_output", "a.Boolean_output", "b.Float64_continuous_output", "b.Boolean_output"]
 ''')
-    res = execution.run(system.resolve(scenario.load(path)), tmp_path / "out", progress=False)
+    res = cosim.run(cosim.resolve(scenario.load(path)), tmp_path / "out", progress=False)
     assert res.status == "ok", res.message
     d = np.load(tmp_path / "out" / "signals.npy")
     t = np.round(d["time"], 9)
@@ -434,7 +435,7 @@ def test_type_rules_of_connections_and_events(text, reason, tmp_path):
     path = write_scenario(tmp_path / "bad.toml", f'[experiment]\nstop = 0.2\nstep = 0.01\n[instances.a]\nfmu = "{fmu}"\n'
                                                  f'[instances.b]\nfmu = "{fmu}"\n{text}')
     with pytest.raises(ScenarioError, match=reason.replace("(", r"\(")):
-        system.resolve(scenario.load(path))
+        cosim.resolve(scenario.load(path))
 
 
 def test_a_real_to_boolean_connection_with_a_factor_is_named_in_one_line(tmp_path):
@@ -443,7 +444,7 @@ def test_a_real_to_boolean_connection_with_a_factor_is_named_in_one_line(tmp_pat
                           f'[instances.b]\nfmu = "{fmu}"\n[[connections]]\nfrom = "a.Float64_continuous_output"\n'
                           'to = "b.Boolean_input"\nconvert = true\nfactor = 2.0\n')
     with pytest.raises(ScenarioError) as err:
-        system.resolve(scenario.load(path))
+        cosim.resolve(scenario.load(path))
     assert str(err.value) == (f"{path}: connections[0]: a Real -> Boolean conversion takes a threshold, not a "
                               "factor or offset")
 
@@ -453,7 +454,7 @@ def test_an_array_parameter_given_a_scalar_is_named_in_one_line(tmp_path):
     path = write_scenario(tmp_path / "bad.toml", f'[experiment]\nstop = 0.2\nstep = 0.01\n[instances.s]\nfmu = "{fmu}"\n'
                           '[instances.s.parameters]\nx0 = 1.0\n')
     with pytest.raises(ScenarioError) as err:
-        system.resolve(scenario.load(path))
+        cosim.resolve(scenario.load(path))
     assert str(err.value) == f"{path}: instances.s.parameters.x0: x0 is an array of 3 values (3,): give a list of 3"
 
 
@@ -461,7 +462,7 @@ def test_a_ctrl_c_after_the_last_step_interrupts_nothing(tmp_path, monkeypatch):
     import os
     import signal
 
-    from wmr_cosim.cosim.algorithm import GaussSeidel
+    from wmr_cosim.cosim.stepping.generated import GaussSeidel
 
     class SignalAfterTheLastStep(GaussSeidel):   # Ctrl-C once every step has run
         def advance(self, k0, k1):
@@ -469,7 +470,7 @@ def test_a_ctrl_c_after_the_last_step_interrupts_nothing(tmp_path, monkeypatch):
             if k1 == self.clock.n_steps:
                 os.kill(os.getpid(), signal.SIGINT)
             return r
-    res = execution.run(fmu_plan(FMI2 / "Dahlquist.fmu"), tmp_path / "out", progress=False,
+    res = cosim.run(fmu_plan(FMI2 / "Dahlquist.fmu"), tmp_path / "out", progress=False,
                         algorithm=SignalAfterTheLastStep())
     assert res.status == "ok" and res.steps == 100, res.message
 
@@ -515,7 +516,7 @@ action = "reset"
 [record]
 variables = ["a.Float64_continuous_output", "b.Float64_continuous_output"]
 ''')
-    res = execution.run(system.resolve(scenario.load(path)), tmp_path / "out", progress=False)
+    res = cosim.run(cosim.resolve(scenario.load(path)), tmp_path / "out", progress=False)
     assert res.status == "ok", res.message
     d = np.load(tmp_path / "out" / "signals.npy")
     a, b = d["a.Float64_continuous_output"], d["b.Float64_continuous_output"]
@@ -549,7 +550,7 @@ def test_resolve_leaves_the_scenario_it_is_given_as_it_is(tmp_path):
     scenario given to resolve is not changed (so one Scenario resolves the same way twice)."""
     path = write_scenario(tmp_path / "d.toml", f'[instances.a]\nfmu = "{FMI2 / "Dahlquist.fmu"}"\n')
     sc = scenario.load(path)
-    plan = system.resolve(sc, force=True)
+    plan = cosim.resolve(sc, force=True)
     assert (plan.scenario.stop, plan.scenario.step, plan.scenario.force) == (10.0, 0.1, True)
     assert (sc.stop, sc.step, sc.force) == (None, None, False)
-    assert system.resolve(sc).n_steps == plan.n_steps == 100
+    assert cosim.resolve(sc).n_steps == plan.n_steps == 100

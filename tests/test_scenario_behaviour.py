@@ -11,11 +11,11 @@ import pytest
 
 from c_fmu_support import build_probe
 from reference_fmus import REF
-from wmr_cosim.cosim import archive
-from wmr_cosim.cosim.errors import CosimError, FmuLoadError, ScenarioError
-from wmr_cosim.cosim.model import load_model
-from wmr_cosim.cosim.scenario import parse, parse_set, parse_value
-from wmr_cosim.cosim.system import resolve
+from wmr_cosim.cosim.model import archive
+from wmr_cosim.cosim.messages.errors import CosimError, FmuLoadError, ScenarioError
+from wmr_cosim.cosim.model.description import load_model
+from wmr_cosim.cosim.scenario.document import parse, parse_set, parse_value
+from wmr_cosim.cosim.plan.resolution import resolve
 from wmr_cosim.exit_codes import for_error
 
 FT = REF / "fmi2" / "Feedthrough.fmu"
@@ -245,7 +245,7 @@ def test_an_array_connection_of_the_wrong_shape_is_named(conn, message):
 @pytest.mark.parametrize("error, reason", [(PermissionError(13, "Permission denied"), "Permission denied"),
                                            (OSError("the disk went away"), "the disk went away")])
 def test_a_scenario_file_that_cannot_be_read_is_named(tmp_path, monkeypatch, error, reason):
-    from wmr_cosim.cosim import scenario
+    from wmr_cosim import cosim
 
     path = tmp_path / "s.toml"
     path.write_text("[experiment]\nstop = 1\n")
@@ -254,7 +254,7 @@ def test_a_scenario_file_that_cannot_be_read_is_named(tmp_path, monkeypatch, err
         raise error
     monkeypatch.setattr(Path, "open", refuse)
     with pytest.raises(ScenarioError) as info:
-        scenario.load(path)
+        cosim.load(path)
     assert str(info.value) == f"{path}: cannot be read ({reason})"
 
 
@@ -283,7 +283,7 @@ def test_the_interpolation_of_input_columns_is_linear_or_hold(tmp_path):
 
 
 def test_a_value_given_on_the_command_line_names_its_option():
-    from wmr_cosim.cosim.scenario import apply_overrides
+    from wmr_cosim.cosim.scenario.document import apply_overrides
 
     two = _doc(instances={"a": {"fmu": str(FT)}, "b": {"fmu": str(FT)}})
     with pytest.raises(ScenarioError) as info:
@@ -300,8 +300,8 @@ def test_another_kind_of_file_is_named_by_the_master_and_the_command_line_says_h
         tmp_path, capsys, key, kind, hint):
     """The master names what the file is and no command; the command line adds the command that takes it."""
     from wmr_cosim.cli import main
-    from wmr_cosim.cosim.errors import OtherFileError
-    from wmr_cosim.cosim.scenario import load
+    from wmr_cosim.cosim.messages.errors import OtherFileError
+    from wmr_cosim.cosim.scenario.document import load
 
     path = tmp_path / "other.toml"
     path.write_text(f"[{key}]\n")

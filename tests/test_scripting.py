@@ -14,7 +14,7 @@ import pytest
 
 from cosim_support import G1, ROOT
 from wmr_cosim import Run, RunError, ScenarioError, Simulation
-from wmr_cosim.cosim.errors import CosimError
+from wmr_cosim.cosim.messages.errors import CosimError
 
 H = 0.002
 

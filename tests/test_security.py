@@ -22,11 +22,12 @@ import psutil
 import pytest
 
 from cosim_support import G1, g1_with_paths
-from wmr_cosim.cosim import archive, execution, scenario, system
-from wmr_cosim.cosim.archive import ArchiveLimits, check_archive, safe_extract
-from wmr_cosim.cosim.errors import CosimError, FmuLoadError, ScenarioError
-from wmr_cosim.cosim.model import load_model
-from wmr_cosim.cosim.ssp import export_ssp, load_ssp
+from wmr_cosim.cosim.model import archive
+from wmr_cosim import cosim
+from wmr_cosim.cosim.model.archive import ArchiveLimits, check_archive, safe_extract
+from wmr_cosim.cosim.messages.errors import CosimError, FmuLoadError, ScenarioError
+from wmr_cosim.cosim.model.description import load_model
+from wmr_cosim.cosim.plan.ssp import export_ssp, load_ssp
 
 DATA = Path(__file__).parent / "data"
 BOMB = 24 * 1024**2          # bytes of zeros in a bomb: deflates about 1000:1, to some 24 KiB
@@ -182,13 +183,13 @@ def test_limits_from_the_scenario_and_the_command_line(built_fmus, tmp_path):
     # its plan too; the caller's limits win over the scenario's, one by one
     bad = g1_with_paths(tmp_path, built_fmus, name="bad.toml", head="[limits]\narchive_size = -3\n")
     with pytest.raises(ScenarioError) as exc:
-        scenario.load(bad)
+        cosim.load(bad)
     assert exc.value.field == "limits.archive_size"
-    assert scenario.load(steep).archive_limits == ArchiveLimits(max_ratio=10)
-    assert scenario.load(plain).archive_limits == ArchiveLimits()
+    assert cosim.load(steep).archive_limits == ArchiveLimits(max_ratio=10)
+    assert cosim.load(plain).archive_limits == ArchiveLimits()
     over = archive.LimitOverrides(max_size=3 * 1024**3)
-    assert scenario.load(steep, limits=over).archive_limits == ArchiveLimits(3 * 1024**3, 10)
-    assert system.resolve(scenario.load(plain, limits=archive.LimitOverrides(max_ratio=ratio + 10))
+    assert cosim.load(steep, limits=over).archive_limits == ArchiveLimits(3 * 1024**3, 10)
+    assert cosim.resolve(cosim.load(plain, limits=archive.LimitOverrides(max_ratio=ratio + 10))
                           ).archive_limits == ArchiveLimits(max_ratio=ratio + 10)
 
 
@@ -231,11 +232,11 @@ def test_two_scenarios_read_one_after_the_other_extract_each_with_its_own_limits
             zo.writestr(info, zi.read(info))
         zo.writestr("resources/zeros.bin", bytes(4 * 1024**2))
     doc = {"experiment": {"stop": 0.1, "step": 0.05}, "instances": {"a": {"fmu": str(fat)}}}
-    tight = scenario.parse({**doc, "limits": {"archive_size": "1 MiB"}}, "tight.toml")
-    loose = scenario.parse({**doc, "limits": {"archive_size": "1 GiB"}}, "loose.toml")
+    tight = cosim.parse({**doc, "limits": {"archive_size": "1 MiB"}}, "tight.toml")
+    loose = cosim.parse({**doc, "limits": {"archive_size": "1 GiB"}}, "loose.toml")
     with pytest.raises(ScenarioError, match="instances.a.fmu: .*more than the limit of 1 MiB"):
-        system.resolve(tight)
-    plan = system.resolve(loose)
+        cosim.resolve(tight)
+    plan = cosim.resolve(loose)
     assert plan.archive_limits == ArchiveLimits(max_size=1024**3)
     assert (safe_extract(fat, tmp_path / "loose", plan.archive_limits) / "resources" / "zeros.bin").is_file()
     with pytest.raises(FmuLoadError, match="more than the limit of 1 MiB"):
@@ -257,17 +258,17 @@ def test_a_limit_raised_above_the_default_lets_a_compressed_fmu_run(tmp_path):
         zo.writestr("resources/zeros.bin", bytes(8 * 1024**2))
     doc = {"experiment": {"stop": 0.1, "step": 0.05}, "instances": {"a": {"fmu": str(dense)}}}
     with pytest.raises(ScenarioError, match="ratio"):
-        system.resolve(scenario.parse(doc, "default.toml"))
-    plan = system.resolve(scenario.parse({**doc, "limits": {"archive_ratio": 1e5}}, "raised.toml"))
-    res = execution.run(plan, None, progress=False)
+        cosim.resolve(cosim.parse(doc, "default.toml"))
+    plan = cosim.resolve(cosim.parse({**doc, "limits": {"archive_ratio": 1e5}}, "raised.toml"))
+    res = cosim.run(plan, None, progress=False)
     assert res.status == "ok" and res.steps == 2, res.message
 
 
 # ---------------------------------------------------------------------------------------------- SSP
 @pytest.fixture(scope="module")
 def g1_ssp(built_fmus, tmp_path_factory):
-    sc = scenario.load(G1, lambda name: built_fmus.get(name))
-    return export_ssp(system.resolve(sc), tmp_path_factory.mktemp("ssp") / "g1.ssp")
+    sc = cosim.load(G1, lambda name: built_fmus.get(name))
+    return export_ssp(cosim.resolve(sc), tmp_path_factory.mktemp("ssp") / "g1.ssp")
 
 
 def test_a_bomb_ssp_or_a_bomb_fmu_inside_one_is_refused(g1_ssp, bombs, tmp_path):

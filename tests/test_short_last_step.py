@@ -12,8 +12,8 @@ import pytest
 
 from reference_fmus import REF
 from wmr_cosim.cli import main
-from wmr_cosim.cosim import execution, scenario, system
-from wmr_cosim.cosim.scenario import steps_of
+from wmr_cosim import cosim
+from wmr_cosim.cosim.scenario.document import steps_of
 
 BB, DQ, FT = (REF / "fmi2" / f"{m}.fmu" for m in ("BouncingBall", "Dahlquist", "Feedthrough"))
 ROOT = Path(__file__).resolve().parents[1]
@@ -41,8 +41,8 @@ def _doc(stop: float, algorithm: str = "gauss-seidel", **bb: Any) -> dict[str, A
             "record": {"variables": ["bb.h", "bb.v", "ft.Float64_continuous_output"]}}
 
 
-def _run(doc: dict[str, Any], out: Path) -> tuple[execution.RunResult, np.ndarray]:
-    res = execution.run(system.resolve(scenario.parse(doc, "short.toml")), out, progress=False)
+def _run(doc: dict[str, Any], out: Path) -> tuple[cosim.RunResult, np.ndarray]:
+    res = cosim.run(cosim.resolve(cosim.parse(doc, "short.toml")), out, progress=False)
     assert res.status == "ok", res.message
     return res, np.load(out / "signals.npy")
 
@@ -110,12 +110,12 @@ def test_check_says_the_last_step_is_short(capsys):
 def test_an_event_inside_the_short_last_step_is_refused(capsys, tmp_path):
     doc = _doc(1.05)
     doc["events"] = [{"time": 1.02, "action": "stop"}]
-    with pytest.raises(scenario.ScenarioError, match=r"events\[0\]\.time: 1.02 is inside the short last step"):
-        system.resolve(scenario.parse(doc, "short.toml"))
+    with pytest.raises(cosim.ScenarioError, match=r"events\[0\]\.time: 1.02 is inside the short last step"):
+        cosim.resolve(cosim.parse(doc, "short.toml"))
 
 
 def test_an_instance_at_its_own_rate_is_refused_a_short_last_step():
     doc = _doc(1.05)
     doc["instances"]["ft"]["step"] = 0.2
-    with pytest.raises(scenario.ScenarioError, match="instances.ft.step"):
-        system.resolve(scenario.parse(doc, "short.toml"))
+    with pytest.raises(cosim.ScenarioError, match="instances.ft.step"):
+        cosim.resolve(cosim.parse(doc, "short.toml"))

@@ -1,4 +1,4 @@
-"""SSP 1.0 export and import (cosim/ssp.py, `wmr-cosim export-ssp`, `wmr-cosim run FILE.ssp`): the archive's
+"""SSP 1.0 export and import (cosim/plan/ssp.py, `wmr-cosim export-ssp`, `wmr-cosim run FILE.ssp`): the archive's
 content and schema validity, a foreign archive, one-line errors for bad or foreign archives, and archives
 whose entries would extract outside their folder refused before anything is written."""
 from __future__ import annotations
@@ -15,9 +15,10 @@ import pytest
 from lxml import etree as ET
 
 from cosim_support import G1, g1_with_paths
-from wmr_cosim.cosim import execution, scenario, system
-from wmr_cosim.cosim.errors import ScenarioError
-from wmr_cosim.cosim.ssp import NS, OSP_NS, export_ssp, load_ssp, validate_xml
+from wmr_cosim import cosim
+from wmr_cosim.cosim.scenario import document as scenario
+from wmr_cosim.cosim.messages.errors import ScenarioError
+from wmr_cosim.cosim.plan.ssp import NS, OSP_NS, export_ssp, load_ssp, validate_xml
 
 
 @pytest.fixture(scope="module")
@@ -29,7 +30,7 @@ def _plan(path, resolver, **over):
     sc = scenario.load(path, resolver)
     for k, v in over.items():
         setattr(sc, k, v)
-    return system.resolve(sc)
+    return cosim.resolve(sc)
 
 
 @pytest.fixture(scope="module")
@@ -142,7 +143,7 @@ def test_cli_export_check_and_run(g1_ssp, tmp_path, built_fmus):
 
 
 def _run_signals(plan, out: Path) -> np.ndarray:
-    res = execution.run(plan, out, progress=False)
+    res = cosim.run(plan, out, progress=False)
     assert res.status == "ok", res.message
     return np.load(out / "signals.npy")
 
@@ -178,7 +179,7 @@ def test_a_string_parameter_reaches_our_master_through_the_archive(task, tmp_pat
     arch = load_ssp(out)
     try:
         assert arch.scenario.instances["controller"].parameters["task"] == task
-        from_ssp = _run_signals(system.resolve(arch.scenario), tmp_path / "from_ssp")
+        from_ssp = _run_signals(cosim.resolve(arch.scenario), tmp_path / "from_ssp")
     finally:
         arch.cleanup()
     from_toml = _run_signals(_plan(path, None), tmp_path / "from_toml")
@@ -259,10 +260,10 @@ def test_a_foreign_archive_runs(tmp_path, built_fmus):
     try:
         sc = arch.scenario
         assert sc.instances["controller"].parameters == {"goal_x": 1.25}
-        plan = system.resolve(sc)
+        plan = cosim.resolve(sc)
         assert (plan.scenario.step, plan.scenario.stop, plan.scenario.algorithm) == (0.002, 0.5, "jacobi")
         assert sc.step is None              # the step from the FMUs, into the plan's copy; SSP tools' Jacobi
-        res = execution.run(plan, tmp_path / "out", progress=False)
+        res = cosim.run(plan, tmp_path / "out", progress=False)
         assert res.status == "ok" and res.steps == 250, res.message
         assert "controller.u1" in res.columns
     finally:

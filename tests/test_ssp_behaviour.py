@@ -1,4 +1,4 @@
-"""SSP 1.0 export and import (cosim/ssp.py) on small FMUs made here: a model description and an empty
+"""SSP 1.0 export and import (cosim/plan/ssp.py) on small FMUs made here: a model description and an empty
 binary in a zip, which is all that export and import read (nothing is simulated), so every test runs in a
 fraction of a second.  What a user of the master sees: the archive's entries and XML content, the scenario
 an archive turns into, and the exact one-line error for an archive this master cannot run."""
@@ -12,9 +12,11 @@ import pytest
 from lxml import etree as ET
 
 from reference_fmus import PLATFORM, REF
-from wmr_cosim.cosim import scenario, ssp, system
-from wmr_cosim.cosim.errors import CosimError, ScenarioError
-from wmr_cosim.cosim.ssp import NS, OSP_NS, OWN_NS, export_ssp, is_ssp, load_ssp, validate_xml
+from wmr_cosim.cosim.scenario import document as scenario
+from wmr_cosim.cosim.plan import ssp
+from wmr_cosim import cosim
+from wmr_cosim.cosim.messages.errors import CosimError, ScenarioError
+from wmr_cosim.cosim.plan.ssp import NS, OSP_NS, OWN_NS, export_ssp, is_ssp, load_ssp, validate_xml
 
 SSD_NS = NS["ssd"]
 UNITS = ('<Unit name="m"><BaseUnit m="1"/></Unit>'
@@ -105,9 +107,9 @@ def gain(tmp_path) -> Path:
     return _fmu2(tmp_path / "fmus" / "Gain.fmu", GAIN)
 
 
-def _plan(tmp_path: Path, doc: dict[str, Any], file: str | None = None) -> system.Plan:
+def _plan(tmp_path: Path, doc: dict[str, Any], file: str | None = None) -> cosim.Plan:
     doc = {"experiment": {"start": 0.0, "stop": 1.0, "step": 0.25}, **doc}
-    return system.resolve(scenario.parse(doc, str(tmp_path / "scen.toml") if file is None else file))
+    return cosim.resolve(scenario.parse(doc, str(tmp_path / "scen.toml") if file is None else file))
 
 
 def _ssd(archive: Path) -> Any:

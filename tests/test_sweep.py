@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from wmr_cosim import cluster, sweep, sweep_file
-from wmr_cosim.cosim.errors import ScenarioError
+from wmr_cosim.cosim.messages.errors import ScenarioError
 
 DATA = Path(__file__).parent / "data"
 
@@ -120,7 +120,7 @@ def test_same_results_with_one_or_two_workers_and_after_a_restart(tmp_path, clus
     assert any((tmp_path / "two" / "figures").glob("*.png"))
     # another sweep into the same folder is refused
     g = _sweep_file(tmp_path, SMALL.replace("seed = 5", "seed = 9"), "other.toml")
-    from wmr_cosim.cosim.errors import CosimError
+    from wmr_cosim.cosim.messages.errors import CosimError
     with pytest.raises(CosimError, match="another sweep"):
         sweep.run_sweep(g, tmp_path / "two", cluster=cluster2, progress=False)
 

@@ -1,8 +1,8 @@
 """Connections between variables whose units have an offset (degC, degF against K), with the scenario's
 factor and offset: the value that arrives at the input during a run, row by row, against a hand
 calculation, in both directions (``to = factor * convert(from) + offset``, the unit conversion first:
-cosim.units.conversion folded with the factor and offset by cosim.system into ConnectionPlan.factor and
-.offset, applied by the generated loop (Float64 -> Float64) or by cosim.wiring's converting copy (Float64
+cosim.model.units.conversion folded with the factor and offset by cosim.plan.resolution into ConnectionPlan.factor and
+.offset, applied by the generated loop (Float64 -> Float64) or by cosim.plan.wiring's converting copy (Float64
 <-> Float32)); a bias on the source output (in its units: a difference, scaled, never offset) and one on
 the input (in the input's units, added as it is).
 
@@ -19,7 +19,7 @@ import pytest
 from c_fmu_support import build_c_fmu
 from coupling_fmus import C_FMUS
 from reference_fmus import REF
-from wmr_cosim.cosim import execution, scenario, system
+from wmr_cosim import cosim
 
 UNITS = """  <UnitDefinitions>
     <Unit name="K"><BaseUnit K="1"/></Unit>
@@ -80,9 +80,9 @@ def _document(src: Path, dst: Path, connection: dict[str, Any], events: list[dic
             "record": {"variables": ["src.y", "dst.u"]}}
 
 
-def _run(doc: dict[str, Any], out: Path) -> tuple[system.Plan, np.ndarray]:
-    plan = system.resolve(scenario.parse(doc, "units.toml"))
-    res = execution.run(plan, out, progress=False)
+def _run(doc: dict[str, Any], out: Path) -> tuple[cosim.Plan, np.ndarray]:
+    plan = cosim.resolve(cosim.parse(doc, "units.toml"))
+    res = cosim.run(plan, out, progress=False)
     assert res.status == "ok", res.message
     return plan, np.load(out / "signals.npy")
 

@@ -1,4 +1,4 @@
-"""Units of FMI variables (cosim/units.py): the conversions between convertible units agree with the physical
+"""Units of FMI variables (cosim/model/units.py): the conversions between convertible units agree with the physical
 definitions of the units, incompatible or unknown units are refused with one line naming both, and the
 units an FMU defines (UnitDefinitions, FMI 2.0 section 2.2.2) take precedence over the common ones."""
 from __future__ import annotations
@@ -9,8 +9,8 @@ import pytest
 from fmpy import read_model_description
 
 from reference_fmus import REF
-from wmr_cosim.cosim.errors import CosimError
-from wmr_cosim.cosim.units import KNOWN, Unit, conversion, lookup, unit, units_of
+from wmr_cosim.cosim.messages.errors import CosimError
+from wmr_cosim.cosim.model.units import KNOWN, Unit, conversion, lookup, unit, units_of
 
 
 def _convert(src: str, dst: str, x: float, defined: dict[str, Unit] | None = None) -> float:
@@ -123,7 +123,7 @@ def test_units_of_a_real_fmu_and_of_one_without_definitions():
 def test_an_integer_out_of_the_range_of_its_fmi_type_is_named(fmi_type, value, reason):
     """The range is the declared FMI type's (an FMI 3.0 Int8 is an Integer of 8 bits); a variable without
     one (FMI 2.0, or made by hand) has its type's."""
-    from wmr_cosim.cosim.model import Variable
+    from wmr_cosim.cosim.model.description import Variable
 
     v = Variable("n", 1, "Integer", "parameter", "tunable", None, None, None, 0, fmi_type=fmi_type)
     assert v.fmi_type == (fmi_type or "Integer")
@@ -135,7 +135,7 @@ def test_an_integer_out_of_the_range_of_its_fmi_type_is_named(fmi_type, value, r
     ("true", "Boolean", True), ("1", "Boolean", True), ("false", "Boolean", False), ("0", "Boolean", False),
     ("abc", "String", "abc")])
 def test_a_start_value_is_read_as_its_type(text, kind, value):
-    from wmr_cosim.cosim.model import _scalar
+    from wmr_cosim.cosim.model.description import _scalar
 
     got = _scalar(text, kind)
     assert got == value and type(got) is type(value)
@@ -152,7 +152,7 @@ def test_the_default_initial_of_fmi2_follows_causality_and_variability(causality
     parameters calculated, outputs and locals exact with a start value and calculated without."""
     from types import SimpleNamespace
 
-    from wmr_cosim.cosim.model import _initial
+    from wmr_cosim.cosim.model.description import _initial
 
     v = SimpleNamespace(causality=causality, variability=variability, initial=initial, start=start)
     assert _initial(v) == want

@@ -13,7 +13,7 @@ import pytest
 
 from reference_fmus import REF
 from wmr_cosim.cli import main
-from wmr_cosim.cosim.model import load_model
+from wmr_cosim.cosim.model.description import load_model
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -1,4 +1,4 @@
-"""The wiring (cosim.wiring) without FMUs: the value each Real input receives through its copies as events
+"""The wiring (cosim.plan.wiring) without FMUs: the value each Real input receives through its copies as events
 override, bias and reset it; the start value an event-driven input holds; the message naming a non-finite
 value and where it came from; and the discrete copies of non-Float64 connections against a fake FMU that
 reads and writes its buffers as the C side would (as the declared element type, ``n_values`` of them)."""
@@ -9,11 +9,11 @@ from types import SimpleNamespace
 
 import pytest
 
-from wmr_cosim.cosim.instance import real_array
-from wmr_cosim.cosim.model import Variable
-from wmr_cosim.cosim.scenario import ConnectionSpec
-from wmr_cosim.cosim.system import ConnectionPlan, EventPlan, InstancePlan
-from wmr_cosim.cosim.wiring import RowLayout, Wiring, discrete_copier
+from wmr_cosim.cosim.instances.in_process import real_array
+from wmr_cosim.cosim.model.description import Variable
+from wmr_cosim.cosim.scenario.document import ConnectionSpec
+from wmr_cosim.cosim.plan.records import ConnectionPlan, EventPlan, InstancePlan
+from wmr_cosim.cosim.plan.wiring import RowLayout, Wiring, discrete_copier
 
 
 def _v(name: str, vr: int, causality: str, fmi_type: str = "Float64", start=None, type_: str | None = None
@@ -269,7 +269,7 @@ def test_strings_are_copied():
 # --- the row layout ---------------------------------------------------------------------------------------
 
 def _rec(inst: str, var: Variable, elem: int = 0):
-    from wmr_cosim.cosim.system import RecordPlan
+    from wmr_cosim.cosim.plan.records import RecordPlan
     return RecordPlan(inst, var, f"{inst}.{var.name}", elem)
 
 
@@ -318,13 +318,13 @@ def test_a_row_without_integers_still_has_an_integer_view():
 
 def _plan_input(inst: str, var: Variable, values):
     import numpy as np
-    from wmr_cosim.cosim.inputs import InputPlan
+    from wmr_cosim.cosim.scenario.inputs import InputPlan
     return InputPlan(inst, var, f"{inst}.{var.name}", "hold", np.asarray(values))
 
 
 def test_tabulated_real_inputs_are_copied_from_the_table_row_of_each_step():
     import numpy as np
-    from wmr_cosim.cosim.wiring import table_feeder
+    from wmr_cosim.cosim.plan.wiring import table_feeder
     b_u, b_q = B_VARS["u"], B_VARS["q"]
     b_f, b_n, b_s = _v("f", 21, "input", "Float32"), _v("n", 22, "input", "Int16"), _v("s", 23, "input", "String")
     b_k = _v("k", 24, "input", "Int16")
@@ -351,7 +351,7 @@ def test_tabulated_real_inputs_are_copied_from_the_table_row_of_each_step():
 
 
 def test_a_feeder_of_reals_only_and_none_without_tabulated_inputs():
-    from wmr_cosim.cosim.wiring import table_feeder
+    from wmr_cosim.cosim.plan.wiring import table_feeder
     import numpy as np
     arr = (ctypes.c_double * 2)()
     feed = table_feeder(FakeFmu({}), (arr, np.array([[1.0, 2.0], [3.0, 4.0]])), [])
@@ -360,7 +360,7 @@ def test_a_feeder_of_reals_only_and_none_without_tabulated_inputs():
 
 
 def test_a_feeder_stops_at_the_first_failing_set():
-    from wmr_cosim.cosim.wiring import table_feeder
+    from wmr_cosim.cosim.plan.wiring import table_feeder
     fmu = FakeFmu({})
     inputs = [_plan_input("b", _v("f", 21, "input", "Float32"), [0.5]), _plan_input("b", _v("n", 22, "input", "Int16"), [7])]
     calls = []

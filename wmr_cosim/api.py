@@ -14,7 +14,7 @@
 
 A scenario is a document (the dict a TOML file gives), built in code with :meth:`Simulation.instance`,
 :meth:`~Simulation.connect`, :meth:`~Simulation.record`, :meth:`~Simulation.event`, or loaded from a file.
-Every check is the command line's (``cosim.scenario.parse`` and ``cosim.system.resolve``), raised as the
+Every check is the command line's (``cosim.scenario.document.parse`` and ``cosim.plan.resolution.resolve``), raised as the
 same exceptions: :class:`ScenarioError` (``file``, ``field``, ``reason``) for bad input, :class:`RunError`
 for a run that failed.  See docs/scripting.md.
 """
@@ -27,12 +27,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .cosim import scenario, system
-from .cosim.errors import CosimError, RunError, ScenarioError
-from .cosim.kinds import FileKind, file_kind
-from .cosim.matfile import MatLayout, layout, write_mat
-from .cosim.status import RunStatus
-from .cosim.execution import Execution
+from .cosim import (apply_overrides, CosimError, Execution, file_kind, FileKind, is_path, layout, MatLayout, parse
+                    as parse_scenario, Plan, read_document, resolve, RunError, RunStatus, Scenario, ScenarioError,
+                    write_mat)
 
 __all__ = ["Simulation", "Run", "Result", "RunStatus", "ScenarioError", "RunError", "CosimError"]
 
@@ -43,7 +40,7 @@ class Result:
     variable plus ``time`` [s]); ``summary`` is summary.json (status, steps, wall time, final values, the
     event log, the real-time figures); ``scenario`` is scenario.json (the scenario as resolved)."""
 
-    status: RunStatus                # how the run ended (cosim.status.RunStatus: a str, "ok", "failed", ...)
+    status: RunStatus                # how the run ended (cosim.results.status.RunStatus: a str, "ok", "failed", ...)
     message: str
     steps: int
     t_end: float                     # [s]
@@ -117,7 +114,7 @@ class Simulation:
             raise ScenarioError(str(p), "", "an SSP archive: the API loads scenario files (.toml) and FMUs (.fmu); "
                                             "run an archive with `wmr-cosim run`")
         else:
-            doc = scenario.read_document(Path(p), shipped=shipped_folder())
+            doc = read_document(Path(p), shipped=shipped_folder())
         sim = cls(doc, file=str(p))
         for ref, value in (parameters or {}).items():
             sim.parameter(ref, value)
@@ -141,7 +138,7 @@ class Simulation:
         ``event_tolerance`` [s], ...), checked as a scenario file's:
         ``.instance("plant", "Plant.fmu", fields={"solver": "rk4", "max_step": 1e-3})`` runs it as model
         exchange with RK4."""
-        fmu = str(Path(fmu).resolve()) if scenario.is_path(str(fmu)) else str(fmu)
+        fmu = str(Path(fmu).resolve()) if is_path(str(fmu)) else str(fmu)
         inst: dict[str, Any] = {**(fields or {}), "fmu": fmu}
         if parameters:
             inst["parameters"] = dict(parameters)
@@ -190,21 +187,21 @@ class Simulation:
         return self
 
     # ------------------------------------------------------------------ checking and running
-    def scenario(self) -> scenario.Scenario:
+    def scenario(self) -> Scenario:
         """The parsed scenario (every structural check; ScenarioError naming the file, field and reason)."""
         from .runner import resolve_model
 
-        doc = scenario.apply_overrides(copy.deepcopy(self.document), self._overrides, self.file)
-        sc = scenario.parse(doc, self.file, resolve_model)
+        doc = apply_overrides(copy.deepcopy(self.document), self._overrides, self.file)
+        sc = parse_scenario(doc, self.file, resolve_model)
         if sc.runs:
             raise ScenarioError(self.file, "runs", "a protocol (several runs): run it with `wmr-cosim run`, or "
                                                    "make one Simulation per run")
         return sc
 
-    def check(self, force: bool = False) -> system.Plan:
+    def check(self, force: bool = False) -> Plan:
         """Every check ``wmr-cosim check`` makes, against the FMUs (built on demand); returns the plan, or
         raises the ScenarioError the command line prints."""
-        return system.resolve(self.scenario(), force)
+        return resolve(self.scenario(), force)
 
     def start(self, out: str | Path | None = None, *, real_time: float | None = None,
               progress: bool | None = False, force: bool = False) -> "Run":
@@ -226,10 +223,10 @@ class Simulation:
 
 class Run:
     """A run in progress: the FMUs loaded and initialised, stepped on demand (a driver of the master's
-    :class:`~wmr_cosim.cosim.execution.Execution`).  Use it as a context manager (or call :meth:`finish`
+    :class:`~wmr_cosim.cosim.runtime.execution.Execution`).  Use it as a context manager (or call :meth:`finish`
     or :meth:`close`) so every FMU is freed."""
 
-    def __init__(self, plan: system.Plan, out: str | Path | None = None, *, real_time: float | None = None,
+    def __init__(self, plan: Plan, out: str | Path | None = None, *, real_time: float | None = None,
                  progress: bool | None = False) -> None:
         self.plan = plan
         self.result: Result | None = None

@@ -15,17 +15,12 @@ from . import version
 from .components import paper
 from .components.controller import ControllerParams
 from .components.direct_loop import run_direct
-from .cosim.status import RunStatus
+from .cosim import (CosimError, count, describe_coupling, describe_settings, did_you_mean, file_kind, FileKind,
+                    named_kind, OtherFileError, parse_value, RunStatus)
 from .components.metrics import run_metrics
 from .components.plant import PlantParams
 from .components.sensor import SensorParams
 from .components.validation import ParameterError
-from .cosim.errors import CosimError, OtherFileError
-from .cosim.kinds import FileKind, file_kind, named_kind
-from .cosim.loops import describe as describe_coupling
-from .cosim.scenario import parse_value
-from .cosim.suggest import did_you_mean
-from .cosim.words import count
 from .exit_codes import OK as EXIT_OK, RUN_FAILED as EXIT_FAILED, for_error, for_status, for_statuses
 from .scenario_files import scenario_path
 
@@ -136,7 +131,7 @@ EXPERIMENT_OPTIONS = {"start": "experiment.start", "stop": "experiment.stop", "s
                       "workers": "experiment.workers"}
 #: What a scenario file, an SSP archive and one FMU end in (the positional argument of run and check).
 SCENARIO_SUFFIXES = (".toml", ".ssp", ".fmu")
-#: How to run each other kind of file that may be given as a scenario (cosim.errors.OtherFileError).
+#: How to run each other kind of file that may be given as a scenario (cosim.messages.errors.OtherFileError).
 OTHER_FILE_HINTS = {"a paper manifest": "run it with `wmr-cosim paper --manifest FILE`",
                     "a sweep file": "run it with `wmr-cosim sweep FILE`"}
 
@@ -208,7 +203,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def scenario_file(args: argparse.Namespace) -> Any:
     """The scenario file of ``run`` and ``check`` read once (a protocol's
-    :class:`~wmr_cosim.cosim.protocol.Protocol`; None for an FMU or an SSP archive), with the options that
+    :class:`~wmr_cosim.cosim.runtime.protocol.Protocol`; None for an FMU or an SSP archive), with the options that
     apply to a protocol only judged alike for both commands: ``--variant`` must name a variant the file
     declares, of a file that declares runs; ``--real-time`` paces a single run, not a protocol's runs."""
     from .runner import is_scenario, read_scenario
@@ -312,8 +307,9 @@ def _report_check(args: argparse.Namespace, plan: Any) -> None:
           f"{_size(plan.output_bytes)}{' (and signals.csv about ' + _size(3 * plan.output_bytes) + ')' if sc.csv else ''}")
     for name, ip in plan.instances.items():
         print(f"  {name}: {ip.describe()}")
-    if sc.algorithm in ("iterated", "adaptive"):
-        print(f"  {sc.algorithm}: {_stepping(sc)}")
+    settings = describe_settings(sc.algorithm, sc.iteration, sc.adaptive, sc.step)
+    if settings is not None:
+        print(f"  {sc.algorithm}: {settings}")
     for line in describe_coupling(plan.coupling, sc.algorithm):
         print(f"  {line}")
     if plan.not_recorded:
@@ -325,22 +321,10 @@ def _report_check(args: argparse.Namespace, plan: Any) -> None:
               f"about {n:.3g} over the run")
 
 
-def _stepping(sc: Any) -> str:
-    """The settings of the iterated coupling or of the step-size control, in words."""
-    from .cosim.coupling_spec import AdaptiveSpec, IterationSpec
-
-    if sc.algorithm == "iterated":
-        return (sc.iteration or IterationSpec()).describe()
-    text = (sc.adaptive or AdaptiveSpec()).resolved(sc.step).describe()
-    if (sc.adaptive or AdaptiveSpec()).coupling == "iterated":
-        text += f"; iteration {(sc.iteration or IterationSpec()).describe()}"
-    return text
-
-
 def _check_runs(args: argparse.Namespace, parsed: Any, overrides: dict[str, Any]) -> None:
     """A protocol's runs (of the file read once: ``parsed``), each resolved as ``run`` would run it
     (parameters, carries, records)."""
-    from .cosim.protocol import check_protocol
+    from .cosim import check_protocol
 
     parsed.variant_parameters(args.variant)
     sc = parsed.scenario
@@ -476,7 +460,7 @@ def _dask_options(p: argparse.ArgumentParser) -> None:
 
 def _solver_options(p: argparse.ArgumentParser) -> None:
     """--solver and --max-step of run and check: a single FMU run as model exchange by the master's integrator."""
-    from .cosim.integrators import SOLVERS
+    from .cosim import SOLVERS
 
     p.add_argument("--solver", default=None, metavar="NAME",
                    help=f"one FMU only: run it as model exchange with this integrator ({', '.join(SOLVERS)}; an "
@@ -744,7 +728,7 @@ def archive_limits(args: argparse.Namespace) -> Any:
     processes with each job); CosimError naming the option for a bad value."""
     if args.max_archive_size is None and args.max_archive_ratio is None:
         return None
-    from .cosim.archive import limit_overrides
+    from .cosim import limit_overrides
 
     return limit_overrides(args.max_archive_size, args.max_archive_ratio,
                            names=("--max-archive-size", "--max-archive-ratio"))

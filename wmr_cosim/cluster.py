@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .cosim.errors import CosimError
+from .cosim import CosimError
 
 
 def dask_security(ca_file: str | None = None, cert: str | None = None, key: str | None = None) -> Any:

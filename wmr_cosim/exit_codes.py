@@ -5,8 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from .cosim.errors import RunError
-from .cosim.status import RunStatus
+from .cosim import RunError, RunStatus
 
 OK = 0
 RUN_FAILED = 1
@@ -30,7 +29,7 @@ def for_statuses(statuses: Iterable[str]) -> int:
 
 def for_error(exc: BaseException) -> int:
     """The exit code of a command stopped by ``exc``: 130 for Ctrl-C, 1 for a run that failed
-    (:class:`~wmr_cosim.cosim.errors.RunError`), 2 for anything else it reports as bad input (a scenario,
+    (:class:`~wmr_cosim.cosim.messages.errors.RunError`), 2 for anything else it reports as bad input (a scenario,
     an FMU, a results folder, a parameter, an option)."""
     if isinstance(exc, KeyboardInterrupt):
         return INTERRUPTED

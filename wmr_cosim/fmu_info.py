@@ -4,7 +4,7 @@ say in one line what would stop the master from running it, or how it runs it (c
 exchange through the master's integrator).
 
 Only an archive that is unsafe (a decompression bomb, an entry outside the archive), has no readable
-model description, or declares XML entities is refused (:class:`~wmr_cosim.cosim.errors.FmuLoadError`,
+model description, or declares XML entities is refused (:class:`~wmr_cosim.cosim.messages.errors.FmuLoadError`,
 one line, exit code 2): the same checks every FMU gets before its description is parsed.
 """
 from __future__ import annotations
@@ -16,10 +16,8 @@ from typing import Any
 
 from fmpy import read_model_description
 
-from .cosim.archive import DEFAULT_LIMITS, ArchiveLimits, check_archive
-from .cosim.errors import FmuLoadError
-from .cosim.model import FmuModel, fmi_version, load_model
-from .cosim.scenario import CO_SIMULATION, MODEL_EXCHANGE
+from .cosim import (ArchiveLimits, check_archive, CO_SIMULATION, DEFAULT_LIMITS, fmi_version, FmuLoadError,
+                    FmuModel, load_model, MODEL_EXCHANGE)
 
 #: The largest double: a bound of this size (or infinite) is no bound, and is shown as nothing.
 UNBOUNDED = 1.7976931348623157e308

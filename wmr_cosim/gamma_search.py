@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from .cluster import Cluster
-from .cosim.archive import LimitOverrides
+from .cosim import LimitOverrides
 from .sweep import run_points
 
 DEFAULT_GRID = (0.25, 0.5, 1.0, 2.0, 4.0, 6.0, 8.0, 10.0, 12.0, 14.0, 16.0, 20.0, 30.0)
@@ -41,8 +41,8 @@ def gamma_search(scenario: str | os.PathLike, out: str | os.PathLike, grid: list
     ``archive_limits``: the caller's archive limits (a command line's options), over the protocol's own,
     sent to the workers with every point."""
 
-    from .cosim.protocol import plan_runs
-    from .cosim.errors import CosimError
+    from .cosim import plan_runs
+    from .cosim import CosimError
 
     scenario = str(Path(scenario).resolve())
     sc, runs, _ = plan_runs(scenario, lambda name: Path(name), None, archive_limits)
@@ -58,7 +58,7 @@ def gamma_search(scenario: str | os.PathLike, out: str | os.PathLike, grid: list
     grid = sorted(set(float(g) for g in (grid or DEFAULT_GRID)))
     if not grid or grid[0] <= 0:
         raise CosimError("gamma-search: the grid must hold values > 0")
-    from .cosim.recording import OutputLock, make_folder
+    from .cosim import OutputLock, make_folder
 
     out = make_folder(Path(out))
     with OutputLock(out):  # a second search into the same folder is refused at once

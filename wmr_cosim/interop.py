@@ -4,7 +4,7 @@ tests and the ``interop`` benchmark.
 Peers (each in a child process of its own, ``python -m wmr_cosim.interop PEER FILE.ssp``, so that a crash
 of a foreign master cannot take the caller down, module caches are fresh, and CPU pinning stays local):
 
-- ``ours``: this master (``load_ssp`` + ``resolve`` + ``execution.run``; Jacobi unless the archive says);
+- ``ours``: this master (``load_ssp`` + ``resolve`` + ``run_plan``; Jacobi unless the archive says);
 - ``libcosim``: libcosimpy's ``CosimExecution.from_ssp_file`` (step from the archive's OSP annotation),
   a time-series observer, ``simulate_until(stop)``;
 - ``libcosim_api``: the same system built through libcosim's API (``add_local_slave``,
@@ -33,7 +33,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .cosim.status import RunStatus
+from .cosim import RunStatus
 
 import numpy as np
 
@@ -103,16 +103,16 @@ def _n_steps(start: float, stop: float, step: float) -> int:
 
 # ------------------------------------------------------------------------------------------ peers
 def _ours(ssp: Path, stop: float, step: float, signals, tmp: Path, algorithm: str | None = None) -> dict[str, Any]:
-    from .cosim import execution, system
-    from .cosim.ssp import load_ssp
+    from .cosim import resolve, run as run_plan
+    from .cosim import load_ssp
 
     t0 = time.perf_counter()
     arch = load_ssp(ssp, step=step, stop=stop, algorithm=algorithm)
     try:
         arch.scenario.record = list(signals)
         arch.scenario.csv = False  # the recording in signals.npy, as the others record in memory or one CSV
-        plan = system.resolve(arch.scenario)
-        res = execution.run(plan, tmp / "ours", progress=False)
+        plan = resolve(arch.scenario)
+        res = run_plan(plan, tmp / "ours", progress=False)
         wall = time.perf_counter() - t0
     finally:
         arch.cleanup()
@@ -161,8 +161,8 @@ def _libcosim(ssp: Path, stop: float, step: float, signals, tmp: Path, api: bool
         ex = CosimExecution.from_ssp_file(str(ssp))
         idx = {s.name.decode(): s.index for s in ex.slave_infos()}
     else:
-        from .cosim.ssp import load_ssp
-        from .cosim.model import load_model
+        from .cosim import load_ssp
+        from .cosim import load_model
         arch = load_ssp(ssp)
         keep.append(arch)
         ex = CosimExecution.from_step_size(ns(step))
@@ -278,8 +278,8 @@ def fmpy_parameter_set(ssp: Path):
     the text 'false'): a String parameter equal to the FMU's start value is left out, any other refused."""
     from fmpy.ssp.ssd import Parameter, ParameterSet
 
-    from .cosim.model import load_model
-    from .cosim.ssp import load_ssp
+    from .cosim import load_model
+    from .cosim import load_ssp
 
     arch = load_ssp(ssp)
     try:

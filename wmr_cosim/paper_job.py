@@ -17,8 +17,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
-from .cosim.archive import LimitOverrides
-from .cosim.status import RunStatus
+from .cosim import LimitOverrides, RunStatus
 
 from .analysis import (RUNS, fidelity, load_signals, position_error, run_summary,
                        table1_disturbance_analysis)
@@ -43,7 +42,7 @@ def build_fmus(fmi: int = 2, out_dir: Path | None = None, progress: bool = True)
     out of date; {model: .fmu}.  When any has to be built (a first run, or its sources changed), one line
     on stderr says which and where first, unless ``progress`` is False: a build takes a while, and the job
     says nothing else until its first run ends.  CosimError (one line) when a build fails."""
-    from .cosim.errors import CosimError
+    from .cosim import CosimError
     from .fmus.build import BuildError, build_all, default_out_dir, models_for, up_to_date
 
     out = Path(out_dir) if out_dir is not None else default_out_dir()
@@ -177,7 +176,7 @@ def run_paper(out: str | os.PathLike = "results/paper", variant: str = "freeze",
     (robustness.py; ``robustness_grid`` a StudyGrid, default the full one) into ``out/robustness``.
     ``archive_limits``: the caller's archive limits (a command line's options), over each protocol's own,
     passed to every worker process with its job.  A second job into the same ``out`` is refused at once (a lock naming the holder's process)."""
-    from .cosim.recording import OutputLock, make_folder
+    from .cosim import OutputLock, make_folder
 
     out = make_folder(Path(out))
     with OutputLock(out):

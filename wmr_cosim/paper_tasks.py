@@ -20,7 +20,7 @@ def manifest_path(manifest: str | os.PathLike | None = None) -> Path:
 
 def task_files(manifest: str | os.PathLike | None = None) -> dict[str, Path]:
     """{task: protocol file} of the tasks file ``manifest`` (default: the shipped one, see :func:`manifest_path`)."""
-    from .cosim.errors import ScenarioError
+    from .cosim import ScenarioError
 
     path = manifest_path(manifest)
     if not path.is_file():

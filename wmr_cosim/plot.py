@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from .cosim.suggest import close_names
+from .cosim import close_names
 
 #: How many recorded columns are drawn when no variable is named.
 DEFAULT_COUNT = 4

@@ -34,7 +34,7 @@ from typing import Any
 
 from .analysis import fidelity
 from .components import paper
-from .cosim.archive import LimitOverrides
+from .cosim import LimitOverrides
 from .paper_tasks import manifest_path, task_files
 
 RUNS = ("learn", "frozen", "foam")
@@ -116,7 +116,7 @@ def reading_label(kind: str, value: float) -> str:
 def plan(grid: StudyGrid) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """The distinct points of the study (a point: id, base protocol file, parameters) and, per axis
     value or reading, the point id of each task."""
-    from .cosim.errors import ScenarioError
+    from .cosim import ScenarioError
 
     files = task_files(grid.manifest)
     missing = [t for t in grid.tasks if t not in files]

@@ -9,14 +9,9 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from .cosim import execution, scenario, ssp, system
-from .cosim.archive import LimitOverrides
-from .cosim.kinds import FileKind, file_kind
-from .cosim.model import load_model
-from .cosim.protocol import Protocol
-from .cosim.status import RunStatus
-from .cosim.errors import CosimError, ScenarioError
-from .cosim.scenario import parse_set
+from .cosim import (apply_overrides, CosimError, export_remarks, export_ssp as write_ssp, file_kind, FileKind, is_ssp,
+                    LimitOverrides, load as load_scenario, load_model, load_ssp, parse as parse_scenario,
+                    parse_set, Plan, Protocol, resolve, run as run_plan, RunResult, RunStatus, ScenarioError)
 from .fmus.build import FMI_VERSION
 
 
@@ -98,7 +93,7 @@ def carry_fmi3(carry: dict[str, str], finals: dict[str, dict[str, float]]) -> di
     return out
 
 
-def judge_run(res: execution.RunResult) -> execution.RunResult:
+def judge_run(res: RunResult) -> RunResult:
     """A finished run of the paper's controller judged by :func:`wmr_cosim.analysis.divergence`: a run that
     ended 'ok' but diverged gets the status 'diverged' (exit code 1) and the reason as its message.  A run
     that did not record the controller's tracking errors is left as it is."""
@@ -114,7 +109,7 @@ def judge_run(res: execution.RunResult) -> execution.RunResult:
         res.status, res.message = RunStatus.DIVERGED, reason
         summary = res.out_dir / "summary.json"     # the file on disk says what the command says
         if summary.is_file():
-            from .cosim.recording import write_json
+            from .cosim import write_json
             doc = json.loads(summary.read_text(encoding="utf-8"))
             doc["status"], doc["message"] = res.status, res.message
             write_json(summary, doc)
@@ -123,14 +118,14 @@ def judge_run(res: execution.RunResult) -> execution.RunResult:
 
 def run_protocol(path: str | Path | Protocol, out_dir: str | Path,
                  resolver: Callable[[str], Path | None] | None = None,
-                 on_run: Callable[[str, execution.RunResult], None] | None = None, **options: Any
-                 ) -> dict[str, execution.RunResult]:
-    """:func:`wmr_cosim.cosim.protocol.run_protocol` (same ``options``; the resolver defaults to
+                 on_run: Callable[[str, RunResult], None] | None = None, **options: Any
+                 ) -> dict[str, RunResult]:
+    """:func:`wmr_cosim.cosim.runtime.protocol.run_protocol` (same ``options``; the resolver defaults to
     :func:`resolve_model`; ``path`` may be a file already read) with every run judged by :func:`judge_run`
     as it finishes, before ``on_run``."""
-    from .cosim.protocol import run_protocol as run_all
+    from .cosim import run_protocol as run_all
 
-    def judged(name: str, res: execution.RunResult) -> None:
+    def judged(name: str, res: RunResult) -> None:
         judge_run(res)
         if on_run is not None:
             on_run(name, res)
@@ -171,7 +166,7 @@ def fmu_document(fmu: str | Path, inputs: str | Path | None = None, stop: float 
 
 def fmu_plan(fmu: str | Path, overrides: dict[str, Any] | None = None, inputs: str | Path | None = None,
              stop: float | None = None, step: float | None = None, force: bool = False, isolate: bool = False,
-             limits: LimitOverrides | None = None, fields: dict[str, Any] | None = None) -> system.Plan:
+             limits: LimitOverrides | None = None, fields: dict[str, Any] | None = None) -> Plan:
     """The checked plan of one FMU run alone (see :func:`fmu_document`); ``overrides`` may set the
     experiment (``experiment.stop``: its 500 default steps then span the new run); ``isolate`` hosts it in a
     child process; ``limits``: the caller's archive limits; ``fields``: more keys of its instance (the
@@ -183,8 +178,8 @@ def fmu_plan(fmu: str | Path, overrides: dict[str, Any] | None = None, inputs: s
                            fields)
     except CosimError as exc:
         raise ScenarioError(str(fmu), "", str(exc).replace(f"{Path(fmu).resolve()}: ", "", 1)) from None
-    doc = scenario.apply_overrides(doc, overrides, str(fmu))
-    return system.resolve(scenario.parse(doc, str(fmu), limits=limits), force, isolate_all=isolate)
+    doc = apply_overrides(doc, overrides, str(fmu))
+    return resolve(parse_scenario(doc, str(fmu), limits=limits), force, isolate_all=isolate)
 
 
 def shipped_folder() -> Path | None:
@@ -201,32 +196,32 @@ def shipped_folder() -> Path | None:
 def read_scenario(path: str | Path, limits: LimitOverrides | None = None) -> Protocol:
     """A scenario file (a protocol or a single run) read and parsed once, with our model names and shipped
     scenario files; ``limits``: the caller's archive limits."""
-    from .cosim.protocol import read_protocol
+    from .cosim import read_protocol
 
     return read_protocol(path, resolve_model, limits, shipped_folder())
 
 
 def load_plan(path: str | Path, overrides: dict[str, Any] | None = None, force: bool = False, isolate: bool = False,
-              limits: LimitOverrides | None = None, parsed: Protocol | None = None) -> system.Plan:
+              limits: LimitOverrides | None = None, parsed: Protocol | None = None) -> Plan:
     """Parse a scenario file (TOML; not an SSP archive: see :func:`ssp_plan`) and run every check against
     its FMUs; ``isolate`` hosts every instance in a child process; ``limits``: the caller's archive limits.
-    ``parsed``: the file already read (:func:`wmr_cosim.cosim.protocol.read_protocol`), not read again."""
-    if ssp.is_ssp(path):
+    ``parsed``: the file already read (:func:`wmr_cosim.cosim.runtime.protocol.read_protocol`), not read again."""
+    if is_ssp(path):
         raise CosimError(f"{path}: an SSP archive, not a scenario file (.toml)")  # (run/check use ssp_plan)
     sc = parsed.with_parameters(overrides) if parsed is not None else \
-        scenario.load(path, resolve_model, overrides, limits, shipped_folder())
-    return system.resolve(sc, force, isolate_all=isolate)
+        load_scenario(path, resolve_model, overrides, limits, shipped_folder())
+    return resolve(sc, force, isolate_all=isolate)
 
 
 @contextlib.contextmanager
 def ssp_plan(path: str | Path, overrides: dict[str, Any] | None = None, force: bool = False, isolate: bool = False,
-             limits: LimitOverrides | None = None) -> Iterator[system.Plan]:
+             limits: LimitOverrides | None = None) -> Iterator[Plan]:
     """The checked plan of an SSP archive, its FMUs extracted for the time of the ``with`` block."""
-    arch = ssp.load_ssp(path, overrides=overrides, limits=limits)
+    arch = load_ssp(path, overrides=overrides, limits=limits)
     for w in arch.warnings:
         print(f"wmr-cosim: warning: {w}", file=sys.stderr)
     try:
-        yield system.resolve(arch.scenario, force, isolate_all=isolate)
+        yield resolve(arch.scenario, force, isolate_all=isolate)
     finally:
         arch.cleanup()
 
@@ -236,8 +231,8 @@ def export_ssp(path: str | Path, out: str | Path, overrides: dict[str, Any] | No
     """Write the scenario file ``path`` as an SSP 1.0 archive ``out``; what the export changes for other
     tools (String parameters, OMSimulator's Jacobi master) goes to stderr, one line each."""
     plan = load_plan(path, overrides, limits=limits)
-    written = ssp.export_ssp(plan, out)
-    for kind, text in ssp.export_remarks(plan):
+    written = write_ssp(plan, out)
+    for kind, text in export_remarks(plan):
         print(f"wmr-cosim: {kind}: {text}", file=sys.stderr)
     return written
 
@@ -260,7 +255,7 @@ def run_scenario(path: str | Path, out: str | Path | None = None, overrides: dic
                  step: float | None = None, force: bool = False, isolate: bool = False,
                  real_time: float | None = None, limits: LimitOverrides | None = None,
                  parsed: Protocol | None = None, fields: dict[str, Any] | None = None,
-                 on_plan: Callable[[system.Plan], None] | None = None) -> execution.RunResult:
+                 on_plan: Callable[[Plan], None] | None = None) -> RunResult:
     """Run a scenario file (.toml), an SSP archive (.ssp) or one FMU alone (.fmu); ``isolate`` hosts every
     instance in a child process of its own; ``real_time=FACTOR`` paces the steps to the wall clock;
     ``limits``: the caller's archive limits; ``parsed``: a scenario file already read (see :func:`load_plan`);
@@ -269,13 +264,13 @@ def run_scenario(path: str | Path, out: str | Path | None = None, overrides: dic
     out = out if out is not None else default_out(path)
     seen = on_plan or (lambda plan: None)
 
-    def run(plan: system.Plan) -> execution.RunResult:
+    def run(plan: Plan) -> RunResult:
         seen(plan)
-        return execution.run(plan, out, progress=progress, real_time=real_time)
+        return run_plan(plan, out, progress=progress, real_time=real_time)
 
     if is_fmu(path):
         return run(fmu_plan(path, overrides, inputs, stop, step, force, isolate, limits, fields))
-    if ssp.is_ssp(path):
+    if is_ssp(path):
         with ssp_plan(path, overrides, force, isolate, limits) as plan:
             return run(plan)
     return judge_run(run(load_plan(path, overrides, force, isolate, limits, parsed)))

@@ -27,8 +27,7 @@ from typing import Any
 import numpy as np
 
 from .cluster import Cluster
-from .cosim.archive import LimitOverrides
-from .cosim.errors import CosimError
+from .cosim import CosimError, LimitOverrides
 from .sweep_file import SweepSpec, draw_points, load_sweep
 from .sweep_plots import plot_sweep
 
@@ -41,7 +40,7 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
     status ('ok', 'diverged', 'failed'), reason and metrics.  Never raises: a failure is a row.
     ``archive_limits``: the submitter's archive limits (a command line's options) over the scenario's own;
     they travel with the point, since a worker may be another process or another machine."""
-    from .cosim.protocol import run_protocol
+    from .cosim import run_protocol
 
     row: dict[str, Any] = {"point": point["id"], **point["params"], "status": "ok", "reason": ""}
     work = Path(out_dir) / "runs" / f"{point['id']:05d}" if keep_runs else Path(tempfile.mkdtemp(prefix="wmr-sweep-"))
@@ -212,7 +211,7 @@ def run_sweep(path: str | os.PathLike, out: str | os.PathLike | None = None, wor
     Returns the table (a pandas DataFrame, one row per point, ordered by point).  ``security`` and
     ``dashboard``: see :class:`Cluster`; ``archive_limits``: the caller's archive limits (a command line's
     options), over each point's scenario's own, sent to the workers with every point."""
-    from .cosim.recording import OutputLock, make_folder
+    from .cosim import OutputLock, make_folder
 
     spec = load_sweep(path)
     out = make_folder(Path(out) if out is not None else Path("results") / Path(path).stem)

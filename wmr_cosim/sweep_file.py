@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from .cosim.errors import ScenarioError
+from .cosim import ScenarioError
 
 DISTRIBUTIONS = {"uniform": ("low", "high"), "normal": ("mean", "std"), "lognormal": ("mean", "sigma"),
                  "choice": ("values",)}
@@ -147,7 +147,7 @@ def _check_distribution(f: str, fld: str, d: Any) -> None:
 
 def _check_base(f: str, spec: SweepSpec) -> None:
     """The base must parse (model names are not built here), and the variant and runs must exist."""
-    from .cosim.protocol import plan_runs
+    from .cosim import plan_runs
 
     _, runs, _ = plan_runs(spec.base, lambda name: Path(name), spec.variant)
     if spec.runs:

@@ -1,0 +1,360 @@
+"""What the master knows of an FMU before running it: its model description, variables and units."""
+from __future__ import annotations
+
+import math
+import os
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from xml.parsers import expat
+
+from fmpy import read_model_description
+
+from ..messages.errors import FmuLoadError
+from .archive import ArchiveLimits, check_archive
+from .binary import library_problem
+from .units import Unit, lookup, units_of
+
+#: The FMU interfaces an instance can use (``[instances.X] interface``).
+CO_SIMULATION, MODEL_EXCHANGE = "co-simulation", "model-exchange"
+
+if TYPE_CHECKING:   # (FMPy has no type information: to mypy these are Any)
+    from fmpy.model_description import ModelDescription, ScalarVariable
+
+#: The master's kind of a variable -> the Python types a scenario value of that variable may have.
+PY_TYPES: dict[str, tuple[type, ...]] = {"Real": (float, int), "Integer": (int,), "Enumeration": (int,),
+                                          "Boolean": (bool,), "String": (str,), "Binary": (str,)}
+#: FMI 3.0 types -> the master's kind (FMI 2.0 types are their own kind).
+KINDS: dict[str, str] = {"Float64": "Real", "Float32": "Real", "Int8": "Integer", "UInt8": "Integer",
+                         "Int16": "Integer", "UInt16": "Integer", "Int32": "Integer", "UInt32": "Integer",
+                         "Int64": "Integer", "UInt64": "Integer", "Enumeration": "Enumeration",
+                         "Boolean": "Boolean", "String": "String", "Binary": "Binary", "Clock": "Clock"}
+#: Ranges of the FMI integer types (FMI 2.0 Integer is 32 bits).
+INT_RANGES: dict[str, tuple[int, int]] = {
+    "Integer": (-2 ** 31, 2 ** 31 - 1), "Int8": (-2 ** 7, 2 ** 7 - 1), "UInt8": (0, 2 ** 8 - 1),
+    "Int16": (-2 ** 15, 2 ** 15 - 1), "UInt16": (0, 2 ** 16 - 1), "Int32": (-2 ** 31, 2 ** 31 - 1),
+    "UInt32": (0, 2 ** 32 - 1), "Int64": (-2 ** 63, 2 ** 63 - 1), "UInt64": (0, 2 ** 64 - 1)}
+#: The interfaces the master runs -> the model description's attribute (FMPy) that declares each.
+INTERFACES = {CO_SIMULATION: "coSimulation", MODEL_EXCHANGE: "modelExchange"}
+#: The platform folder of the binaries by FMI version.
+PLATFORMS = {2: "linux64", 3: "x86_64-linux"}
+
+
+@dataclass
+class Variable:
+    """One variable of an FMU (FMI 2.0 or 3.0; an FMI 3.0 array with its shape)."""
+
+    name: str
+    vr: int
+    type: str
+    causality: str
+    variability: str
+    unit: Unit | None
+    min: float | None
+    max: float | None
+    start: Any
+    description: str = ""
+    initial: str | None = None
+    fmi_type: str = ""                 # the FMI type as declared (Float64, Int8, ...; FMI 2.0: = type)
+    shape: tuple[int, ...] = ()        # FMI 3.0 arrays: the dimensions; () for a scalar
+
+    def __post_init__(self) -> None:
+        if not self.fmi_type:          # (FMI 2.0, and a variable made by hand: the FMI type is the type)
+            self.fmi_type = self.type
+
+    @property
+    def size(self) -> int:
+        n = 1
+        for d in self.shape:
+            n *= d
+        return n
+
+    def element_names(self) -> list[str]:
+        """``x`` for a scalar; ``x[1]``, ``x[2]``, ... (``A[1,1]``, ``A[1,2]``, ... row-major) for an array."""
+        if not self.shape:
+            return [self.name]
+        import itertools
+        return [f"{self.name}[{','.join(str(i + 1) for i in idx)}]"
+                for idx in itertools.product(*(range(d) for d in self.shape))]
+
+    def settable(self) -> str | None:
+        """None if a master may set this variable before initialisation (FMI 2.0, 4.2.4: variability not
+        constant and initial exact or approx, or an input), else the reason."""
+        if self.variability == "constant":
+            return f"{self.name} is a constant"
+        if self.causality == "structuralParameter":
+            return f"{self.name} is a structural parameter (it sizes arrays): not supported"
+        if self.causality == "input" or self.initial in ("exact", "approx"):
+            return None
+        if self.causality == "independent":
+            return f"{self.name} is the independent variable"
+        why = f"initial=\"{self.initial}\"" if self.initial else f"a {self.causality} with no start value"
+        return f"{self.name} is {self.causality} with {why}: only parameters, inputs and variables with " \
+               "initial exact or approx can be set"
+
+    def check_range(self, value: Any) -> str | None:
+        """None if value is within [min, max] (and the range of its integer type), else the reason."""
+        if self.type not in ("Real", "Integer", "Enumeration") or isinstance(value, bool):
+            return None
+        lo, hi = INT_RANGES.get(self.fmi_type, (None, None))
+        if lo is not None and not lo <= value <= hi:
+            return f"value {value!r} does not fit the {self.fmi_type} range {lo}..{hi}"
+        if self.min is not None and value < self.min:
+            return f"value {value!r} is below the minimum {self.min!r} declared by the FMU"
+        if self.max is not None and value > self.max:
+            return f"value {value!r} is above the maximum {self.max!r} declared by the FMU"
+        return None
+
+
+#: The readable name of each interface (messages, ``check``, ``info``).
+INTERFACE_NAMES = {CO_SIMULATION: "co-simulation", MODEL_EXCHANGE: "model exchange"}
+
+
+def declares_state(element: Any) -> bool:
+    """Whether an interface element of a model description (FMPy's CoSimulation or ModelExchange, or None)
+    declares canGetAndSetFMUstate (FMI 2.0) / canGetAndSetFMUState (FMI 3.0)."""
+    return element is not None and bool(getattr(element, "canGetAndSetFMUstate", False) or
+                                        getattr(element, "canGetAndSetFMUState", False))
+
+
+def fmi2_cs_declares(md: Any, flag: str) -> bool:
+    """Whether a model description (FMPy's) is FMI 2.0 with a co-simulation interface that declares the
+    capability ``flag`` (canInterpolateInputs, providesDirectionalDerivative: what the master uses of FMI
+    2.0 only)."""
+    cs = getattr(md, "coSimulation", None)
+    return str(md.fmiVersion).startswith("2") and cs is not None and bool(getattr(cs, flag, False))
+
+
+@dataclass
+class FmuModel:
+    """An FMU file and its model description (FMI 2.0 or 3.0, co-simulation and/or model exchange,
+    checked).  ``missing_binaries``: for each interface it declares whose binary for this platform the
+    archive lacks, the reason (no instance can use that interface: :meth:`check_binary`)."""
+
+    path: Path
+    md: ModelDescription   # FMPy's reading of modelDescription.xml
+    variables: dict[str, Variable] = field(default_factory=dict)
+    fmi: int = 2
+    missing_binaries: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def model_name(self) -> str:
+        return self.md.modelName
+
+    @property
+    def has_cs(self) -> bool:
+        """The FMU declares the co-simulation interface."""
+        return self.md.coSimulation is not None
+
+    @property
+    def has_me(self) -> bool:
+        """The FMU declares the model exchange interface."""
+        return self.md.modelExchange is not None
+
+    @property
+    def interfaces(self) -> tuple[str, ...]:
+        """The interfaces the FMU declares that the master runs, of "co-simulation", "model-exchange"."""
+        return tuple(name for name, attr in INTERFACES.items() if getattr(self.md, attr, None) is not None)
+
+    @property
+    def identifier(self) -> str:
+        """The model identifier (of the co-simulation interface where there is one)."""
+        return self.identifier_of(CO_SIMULATION if self.has_cs else MODEL_EXCHANGE)
+
+    def declares_state(self, interface: str) -> bool:
+        """Whether ``interface`` ("co-simulation" | "model-exchange") can get and set the FMU state."""
+        return declares_state(getattr(self.md, INTERFACES[interface], None))
+
+    def identifier_of(self, interface: str) -> str:
+        """The model identifier (the binary's name) of one interface the FMU declares."""
+        return str(getattr(self.md, INTERFACES[interface]).modelIdentifier)
+
+    def check_binary(self, interface: str) -> None:
+        """FmuLoadError unless the archive holds the binary of ``interface`` for this platform."""
+        if interface in self.missing_binaries:
+            raise FmuLoadError(self.missing_binaries[interface])
+
+    @property
+    def can_vary_step(self) -> bool:
+        """Whether it takes communication steps of any length: the co-simulation interface's
+        canHandleVariableCommunicationStepSize; a Model Exchange FMU only (the master integrates it) can."""
+        cs = self.md.coSimulation
+        return cs is None or bool(cs.canHandleVariableCommunicationStepSize)
+
+    @property
+    def default_step(self) -> float | None:
+        de = self.md.defaultExperiment
+        return float(de.stepSize) if de is not None and de.stepSize is not None else None
+
+    @property
+    def internal_step(self) -> float | None:
+        """The fixed internal step [s] an FMI 3.0 co-simulation FMU declares (fixedInternalStepSize), else None
+        (also for a Model Exchange FMU only: its steps are the master's integrator's)."""
+        if not self.has_cs or self.fmi != 3:
+            return None
+        try:
+            h = float(self.md.coSimulation.fixedInternalStepSize)
+        except (AttributeError, TypeError, ValueError):   # not declared, or not a number
+            return None
+        return h if math.isfinite(h) and h > 0 else None
+
+    def outputs(self) -> list[Variable]:
+        return [v for v in self.variables.values() if v.causality == "output"]
+
+
+def _num(text: Any, typ: str) -> float | None:
+    if text is None:
+        return None
+    try:
+        return int(text) if typ in ("Integer", "Enumeration") else float(text)
+    except (TypeError, ValueError):
+        return None
+
+
+def _start(v: ScalarVariable, kind: str, shape: tuple[int, ...]) -> Any:
+    s = v.start
+    if s is None:
+        return None
+    if shape and isinstance(s, str) and kind not in ("String", "Binary"):
+        return [_scalar(x, kind) for x in s.split()]
+    return _scalar(s, kind)
+
+
+def _scalar(s: Any, kind: str) -> Any:
+    try:
+        if kind == "Real":
+            return float(s)
+        if kind in ("Integer", "Enumeration"):
+            return int(s)
+    except (TypeError, ValueError):
+        return None
+    if kind == "Boolean":
+        return s in ("true", "1", True)
+    return s
+
+
+def _initial(v: ScalarVariable) -> str | None:
+    """The variable's ``initial``, or its default by causality and variability (FMI 2.0, table of 2.2.7)."""
+    if v.initial:
+        return v.initial
+    if v.causality in ("parameter",) or v.variability == "constant":
+        return "exact"
+    if v.causality == "calculatedParameter":
+        return "calculated"
+    if v.causality in ("output", "local"):
+        return "calculated" if v.start is None else "exact"
+    return None
+
+
+def fmi_version(path: Path) -> str:
+    """The fmiVersion attribute of the model description, read before FMPy parses it.  A model description
+    that declares XML entities is refused: an external entity can read a local file into the model, and
+    nested internal ones expand without bound ("billion laughs"); FMI needs neither."""
+    class _Root(Exception):
+        pass
+
+    def start(name: str, attrs: dict[str, str]) -> None:
+        raise _Root(attrs.get("fmiVersion", "?"))
+
+    def entity(name: str, *_: Any) -> None:
+        raise FmuLoadError(f"{path}: modelDescription.xml declares the XML entity {name!r}: refused (entities can "
+                           "read local files or expand without bound)")
+
+    parser = expat.ParserCreate()
+    parser.StartElementHandler = start
+    parser.EntityDeclHandler = entity
+    try:
+        with zipfile.ZipFile(path) as zf, zf.open("modelDescription.xml") as fh:
+            parser.ParseFile(fh)
+    except _Root as root:
+        return str(root.args[0])
+    except KeyError:
+        raise FmuLoadError(f"{path}: no modelDescription.xml: not an FMU") from None
+    except expat.ExpatError as exc:
+        raise FmuLoadError(f"{path}: modelDescription.xml is not well-formed XML ({exc})") from None
+    return "?"
+
+
+def _binary_problem(path: Path, zf: zipfile.ZipFile, identifier: str, fmi: int, interface: str
+                    ) -> tuple[str, bool] | None:
+    """None if the archive ``zf`` holds the binary for this platform named by the model identifier, a
+    shared library of this platform that exports the FMI functions of ``interface``
+    (:func:`.binary.library_problem`), else why not (one line, starting with ``path``) and whether the
+    file is there (then it cannot be loaded)."""
+    from fmpy import sharedLibraryExtension
+
+    names = zf.namelist()
+    platform = PLATFORMS[fmi]
+    want = f"binaries/{platform}/{identifier}{sharedLibraryExtension}"
+    if want in names:
+        why = library_problem(zf.read(want), fmi, interface)
+        return None if why is None else (f"{path}: {want} cannot be loaded: {why}", True)
+    here = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") >= 2})
+    others = [n for n in names if n.startswith(f"binaries/{platform}/") and n.endswith(sharedLibraryExtension)]
+    if others:
+        return (f"{path}: no {want} (the binary for this platform must be named after the model "
+                f"identifier {identifier!r}; the archive has {others[0]})", False)
+    return (f"{path}: no binary for this platform ({platform}): the FMU has binaries for "
+            f"{', '.join(here) or 'no platform'} (a source-only or other-platform FMU cannot run here)", False)
+
+
+def _missing_binaries(path: Path, model: FmuModel) -> dict[str, str]:
+    """For each interface the FMU declares whose binary is missing or cannot be loaded, why (reported when
+    an instance uses that interface: :meth:`FmuModel.check_binary`); FmuLoadError when the archive holds
+    the binary of no declared interface (the co-simulation one's reason first)."""
+    with zipfile.ZipFile(path) as zf:
+        found = {i: p for i in model.interfaces
+                 if (p := _binary_problem(path, zf, model.identifier_of(i), model.fmi, i)) is not None}
+    if len(found) == len(model.interfaces) and not any(present for _, present in found.values()):
+        raise FmuLoadError(next(iter(found.values()))[0])
+    return {i: why for i, (why, _) in found.items()}
+
+
+def _interfaces_checked(path: Path, md: Any) -> None:
+    """FmuLoadError unless the FMU declares co-simulation or model exchange (scheduled execution only is
+    refused)."""
+    if md.coSimulation is None and md.modelExchange is None:
+        only = "scheduled execution only" if getattr(md, "scheduledExecution", None) is not None else \
+            "it declares no interface"
+        raise FmuLoadError(f"{path}: neither a co-simulation nor a model exchange FMU ({only})")
+
+
+def load_model(path: str | os.PathLike, limits: ArchiveLimits | None = None) -> FmuModel:
+    """Read and check an FMU: it exists, is a safe archive (within ``limits``; default: the default
+    limits), and is FMI 2.0 or 3.0 with co-simulation or model exchange or both (not scheduled execution
+    only), needs no clocks, and holds the binary for this platform of at least one interface it declares
+    (the one an instance uses is checked when it is planned: :meth:`FmuModel.check_binary`)."""
+    path = Path(path)
+    check_archive(path, limits)
+    version = fmi_version(path)
+    if version not in ("2.0",) and not version.startswith("3."):
+        raise FmuLoadError(f"{path}: FMI version {version}: only FMI 2.0 and 3.0 are supported")
+    try:
+        md = read_model_description(str(path), validate=False)
+    except Exception as exc:  # FMPy raises plain Exceptions for unreadable descriptions
+        raise FmuLoadError(f"{path}: cannot read modelDescription.xml ({' '.join(str(exc).split())})") from None
+    fmi = 3 if md.fmiVersion.startswith("3") else 2
+    _interfaces_checked(path, md)
+    model = FmuModel(path, md, fmi=fmi)
+    model.missing_binaries = _missing_binaries(path, model)
+    defined = units_of(md)
+    for v in md.modelVariables:
+        kind = KINDS.get(v.type, v.type) if fmi == 3 else v.type
+        if kind == "Clock":
+            raise FmuLoadError(f"{path}: clock {v.name!r}: FMUs with clocks (event mode, scheduled execution) "
+                               "are not supported")
+        # FMPy sizes each FMI 3.0 array (fixed dimensions, start values of structural parameters)
+        shape = tuple(v.shape or ()) if fmi == 3 else ()
+        unit_name = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
+        vmin = v.min if v.min is not None else (v.declaredType.min if v.declaredType is not None else None)
+        vmax = v.max if v.max is not None else (v.declaredType.max if v.declaredType is not None else None)
+        model.variables[v.name] = Variable(
+            v.name, int(v.valueReference), kind, v.causality or "local", v.variability or "continuous",
+            lookup(unit_name, defined) if kind == "Real" else None,
+            _num(vmin, kind), _num(vmax, kind), _start(v, kind, shape), v.description or "", _initial(v),
+            v.type, shape)
+    return model
+
+

@@ -1,0 +1,172 @@
+"""The plan's records: a scenario resolved against its FMUs (:class:`Plan`), its instances, connections,
+recorded variables and events as the checks left them, and its coupling structure; what the run reads."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..instances.integrators import DEFAULT_RTOL, SolverSpec
+from ..model.archive import DEFAULT_LIMITS, ArchiveLimits
+from ..model.description import CO_SIMULATION, INTERFACE_NAMES, FmuModel, Variable
+from ..model.units import lookup, units_of
+from ..scenario.document import ConnectionSpec, InstanceSpec, Scenario
+from ..scenario.inputs import InputPlan
+
+
+@dataclass
+class Coupling:
+    """The coupling loops (instance names, in the plan's order) and the algebraic loops (each a cycle of
+    "instance.variable", outputs and inputs alternating, its first element repeated at its end)."""
+
+    loops: list[list[str]] = field(default_factory=list)
+    algebraic: list[list[str]] = field(default_factory=list)
+
+    def loop_of(self, name: str) -> list[str] | None:
+        return next((lp for lp in self.loops if name in lp), None)
+
+
+@dataclass
+class InstancePlan:
+    """One instance, its FMU, and the name map between the scenario's names and the FMU's."""
+
+    name: str
+    spec: InstanceSpec
+    model: FmuModel
+    ours_to_theirs: dict[str, str] = field(default_factory=dict)
+    theirs_to_ours: dict[str, str] = field(default_factory=dict)
+    parameters: list[tuple[Variable, Any]] = field(default_factory=list)
+    tolerance: float | None = None   # what its set-up gets: the instance's, else the experiment's, else the FMU's own
+    interface: str = CO_SIMULATION    # the FMU's interface the run uses ("co-simulation" | "model-exchange")
+    solver: SolverSpec | None = None  # model exchange: the master's integrator of it (None for co-simulation)
+    decimation: int = 1               # it steps every this many of the experiment's steps (its own ``step``)
+
+    def our_name(self, var: Variable) -> str:
+        return self.theirs_to_ours.get(var.name, var.name)
+
+    def describe(self) -> str:
+        """How it runs, in words (``check`` prints it): "co-simulation", or "model exchange, cvode, rtol
+        1e-05" with the integrator's settings (largest step [s]; Euler's and RK4's event tolerance [s]);
+        then its own rate where it has one ("steps of 0.008 s, every 4 base steps")."""
+        text = self._interface_words()
+        if self.decimation > 1:
+            text += f"; steps of {self.spec.step:g} s, every {self.decimation} base steps"
+        return text
+
+    def _interface_words(self) -> str:
+        if self.solver is None:
+            return INTERFACE_NAMES[self.interface]
+        sv = self.solver
+        parts = [INTERFACE_NAMES[self.interface], sv.name]
+        if sv.name == "cvode":
+            parts.append(f"rtol {sv.tolerance if sv.tolerance is not None else DEFAULT_RTOL:g}")
+        if sv.max_step is not None:
+            parts.append(f"max step {sv.max_step:g} s")
+        elif sv.name != "cvode":
+            parts.append("one step per communication step")
+        if sv.name != "cvode":
+            parts.append(f"events located to {sv.event_tolerance:g} s")
+        return ", ".join(parts)
+
+
+@dataclass
+class ConnectionPlan:
+    """output -> input, value_in = factor * value_out + offset (unit conversion folded in)."""
+
+    src: str
+    src_var: Variable
+    dst: str
+    dst_var: Variable
+    factor: float
+    offset: float
+    spec: ConnectionSpec
+    src_elem: int | None = None   # one element of an FMI 3.0 array output (row-major), None for all
+
+
+@dataclass
+class RecordPlan:
+    instance: str
+    var: Variable
+    column: str
+    elem: int = 0      # the element of an FMI 3.0 array (row-major), 0 for a scalar
+
+
+@dataclass
+class EventPlan:
+    """A checked event.  A timed one acts before the step starting at t = start + step * h; a condition
+    event (``condition`` not None) acts ``delay`` [s] after its condition becomes true (``step`` unused).
+    A stop has no variable (``instance``, ``var`` and ``ref`` are None)."""
+
+    time: float | None
+    step: int
+    instance: str | None
+    var: Variable | None
+    action: str
+    value: Any
+    ref: str | None
+    index: int = 0                       # its place in the scenario's [[events]]
+    when: str | None = None
+    condition: Any = None                # the syntax tree (cosim.scenario.condition)
+    trigger: str = "once"
+    delay: float = 0.0
+    reads: dict[str, tuple[str, Variable]] = field(default_factory=dict)  # condition name -> (instance, var)
+
+
+@dataclass
+class Plan:
+    scenario: Scenario
+    instances: dict[str, InstancePlan]
+    connections: list[ConnectionPlan]
+    record: list[RecordPlan]
+    events: list[EventPlan]
+    n_steps: int
+    inputs: list[InputPlan] = field(default_factory=list)
+    not_recorded: list[str] = field(default_factory=list)   # String outputs a pattern matched
+    conditions: list[EventPlan] = field(default_factory=list)  # events on conditions, evaluated between steps
+    notes: list[str] = field(default_factory=list)   # what check prints beside its verdict (declared units overridden)
+    internal_steps: dict[str, int] = field(default_factory=dict)   # instance -> its fixed internal steps over the run
+    archive_limits: ArchiveLimits = DEFAULT_LIMITS   # the scenario's: what extracting its FMUs may unpack
+    coupling: Coupling = field(default_factory=Coupling)   # its coupling loops and algebraic loops
+    last_step: float | None = None   # [s] a short last step, where the step does not divide the run
+
+    @property
+    def watched(self) -> list[tuple[str, Variable]]:
+        """The variables the conditions read (the Float64 outputs among them are kept in the row buffer)."""
+        out: list[tuple[str, Variable]] = []
+        for ev in self.conditions:
+            for pair in ev.reads.values():
+                if pair not in out:
+                    out.append(pair)
+        return out
+
+    @property
+    def output_bytes(self) -> int:
+        """The expected size of signals.npy (the CSV, when written, is about three times larger)."""
+        rows = self.n_steps // self.scenario.decimation + 2
+        return rows * 8 * (1 + len(self.record))
+
+    @property
+    def order(self) -> list[str]:
+        return self.scenario.order
+
+    def columns(self) -> dict[str, dict[str, Any]]:
+        """What each recorded column holds: its unit (as the model description declares it, or the
+        scenario's ``units``; None where neither gives one), the instance, that instance's FMU file and the
+        FMU's own name of the variable (before the name map; with the element of an array)."""
+        out: dict[str, dict[str, Any]] = {"time": {"unit": "s", "instance": None, "fmu": None, "variable": "time"}}
+        for r in self.record:
+            ip = self.instances[r.instance]
+            unit = unit_of(ip, r.var) if r.var.type == "Real" else None
+            own = r.var.element_names()[r.elem] if r.var.shape else r.var.name
+            out[r.column] = {"unit": unit.name if unit is not None else None, "instance": r.instance,
+                             "fmu": ip.model.path.name, "variable": own}
+        return out
+
+
+
+
+def unit_of(inst: InstancePlan, var: Variable):
+    """The unit of a variable as the scenario declares it (``units``), else as its FMU does (None if none)."""
+    declared = inst.spec.units.get(inst.our_name(var)) or inst.spec.units.get(var.name)
+    if declared:
+        return lookup(declared, units_of(inst.model.md))
+    return var.unit

@@ -1,0 +1,146 @@
+"""A run's results: its folder (made, locked, emptied of an earlier run's files, or temporary), the
+resolved scenario written before the first step, and at the end signals.csv, signals.mat (when asked),
+summary.json and the :class:`RunResult` the drivers get."""
+from __future__ import annotations
+
+import dataclasses
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..plan.resolution import Plan
+from ..stepping import table as algorithms
+from .matfile import layout, write_mat
+from .recording import OutputLock, make_folder, write_csv, write_json
+from .status import RunStatus
+
+
+@dataclass
+class RunResult:
+    """How a run ended and what it gave."""
+
+    status: RunStatus
+    message: str
+    steps: int
+    t_end: float                # [s]
+    wall_s: float               # the stepping loop, first step to last, recording included
+    setup_s: float              # extraction, instantiation, initialisation
+    out_dir: Path | None        # None: the folder was temporary and is gone
+    columns: list[str]
+    final: dict[str, float] = field(default_factory=dict)
+    fmi_s: float | None = None  # time inside FMI calls (only with timing=True)
+    events: list[dict[str, Any]] = field(default_factory=list)   # the event table (.event_log): time, source, kind, what
+    real_time: dict[str, Any] | None = None   # pacing: factor, steps, overruns, late_max_s, late_mean_s
+    summary: dict[str, Any] = field(default_factory=dict)      # summary.json
+    scenario: dict[str, Any] = field(default_factory=dict)     # scenario.json (the scenario as resolved)
+    signals: np.ndarray | None = None   # the recording in memory (when the execution was asked to keep it)
+    stepping: dict[str, Any] | None = None   # the algorithm's own counts (iterations, accepted/rejected steps)
+    events_left_out: int = 0   # entries of the event table beyond its limit (.event_log.MAX_ENTRIES)
+
+
+class ResultsFolder:
+    """The folder a run writes (``out``; None: a temporary one, removed when the run ends), locked for
+    the run and emptied of an earlier run's result files."""
+
+    def __init__(self, out: str | Path | None) -> None:
+        self.keep = out is not None
+        self.path = make_folder(Path(out)) if out is not None else Path(tempfile.mkdtemp(prefix="wmr-cosim-out-"))
+        self.lock = OutputLock(self.path)
+        self.lock.acquire()
+
+    def prepare(self, plan: Plan) -> None:
+        """logs/ made, stale signals, summary and logs removed, scenario.json written."""
+        out = self.path
+        (out / "logs").mkdir(exist_ok=True)
+        for stale in ("signals.npy", "signals.csv", "signals.mat", "summary.json"):
+            (out / stale).unlink(missing_ok=True)
+        for old in (out / "logs").glob("*.log"):
+            old.unlink()
+        write_json(out / "scenario.json", resolved(plan))
+
+    @property
+    def logs(self) -> Path:
+        return self.path / "logs"
+
+    @property
+    def signals(self) -> Path:
+        return self.path / "signals.npy"
+
+    def release(self) -> None:
+        """Unlock; a temporary folder is removed."""
+        self.lock.release()
+        if not self.keep:
+            shutil.rmtree(self.path, ignore_errors=True)
+
+
+def final_values(signals: Path, columns: list[str]) -> dict[str, float]:
+    """The last recorded value of each column ({} without rows)."""
+    if not signals.is_file():
+        return {}
+    data = np.load(signals, mmap_mode="r")
+    return {c: data[c][-1].item() for c in columns} if len(data) else {}
+
+
+def summary(plan: Plan, res: RunResult, rows: int, logs: dict[str, tuple[int, int]]) -> dict[str, Any]:
+    """summary.json: ``logs`` gives each instance's (lines kept, messages received)."""
+    sc = plan.scenario
+    return {
+        "status": res.status, "message": res.message, "steps": res.steps, "n_steps": plan.n_steps,
+        "t_end": res.t_end, "step": sc.step, **({"last_step": plan.last_step} if plan.last_step is not None else {}),
+        "algorithm": sc.algorithm, "wall_s": round(res.wall_s, 6),
+        "setup_s": round(res.setup_s, 6),
+        "us_per_step": round(res.wall_s / res.steps * 1e6, 3) if res.steps else None,
+        "rows": rows,
+        "instances": {n: {"fmu": str(ip.model.path), "model": ip.model.model_name, "interface": ip.interface,
+                          "log_lines": logs.get(n, (0, 0))[0], "log_received": logs.get(n, (0, 0))[1]}
+                      for n, ip in plan.instances.items()},
+        "final": res.final,
+        "columns": plan.columns(),
+        "not_recorded": plan.not_recorded,
+        "events": res.events,
+        **({"events_left_out": res.events_left_out} if res.events_left_out else {}),
+        **({"real_time": res.real_time} if res.real_time is not None else {}),
+        **({"stepping": res.stepping} if res.stepping is not None else {}),
+    }
+
+
+def write_results(folder: ResultsFolder, plan: Plan, res: RunResult, rows: int,
+                  logs: dict[str, tuple[int, int]]) -> None:
+    """signals.csv and signals.mat (each when the scenario asks for it, the folder is kept and something
+    was recorded) and summary.json."""
+    if res.final and folder.keep and plan.scenario.csv:
+        write_csv(folder.signals, folder.path / "signals.csv", start=plan.scenario.start or 0.0,
+                  step=plan.scenario.step)
+    if res.final and folder.keep and plan.scenario.mat:
+        write_mat(folder.path / "signals.mat", np.load(folder.signals, mmap_mode="r"), layout(plan))
+    res.summary = summary(plan, res, rows, logs)
+    write_json(folder.path / "summary.json", res.summary)
+
+
+def resolved(plan: Plan) -> dict[str, Any]:
+    """scenario.json: the scenario as resolved (times, instances with their parameters, connections with
+    their folded factors, what is recorded, the events) and the document it came from."""
+    sc = plan.scenario
+    return {"file": sc.file, "experiment": {"start": sc.start, "stop": sc.stop, "step": sc.step,
+                                            "algorithm": sc.algorithm, "order": sc.order,
+                                            "tolerance": sc.tolerance,
+                                            **{k: spec.as_dict() for k, spec in ((algorithms.ITERATION_TABLE, sc.iteration),
+                                                                                 (algorithms.ADAPTIVE_TABLE, sc.adaptive))
+                                               if spec is not None}},
+            "instances": {n: {"fmu": str(ip.model.path), "model": ip.model.model_name,
+                              "parameters": {v.name: val for v, val in ip.parameters},
+                              "names": ip.spec.names, "units": ip.spec.units, "logging": ip.spec.logging,
+                              "tolerance": ip.tolerance, "interface": ip.interface,
+                              **({"solver": dataclasses.asdict(ip.solver)} if ip.solver is not None else {})}
+                          for n, ip in plan.instances.items()},
+            "connections": [{"from": c.spec.src, "to": c.spec.dst, "factor": c.factor, "offset": c.offset}
+                            for c in plan.connections],
+            "record": [r.column for r in plan.record], "columns": plan.columns(), "decimation": sc.decimation,
+            "events": [{"time": e.time, "variable": e.ref, "action": e.action, "value": e.value,
+                        **({"when": e.when, "trigger": e.trigger, "delay": e.delay} if e.when else {})}
+                       for e in sorted(plan.events + plan.conditions, key=lambda e: e.index)],
+            "document": sc.data}

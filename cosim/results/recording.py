@@ -1,0 +1,246 @@
+"""Recording (the observers): the row buffer flushed to a structured .npy file as the run goes, the
+CSV written from it in bounded chunks, and result files that exist only when whole.
+
+``numpy.load('signals.npy')`` gives a structured array with one named field per column: 'time' and every
+Real as float64, Integer and Enumeration as int32, Boolean as bool ('plant.alpha1', ...);
+``pandas.DataFrame(numpy.load('signals.npy'))`` gives a table.  The header is rewritten at every flush,
+so whatever was recorded up to a failure (or a kill) loads with one call.
+"""
+from __future__ import annotations
+
+import json
+import os
+from decimal import Decimal
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+from numpy.lib import format as npformat
+
+from ..messages.errors import OutputError, RunError
+
+#: FMI type -> column dtype in signals.npy (FMI 2.0 Real, Integer, Enumeration, Boolean; FMI 3.0 types).
+DTYPES: dict[str, str] = {"Real": "<f8", "Integer": "<i4", "Enumeration": "<i4", "Boolean": "?",
+                          "Float64": "<f8", "Float32": "<f4", "Int8": "<i1", "UInt8": "<u1", "Int16": "<i2",
+                          "UInt16": "<u2", "Int32": "<i4", "UInt32": "<u4", "Int64": "<i8", "UInt64": "<u8"}
+#: Rows of the CSV converted at a time (bounds the memory the CSV writer needs).
+CSV_CHUNK = 20000
+
+
+LOCK_NAME = ".wmr-cosim.lock"
+
+
+class OutputLock:
+    """An exclusive lock on a results folder (``.wmr-cosim.lock`` inside it, held with flock): a second
+    run into the same folder is refused at once, naming the holder's process id.  The kernel releases the
+    lock when its process ends, so a lock left by a killed run is simply taken over."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = Path(folder)
+        self.path = self.folder / LOCK_NAME
+        self._fh: IO[str] | None = None
+
+    def acquire(self) -> "OutputLock":
+        import fcntl
+
+        fh = open(self.path, "a+")
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            fh.seek(0)
+            holder = fh.read().strip() or "?"
+            fh.close()
+            raise OutputError(f"{self.folder}: in use by another run (process {holder}): choose another --out "
+                              "or wait for it to finish") from None
+        fh.seek(0)
+        fh.truncate()
+        fh.write(f"{os.getpid()}\n")
+        fh.flush()
+        self._fh = fh
+        return self
+
+    def release(self) -> None:
+        if self._fh is not None:
+            try:
+                self.path.unlink(missing_ok=True)
+            finally:
+                self._fh.close()  # closing releases the flock
+                self._fh = None
+
+    def __enter__(self) -> "OutputLock":
+        return self.acquire()
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+
+def make_folder(folder: Path, what: str = "--out") -> Path:
+    """Create ``folder`` (and its parents) and make sure files can be written in it; OutputError (one line)
+    if not: under a regular file, on an existing file, read-only, in /proc, ..."""
+    folder = Path(folder)
+    try:
+        if folder.exists() and not folder.is_dir():
+            raise OutputError(f"{what} {folder}: exists and is not a folder")
+        folder.mkdir(parents=True, exist_ok=True)
+        probe = folder / f".wmr-cosim-probe-{os.getpid()}"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OutputError:
+        raise
+    except OSError as exc:
+        raise OutputError(f"{what} {folder}: cannot write there ({exc.strerror or exc})") from None
+    return folder
+
+
+def atomic_write(path: Path, data: str | bytes) -> None:
+    """Write ``path`` through a temporary name and rename it: a file that exists is whole."""
+    tmp = path.with_name(path.name + ".part")
+    with open(tmp, "wb") as fh:
+        fh.write(data.encode() if isinstance(data, str) else data)
+    os.replace(tmp, path)
+
+
+def write_json(path: Path, obj: Any) -> None:
+    atomic_write(path, json.dumps(obj, indent=2, default=str) + "\n")
+
+
+class NpyRecorder:
+    """Append rows to a structured .npy file, keeping the file loadable after every flush."""
+
+    def __init__(self, path: str | os.PathLike, columns: list[str], types: list[str] | None = None) -> None:
+        self.path = Path(path)
+        self.columns = list(columns)
+        types = types or ["Real"] * len(columns)
+        self.dtype = np.dtype([(c, DTYPES[t]) for c, t in zip(self.columns, types)])
+        self.rows = 0
+        self._fh = open(self.path, "wb+")
+        self._write_header(0)
+
+    def _write_header(self, rows: int) -> None:
+        """Write the .npy 1.0 header for ``rows`` rows; its length never changes (room for 10^15 rows).
+        Column names outside Latin-1 need the .npy 3.0 header (UTF-8)."""
+        d = {"descr": npformat.dtype_to_descr(self.dtype), "fortran_order": False, "shape": (rows,)}
+        width = len(repr({**d, "shape": (10 ** 15,)}))
+        body = repr(d).ljust(width)
+        try:
+            body.encode("latin1")
+            version, enc, nlen = b"\x01\x00", "latin1", 2
+        except UnicodeEncodeError:
+            version, enc, nlen = b"\x03\x00", "utf8", 4
+        encoded = body.encode(enc)
+        total = 8 + nlen + len(encoded) + 1
+        encoded += b" " * ((64 - total % 64) % 64) + b"\n"
+        self._fh.seek(0)
+        self._fh.write(b"\x93NUMPY" + version + len(encoded).to_bytes(nlen, "little") + encoded)
+        self._fh.flush()
+
+    def append(self, cols: list[np.ndarray]) -> None:
+        """Append rows given as one array per column (float64 or int64), each converted to its type
+        (an int64 column of an unsigned type is reinterpreted bit for bit)."""
+        if len(cols) != len(self.columns):
+            raise ValueError(f"{len(cols)} columns for {len(self.columns)}")
+        n = len(cols[0]) if cols else 0
+        if not n:
+            return
+        rec = np.empty(n, self.dtype)
+        for name, col in zip(self.columns, cols):
+            kind = self.dtype[name].kind
+            rec[name] = col.view(np.uint64) if kind == "u" and col.dtype == np.int64 else col
+        self._fh.seek(0, os.SEEK_END)
+        self._fh.write(rec.tobytes())
+        self.rows += n
+        self._write_header(self.rows)
+        self._fh.flush()
+
+    def close(self) -> None:
+        if not self._fh.closed:
+            self._fh.flush()
+            self._fh.close()
+
+
+class RowBuffer:
+    """The rows of the current segment (``bytes`` of the master's row buffer: ``n_double`` float64 slots,
+    then ``n_int`` int64 slots), flushed to the recorder with a check that every recorded real is finite."""
+
+    def __init__(self, recorder: NpyRecorder, cols: list[int], n_double: int, n_int: int = 0) -> None:
+        self.recorder = recorder
+        self.cols = list(cols)
+        self.n_double = n_double
+        self.dtype = np.dtype([("d", "<f8", (n_double,)), ("i", "<i8", (n_int,))])
+        self.chunk: list[bytes] = []
+
+    def __len__(self) -> int:
+        return len(self.chunk)
+
+    def last_time(self) -> float | None:
+        return float(np.frombuffer(self.chunk[-1], "<f8", 1)[0]) if self.chunk else None
+
+    def flush(self) -> None:
+        """Write the rows; RunError at the first non-finite value (rows up to it are written)."""
+        if not self.chunk:
+            return
+        raw = np.frombuffer(b"".join(self.chunk), dtype=self.dtype)
+        self.chunk.clear()
+        d, i = raw["d"], raw["i"]
+        cols = [d[:, c] if c < self.n_double else i[:, c - self.n_double] for c in self.cols]
+        reals = [j for j, c in enumerate(self.cols) if c < self.n_double]
+        block = np.column_stack([cols[j] for j in reals])
+        finite = np.isfinite(block)
+        if not finite.all():
+            r, c = np.argwhere(~finite)[0]
+            self.recorder.append([col[: r + 1] for col in cols])
+            name = self.recorder.columns[reals[c]]
+            raise RunError(f"{name} is {float(block[r, c])!r} at t = {block[r, 0]:.6g} s (a non-finite output)",
+                           name.split(".", 1)[0], float(block[r, 0]))
+        self.recorder.append(cols)
+
+
+def _decimals(x: float) -> int:
+    """The digits after the decimal point of ``x`` as Python writes it (0.002 -> 3, 1e-05 -> 5, 2.0 -> 0)."""
+    exponent = Decimal(repr(float(x))).as_tuple().exponent
+    return -exponent if isinstance(exponent, int) and exponent < 0 else 0
+
+
+def grid_times(times: np.ndarray, start: float, step: float) -> np.ndarray:
+    """The recorded times as the grid's: a time within rounding of a point ``start + k * step`` becomes
+    that point written with the decimals of ``start`` and ``step`` (0.30000000000000004 -> 0.3 for a step
+    of 0.002); a time off the grid (an FMU that ended the run between two points), and every time when
+    those decimals are more than a float64 holds, stays as recorded."""
+    d = max(_decimals(start), _decimals(step))
+    if d > 15:
+        return times
+    rounded = np.round(times, d)
+    near = np.abs(rounded - times) <= np.maximum(1e-9 * step, 64 * np.spacing(np.abs(times)))
+    return np.where(near, rounded, times)
+
+
+def write_csv(npy_path: str | os.PathLike, csv_path: str | os.PathLike, chunk: int = CSV_CHUNK, *,
+              start: float = 0.0, step: float | None = None) -> None:
+    """The recording as CSV (header row of column names; floats at full precision, integers as integers,
+    booleans as 0/1), converted ``chunk`` rows at a time and renamed into place when complete.  With the
+    grid's ``step`` (and ``start``) [s], the time column is written as the grid's times
+    (:func:`grid_times`: 0.3, not 0.30000000000000004); the .npy file keeps the values as computed."""
+    data = np.load(npy_path, mmap_mode="r")
+    names = data.dtype.names or ()
+    csv_path = Path(csv_path)
+    tmp = csv_path.with_name(csv_path.name + ".part")
+    line = ",".join(["%r"] * len(names))   # Python floats and ints: repr is full precision
+    try:
+        with open(tmp, "w", newline="") as fh:
+            fh.write(",".join(_csv_name(n) for n in names) + "\n")
+            for i in range(0, len(data), chunk):
+                part = data[i:i + chunk]
+                # booleans as 0/1; integers as Python ints (an unsigned 64-bit value in full)
+                cols = [part[n].astype(np.int64).tolist() if data.dtype[n].kind == "b" else part[n].tolist()
+                        for n in names]
+                if step is not None and "time" in names:
+                    cols[names.index("time")] = grid_times(np.asarray(part["time"]), start, step).tolist()
+                fh.writelines(line % row + "\n" for row in zip(*cols))
+        os.replace(tmp, csv_path)
+    except BaseException:  # interrupted or failed: no partial file left behind
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def _csv_name(name: str) -> str:
+    return '"' + name.replace('"', '""') + '"' if any(ch in name for ch in ',"\n') else name

@@ -1,0 +1,187 @@
+"""Protocols: several runs declared in one scenario file (``[[runs]]``), each with its own parameter
+values, and values carried from an earlier run's final outputs into a later run's parameters (a learned
+weight, say); and named variants (``[variants.NAME]``) that set parameters of every run.
+
+    [[runs]]
+    name = "learn"
+    [[runs]]
+    name = "frozen"
+    parameters = { "controller.adapt" = false }
+    carry = { "controller.W1_init" = "learn.controller.W1" }
+
+Each run writes its own results folder ``OUT/<run name>/``.  A file without ``[[runs]]`` is one run
+named "run".
+"""
+from __future__ import annotations
+
+import copy
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+from ..messages.errors import CosimError, ScenarioError
+from ..model.archive import LimitOverrides
+from ..plan import resolution as system
+from ..scenario import document as scenario
+from ..scenario.document import RunSpec, Scenario
+from . import execution
+
+Resolver = Callable[[str], "Path | None"]
+#: What a run's carry gives: (run's carry {parameter ref: "run.instance.variable"}, final values of the runs
+#: so far {run: {column: value}}) -> {parameter ref: value}.
+Carry = Callable[[dict[str, str], dict[str, dict[str, float]]], dict[str, Any]]
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """A scenario file read once: its merged document and the scenario it makes, with the resolver of
+    its model names and the caller's archive limits; every run's scenario is made from the document."""
+
+    file: str
+    document: dict[str, Any]
+    scenario: Scenario
+    resolver: Resolver | None = None
+    limits: LimitOverrides | None = None
+
+    @property
+    def runs(self) -> list[RunSpec]:
+        """The runs (one default run named "run" if the file declares none)."""
+        return self.scenario.runs or [RunSpec("run")]
+
+    def variant_parameters(self, variant: str | None) -> dict[str, Any]:
+        """The parameters a variant sets ({} for None); ScenarioError for a variant the file does not declare."""
+        if variant is None:
+            return {}
+        if variant not in self.scenario.variants:
+            known = ", ".join(self.scenario.variants) or "none"
+            raise ScenarioError(self.file, f"--variant {variant}", f"not declared by this file (declared: {known})")
+        return self.scenario.variants[variant]
+
+    def with_parameters(self, overrides: dict[str, Any] | None) -> Scenario:
+        """The scenario with ``overrides`` ({'inst.param': value}) applied to a copy of the document."""
+        if not overrides:
+            return self.scenario
+        doc = scenario.apply_overrides(copy.deepcopy(self.document), overrides, self.file)
+        return scenario.parse(doc, self.file, self.resolver, self.limits)
+
+
+def read_protocol(path: str | os.PathLike, resolver: Resolver | None = None, limits: LimitOverrides | None = None,
+                  shipped: Path | None = None) -> Protocol:
+    """Read and parse a scenario file once (:class:`Protocol`); ``limits``: the caller's archive limits;
+    ``shipped``: the caller's folder of scenario files a ``base`` may name
+    (:func:`~.scenario.read_document`)."""
+    file = str(Path(path))
+    doc = scenario.read_document(Path(path), shipped=shipped)
+    sc = scenario.parse(copy.deepcopy(doc), file, resolver, limits)
+    return Protocol(file, doc, sc, resolver, limits)
+
+
+def _protocol(source: str | os.PathLike | Protocol, resolver: Resolver | None,
+              limits: LimitOverrides | None) -> Protocol:
+    return source if isinstance(source, Protocol) else read_protocol(source, resolver, limits)
+
+
+def plan_runs(path: str | os.PathLike | Protocol, resolver: Resolver | None = None, variant: str | None = None,
+              limits: LimitOverrides | None = None
+              ) -> tuple[Scenario, list[RunSpec], dict[str, Any]]:
+    """The scenario, its runs (one default run if it declares none) and the variant's parameters."""
+    proto = _protocol(path, resolver, limits)
+    return proto.scenario, proto.runs, proto.variant_parameters(variant)
+
+
+#: A value of each kind, standing for a carried value that is not known before its source run ends.
+_STAND_IN: dict[str, Any] = {"Real": 0.0, "Integer": 0, "Enumeration": 0, "Boolean": False, "String": ""}
+
+
+def _resolve_run(proto: Protocol, run: str, params: dict[str, Any], force: bool, isolate: bool) -> system.Plan:
+    """The checked plan of one run; a failure names the run."""
+    try:
+        return system.resolve(proto.with_parameters(params), force, isolate_all=isolate)
+    except ScenarioError as exc:
+        where = f"runs.{run}: {exc.field}" if exc.field else f"runs.{run}"
+        raise ScenarioError(exc.file, where, exc.reason) from None
+
+
+def _carried(file: str, run: RunSpec, finals: dict[str, dict[str, Any]], carry: Carry | None
+             ) -> dict[str, Any]:
+    """The values a run carries from the final values of the runs before it ({run: {column: value}})."""
+    for ref, src in run.carry.items():
+        src_run = src.split(".", 1)[0]
+        if src_run not in finals:
+            raise ScenarioError(file, f"runs.{run.name}.carry.{ref}", f"run {src_run!r} has not been run")
+    if carry is not None:
+        try:
+            return carry(run.carry, finals)
+        except ScenarioError:
+            raise
+        except CosimError as exc:
+            raise ScenarioError(file, f"runs.{run.name}.carry", str(exc)) from None
+    carried: dict[str, Any] = {}
+    for ref, src in run.carry.items():
+        src_run, col = src.split(".", 1)
+        if col not in finals[src_run]:
+            raise ScenarioError(file, f"runs.{run.name}.carry.{ref}", f"{src!r} was not recorded by run {src_run!r}")
+        carried[ref] = finals[src_run][col]
+    return carried
+
+
+def check_protocol(path: str | os.PathLike | Protocol, resolver: Resolver | None = None, variant: str | None = None,
+                   overrides: dict[str, Any] | None = None, only: list[str] | None = None, force: bool = False,
+                   carry: Carry | None = None, limits: LimitOverrides | None = None, isolate: bool = False
+                   ) -> dict[str, system.Plan]:
+    """Resolve every run of the file (the ones in ``only``) before any of them starts: each run's parameters
+    against its FMUs, each carry against what its source run records and what its target takes (type and
+    shape; the range once the value is known).  Returns {run name: plan}; raises ScenarioError naming the
+    run and the field.  ``path`` may be a file already read (:func:`read_protocol`: then ``resolver`` and
+    ``limits`` are its own)."""
+    proto = _protocol(path, resolver, limits)
+    vparams = proto.variant_parameters(variant)
+    overrides = overrides or {}
+    plans: dict[str, system.Plan] = {}
+    finals: dict[str, dict[str, Any]] = {}
+    for run in proto.runs:
+        if only is not None and run.name not in only:
+            continue
+        carried = {ref: v for ref, v in _carried(proto.file, run, finals, carry).items() if ref not in overrides}
+        plan = _resolve_run(proto, run.name, {**vparams, **run.parameters, **overrides}, force, isolate)
+        for ref, value in carried.items():
+            system.check_carried(proto.file, f"runs.{run.name}.carry.{ref}", plan, ref, value)
+        plans[run.name] = plan
+        finals[run.name] = {rp.column: _STAND_IN.get(rp.var.type, 0.0) for rp in plan.record}
+    return plans
+
+
+def run_protocol(path: str | os.PathLike | Protocol, out_dir: str | os.PathLike, resolver: Resolver | None = None,
+                 variant: str | None = None, overrides: dict[str, Any] | None = None,
+                 progress: bool | None = None, only: list[str] | None = None,
+                 on_run: Callable[[str, execution.RunResult], None] | None = None,
+                 force: bool = False, isolate: bool = False, carry: Carry | None = None,
+                 limits: LimitOverrides | None = None) -> dict[str, execution.RunResult]:
+    """Run every run of the file in order into ``out_dir/<run>``; returns {run name: result}.
+
+    Every run is checked first (:func:`check_protocol`), so a run that cannot work stops the protocol
+    before its first run starts.  A run whose carried source run failed is still run if the source
+    recorded the value.  ``overrides`` ("inst.param" -> value) apply to every run, after the variant and
+    the run's own parameters and carried values.  ``carry`` replaces the plain lookup of carried values
+    (a resolver to other FMUs may need the names translated).  ``isolate`` hosts every instance of every
+    run in a child process of its own; ``limits``: the caller's archive limits.  ``path`` may be a file
+    already read (:func:`read_protocol`).
+    """
+    proto = _protocol(path, resolver, limits)
+    check_protocol(proto, variant=variant, overrides=overrides, only=only, force=force, carry=carry)
+    vparams = proto.variant_parameters(variant)
+    out = Path(out_dir)
+    results: dict[str, execution.RunResult] = {}
+    for run in proto.runs:
+        if only is not None and run.name not in only:
+            continue
+        params = {**vparams, **run.parameters}
+        params.update(_carried(proto.file, run, {n: r.final for n, r in results.items()}, carry))
+        params.update(overrides or {})
+        plan = _resolve_run(proto, run.name, params, force, isolate)
+        res = execution.run(plan, out / run.name, progress=progress)
+        results[run.name] = res
+        if on_run is not None:
+            on_run(run.name, res)
+    return results

@@ -1,0 +1,181 @@
+"""From a plan to instances ready to step: each FMU extracted once, each instance hosted (in this process
+or in a child), instantiated, set up and initialised with its inputs at their fixed point, and each one's
+view for the algorithm (:class:`.algorithm.InstanceIO`).
+
+Life cycle, in the order FMPy and libcosim use (some tools' FMUs, 20-sim's among them, reset their
+parameters in fmi2SetupExperiment, so values set before it would be lost): instantiate, set up the
+experiment, set parameters and start values, enter initialisation mode, exchange outputs to inputs until
+nothing changes, exit initialisation mode.
+"""
+from __future__ import annotations
+
+import ctypes
+import os
+import time as _time
+from pathlib import Path
+from typing import Any, Callable
+
+from ..instances.contract import FmuInstance
+from ..instances.in_process import Instance, Instance3, vr_array
+from ..instances.model_exchange import model_exchange
+from ..messages.errors import CosimError, FmuLoadError
+from ..model.archive import safe_extract
+from ..model.binary import load_failure
+from ..plan.resolution import InstancePlan, Plan, RecordPlan
+from ..plan.wiring import RowLayout, Wiring, discrete_copier, is_f64, is_real, table_feeder
+from ..stepping.algorithm import InstanceIO, RecordedGetter
+
+
+def load_instances(plan: Plan, work: Path, logs: Path) -> dict[str, FmuInstance]:
+    """Extract every FMU file once (into ``work``) and host each instance of the plan: in a child process
+    where it says ``isolate``, else in this one; as co-simulation or, where the plan says, as model exchange
+    with its integrator; its log goes to ``logs/<instance>.log``."""
+    unz: dict[Path, str] = {}
+    instances: dict[str, FmuInstance] = {}
+    n_isolated = sum(q.spec.isolate for q in plan.instances.values())
+    for name, ip in plan.instances.items():
+        p = ip.model.path.resolve()
+        if p not in unz:
+            unz[p] = str(safe_extract(p, work / f"{len(unz)}_{p.stem}", plan.archive_limits))
+        instances[name] = _host(name, ip, unz[p], logs / f"{name}.log", n_isolated)
+    return instances
+
+
+def _host(name: str, ip: InstancePlan, unzipdir: str, log: Path, n_isolated: int) -> FmuInstance:
+    """Instance ``name`` hosted: in a child process, as model exchange, or as co-simulation here.  A binary
+    the loader refuses (``check`` reads its header and exports, not what it links against) ends the run
+    with one line naming the instance, the FMU and the loader's reason; FMPy changes the working folder to
+    the binary's for the load and leaves it there when the load fails: it is restored here."""
+    cwd = os.getcwd()
+    try:
+        if ip.spec.isolate:
+            from ..instances.isolation import IsolatedInstance, spin_for
+            return IsolatedInstance(name, ip.model.md, unzipdir, log, ip.spec.logging,
+                                    ip.spec.step_timeout or 60.0, spin_for(n_isolated), ip.solver)
+        if ip.solver is not None:   # model exchange
+            return model_exchange(name, ip.model.md, unzipdir, log, ip.spec.logging, ip.solver)
+        cls = Instance3 if ip.model.fmi == 3 else Instance
+        return cls(name, ip.model.md, unzipdir, log, ip.spec.logging)
+    except CosimError:
+        raise
+    except Exception as exc:   # FMPy raises a plain Exception when the library does not load
+        os.chdir(cwd)
+        raise FmuLoadError(f"{name}: {ip.model.path.name}: {load_failure(exc, unzipdir)}") from None
+
+
+def recorded_types(plan: Plan) -> list[str]:
+    """The FMI type of each recorded column, time first (an FMI 3.0 Enumeration is recorded as its Int64)."""
+    return ["Real"] + ["Int64" if r.var.fmi_type == "Enumeration" and plan.instances[r.instance].model.fmi == 3
+                       else r.var.fmi_type for r in plan.record]
+
+
+def set_up(plan: Plan, instances: dict[str, FmuInstance]) -> None:
+    """Instantiate, set up the experiment, set parameters and start values, enter initialisation mode."""
+    sc = plan.scenario
+    assert sc.start is not None   # (resolved)
+    for name, inst in instances.items():
+        inst.instantiate()
+        inst.setup_experiment(sc.start, sc.stop, plan.instances[name].tolerance)
+        inst.set_values(plan.instances[name].parameters)
+    for inst in instances.values():
+        inst.enter_initialization()
+
+
+def instance_io(plan: Plan, name: str, inst: FmuInstance, layout: RowLayout, wiring: Wiring,
+                instances: dict[str, FmuInstance], timing: list[float] | None = None) -> InstanceIO:
+    """The algorithm's view of instance ``name``: its fast path, input and output arrays, copies, tables,
+    other connections and recorded outputs; ``timing``: accumulate the time inside its step calls there."""
+    vrs, nvals = wiring.vrs[name], len(wiring.values[name])
+    out_vrs = [vr for vr, _ in layout.reals[name]]
+    fast = inst.fast_path(vrs, nvals, out_vrs, sum(size for _, size in layout.reals[name]))
+    if timing is not None:
+        fast.set_real, fast.do_step, fast.get_real = (timed(f, timing) for f in (fast.set_real, fast.do_step,
+                                                                                  fast.get_real))
+    return InstanceIO(
+        name, fast, in_vr=vr_array(vrs), n_in=ctypes.c_size_t(len(vrs)), out_vr=vr_array(out_vrs),
+        out_val=layout.out_arr[name], n_out=ctypes.c_size_t(len(layout.reals[name])), copies=wiring.copies(name),
+        extras=recorded_getters(inst, [r for r in layout.extra if r.instance == name], layout),
+        other=[discrete_copier(instances, c) for c in plan.connections if c.dst == name and not is_real(c)],
+        feed=table_feeder(inst, wiring.tables.get(name),
+                          [ip for ip in plan.inputs if ip.instance == name and not is_f64(ip.var)]),
+        can_roll_back=inst.can_get_and_set_state, get_state=inst.get_state, set_state=inst.set_state, free_state=inst.free_state,
+        allow_rollback=inst.allow_rollback, set_input_derivatives=inst.set_input_derivatives,
+        directional_derivative=inst.directional_derivative, decimation=plan.instances[name].decimation)
+
+
+def recorded_getters(inst: FmuInstance, recs: list[RecordPlan], lay: RowLayout) -> list[RecordedGetter]:
+    """One getter per FMI type for an instance's recorded outputs that are not Float64."""
+    out = []
+    for t in sorted({r.var.fmi_type for r in recs}):
+        mine = [r for r in recs if r.var.fmi_type == t]
+        vars_ = list({r.var.vr: r.var for r in mine}.values())
+        start = {}
+        i = 0
+        for v in vars_:
+            start[v.vr] = i
+            i += v.size
+        get, ctype = inst.accessor(t, "Get")
+        out.append(RecordedGetter(get, vr_array([v.vr for v in vars_]), ctypes.c_size_t(len(vars_)), (ctype * i)(),
+                                  ctypes.c_size_t(i), [(start[r.var.vr] + r.elem, lay.slot(r)) for r in mine]))
+    return out
+
+
+def exchange_initial(ios: list[InstanceIO], instances: dict[str, FmuInstance], wiring: Wiring, layout: RowLayout,
+                     t0: float, check_inputs: bool) -> None:
+    """In initialisation mode: outputs to inputs in the plan's order, pass after pass, until no input
+    changes (a chain of N instances settles in at most N passes, whatever the order)."""
+    read_outputs(ios, instances, layout, t0)
+    last: list[float] | None = None
+    for _ in range(len(ios) + 1):
+        values: list[float] = []
+        for io in ios:
+            inst = instances[io.name]
+            if io.feed is not None:
+                check(inst, "fmi2Set (tabulated inputs)", io.feed(0), t0)
+            for pos, arr, i, f, o in io.copies:
+                io.in_val[pos] = arr[i] * f + o if (f != 1.0 or o != 0.0) else arr[i]
+                values.append(io.in_val[pos])
+            if check_inputs and any(v - v != 0.0 for v in io.in_val[:len(wiring.values[io.name])]):
+                raise wiring.bad_input(io.name, io.in_vr, io.copies, t0)
+            if io.n_in.value:
+                check(inst, "set inputs", io.set_inputs(), t0)
+            for fn in io.other:
+                check(inst, "set inputs (a connection)", fn(), t0)
+            if io.n_out.value:
+                check(inst, "get outputs", io.get_outputs(), t0)
+        if values == last:
+            break
+        last = values
+
+
+def read_outputs(ios: list[InstanceIO], instances: dict[str, FmuInstance], layout: RowLayout | None,
+                 t: float) -> None:
+    """Every instance's Float64 outputs into the row, and (with ``layout``) its recorded other outputs."""
+    for io in ios:
+        inst = instances[io.name]
+        if io.n_out.value:
+            check(inst, "get outputs", io.get_outputs(), t)
+        if layout is None:
+            continue
+        for x in io.extras:
+            check(inst, "get outputs (recorded)", x.get(x.vrs, x.n, x.buf, x.nv), t)
+            for e, slot in x.slots:
+                layout.write(slot, x.buf[e])
+
+
+def check(inst: FmuInstance, what: str, status: int, t: float) -> None:
+    """A non-OK status of ``what`` as the instance's RunError."""
+    if status:
+        raise inst.fail_status(what, status, t)
+
+
+def timed(fn: Callable[..., int], acc: list[float]) -> Callable[..., int]:
+    """``fn`` with the time spent inside it added to ``acc[0]`` [s]."""
+    pc = _time.perf_counter
+
+    def wrapped(*args: Any) -> int:
+        t0 = pc()
+        r = fn(*args)
+        acc[0] += pc() - t0
+        return r
+    return wrapped

@@ -1,0 +1,38 @@
+"""What the observers and manipulators see of a running execution: narrow views, not the execution.
+
+An observer gets an :class:`Observable` (the communication grid, the current time, values by reference);
+a manipulator a :class:`Manipulable` (that, a reader of any variable for its conditions, and the changes:
+set, release, stop).  An observer changes nothing (a script's step callback acts through the Python API's
+run, which it holds).  :class:`.execution.Execution` is both.
+"""
+from __future__ import annotations
+
+from typing import Any, Callable, Protocol
+
+from ..model.description import Variable
+from ..stepping.algorithm import Clock
+
+
+class Observable(Protocol):
+    """What an observer may read: the grid, the current communication point, a variable's value."""
+
+    @property
+    def clock(self) -> Clock: ...
+
+    @property
+    def time(self) -> float: ...
+
+    def get(self, ref: str) -> Any: ...
+
+
+class Manipulable(Observable, Protocol):
+    """What a manipulator may do besides: read a variable through a function (what its conditions are
+    compiled over), change a variable from the next step on, end an override, end the run."""
+
+    def reader(self, inst: str, var: Variable) -> Callable[[], Any]: ...
+
+    def set(self, ref: str, value: Any) -> None: ...
+
+    def release(self, ref: str) -> None: ...
+
+    def stop(self, message: str | None = None) -> None: ...

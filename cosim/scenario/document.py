@@ -1,0 +1,773 @@
+"""System and scenario files (TOML): which FMUs, their parameters, the connections, the experiment,
+what to record and the timed events.  See scenarios/example.toml for a commented example.
+
+Every problem is reported as ScenarioError(file, field, reason) before any FMU is loaded.
+"""
+from __future__ import annotations
+
+import copy
+import json
+import math
+import os
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..instances.integrators import SOLVERS
+from ..messages.errors import OtherFileError, ScenarioError
+from ..messages.suggest import did_you_mean
+from ..model.archive import DEFAULT_LIMITS, ArchiveLimits, LimitOverrides, parse_limits
+from ..model.description import CO_SIMULATION, MODEL_EXCHANGE
+from ..model.kinds import FileKind, file_kind
+from ..stepping import table as algorithms
+from ..stepping.settings import ADAPTIVE_KEYS, ITERATION_KEYS, IterationSpec, SpecError, iteration_spec
+from ..stepping.settings import AdaptiveSpec
+
+ACTIONS = ("override", "bias", "reset", "set", "stop")
+TRIGGERS = ("once", "each")
+LOGGING = ("error", "warning", "info", "all")
+#: The FMI interfaces an instance may use (``[instances.NAME] interface``).
+INTERFACES = (CO_SIMULATION, MODEL_EXCHANGE)
+#: The instance fields that set a Model Exchange instance's integrator (any of them asks for model exchange).
+SOLVER_KEYS = ("solver", "max_step", "event_tolerance")
+
+_TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "record", "events", "runs",
+             "variants", "inputs", "limits"}
+_INPUTS_KEYS = {"file", "interpolation"}
+_EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps", "max_internal_steps",
+                    algorithms.ITERATION_TABLE, algorithms.ADAPTIVE_TABLE, "workers"}
+_INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "override_declared_units", "description", "logging", "isolate",
+                  "step_timeout", "tolerance", "interface", "step", *SOLVER_KEYS}
+_CONNECTION_KEYS = {"from", "to", "factor", "offset", "convert", "threshold"}
+_RECORD_KEYS = {"variables", "decimation", "csv", "mat", "max_bytes"}
+_RUN_KEYS = {"name", "description", "parameters", "carry"}
+_VARIANT_KEYS = {"description", "parameters"}
+_EVENT_KEYS = {"time", "when", "trigger", "delay", "variable", "action", "value"}
+
+
+@dataclass
+class InstanceSpec:
+    """One FMU instance.  ``names`` maps the FMU's own variable names to the names the scenario uses
+    (their -> ours); ``units`` declares units for variables whose FMU does not (scenario name -> unit; a unit
+    that contradicts a declared one is refused unless ``override_declared_units``);
+    ``logging`` is the level of the FMU's messages kept in its log ("error", "warning", "info", "all");
+    ``interface`` the FMU's interface to use ("co-simulation" or "model-exchange"; None: model exchange when
+    a solver setting is given or the FMU has no co-simulation, else co-simulation: see
+    :func:`cosim.plan.resolution.resolve`), and ``solver``, ``max_step`` [s], ``event_tolerance`` [s] the integrator
+    of a Model Exchange instance (:class:`cosim.instances.integrators.SolverSpec`; None: its default)."""
+
+    name: str
+    fmu: str
+    fmu_path: Path | None
+    parameters: dict[str, Any] = field(default_factory=dict)
+    names: dict[str, str] = field(default_factory=dict)
+    units: dict[str, str] = field(default_factory=dict)
+    logging: str = "warning"
+    isolate: bool = False               # host the FMU in a child process (a crash or hang cannot take the run down)
+    step_timeout: float | None = None   # seconds a call may take before the instance is ended (isolated: 60)
+    override_declared_units: bool = False   # ``units`` may replace a unit the model description declares
+    tolerance: float | None = None      # this FMU's own solver tolerance (else [experiment], else its default)
+    interface: str | None = None        # "co-simulation" | "model-exchange"; None: chosen by the FMU and the solver keys
+    solver: str | None = None           # a Model Exchange instance's integrator (cosim.instances.integrators.SOLVERS)
+    max_step: float | None = None       # [s] its largest internal step
+    event_tolerance: float | None = None   # [s] the width to which Euler and RK4 locate a state event
+    step: float | None = None           # [s] its own communication step, a whole multiple of the experiment's
+
+
+@dataclass
+class ConnectionSpec:
+    """output -> input; ``convert`` allows Boolean -> Real (0 or 1, then factor and offset) and Real ->
+    Boolean (true when the value exceeds ``threshold``)."""
+
+    src: str
+    dst: str
+    factor: float = 1.0
+    offset: float = 0.0
+    index: int = 0
+    convert: bool = False
+    threshold: float = 0.5
+
+
+@dataclass
+class EventSpec:
+    """An event: at ``time`` [s], or each time / the first time the condition ``when`` becomes true (then
+    ``delay`` [s] later); ``action`` override, bias, reset or set ``variable`` (``value``), or stop the run."""
+
+    time: float | None
+    variable: str | None
+    action: str
+    value: Any = None
+    index: int = 0
+    when: str | None = None
+    condition: Any = None          # the parsed condition (cosim.scenario.condition syntax tree)
+    trigger: str = "once"
+    delay: float = 0.0
+
+
+@dataclass
+class RunSpec:
+    """One run of a protocol: parameter values ("instance.param" -> value) and values carried from an
+    earlier run's final outputs ("instance.param" -> "run.instance.variable")."""
+
+    name: str
+    parameters: dict[str, Any] = field(default_factory=dict)
+    carry: dict[str, str] = field(default_factory=dict)
+    description: str = ""
+
+
+@dataclass
+class Scenario:
+    """A parsed and syntactically checked scenario; :func:`cosim.plan.resolution.resolve` checks it against the FMUs."""
+
+    file: str
+    start: float | None = None      # None: from the FMUs' default experiments (else 0)
+    stop: float | None = None       # None: from the FMUs' default experiments
+    step: float | None = None       # None: from the FMUs' default experiments
+    tolerance: float | None = None  # passed to every FMU's set-up, unless its instance gives its own
+    max_steps: int = 50_000_000     # a run of more steps is refused (unless forced)
+    max_internal_steps: int = 1_000_000_000   # ... and one in which an FMU takes more fixed internal steps
+    max_bytes: int = 4 * 2 ** 30    # a recording expected larger than this is refused (unless forced)
+    force: bool = False             # lift max_steps and max_bytes (the command line's --force)
+    algorithm: str = algorithms.DEFAULT
+    iteration: IterationSpec | None = None   # [experiment.iteration]: algorithm "iterated" (or adaptive over it)
+    adaptive: AdaptiveSpec | None = None     # [experiment.adaptive]: algorithm "adaptive"
+    workers: int = 1                         # instances stepped at once (Jacobi; isolated instances)
+    order: list[str] = field(default_factory=list)
+    instances: dict[str, InstanceSpec] = field(default_factory=dict)
+    connections: list[ConnectionSpec] = field(default_factory=list)
+    record: list[str] = field(default_factory=list)
+    decimation: int = 1
+    events: list[EventSpec] = field(default_factory=list)
+    csv: bool = True
+    mat: bool = False               # also signals.mat, Dymola's result layout (cosim.results.matfile)
+    runs: list[RunSpec] = field(default_factory=list)
+    variants: dict[str, dict[str, Any]] = field(default_factory=dict)
+    inputs_file: Path | None = None                      # a CSV table of input signals
+    interpolation: dict[str, str] = field(default_factory=dict)  # column -> "linear" | "hold"
+    data: dict[str, Any] = field(default_factory=dict)  # the merged document, as run
+    archive_limits: ArchiveLimits = DEFAULT_LIMITS      # how far its FMU and SSP archives may unpack ([limits])
+    notes: list[str] = field(default_factory=list)      # what check and run print of it (a table not read)
+    tools_choice: set[str] = field(default_factory=set)  # fields given as 0, "the tool's choice" (TOOLS_CHOICE)
+
+    def times(self) -> tuple[float, float, float]:
+        """start, stop and step [s] once all three are known (given, or filled in by the resolution);
+        ValueError while one is open."""
+        if self.start is None or self.stop is None or self.step is None:
+            raise ValueError(f"{self.file}: the experiment's start, stop and step are not all known yet")
+        return self.start, self.stop, self.step
+
+
+def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    out = copy.deepcopy(base)
+    for k, v in over.items():
+        if isinstance(v, dict) and isinstance(out.get(k), dict):
+            out[k] = _merge(out[k], v)
+        else:
+            out[k] = copy.deepcopy(v)
+    return out
+
+
+#: Top-level keys of other files a scenario may be mistaken for, and what each makes the file
+#: (:class:`~.errors.OtherFileError`: the application can add how to run it).
+OTHER_FILES = {"tasks": "a paper manifest", "grid": "a sweep file", "random": "a sweep file",
+               "samples": "a sweep file"}
+#: The longest instance name (it names files: logs/<instance>.log).
+MAX_NAME = 100
+
+
+def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, str] | None = None,
+                  shipped: Path | None = None) -> dict[str, Any]:
+    """Read one scenario file, absolutise its FMU and input paths, and merge it over its ``base`` (the
+    document :func:`parse` checks).  ``shipped``: the application's folder of scenario files, where a
+    ``base`` found neither beside the file nor by an absolute path is looked up (see :func:`base_path`)."""
+    name = str(path)
+    if not path.is_file():
+        if asked_by is not None:
+            raise ScenarioError(asked_by[0], "base", f"{asked_by[1]!r}: "
+                                                     f"{'a folder' if path.is_dir() else 'file not found'} ({path}; "
+                                                     f"nor a shipped scenario{_shipped_hint(asked_by[1], shipped)})")
+        raise ScenarioError(name, "", "a folder, not a scenario file" if path.is_dir() else "file not found")
+    if path.resolve() in seen:
+        raise ScenarioError(name, "base", "circular base chain")
+    try:
+        with path.open("rb") as fh:
+            doc = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(name, "", f"not valid TOML ({' '.join(str(exc).split())})") from None
+    except UnicodeDecodeError:
+        raise ScenarioError(name, "", "not a text file (TOML is UTF-8 text)") from None
+    except RecursionError:
+        raise ScenarioError(name, "", "not valid TOML (nested too deeply)") from None
+    except OSError as exc:
+        raise ScenarioError(name, "", f"cannot be read ({exc.strerror or exc})") from None
+    unknown = set(doc) - _TOP_KEYS
+    for key in sorted(unknown):
+        if key in OTHER_FILES:
+            raise OtherFileError(name, OTHER_FILES[key])
+    if unknown:
+        raise ScenarioError(name, sorted(unknown)[0], f"unknown key (allowed: {', '.join(sorted(_TOP_KEYS))})")
+    for inst in (doc.get("instances") or {}).values():
+        if isinstance(inst, dict) and isinstance(inst.get("fmu"), str) and is_path(inst["fmu"]):
+            inst["fmu"] = str((path.parent / inst["fmu"]).resolve())
+    inputs = doc.get("inputs")
+    if isinstance(inputs, dict) and isinstance(inputs.get("file"), str):
+        inputs["file"] = str((path.parent / inputs["file"]).resolve())
+    if "base" in doc:
+        b = doc.pop("base")
+        if not isinstance(b, str):
+            raise ScenarioError(name, "base", "must be a file name")
+        doc = _merge(read_document(base_path(path, b, shipped), seen + (path.resolve(),), (name, b), shipped), doc)
+    return doc
+
+
+
+
+def _shipped_hint(base: str, folder: Path | None) -> str:
+    """", did you mean 'paper/protocol.toml'?" where a shipped file of that name lies in a subfolder."""
+    if folder is None or not folder.is_dir():
+        return ""
+    hits = sorted(p.relative_to(folder).as_posix() for p in folder.rglob(Path(base).name))
+    return f", did you mean {hits[0]!r}?" if hits else ""
+
+
+def base_path(path: Path, base: str, shipped: Path | None = None) -> Path:
+    """The file a ``base`` names: relative to the file that names it, else (a relative name without ``..``)
+    one of the scenario files in the folder ``shipped`` (``g1_learn.toml``, ``paper/protocol.toml``; a name
+    may start with that folder's own name), so that a copy of a shipped file still finds its base."""
+    beside = path.parent / base
+    b = Path(base)
+    if beside.exists() or b.is_absolute() or ".." in b.parts or shipped is None:
+        return beside
+    parts = b.parts[1:] if b.parts[:1] == (shipped.name,) else b.parts
+    found = shipped.joinpath(*parts) if shipped is not None and parts else None
+    return found if found is not None and found.is_file() else beside
+
+
+def is_path(fmu: str) -> bool:
+    """Whether an instance's ``fmu`` names a file (an ``.fmu``, in any case, or a path) rather than a model."""
+    return file_kind(fmu) is FileKind.FMU or "/" in fmu or os.sep in fmu
+
+
+
+
+def _flag(file: str, fld: str, v: Any) -> bool:
+    if not isinstance(v, bool):
+        raise ScenarioError(file, fld, f"{v!r}: must be true or false")
+    return v
+
+
+def _num(file: str, fld: str, v: Any, *, positive: bool = False, allow_none: bool = False) -> float:
+    if v is None and allow_none:
+        return math.nan
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise ScenarioError(file, fld, f"must be a number, not {v!r}")
+    v = float(v)
+    if not math.isfinite(v):
+        raise ScenarioError(file, fld, f"must be finite, not {v!r}")
+    if positive and v <= 0:
+        raise ScenarioError(file, fld, f"must be > 0, not {v!r}")
+    return v
+
+
+def _count(file: str, fld: str, v: Any) -> int:
+    if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+        raise ScenarioError(file, fld, f"{v!r}: must be an integer >= 1")
+    return v
+
+
+def _table(file: str, fld: str, v: Any) -> dict[str, Any]:
+    if v is None:
+        return {}
+    if not isinstance(v, dict):
+        raise ScenarioError(file, fld, "must be a table")
+    return v
+
+
+def _keys(file: str, fld: str, d: dict[str, Any], allowed: set[str]) -> None:
+    for k in d:
+        if k not in allowed:
+            raise ScenarioError(file, f"{fld}.{k}" if fld else k,
+                                f"unknown key (allowed: {', '.join(sorted(allowed))})")
+
+
+def split_ref(file: str, fld: str, ref: Any) -> tuple[str, str]:
+    """'instance.variable' -> (instance, variable); the variable name may itself contain dots."""
+    if not isinstance(ref, str) or "." not in ref:
+        raise ScenarioError(file, fld, f"{ref!r} is not of the form \"instance.variable\"")
+    inst, var = ref.split(".", 1)
+    if not inst or not var:
+        raise ScenarioError(file, fld, f"{ref!r} is not of the form \"instance.variable\"")
+    return inst, var
+
+
+def _instance_refs(file: str, fld: str, table: Any, sc: Scenario) -> dict[str, Any]:
+    """A table keyed by "instance.variable" whose instances all exist."""
+    table = _table(file, fld, table)
+    for ref in table:
+        inst, _ = split_ref(file, f"{fld}.{ref}", ref)
+        if inst not in sc.instances:
+            raise ScenarioError(file, f"{fld}.{ref}", f"unknown instance {inst!r}")
+    return table
+
+
+def parse(doc: dict[str, Any], file: str, resolver=None, limits: LimitOverrides | None = None) -> Scenario:
+    """Check the structure of a merged scenario document and build a :class:`Scenario`.  TOML files, SSP
+    archives and documents built in code all come through here, so every check exists once.
+
+    ``resolver(model_name) -> Path | None`` turns an FMU given by model name (e.g. ``WmrPlant``) into a
+    file; without one, every ``fmu`` must be a path.  A resolver's attribute ``model_names`` (where it has
+    one) lists the names it knows, for the suggestion when a name is not one of them.  ``limits``: the
+    caller's archive limits, each given one over the document's ``[limits]`` (the scenario's
+    ``archive_limits``).
+    """
+    sc = Scenario(file=file, data=doc, archive_limits=parse_limits(file, doc.get("limits"), limits))
+    _parse_experiment(sc, doc)
+    _parse_instances(sc, doc, resolver)
+    _parse_connections(sc, doc)
+    _parse_record(sc, doc)
+    _parse_runs(sc, doc)
+    _parse_inputs(sc, doc)
+    _parse_events(sc, doc)
+    return sc
+
+
+def _parse_experiment(sc: Scenario, doc: dict[str, Any]) -> None:
+    """[experiment]: times, tolerance and algorithm (the order is checked with the instances)."""
+    file = sc.file
+    exp = _table(file, "experiment", doc.get("experiment"))
+    _keys(file, "experiment", exp, _EXPERIMENT_KEYS)
+    for key in ("start", "stop", "step", "tolerance"):
+        if key in exp:
+            if key in TOOLS_CHOICE and not isinstance(exp[key], bool) and exp[key] == 0:
+                sc.tools_choice.add(key)   # left to this master: filled in when the FMUs are known
+                continue
+            setattr(sc, key, _num(file, f"experiment.{key}", exp[key], positive=key in ("step", "tolerance")))
+    if "max_steps" in exp:
+        sc.max_steps = _count(file, "experiment.max_steps", exp["max_steps"])
+    if "max_internal_steps" in exp:
+        sc.max_internal_steps = _count(file, "experiment.max_internal_steps", exp["max_internal_steps"])
+    if "workers" in exp:
+        sc.workers = _count(file, "experiment.workers", exp["workers"])
+    if sc.start is not None and sc.stop is not None and sc.step is not None:
+        check_experiment(sc)
+    sc.algorithm = str(exp.get("algorithm", algorithms.DEFAULT)).lower()
+    if sc.algorithm not in algorithms.NAMES:
+        raise ScenarioError(file, "experiment.algorithm",
+                            f"{sc.algorithm!r}: must be one of {', '.join(algorithms.NAMES)}")
+    _parse_stepping(sc, exp)
+
+
+def _parse_stepping(sc: Scenario, exp: dict[str, Any]) -> None:
+    """[experiment.iteration] and [experiment.adaptive]: the settings of the algorithm that uses them,
+    checked as given.  A table the algorithm does not read (the algorithm switched to "gauss-seidel" with
+    ``--set``, say) is checked too but left unused, and a note says so (``check`` and ``run`` print it)."""
+    file = sc.file
+    row = algorithms.row(sc.algorithm)
+    it_key, ad_key = algorithms.ITERATION_TABLE, algorithms.ADAPTIVE_TABLE
+    try:
+        if it_key in exp:
+            table = _table(file, f"experiment.{it_key}", exp[it_key])
+            coupling = str(_table(file, f"experiment.{ad_key}", exp.get(ad_key)).get("coupling", "")).lower()
+            spec = iteration_spec(table)
+            if algorithms.iterates(sc.algorithm, coupling or None):
+                sc.iteration = spec
+            else:
+                sc.notes.append(f"[experiment.{it_key}] is not read under algorithm = {sc.algorithm!r} (it is read "
+                                f"by {algorithms.readers(it_key)})")
+        if ad_key in exp:
+            spec_a = algorithms.adaptive_spec(_table(file, f"experiment.{ad_key}", exp[ad_key]), sc.step)
+            if ad_key in row.settings:
+                sc.adaptive = spec_a
+            else:
+                sc.notes.append(f"[experiment.{ad_key}] is not read under algorithm = {sc.algorithm!r} (it is read "
+                                f"by {algorithms.readers(ad_key)})")
+    except SpecError as exc:
+        raise ScenarioError(file, exc.key, exc.reason) from None
+
+
+def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:
+    """[instances.NAME]: the FMU (a path or a model name), parameters, name map, units, logging; then the order."""
+    file = sc.file
+    insts = _table(file, "instances", doc.get("instances"))
+    if not insts:
+        raise ScenarioError(file, "instances", "no FMU instances")
+    for iname, inst in insts.items():
+        fld = f"instances.{iname}"
+        if not isinstance(iname, str) or not iname.isidentifier():
+            raise ScenarioError(file, fld, f"instance name {iname!r} must be an identifier")
+        if len(iname) > MAX_NAME:
+            raise ScenarioError(file, fld[:60] + "...", f"an instance name of {len(iname)} characters: at most "
+                                                        f"{MAX_NAME} (it names the instance's log file)")
+        inst = _table(file, fld, inst)
+        _keys(file, fld, inst, _INSTANCE_KEYS)
+        fmu = inst.get("fmu")
+        if not isinstance(fmu, str) or not fmu:
+            raise ScenarioError(file, f"{fld}.fmu", "missing: a model name or a path to an .fmu file")
+        if is_path(fmu):
+            path: Path | None = Path(fmu)
+            if not Path(fmu).is_file():
+                raise ScenarioError(file, f"{fld}.fmu", f"FMU file not found: {fmu}")
+        else:
+            path = resolver(fmu) if resolver is not None else None
+            if path is None:
+                raise ScenarioError(file, f"{fld}.fmu", f"unknown model name {fmu!r} and not a path to an .fmu file"
+                                                        f"{did_you_mean(fmu, getattr(resolver, 'model_names', ()))}")
+        params = _table(file, f"{fld}.parameters", inst.get("parameters"))
+        names = _table(file, f"{fld}.names", inst.get("names"))
+        for their, ours in names.items():
+            if not isinstance(ours, str):
+                raise ScenarioError(file, f"{fld}.names.{their}", "must map to a variable name (a string)")
+        if len(set(names.values())) != len(names):
+            raise ScenarioError(file, f"{fld}.names", "two of the FMU's variables map to the same name")
+        units = _table(file, f"{fld}.units", inst.get("units"))
+        for var, u in units.items():
+            if not isinstance(u, str):
+                raise ScenarioError(file, f"{fld}.units.{var}", "must be a unit name (a string)")
+        logging = inst.get("logging", "warning")
+        if logging not in LOGGING:
+            raise ScenarioError(file, f"{fld}.logging", f"{logging!r}: must be one of {', '.join(LOGGING)}")
+        flag = {key: _flag(file, f"{fld}.{key}", inst.get(key, False)) for key in ("isolate", "override_declared_units")}
+        timeout, tol, own_step = (_num(file, f"{fld}.{key}", inst[key], positive=True) if inst.get(key) is not None
+                                  else None for key in ("step_timeout", "tolerance", "step"))
+        sc.instances[iname] = InstanceSpec(iname, fmu, path, dict(params), dict(names), dict(units), logging,
+                                           flag["isolate"], timeout, flag["override_declared_units"], tol,
+                                           **_interface_fields(file, fld, inst), step=own_step)
+
+
+    exp = doc.get("experiment") or {}
+    order = exp.get("order", list(sc.instances))
+    if not isinstance(order, list) or not all(isinstance(o, str) for o in order) \
+            or sorted(order) != sorted(sc.instances):
+        raise ScenarioError(file, "experiment.order",
+                            f"{order!r} must list every instance exactly once ({', '.join(sc.instances)})")
+    sc.order = list(order)
+
+
+def _interface_fields(file: str, fld: str, inst: dict[str, Any]) -> dict[str, Any]:
+    """An instance's ``interface`` and its integrator's settings (``solver``, ``max_step`` [s] and
+    ``event_tolerance`` [s], each > 0 and finite), checked as given; settings of an integrator with
+    ``interface = "co-simulation"`` are refused (a co-simulation FMU brings its own)."""
+    interface = _choice(file, f"{fld}.interface", inst.get("interface"), INTERFACES)
+    solver = _choice(file, f"{fld}.solver", inst.get("solver"), SOLVERS)
+    max_step, event_tol = (_num(file, f"{fld}.{key}", inst[key], positive=True) if inst.get(key) is not None
+                           else None for key in ("max_step", "event_tolerance"))
+    given = [key for key in SOLVER_KEYS if inst.get(key) is not None]
+    if given and interface == CO_SIMULATION:
+        raise ScenarioError(file, f"{fld}.{given[0]}", "an integrator setting is for a model exchange instance, "
+                                                       "and this one says interface = \"co-simulation\" (a "
+                                                       "co-simulation FMU integrates itself)")
+    return {"interface": interface, "solver": solver, "max_step": max_step, "event_tolerance": event_tol}
+
+
+def _choice(file: str, fld: str, v: Any, allowed: tuple[str, ...]) -> str | None:
+    """``v`` if it is one of ``allowed`` (None if not given), else ScenarioError with the closest name."""
+    if v is None:
+        return None
+    if not isinstance(v, str) or v not in allowed:
+        hint = did_you_mean(v, allowed) if isinstance(v, str) else ""
+        raise ScenarioError(file, fld, f"{v!r}: must be one of {', '.join(allowed)}{hint}")
+    return v
+
+
+def _parse_connections(sc: Scenario, doc: dict[str, Any]) -> None:
+    """[[connections]]: output -> input with factor, offset, conversion."""
+    file = sc.file
+    conns = doc.get("connections") or []
+    if not isinstance(conns, list):
+        raise ScenarioError(file, "connections", "must be an array of tables ([[connections]])")
+    for i, c in enumerate(conns):
+        fld = f"connections[{i}]"
+        c = _table(file, fld, c)
+        _keys(file, fld, c, _CONNECTION_KEYS)
+        for end in ("from", "to"):
+            if end not in c:
+                raise ScenarioError(file, f"{fld}.{end}", "missing")
+            inst, _ = split_ref(file, f"{fld}.{end}", c[end])
+            if inst not in sc.instances:
+                raise ScenarioError(file, f"{fld}.{end}", f"unknown instance {inst!r}")
+        convert = c.get("convert", False)
+        if not isinstance(convert, bool):
+            raise ScenarioError(file, f"{fld}.convert", f"{convert!r}: must be true or false")
+        sc.connections.append(ConnectionSpec(c["from"], c["to"], _num(file, f"{fld}.factor", c.get("factor", 1.0)),
+                                             _num(file, f"{fld}.offset", c.get("offset", 0.0)), i, convert,
+                                             _num(file, f"{fld}.threshold", c.get("threshold", 0.5))))
+
+
+def _parse_record(sc: Scenario, doc: dict[str, Any]) -> None:
+    """[record]: the variables (names or patterns), decimation, CSV, MAT."""
+    file = sc.file
+    rec = _table(file, "record", doc.get("record"))
+    _keys(file, "record", rec, _RECORD_KEYS)
+    variables = rec.get("variables", [])
+    if not isinstance(variables, list) or not all(isinstance(v, str) for v in variables):
+        raise ScenarioError(file, "record.variables", "must be an array of \"instance.variable\" patterns")
+    sc.record = list(variables)
+    dec = rec.get("decimation", 1)
+    if isinstance(dec, bool) or not isinstance(dec, int) or dec < 1:
+        raise ScenarioError(file, "record.decimation", f"{dec!r}: must be an integer >= 1")
+    sc.decimation = dec
+    csv = rec.get("csv", True)
+    if not isinstance(csv, bool):
+        raise ScenarioError(file, "record.csv", f"{csv!r}: must be true or false")
+    sc.csv = csv
+    mat = rec.get("mat", False)
+    if not isinstance(mat, bool):
+        raise ScenarioError(file, "record.mat", f"{mat!r}: must be true or false")
+    sc.mat = mat
+    if "max_bytes" in rec:
+        sc.max_bytes = _count(file, "record.max_bytes", rec["max_bytes"])
+
+
+def _parse_runs(sc: Scenario, doc: dict[str, Any]) -> None:
+    """[[runs]] and [variants.NAME] of a protocol."""
+    file = sc.file
+    runs = doc.get("runs") or []
+    if not isinstance(runs, list):
+        raise ScenarioError(file, "runs", "must be an array of tables ([[runs]])")
+    names: list[str] = []
+    for i, r in enumerate(runs):
+        fld = f"runs[{i}]"
+        r = _table(file, fld, r)
+        _keys(file, fld, r, _RUN_KEYS)
+        name = r.get("name")
+        if not isinstance(name, str) or not name.isidentifier():
+            raise ScenarioError(file, f"{fld}.name", f"{name!r}: a run needs a name that is an identifier")
+        if name in names:
+            raise ScenarioError(file, f"{fld}.name", f"{name!r}: two runs with this name")
+        params = _instance_refs(file, f"{fld}.parameters", r.get("parameters"), sc)
+        carry = _table(file, f"{fld}.carry", r.get("carry"))
+        for ref, src in carry.items():
+            inst, _ = split_ref(file, f"{fld}.carry.{ref}", ref)
+            if inst not in sc.instances:
+                raise ScenarioError(file, f"{fld}.carry.{ref}", f"unknown instance {inst!r}")
+            if not isinstance(src, str) or src.count(".") < 2:
+                raise ScenarioError(file, f"{fld}.carry.{ref}", f"{src!r}: must be \"run.instance.variable\"")
+            run = src.split(".", 1)[0]
+            if run not in names:
+                raise ScenarioError(file, f"{fld}.carry.{ref}", f"{src!r}: no earlier run named {run!r}")
+        sc.runs.append(RunSpec(name, dict(params), dict(carry), str(r.get("description", ""))))
+        names.append(name)
+    variants = _table(file, "variants", doc.get("variants"))
+    for vname, v in variants.items():
+        fld = f"variants.{vname}"
+        v = _table(file, fld, v)
+        _keys(file, fld, v, _VARIANT_KEYS)
+        params = _instance_refs(file, f"{fld}.parameters", v.get("parameters"), sc)
+        sc.variants[vname] = dict(params)
+
+
+def _parse_inputs(sc: Scenario, doc: dict[str, Any]) -> None:
+    """[inputs]: a CSV table of input signals and the interpolation of its columns."""
+    file = sc.file
+    inputs = _table(file, "inputs", doc.get("inputs"))
+    _keys(file, "inputs", inputs, _INPUTS_KEYS)
+    if inputs:
+        f = inputs.get("file")
+        if not isinstance(f, str) or not Path(f).is_file():
+            raise ScenarioError(file, "inputs.file", f"{f!r}: not a file (a CSV table of input signals)")
+        sc.inputs_file = Path(f)
+        interp = _table(file, "inputs.interpolation", inputs.get("interpolation"))
+        for ref, mode in interp.items():
+            if mode not in ("linear", "hold"):
+                raise ScenarioError(file, f"inputs.interpolation.{ref}", f"{mode!r}: must be linear or hold")
+        sc.interpolation = dict(interp)
+
+
+def _parse_events(sc: Scenario, doc: dict[str, Any]) -> None:
+    """[[events]]: at a ``time`` or ``when`` a condition becomes true: override, bias, reset or set a
+    variable, or stop the run."""
+    from .condition import ConditionError, parse as parse_condition, variables as condition_variables
+
+    file = sc.file
+    evs = doc.get("events") or []
+    if not isinstance(evs, list):
+        raise ScenarioError(file, "events", "must be an array of tables ([[events]])")
+    for i, e in enumerate(evs):
+        fld = f"events[{i}]"
+        e = _table(file, fld, e)
+        _keys(file, fld, e, _EVENT_KEYS)
+        if ("time" in e) == ("when" in e):
+            raise ScenarioError(file, fld, "needs either a time or a when condition" if "time" not in e
+                                else "has both a time and a when condition: give one")
+        t, cond, when = None, None, None
+        trigger, delay = "once", 0.0
+        if "time" in e:
+            t = _num(file, f"{fld}.time", e.get("time"))
+            for key in ("trigger", "delay"):
+                if key in e:
+                    raise ScenarioError(file, f"{fld}.{key}", "only an event with a when condition takes one")
+        else:
+            when = e["when"]
+            try:
+                cond = parse_condition(when)
+            except ConditionError as exc:
+                raise ScenarioError(file, f"{fld}.when", str(exc)) from None
+            for ref in condition_variables(cond):
+                inst = ref.split(".", 1)[0]
+                if inst not in sc.instances:
+                    raise ScenarioError(file, f"{fld}.when", f"{ref}: unknown instance {inst!r}")
+            trigger = e.get("trigger", "once")
+            if trigger not in TRIGGERS:
+                raise ScenarioError(file, f"{fld}.trigger", f"{trigger!r}: must be one of {', '.join(TRIGGERS)}")
+            delay = _num(file, f"{fld}.delay", e.get("delay", 0.0))
+            if delay < 0:
+                raise ScenarioError(file, f"{fld}.delay", f"{delay!r}: must be >= 0 [s]")
+        action = e.get("action", "override")
+        if action not in ACTIONS:
+            raise ScenarioError(file, f"{fld}.action", f"{action!r}: must be one of {', '.join(ACTIONS)}")
+        if action == "stop":
+            for key in ("variable", "value"):
+                if key in e:
+                    raise ScenarioError(file, f"{fld}.{key}", "a stop takes no variable or value")
+            sc.events.append(EventSpec(t, None, action, None, i, when, cond, trigger, delay))
+            continue
+        if "variable" not in e:
+            raise ScenarioError(file, f"{fld}.variable", "missing")
+        inst, _ = split_ref(file, f"{fld}.variable", e["variable"])
+        if inst not in sc.instances:
+            raise ScenarioError(file, f"{fld}.variable", f"unknown instance {inst!r}")
+        if action != "reset" and "value" not in e:
+            raise ScenarioError(file, f"{fld}.value", f"missing (needed by {action})")
+        if action == "reset" and "value" in e:
+            raise ScenarioError(file, f"{fld}.value", "a reset takes no value")
+        sc.events.append(EventSpec(t, e["variable"], action, e.get("value"), i, when, cond, trigger, delay))
+
+
+def check_experiment(sc: Scenario, where: str = "experiment") -> None:
+    """The run's times: stop after start, a finite number of steps (a step that does not divide the run
+    ends it with a short last step: see :func:`steps_of`; whether every instance can take one is checked
+    with the FMUs)."""
+    file = sc.file
+    start, stop, step = sc.times()
+    if stop <= start:
+        raise ScenarioError(file, f"{where}.stop", f"{stop!r} is not after the start {start!r}")
+    if not math.isfinite((stop - start) / step):
+        raise ScenarioError(file, f"{where}.step", f"{step!r} s: not a finite number of steps from {start!r} to "
+                                                   f"{stop!r} s")
+
+
+def steps_of(start: float, stop: float, step: float) -> tuple[int, float | None]:
+    """The number of communication steps from ``start`` to ``stop`` [s] and the length [s] of a short last
+    step (None when ``step`` divides the run into whole steps, to within 1e-6 of a step): the steps from
+    start + k step, k = 0 .. n - 2, then the last one to ``stop``, as FMPy ends a run."""
+    n = (stop - start) / step
+    whole = round(n)
+    if abs(n - whole) <= 1e-6 * max(1.0, n) and whole >= 1:
+        return int(whole), None
+    n_steps = int(math.ceil(n))
+    return n_steps, stop - (start + (n_steps - 1) * step)
+
+
+#: The [experiment] fields that 0 leaves to the master, as the FMI Cross-Check's option files say
+#: "StepSize 0" and "RelTol 0": the step the FMUs' default experiments give, else (stop - start) / 500 as
+#: FMPy chooses; the tolerance each FMU's own (see :func:`cosim.plan.resolution.resolve`, which notes the value used).
+TOOLS_CHOICE = ("step", "tolerance")
+
+
+#: The tables whose fields ``--set`` may also set ("experiment.stop=5", "record.variables=[...]"), with
+#: their fields; an instance of the same name takes precedence.
+SET_TABLES = {"experiment": _EXPERIMENT_KEYS, "record": _RECORD_KEYS}
+#: The tables inside those whose keys ``--set`` may set ("experiment.iteration.method=newton"), with their
+#: keys; the table is made when the document has none.
+SET_SUBTABLES = {("experiment", algorithms.ITERATION_TABLE): ITERATION_KEYS,
+                 ("experiment", algorithms.ADAPTIVE_TABLE): ADAPTIVE_KEYS}
+
+
+def _subtable(doc: dict[str, Any], file: str, path: tuple[str, ...]) -> dict[str, Any]:
+    """The table at ``path`` ("experiment", "iteration") of the document, made where it is missing;
+    ScenarioError naming it where the document has something else there."""
+    table = doc
+    for i, key in enumerate(path):
+        table = table.setdefault(key, {})
+        if not isinstance(table, dict):
+            raise ScenarioError(file, ".".join(path[:i + 1]), "must be a table")
+    return table
+
+
+def _set_table_field(doc: dict[str, Any], file: str, fld: str, inst: str, var: str, value: Any) -> None:
+    """``--set experiment.FIELD=VALUE`` (or record.FIELD, or a key of a table inside one:
+    experiment.iteration.method): the field set in the document, made where missing, for the scenario's
+    checks to judge as the file's own; an unknown field refused naming the ``--set``."""
+    head, dot, key = var.partition(".")
+    if dot and (inst, head) in SET_SUBTABLES:
+        known = SET_SUBTABLES[(inst, head)]
+        if key not in known:
+            raise ScenarioError(file, fld, f"unknown {inst}.{head} field {key!r} (allowed: "
+                                           f"{', '.join(sorted(known))}){did_you_mean(key, known)}")
+        _subtable(doc, file, (inst, head))[key] = value
+        return
+    if var not in SET_TABLES[inst]:
+        nested = "".join(f", {t}.KEY" for s, t in SET_SUBTABLES if s == inst)
+        raise ScenarioError(file, fld, f"unknown {inst} field {var!r} (allowed: {', '.join(sorted(SET_TABLES[inst]))}"
+                                       f"{nested}){did_you_mean(var, SET_TABLES[inst])}")
+    insts = doc["instances"]
+    if (inst, var) == ("record", "variables"):   # one name alone; with one instance, its variables
+        value = [value] if isinstance(value, str) else value
+        if isinstance(value, list) and len(insts) == 1:
+            value = [f"{next(iter(insts))}.{v}" if isinstance(v, str) and "." not in v else v for v in value]
+    _subtable(doc, file, (inst,))[var] = value
+
+
+def apply_overrides(doc: dict[str, Any], overrides: dict[str, Any] | None, file: str) -> dict[str, Any]:
+    """Set ``overrides`` ({'inst.param': value}, from ``--set`` or the API) as parameters in a document.
+
+    A key without an instance (``"e"``) is the variable of the document's one instance (refused when it
+    has several); ``"experiment.FIELD"`` and ``"record.FIELD"`` set a field of [experiment] or [record],
+    and ``"experiment.iteration.KEY"``, ``"experiment.adaptive.KEY"`` a key of those tables, made when
+    missing (unless an instance is so named), checked as the file's own values are (``record.variables``:
+    a name alone is the variable of the one instance, as in a key)."""
+    for ref, value in (overrides or {}).items():
+        fld = f"--set {ref}"
+        insts = doc.setdefault("instances", {})
+        if isinstance(ref, str) and "." not in ref and ref and isinstance(insts, dict) and len(insts) == 1:
+            ref = f"{next(iter(insts))}.{ref}"
+        inst, var = split_ref(file, fld, ref)
+        if not isinstance(insts, dict):
+            raise ScenarioError(file, "instances", "must be a table")
+        if inst not in insts and inst in SET_TABLES:
+            _set_table_field(doc, file, fld, inst, var, value)
+            continue
+        if inst not in insts:
+            raise ScenarioError(file, fld, f"unknown instance {inst!r}"
+                                           f"{did_you_mean(inst, [*insts, *(t for t in SET_TABLES if t not in insts)])}")
+        if not isinstance(insts[inst], dict):
+            raise ScenarioError(file, f"instances.{inst}", "must be a table")
+        params = insts[inst].setdefault("parameters", {})
+        if not isinstance(params, dict):
+            raise ScenarioError(file, f"instances.{inst}.parameters", "must be a table")
+        params[var] = value
+    return doc
+
+
+def parse_value(text: str) -> Any:
+    """A value given on the command line: true/false, a JSON number, string or array, else the text."""
+    low = text.strip().lower()
+    if low in ("true", "false"):
+        return low == "true"
+    try:
+        return json.loads(text)
+    except (json.JSONDecodeError, RecursionError):
+        return text
+
+
+def parse_set(items: list[str] | None, form: str = "INSTANCE.PARAM=VALUE") -> dict[str, Any]:
+    """['plant.foam_da1=0.4', 'controller.task="line"'] -> {'plant.foam_da1': 0.4, ...}; repeated options
+    add up (the last value of a name wins).  A key without an instance (``e=0.5``) is kept as it is: it
+    names the variable of a scenario of one instance (:func:`apply_overrides`)."""
+    out: dict[str, Any] = {}
+    for item in items or []:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip():
+            raise ScenarioError("--set", item, f"expected {form}")
+        out[key.strip()] = parse_value(text)
+    return out
+
+
+def load(path: str | os.PathLike, resolver=None, overrides: dict[str, Any] | None = None,
+         limits: LimitOverrides | None = None, shipped: Path | None = None) -> Scenario:
+    """Read a scenario file (following its ``base`` chain; ``shipped``: see :func:`read_document`), apply
+    ``overrides`` ({'inst.param': value}), and check its structure (``limits``: see :func:`parse`)."""
+    path = Path(path)
+    doc = apply_overrides(read_document(path, shipped=shipped), overrides, str(path))
+    return parse(doc, str(path), resolver, limits)

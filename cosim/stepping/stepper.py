@@ -1,0 +1,225 @@
+"""One macro step over the instances at any time and any step size, in plain Python: what the algorithms
+that iterate, roll back and change the step build on (the fixed-step ones generate their loop instead,
+cosim.stepping.algorithm).  The calls and the values are those of the generated loop (the same copies, the same
+order), so that a pass here gives the generated Gauss-Seidel or Jacobi step bit for bit.
+
+A :class:`Stepper` knows the instances (their :class:`~.algorithm.InstanceIO`), the row the outputs go to
+and the coupling structure of the copies: which instance's outputs feed which instance's inputs
+(:func:`components`).  It saves and restores the whole system for a rollback (:meth:`Stepper.save`,
+:meth:`Stepper.restore`): the FMU states and the row of outputs the copies read.
+"""
+from __future__ import annotations
+
+import ctypes
+from abc import abstractmethod
+from typing import Any
+
+from ..instances.failure import Call, Failure
+from ..messages.errors import RunError
+from .algorithm import Algorithm, Clock, InstanceIO, Row
+from .graph import strongly_connected
+
+
+
+def feeders(ios: list[InstanceIO]) -> list[set[int]]:
+    """For each instance, the instances whose Float64 outputs its copies read now (overrides and tables
+    read no instance)."""
+    owner = {id(io.out_val): i for i, io in enumerate(ios)}
+    return [{owner[id(c.src)] for c in io.copies if id(c.src) in owner} for io in ios]
+
+
+def components(ios: list[InstanceIO]) -> list[list[int]]:
+    """The strongly connected components of the graph "outputs of a feed inputs of b", each in the plan's
+    order, the components in the order of their first instance (the order in which the instances step).
+    A component of more than one instance, or of one that feeds itself, is a coupling loop."""
+    fed_by = feeders(ios)
+    succ: list[list[int]] = [[] for _ in ios]
+    for b, srcs in enumerate(fed_by):
+        for a in sorted(srcs):
+            succ[a].append(b)
+    return strongly_connected(len(ios), succ)
+
+
+def is_loop(comp: list[int], fed_by: list[set[int]]) -> bool:
+    return len(comp) > 1 or comp[0] in fed_by[comp[0]]
+
+
+class Stepper:
+    """Plain-Python steps over the instances (see the module's docstring)."""
+
+    def __init__(self, ios: list[InstanceIO], clock: Clock, layout: Row, chunk: list[bytes],
+                 check_inputs: bool = True) -> None:
+        self.ios, self.clock, self.layout, self.chunk, self.check_inputs = ios, clock, layout, chunk, check_inputs
+        self.T, self.H = ctypes.c_double(0.0), ctypes.c_double(0.0)
+        self.n_do_steps = 0
+
+    # ------------------------------------------------------------------ one instance
+    def set_inputs(self, i: int, k: int, t: float, given: dict[int, float] | None = None) -> Failure | None:
+        """Instance i's inputs of step k (from t [s]): tables, copies (``given``: position -> value in
+        place of a copy's), the set, the other connections."""
+        io = self.ios[i]
+        f = io.fast
+        if io.feed is not None:
+            s = io.feed(k)
+            if s:
+                return Failure(k, io.name, Call.TABLE_INPUTS, s, t)
+        iv = f.in_val
+        total = 0.0
+        for pos, src, slot, fa, of in io.copies:
+            v = src[slot] if fa == 1.0 and of == 0.0 else src[slot] * fa + of
+            if given is not None and pos in given:
+                v = given[pos]
+            total += v
+            iv[pos] = v
+        if io.copies:
+            if self.check_inputs and total - total != 0.0:
+                return Failure(k, io.name, Call.NON_FINITE_INPUT, total, t)
+            s = f.set_real(f.c, io.in_vr, io.n_in, iv, *f.set_tail)
+            if s:
+                return Failure(k, io.name, Call.SET_REAL, s, t)
+        for fn in io.other:
+            s = fn()
+            if s:
+                return Failure(k, io.name, Call.CONNECTION, s, t)
+        return None
+
+    def do_step(self, i: int, k: int, t: float, h: float) -> Failure | None:
+        """Instance i from t over h [s]."""
+        io = self.ios[i]
+        f = io.fast
+        self.T.value, self.H.value = t, h
+        self.n_do_steps += 1
+        s = f.do_step(f.c, self.T, self.H, *f.step_tail)
+        if s:
+            return Failure(k, io.name, Call.DO_STEP, s, t)
+        return None
+
+    def get_outputs(self, i: int, k: int, t: float) -> Failure | None:
+        """Instance i's Float64 outputs at t [s] into the row (a failure counts as after step k)."""
+        io = self.ios[i]
+        if io.n_out.value:
+            f = io.fast
+            s = f.get_real(f.c, io.out_vr, io.n_out, io.out_val, *f.get_tail)
+            if s:
+                return Failure(k + 1, io.name, Call.GET_REAL, s, t)
+        return None
+
+    def ended(self, members: list[int] | range | None = None) -> InstanceIO | None:
+        """The first of these instances (all: None) that ended the simulation in its last step."""
+        for i in (range(len(self.ios)) if members is None else members):
+            term = self.ios[i].fast.terminated
+            if term is not None and term.value:
+                return self.ios[i]
+        return None
+
+    # ------------------------------------------------------------------ one pass
+    def pass_gauss_seidel(self, k: int, t: float, h: float, members: list[int] | range | None = None
+                          ) -> Failure | None:
+        """Set, step, get, instance after instance (Gauss-Seidel) over ``members`` (all: None)."""
+        for i in (range(len(self.ios)) if members is None else members):
+            fail = self.set_inputs(i, k, t) or self.do_step(i, k, t, h) or self.get_outputs(i, k, t + h)
+            if fail is not None:
+                return fail
+        return None
+
+    def pass_jacobi(self, k: int, t: float, h: float, members: list[int] | range | None = None,
+                    given: dict[int, dict[int, float]] | None = None) -> Failure | None:
+        """Set all, step all, get all (Jacobi) over ``members``; ``given``: instance -> the input values
+        that replace copies (the iterated coupling's unknowns)."""
+        idx = list(range(len(self.ios)) if members is None else members)
+        for i in idx:
+            fail = self.set_inputs(i, k, t, given.get(i) if given else None)
+            if fail is not None:
+                return fail
+        for i in idx:
+            fail = self.do_step(i, k, t, h)
+            if fail is not None:
+                return fail
+        for i in idx:
+            fail = self.get_outputs(i, k, t + h)
+            if fail is not None:
+                return fail
+        return None
+
+    # ------------------------------------------------------------------ the row
+    def record(self, k: int) -> Failure | None:
+        """The row of t_{k+1} when step k is recorded (every ``decimation``-th, the last, or when an FMU
+        ended the simulation), as the generated loop records it; then the end of a simulation."""
+        clock, lay = self.clock, self.layout
+        ended = self.ended()
+        if (k + 1) % clock.decimation == 0 or k + 1 == clock.n_steps or ended is not None:
+            lay.row[0] = clock.time(k + 1)
+            for io in self.ios:
+                for x in io.extras:
+                    s = x.get(x.vrs, x.n, x.buf, x.nv)
+                    if s:
+                        return Failure(k + 1, io.name, Call.GET_RECORDED, s)
+                    for e, slot in x.slots:
+                        if slot < lay.n_double:
+                            lay.row[slot] = x.buf[e]
+                        else:
+                            lay.irow[slot - lay.n_double] = x.buf[e]
+            self.chunk.append(bytes(lay.buf))
+        if ended is not None:
+            last = ended.fast.last_time
+            return Failure(k + 1, ended.name, Call.TERMINATED, last.value if last is not None else clock.time(k + 1))
+        return None
+
+    # ------------------------------------------------------------------ rollback
+    def allow_rollback(self, members: list[int] | range | None = None) -> None:
+        for i in (range(len(self.ios)) if members is None else members):
+            fn = self.ios[i].allow_rollback
+            if fn is not None:
+                fn()
+
+    def save(self, members: list[int] | range | None = None) -> tuple[list[tuple[int, Any]], bytes]:
+        """The states of these instances (all: None) and the row's bytes."""
+        states = []
+        for i in (range(len(self.ios)) if members is None else members):
+            io = self.ios[i]
+            if not io.can_roll_back or io.get_state is None:
+                raise RunError(f"{io.name}: the algorithm rolls steps back, and this instance cannot save its "
+                               "state (canGetAndSetFMUstate)", io.name)
+            states.append((i, io.get_state()))
+        return states, bytes(self.layout.buf)
+
+    def restore(self, saved: tuple[list[tuple[int, Any]], bytes]) -> None:
+        """Back to a state :meth:`save` gave (it stays valid)."""
+        states, row = saved
+        for i, st in states:
+            set_state = self.ios[i].set_state
+            assert set_state is not None
+            set_state(st)
+        ctypes.memmove(self.layout.buf, row, len(row))
+
+    def free(self, saved: tuple[list[tuple[int, Any]], bytes]) -> None:
+        for i, st in saved[0]:
+            free_state = self.ios[i].free_state
+            assert free_state is not None
+            free_state(st)
+
+
+class SteppedAlgorithm(Algorithm):
+    """A fixed-step algorithm whose steps a :class:`Stepper` takes in plain Python (the iterated coupling,
+    instances at their own rates, instances stepped at once): step k, then its row; a subclass gives the
+    step (:meth:`take`) and whatever it keeps beside the stepper (:meth:`setup`, calling this one)."""
+
+    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, chunk: list[bytes],
+              check_inputs: bool = True) -> None:
+        self.clock = clock
+        self.stepper = Stepper(ios, clock, layout, chunk, check_inputs)
+
+    def inputs_changed(self) -> None:
+        """Nothing to redo where every step reads the copies as they are."""
+
+    def advance(self, k0: int, k1: int) -> Failure | None:
+        c = self.clock
+        for k in range(k0, k1):
+            fail = self.take(k, c.time(k), c.length(k)) or self.stepper.record(k)
+            if fail is not None:
+                return fail
+        return None
+
+    @abstractmethod
+    def take(self, k: int, t: float, h: float) -> Failure | None:
+        """Step k, from t [s] over the base step h [s]."""
