@@ -165,16 +165,14 @@ def plain_algorithm():
         def compile(self):
             import ctypes
 
-            ios, clock, layout, chunk, check_inputs = self.ios, self.clock, self.layout, self.chunk, self.check_inputs
-            if any(io.other or io.feed or io.extras or io.fast.terminated is not None for io in ios):
-                raise ValueError("the plain loop covers Gauss-Seidel with Real connections and recordings only")
-            t0, h, dec, n_steps = clock.start, clock.step, clock.decimation, clock.n_steps
+            ios, clock, done, check_inputs = self.ios, self.clock, self.done, self.check_inputs
+            if any(io.other or io.feed or io.fast.terminated is not None for io in ios):
+                raise ValueError("the plain loop covers Gauss-Seidel with Real connections only")
+            t0, h = clock.start, clock.step
             T, H = ctypes.c_double(0.0), ctypes.c_double(h)
             items = [(io.name, io.fast.c, io.fast.set_real, io.fast.do_step, io.fast.get_real, io.in_vr,
                       io.fast.in_val, io.n_in, io.out_vr, io.out_val, io.n_out, io.copies, bool(io.n_out.value),
                       io.fast.set_tail, io.fast.step_tail, io.fast.get_tail) for io in ios]
-            append = chunk.append
-            row, buf = layout.row, layout.buf
 
             def loop(k0, k1):
                 for k in range(k0, k1):
@@ -197,9 +195,9 @@ def plain_algorithm():
                             s = getr(c, outvr, nout, outv, *gt)
                             if s:
                                 return Failure(k + 1, name, Call.GET_REAL, s)
-                    if (k + 1) % dec == 0 or k + 1 == n_steps:
-                        row[0] = t0 + (k + 1) * h
-                        append(bytes(buf))
+                    s = done(k + 1, False)
+                    if s is not None:
+                        return s
                 return None
             return loop
     return PlainGaussSeidel()

@@ -80,8 +80,8 @@ class ReversedJacobi(Algorithm):
 
     name = "reversed-jacobi"
 
-    def setup(self, ios, clock, layout, chunk, check_inputs=True):
-        self.ios, self.clock, self.layout, self.chunk = list(reversed(ios)), clock, layout, chunk
+    def setup(self, ios, clock, layout, done, check_inputs=True):
+        self.ios, self.clock, self.done = list(reversed(ios)), clock, done
         import ctypes
         self.T, self.H = ctypes.c_double(0.0), ctypes.c_double(clock.step)
 
@@ -89,7 +89,7 @@ class ReversedJacobi(Algorithm):
         pass
 
     def advance(self, k0, k1):
-        c, row = self.clock, self.layout.row
+        c = self.clock
         for k in range(k0, k1):
             self.T.value = c.time(k)
             for io in self.ios:
@@ -105,9 +105,9 @@ class ReversedJacobi(Algorithm):
             for io in self.ios:
                 if io.n_out.value and io.get_outputs():
                     return Failure(k + 1, io.name, Call.GET_REAL, 3)
-            if (k + 1) % c.decimation == 0 or k + 1 == c.n_steps:
-                row[0] = c.time(k + 1)
-                self.chunk.append(bytes(self.layout.buf))
+            fail = self.done(k + 1, False)   # (the recording takes the row where it records one)
+            if fail is not None:
+                return fail
         return None
 
 

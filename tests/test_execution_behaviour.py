@@ -321,25 +321,32 @@ def test_progress_bar_only_when_asked(probe, tmp_path, capsys):
     assert capsys.readouterr().err == ""
 
 
-def test_a_run_without_a_results_folder_works_in_a_temporary_one_and_removes_it(probe, tmp_path, monkeypatch):
-    """``out_dir=None``: the results are written to a wmr-cosim-out-* folder in the temporary folder,
-    removed afterwards; the result keeps the final values."""
+def test_a_run_without_a_results_folder_is_kept_in_memory(probe, tmp_path, monkeypatch):
+    """``out=None``: no results folder at all (while it runs, the temporary folder holds only the FMUs'
+    work folder, removed at the end; nothing is written as results), and the result says what a run into a
+    folder says: the same final values, signals, summary and scenario as resolved."""
     tmp = tmp_path / "tmp"
     tmp.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(tmp))
-    seen = []
-    real = execution.write_results
-
-    def spy(folder, *args):
-        real(folder, *args)
-        seen.append((folder.path, sorted(p.name for p in folder.path.iterdir())))
-    monkeypatch.setattr(execution, "write_results", spy)
-    res = execution.run(_sim(probe(), stop=0.1).check(), None, progress=False)
+    written = []
+    monkeypatch.setattr(execution, "write_results", lambda *a: written.append(a))
+    during: list[list[str]] = []
+    sim = _sim(probe(), stop=0.1)
+    ex = execution.Execution(sim.check(), None, progress=False, keep_signals=True)
+    ex.on_step(lambda: during.append(sorted(p.name.rsplit("-", 1)[0] for p in tmp.iterdir())))
+    ex.initialize()
+    ex.simulate_until()
+    res = ex.close()
     assert res.status == "ok" and res.out_dir is None and res.final["probe.y"] == 10.0
-    (out, files), = seen
-    assert out.parent == tmp and out.name.startswith("wmr-cosim-out-")
-    assert files == [".wmr-cosim.lock", "logs", "scenario.json", "signals.npy", "summary.json"]
+    assert written == [] and during and set(map(tuple, during)) == {("wmr-cosim-fmus",)}
     assert list(tmp.iterdir()) == []
+    monkeypatch.undo()
+    on_disk = execution.run(_sim(probe(), stop=0.1).check(), tmp_path / "out", progress=False)
+    assert res.final == on_disk.final and res.scenario == on_disk.scenario
+    assert res.signals.tobytes() == np.load(tmp_path / "out" / "signals.npy").tobytes()
+    timing = {"wall_s", "setup_s", "us_per_step"}
+    assert {k: v for k, v in res.summary.items() if k not in timing} == \
+        {k: v for k, v in json.loads((tmp_path / "out" / "summary.json").read_text()).items() if k not in timing}
 
 
 # ---------------------------------------------------------------------- the event log

@@ -206,7 +206,7 @@ class Simulation:
     def start(self, out: str | Path | None = None, *, real_time: float | None = None,
               progress: bool | None = False, force: bool = False) -> "Run":
         """Check, load and initialise: a :class:`Run` at the start time, to step, read and change.
-        ``out``: the results folder (None: a temporary one, removed when the run ends)."""
+        ``out``: the results folder (None: none, the run kept in memory)."""
         return Run(self.check(force), out, real_time=real_time, progress=progress)
 
     def run(self, out: str | Path | None = None, *, real_time: float | None = None,

@@ -25,11 +25,11 @@ import numpy as np
 from ..instances.integrators import DEFAULT_EVENT_TOLERANCE, DEFAULT_RTOL, SolverSpec
 from ..messages.errors import CosimError, FmuLoadError, ScenarioError
 from ..messages.suggest import did_you_mean
-from ..model.description import INTERFACE_NAMES, PY_TYPES, FmuModel, Variable, load_model
+from ..model.description import CO_SIMULATION, INTERFACE_NAMES, MODEL_EXCHANGE, PY_TYPES, FmuModel, Variable, load_model
 from ..model.kinds import FileKind, file_kind
 from ..model.units import conversion, lookup, same_unit, units_of
-from ..scenario.document import (CO_SIMULATION, MODEL_EXCHANGE, SOLVER_KEYS, ConnectionSpec, InstanceSpec, Scenario,
-                                 check_experiment, split_ref, steps_of)
+from ..scenario.document import (SOLVER_KEYS, ConnectionSpec, InstanceSpec, Scenario, check_experiment, split_ref,
+                                steps_of)
 from ..scenario.inputs import InputPlan, read_inputs
 from ..stepping import table as algorithms
 from ..stepping.settings import SpecError, check_adaptive

@@ -49,10 +49,11 @@ from typing import Any
 from ..messages.errors import CosimError, FmuLoadError, ScenarioError
 from ..model.archive import ArchiveLimits, LimitOverrides, check_archive, check_entries, check_sizes, safe_extract
 from ..model.description import INTERFACE_NAMES, load_model
+from ..model.description import CO_SIMULATION, MODEL_EXCHANGE
 from ..model.kinds import FileKind, file_kind
-from ..scenario.document import CO_SIMULATION, MODEL_EXCHANGE, Scenario, apply_overrides, parse
+from ..scenario.document import Scenario, apply_overrides, parse
 from ..stepping import table as algorithms
-from .resolution import Plan, unit_of
+from .records import Plan, unit_of
 
 SSP_VERSION = "1.0"
 FMU_MIME = "application/x-fmu-sharedlibrary"

@@ -23,7 +23,7 @@ from ..messages.errors import RunError
 from ..model.description import Variable
 from ..scenario.inputs import InputPlan
 from ..stepping.algorithm import Copy, Doubles
-from .resolution import ConnectionPlan, EventPlan, Plan, RecordPlan
+from .records import ConnectionPlan, EventPlan, Plan, RecordPlan
 
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..plan.resolution import EventPlan
+from ..plan.records import EventPlan
 
 #: The most entries a table keeps (an FMU with a time event every millisecond has 50,000 in 50 s).
 MAX_ENTRIES = 10_000

@@ -4,15 +4,14 @@ summary.json and the :class:`RunResult` the drivers get."""
 from __future__ import annotations
 
 import dataclasses
-import shutil
-import tempfile
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..plan.resolution import Plan
+from ..plan.records import Plan
 from ..stepping import table as algorithms
 from .matfile import layout, write_mat
 from .recording import OutputLock, make_folder, write_csv, write_json
@@ -43,12 +42,10 @@ class RunResult:
 
 
 class ResultsFolder:
-    """The folder a run writes (``out``; None: a temporary one, removed when the run ends), locked for
-    the run and emptied of an earlier run's result files."""
+    """The folder a run writes (``out``), locked for the run and emptied of an earlier run's result files."""
 
-    def __init__(self, out: str | Path | None) -> None:
-        self.keep = out is not None
-        self.path = make_folder(Path(out)) if out is not None else Path(tempfile.mkdtemp(prefix="wmr-cosim-out-"))
+    def __init__(self, out: str | Path) -> None:
+        self.path = make_folder(Path(out))
         self.lock = OutputLock(self.path)
         self.lock.acquire()
 
@@ -71,10 +68,7 @@ class ResultsFolder:
         return self.path / "signals.npy"
 
     def release(self) -> None:
-        """Unlock; a temporary folder is removed."""
         self.lock.release()
-        if not self.keep:
-            shutil.rmtree(self.path, ignore_errors=True)
 
 
 def final_values(signals: Path, columns: list[str]) -> dict[str, float]:
@@ -108,17 +102,21 @@ def summary(plan: Plan, res: RunResult, rows: int, logs: dict[str, tuple[int, in
     }
 
 
-def write_results(folder: ResultsFolder, plan: Plan, res: RunResult, rows: int,
-                  logs: dict[str, tuple[int, int]]) -> None:
-    """signals.csv and signals.mat (each when the scenario asks for it, the folder is kept and something
-    was recorded) and summary.json."""
-    if res.final and folder.keep and plan.scenario.csv:
+def write_results(folder: ResultsFolder, plan: Plan, res: RunResult) -> None:
+    """signals.csv and signals.mat (each when the scenario asks for it and something was recorded) and
+    summary.json (``res.summary``)."""
+    if res.final and plan.scenario.csv:
         write_csv(folder.signals, folder.path / "signals.csv", start=plan.scenario.start or 0.0,
                   step=plan.scenario.step)
-    if res.final and folder.keep and plan.scenario.mat:
+    if res.final and plan.scenario.mat:
         write_mat(folder.path / "signals.mat", np.load(folder.signals, mmap_mode="r"), layout(plan))
-    res.summary = summary(plan, res, rows, logs)
     write_json(folder.path / "summary.json", res.summary)
+
+
+def scenario_record(plan: Plan) -> dict[str, Any]:
+    """scenario.json's content as it reads back (JSON's types: lists, strings for what JSON has no type
+    for), for the result of a run with a folder or without."""
+    return json.loads(json.dumps(resolved(plan), default=str))
 
 
 def resolved(plan: Plan) -> dict[str, Any]:

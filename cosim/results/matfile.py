@@ -27,7 +27,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from ..plan.resolution import Plan, unit_of
+from ..plan.records import Plan, unit_of
 
 #: Rows of the recording converted at a time (bounds the memory the writer needs).
 MAT_CHUNK = 20000

@@ -104,15 +104,44 @@ def write_json(path: Path, obj: Any) -> None:
     atomic_write(path, json.dumps(obj, indent=2, default=str) + "\n")
 
 
-class NpyRecorder:
-    """Append rows to a structured .npy file, keeping the file loadable after every flush."""
+class RecordedRows:
+    """The recorded rows, in the structured dtype of signals.npy (one field per column: Real as float64,
+    integers and enumerations as their FMI type, Boolean as bool), appended as the run goes."""
 
-    def __init__(self, path: str | os.PathLike, columns: list[str], types: list[str] | None = None) -> None:
-        self.path = Path(path)
+    def __init__(self, columns: list[str], types: list[str] | None = None) -> None:
         self.columns = list(columns)
         types = types or ["Real"] * len(columns)
         self.dtype = np.dtype([(c, DTYPES[t]) for c, t in zip(self.columns, types)])
         self.rows = 0
+
+    def append(self, cols: list[np.ndarray]) -> None:
+        """Append rows given as one array per column (float64 or int64), each converted to its type
+        (an int64 column of an unsigned type is reinterpreted bit for bit)."""
+        if len(cols) != len(self.columns):
+            raise ValueError(f"{len(cols)} columns for {len(self.columns)}")
+        n = len(cols[0]) if cols else 0
+        if not n:
+            return
+        rec = np.empty(n, self.dtype)
+        for name, col in zip(self.columns, cols):
+            kind = self.dtype[name].kind
+            rec[name] = col.view(np.uint64) if kind == "u" and col.dtype == np.int64 else col
+        self._write(rec)
+        self.rows += n
+
+    def _write(self, rec: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        pass
+
+
+class NpyRecorder(RecordedRows):
+    """Append rows to a structured .npy file, keeping the file loadable after every flush."""
+
+    def __init__(self, path: str | os.PathLike, columns: list[str], types: list[str] | None = None) -> None:
+        super().__init__(columns, types)
+        self.path = Path(path)
         self._fh = open(self.path, "wb+")
         self._write_header(0)
 
@@ -134,22 +163,11 @@ class NpyRecorder:
         self._fh.write(b"\x93NUMPY" + version + len(encoded).to_bytes(nlen, "little") + encoded)
         self._fh.flush()
 
-    def append(self, cols: list[np.ndarray]) -> None:
-        """Append rows given as one array per column (float64 or int64), each converted to its type
-        (an int64 column of an unsigned type is reinterpreted bit for bit)."""
-        if len(cols) != len(self.columns):
-            raise ValueError(f"{len(cols)} columns for {len(self.columns)}")
-        n = len(cols[0]) if cols else 0
-        if not n:
-            return
-        rec = np.empty(n, self.dtype)
-        for name, col in zip(self.columns, cols):
-            kind = self.dtype[name].kind
-            rec[name] = col.view(np.uint64) if kind == "u" and col.dtype == np.int64 else col
+    def _write(self, rec: np.ndarray) -> None:
+        """The rows appended to the file, its header updated."""
         self._fh.seek(0, os.SEEK_END)
         self._fh.write(rec.tobytes())
-        self.rows += n
-        self._write_header(self.rows)
+        self._write_header(self.rows + len(rec))
         self._fh.flush()
 
     def close(self) -> None:
@@ -158,11 +176,26 @@ class NpyRecorder:
             self._fh.close()
 
 
+class MemoryRecorder(RecordedRows):
+    """The rows kept in memory (a run without a results folder: the Python API's in-memory run)."""
+
+    def __init__(self, columns: list[str], types: list[str] | None = None) -> None:
+        super().__init__(columns, types)
+        self._blocks: list[np.ndarray] = []
+
+    def _write(self, rec: np.ndarray) -> None:
+        self._blocks.append(rec)
+
+    def array(self) -> np.ndarray:
+        """Every row so far."""
+        return np.concatenate(self._blocks) if self._blocks else np.zeros(0, self.dtype)
+
+
 class RowBuffer:
     """The rows of the current segment (``bytes`` of the master's row buffer: ``n_double`` float64 slots,
     then ``n_int`` int64 slots), flushed to the recorder with a check that every recorded real is finite."""
 
-    def __init__(self, recorder: NpyRecorder, cols: list[int], n_double: int, n_int: int = 0) -> None:
+    def __init__(self, recorder: RecordedRows, cols: list[int], n_double: int, n_int: int = 0) -> None:
         self.recorder = recorder
         self.cols = list(cols)
         self.n_double = n_double

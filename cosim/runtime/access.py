@@ -8,7 +8,8 @@ from typing import Any, Callable
 from ..instances.contract import FmuInstance
 from ..messages.errors import ScenarioError
 from ..model.description import Variable
-from ..plan.resolution import Plan, checked_value, variable
+from ..plan.records import Plan
+from ..plan.resolution import checked_value, variable
 from ..plan.wiring import RowLayout, is_f64
 from ..scenario.document import split_ref
 from .manipulators import ScriptChanges

@@ -1,5 +1,6 @@
 """The execution: the one object that steps a system (libcosim's ``execution``).  It owns the instances,
-the clock, the algorithm, the observers and the manipulators, and the run's results folder.
+the clock, the algorithm, the observers and the manipulators, and the run's results folder (or none: a
+run kept in memory).
 
     ex = Execution(plan, "out")            # the folder locked, scenario.json written
     ex.initialize()                        # FMUs loaded, set up, initialised; the row at the start time
@@ -31,16 +32,14 @@ import time as _time
 from pathlib import Path
 from typing import Any, Callable
 
-import numpy as np
-
 from ..instances.contract import FmuInstance
 from ..instances.failure import Call, Failure, FmiStatus, InstanceLost
 from ..messages.errors import CosimError, RunError, ScenarioError
 from ..model.description import Variable
-from ..plan.resolution import Plan
+from ..plan.records import Plan
 from ..plan.wiring import RowLayout, Wiring
 from ..results.event_log import ended_entry, instance_entries, table
-from ..results.folder import ResultsFolder, RunResult, final_values, write_results
+from ..results.folder import ResultsFolder, RunResult, scenario_record, summary, write_results
 from ..results.status import RunStatus
 from ..stepping import table as algorithms
 from ..stepping.algorithm import Algorithm, Clock, InstanceIO
@@ -48,9 +47,10 @@ from ..stepping.multirate import MultiRate
 from .access import VariableAccess
 from .interrupt import Interrupt
 from .manipulators import Actuator, ConditionEvents, EventStop, Manipulator, ScriptChanges, TimedEvents
-from .observers import Observer, Pacing, ProgressBar, Recorder, StepCallback, progress_bar
+from .observers import Observer, Pacing, ProgressBar, Recorder, StepCallback
 from .pacing import Pacer
-from .startup import exchange_initial, instance_io, load_instances, read_outputs, recorded_types, set_up
+from .startup import (exchange_initial, instance_io, load_instances, read_outputs, recorded_getters, recorded_types,
+                      set_up)
 
 __all__ = ["Execution", "RunResult", "run"]
 
@@ -73,8 +73,8 @@ def _algorithm(plan: Plan) -> Algorithm:
 class Execution:
     """One run of a plan, stepped by its driver (see the module's docstring).
 
-    ``out``: the results folder (None: a temporary one, removed at the end; the result keeps the final
-    values, and the signals with ``keep_signals``); ``progress``: the progress bar (None: on a terminal, for
+    ``out``: the results folder (None: none, the run kept in memory; the result has the final values, the
+    summary and the scenario as resolved, and the signals with ``keep_signals``); ``progress``: the progress bar (None: on a terminal, for
     long runs); ``timing``: measure the time inside the step's FMI calls; ``check_inputs``: refuse
     non-finite values on connections; ``real_time``: pace the steps at that factor of the wall clock;
     ``algorithm``: an :class:`.algorithm.Algorithm` object (default: the scenario's)."""
@@ -96,36 +96,44 @@ class Execution:
         self.progress, self.timing, self.check_inputs, self.keep_signals = progress, timing, check_inputs, keep_signals
         self.pacer = Pacer(real_time) if real_time is not None else None
         self.columns = ["time"] + [r.column for r in plan.record]
-        self.instances: dict[str, FmuInstance] = {}
+        self.instances: dict[str, FmuInstance] = {}   # (filled at initialisation)
         self.ios: list[InstanceIO] = []
-        self.observers: list[Observer] = []        # the script's, called after the built-in ones
-        self.manipulators: list[Manipulator] = []
+        self.observers: list[Observer] = []        # in the order added: the built-in ones first
+        self.manipulators: list[Manipulator] = []  # likewise (the scenario's events first)
         self.status, self.message = RunStatus.OK, ""
         self._instance_events: list[dict[str, Any]] = []   # the instances' entries of the event table
         self.result: RunResult | None = None
         self.k_done = 0
         self.setup_s = self.wall_s = 0.0
         self._fmi_acc = [0.0]   # [s] inside the step's FMI calls (with timing)
-        self._recorder: Recorder | None = None
-        self._builtin: list[Observer] = []
-        self._script: ScriptChanges | None = None
-        self._actuator: Actuator | None = None
-        self._layout: RowLayout | None = None
-        self._wiring: Wiring | None = None
-        self.access: VariableAccess | None = None   # the variables by reference, once initialised
         self._errors: dict[str, int] = {}          # each instance's logged errors before the segment
         self._pacing: Pacing | None = None
         self._per_step = False                     # some observer or manipulator must see every step
         self._stop_requested = False
         self._in_step = False
-        self._started = False
-        self.folder = ResultsFolder(out)
-        try:
-            self.folder.prepare(plan)
-        except BaseException:
-            self.folder.release()
-            raise
+        self._started = False                      # initialize() was called
+        self._ready = False                        # ... and the run can step
+        layout = self._layout = RowLayout.of(plan)
+        self._wiring = Wiring(plan, layout)
+        actuator = self._actuator = Actuator(plan, self.instances, self._wiring)
+        self._script = ScriptChanges(actuator)
+        self.access = VariableAccess(plan, self.instances, layout, self._script)   # the variables by reference
+        self.folder = ResultsFolder(out) if out is not None else None   # (None: the run kept in memory)
+        if self.folder is not None:
+            try:
+                self.folder.prepare(plan)
+            except BaseException:
+                self.folder.release()
+                raise
         self._work = Path(tempfile.mkdtemp(prefix="wmr-cosim-fmus-"))
+        self._recorder = Recorder(self.folder.signals if self.folder is not None else None, self.columns,
+                                  recorded_types(plan),
+                                  [0] + [layout.slot(r) for r in plan.record], layout, layout.n_int, self.clock)
+        # the built-in parts, added as a script adds its own (and so before them)
+        self.add_manipulator(TimedEvents(actuator, plan.events))
+        self.add_manipulator(ConditionEvents(actuator, plan.conditions))
+        self.add_observer(self._recorder)
+        self.add_observer(ProgressBar(progress, self.clock, sum(plan.internal_steps.values())))
 
     # ------------------------------------------------------------------ state
     @property
@@ -165,39 +173,34 @@ class Execution:
             interrupt.restore()
 
     def _initialise(self) -> None:
-        plan = self.plan
-        self.instances = load_instances(plan, self._work, self.folder.logs)
+        plan, layout, wiring = self.plan, self._layout, self._wiring
+        self.instances.update(load_instances(plan, self._work, self._logs()))
         set_up(plan, self.instances)
-        layout = self._layout = RowLayout.of(plan)
-        wiring = self._wiring = Wiring(plan, layout)
         self.ios = [instance_io(plan, n, self.instances[n], layout, wiring, self.instances,
                                 self._fmi_acc if self.timing else None) for n in plan.order]
         exchange_initial(self.ios, self.instances, wiring, layout, self.clock.start, self.check_inputs)
         self.algorithm.initialize(self.ios, self.clock.start, self.check_inputs)
         for io in self.ios:
             self.instances[io.name].exit_initialization()
-        read_outputs(self.ios, self.instances, layout, self.clock.start)
-        rec = self._recorder = Recorder(self.folder.signals, self.columns, recorded_types(plan),
-                                        [0] + [layout.slot(r) for r in plan.record], layout.n_double, layout.n_int,
-                                        self.clock.decimation)
-        layout.row[0] = self.clock.start
-        rec.rows.chunk.append(bytes(layout.buf))
+        read_outputs(self.ios, self.instances, self.clock.start)
+        self._recorder.open(recorded_getters(plan, self.instances, layout))
+        self._recorder.record_at(self.clock.start)
+
+    def _logs(self) -> Path:
+        """The folder of the instances' logs: the results folder's, else one in the work folder (removed)."""
+        if self.folder is not None:
+            return self.folder.logs
+        logs = self._work / "logs"
+        logs.mkdir(exist_ok=True)
+        return logs
 
     def _start(self) -> None:
-        """The algorithm set up; the built-in observers and the manipulators started."""
-        assert self._recorder is not None and self._wiring is not None and self._layout is not None
-        self.algorithm.setup(self.ios, self.clock, self._layout, self._recorder.rows.chunk, self.check_inputs)
-        actuator = self._actuator = Actuator(self.plan, self.instances, self._wiring)
-        self._script = ScriptChanges(actuator)
-        self.access = VariableAccess(self.plan, self.instances, self._layout, self._script)
-        self.manipulators[:0] = [TimedEvents(actuator, self.plan.events),
-                                 ConditionEvents(actuator, self.plan.conditions)]
-        bar = progress_bar(self.progress, self.clock.n_steps, self.clock.step,
-                           sum(self.plan.internal_steps.values()))
-        self._builtin = [self._recorder] + ([ProgressBar(bar)] if bar is not None else [])
+        """The algorithm set up (told the recording's take); the manipulators and the observers started."""
+        self.algorithm.setup(self.ios, self.clock, self._layout, self._recorder.take, self.check_inputs)
+        self._ready = True
         for m in self.manipulators:
             m.started(self)
-        for o in self._builtin + self.observers:
+        for o in self.observers:
             o.started(self)
         if self.pacer is not None:
             self._pacing = Pacing(self.pacer)   # (its clock starts with the first step: see _advance)
@@ -216,14 +219,14 @@ class Execution:
         if self.result is not None:
             raise CosimError(self._ended_message())
         parts.append(part)
-        if self._started:
+        if self._ready:
             part.started(self)
         self._update_per_step()
         return part
 
     def _update_per_step(self) -> None:
         """Whether the segments must be one step long (worked out when the parts change, not per segment)."""
-        self._per_step = (any(p.per_step for p in self._builtin + self.observers + self.manipulators)
+        self._per_step = (any(p.per_step for p in self.observers + self.manipulators)
                           or self._pacing is not None)
 
     def on_step(self, fn: Callable[[], Any]) -> Observer:
@@ -249,7 +252,7 @@ class Execution:
         Ctrl-C (raised: KeyboardInterrupt)."""
         if self.result is not None:
             raise CosimError(self._ended_message())
-        if not self._started:
+        if not self._ready:
             raise CosimError("the execution is not initialised: call initialize() first")
         interrupt = Interrupt()
         wall0 = _time.perf_counter()
@@ -275,11 +278,9 @@ class Execution:
 
     def _segments(self, k_target: int, interrupt: Interrupt) -> None:
         k, n_steps = self.k_done, self.clock.n_steps
-        assert self._script is not None
         while k < k_target and not self._stop_requested:
             acted = [m.act(self, k) for m in self.manipulators]
             if self._script.act(self, k) or any(acted):   # (the script's changes last: a manipulator may set)
-                assert self._wiring is not None
                 for io in self.ios:
                     io.copies = self._wiring.copies(io.name)
                 self.algorithm.inputs_changed()
@@ -299,7 +300,7 @@ class Execution:
         if self._per_step:
             return k + 1
         k_end = k_target
-        for o in self._builtin + self.observers:
+        for o in self.observers:
             b = o.boundary(k)
             if b is not None:
                 k_end = min(k_end, max(b, k + 1))
@@ -310,10 +311,8 @@ class Execution:
         return k_end
 
     def _stepped(self, k: int) -> None:
-        """After a segment: the built-in observers, the manipulators that watch every step, the script's
-        observers (the pacing last, skipped when the script has just stopped the run)."""
-        for o in self._builtin:
-            o.stepped(self, k)
+        """After a segment: the manipulators that watch every step, the observers in the order added (the
+        pacing last, skipped when the script has just stopped the run)."""
         for m in self.manipulators:
             if m.per_step:
                 m.stepped(self, k)
@@ -329,7 +328,6 @@ class Execution:
         self.k_done = f.step - 1 if f.call.after_step else f.step
         inst = self.instances[name]
         if f.call is Call.NON_FINITE_INPUT:
-            assert self._wiring is not None
             io = self.ios[self.plan.order.index(name)]
             raise self._wiring.bad_input(name, io.in_vr, io.copies, tf)
         if f.call is Call.TERMINATED:  # the step's row is recorded already (unless it ended between points)
@@ -350,15 +348,13 @@ class Execution:
         at every step gives its value at the last communication point (as recorded, and as conditions see
         it); any other variable is asked of the FMU, so an output with direct feedthrough already reflects
         an input :meth:`set` since that point."""
-        if self.result is not None or self.access is None:
+        if self.result is not None or not self._ready:
             self._alive()
-        assert self.access is not None
         return self.access.get(ref)
 
     def reader(self, inst: str, var: Variable) -> Callable[[], Any]:
         """A function returning a variable's current value (see :meth:`.access.VariableAccess.reader`)."""
         self._alive()
-        assert self.access is not None
         return self.access.reader(inst, var)
 
     def set(self, ref: str, value: Any) -> None:
@@ -366,24 +362,22 @@ class Execution:
         connection overridden until :meth:`release`); an output feeding connections (what they carry); an
         input no connection drives.  The value is checked against the variable's type and range."""
         self._alive()
-        assert self.access is not None
         self.access.set(ref, value)
 
     def release(self, ref: str) -> None:
         """End an override :meth:`set` put on a connected input or an output."""
         self._alive()
-        assert self.access is not None
         self.access.release(ref)
 
     @property
     def events(self) -> list[dict[str, Any]]:
         """The event log so far: time, event, action, ..."""
-        return list(self._actuator.log) if self._actuator is not None else []
+        return list(self._actuator.log)
 
     def _alive(self) -> None:
         if self.result is not None:
             raise CosimError(self._ended_message())
-        if not self._started or self.access is None:
+        if not self._ready:
             raise CosimError("the execution is not initialised: call initialize() first")
 
     def _ended_message(self) -> str:
@@ -423,7 +417,7 @@ class Execution:
         elif isinstance(exc, FmuEnded):
             self._fmu_ended(exc)
         elif isinstance(exc, KeyboardInterrupt):
-            last = self._recorder.rows.last_time() if self._recorder is not None and self._in_step else None
+            last = self._recorder.last_time() if self._in_step else None
             if last is not None:   # the steps completed inside the interrupted segment
                 self.k_done = max(self.k_done, self.clock.step_of(last))
             self._set_status(RunStatus.INTERRUPTED, f"interrupted by the user at t = {self.time:.6g} s")
@@ -447,11 +441,9 @@ class Execution:
         (the FMU ended the simulation at a communication point without advancing)."""
         self.k_done = self.clock.steps_before(s.t)
         try:
-            assert self._layout is not None and self._recorder is not None
             if not s.recorded and (s.t - self._layout.row[0]) / self.clock.step > 1e-9:
-                read_outputs(self.ios, self.instances, self._layout, s.t)
-                self._layout.row[0] = s.t
-                self._recorder.rows.chunk.append(bytes(self._layout.buf))
+                read_outputs(self.ios, self.instances, s.t)
+                self._recorder.record_at(s.t)
             self._set_status(RunStatus.TERMINATED, f"terminated by FMU {s.name} at t = {s.t:.6g} s")
             self._instance_events.append(ended_entry(s.name, s.t))
         except RunError as exc:
@@ -463,7 +455,7 @@ class Execution:
         if self.result is not None:
             return
         try:
-            for o in self._builtin + self.observers:
+            for o in self.observers:
                 try:
                     o.finished(self)
                 except RunError as exc:
@@ -475,46 +467,40 @@ class Execution:
                                      for e in instance_entries(n, inst.handled_events())] + self._instance_events
             for inst in self.instances.values():
                 inst.shutdown()
-            if self._recorder is not None:
-                self._recorder.close()
+            self._recorder.close()
             shutil.rmtree(self._work, ignore_errors=True)
             self.result = self._result()
         finally:
-            self.folder.release()
+            if self.folder is not None:
+                self.folder.release()
 
     def _result(self) -> RunResult:
-        final = final_values(self.folder.signals, self.columns) if self._recorder is not None else {}
+        final = self._recorder.final()
         t_end = self.time
         if self.status == RunStatus.TERMINATED:
             t_end = final.get("time", t_end)
         events, left_out = table(self.events, self._instance_events)
         res = RunResult(self.status, self.message, self.k_done, t_end, self.wall_s, self.setup_s,
-                        self.folder.path if self.folder.keep else None, self.columns, final,
+                        self.folder.path if self.folder is not None else None, self.columns, final,
                         self._fmi_acc[0] if self.timing else None, events,
                         self.pacer.summary() if self.pacer is not None else None)
         res.stepping, res.events_left_out = algorithms.summary(self.algorithm), left_out
         logs = {n: (i.log_lines, i.received) for n, i in self.instances.items()}
-        write_results(self.folder, self.plan, res, self._recorder.file.rows if self._recorder else 0, logs)
-        res.scenario = _read_json(self.folder.path / "scenario.json")
+        res.summary = summary(self.plan, res, self._recorder.n_rows, logs)
+        if self.folder is not None:
+            write_results(self.folder, self.plan, res)
+        res.scenario = scenario_record(self.plan)
         if self.keep_signals:
-            res.signals = np.load(self.folder.signals) if self.folder.signals.is_file() else \
-                np.zeros(0, dtype=[("time", "f8")])
+            res.signals = self._recorder.signals()
         return res
-
-
-
-def _read_json(path: Path) -> dict[str, Any]:
-    import json
-
-    return json.loads(path.read_text()) if path.is_file() else {}
 
 
 def run(plan: Plan, out_dir: str | Path | None, progress: bool | None = None, timing: bool = False,
         check_inputs: bool = True, real_time: float | None = None, algorithm: Algorithm | None = None) -> RunResult:
     """Run the plan and write its results folder ``out_dir``: signals.npy (written as the run goes),
     signals.csv, scenario.json (the scenario as resolved), logs/<instance>.log and summary.json.
-    ``out_dir=None`` runs in a temporary folder that is removed afterwards (the result keeps the
-    final values).  ``timing=True`` also measures the time spent inside the stepping FMI calls.
+    ``out_dir=None`` keeps the run in memory (no folder: the result has the final values, the summary and
+    the scenario as resolved).  ``timing=True`` also measures the time spent inside the stepping FMI calls.
     ``real_time=FACTOR`` paces the steps to the wall clock at FACTOR x real time (cosim.runtime.pacing)."""
     ex = Execution(plan, out_dir, progress=progress, timing=timing, check_inputs=check_inputs,
                    real_time=real_time, algorithm=algorithm)

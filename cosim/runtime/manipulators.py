@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from ..messages.errors import CosimError
 from ..model.description import Variable
-from ..plan.resolution import EventPlan, Plan
+from ..plan.records import EventPlan, Plan
 from ..plan.wiring import Wiring, is_f64
 from ..results.event_log import scenario_entry
 from ..scenario.condition import compile_condition

@@ -17,11 +17,18 @@ An observer is an object behind :class:`Observer`.  Its contract:
 """
 from __future__ import annotations
 
+import ctypes
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from ..results.recording import NpyRecorder, RowBuffer
+import numpy as np
+
+from ..instances.failure import Call, Failure
+from ..results.folder import final_values
+from ..results.recording import MemoryRecorder, NpyRecorder, RecordedRows, RowBuffer
+from ..stepping.algorithm import Clock, Row, StepDone
 from .pacing import Pacer
 from .views import Observable
 
@@ -47,43 +54,155 @@ class Observer:
         pass
 
 
-class Recorder(Observer):
-    """The recording: the rows the algorithm appends, converted to the recorded columns and types and
-    appended to ``signals.npy`` every FLUSH_ROWS rows (and at the end), checked for non-finite values."""
+@dataclass
+class RecordedGetter:
+    """The recorded outputs of one instance of one FMI type other than Float64: ``get(vrs, n, buf, nv)``
+    reads them into ``buf``; ``slots`` maps an index in ``buf`` to the row's slot; ``fail(what, status, t)``
+    is the instance's error for a failed get."""
 
-    def __init__(self, path: Path, columns: list[str], types: list[str], slots: list[int], n_double: int,
-                 n_int: int, decimation: int) -> None:
-        self.file = NpyRecorder(path, columns, types)
-        self.rows = RowBuffer(self.file, slots, n_double, n_int)
-        self.block = FLUSH_ROWS * decimation
+    instance: str
+    get: Callable[[Any, Any, Any, Any], int]
+    vrs: ctypes.Array[ctypes.c_uint]
+    n: ctypes.c_size_t                       # value references
+    buf: ctypes.Array[Any]                   # of the type's ctypes element
+    nv: ctypes.c_size_t                      # values
+    slots: list[tuple[int, int]]
+    fail: Callable[[str, int, float], Exception]
+
+
+class Recorder(Observer):
+    """The recording: the row of every recorded communication point (every ``decimation``-th, the last,
+    and where an FMU ended the simulation), taken from the row buffer where the algorithm leaves the
+    outputs, with the recorded outputs of other types read then; converted to the recorded columns and
+    types and appended to ``signals.npy`` every FLUSH_ROWS rows (and at the end), checked for non-finite
+    values.  :meth:`take` is what the algorithm calls after every step (``stepping.algorithm.StepDone``)."""
+
+    def __init__(self, path: Path | None, columns: list[str], types: list[str], slots: list[int], row: Row,
+                 n_int: int, clock: Clock) -> None:
+        """``path``: signals.npy (None: the rows kept in memory)."""
+        self.path, self.columns, self.types, self.slots = path, columns, types, slots
+        self.row, self.n_int, self.clock = row, n_int, clock
+        self.block = FLUSH_ROWS * clock.decimation
+        self.getters: list[RecordedGetter] = []
+        self.file: RecordedRows | None = None     # signals.npy or memory, from initialisation on
+        self.rows: RowBuffer | None = None
+
+    def open(self, getters: list[RecordedGetter]) -> None:
+        """At initialisation, the instances loaded: signals.npy made (no row yet), the getters of the
+        recorded outputs of other types than Float64 known, :attr:`take` ready."""
+        self.getters = getters
+        self.file = NpyRecorder(self.path, self.columns, self.types) if self.path is not None else \
+            MemoryRecorder(self.columns, self.types)
+        self.rows = RowBuffer(self.file, self.slots, self.row.n_double, self.n_int)
+        self.take: StepDone = self._taker()
+
+    @property
+    def is_open(self) -> bool:
+        return self.file is not None
+
+    @property
+    def n_rows(self) -> int:
+        """The rows written to signals.npy."""
+        return self.file.rows if self.file is not None else 0
+
+    def signals(self) -> np.ndarray:
+        """Every row written (from memory, or read back from signals.npy)."""
+        if isinstance(self.file, MemoryRecorder):
+            return self.file.array()
+        if self.path is not None and self.path.is_file():
+            return np.load(self.path)
+        return np.zeros(0, dtype=[("time", "f8")])
+
+    def final(self) -> dict[str, float]:
+        """The last recorded value of each column ({} without rows)."""
+        if isinstance(self.file, MemoryRecorder):
+            data = self.file.array()
+            return {c: data[c][-1].item() for c in self.columns} if len(data) else {}
+        return final_values(self.path, self.columns) if self.path is not None and self.file is not None else {}
+
+    def last_time(self) -> float | None:
+        """The time of the last row taken and not yet written (None: none)."""
+        return self.rows.last_time() if self.rows is not None else None
+
+    def _taker(self) -> StepDone:
+        """``take(k, ended)``: the row of t_k when k is recorded (or ``ended``); a Failure where a recorded
+        value cannot be read.  A closure over locals: it runs after every step."""
+        c, rowd, irow, buf, nd = self.clock, self.row.row, self.row.irow, self.row.buf, self.row.n_double
+        assert self.rows is not None
+        dec, n, t0, h, stop, append = c.decimation, c.n_steps, float(c.start), float(c.step), c.stop, \
+            self.rows.chunk.append
+        getters = [(x, x.get, x.vrs, x.n, x.buf, x.nv, x.slots) for x in self.getters]
+
+        def take(k: int, ended: bool) -> Failure | None:
+            if k % dec and k != n and not ended:
+                return None
+            rowd[0] = stop if k == n and stop is not None else t0 + k * h
+            for x, get, vrs, nr, xbuf, nv, slots in getters:
+                s = get(vrs, nr, xbuf, nv)
+                if s:
+                    return Failure(k, x.instance, Call.GET_RECORDED, s)
+                for e, slot in slots:
+                    if slot < nd:
+                        rowd[slot] = xbuf[e]
+                    else:
+                        irow[slot - nd] = xbuf[e]
+            append(bytes(buf))
+            return None
+        return take
+
+    def record_at(self, t: float) -> None:
+        """The row of the time t [s] now, outside the loop (the start time; where an FMU ended the simulation
+        between two points), the recorded outputs of other types read first (RunError naming the instance)."""
+        rowd, irow, nd = self.row.row, self.row.irow, self.row.n_double
+        for x in self.getters:
+            s = x.get(x.vrs, x.n, x.buf, x.nv)
+            if s:
+                raise x.fail("get outputs (recorded)", s, t)
+            for e, slot in x.slots:
+                if slot < nd:
+                    rowd[slot] = x.buf[e]
+                else:
+                    irow[slot - nd] = x.buf[e]
+        rowd[0] = t
+        assert self.rows is not None
+        self.rows.chunk.append(bytes(self.row.buf))
 
     def boundary(self, k: int) -> int | None:
         return k + self.block - (k % self.block)
 
     def stepped(self, ex: Observable, k: int) -> None:
+        assert self.rows is not None
         if len(self.rows) >= FLUSH_ROWS or k == ex.clock.n_steps:
             self.rows.flush()
 
     def finished(self, ex: Observable) -> None:
-        if len(self.rows):
+        if self.rows is not None and len(self.rows):
             self.rows.flush()
 
     def close(self) -> None:
-        self.file.close()
+        if self.file is not None:
+            self.file.close()
 
 
 class ProgressBar(Observer):
-    """The progress bar on a terminal: simulated seconds done of the run's, the rate, and the FMUs' fixed
-    internal steps over the run where they declare them."""
+    """The progress bar on a terminal (:func:`progress_bar`: ``enabled`` None, on a terminal for long runs):
+    simulated seconds done of the run's, the rate, and the FMUs' fixed internal steps over the run where
+    they declare them (``internal``).  Shown from the start of the run."""
 
-    def __init__(self, bar: Any) -> None:
-        self.bar = bar
+    def __init__(self, enabled: bool | None, clock: Clock, internal: int = 0) -> None:
+        self.enabled, self.clock, self.internal = enabled, clock, internal
+        self.bar: Any = None
+
+    def started(self, ex: Observable) -> None:
+        self.bar = progress_bar(self.enabled, self.clock.n_steps, self.clock.step, self.internal)
 
     def stepped(self, ex: Observable, k: int) -> None:
-        self.bar.update(k * ex.clock.step - self.bar.n)
+        if self.bar is not None:
+            self.bar.update(k * self.clock.step - self.bar.n)
 
     def finished(self, ex: Observable) -> None:
-        self.bar.close()   # (tqdm's close may be called again)
+        if self.bar is not None:
+            self.bar.close()   # (tqdm's close may be called again)
 
 
 def progress_bar(enabled: bool | None, steps: int, h: float, internal: int = 0) -> Any:

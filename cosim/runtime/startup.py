@@ -21,9 +21,10 @@ from ..instances.model_exchange import model_exchange
 from ..messages.errors import CosimError, FmuLoadError
 from ..model.archive import safe_extract
 from ..model.binary import load_failure
-from ..plan.resolution import InstancePlan, Plan, RecordPlan
+from ..plan.records import InstancePlan, Plan
 from ..plan.wiring import RowLayout, Wiring, discrete_copier, is_f64, is_real, table_feeder
-from ..stepping.algorithm import InstanceIO, RecordedGetter
+from ..stepping.algorithm import InstanceIO
+from .observers import RecordedGetter
 
 
 def load_instances(plan: Plan, work: Path, logs: Path) -> dict[str, FmuInstance]:
@@ -83,8 +84,8 @@ def set_up(plan: Plan, instances: dict[str, FmuInstance]) -> None:
 
 def instance_io(plan: Plan, name: str, inst: FmuInstance, layout: RowLayout, wiring: Wiring,
                 instances: dict[str, FmuInstance], timing: list[float] | None = None) -> InstanceIO:
-    """The algorithm's view of instance ``name``: its fast path, input and output arrays, copies, tables,
-    other connections and recorded outputs; ``timing``: accumulate the time inside its step calls there."""
+    """The algorithm's view of instance ``name``: its fast path, input and output arrays, copies, tables and
+    other connections; ``timing``: accumulate the time inside its step calls there."""
     vrs, nvals = wiring.vrs[name], len(wiring.values[name])
     out_vrs = [vr for vr, _ in layout.reals[name]]
     fast = inst.fast_path(vrs, nvals, out_vrs, sum(size for _, size in layout.reals[name]))
@@ -94,7 +95,6 @@ def instance_io(plan: Plan, name: str, inst: FmuInstance, layout: RowLayout, wir
     return InstanceIO(
         name, fast, in_vr=vr_array(vrs), n_in=ctypes.c_size_t(len(vrs)), out_vr=vr_array(out_vrs),
         out_val=layout.out_arr[name], n_out=ctypes.c_size_t(len(layout.reals[name])), copies=wiring.copies(name),
-        extras=recorded_getters(inst, [r for r in layout.extra if r.instance == name], layout),
         other=[discrete_copier(instances, c) for c in plan.connections if c.dst == name and not is_real(c)],
         feed=table_feeder(inst, wiring.tables.get(name),
                           [ip for ip in plan.inputs if ip.instance == name and not is_f64(ip.var)]),
@@ -103,20 +103,24 @@ def instance_io(plan: Plan, name: str, inst: FmuInstance, layout: RowLayout, wir
         directional_derivative=inst.directional_derivative, decimation=plan.instances[name].decimation)
 
 
-def recorded_getters(inst: FmuInstance, recs: list[RecordPlan], lay: RowLayout) -> list[RecordedGetter]:
-    """One getter per FMI type for an instance's recorded outputs that are not Float64."""
+def recorded_getters(plan: Plan, instances: dict[str, FmuInstance], lay: RowLayout) -> list[RecordedGetter]:
+    """For the recording, in the plan's order: one getter per instance and FMI type of its recorded outputs
+    that are not Float64 (the Float64 ones are in the row buffer already)."""
     out = []
-    for t in sorted({r.var.fmi_type for r in recs}):
-        mine = [r for r in recs if r.var.fmi_type == t]
-        vars_ = list({r.var.vr: r.var for r in mine}.values())
-        start = {}
-        i = 0
-        for v in vars_:
-            start[v.vr] = i
-            i += v.size
-        get, ctype = inst.accessor(t, "Get")
-        out.append(RecordedGetter(get, vr_array([v.vr for v in vars_]), ctypes.c_size_t(len(vars_)), (ctype * i)(),
-                                  ctypes.c_size_t(i), [(start[r.var.vr] + r.elem, lay.slot(r)) for r in mine]))
+    for name in plan.order:
+        inst, recs = instances[name], [r for r in lay.extra if r.instance == name]
+        for t in sorted({r.var.fmi_type for r in recs}):
+            mine = [r for r in recs if r.var.fmi_type == t]
+            vars_ = list({r.var.vr: r.var for r in mine}.values())
+            start = {}
+            i = 0
+            for v in vars_:
+                start[v.vr] = i
+                i += v.size
+            get, ctype = inst.accessor(t, "Get")
+            out.append(RecordedGetter(name, get, vr_array([v.vr for v in vars_]), ctypes.c_size_t(len(vars_)),
+                                      (ctype * i)(), ctypes.c_size_t(i),
+                                      [(start[r.var.vr] + r.elem, lay.slot(r)) for r in mine], inst.fail_status))
     return out
 
 
@@ -124,7 +128,7 @@ def exchange_initial(ios: list[InstanceIO], instances: dict[str, FmuInstance], w
                      t0: float, check_inputs: bool) -> None:
     """In initialisation mode: outputs to inputs in the plan's order, pass after pass, until no input
     changes (a chain of N instances settles in at most N passes, whatever the order)."""
-    read_outputs(ios, instances, layout, t0)
+    read_outputs(ios, instances, t0)
     last: list[float] | None = None
     for _ in range(len(ios) + 1):
         values: list[float] = []
@@ -148,19 +152,11 @@ def exchange_initial(ios: list[InstanceIO], instances: dict[str, FmuInstance], w
         last = values
 
 
-def read_outputs(ios: list[InstanceIO], instances: dict[str, FmuInstance], layout: RowLayout | None,
-                 t: float) -> None:
-    """Every instance's Float64 outputs into the row, and (with ``layout``) its recorded other outputs."""
+def read_outputs(ios: list[InstanceIO], instances: dict[str, FmuInstance], t: float) -> None:
+    """Every instance's Float64 outputs into the row."""
     for io in ios:
-        inst = instances[io.name]
         if io.n_out.value:
-            check(inst, "get outputs", io.get_outputs(), t)
-        if layout is None:
-            continue
-        for x in io.extras:
-            check(inst, "get outputs (recorded)", x.get(x.vrs, x.n, x.buf, x.nv), t)
-            for e, slot in x.slots:
-                layout.write(slot, x.buf[e])
+            check(instances[io.name], "get outputs", io.get_outputs(), t)
 
 
 def check(inst: FmuInstance, what: str, status: int, t: float) -> None:

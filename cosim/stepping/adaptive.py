@@ -32,7 +32,7 @@ from typing import Any
 
 from ..instances.failure import Call, Failure
 from ..messages.errors import RunError
-from .algorithm import Algorithm, Clock, InstanceIO, Row
+from .algorithm import Algorithm, Clock, InstanceIO, Row, StepDone
 from .iterated import IteratedStep
 from .settings import AdaptiveSpec, IterationSpec
 from .stepper import Stepper
@@ -63,11 +63,11 @@ class Adaptive(Algorithm):
             it.initialize(ios, t0, check_inputs)
             self.initial_iterations = it.initial_iterations
 
-    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, chunk: list[bytes],
+    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,
               check_inputs: bool = True) -> None:
         self.clock, self.layout = clock, layout
         self.spec = self.spec0.resolved(clock.step)
-        self.stepper = Stepper(ios, clock, layout, chunk, check_inputs)
+        self.stepper = Stepper(ios, clock, layout, done, check_inputs)
         self.stepper.allow_rollback()
         if self.iterates:
             self.iterated = IteratedStep(self.stepper, self.iteration)
@@ -114,7 +114,7 @@ class Adaptive(Algorithm):
     def advance(self, k0: int, k1: int) -> Failure | None:
         c = self.clock
         for k in range(k0, k1):
-            fail = self.interval(k, c.time(k), c.time(k + 1)) or self.stepper.record(k)
+            fail = self.interval(k, c.time(k), c.time(k + 1)) or self.stepper.stepped(k)
             if fail is not None:
                 return fail
         return None

@@ -3,22 +3,23 @@
 An algorithm is an object behind :class:`Algorithm`.  Its contract, for an implementation:
 
 1. :meth:`~Algorithm.setup` is called once, after initialisation, with each instance's
-   :class:`InstanceIO` in the plan's order, the :class:`Clock`, the row buffer's layout
-   (:class:`Row`: ``buf``, its doubles ``row`` and integers ``irow``, ``n_double``) and the list
-   the recorded rows go to.  Before it, every instance is initialised and every output is in the row.
+   :class:`InstanceIO` in the plan's order, the :class:`Clock`, the row buffer (:class:`Row`: ``buf``,
+   its doubles ``row`` and integers ``irow``, ``n_double``: where the outputs are exchanged) and the
+   run's :data:`StepDone`.  Before it, every instance is initialised and every output is in the row.
 2. :meth:`~Algorithm.advance` takes the steps ``k0 .. k1 - 1`` (t_k = start + k h, always computed so,
    never accumulated) and returns None, or the :class:`~.failure.Failure` at which it stopped.  After a
-   step k it leaves: every instance advanced to t_{k+1}; each Float64 output read into its slot of the
-   row; ``row[0] = t_{k+1}`` and the row's bytes appended to the rows when the step is recorded (every
-   ``decimation``-th step, and the last); a failure that came after the step to t_{k+1} (a get) reported
-   at step k + 1 (:attr:`.failure.Call.after_step`).
+   step k it leaves every instance advanced to t_{k+1} and each Float64 output read into its slot of the
+   row, then calls ``done(k + 1, ended)`` (the run's observers of every step: the recording takes the
+   row there when that point is recorded) and stops at the Failure it returns; a failure that came after
+   the step to t_{k+1} (a get) is reported at step k + 1 (:attr:`.failure.Call.after_step`).  An
+   algorithm does not record: what is recorded, and when, is the recorder's.
 3. Each Real input is set, before the step that uses it, to ``src[idx] * factor + offset`` over the
    instance's copies (``InstanceIO.copies``) as they are when :meth:`~Algorithm.advance` is called; the
    tabulated inputs of step k (``feed(k)``) and the other connections (``other``) are put in place with
    them; with ``check_inputs`` a non-finite value is a failure (``Call.NON_FINITE_INPUT``) before it is set.
 4. :meth:`~Algorithm.inputs_changed` is called whenever the copies of some instance changed between
    two segments (events, the script): the algorithm takes the new ones from then on.
-5. An instance whose fast path sets ``terminated`` in a step ends the segment after that step is recorded
+5. An instance whose fast path sets ``terminated`` in a step ends the segment after ``done(k + 1, True)``
    (``Call.TERMINATED``, the FMU's last successful time as the value).
 6. An algorithm makes no FMI call but through the instances' fast paths, accessors and closures given
    in the InstanceIO, so that it works on every implementation of the instance interface.
@@ -51,6 +52,12 @@ class Row(Protocol):
     row: Doubles
     irow: ctypes.Array[ctypes.c_int64]
     n_double: int
+
+
+#: What an algorithm calls after each step it took, with the point k reached (t_k) and whether an FMU ended
+#: the simulation in that step: None, or the Failure that ends the segment there (a recorded value that
+#: could not be read).  The execution gives it: the recording's ``take`` (``runtime.observers.Recorder``).
+StepDone = Callable[[int, bool], "Failure | None"]
 
 
 class Copy(NamedTuple):
@@ -102,19 +109,6 @@ class Clock:
 
 
 @dataclass
-class RecordedGetter:
-    """The recorded outputs of one instance of one FMI type other than Float64: ``get(vrs, n, buf, nv)``
-    reads them into ``buf``; ``slots`` maps an index in ``buf`` to the row's slot."""
-
-    get: Callable[[Any, Any, Any, Any], int]
-    vrs: Refs
-    n: ctypes.c_size_t                       # value references
-    buf: ctypes.Array[Any]                   # of the type's ctypes element
-    nv: ctypes.c_size_t                      # values
-    slots: list[tuple[int, int]]
-
-
-@dataclass
 class InstanceIO:
     """What an algorithm does with one instance each step."""
 
@@ -126,7 +120,6 @@ class InstanceIO:
     out_val: Doubles                         # a view into the row buffer
     n_out: ctypes.c_size_t
     copies: list[Copy] = field(default_factory=list)
-    extras: list[RecordedGetter] = field(default_factory=list)
     other: list[Callable[[], int]] = field(default_factory=list)  # connections other than Float64 -> Float64
     feed: Callable[[int], int] | None = None       # tabulated inputs of step k (wiring.table_feeder)
     # the instance's state and input derivatives, for the algorithms that roll steps back and iterate
@@ -162,7 +155,7 @@ class Algorithm(ABC):
     name = ""   # the table's name of it (stepping.table.make sets it)
 
     @abstractmethod
-    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, chunk: list[bytes],
+    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,
               check_inputs: bool = True) -> None: ...
 
     @abstractmethod

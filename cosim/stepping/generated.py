@@ -17,16 +17,16 @@ from abc import abstractmethod
 from typing import Any, Callable
 
 from ..instances.failure import Call, Failure
-from .algorithm import Algorithm, Clock, InstanceIO, Row
+from .algorithm import Algorithm, Clock, InstanceIO, Row, StepDone
 
 
 class GeneratedLoop(Algorithm):
     """A fixed-step algorithm whose loop is generated (see the module's docstring); a subclass says the
     order of work in a step in :meth:`body`."""
 
-    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, chunk: list[bytes],
+    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,
               check_inputs: bool = True) -> None:
-        self.ios, self.clock, self.layout, self.chunk, self.check_inputs = ios, clock, layout, chunk, check_inputs
+        self.ios, self.clock, self.layout, self.done, self.check_inputs = ios, clock, layout, done, check_inputs
         self.loop: Callable[[int, int], Failure | None] | None = None
 
     def inputs_changed(self) -> None:
@@ -39,7 +39,7 @@ class GeneratedLoop(Algorithm):
 
     def compile(self) -> Callable[[int, int], Failure | None]:
         """The loop for the instances' copies as they are now."""
-        return compile_loop(self.ios, self.body, self.clock, self.layout, self.chunk, self.check_inputs)
+        return compile_loop(self.ios, self.body, self.clock, self.done, self.check_inputs)
 
     @abstractmethod
     def body(self, s: "LoopSource", ios: list[InstanceIO], ind: str) -> None:
@@ -126,38 +126,24 @@ class LoopSource:
             self.w(f"{ind}s = getr_{i}(c_{i}, outvr_{i}, nout_{i}, out_{i}{self.args('ga', i, io.fast.get_tail)})")
             self.w(f"{ind}if s: return Failure(k + 1, name_{i}, Call.GET_REAL, s)")
 
-    def record(self, ios: list[InstanceIO], dec: int, n_double: int, short: bool = False) -> None:
-        """The row of t_{k+1}, when the step is recorded (``short``: the last step is short, its row at the
-        stop time); then the end of a simulation an FMU ended."""
-        ends = any(io.fast.terminated is not None for io in ios)
-        if dec > 1:
-            self.w(f"        if (k + 1) % dec == 0 or k + 1 == n_steps{' or ended is not None' if ends else ''}:")
-        else:
-            self.w("        if True:")
-        self.w("            row[0] = " + ("t_stop if k == k_last else t0 + (k + 1) * h" if short else "t0 + (k + 1) * h"))
-        for i, io in enumerate(ios):
-            for j, x in enumerate(io.extras):
-                names = [self.bind(f"x{w}_{i}_{j}", v) for w, v in zip("gvnbc", (x.get, x.vrs, x.n, x.buf, x.nv))]
-                self.w(f"            s = {names[0]}({', '.join(names[1:])})")
-                self.w(f"            if s: return Failure(k + 1, name_{i}, Call.GET_RECORDED, s)")
-                for e, slot in x.slots:
-                    target = f"row[{self.bind(f'xs_{i}_{j}_{e}', slot)}]" if slot < n_double else \
-                        f"irow[{self.bind(f'xs_{i}_{j}_{e}', slot - n_double)}]"
-                    self.w(f"            {target} = {names[3]}[{self.bind(f'xe_{i}_{j}_{e}', e)}]")
-        self.w("            append(bytes(buf))")
-        if ends:  # an FMU ended the simulation in this step: its row is recorded, then stop
-            self.w("        if ended is not None: return Failure(k + 1, ended[0], Call.TERMINATED, ended[1])")
+    def done(self, ios: list[InstanceIO]) -> None:
+        """The run told that t_{k+1} is reached (the recording takes its row there); then the end of a
+        simulation an FMU ended in the step."""
+        if not any(io.fast.terminated is not None for io in ios):
+            self.w("        s = done(k + 1, False)")
+            self.w("        if s is not None: return s")
+            return
+        self.w("        s = done(k + 1, ended is not None)")
+        self.w("        if s is not None: return s")
+        self.w("        if ended is not None: return Failure(k + 1, ended[0], Call.TERMINATED, ended[1])")
 
 
 def compile_loop(ios: list[InstanceIO], body: Callable[[LoopSource, list[InstanceIO], str], None], clock: Clock,
-                 layout: Row, chunk: list[bytes], check_inputs: bool = True
-                 ) -> Callable[[int, int], Failure | None]:
+                 done: StepDone, check_inputs: bool = True) -> Callable[[int, int], Failure | None]:
     """Generate and compile the loop ``loop(k0, k1)`` whose step is what ``body`` writes."""
     s = LoopSource(check_inputs)
-    s.env.update({"row": layout.row, "irow": layout.irow, "buf": layout.buf, "append": chunk.append,
-                  "bytes": bytes, "T": ctypes.c_double(0.0), "Failure": Failure, "Call": Call,
-                  "H": ctypes.c_double(clock.step), "t0": float(clock.start), "h": float(clock.step),
-                  "dec": int(clock.decimation), "n_steps": int(clock.n_steps)})
+    s.env.update({"done": done, "T": ctypes.c_double(0.0), "Failure": Failure, "Call": Call,
+                  "H": ctypes.c_double(clock.step), "t0": float(clock.start), "h": float(clock.step)})
     for i, io in enumerate(ios):
         f = io.fast
         s.env.update({f"name_{i}": io.name, f"c_{i}": f.c, f"setr_{i}": f.set_real, f"dostep_{i}": f.do_step,
@@ -168,9 +154,8 @@ def compile_loop(ios: list[InstanceIO], body: Callable[[LoopSource, list[Instanc
     body(s, ios, "        ")
     short = clock.stop is not None
     if short:   # the last step is short (only then is this compared at every step)
-        s.env.update({"k_last": clock.n_steps - 1, "h_last": float(clock.length(clock.n_steps - 1)),
-                      "t_stop": float(clock.time(clock.n_steps))})
-    s.record(ios, clock.decimation, layout.n_double, short)
+        s.env.update({"k_last": clock.n_steps - 1, "h_last": float(clock.length(clock.n_steps - 1))})
+    s.done(ios)
     step_lines, s.lines = s.lines, head
     # every bound value becomes a keyword default: a fast local inside the loop
     s.w(f"def loop(k0, k1, *, {', '.join(f'{n}={n}' for n in s.env)}):")

@@ -37,7 +37,7 @@ import numpy as np
 from ..instances.failure import Call, Failure
 from ..messages.errors import RunError
 from ..messages.words import count
-from .algorithm import Clock, InstanceIO, Row
+from .algorithm import Clock, InstanceIO, Row, StepDone
 from .settings import IterationSpec
 from .stepper import Stepper, SteppedAlgorithm, components, feeders, is_loop
 
@@ -368,14 +368,14 @@ class Iterated(SteppedAlgorithm):
         self.initial_iterations = 0
 
     def initialize(self, ios: list[InstanceIO], t0: float, check_inputs: bool = True) -> None:
-        st = Stepper(ios, Clock(t0, 1.0, 0), cast(Row, _NoLayout()), [], check_inputs)
+        st = Stepper(ios, Clock(t0, 1.0, 0), cast(Row, _NoLayout()), lambda k, ended: None, check_inputs)
         it = IteratedStep(st, self.spec)
         it.initialize(t0)
         self.initial_iterations = it.initial_iterations
 
-    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, chunk: list[bytes],
+    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,
               check_inputs: bool = True) -> None:
-        super().setup(ios, clock, layout, chunk, check_inputs)
+        super().setup(ios, clock, layout, done, check_inputs)
         self.step = IteratedStep(self.stepper, self.spec)
 
     def inputs_changed(self) -> None:

@@ -29,7 +29,7 @@ import time
 from typing import Any
 
 from ..instances.failure import Failure
-from .algorithm import Clock, InstanceIO, Row
+from .algorithm import Clock, InstanceIO, Row, StepDone
 from .stepper import SteppedAlgorithm
 
 
@@ -42,9 +42,9 @@ class MultiRate(SteppedAlgorithm):
         self.jacobi = jacobi
         self.steps: list[int] = []
 
-    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, chunk: list[bytes],
+    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,
               check_inputs: bool = True) -> None:
-        super().setup(ios, clock, layout, chunk, check_inputs)
+        super().setup(ios, clock, layout, done, check_inputs)
         self.dec = [io.decimation for io in ios]
         self.steps = [0] * len(ios)
         self.spent = [0.0] * len(ios)      # [s] wall time in each instance's steps

@@ -13,7 +13,7 @@ import time
 from typing import Any
 
 from ..instances.failure import Call, Failure
-from .algorithm import Clock, InstanceIO, Row
+from .algorithm import Clock, InstanceIO, Row, StepDone
 from .stepper import SteppedAlgorithm
 
 
@@ -26,9 +26,9 @@ class ParallelJacobi(SteppedAlgorithm):
             raise ValueError(f"workers: {workers}: must be at least 1")
         self.workers = workers
 
-    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, chunk: list[bytes],
+    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,
               check_inputs: bool = True) -> None:
-        super().setup(ios, clock, layout, chunk, check_inputs)
+        super().setup(ios, clock, layout, done, check_inputs)
         self.split = [i for i, io in enumerate(ios) if io.fast.start_step is not None]
         self.serial = [i for i, io in enumerate(ios) if io.fast.start_step is None]
         self.spent = [0.0] * len(ios)   # [s] wall time from each step's start to its end (overlapping)

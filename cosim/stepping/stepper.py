@@ -16,7 +16,7 @@ from typing import Any
 
 from ..instances.failure import Call, Failure
 from ..messages.errors import RunError
-from .algorithm import Algorithm, Clock, InstanceIO, Row
+from .algorithm import Algorithm, Clock, InstanceIO, Row, StepDone
 from .graph import strongly_connected
 
 
@@ -47,9 +47,9 @@ def is_loop(comp: list[int], fed_by: list[set[int]]) -> bool:
 class Stepper:
     """Plain-Python steps over the instances (see the module's docstring)."""
 
-    def __init__(self, ios: list[InstanceIO], clock: Clock, layout: Row, chunk: list[bytes],
+    def __init__(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,
                  check_inputs: bool = True) -> None:
-        self.ios, self.clock, self.layout, self.chunk, self.check_inputs = ios, clock, layout, chunk, check_inputs
+        self.ios, self.clock, self.layout, self.done, self.check_inputs = ios, clock, layout, done, check_inputs
         self.T, self.H = ctypes.c_double(0.0), ctypes.c_double(0.0)
         self.n_do_steps = 0
 
@@ -141,28 +141,18 @@ class Stepper:
                 return fail
         return None
 
-    # ------------------------------------------------------------------ the row
-    def record(self, k: int) -> Failure | None:
-        """The row of t_{k+1} when step k is recorded (every ``decimation``-th, the last, or when an FMU
-        ended the simulation), as the generated loop records it; then the end of a simulation."""
-        clock, lay = self.clock, self.layout
+    # ------------------------------------------------------------------ the point reached
+    def stepped(self, k: int) -> Failure | None:
+        """Step k done: the run told that t_{k+1} is reached (the recording takes its row there), as the
+        generated loop tells it; then the end of a simulation an FMU ended."""
         ended = self.ended()
-        if (k + 1) % clock.decimation == 0 or k + 1 == clock.n_steps or ended is not None:
-            lay.row[0] = clock.time(k + 1)
-            for io in self.ios:
-                for x in io.extras:
-                    s = x.get(x.vrs, x.n, x.buf, x.nv)
-                    if s:
-                        return Failure(k + 1, io.name, Call.GET_RECORDED, s)
-                    for e, slot in x.slots:
-                        if slot < lay.n_double:
-                            lay.row[slot] = x.buf[e]
-                        else:
-                            lay.irow[slot - lay.n_double] = x.buf[e]
-            self.chunk.append(bytes(lay.buf))
+        fail = self.done(k + 1, ended is not None)
+        if fail is not None:
+            return fail
         if ended is not None:
             last = ended.fast.last_time
-            return Failure(k + 1, ended.name, Call.TERMINATED, last.value if last is not None else clock.time(k + 1))
+            return Failure(k + 1, ended.name, Call.TERMINATED,
+                           last.value if last is not None else self.clock.time(k + 1))
         return None
 
     # ------------------------------------------------------------------ rollback
@@ -204,10 +194,10 @@ class SteppedAlgorithm(Algorithm):
     instances at their own rates, instances stepped at once): step k, then its row; a subclass gives the
     step (:meth:`take`) and whatever it keeps beside the stepper (:meth:`setup`, calling this one)."""
 
-    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, chunk: list[bytes],
+    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,
               check_inputs: bool = True) -> None:
         self.clock = clock
-        self.stepper = Stepper(ios, clock, layout, chunk, check_inputs)
+        self.stepper = Stepper(ios, clock, layout, done, check_inputs)
 
     def inputs_changed(self) -> None:
         """Nothing to redo where every step reads the copies as they are."""
@@ -215,7 +205,7 @@ class SteppedAlgorithm(Algorithm):
     def advance(self, k0: int, k1: int) -> Failure | None:
         c = self.clock
         for k in range(k0, k1):
-            fail = self.take(k, c.time(k), c.length(k)) or self.stepper.record(k)
+            fail = self.take(k, c.time(k), c.length(k)) or self.stepper.stepped(k)
             if fail is not None:
                 return fail
         return None
