@@ -77,7 +77,7 @@ def test_every_bug_of_the_core_compiles():
 
 def test_the_tests_of_a_module_are_found_by_its_imports():
     tests = bug_kinds.tests_of("cosim/model/units.py")
-    assert "tests/test_units.py" in tests and "tests/test_docs.py" not in tests
+    assert "tests/test_model_units.py" in tests and "tests/test_docs.py" not in tests
 
 
 def test_every_bug_has_a_name_of_its_own():

@@ -57,6 +57,13 @@ def test_every_folder_has_a_face_and_at_most_twelve_modules():
             assert getattr(face, name) is not None, (folder.name, name)
 
 
+def test_every_folder_has_tests_named_after_it():
+    """The tests of a concept are found from its folder's name: tests/test_<folder>_*.py."""
+    tests = ROOT / "tests"
+    for folder in folders():
+        assert sorted(tests.glob(f"test_{folder.name}_*.py")), folder.name
+
+
 def test_the_face_of_the_master_exports_what_it_names():
     from wmr_cosim import cosim
 

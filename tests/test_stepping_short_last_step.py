@@ -95,7 +95,7 @@ def test_g1_with_a_stop_off_the_grid_is_refused_naming_the_sensor(capsys):
 
 
 def test_a_third_party_fmu_declaring_a_fixed_step_is_refused_a_short_last_step(tmp_path, capsys):
-    from test_variable_step import _dahlquist_fixed_step
+    from test_stepping_variable_step import _dahlquist_fixed_step
     fixed = _dahlquist_fixed_step(tmp_path)
     assert main(["check", str(fixed), "--stop", "1.05"]) == 2
     assert "canHandleVariableCommunicationStepSize = false" in _one_line(capsys)

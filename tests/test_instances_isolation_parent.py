@@ -6,7 +6,7 @@ slot: y[0] = sum of the inputs, y[1] = t, y[2] = h, y[j] = j beyond.  It writes 
 its log file (the instance's log), as an FMU's log would show the calls.
 
 These tests run the master's code in the test process (what the real child does is tested end to end in
-tests/test_isolation.py)."""
+tests/test_instances_isolation.py)."""
 from __future__ import annotations
 
 import ctypes
