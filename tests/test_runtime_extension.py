@@ -147,3 +147,35 @@ def test_a_new_manipulator_acts_where_it_says():
     sim.event(time=0.1, variable=f"a.{IN}", action="override", value=0.5)
     timed = cosim.run(sim.check(), None)
     assert ours.status == "ok" and ours.final == timed.final and ours.final[f"b.{OUT}"] == 0.5
+
+
+class Prober(Observer, Manipulator):
+    """Notes what each kind of part is given, and what of the run it can reach."""
+
+    def __init__(self) -> None:
+        self.seen: dict[str, set[str]] = {}
+
+    def _note(self, kind: str, view) -> None:
+        self.seen[kind] = {n for n in ("clock", "time", "get", "reader", "set", "release", "stop", "access",
+                                       "instances", "plan", "algorithm", "add_observer", "close")
+                           if hasattr(view, n)}
+
+    def stepped(self, ex, k: int) -> None:
+        self._note("observer", ex)
+
+    def act(self, ex, k: int) -> bool:
+        self._note("manipulator", ex)
+        return False
+
+
+def test_observers_and_manipulators_see_narrow_views_of_the_run():
+    """An observer reads (the grid, the time, values); a manipulator reads and changes variables and may end
+    the run; neither reaches the execution's instances, plan, algorithm or its other parts."""
+    obs, man = Prober(), Prober()
+    with cosim.Execution(_chain().check()) as ex:
+        ex.add_observer(obs)
+        ex.add_manipulator(man)
+        ex.initialize()
+        ex.step(3)
+    assert obs.seen["observer"] == {"clock", "time", "get"}
+    assert man.seen["manipulator"] == {"clock", "time", "get", "reader", "set", "release", "stop"}

@@ -51,6 +51,7 @@ from .observers import Observer, Pacing, ProgressBar, Recorder, StepCallback
 from .pacing import Pacer
 from .startup import (exchange_initial, instance_io, load_instances, read_outputs, recorded_getters, recorded_types,
                       set_up)
+from .views import ManipulatedRun, ObservedRun
 
 __all__ = ["Execution", "RunResult", "run"]
 
@@ -113,6 +114,7 @@ class Execution:
         self._in_step = False
         self._started = False                      # initialize() was called
         self._ready = False                        # ... and the run can step
+        self._observed, self._manipulated = ObservedRun(self), ManipulatedRun(self)   # what the parts see
         layout = self._layout = RowLayout.of(plan)
         self._wiring = Wiring(plan, layout)
         actuator = self._actuator = Actuator(plan, self.instances, self._wiring)
@@ -199,9 +201,9 @@ class Execution:
         self.algorithm.setup(self.ios, self.clock, self._layout, self._recorder.take, self.check_inputs)
         self._ready = True
         for m in self.manipulators:
-            m.started(self)
+            m.started(self._manipulated)
         for o in self.observers:
-            o.started(self)
+            o.started(self._observed)
         if self.pacer is not None:
             self._pacing = Pacing(self.pacer)   # (its clock starts with the first step: see _advance)
         self._update_per_step()
@@ -209,18 +211,18 @@ class Execution:
     # ------------------------------------------------------------------ observers and manipulators
     def add_observer(self, obs: Observer) -> Observer:
         """Call ``obs`` from now on (after the observers added before it)."""
-        return self._add(self.observers, obs)
+        return self._add(self.observers, obs, self._observed)
 
     def add_manipulator(self, m: Manipulator) -> Manipulator:
         """Let ``m`` act from now on (after the scenario's events and the manipulators added before it)."""
-        return self._add(self.manipulators, m)
+        return self._add(self.manipulators, m, self._manipulated)
 
-    def _add(self, parts: list[Any], part: Any) -> Any:
+    def _add(self, parts: list[Any], part: Any, view: ObservedRun) -> Any:
         if self.result is not None:
             raise CosimError(self._ended_message())
         parts.append(part)
         if self._ready:
-            part.started(self)
+            part.started(view)
         self._update_per_step()
         return part
 
@@ -257,7 +259,7 @@ class Execution:
         interrupt = Interrupt()
         wall0 = _time.perf_counter()
         if self._pacing is not None and not self._pacing.running:
-            self._pacing.started(self)
+            self._pacing.started(self._observed)
         self._in_step = True
         try:
             self._segments(min(k_target, self.clock.n_steps), interrupt)
@@ -279,8 +281,8 @@ class Execution:
     def _segments(self, k_target: int, interrupt: Interrupt) -> None:
         k, n_steps = self.k_done, self.clock.n_steps
         while k < k_target and not self._stop_requested:
-            acted = [m.act(self, k) for m in self.manipulators]
-            if self._script.act(self, k) or any(acted):   # (the script's changes last: a manipulator may set)
+            acted = [m.act(self._manipulated, k) for m in self.manipulators]
+            if self._script.act(self._manipulated, k) or any(acted):   # (the script's changes last: a manipulator may set)
                 for io in self.ios:
                     io.copies = self._wiring.copies(io.name)
                 self.algorithm.inputs_changed()
@@ -315,11 +317,11 @@ class Execution:
         pacing last, skipped when the script has just stopped the run)."""
         for m in self.manipulators:
             if m.per_step:
-                m.stepped(self, k)
+                m.stepped(self._manipulated, k)
         for o in self.observers:
-            o.stepped(self, k)
+            o.stepped(self._observed, k)
         if self._pacing is not None and not self._stop_requested:
-            self._pacing.stepped(self, k)
+            self._pacing.stepped(self._observed, k)
 
     def _failed(self, f: Failure) -> None:
         """A segment stopped at step ``f.step``: an FMU that ended the simulation, or an error."""
@@ -457,7 +459,7 @@ class Execution:
         try:
             for o in self.observers:
                 try:
-                    o.finished(self)
+                    o.finished(self._observed)
                 except RunError as exc:
                     if exc.time is not None:
                         self.k_done = min(self.k_done, self._step_of(exc.time))

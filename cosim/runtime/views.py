@@ -1,9 +1,10 @@
 """What the observers and manipulators see of a running execution: narrow views, not the execution.
 
-An observer gets an :class:`Observable` (the communication grid, the current time, values by reference);
-a manipulator a :class:`Manipulable` (that, a reader of any variable for its conditions, and the changes:
-set, release, stop).  An observer changes nothing (a script's step callback acts through the Python API's
-run, which it holds).  :class:`.execution.Execution` is both.
+An observer gets an :class:`ObservedRun` (an :class:`Observable`: the communication grid, the current time,
+values by reference); a manipulator a :class:`ManipulatedRun` (a :class:`Manipulable`:
+that, a reader of any variable for its conditions, and the changes: set, release, stop).  An observer
+changes nothing (a script's step callback acts through the Python API's run, which it holds).  The views
+are small objects over the execution (which is both kinds), so a part reaches nothing else of it.
 """
 from __future__ import annotations
 
@@ -36,3 +37,42 @@ class Manipulable(Observable, Protocol):
     def release(self, ref: str) -> None: ...
 
     def stop(self, message: str | None = None) -> None: ...
+
+
+class ObservedRun:
+    """The read-only view of a run an observer is given (:class:`Observable`)."""
+
+    __slots__ = ("_run",)
+
+    def __init__(self, run: Manipulable) -> None:
+        self._run = run
+
+    @property
+    def clock(self) -> Clock:
+        return self._run.clock
+
+    @property
+    def time(self) -> float:
+        """The current communication point [s]."""
+        return self._run.time
+
+    def get(self, ref: str) -> Any:
+        return self._run.get(ref)
+
+
+class ManipulatedRun(ObservedRun):
+    """The view of a run a manipulator is given (:class:`Manipulable`)."""
+
+    __slots__ = ()
+
+    def reader(self, inst: str, var: Variable) -> Callable[[], Any]:
+        return self._run.reader(inst, var)
+
+    def set(self, ref: str, value: Any) -> None:
+        self._run.set(ref, value)
+
+    def release(self, ref: str) -> None:
+        self._run.release(ref)
+
+    def stop(self, message: str | None = None) -> None:
+        self._run.stop(message)
