@@ -87,11 +87,20 @@ class LoopSource:
         """The extra arguments of a call, bound as locals: ``", a0_1, a1_1"``."""
         return "".join(f", {self.bind(f'{prefix}{j}_{i}', v)}" for j, v in enumerate(tail))
 
-    def inputs(self, i: int, io: InstanceIO, ind: str) -> None:
-        """Step k's inputs of instance i: tables, copies (checked), the set, the other connections."""
+    def instance(self, i: int, io: InstanceIO) -> None:
+        """Instance i's calls and arrays bound as locals (``name_i``, ``c_i``, ``setr_i``, ...)."""
+        f = io.fast
+        self.env.update({f"name_{i}": io.name, f"c_{i}": f.c, f"setr_{i}": f.set_real, f"dostep_{i}": f.do_step,
+                         f"getr_{i}": f.get_real, f"invr_{i}": io.in_vr, f"in_{i}": f.in_val, f"nin_{i}": io.n_in,
+                         f"outvr_{i}": io.out_vr, f"out_{i}": io.out_val, f"nout_{i}": io.n_out})
+
+    def inputs(self, i: int, io: InstanceIO, ind: str, when: str = "", given: bool = False) -> None:
+        """Step k's inputs of instance i: tables, copies (checked), the set, the other connections.
+        ``when``: what a failure carries after the status (", t": the time, off the grid); ``given``: a
+        dict ``given`` (position -> value) replaces copies' values where it has one."""
         if io.feed is not None:
             self.w(f"{ind}s = {self.bind(f'feed_{i}', io.feed)}(k)")
-            self.w(f"{ind}if s: return Failure(k, name_{i}, Call.TABLE_INPUTS, s)")
+            self.w(f"{ind}if s: return Failure(k, name_{i}, Call.TABLE_INPUTS, s{when})")
         names = []
         for j, (pos, arr, idx, f, o) in enumerate(io.copies):
             a, x = self.bind(f"src_{i}_{j}", arr), self.bind(f"idx_{i}_{j}", idx)
@@ -100,31 +109,53 @@ class LoopSource:
             else:
                 self.w(f"{ind}v{j} = {a}[{x}] * {self.bind(f'f_{i}_{j}', f)} + {self.bind(f'o_{i}_{j}', o)}")
             names.append(f"v{j}")
+        if names and given:
+            self.w(f"{ind}if given is not None:")
+            for j, (pos, *_rest) in enumerate(io.copies):
+                self.w(f"{ind}    v{j} = given.get({self.bind(f'pos_{i}_{j}', pos)}, v{j})")
         if names and self.check_inputs:  # one test for all: a sum is non-finite if any term is (or it overflows)
             self.w(f"{ind}x = {' + '.join(names)}")
-            self.w(f"{ind}if x - x != 0.0: return Failure(k, name_{i}, Call.NON_FINITE_INPUT, x)")
+            self.w(f"{ind}if x - x != 0.0: return Failure(k, name_{i}, Call.NON_FINITE_INPUT, x{when})")
         for j, (pos, *_rest) in enumerate(io.copies):
             self.w(f"{ind}in_{i}[{self.bind(f'pos_{i}_{j}', pos)}] = v{j}")
         if io.copies:
             self.w(f"{ind}s = setr_{i}(c_{i}, invr_{i}, nin_{i}, in_{i}{self.args('sa', i, io.fast.set_tail)})")
-            self.w(f"{ind}if s: return Failure(k, name_{i}, Call.SET_REAL, s)")
+            self.w(f"{ind}if s: return Failure(k, name_{i}, Call.SET_REAL, s{when})")
         for j, fn in enumerate(io.other):
             self.w(f"{ind}s = {self.bind(f'other_{i}_{j}', fn)}()")
-            self.w(f"{ind}if s: return Failure(k, name_{i}, Call.CONNECTION, s)")
+            self.w(f"{ind}if s: return Failure(k, name_{i}, Call.CONNECTION, s{when})")
 
-    def step(self, i: int, io: InstanceIO, ind: str) -> None:
-        """The step of instance i from t_k; an FMU that ended the simulation in it is noted."""
+    def step(self, i: int, io: InstanceIO, ind: str, when: str = "", note_end: bool = True) -> None:
+        """The step of instance i from ``Tv`` over ``H``; an FMU that ended the simulation in it is noted
+        (``note_end``: in ``ended``)."""
         self.w(f"{ind}s = dostep_{i}(c_{i}, Tv, H{self.args('da', i, io.fast.step_tail)})")
-        self.w(f"{ind}if s: return Failure(k, name_{i}, Call.DO_STEP, s)")
-        if io.fast.terminated is not None:
+        self.w(f"{ind}if s: return Failure(k, name_{i}, Call.DO_STEP, s{when})")
+        if note_end and io.fast.terminated is not None:
             term, last = self.bind(f"term_{i}", io.fast.terminated), self.bind(f"last_{i}", io.fast.last_time)
             self.w(f"{ind}if {term}.value: ended = (name_{i}, {last}.value)")
 
-    def outputs(self, i: int, io: InstanceIO, ind: str) -> None:
+    def outputs(self, i: int, io: InstanceIO, ind: str, when: str = "") -> None:
         """Instance i's Float64 outputs at t_{k+1} into the row."""
         if io.n_out.value:
             self.w(f"{ind}s = getr_{i}(c_{i}, outvr_{i}, nout_{i}, out_{i}{self.args('ga', i, io.fast.get_tail)})")
-            self.w(f"{ind}if s: return Failure(k + 1, name_{i}, Call.GET_REAL, s)")
+            self.w(f"{ind}if s: return Failure(k + 1, name_{i}, Call.GET_REAL, s{when})")
+
+    def function(self, head: str, body: list[str]) -> None:
+        """``def NAME(ARGS, *, <every bound value>=...)``: the bound values become keyword defaults, fast
+        locals inside it."""
+        self.w(f"def {head}, *, {', '.join(f'{n}={n}' for n in self.env)}):")
+        self.lines += body
+        self.w("    return None")
+
+    def compiled(self, *names: str) -> list[Callable[..., Any]]:
+        """The functions written, compiled (each keeps the whole source as ``source``)."""
+        src = "\n".join(self.lines)
+        env = dict(self.env)
+        exec(compile(src, "<cosim-loop>", "exec"), env)
+        out = [env[n] for n in names]
+        for fn in out:
+            fn.source = src   # (a function object takes attributes: the source, for reading and tests)
+        return out
 
     def done(self, ios: list[InstanceIO]) -> None:
         """The run told that t_{k+1} is reached (the recording takes its row there); then the end of a
@@ -145,31 +176,40 @@ def compile_loop(ios: list[InstanceIO], body: Callable[[LoopSource, list[Instanc
     s.env.update({"done": done, "T": ctypes.c_double(0.0), "Failure": Failure, "Call": Call,
                   "H": ctypes.c_double(clock.step), "t0": float(clock.start), "h": float(clock.step)})
     for i, io in enumerate(ios):
-        f = io.fast
-        s.env.update({f"name_{i}": io.name, f"c_{i}": f.c, f"setr_{i}": f.set_real, f"dostep_{i}": f.do_step,
-                      f"getr_{i}": f.get_real, f"invr_{i}": io.in_vr, f"in_{i}": f.in_val, f"nin_{i}": io.n_in,
-                      f"outvr_{i}": io.out_vr, f"out_{i}": io.out_val, f"nout_{i}": io.n_out})
-    head = s.lines
-    s.lines = []
+        s.instance(i, io)
     body(s, ios, "        ")
     short = clock.stop is not None
     if short:   # the last step is short (only then is this compared at every step)
         s.env.update({"k_last": clock.n_steps - 1, "h_last": float(clock.length(clock.n_steps - 1))})
     s.done(ios)
-    step_lines, s.lines = s.lines, head
-    # every bound value becomes a keyword default: a fast local inside the loop
-    s.w(f"def loop(k0, k1, *, {', '.join(f'{n}={n}' for n in s.env)}):")
-    s.w("    Tv = T")
-    s.w("    ended = None")
-    s.w("    for k in range(k0, k1):")
-    s.w("        Tv.value = t0 + k * h")
-    if short:
-        s.w("        H.value = h_last if k == k_last else h")
-    s.lines += step_lines
-    s.w("    return None")
-    src = "\n".join(s.lines)
-    env = dict(s.env)
-    exec(compile(src, "<cosim-loop>", "exec"), env)
-    loop = env["loop"]
-    loop.source = src   # (a function object takes attributes: the source, for reading and tests)
+    step_lines, s.lines = s.lines, []
+    s.function("loop(k0, k1", ["    Tv = T", "    ended = None", "    for k in range(k0, k1):",
+                               "        Tv.value = t0 + k * h"]
+               + (["        H.value = h_last if k == k_last else h"] if short else []) + step_lines)
+    loop, = s.compiled("loop")
     return loop
+
+
+def compile_instance(i: int, io: InstanceIO, T: ctypes.c_double, H: ctypes.c_double, check_inputs: bool = True
+                     ) -> tuple[Callable[..., Failure | None], Callable[..., Failure | None],
+                                Callable[..., Failure | None]]:
+    """One instance's part of a step, written as the generated loop writes it (:class:`LoopSource`: the one
+    definition of a step's work), as three functions for the algorithms that take steps one instance at a
+    time, at any time and step size: ``inputs(k, t, given=None)``, ``step(k, t, h)`` (through the shared
+    ``T``, ``H``) and ``outputs(k, t)``; a failure carries the time t [s] it came at."""
+    s = LoopSource(check_inputs)
+    s.env.update({"Failure": Failure, "Call": Call, "Tv": T, "H": H})
+    s.instance(i, io)
+    parts: list[tuple[str, list[str]]] = []
+    for head, write in (("inputs(k, t, given=None", lambda: s.inputs(i, io, "    ", ", t", given=True)),
+                        ("step(k, t, h", lambda: s.step(i, io, "    ", ", t", note_end=False)),
+                        ("outputs(k, t", lambda: s.outputs(i, io, "    ", ", t"))):
+        write()
+        parts.append((head, s.lines))
+        s.lines = []
+    for head, body in parts:
+        if head.startswith("step"):
+            body = ["    Tv.value = t", "    H.value = h"] + body
+        s.function(head, body)
+    inputs, step, outputs = s.compiled("inputs", "step", "outputs")
+    return inputs, step, outputs

@@ -1,7 +1,8 @@
-"""One macro step over the instances at any time and any step size, in plain Python: what the algorithms
-that iterate, roll back and change the step build on (the fixed-step ones generate their loop instead,
-cosim.stepping.algorithm).  The calls and the values are those of the generated loop (the same copies, the same
-order), so that a pass here gives the generated Gauss-Seidel or Jacobi step bit for bit.
+"""One macro step over the instances at any time and any step size: what the algorithms that iterate, roll
+back and change the step build on (the fixed-step ones generate their whole loop, cosim.stepping.generated).
+Each instance's part of a step (its inputs, its step, its outputs) is the generated loop's own code, one
+function each (``generated.compile_instance``: one definition of a step's work), so that a pass here gives
+the generated Gauss-Seidel or Jacobi step bit for bit.
 
 A :class:`Stepper` knows the instances (their :class:`~.algorithm.InstanceIO`), the row the outputs go to
 and the coupling structure of the copies: which instance's outputs feed which instance's inputs
@@ -12,11 +13,12 @@ from __future__ import annotations
 
 import ctypes
 from abc import abstractmethod
-from typing import Any
+from typing import Any, Callable
 
 from ..instances.failure import Call, Failure
 from ..messages.errors import RunError
 from .algorithm import Algorithm, Clock, InstanceIO, Row, StepDone
+from .generated import compile_instance
 from .graph import strongly_connected
 
 
@@ -52,57 +54,32 @@ class Stepper:
         self.ios, self.clock, self.layout, self.done, self.check_inputs = ios, clock, layout, done, check_inputs
         self.T, self.H = ctypes.c_double(0.0), ctypes.c_double(0.0)
         self.n_do_steps = 0
+        self._copies: list[Any] = [None] * len(ios)    # the copies each instance's functions were made for
+        self._fns: list[tuple[Callable[..., Failure | None], ...]] = [()] * len(ios)
 
     # ------------------------------------------------------------------ one instance
+    def _parts(self, i: int) -> tuple[Callable[..., Failure | None], ...]:
+        """Instance i's generated part of a step (:func:`.generated.compile_instance`), made again when its
+        copies changed (events, the script: the execution gives it a new list)."""
+        io = self.ios[i]
+        if self._copies[i] is not io.copies:
+            self._fns[i] = compile_instance(i, io, self.T, self.H, self.check_inputs)
+            self._copies[i] = io.copies
+        return self._fns[i]
+
     def set_inputs(self, i: int, k: int, t: float, given: dict[int, float] | None = None) -> Failure | None:
         """Instance i's inputs of step k (from t [s]): tables, copies (``given``: position -> value in
         place of a copy's), the set, the other connections."""
-        io = self.ios[i]
-        f = io.fast
-        if io.feed is not None:
-            s = io.feed(k)
-            if s:
-                return Failure(k, io.name, Call.TABLE_INPUTS, s, t)
-        iv = f.in_val
-        total = 0.0
-        for pos, src, slot, fa, of in io.copies:
-            v = src[slot] if fa == 1.0 and of == 0.0 else src[slot] * fa + of
-            if given is not None and pos in given:
-                v = given[pos]
-            total += v
-            iv[pos] = v
-        if io.copies:
-            if self.check_inputs and total - total != 0.0:
-                return Failure(k, io.name, Call.NON_FINITE_INPUT, total, t)
-            s = f.set_real(f.c, io.in_vr, io.n_in, iv, *f.set_tail)
-            if s:
-                return Failure(k, io.name, Call.SET_REAL, s, t)
-        for fn in io.other:
-            s = fn()
-            if s:
-                return Failure(k, io.name, Call.CONNECTION, s, t)
-        return None
+        return self._parts(i)[0](k, t, given)
 
     def do_step(self, i: int, k: int, t: float, h: float) -> Failure | None:
         """Instance i from t over h [s]."""
-        io = self.ios[i]
-        f = io.fast
-        self.T.value, self.H.value = t, h
         self.n_do_steps += 1
-        s = f.do_step(f.c, self.T, self.H, *f.step_tail)
-        if s:
-            return Failure(k, io.name, Call.DO_STEP, s, t)
-        return None
+        return self._parts(i)[1](k, t, h)
 
     def get_outputs(self, i: int, k: int, t: float) -> Failure | None:
         """Instance i's Float64 outputs at t [s] into the row (a failure counts as after step k)."""
-        io = self.ios[i]
-        if io.n_out.value:
-            f = io.fast
-            s = f.get_real(f.c, io.out_vr, io.n_out, io.out_val, *f.get_tail)
-            if s:
-                return Failure(k + 1, io.name, Call.GET_REAL, s, t)
-        return None
+        return self._parts(i)[2](k, t)
 
     def ended(self, members: list[int] | range | None = None) -> InstanceIO | None:
         """The first of these instances (all: None) that ended the simulation in its last step."""
@@ -190,7 +167,7 @@ class Stepper:
 
 
 class SteppedAlgorithm(Algorithm):
-    """A fixed-step algorithm whose steps a :class:`Stepper` takes in plain Python (the iterated coupling,
+    """A fixed-step algorithm whose steps a :class:`Stepper` takes instance by instance (the iterated coupling,
     instances at their own rates, instances stepped at once): step k, then its row; a subclass gives the
     step (:meth:`take`) and whatever it keeps beside the stepper (:meth:`setup`, calling this one)."""
 
