@@ -61,6 +61,24 @@ def test_stepping_at_once_gives_the_serial_rows_bit_for_bit(probes, tmp_path, n,
     assert all(0.0 < w < resn.wall_s for w in st["step_time_s"].values())
 
 
+def test_events_that_change_the_copies_reach_the_instances_stepped_one_by_one(probes, tmp_path):
+    """An override, then a bias, then the end of both on connected inputs change the copies mid-run: the
+    instances stepped one by one (their part of a step made again for the new copies) give the generated
+    Jacobi loop's rows bit for bit, and the events change them."""
+    doc = ring(probes["burn"], 2, 2, (True, False))
+    plain = {**doc, "experiment": {**doc["experiment"], "workers": 1}}
+    doc = {**doc, "events": [{"time": 0.02, "variable": "p1.u", "action": "override", "value": 2.5},
+                             {"time": 0.05, "variable": "p0.u", "action": "bias", "value": -0.75},
+                             {"time": 0.07, "variable": "p1.u", "action": "reset"}]}
+    serial_doc = {**doc, "experiment": {**doc["experiment"], "workers": 1}}
+    _, untouched = _run(plain, tmp_path / "u")
+    _, serial = _run(serial_doc, tmp_path / "s")
+    res, par = _run(doc, tmp_path / "p")
+    assert res.status == "ok" and par.tobytes() == serial.tobytes()
+    assert par["p1.y"][25] != untouched["p1.y"][25] and par["p0.y"][60] != untouched["p0.y"][60]
+    assert [e["action"] for e in res.events] == ["override", "bias", "reset"]
+
+
 def test_isolated_and_in_process_instances_mixed(probes, tmp_path):
     doc = ring(probes["burn"], 3, 2, (True, False, True))
     _, serial = _run({**doc, "experiment": {**doc["experiment"], "workers": 1}}, tmp_path / "s")
