@@ -12,7 +12,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from wmr_cosim import cluster, sweep, sweep_file
+from wmr_cosim import cluster, robot_measures, sweep, sweep_file
 from wmr_cosim.cosim.messages.errors import ScenarioError
 
 DATA = Path(__file__).parent / "data"
@@ -88,7 +88,7 @@ def test_a_point_that_changes_q_and_r_gets_gamma_star_with_its_own_weights(tmp_p
 
     point = {"id": 0, "params": {"controller.Q": 3.0, "controller.R": 0.2}}
     row = sweep.run_point(point, str(DATA / "short_protocol.toml"), None, None,
-                          sweep.fmu_paths(), str(tmp_path), keep_runs=True)
+                          robot_measures.fmu_paths(), str(tmp_path), keep_runs=True, measure=robot_measures.measure)
     assert row["status"] == "ok", row["reason"]
     runs = tmp_path / "runs" / "00000"
     frozen, foam = load_signals(runs / "frozen"), load_signals(runs / "foam")

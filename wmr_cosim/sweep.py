@@ -1,8 +1,9 @@
 """Sweeps and Monte Carlo studies on Dask: many full co-simulations, each point in a worker process.
 
-The sweep file and its points are sweep_file.py's, the cluster cluster.py's and the figures
-sweep_plots.py's; this module runs the points (:func:`run_point`, in a worker: the base's runs with the
-point's parameters, and the metrics of their controller) and the sweep (:func:`run_sweep`).
+The sweep file and its points are sweep_file.py's, the cluster cluster.py's, the figures sweep_plots.py's
+and what a point measures of our robot robot_measures.py's; this module runs the points (:func:`run_point`,
+in a worker: the base's runs with the point's parameters, then the measure it is given) and the sweep
+(:func:`run_sweep`).
 
 Every point runs the base's runs with its parameter values; the results are one row per point (the
 parameters, status, reason, metrics) in ``results.parquet`` and ``results.csv``, plots in ``figures/``.
@@ -14,7 +15,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 import shutil
 import sys
@@ -22,22 +22,28 @@ import tempfile
 import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from .cluster import Cluster
 from .cosim import CosimError, LimitOverrides
+from .robot_measures import fmu_paths, measure
 from .sweep_file import SweepSpec, draw_points, load_sweep
 from .sweep_plots import plot_sweep
+
+
+#: What a point measures of its runs: ``measure(row, results, folder)`` (robot_measures.measure for ours).
+Measure = Callable[[dict[str, Any], dict[str, Any], Path], None]
 
 
 # ---------------------------------------------------------------------- one point (in a worker)
 def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[str] | None,
               fmus: dict[str, str], out_dir: str, keep_runs: bool = False,
-              archive_limits: LimitOverrides | None = None) -> dict[str, Any]:
+              archive_limits: LimitOverrides | None = None, measure: Measure | None = None) -> dict[str, Any]:
     """Run one point (the base's runs with the point's parameters) and return its row: id, parameters,
-    status ('ok', 'diverged', 'failed'), reason and metrics.  Never raises: a failure is a row.
+    status ('ok', 'diverged', 'failed'), reason and what ``measure`` adds (``measure(row, results, folder)``:
+    the runs' metrics into the row; it may set the status and reason).  Never raises: a failure is a row.
     ``archive_limits``: the submitter's archive limits (a command line's options) over the scenario's own;
     they travel with the point, since a worker may be another process or another machine."""
     from .cosim import run_protocol
@@ -49,7 +55,8 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
         results = run_protocol(base, work, lambda name: Path(fmus[name]) if name in fmus else None,
                                variant=variant, overrides=point["params"], progress=False, only=runs,
                                limits=archive_limits)
-        _measure(row, results, work)
+        if measure is not None:
+            measure(row, results, work)
     except CosimError as exc:
         row["status"], row["reason"] = "failed", str(exc)
     except KeyError as exc:    # a failed run that did not record what the metrics need: keep its reason
@@ -64,90 +71,14 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
     return row
 
 
-def _measure(row: dict[str, Any], results: dict[str, Any], work: Path) -> None:
-    """The metrics of the point's runs (in ``work``) into ``row``, and its status and reason: those of the
-    first run that failed or diverged; then, with a frozen and a foam run, the disturbance analysis."""
-    from .analysis import disturbance_analysis
-
-    sigs = {}
-    for name, res in results.items():
-        if res.status != "ok" and row["status"] == "ok":   # the first failed run's message is the reason
-            row["status"], row["reason"] = "failed", f"{name}: {res.message}"
-            if not (work / name / "signals.npy").is_file():
-                continue
-        sigs[name] = _run_metrics(row, name, res, work / name)
-    if sigs.get("frozen") is not None and sigs.get("foam") is not None:
-        d = disturbance_analysis(sigs["frozen"], sigs["foam"], **_weights(work / "foam"))
-        for k in ("gamma_star", "gamma_true", "gain_incremental"):
-            row[k] = d[k] if d[k] is not None else math.nan
-        row["foam_rise1"], row["foam_rise2"] = [math.nan if r is None else r for r in d["foam_rise"]]
-        row["edge_peak_u"] = d["edge_peak_u"] if d["edge_peak_u"] is not None else math.nan
-
-
-def _run_metrics(row: dict[str, Any], name: str, res: Any, run_dir: Path) -> dict[str, Any]:
-    """The metrics of run ``name`` (recorded in ``run_dir``) into ``row`` as ``<name>.<metric>``; a run
-    that diverged makes the point diverged.  Returns the run's signals."""
-    from .analysis import divergence, load_signals, run_summary
-
-    sig = load_signals(run_dir)
-    s = run_summary(sig, _goal(run_dir), res.status)
-    for i in (0, 1):
-        row[f"{name}.rmse_e{i + 1}"] = s["rmse_e"][i] if s["rmse_e"] else math.nan
-        row[f"{name}.rmse_edot{i + 1}"] = s["rmse_edot"][i] if s["rmse_edot"] else math.nan
-        row[f"{name}.rmse_e_true{i + 1}"] = s["rmse_e_true"][i] if s.get("rmse_e_true") else math.nan
-        row[f"{name}.rmse_edot_true{i + 1}"] = s["rmse_edot_true"][i] if s.get("rmse_edot_true") else math.nan
-    fp = s.get("final_position") or [math.nan, math.nan]
-    row[f"{name}.final_x"], row[f"{name}.final_y"] = fp
-    row[f"{name}.t_goal"] = s["t_goal"] if s.get("t_goal") is not None else math.nan
-    row[f"{name}.goal_distance"] = s.get("goal_distance", math.nan)
-    row[f"{name}.diverged"] = bool(s["diverged"])
-    if s["diverged"] and row["status"] == "ok":
-        row["status"], row["reason"] = "diverged", f"{name}: {divergence(sig, res.status)}"
-    return sig
-
-
-def _controller_parameters(run_dir: Path) -> dict[str, Any] | None:
-    """The parameters a run's scenario set on its controller (its ``scenario.json``), None if unreadable."""
-    try:
-        return json.loads((run_dir / "scenario.json").read_text())["instances"]["controller"]["parameters"]
-    except (OSError, KeyError, ValueError, TypeError):
-        return None
-
-
-def _goal(run_dir: Path) -> tuple[float, float] | None:
-    p = _controller_parameters(run_dir)
-    try:
-        if p is None or p.get("task", "goal") == "line":
-            return None
-        return float(p["goal_x"]), float(p["goal_y"])
-    except (KeyError, ValueError, TypeError):
-        return None
-
-
-def _weights(run_dir: Path) -> dict[str, float]:
-    """Q and R of a run's controller, the weights of (53): the values its scenario set (``scenario.json``),
-    the controller's defaults (Table 1) for the others."""
-    from .components.controller import ControllerParams
-
-    defaults = ControllerParams()
-    w = {"Q": defaults.Q, "R": defaults.R}
-    p = _controller_parameters(run_dir) or {}
-    return {k: float(p.get(k, v)) for k, v in w.items()}
-
-
 # ---------------------------------------------------------------------- the sweep (in the parent)
-def fmu_paths() -> dict[str, str]:
-    """Our three FMUs, built if needed, as absolute paths (workers must see the same file system)."""
-    from .runner import resolve_model
-
-    return {m: str(resolve_model(m).resolve()) for m in ("WmrPlant", "WmrSensor", "WmrController")}
-
-
 def run_points(points: list[dict[str, Any]], base: str, variant: str | None, runs: list[str] | None,
                out: Path, cluster: Cluster, keep_runs: bool = False, progress: bool | None = None,
-               label: str = "sweep", archive_limits: LimitOverrides | None = None) -> list[dict[str, Any]]:
+               label: str = "sweep", archive_limits: LimitOverrides | None = None, *, fmus: dict[str, str],
+               measure: Measure | None) -> list[dict[str, Any]]:
     """Run the points not yet in ``out/points`` on the cluster; returns every point's row, by id.
-    ``archive_limits`` (a caller's, over each scenario's own) are submitted with every point."""
+    ``archive_limits`` (a caller's, over each scenario's own) are submitted with every point, as are
+    ``fmus`` (model name -> the FMU file every worker reads) and ``measure`` (see :func:`run_point`)."""
     from distributed import as_completed
 
     pts_dir = out / "points"
@@ -161,7 +92,6 @@ def run_points(points: list[dict[str, Any]], base: str, variant: str | None, run
             except json.JSONDecodeError:
                 f.unlink()  # a half-written point: run it again
     todo = [p for p in points if p["id"] not in rows]
-    fmus = fmu_paths()
     bar = None
     if progress is None:
         progress = sys.stderr.isatty()
@@ -171,7 +101,7 @@ def run_points(points: list[dict[str, Any]], base: str, variant: str | None, run
     failed = sum(1 for r in rows.values() if r["status"] != "ok")
     # a point may name its own base (a study over several tasks in one submission)
     futures = [cluster.client.submit(run_point, p, p.get("base", base), variant, runs, fmus, str(out), keep_runs,
-                                     archive_limits, key=f"{label}-{out.name}-{p['id']}-{_digest(p, archive_limits)}",
+                                     archive_limits, measure, key=f"{label}-{out.name}-{p['id']}-{_digest(p, archive_limits)}",
                                      pure=False) for p in todo]
     try:
         for fut in as_completed(futures):
@@ -235,7 +165,7 @@ def _run_sweep(spec: "SweepSpec", out: Path, workers: int | None, scheduler: str
     cl = cluster or Cluster(workers, scheduler, security, dashboard)
     try:
         rows = run_points(points, spec.base, spec.variant, spec.runs, out, cl, spec.keep_runs, progress,
-                          archive_limits=archive_limits)
+                          archive_limits=archive_limits, fmus=fmu_paths(), measure=measure)
     finally:
         if own:
             cl.close()

@@ -1,0 +1,89 @@
+"""What a point of a study measures of our robot's runs, for the sweeps, the robustness study and the
+gamma search (the generic sweep, sweep.py, runs the points and takes the measure it is given): the
+controller's metrics of each run (the tracking errors' RMSE, the final position, the time to the goal,
+divergence), with a frozen and a foam run the disturbance analysis (gamma*, (53), with the run's own Q and
+R); and the three FMUs the points run."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+
+def measure(row: dict[str, Any], results: dict[str, Any], work: Path) -> None:
+    """The metrics of the point's runs (in ``work``) into ``row``, and its status and reason: those of the
+    first run that failed or diverged; then, with a frozen and a foam run, the disturbance analysis."""
+    from .analysis import disturbance_analysis
+
+    sigs = {}
+    for name, res in results.items():
+        if res.status != "ok" and row["status"] == "ok":   # the first failed run's message is the reason
+            row["status"], row["reason"] = "failed", f"{name}: {res.message}"
+            if not (work / name / "signals.npy").is_file():
+                continue
+        sigs[name] = _run_metrics(row, name, res, work / name)
+    if sigs.get("frozen") is not None and sigs.get("foam") is not None:
+        d = disturbance_analysis(sigs["frozen"], sigs["foam"], **_weights(work / "foam"))
+        for k in ("gamma_star", "gamma_true", "gain_incremental"):
+            row[k] = d[k] if d[k] is not None else math.nan
+        row["foam_rise1"], row["foam_rise2"] = [math.nan if r is None else r for r in d["foam_rise"]]
+        row["edge_peak_u"] = d["edge_peak_u"] if d["edge_peak_u"] is not None else math.nan
+
+
+def _run_metrics(row: dict[str, Any], name: str, res: Any, run_dir: Path) -> dict[str, Any]:
+    """The metrics of run ``name`` (recorded in ``run_dir``) into ``row`` as ``<name>.<metric>``; a run
+    that diverged makes the point diverged.  Returns the run's signals."""
+    from .analysis import divergence, load_signals, run_summary
+
+    sig = load_signals(run_dir)
+    s = run_summary(sig, _goal(run_dir), res.status)
+    for i in (0, 1):
+        row[f"{name}.rmse_e{i + 1}"] = s["rmse_e"][i] if s["rmse_e"] else math.nan
+        row[f"{name}.rmse_edot{i + 1}"] = s["rmse_edot"][i] if s["rmse_edot"] else math.nan
+        row[f"{name}.rmse_e_true{i + 1}"] = s["rmse_e_true"][i] if s.get("rmse_e_true") else math.nan
+        row[f"{name}.rmse_edot_true{i + 1}"] = s["rmse_edot_true"][i] if s.get("rmse_edot_true") else math.nan
+    fp = s.get("final_position") or [math.nan, math.nan]
+    row[f"{name}.final_x"], row[f"{name}.final_y"] = fp
+    row[f"{name}.t_goal"] = s["t_goal"] if s.get("t_goal") is not None else math.nan
+    row[f"{name}.goal_distance"] = s.get("goal_distance", math.nan)
+    row[f"{name}.diverged"] = bool(s["diverged"])
+    if s["diverged"] and row["status"] == "ok":
+        row["status"], row["reason"] = "diverged", f"{name}: {divergence(sig, res.status)}"
+    return sig
+
+
+def _controller_parameters(run_dir: Path) -> dict[str, Any] | None:
+    """The parameters a run's scenario set on its controller (its ``scenario.json``), None if unreadable."""
+    try:
+        return json.loads((run_dir / "scenario.json").read_text())["instances"]["controller"]["parameters"]
+    except (OSError, KeyError, ValueError, TypeError):
+        return None
+
+
+def _goal(run_dir: Path) -> tuple[float, float] | None:
+    p = _controller_parameters(run_dir)
+    try:
+        if p is None or p.get("task", "goal") == "line":
+            return None
+        return float(p["goal_x"]), float(p["goal_y"])
+    except (KeyError, ValueError, TypeError):
+        return None
+
+
+def _weights(run_dir: Path) -> dict[str, float]:
+    """Q and R of a run's controller, the weights of (53): the values its scenario set (``scenario.json``),
+    the controller's defaults (Table 1) for the others."""
+    from .components.controller import ControllerParams
+
+    defaults = ControllerParams()
+    w = {"Q": defaults.Q, "R": defaults.R}
+    p = _controller_parameters(run_dir) or {}
+    return {k: float(p.get(k, v)) for k, v in w.items()}
+
+
+def fmu_paths() -> dict[str, str]:
+    """Our three FMUs, built if needed, as absolute paths (workers must see the same file system)."""
+    from .runner import resolve_model
+
+    return {m: str(resolve_model(m).resolve()) for m in ("WmrPlant", "WmrSensor", "WmrController")}
