@@ -15,27 +15,39 @@ This face exports what the application and users' scripts use; each folder's fac
 """
 from __future__ import annotations
 
-from .instances import SOLVERS, SolverSpec
-from .messages import (CosimError, FmuLoadError, OtherFileError, OutputError, RunError, ScenarioError, close_names,
-                       count, did_you_mean)
-from .model import (CO_SIMULATION, DEFAULT_LIMITS, MODEL_EXCHANGE, ArchiveLimits, FileKind, FmuModel, LimitOverrides,
-                    Variable, check_archive, file_kind, fmi_version, limit_overrides, load_model, named_kind)
-from .plan import Plan, describe_coupling, export_remarks, export_ssp, is_ssp, load_ssp, resolve
-from .results import MatLayout, OutputLock, RunResult, RunStatus, layout, make_folder, write_json, write_mat
-from .runtime import (Execution, Manipulator, Observer, Protocol, check_protocol, plan_runs, read_protocol, run,
-                      run_protocol)
-from .scenario import Scenario, apply_overrides, is_path, load, parse, parse_set, parse_value, read_document
-from .stepping import (Adaptive, AdaptiveSpec, Algorithm, GaussSeidel, Iterated, IterationSpec, Jacobi, MultiRate,
-                       ParallelJacobi, describe_settings)
+from typing import TYPE_CHECKING
 
-__all__ = [
-    "Adaptive", "AdaptiveSpec", "Algorithm", "ArchiveLimits", "CO_SIMULATION", "check_archive", "check_protocol",
-    "close_names", "CosimError", "count", "DEFAULT_LIMITS", "describe_coupling", "describe_settings",
-    "did_you_mean", "Execution", "export_remarks", "export_ssp", "file_kind", "FileKind", "fmi_version",
-    "FmuLoadError", "FmuModel", "GaussSeidel", "is_path", "is_ssp", "Iterated", "IterationSpec", "Jacobi",
-    "layout", "limit_overrides", "LimitOverrides", "load", "load_model", "load_ssp", "Manipulator", "MatLayout",
-    "MODEL_EXCHANGE", "make_folder", "MultiRate", "named_kind", "Observer", "OtherFileError", "OutputError",
-    "OutputLock", "ParallelJacobi", "parse", "parse_set", "parse_value", "Plan", "plan_runs", "Protocol",
-    "read_document", "read_protocol", "resolve", "run", "run_protocol", "RunError", "RunResult", "RunStatus",
-    "Scenario", "ScenarioError", "SOLVERS", "SolverSpec", "Variable", "write_json", "write_mat",
-]
+import lazy_loader
+
+if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
+    from .instances import SOLVERS, SolverSpec
+    from .messages import (CosimError, FmuLoadError, OtherFileError, OutputError, RunError, ScenarioError,
+                           close_names, count, did_you_mean)
+    from .model import (CO_SIMULATION, DEFAULT_LIMITS, MODEL_EXCHANGE, ArchiveLimits, FileKind, FmuModel,
+                        LimitOverrides, Variable, check_archive, file_kind, fmi_version, limit_overrides,
+                        load_model, named_kind)
+    from .plan import Plan, describe_coupling, export_remarks, export_ssp, is_ssp, load_ssp, resolve
+    from .results import MatLayout, OutputLock, RunResult, RunStatus, layout, make_folder, write_json, write_mat
+    from .runtime import (Execution, Manipulator, Observer, Protocol, check_protocol, plan_runs, read_protocol, run,
+                          run_protocol)
+    from .scenario import Scenario, apply_overrides, is_path, load, parse, parse_set, parse_value, read_document
+    from .stepping import (Adaptive, AdaptiveSpec, Algorithm, GaussSeidel, Iterated, IterationSpec, Jacobi,
+                           MultiRate, ParallelJacobi, describe_settings)
+
+__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
+    "instances": ["SOLVERS", "SolverSpec"],
+    "messages": ["CosimError", "FmuLoadError", "OtherFileError", "OutputError", "RunError", "ScenarioError",
+                 "close_names", "count", "did_you_mean"],
+    "model": ["CO_SIMULATION", "DEFAULT_LIMITS", "MODEL_EXCHANGE", "ArchiveLimits", "FileKind", "FmuModel",
+              "LimitOverrides", "Variable", "check_archive", "file_kind", "fmi_version", "limit_overrides",
+              "load_model", "named_kind"],
+    "plan": ["Plan", "describe_coupling", "export_remarks", "export_ssp", "is_ssp", "load_ssp", "resolve"],
+    "results": ["MatLayout", "OutputLock", "RunResult", "RunStatus", "layout", "make_folder", "write_json",
+                "write_mat"],
+    "runtime": ["Execution", "Manipulator", "Observer", "Protocol", "check_protocol", "plan_runs", "read_protocol",
+                "run", "run_protocol"],
+    "scenario": ["Scenario", "apply_overrides", "is_path", "load", "parse", "parse_set", "parse_value",
+                 "read_document"],
+    "stepping": ["Adaptive", "AdaptiveSpec", "Algorithm", "GaussSeidel", "Iterated", "IterationSpec", "Jacobi",
+                 "MultiRate", "ParallelJacobi", "describe_settings"],
+})

@@ -96,7 +96,8 @@ def test_the_algorithm_names_are_written_in_the_table_alone():
 
     assert [n for _, n in _strings(TABLE) if n in table.NAMES] == list(table.NAMES)
     found = [f"{p.relative_to(ROOT)}:{line}: {value!r}" for p in sorted(COSIM.rglob("*.py")) if p != TABLE
-             for line, value in _strings(p) if _named(value, table.NAMES)]
+             for line, value in _strings(p) if _named(value, table.NAMES)
+             and not (p.name == "__init__.py" and (p.parent / f"{value}.py").is_file())]   # (a face names modules)
     assert not found, "algorithm names outside the table of algorithms: " + "; ".join(found)
 
 

@@ -78,7 +78,7 @@ IMPORTS = {
     "fmpy": ("fmpy", None), "pythonfmu": ("pythonfmu", None), "pythonfmu3": ("pythonfmu3", None),
     "numpy": ("numpy", None),
     "matplotlib": ("matplotlib", None), "tqdm": ("tqdm", None), "pyssp_standard": ("pyssp-standard", None),
-    "lxml": ("lxml", None),
+    "lxml": ("lxml", None), "lazy_loader": ("lazy_loader", None),
     "pandas": ("pandas", "sweep"), "distributed": ("dask[distributed]", "sweep"),  # sweep, gamma-search
     "libcosimpy": ("libcosimpy", "test"), "ecospy": ("ecospy", "test"),  # wmr_cosim.interop (other masters)
 }

@@ -3,11 +3,23 @@ implementations: FMI 2.0 and 3.0 co-simulation in this process, Model Exchange w
 integrators, either in a child process."""
 from __future__ import annotations
 
-from .contract import FastPath, FmuInstance
-from .failure import Call, Failure, FmiStatus, InstanceLost
-from .in_process import Instance, Instance3
-from .integrators import SOLVERS, SolverSpec
-from .isolation import IsolatedInstance
-from .model_exchange import ModelExchange, model_exchange
+from typing import TYPE_CHECKING
 
-__all__ = ["Call", "Failure", "FastPath", "FmiStatus", "FmuInstance", "Instance", "Instance3", "InstanceLost", "IsolatedInstance", "model_exchange", "ModelExchange", "SOLVERS", "SolverSpec"]
+import lazy_loader
+
+if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
+    from .contract import FastPath, FmuInstance
+    from .failure import Call, Failure, FmiStatus, InstanceLost
+    from .in_process import Instance, Instance3
+    from .integrators import SOLVERS, SolverSpec
+    from .isolation import IsolatedInstance
+    from .model_exchange import ModelExchange, model_exchange
+
+__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
+    "contract": ["FastPath", "FmuInstance"],
+    "failure": ["Call", "Failure", "FmiStatus", "InstanceLost"],
+    "in_process": ["Instance", "Instance3"],
+    "integrators": ["SOLVERS", "SolverSpec"],
+    "isolation": ["IsolatedInstance"],
+    "model_exchange": ["ModelExchange", "model_exchange"],
+})

@@ -1,8 +1,17 @@
 """Messages of the master: its errors (one line each), counts in words, "did you mean" suggestions."""
 from __future__ import annotations
 
-from .errors import CosimError, FmuLoadError, OtherFileError, OutputError, RunError, ScenarioError
-from .suggest import close_names, did_you_mean
-from .words import count
+from typing import TYPE_CHECKING
 
-__all__ = ["close_names", "CosimError", "count", "did_you_mean", "FmuLoadError", "OtherFileError", "OutputError", "RunError", "ScenarioError"]
+import lazy_loader
+
+if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
+    from .errors import CosimError, FmuLoadError, OtherFileError, OutputError, RunError, ScenarioError
+    from .suggest import close_names, did_you_mean
+    from .words import count
+
+__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
+    "errors": ["CosimError", "FmuLoadError", "OtherFileError", "OutputError", "RunError", "ScenarioError"],
+    "suggest": ["close_names", "did_you_mean"],
+    "words": ["count"],
+})

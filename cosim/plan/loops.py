@@ -10,7 +10,7 @@
   ``dependencies`` attribute it depends on every input, as FMI 2.0 and 3.0 say).  Such a loop has no
   delay of its own: one pass per step lags it by a step, only the iterated coupling solves it.
 
-``check`` prints both (:func:`describe`); :func:`check_iteration` refuses an algorithm that rolls back an
+``check`` prints both (:func:`describe_coupling`); :func:`check_iteration` refuses an algorithm that rolls back an
 instance whose interface cannot get and set its state.
 """
 from __future__ import annotations
@@ -125,7 +125,7 @@ def _shortest_cycle(start: int, succ: list[list[int]], members: set[int]) -> lis
     raise AssertionError("a strongly connected set has a cycle through each of its nodes")
 
 
-def describe(c: Coupling, algorithm: str) -> list[str]:
+def describe_coupling(c: Coupling, algorithm: str) -> list[str]:
     """What ``check`` prints of the coupling: each coupling loop, each algebraic loop, and how the algorithm
     treats them."""
     lines = []

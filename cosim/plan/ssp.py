@@ -26,11 +26,11 @@ Generic: nothing here knows the FMUs it packs.
 Both XML files are validated against the SSP 1.0 schemas before the archive is written.
 
 **Import** (:func:`load_ssp`) reads an SSP 1.0 archive written by this module or another tool into the
-master's :class:`~.scenario.Scenario` (so :func:`.system.resolve` checks it against the FMUs and
-:func:`.execution.run` runs it): the archive is checked for unsafe entries before anything is extracted,
+master's :class:`~.scenario.Scenario` (so :func:`.resolution.resolve` checks it against the FMUs and
+``runtime.execution.run`` runs it): the archive is checked for unsafe entries before anything is extracted,
 the SSD is validated against the schema, components must be FMUs inside the archive (a component's
 ``implementation`` CoSimulation or ModelExchange is the instance's ``interface``; "any" leaves it to the
-FMU, see :func:`.system.resolve`), parameter bindings (inline or in .ssv files, on the system or on
+FMU, see :func:`.resolution.resolve`), parameter bindings (inline or in .ssv files, on the system or on
 components, with or without prefix) become parameters, and so do the String parameters that this module's
 export held back into its own annotation on the system, connections (with their LinearTransformation)
 become connections, connector units become declared units, the DefaultExperiment gives start and stop, the

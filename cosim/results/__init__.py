@@ -2,9 +2,19 @@
 summary.json), the event table, how a run ended."""
 from __future__ import annotations
 
-from .folder import ResultsFolder, RunResult
-from .matfile import MatLayout, layout, write_mat
-from .recording import OutputLock, atomic_write, make_folder, write_csv, write_json
-from .status import RunStatus
+from typing import TYPE_CHECKING
 
-__all__ = ["atomic_write", "layout", "make_folder", "MatLayout", "OutputLock", "ResultsFolder", "RunResult", "RunStatus", "write_csv", "write_json", "write_mat"]
+import lazy_loader
+
+if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
+    from .folder import ResultsFolder, RunResult
+    from .matfile import MatLayout, layout, write_mat
+    from .recording import OutputLock, atomic_write, make_folder, write_csv, write_json
+    from .status import RunStatus
+
+__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
+    "folder": ["ResultsFolder", "RunResult"],
+    "matfile": ["MatLayout", "layout", "write_mat"],
+    "recording": ["OutputLock", "atomic_write", "make_folder", "write_csv", "write_json"],
+    "status": ["RunStatus"],
+})

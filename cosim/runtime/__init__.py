@@ -2,10 +2,21 @@
 start-up, real-time pacing, protocols of several runs."""
 from __future__ import annotations
 
-from .execution import Execution, run
-from .manipulators import Manipulator
-from .observers import Observer
-from .protocol import Protocol, check_protocol, plan_runs, read_protocol, run_protocol
-from .views import Manipulable, ManipulatedRun, Observable, ObservedRun
+from typing import TYPE_CHECKING
 
-__all__ = ["check_protocol", "Execution", "Manipulable", "ManipulatedRun", "Manipulator", "Observable", "ObservedRun", "Observer", "plan_runs", "Protocol", "read_protocol", "run", "run_protocol"]
+import lazy_loader
+
+if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
+    from .execution import Execution, run
+    from .manipulators import Manipulator
+    from .observers import Observer
+    from .protocol import Protocol, check_protocol, plan_runs, read_protocol, run_protocol
+    from .views import Manipulable, ManipulatedRun, Observable, ObservedRun
+
+__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
+    "execution": ["Execution", "run"],
+    "manipulators": ["Manipulator"],
+    "observers": ["Observer"],
+    "protocol": ["Protocol", "check_protocol", "plan_runs", "read_protocol", "run_protocol"],
+    "views": ["Manipulable", "ManipulatedRun", "Observable", "ObservedRun"],
+})

@@ -2,8 +2,19 @@
 :class:`Scenario` with every structural check, the events' conditions, tabulated inputs."""
 from __future__ import annotations
 
-from .condition import ConditionError, compile_condition
-from .document import Scenario, apply_overrides, is_path, load, parse, parse_set, parse_value, read_document, steps_of
-from .inputs import InputPlan, read_inputs
+from typing import TYPE_CHECKING
 
-__all__ = ["apply_overrides", "compile_condition", "ConditionError", "InputPlan", "is_path", "load", "parse", "parse_set", "parse_value", "read_document", "read_inputs", "Scenario", "steps_of"]
+import lazy_loader
+
+if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
+    from .condition import ConditionError, compile_condition
+    from .document import (Scenario, apply_overrides, is_path, load, parse, parse_set, parse_value, read_document,
+                           steps_of)
+    from .inputs import InputPlan, read_inputs
+
+__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
+    "condition": ["ConditionError", "compile_condition"],
+    "document": ["Scenario", "apply_overrides", "is_path", "load", "parse", "parse_set", "parse_value",
+                 "read_document", "steps_of"],
+    "inputs": ["InputPlan", "read_inputs"],
+})
