@@ -9,7 +9,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 MAIN_JOB = "pip install -e . && wmr-cosim paper --out results/paper"
-TESTS = 'pip install -e ".[test]" && pytest -q'
+TESTS = 'pip install -e ".[test]" && pytest -q -n 2'
 
 
 def test_readme_is_short_and_starts_with_the_main_job_then_the_tests():
