@@ -371,10 +371,10 @@ def _listening(pids: list[int]) -> set[tuple[int, str, int]]:
 @pytest.fixture(scope="module")
 def sweep_fmus(built_fmus):
     """The points of an in-process sweep run on the session's FMUs."""
-    from wmr_cosim import sweep
+    from wmr_cosim import robot_measures
 
     mp = pytest.MonkeyPatch()
-    mp.setattr(sweep, "fmu_paths", lambda: {k: str(v) for k, v in built_fmus.items()})
+    mp.setattr(robot_measures, "fmu_paths", lambda: {k: str(v) for k, v in built_fmus.items()})
     yield
     mp.undo()
 

@@ -2,6 +2,8 @@
 restart, failures recorded, a real scheduler with two workers."""
 from __future__ import annotations
 
+import json
+import math
 import os
 import socket
 import subprocess
@@ -9,10 +11,11 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
-from wmr_cosim import cluster, robot_measures, sweep, sweep_file
+from wmr_cosim import cluster, robot_measures, sweep, sweep_file, sweep_metrics
 from wmr_cosim.cosim.messages.errors import ScenarioError
 
 DATA = Path(__file__).parent / "data"
@@ -22,7 +25,7 @@ DATA = Path(__file__).parent / "data"
 def _fmus(built_fmus):
     """Points run on the session's FMUs (the workers are separate processes: they get the paths)."""
     mp = pytest.MonkeyPatch()
-    mp.setattr(sweep, "fmu_paths", lambda: {k: str(v) for k, v in built_fmus.items()})
+    mp.setattr(robot_measures, "fmu_paths", lambda: {k: str(v) for k, v in built_fmus.items()})
     yield
     mp.undo()
 
@@ -242,3 +245,128 @@ def test_the_command_lines_archive_limits_reach_the_gamma_searchs_workers(tmp_pa
     r = json.loads((out / "gamma_search.json").read_text())
     assert r["smallest_gamma"] is None and [p["status"] for p in r["curve"]] == ["failed"]
     assert "more than the limit of 1 KiB" in r["curve"][0]["reason"]
+
+
+# ---------------------------------------------------------------------- metrics for any system
+def _dahlquist_base(tmp: Path) -> Path:
+    """A scenario of one Reference FMU, Dahlquist (x' = -k x, x(0) = 1), 1 s in steps of 0.01 s."""
+    from reference_fmus import REF
+
+    base = tmp / "dahlquist.toml"
+    base.write_text(f'[experiment]\nstart = 0.0\nstop = 1.0\nstep = 0.01\n[instances.dq]\nfmu = "{REF / "fmi2" / "Dahlquist.fmu"}"\n'
+                    '[record]\nvariables = ["dq.x"]\n')
+    (tmp / "ref.csv").write_text("time,x\n" + "".join(f"{t / 10:g},{math.exp(-t / 10):.17g}\n" for t in range(11)))
+    return base
+
+
+DAHLQUIST_METRICS = """
+metrics = ["x_end"]
+[grid]
+"dq.k" = [{ks}]
+[metric.x_end]
+of = "final"
+variable = "dq.x"
+[metric.x_int]
+of = "integral"
+variable = "dq.x"
+[metric.x_half]
+of = "first_crossing"
+variable = "dq.x"
+level = 0.5
+[metric.x_err]
+of = "rmse"
+variable = "dq.x"
+reference = "ref.csv"
+column = "x"
+[metric.x_settle]
+of = "settling_time"
+variable = "dq.x"
+target = 0.0
+band = 0.1
+"""
+
+
+def test_each_metric_against_its_definition():
+    t = np.linspace(0.0, 1.0, 11)
+    spec = lambda of, **kw: sweep_metrics.MetricSpec("m", of, "a.y", **kw)   # noqa: E731
+    y = 2.0 * t
+    assert sweep_metrics.value(spec("final"), t, y) == 2.0
+    assert (sweep_metrics.value(spec("min"), t, y), sweep_metrics.value(spec("max"), t, y)) == (0.0, 2.0)
+    assert sweep_metrics.value(spec("integral"), t, y) == pytest.approx(1.0, abs=1e-15)   # exact for a line
+    assert sweep_metrics.value(spec("mean"), t, y) == pytest.approx(1.0, abs=1e-15)
+    assert sweep_metrics.value(spec("rms"), t, np.full(11, -3.0)) == pytest.approx(3.0, abs=1e-15)
+    assert sweep_metrics.value(spec("first_crossing", level=0.5), t, y) == pytest.approx(0.25, abs=1e-15)
+    assert math.isnan(sweep_metrics.value(spec("first_crossing", level=5.0), t, y))
+    assert sweep_metrics.value(spec("first_crossing", level=0.0), t, y) == 0.0
+    decay = np.exp(-5.0 * t)   # |y| > 0.1 until t = ln(10) / 5 = 0.46 s: settled from the sample at 0.5 s
+    assert sweep_metrics.value(spec("settling_time", target=0.0, band=0.1), t, decay) == 0.5
+    assert math.isnan(sweep_metrics.value(spec("settling_time", target=3.0, band=0.1), t, decay))
+    assert sweep_metrics.value(spec("rmse", against="a.z"), t, y, y + 0.1) == pytest.approx(0.1, abs=1e-15)
+    ref = spec("rmse", reference=(np.array([0.0, 1.0]), np.array([0.0, 2.0])))   # the same line, coarser
+    assert sweep_metrics.value(ref, t, y) == pytest.approx(0.0, abs=1e-15)
+
+
+@pytest.mark.parametrize("body, field, reason", [
+    ('[metric.a]\nof = "median"\nvariable = "dq.x"\n', "metric.a.of", "unknown metric"),
+    ('[metric.a]\nof = "first_crossing"\nvariable = "dq.x"\n', "metric.a.level", "needs level"),
+    ('[metric.a]\nof = "rmse"\nvariable = "dq.x"\nreference = "ref.csv"\ncolumn = "y"\n', "metric.a.column",
+     "ref.csv has no column 'y'"),
+    ('[metric.a]\nof = "final"\nvariable = "dq.x"\nlevel = 1\n', "metric.a.level", "final takes no level"),
+    ('sets = ["tidy"]\n', "sets", "named sets"),
+])
+def test_bad_metrics_are_one_line_naming_the_field(tmp_path, body, field, reason):
+    base = _dahlquist_base(tmp_path)
+    f = tmp_path / "s.toml"
+    f.write_text(f'base = "{base.name}"\n' + body)
+    with pytest.raises(ScenarioError) as exc:
+        sweep_file.load_sweep(f)
+    assert exc.value.field == field and reason in str(exc.value), str(exc.value)
+
+
+def test_a_metric_over_a_variable_not_recorded_stops_the_sweep_before_any_point(tmp_path, capsys):
+    """The variables are checked against what the base's runs record (their FMUs read) at the start: one
+    line naming the file and the field, exit code 2, no point run."""
+    from wmr_cosim.cli import main
+
+    base = _dahlquist_base(tmp_path)
+    f = tmp_path / "s.toml"
+    f.write_text(f'base = "{base.name}"\n[grid]\n"dq.k" = [1.0]\n[metric.a]\nof = "final"\nvariable = "dq.der(x)"\n')
+    assert main(["sweep", str(f), "--out", str(tmp_path / "out"), "--workers", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "metric.a.variable" in err[0] and "'dq.der(x)' is not recorded by run 'run'" in err[0]
+    assert not (tmp_path / "out" / "points").exists()
+
+
+def test_a_sweep_of_a_reference_fmu_measures_what_its_file_names(tmp_path, cluster2):
+    """Dahlquist over 20 values of k: each metric of the results table equals its definition over the
+    point's recorded signals, with its unit in sweep.json; the robot's set is not asked for."""
+    base = _dahlquist_base(tmp_path)
+    ks = [0.25 * (i + 1) for i in range(20)]
+    f = tmp_path / "dq-sweep.toml"
+    f.write_text(f'base = "{base.name}"\nkeep_runs = true\n' + DAHLQUIST_METRICS.format(ks=", ".join(map(str, ks))))
+    df = sweep.run_sweep(f, tmp_path / "out", cluster=cluster2, progress=False)
+    assert list(df["status"]) == ["ok"] * 20 and list(df["dq.k"]) == ks
+    assert "foam.rmse_e1" not in df.columns and "gamma_star" not in df.columns
+    for i, row in df.iterrows():
+        sig = np.load(tmp_path / "out" / "runs" / f"{i:05d}" / "run" / "signals.npy")
+        t, x = sig["time"], sig["dq.x"]
+        assert row["x_end"] == x[-1]
+        assert row["x_int"] == pytest.approx(float(np.sum((x[1:] + x[:-1]) * np.diff(t)) / 2), rel=1e-14)
+        assert row["x_err"] == pytest.approx(float(np.sqrt(np.mean((x - np.interp(t, np.linspace(0, 1, 11),
+                                                                                  np.exp(-np.linspace(0, 1, 11))))
+                                                                       ** 2))), rel=1e-12)
+        below = np.flatnonzero(x <= 0.5)
+        if len(below):
+            j = below[0]
+            assert t[j - 1] < row["x_half"] <= t[j]
+        else:
+            assert math.isnan(row["x_half"])
+        outside = np.flatnonzero(np.abs(x) > 0.1)
+        if abs(x[-1]) > 0.1:
+            assert math.isnan(row["x_settle"])
+        else:
+            assert row["x_settle"] == t[outside[-1] + 1]
+    assert (np.diff(df["x_end"]) < 0).all() and (np.diff(df["x_int"]) < 0).all()   # faster decay with k
+    assert df["x_half"].notna().sum() >= 10 and 1 <= df["x_settle"].notna().sum() < 20
+    units = json.loads((tmp_path / "out" / "sweep.json").read_text())["units"]
+    assert units == {"x_end": None, "x_int": None, "x_half": "s", "x_err": None, "x_settle": "s"}

@@ -19,7 +19,7 @@ from typing import Any
 
 from .cluster import Cluster
 from .cosim import LimitOverrides
-from .robot_measures import fmu_paths, measure
+from . import robot_measures
 from .sweep import run_points
 
 DEFAULT_GRID = (0.25, 0.5, 1.0, 2.0, 4.0, 6.0, 8.0, 10.0, 12.0, 14.0, 16.0, 20.0, 30.0)
@@ -74,7 +74,7 @@ def _search(scenario: str, out: Path, runs: list, grid: list[float], variant: st
 
     friction = {k: v for r in runs if r.name == "foam" for k, v in r.parameters.items() if k.startswith("plant.foam")}
     rows: list[dict[str, Any]] = []
-    study = {"archive_limits": archive_limits, "fmus": fmu_paths(), "measure": measure}
+    study = {"archive_limits": archive_limits, "fmus": robot_measures.fmu_paths(), "measure": robot_measures.measure}
     with Cluster(workers, scheduler, security, dashboard) as cl:
         pts = [{"id": i, "params": {"controller.gamma": g}} for i, g in enumerate(grid)]
         rows = run_points(pts, scenario, variant, None, out, cl, progress=progress, label="gamma grid", **study)

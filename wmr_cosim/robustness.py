@@ -268,7 +268,7 @@ def run_study(out: Path, grid: StudyGrid | None = None, workers: int | None = No
     """Run the study's points on a local Dask cluster into ``out`` (resumable) and summarise them;
     ``archive_limits`` (the caller's, over each task's own) go with every point."""
     from .cluster import Cluster
-    from .robot_measures import fmu_paths, measure
+    from . import robot_measures
     from .sweep import run_points
 
     grid = grid or StudyGrid()
@@ -281,7 +281,8 @@ def run_study(out: Path, grid: StudyGrid | None = None, workers: int | None = No
     stamp.write_text(key)
     with Cluster(workers) as cl:
         rows_list = run_points(points, points[0]["base"], "freeze", None, out, cl, progress=progress, label="robustness",
-                               archive_limits=archive_limits, fmus=fmu_paths(), measure=measure)
+                               archive_limits=archive_limits, fmus=robot_measures.fmu_paths(),
+                               measure=robot_measures.measure)
     rows = {r["point"]: r for r in rows_list}
     s = summarise(rows, layout, grid)
     s["robustness"]["n_points"] = len(points)

@@ -13,6 +13,7 @@ drawn in the parent from the seed, so the results do not depend on the number of
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -28,8 +29,9 @@ import numpy as np
 
 from .cluster import Cluster
 from .cosim import CosimError, LimitOverrides
-from .robot_measures import fmu_paths, measure
+from . import robot_measures
 from .sweep_file import SweepSpec, draw_points, load_sweep
+from .sweep_metrics import SweepMeasure, check_metrics
 from .sweep_plots import plot_sweep
 
 
@@ -149,12 +151,30 @@ def run_sweep(path: str | os.PathLike, out: str | os.PathLike | None = None, wor
         return _run_sweep(spec, out, workers, scheduler, progress, cluster, security, dashboard, archive_limits)
 
 
+def _measure(spec: SweepSpec, fmus: dict[str, str], archive_limits: LimitOverrides | None
+             ) -> tuple[SweepMeasure, dict[str, str | None]]:
+    """What each point measures (the named sets, the file's metrics) and the metrics' units, the metrics
+    checked against what the base's runs record (their FMUs resolved): before any point runs."""
+    from .cosim import check_protocol
+
+    runs: dict[str, dict[str, str | None]] = {}
+    if spec.measures:
+        plans = check_protocol(spec.base, lambda name: Path(fmus[name]) if name in fmus else None, spec.variant,
+                               only=spec.runs, limits=archive_limits)
+        runs = {name: {col: c["unit"] for col, c in plan.columns().items()} for name, plan in plans.items()}
+    units = check_metrics(spec.file, spec.measures, runs) if spec.measures else {}
+    return SweepMeasure(tuple(spec.measures), tuple(spec.sets), tuple(runs)), units
+
+
 def _run_sweep(spec: "SweepSpec", out: Path, workers: int | None, scheduler: str | None, progress: bool | None,
                cluster: "Cluster | None", security: Any, dashboard: bool, archive_limits: LimitOverrides | None):
     import pandas as pd
 
     points = draw_points(spec)
-    meta = {"spec": asdict(spec), "points": points}
+    fmus = robot_measures.fmu_paths()
+    measure, units = _measure(spec, fmus, archive_limits)
+    meta = {"spec": {**asdict(dataclasses.replace(spec, measures=[])),
+                     "measures": {m.name: m.as_dict() for m in spec.measures}}, "units": units, "points": points}
     meta_file = out / "sweep.json"
     if meta_file.is_file():
         old = json.loads(meta_file.read_text())
@@ -165,7 +185,7 @@ def _run_sweep(spec: "SweepSpec", out: Path, workers: int | None, scheduler: str
     cl = cluster or Cluster(workers, scheduler, security, dashboard)
     try:
         rows = run_points(points, spec.base, spec.variant, spec.runs, out, cl, spec.keep_runs, progress,
-                          archive_limits=archive_limits, fmus=fmu_paths(), measure=measure)
+                          archive_limits=archive_limits, fmus=fmus, measure=measure)
     finally:
         if own:
             cl.close()
@@ -174,5 +194,5 @@ def _run_sweep(spec: "SweepSpec", out: Path, workers: int | None, scheduler: str
         part = out / f"{name}.part"   # written whole, then renamed: a file that exists is complete
         write(part, index=False)
         os.replace(part, out / name)
-    plot_sweep(df, spec, out / "figures")
+    plot_sweep(df, spec, out / "figures", units)
     return df

@@ -8,6 +8,10 @@ A sweep file (``scenarios/sweep-*.toml``)::
     seed = 1                      # for the random draws
     samples = 8                   # random draws per grid point (default 1)
     metrics = ["foam.rmse_e1", "gamma_star"]   # the columns to plot (the table keeps every metric)
+    sets = ["robot"]              # named sets of metrics (default: the robot's, unless [metric] is given)
+    [metric.x_end]                # a metric over a recorded variable (sweep_metrics.py): any system
+    of = "final"
+    variable = "dq.x"
     [grid]                        # the cartesian product of these
     "plant.foam_da1+plant.foam_da2" = [0.2, 0.4, 0.8]   # '+' links parameters to one value
     [random]                      # drawn with the seed, `samples` times per grid point
@@ -29,10 +33,12 @@ from typing import Any
 import numpy as np
 
 from .cosim import ScenarioError
+from .sweep_metrics import SETS, MetricSpec, parse_metrics
 
 DISTRIBUTIONS = {"uniform": ("low", "high"), "normal": ("mean", "std"), "lognormal": ("mean", "sigma"),
                  "choice": ("values",)}
-_KEYS = {"description", "base", "variant", "runs", "seed", "samples", "metrics", "grid", "random", "keep_runs"}
+_KEYS = {"description", "base", "variant", "runs", "seed", "samples", "metrics", "grid", "random", "keep_runs",
+         "metric", "sets"}
 
 
 @dataclass
@@ -48,6 +54,8 @@ class SweepSpec:
     random: dict[str, dict[str, Any]] = field(default_factory=dict)
     keep_runs: bool = False
     description: str = ""
+    measures: list[MetricSpec] = field(default_factory=list)   # [metric.NAME]
+    sets: list[str] = field(default_factory=list)              # named sets of metrics ("robot")
 
 
 def load_sweep(path: str | os.PathLike) -> SweepSpec:
@@ -61,6 +69,7 @@ def load_sweep(path: str | os.PathLike) -> SweepSpec:
     spec = SweepSpec(f, str((path.parent / base).resolve()), doc.get("variant"), doc.get("runs"),
                      description=str(doc.get("description", "")))
     _check_settings(f, doc, spec)
+    _check_measures(f, doc, spec, path.parent)
     _check_grid(f, doc, spec)
     _check_random(f, doc, spec)
     _check_base(f, spec)
@@ -102,6 +111,15 @@ def _check_settings(f: str, doc: dict[str, Any], spec: SweepSpec) -> None:
     if not isinstance(keep, bool):
         raise ScenarioError(f, "keep_runs", "must be true or false")
     spec.keep_runs = keep
+
+
+def _check_measures(f: str, doc: dict[str, Any], spec: SweepSpec, folder: Path) -> None:
+    """[metric.NAME] and ``sets`` into ``spec`` (the robot's set by default where no metric is given)."""
+    spec.measures = parse_metrics(f, doc["metric"], folder) if "metric" in doc else []
+    sets = doc.get("sets", [] if spec.measures else ["robot"])
+    if not isinstance(sets, list) or not all(s in SETS for s in sets):
+        raise ScenarioError(f, "sets", f"{sets!r}: an array of named sets of metrics ({', '.join(SETS)})")
+    spec.sets = list(sets)
 
 
 def _check_grid(f: str, doc: dict[str, Any], spec: SweepSpec) -> None:

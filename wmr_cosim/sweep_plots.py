@@ -6,8 +6,10 @@ from pathlib import Path
 from .sweep_file import SweepSpec
 
 
-def plot_sweep(df, spec: SweepSpec, out: Path) -> list[Path]:
-    """Each chosen metric against each swept parameter (failed points marked)."""
+def plot_sweep(df, spec: SweepSpec, out: Path, units: dict[str, str | None] | None = None) -> list[Path]:
+    """Each chosen metric against each swept parameter (failed points marked); ``units``: the sweep file's
+    metrics' units (the robot's are known here)."""
+    units = units or {}
     import matplotlib
 
     matplotlib.use("Agg")
@@ -17,7 +19,8 @@ def plot_sweep(df, spec: SweepSpec, out: Path) -> list[Path]:
     params = []
     for key in list(spec.grid) + list(spec.random):
         params.append(key.split("+")[0])
-    metrics = spec.metrics or [c for c in ("foam.rmse_e1", "learn.rmse_e1", "gamma_star") if c in df.columns][:2]
+    metrics = spec.metrics or [m.name for m in spec.measures][:2] or \
+        [c for c in ("foam.rmse_e1", "learn.rmse_e1", "gamma_star") if c in df.columns][:2]
     files = []
     for m in metrics:
         if m not in df.columns:
@@ -29,7 +32,7 @@ def plot_sweep(df, spec: SweepSpec, out: Path) -> list[Path]:
             if (~ok).any():
                 ax.plot(df.loc[~ok, p], df.loc[~ok, m].fillna(0.0), "x", color="C3", label="failed / diverged")
             ax.set_xlabel(f"{p} [{_unit(p)}]")
-            ax.set_ylabel(f"{m} [{_unit(m)}]")
+            ax.set_ylabel(f"{m} [{units.get(m) or _unit(m)}]")
             ax.grid(True, alpha=0.3)
             ax.legend(fontsize=7)
             fig.tight_layout()
