@@ -107,7 +107,7 @@ def iterates(name: str, coupling: str | None) -> bool:
 
 
 def readers(table: str) -> str:
-    """Who reads a table of settings, in words: '"iterated", and "adaptive" with coupling = "iterated"'."""
+    """Who reads a table of settings, in words: '"iterated", and by "adaptive" with coupling = "iterated"'."""
     own = [quoted(r.name) for r in ROWS if table in r.settings]
     if table == ITERATION_TABLE:
         own += [f"{quoted(r.name)} with coupling = {quoted(c)}" for r in ROWS if r.varies_step
