@@ -370,3 +370,20 @@ def test_a_sweep_of_a_reference_fmu_measures_what_its_file_names(tmp_path, clust
     assert df["x_half"].notna().sum() >= 10 and 1 <= df["x_settle"].notna().sum() < 20
     units = json.loads((tmp_path / "out" / "sweep.json").read_text())["units"]
     assert units == {"x_end": None, "x_int": None, "x_half": "s", "x_err": None, "x_settle": "s"}
+
+
+def test_a_point_whose_run_did_not_end_ok_is_failed_whatever_it_measures(tmp_path, monkeypatch):
+    """The status of a point is the sweep's, not its measure's: a run that ended otherwise than "ok" (here
+    stopped by an event) makes the point failed with that run's message, with the file's metrics too."""
+    from types import SimpleNamespace
+
+    from wmr_cosim import cosim
+
+    ends = {"first": SimpleNamespace(status="ok", message=""),
+            "second": SimpleNamespace(status="stopped", message="stopped by events[0] at t = 0.5 s")}
+    monkeypatch.setattr(cosim, "run_protocol", lambda *a, **kw: ends)
+    measure = sweep_metrics.SweepMeasure((sweep_metrics.MetricSpec("x_end", "final", "dq.x", run="first"),))
+    row = sweep.run_point({"id": 3, "params": {"dq.k": 1.0}}, "base.toml", None, None, {}, str(tmp_path),
+                          measure=measure)
+    assert row["status"] == "failed" and row["reason"] == "second: stopped by events[0] at t = 0.5 s"
+    assert math.isnan(row["x_end"])   # (nothing recorded here: the fake runs wrote no signals)

@@ -14,7 +14,7 @@
 
 A scenario is a document (the dict a TOML file gives), built in code with :meth:`Simulation.instance`,
 :meth:`~Simulation.connect`, :meth:`~Simulation.record`, :meth:`~Simulation.event`, or loaded from a file.
-Every check is the command line's (``cosim.scenario.document.parse`` and ``cosim.plan.resolution.resolve``), raised as the
+Every check is the command line's (``cosim.parse`` and ``cosim.resolve``), raised as the
 same exceptions: :class:`ScenarioError` (``file``, ``field``, ``reason``) for bad input, :class:`RunError`
 for a run that failed.  See docs/scripting.md.
 """

@@ -103,8 +103,7 @@ def _n_steps(start: float, stop: float, step: float) -> int:
 
 # ------------------------------------------------------------------------------------------ peers
 def _ours(ssp: Path, stop: float, step: float, signals, tmp: Path, algorithm: str | None = None) -> dict[str, Any]:
-    from .cosim import resolve, run as run_plan
-    from .cosim import load_ssp
+    from .cosim import load_ssp, resolve, run as run_plan
 
     t0 = time.perf_counter()
     arch = load_ssp(ssp, step=step, stop=stop, algorithm=algorithm)
@@ -161,8 +160,7 @@ def _libcosim(ssp: Path, stop: float, step: float, signals, tmp: Path, api: bool
         ex = CosimExecution.from_ssp_file(str(ssp))
         idx = {s.name.decode(): s.index for s in ex.slave_infos()}
     else:
-        from .cosim import load_ssp
-        from .cosim import load_model
+        from .cosim import load_model, load_ssp
         arch = load_ssp(ssp)
         keep.append(arch)
         ex = CosimExecution.from_step_size(ns(step))
@@ -278,8 +276,7 @@ def fmpy_parameter_set(ssp: Path):
     the text 'false'): a String parameter equal to the FMU's start value is left out, any other refused."""
     from fmpy.ssp.ssd import Parameter, ParameterSet
 
-    from .cosim import load_model
-    from .cosim import load_ssp
+    from .cosim import load_model, load_ssp
 
     arch = load_ssp(ssp)
     try:

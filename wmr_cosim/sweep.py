@@ -59,6 +59,9 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
                                limits=archive_limits)
         if measure is not None:
             measure(row, results, work)
+        failed = next((name for name, res in results.items() if res.status != "ok"), None)
+        if failed is not None and row["status"] == "ok":   # (whatever the measure: the first run that failed)
+            row["status"], row["reason"] = "failed", f"{failed}: {results[failed].message}"
     except CosimError as exc:
         row["status"], row["reason"] = "failed", str(exc)
     except KeyError as exc:    # a failed run that did not record what the metrics need: keep its reason

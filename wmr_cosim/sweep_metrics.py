@@ -167,8 +167,8 @@ def check_metrics(file: str, metrics: list[MetricSpec], runs: dict[str, dict[str
         for key, var in (("variable", m.variable), ("against", m.against)):
             if var is not None and var not in runs[run]:
                 raise ScenarioError(file, f"{fld}.{key}", f"{var!r} is not recorded by run {run!r}")
-        u = runs[run][m.variable]
-        units[m.name] = KINDS[m.of][1].format(u=u) if u is not None or "{u}" not in KINDS[m.of][1] else None
+        u, unit = runs[run][m.variable], KINDS[m.of][1]
+        units[m.name] = unit if "{u}" not in unit else unit.format(u=u) if u is not None else None
     return units
 
 
@@ -242,16 +242,18 @@ class SweepMeasure:
             from .robot_measures import measure
 
             measure(row, results, work)
+        data: dict[str, Any] = {}   # each run's signals, read once
         for m in self.metrics:
             run = m.run if m.run is not None else self.runs[0]
-            row[m.name] = self._value(m, work / run / "signals.npy")
+            if run not in data:
+                f = work / run / "signals.npy"
+                data[run] = np.load(f) if f.is_file() else None
+            row[m.name] = _measured(m, data[run])
 
-    @staticmethod
-    def _value(m: MetricSpec, signals: Path) -> float:
-        if not signals.is_file():
-            return math.nan
-        data = np.load(signals)
-        if not len(data):
-            return math.nan
-        other = np.asarray(data[m.against], dtype=float) if m.against is not None else None
-        return value(m, np.asarray(data["time"], dtype=float), np.asarray(data[m.variable], dtype=float), other)
+
+def _measured(m: MetricSpec, data: np.ndarray | None) -> float:
+    """The metric of a run's recorded rows (None or none: NaN)."""
+    if data is None or not len(data):
+        return math.nan
+    other = np.asarray(data[m.against], dtype=float) if m.against is not None else None
+    return value(m, np.asarray(data["time"], dtype=float), np.asarray(data[m.variable], dtype=float), other)

@@ -10,16 +10,15 @@
   ``dependencies`` attribute it depends on every input, as FMI 2.0 and 3.0 say).  Such a loop has no
   delay of its own: one pass per step lags it by a step, only the iterated coupling solves it.
 
-``check`` prints both (:func:`describe_coupling`); :func:`check_iteration` refuses an algorithm that rolls back an
-instance whose interface cannot get and set its state.
+``check`` prints both (:func:`describe_coupling`); :func:`check_iteration` refuses an algorithm that rolls
+back an instance whose interface cannot get and set its state.
 """
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Iterable
 
 from ..messages.errors import ScenarioError
-from ..model.description import fmi2_cs_declares
-from ..model.description import CO_SIMULATION
+from ..model.description import CO_SIMULATION, fmi2_cs_declares
 from ..stepping import table as algorithms
 from ..stepping.graph import strongly_connected
 from .records import ConnectionPlan, Coupling, InstancePlan

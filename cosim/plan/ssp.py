@@ -48,8 +48,7 @@ from typing import Any
 
 from ..messages.errors import CosimError, FmuLoadError, ScenarioError
 from ..model.archive import ArchiveLimits, LimitOverrides, check_archive, check_entries, check_sizes, safe_extract
-from ..model.description import INTERFACE_NAMES, load_model
-from ..model.description import CO_SIMULATION, MODEL_EXCHANGE
+from ..model.description import CO_SIMULATION, INTERFACE_NAMES, MODEL_EXCHANGE, load_model
 from ..model.kinds import FileKind, file_kind
 from ..scenario.document import Scenario, apply_overrides, parse
 from ..stepping import table as algorithms

@@ -71,14 +71,6 @@ class ResultsFolder:
         self.lock.release()
 
 
-def final_values(signals: Path, columns: list[str]) -> dict[str, float]:
-    """The last recorded value of each column ({} without rows)."""
-    if not signals.is_file():
-        return {}
-    data = np.load(signals, mmap_mode="r")
-    return {c: data[c][-1].item() for c in columns} if len(data) else {}
-
-
 def summary(plan: Plan, res: RunResult, rows: int, logs: dict[str, tuple[int, int]]) -> dict[str, Any]:
     """summary.json: ``logs`` gives each instance's (lines kept, messages received)."""
     sc = plan.scenario

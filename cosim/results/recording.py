@@ -132,6 +132,10 @@ class RecordedRows:
     def _write(self, rec: np.ndarray) -> None:
         raise NotImplementedError
 
+    def array(self) -> np.ndarray:
+        """Every row written so far."""
+        raise NotImplementedError
+
     def close(self) -> None:
         pass
 
@@ -162,6 +166,12 @@ class NpyRecorder(RecordedRows):
         self._fh.seek(0)
         self._fh.write(b"\x93NUMPY" + version + len(encoded).to_bytes(nlen, "little") + encoded)
         self._fh.flush()
+
+    def array(self) -> np.ndarray:
+        """The rows, read back from the file (mapped, not loaded)."""
+        if not self._fh.closed:
+            self._fh.flush()
+        return np.load(self.path, mmap_mode="r")
 
     def _write(self, rec: np.ndarray) -> None:
         """The rows appended to the file, its header updated."""

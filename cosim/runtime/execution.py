@@ -75,9 +75,10 @@ class Execution:
     """One run of a plan, stepped by its driver (see the module's docstring).
 
     ``out``: the results folder (None: none, the run kept in memory; the result has the final values, the
-    summary and the scenario as resolved, and the signals with ``keep_signals``); ``progress``: the progress bar (None: on a terminal, for
-    long runs); ``timing``: measure the time inside the step's FMI calls; ``check_inputs``: refuse
-    non-finite values on connections; ``real_time``: pace the steps at that factor of the wall clock;
+    summary and the scenario as resolved, and the signals with ``keep_signals``); ``progress``: the progress
+    bar (None: on a terminal, for long runs); ``timing``: measure the time inside the step's FMI calls;
+    ``check_inputs``: refuse non-finite values on connections; ``real_time``: pace the steps at that factor
+    of the wall clock;
     ``algorithm``: an :class:`.algorithm.Algorithm` object (default: the scenario's)."""
 
     def __init__(self, plan: Plan, out: str | Path | None = None, *, progress: bool | None = False,
@@ -425,18 +426,15 @@ class Execution:
             self._set_status(RunStatus.INTERRUPTED, f"interrupted by the user at t = {self.time:.6g} s")
         elif isinstance(exc, CosimError):
             if isinstance(exc, InstanceLost) and exc.time is not None:   # a child died inside a segment
-                self.k_done = self._step_of(exc.time)
+                self.k_done = self.clock.step_of(exc.time)
             elif isinstance(exc, RunError) and exc.time is not None:     # e.g. a non-finite recorded value
-                self.k_done = min(self.k_done, self._step_of(exc.time))
+                self.k_done = min(self.k_done, self.clock.step_of(exc.time))
             self._set_status(RunStatus.FAILED, str(exc))
         elif self._in_step:
             self._set_status(RunStatus.FAILED, f"a callback raised {type(exc).__name__}: {exc} at t = {self.time:.6g} s")
         else:
             self._set_status(RunStatus.FAILED, str(exc))
         self._finish()
-
-    def _step_of(self, t: float) -> int:
-        return self.clock.step_of(t)
 
     def _fmu_ended(self, s: FmuEnded) -> None:
         """An FMU ended the simulation at ``s.t``: the row at that time, unless it is the last row recorded
@@ -462,7 +460,7 @@ class Execution:
                     o.finished(self._observed)
                 except RunError as exc:
                     if exc.time is not None:
-                        self.k_done = min(self.k_done, self._step_of(exc.time))
+                        self.k_done = min(self.k_done, self.clock.step_of(exc.time))
                     if self.status != RunStatus.FAILED:
                         self._set_status(RunStatus.FAILED, str(exc))
             self._instance_events = [e for n, inst in self.instances.items()

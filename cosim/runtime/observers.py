@@ -26,7 +26,6 @@ from typing import Any, Callable
 import numpy as np
 
 from ..instances.failure import Call, Failure
-from ..results.folder import final_values
 from ..results.recording import MemoryRecorder, NpyRecorder, RecordedRows, RowBuffer
 from ..stepping.algorithm import Clock, Row, StepDone
 from .pacing import Pacer
@@ -69,6 +68,18 @@ class RecordedGetter:
     slots: list[tuple[int, int]]
     fail: Callable[[str, int, float], Exception]
 
+    def read(self, row: Row) -> int:
+        """The values into their slots of the row (doubles, then 64-bit integers); the get's status."""
+        s = self.get(self.vrs, self.n, self.buf, self.nv)
+        if not s:
+            rowd, irow, nd, buf = row.row, row.irow, row.n_double, self.buf
+            for e, slot in self.slots:
+                if slot < nd:
+                    rowd[slot] = buf[e]
+                else:
+                    irow[slot - nd] = buf[e]
+        return s
+
 
 class Recorder(Observer):
     """The recording: the row of every recorded communication point (every ``decimation``-th, the last,
@@ -97,28 +108,20 @@ class Recorder(Observer):
         self.take: StepDone = self._taker()
 
     @property
-    def is_open(self) -> bool:
-        return self.file is not None
-
-    @property
     def n_rows(self) -> int:
         """The rows written to signals.npy."""
         return self.file.rows if self.file is not None else 0
 
     def signals(self) -> np.ndarray:
-        """Every row written (from memory, or read back from signals.npy)."""
-        if isinstance(self.file, MemoryRecorder):
-            return self.file.array()
-        if self.path is not None and self.path.is_file():
-            return np.load(self.path)
-        return np.zeros(0, dtype=[("time", "f8")])
+        """Every row written (an empty time column where the recording never opened)."""
+        return np.array(self.file.array()) if self.file is not None else np.zeros(0, dtype=[("time", "f8")])
 
     def final(self) -> dict[str, float]:
         """The last recorded value of each column ({} without rows)."""
-        if isinstance(self.file, MemoryRecorder):
-            data = self.file.array()
-            return {c: data[c][-1].item() for c in self.columns} if len(data) else {}
-        return final_values(self.path, self.columns) if self.path is not None and self.file is not None else {}
+        if self.file is None:
+            return {}
+        data = self.file.array()
+        return {c: data[c][-1].item() for c in self.columns} if len(data) else {}
 
     def last_time(self) -> float | None:
         """The time of the last row taken and not yet written (None: none)."""
@@ -127,25 +130,19 @@ class Recorder(Observer):
     def _taker(self) -> StepDone:
         """``take(k, ended)``: the row of t_k when k is recorded (or ``ended``); a Failure where a recorded
         value cannot be read.  A closure over locals: it runs after every step."""
-        c, rowd, irow, buf, nd = self.clock, self.row.row, self.row.irow, self.row.buf, self.row.n_double
+        c, row, rowd, buf, getters = self.clock, self.row, self.row.row, self.row.buf, self.getters
         assert self.rows is not None
         dec, n, t0, h, stop, append = c.decimation, c.n_steps, float(c.start), float(c.step), c.stop, \
             self.rows.chunk.append
-        getters = [(x, x.get, x.vrs, x.n, x.buf, x.nv, x.slots) for x in self.getters]
 
         def take(k: int, ended: bool) -> Failure | None:
             if k % dec and k != n and not ended:
                 return None
             rowd[0] = stop if k == n and stop is not None else t0 + k * h
-            for x, get, vrs, nr, xbuf, nv, slots in getters:
-                s = get(vrs, nr, xbuf, nv)
+            for x in getters:
+                s = x.read(row)
                 if s:
                     return Failure(k, x.instance, Call.GET_RECORDED, s)
-                for e, slot in slots:
-                    if slot < nd:
-                        rowd[slot] = xbuf[e]
-                    else:
-                        irow[slot - nd] = xbuf[e]
             append(bytes(buf))
             return None
         return take
@@ -153,17 +150,11 @@ class Recorder(Observer):
     def record_at(self, t: float) -> None:
         """The row of the time t [s] now, outside the loop (the start time; where an FMU ended the simulation
         between two points), the recorded outputs of other types read first (RunError naming the instance)."""
-        rowd, irow, nd = self.row.row, self.row.irow, self.row.n_double
         for x in self.getters:
-            s = x.get(x.vrs, x.n, x.buf, x.nv)
+            s = x.read(self.row)
             if s:
                 raise x.fail("get outputs (recorded)", s, t)
-            for e, slot in x.slots:
-                if slot < nd:
-                    rowd[slot] = x.buf[e]
-                else:
-                    irow[slot - nd] = x.buf[e]
-        rowd[0] = t
+        self.row.row[0] = t
         assert self.rows is not None
         self.rows.chunk.append(bytes(self.row.buf))
 

@@ -21,8 +21,7 @@ from ..model.archive import DEFAULT_LIMITS, ArchiveLimits, LimitOverrides, parse
 from ..model.description import CO_SIMULATION, MODEL_EXCHANGE
 from ..model.kinds import FileKind, file_kind
 from ..stepping import table as algorithms
-from ..stepping.settings import ADAPTIVE_KEYS, ITERATION_KEYS, IterationSpec, SpecError, iteration_spec
-from ..stepping.settings import AdaptiveSpec
+from ..stepping.settings import ADAPTIVE_KEYS, ITERATION_KEYS, AdaptiveSpec, IterationSpec, SpecError, iteration_spec
 
 ACTIONS = ("override", "bias", "reset", "set", "stop")
 TRIGGERS = ("once", "each")
@@ -284,6 +283,21 @@ def _table(file: str, fld: str, v: Any) -> dict[str, Any]:
     return v
 
 
+def _tables(file: str, doc: dict[str, Any], key: str, allowed: set[str]) -> list[tuple[str, dict[str, Any]]]:
+    """The array of tables ``[[key]]`` (none: empty), each as (its field, ``key[i]``; the table), each
+    checked to be a table of allowed keys."""
+    items = doc.get(key) or []
+    if not isinstance(items, list):
+        raise ScenarioError(file, key, f"must be an array of tables ([[{key}]])")
+    out = []
+    for i, item in enumerate(items):
+        fld = f"{key}[{i}]"
+        table = _table(file, fld, item)
+        _keys(file, fld, table, allowed)
+        out.append((fld, table))
+    return out
+
+
 def _keys(file: str, fld: str, d: dict[str, Any], allowed: set[str]) -> None:
     for k in d:
         if k not in allowed:
@@ -473,13 +487,7 @@ def _choice(file: str, fld: str, v: Any, allowed: tuple[str, ...]) -> str | None
 def _parse_connections(sc: Scenario, doc: dict[str, Any]) -> None:
     """[[connections]]: output -> input with factor, offset, conversion."""
     file = sc.file
-    conns = doc.get("connections") or []
-    if not isinstance(conns, list):
-        raise ScenarioError(file, "connections", "must be an array of tables ([[connections]])")
-    for i, c in enumerate(conns):
-        fld = f"connections[{i}]"
-        c = _table(file, fld, c)
-        _keys(file, fld, c, _CONNECTION_KEYS)
+    for i, (fld, c) in enumerate(_tables(file, doc, "connections", _CONNECTION_KEYS)):
         for end in ("from", "to"):
             if end not in c:
                 raise ScenarioError(file, f"{fld}.{end}", "missing")
@@ -522,14 +530,8 @@ def _parse_record(sc: Scenario, doc: dict[str, Any]) -> None:
 def _parse_runs(sc: Scenario, doc: dict[str, Any]) -> None:
     """[[runs]] and [variants.NAME] of a protocol."""
     file = sc.file
-    runs = doc.get("runs") or []
-    if not isinstance(runs, list):
-        raise ScenarioError(file, "runs", "must be an array of tables ([[runs]])")
     names: list[str] = []
-    for i, r in enumerate(runs):
-        fld = f"runs[{i}]"
-        r = _table(file, fld, r)
-        _keys(file, fld, r, _RUN_KEYS)
+    for fld, r in _tables(file, doc, "runs", _RUN_KEYS):
         name = r.get("name")
         if not isinstance(name, str) or not name.isidentifier():
             raise ScenarioError(file, f"{fld}.name", f"{name!r}: a run needs a name that is an identifier")
@@ -580,13 +582,7 @@ def _parse_events(sc: Scenario, doc: dict[str, Any]) -> None:
     from .condition import ConditionError, parse as parse_condition, variables as condition_variables
 
     file = sc.file
-    evs = doc.get("events") or []
-    if not isinstance(evs, list):
-        raise ScenarioError(file, "events", "must be an array of tables ([[events]])")
-    for i, e in enumerate(evs):
-        fld = f"events[{i}]"
-        e = _table(file, fld, e)
-        _keys(file, fld, e, _EVENT_KEYS)
+    for i, (fld, e) in enumerate(_tables(file, doc, "events", _EVENT_KEYS)):
         if ("time" in e) == ("when" in e):
             raise ScenarioError(file, fld, "needs either a time or a when condition" if "time" not in e
                                 else "has both a time and a when condition: give one")

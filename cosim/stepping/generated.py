@@ -1,7 +1,8 @@
 """The fixed-step algorithms whose loop is generated: Gauss-Seidel and Jacobi.
 
-Their loop is generated for one plan as straight-line Python: every array, function, index and number is bound as a local of the generated function (never
-formatted into its source), and the FMI functions are raw ctypes calls without per-argument conversion.
+Their loop is generated for one plan as straight-line Python: every array, function, index and number is
+bound as a local of the generated function (never formatted into its source), and the FMI functions are
+raw ctypes calls without per-argument conversion.
 Measured on the G1 system, this is faster than a plain loop over the instances making the same calls
 (docs/architecture.md).  They differ only in the order of work in a step:
 
@@ -140,6 +141,11 @@ class LoopSource:
             self.w(f"{ind}s = getr_{i}(c_{i}, outvr_{i}, nout_{i}, out_{i}{self.args('ga', i, io.fast.get_tail)})")
             self.w(f"{ind}if s: return Failure(k + 1, name_{i}, Call.GET_REAL, s{when})")
 
+    def take(self) -> list[str]:
+        """The lines written so far, the source left empty."""
+        lines, self.lines = self.lines, []
+        return lines
+
     def function(self, head: str, body: list[str]) -> None:
         """``def NAME(ARGS, *, <every bound value>=...)``: the bound values become keyword defaults, fast
         locals inside it."""
@@ -182,7 +188,7 @@ def compile_loop(ios: list[InstanceIO], body: Callable[[LoopSource, list[Instanc
     if short:   # the last step is short (only then is this compared at every step)
         s.env.update({"k_last": clock.n_steps - 1, "h_last": float(clock.length(clock.n_steps - 1))})
     s.done(ios)
-    step_lines, s.lines = s.lines, []
+    step_lines = s.take()
     s.function("loop(k0, k1", ["    Tv = T", "    ended = None", "    for k in range(k0, k1):",
                                "        Tv.value = t0 + k * h"]
                + (["        H.value = h_last if k == k_last else h"] if short else []) + step_lines)
@@ -200,16 +206,17 @@ def compile_instance(i: int, io: InstanceIO, T: ctypes.c_double, H: ctypes.c_dou
     s = LoopSource(check_inputs)
     s.env.update({"Failure": Failure, "Call": Call, "Tv": T, "H": H})
     s.instance(i, io)
-    parts: list[tuple[str, list[str]]] = []
-    for head, write in (("inputs(k, t, given=None", lambda: s.inputs(i, io, "    ", ", t", given=True)),
-                        ("step(k, t, h", lambda: s.step(i, io, "    ", ", t", note_end=False)),
-                        ("outputs(k, t", lambda: s.outputs(i, io, "    ", ", t"))):
-        write()
-        parts.append((head, s.lines))
-        s.lines = []
-    for head, body in parts:
-        if head.startswith("step"):
-            body = ["    Tv.value = t", "    H.value = h"] + body
-        s.function(head, body)
-    inputs, step, outputs = s.compiled("inputs", "step", "outputs")
-    return inputs, step, outputs
+    s.inputs(i, io, "    ", ", t", given=True)
+    inputs = s.take()
+    s.w("    Tv.value = t")
+    s.w("    H.value = h")
+    s.step(i, io, "    ", ", t", note_end=False)
+    step = s.take()
+    s.outputs(i, io, "    ", ", t")
+    outputs = s.take()
+    # (the bodies first, then the functions: each binds every value bound while any body was written)
+    s.function("inputs(k, t, given=None", inputs)
+    s.function("step(k, t, h", step)
+    s.function("outputs(k, t", outputs)
+    fn_inputs, fn_step, fn_outputs = s.compiled("inputs", "step", "outputs")
+    return fn_inputs, fn_step, fn_outputs

@@ -22,7 +22,6 @@ from .generated import compile_instance
 from .graph import strongly_connected
 
 
-
 def feeders(ios: list[InstanceIO]) -> list[set[int]]:
     """For each instance, the instances whose Float64 outputs its copies read now (overrides and tables
     read no instance)."""
@@ -47,25 +46,27 @@ def is_loop(comp: list[int], fed_by: list[set[int]]) -> bool:
 
 
 class Stepper:
-    """Plain-Python steps over the instances (see the module's docstring)."""
+    """Steps over the instances one at a time (see the module's docstring)."""
 
     def __init__(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,
                  check_inputs: bool = True) -> None:
         self.ios, self.clock, self.layout, self.done, self.check_inputs = ios, clock, layout, done, check_inputs
         self.T, self.H = ctypes.c_double(0.0), ctypes.c_double(0.0)
         self.n_do_steps = 0
-        self._copies: list[Any] = [None] * len(ios)    # the copies each instance's functions were made for
-        self._fns: list[tuple[Callable[..., Failure | None], ...]] = [()] * len(ios)
+        # each instance's functions and the copies they were made for
+        self._made: list[tuple[Any, tuple[Callable[..., Failure | None], ...]]] = [(None, ())] * len(ios)
 
     # ------------------------------------------------------------------ one instance
     def _parts(self, i: int) -> tuple[Callable[..., Failure | None], ...]:
         """Instance i's generated part of a step (:func:`.generated.compile_instance`), made again when its
-        copies changed (events, the script: the execution gives it a new list)."""
+        copies changed (events, the script: the execution gives every instance a new list)."""
         io = self.ios[i]
-        if self._copies[i] is not io.copies:
-            self._fns[i] = compile_instance(i, io, self.T, self.H, self.check_inputs)
-            self._copies[i] = io.copies
-        return self._fns[i]
+        copies, fns = self._made[i]
+        if copies is not io.copies:   # a new list: made again only where its copies differ
+            if copies != io.copies or not fns:
+                fns = compile_instance(i, io, self.T, self.H, self.check_inputs)
+            self._made[i] = (io.copies, fns)
+        return fns
 
     def set_inputs(self, i: int, k: int, t: float, given: dict[int, float] | None = None) -> Failure | None:
         """Instance i's inputs of step k (from t [s]): tables, copies (``given``: position -> value in

@@ -72,8 +72,9 @@ ROWS: tuple[AlgorithmRow, ...] = (
     AlgorithmRow(ADAPTIVE, Adaptive, "the step size controlled by step doubling, a rejected step rolled back "
                  "(over one pass or the iterated step)", varies_step=True),
 )
-#: The algorithm a scenario that names none runs.
+#: The algorithm a scenario that names none runs, and the step-size control's settings where it gives none.
 DEFAULT = GAUSS_SEIDEL
+DEFAULT_ADAPTIVE = AdaptiveSpec(coupling=DEFAULT)
 NAMES: tuple[str, ...] = tuple(r.name for r in ROWS)
 _BY_NAME = {r.name: r for r in ROWS}
 
@@ -123,7 +124,7 @@ def adaptive_spec(table: dict[str, Any], interval: float | None = None,
     for k in table:
         if k not in ADAPTIVE_KEYS:
             raise SpecError(f"{where}.{k}", f"unknown key (known: {', '.join(sorted(ADAPTIVE_KEYS))})")
-    d = AdaptiveSpec(coupling=DEFAULT)
+    d = DEFAULT_ADAPTIVE
     vals = {k: (positive(f"{where}.{k}", table[k]) if k in table else getattr(d, k))
             for k in ("rtol", "atol", "min_step", "max_step", "initial_step")}
     coupling = str(table.get("coupling", d.coupling)).lower()
@@ -144,7 +145,7 @@ def describe_settings(name: str, iteration: IterationSpec | None, adaptive: Adap
         return (iteration or IterationSpec()).describe()
     if not r.varies_step:
         return None
-    spec = adaptive or AdaptiveSpec(coupling=DEFAULT)
+    spec = adaptive or DEFAULT_ADAPTIVE
     text = spec.resolved(interval).describe()
     if row(spec.coupling).solves_loops:
         text += f"; iteration {(iteration or IterationSpec()).describe()}"
@@ -164,7 +165,7 @@ def make(name: str, iteration: IterationSpec | None = None, adaptive: AdaptiveSp
     elif r.solves_loops:
         alg = Iterated(iteration or IterationSpec())
     elif r.varies_step:
-        spec = adaptive or AdaptiveSpec(coupling=DEFAULT)
+        spec = adaptive or DEFAULT_ADAPTIVE
         inner = row(spec.coupling)
         alg = Adaptive(spec, iteration, iterated=inner.solves_loops, jacobi=inner.simultaneous)
     else:
