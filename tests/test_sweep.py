@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from wmr_cosim import cluster, robot_measures, sweep, sweep_file, sweep_metrics
+from wmr_cosim import cluster, robot_measures, shipment, sweep, sweep_file, sweep_metrics
 from wmr_cosim.cosim.messages.errors import ScenarioError
 
 DATA = Path(__file__).parent / "data"
@@ -51,6 +51,16 @@ samples = 2
 def cluster2():
     with cluster.Cluster(workers=2) as cl:
         yield cl
+
+
+def _study(tmp: Path, base: str, **kw) -> sweep.Study:
+    """A study of ``base`` whose files lie in the cache ``tmp/cache`` (as a worker's, for run_point here)."""
+    ship, blobs = shipment.pack([base], robot_measures.fmu_paths())
+    names: dict[str, list[str]] = {}
+    for f in ship.files.values():
+        names.setdefault(f.sha256, []).append(f.name)
+    shipment.store(tmp / "cache", blobs, names)
+    return sweep.Study(ship, base, **kw)
 
 
 def _table(df: pd.DataFrame) -> pd.DataFrame:
@@ -90,10 +100,11 @@ def test_a_point_that_changes_q_and_r_gets_gamma_star_with_its_own_weights(tmp_p
     from wmr_cosim.analysis import disturbance_analysis, load_signals, table1_disturbance_analysis
 
     point = {"id": 0, "params": {"controller.Q": 3.0, "controller.R": 0.2}}
-    row = sweep.run_point(point, str(DATA / "short_protocol.toml"), None, None,
-                          robot_measures.fmu_paths(), str(tmp_path), keep_runs=True, measure=robot_measures.measure)
+    study = _study(tmp_path, str(DATA / "short_protocol.toml"), keep_runs=True, measure=robot_measures.measure)
+    row, kept = sweep.run_point(point, study, tmp_path / "cache")
     assert row["status"] == "ok", row["reason"]
     runs = tmp_path / "runs" / "00000"
+    sweep._unpacked(kept, runs)
     frozen, foam = load_signals(runs / "frozen"), load_signals(runs / "foam")
     own = disturbance_analysis(frozen, foam, Q=3.0, R=0.2)
     assert row["gamma_star"] == own["gamma_star"] and row["gain_incremental"] == own["gain_incremental"]
@@ -377,13 +388,14 @@ def test_a_point_whose_run_did_not_end_ok_is_failed_whatever_it_measures(tmp_pat
     stopped by an event) makes the point failed with that run's message, with the file's metrics too."""
     from types import SimpleNamespace
 
-    from wmr_cosim import cosim
+    from wmr_cosim import runner
 
     ends = {"first": SimpleNamespace(status="ok", message=""),
             "second": SimpleNamespace(status="stopped", message="stopped by events[0] at t = 0.5 s")}
-    monkeypatch.setattr(cosim, "run_protocol", lambda *a, **kw: ends)
+    monkeypatch.setattr(runner, "run_protocol", lambda *a, **kw: ends)
+    monkeypatch.setattr(shipment.Shipment, "protocol", lambda *a: (SimpleNamespace(resolver=None), str))
     measure = sweep_metrics.SweepMeasure((sweep_metrics.MetricSpec("x_end", "final", "dq.x", run="first"),))
-    row = sweep.run_point({"id": 3, "params": {"dq.k": 1.0}}, "base.toml", None, None, {}, str(tmp_path),
-                          measure=measure)
+    study = sweep.Study(shipment.Shipment({"base.toml": {}}, {}, {}, shipment.build()), "base.toml", measure=measure)
+    row, _ = sweep.run_point({"id": 3, "params": {"dq.k": 1.0}}, study, tmp_path / "cache")
     assert row["status"] == "failed" and row["reason"] == "second: stopped by events[0] at t = 0.5 s"
     assert math.isnan(row["x_end"])   # (nothing recorded here: the fake runs wrote no signals)

@@ -413,7 +413,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from .sweep import run_sweep
 
     out = args.out if args.out is not None else Path("results") / args.sweep.stem
-    df = run_sweep(args.sweep, out, progress=False if args.quiet else None, archive_limits=args.limits,
+    df = run_sweep(args.sweep, out, progress=not args.quiet, archive_limits=args.limits,
                    **cluster_options(args))
     counts = df["status"].value_counts().to_dict()
     print(f"{args.sweep}: {count(len(df), 'point')} ({', '.join(f'{v} {k}' for k, v in sorted(counts.items()))}); "
@@ -428,7 +428,7 @@ def cmd_gamma_search(args: argparse.Namespace) -> int:
 
     out = args.out if args.out is not None else Path("results") / f"gamma-search-{args.scenario.stem}"
     r = gamma_search(args.scenario, out, grid=args.grid, variant=args.variant,
-                     progress=False if args.quiet else None, archive_limits=args.limits, **cluster_options(args))
+                     progress=not args.quiet, archive_limits=args.limits, **cluster_options(args))
     for p in r["curve"]:
         gs = "-" if p["gamma_star"] is None else f"{p['gamma_star']:.3f}"
         print(f"  gamma {p['gamma']:8.3f}  gamma* {gs:>10s}  {'holds' if p['holds'] else 'fails'}"
@@ -446,16 +446,18 @@ def _dask_options(p: argparse.ArgumentParser) -> None:
     """--workers, --scheduler, --dashboard, --tls-*, --quiet: where the points of a sweep or gamma search run."""
     p.add_argument("--workers", type=int, default=None, help="local worker processes (default: one per core)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="an existing dask.distributed scheduler, e.g. tls://10.0.0.5:8786 (workers must see the "
-                        "same files and have this project installed; a scheduler runs any code it is sent: "
-                        "plain tcp:// only on a trusted network, see docs/security.md)")
+                   help="an existing dask.distributed scheduler, e.g. tls://10.0.0.5:8786 (its workers need this "
+                        "project's version installed, no shared files: the FMUs and scenario files are sent to "
+                        "them; a scheduler runs any code it is sent: plain tcp:// only on a trusted network, see "
+                        "docs/security.md and docs/cluster.md)")
     p.add_argument("--dashboard", action="store_true",
                    help="start the local cluster's Dask dashboard (on 127.0.0.1 only) and print its address "
                         "(with --scheduler: print that scheduler's)")
     for opt, what in (("--tls-ca-file", "the CA certificate that signed the scheduler's"), ("--tls-cert", "this "
                       "client's certificate"), ("--tls-key", "this client's private key")):
         p.add_argument(opt, default=None, metavar="PEM", help=f"for a tls:// scheduler: {what} (PEM file)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress (a bar with the time left on a terminal, a line every 5%% of the points otherwise)")
 
 
 def _solver_options(p: argparse.ArgumentParser) -> None:

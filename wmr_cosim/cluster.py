@@ -13,6 +13,10 @@ from typing import Any
 
 from .cosim import CosimError
 
+#: How many times a point whose worker died is run again on the local cluster (an existing scheduler
+#: applies its own ``distributed.scheduler.allowed-failures``, Dask's default 3).
+ALLOWED_FAILURES = 1
+
 
 def dask_security(ca_file: str | None = None, cert: str | None = None, key: str | None = None) -> Any:
     """A ``distributed.security.Security`` for a ``tls://`` scheduler from PEM files (the CA that signed
@@ -59,7 +63,8 @@ def cleartext_warning(address: str) -> str | None:
 
 class Cluster:
     """A Dask client: a local cluster of ``workers`` processes (one thread each), or an existing
-    scheduler at ``address`` (``tcp://`` or, with certificates, ``tls://``).
+    scheduler at ``address`` (``tcp://`` or, with certificates, ``tls://``), whose workers must run this
+    process's build of the project (shipment.py's ``check_workers``: refused in one line otherwise).
 
     The local cluster listens on the loopback address only (scheduler, workers and the scheduler's HTTP
     endpoint); its dashboard is off unless ``dashboard`` is true, and then it too listens on the loopback
@@ -89,6 +94,12 @@ class Cluster:
                 if address.startswith("tls://") and security is None:
                     hint = "; a tls:// scheduler needs --tls-ca-file, --tls-cert and --tls-key (or Dask's configuration)"
                 raise CosimError(f"--scheduler {address}: cannot connect ({' '.join(str(exc).split())}){hint}") from None
+            from .shipment import check_workers
+            try:
+                check_workers(self.client, f"--scheduler {address}")
+            except BaseException:
+                self.client.close()
+                raise
         else:
             # the scheduler's HTTP endpoint always runs: on the loopback address, at a free port, and it
             # serves the dashboard only when asked for (":0" would listen on every interface); the workers'
@@ -96,7 +107,8 @@ class Cluster:
             # dask-scratch-space in the temporary folder, behind)
             self.scratch = Path(tempfile.mkdtemp(prefix="wmr-dask-"))
             try:
-                sched = {"local_directory": str(self.scratch)}
+                # a point whose worker dies is run once more, on another worker; a second death fails it
+                sched: dict[str, Any] = {"local_directory": str(self.scratch), "allowed_failures": ALLOWED_FAILURES}
                 if not dashboard:
                     sched["dashboard_address"] = "127.0.0.1:0"
                 self.cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,

@@ -83,7 +83,8 @@ def _weights(run_dir: Path) -> dict[str, float]:
 
 
 def fmu_paths() -> dict[str, str]:
-    """Our three FMUs, built if needed, as absolute paths (workers must see the same file system)."""
+    """Our three FMUs, built if needed, as absolute paths on this machine (a study sends them to its workers
+    by content: shipment.py)."""
     from .runner import resolve_model
 
     return {m: str(resolve_model(m).resolve()) for m in ("WmrPlant", "WmrSensor", "WmrController")}

@@ -1,9 +1,9 @@
 """Sweeps and Monte Carlo studies on Dask: many full co-simulations, each point in a worker process.
 
-The sweep file and its points are sweep_file.py's, the cluster cluster.py's, the figures sweep_plots.py's
-and what a point measures of our robot robot_measures.py's; this module runs the points (:func:`run_point`,
-in a worker: the base's runs with the point's parameters, then the measure it is given) and the sweep
-(:func:`run_sweep`).
+The sweep file and its points are sweep_file.py's, the cluster cluster.py's, what travels to the workers
+shipment.py's, the figures sweep_plots.py's and what a point measures of our robot robot_measures.py's;
+this module runs the points (:func:`run_point`, in a worker: the base's runs with the point's parameters,
+their files from the worker's cache, then the measure it is given) and the sweep (:func:`run_sweep`).
 
 Every point runs the base's runs with its parameter values; the results are one row per point (the
 parameters, status, reason, metrics) in ``results.parquet`` and ``results.csv``, plots in ``figures/``.
@@ -15,21 +15,25 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import io
 import json
+import math
 import os
 import shutil
 import sys
+import tarfile
 import tempfile
 import time
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
 from .cluster import Cluster
-from .cosim import CosimError, LimitOverrides
+from .cosim import CosimError, LimitOverrides, count
 from . import robot_measures
+from .shipment import Shipment, ShippingCost, pack, ship, unship, worker_cache
 from .sweep_file import SweepSpec, draw_points, load_sweep
 from .sweep_metrics import SweepMeasure, check_metrics
 from .sweep_plots import plot_sweep
@@ -40,25 +44,47 @@ Measure = Callable[[dict[str, Any], dict[str, Any], Path], None]
 
 
 # ---------------------------------------------------------------------- one point (in a worker)
-def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[str] | None,
-              fmus: dict[str, str], out_dir: str, keep_runs: bool = False,
-              archive_limits: LimitOverrides | None = None, measure: Measure | None = None) -> dict[str, Any]:
-    """Run one point (the base's runs with the point's parameters) and return its row: id, parameters,
-    status ('ok', 'diverged', 'failed'), reason and what ``measure`` adds (``measure(row, results, folder)``:
-    the runs' metrics into the row; it may set the status and reason).  Never raises: a failure is a row.
-    ``archive_limits``: the submitter's archive limits (a command line's options) over the scenario's own;
-    they travel with the point, since a worker may be another process or another machine."""
-    from .cosim import run_protocol
+@dataclass(frozen=True)
+class Study:
+    """What every point of one submission shares, sent with each point (small: the files it names travel
+    once per worker, see shipment.py): the shipment (the bases' documents and what their files are), the
+    variant and runs of the bases to run, whether to send each point's run folders back (``keep_runs``),
+    the submitter's archive limits (a command line's options, over each scenario's own: they travel with
+    the point, since a worker may be another machine) and what a point measures."""
+
+    shipment: Shipment
+    base: str
+    variant: str | None = None
+    runs: list[str] | None = None
+    keep_runs: bool = False
+    archive_limits: LimitOverrides | None = None
+    measure: Measure | None = None
+
+
+def run_point(point: dict[str, Any], study: Study, cache: Path | None = None) -> tuple[dict[str, Any], bytes | None]:
+    """Run one point (its base's runs, the study's by default, with the point's parameters) and return its
+    row (id, parameters, status 'ok', 'diverged' or 'failed', reason, and what the study's measure adds:
+    ``measure(row, results, folder)`` puts the runs' metrics into the row and may set the status and
+    reason) and, with ``keep_runs``, its run folders as a gzipped tar.  The runs read their FMUs and input
+    tables from ``cache`` (this Dask worker's cache of shipped files by default) and write into a folder
+    beside it, removed after the point; every path of the cache
+    in a reason is the driver's again, so a row does not depend on the worker.  Never raises: a failure
+    is a row."""
+    from .runner import run_protocol
 
     row: dict[str, Any] = {"point": point["id"], **point["params"], "status": "ok", "reason": ""}
-    work = Path(out_dir) / "runs" / f"{point['id']:05d}" if keep_runs else Path(tempfile.mkdtemp(prefix="wmr-sweep-"))
+    cache = cache if cache is not None else worker_cache()
+    # beside the cache, in the worker's own folder: what a killed worker leaves goes with that folder
+    work = Path(tempfile.mkdtemp(prefix="wmr-sweep-", dir=cache.parent))
+    unlocalise: Callable[[str], str] = str
+    runs: bytes | None = None
     t0 = time.perf_counter()
     try:
-        results = run_protocol(base, work, lambda name: Path(fmus[name]) if name in fmus else None,
-                               variant=variant, overrides=point["params"], progress=False, only=runs,
-                               limits=archive_limits)
-        if measure is not None:
-            measure(row, results, work)
+        proto, unlocalise = study.shipment.protocol(point.get("base", study.base), study.archive_limits, cache)
+        results = run_protocol(proto, work, proto.resolver, variant=study.variant, overrides=point["params"],
+                               progress=False, only=study.runs)
+        if study.measure is not None:
+            study.measure(row, results, work)
         failed = next((name for name, res in results.items() if res.status != "ok"), None)
         if failed is not None and row["status"] == "ok":   # (whatever the measure: the first run that failed)
             row["status"], row["reason"] = "failed", f"{failed}: {results[failed].message}"
@@ -70,61 +96,156 @@ def run_point(point: dict[str, Any], base: str, variant: str | None, runs: list[
     except Exception as exc:  # a point must never take the sweep down
         row["status"], row["reason"] = "failed", f"{type(exc).__name__}: {' '.join(str(exc).split())}"
     finally:
-        if not keep_runs:
-            shutil.rmtree(work, ignore_errors=True)
+        if study.keep_runs:
+            runs = _packed(work)
+        shutil.rmtree(work, ignore_errors=True)
+    row["reason"] = unlocalise(row["reason"])
     row["wall_s"] = time.perf_counter() - t0
-    return row
+    return row, runs
+
+
+def _packed(folder: Path) -> bytes:
+    """A folder's files as a gzipped tar (what a worker sends back of a point's runs)."""
+    buf = io.BytesIO()
+    with tarfile.open(fileobj=buf, mode="w:gz", compresslevel=1) as tar:
+        for f in sorted(folder.rglob("*")):
+            tar.add(f, arcname=f.relative_to(folder).as_posix(), recursive=False)
+    return buf.getvalue()
+
+
+def _unpacked(data: bytes, dest: Path) -> None:
+    """The run folders a worker sent back, into ``dest`` (replaced): only plain files and folders inside it."""
+    shutil.rmtree(dest, ignore_errors=True)
+    dest.mkdir(parents=True)
+    with tarfile.open(fileobj=io.BytesIO(data), mode="r:gz") as tar:
+        tar.extractall(dest, filter="data")
 
 
 # ---------------------------------------------------------------------- the sweep (in the parent)
 def run_points(points: list[dict[str, Any]], base: str, variant: str | None, runs: list[str] | None,
                out: Path, cluster: Cluster, keep_runs: bool = False, progress: bool | None = None,
                label: str = "sweep", archive_limits: LimitOverrides | None = None, *, fmus: dict[str, str],
-               measure: Measure | None) -> list[dict[str, Any]]:
+               measure: Measure | None, shipped: Callable[[ShippingCost], None] | None = None
+               ) -> list[dict[str, Any]]:
     """Run the points not yet in ``out/points`` on the cluster; returns every point's row, by id.
-    ``archive_limits`` (a caller's, over each scenario's own) are submitted with every point, as are
-    ``fmus`` (model name -> the FMU file every worker reads) and ``measure`` (see :func:`run_point`)."""
+
+    The bases (``base``, or a point's own ``base``) are read here, and every file they name (and the FMU of
+    each model name they use, from ``fmus``: model name -> FMU file) is sent to every worker once, by
+    content (shipment.py): no worker reads a file of this machine's.  ``shipped`` is told what that cost.
+    ``archive_limits`` (a caller's, over each scenario's own) and ``measure`` (see :func:`run_point`) go
+    with every point.  A point whose worker dies is run again on another (Dask's ``allowed-failures``: once
+    on our local cluster); one that kills its worker each time is a failed row.  ``progress``: a bar with
+    the time left on a terminal, a line every 5 % of the points (or minute) otherwise; None: on a terminal
+    only."""
     from distributed import as_completed
+    from distributed.scheduler import KilledWorker
 
     pts_dir = out / "points"
-    pts_dir.mkdir(parents=True, exist_ok=True)
-    rows: dict[int, dict[str, Any]] = {}
-    for p in points:
-        f = pts_dir / f"{p['id']:05d}.json"
-        if f.is_file():
-            try:
-                rows[p["id"]] = json.loads(f.read_text())
-            except json.JSONDecodeError:
-                f.unlink()  # a half-written point: run it again
+    rows = _points_done(pts_dir, points)
     todo = [p for p in points if p["id"] not in rows]
-    bar = None
-    if progress is None:
-        progress = sys.stderr.isatty()
-    if progress and todo:
-        from tqdm import tqdm
-        bar = tqdm(total=len(points), initial=len(rows), desc=label, unit="run", file=sys.stderr)
+    if not todo:
+        return [rows[p["id"]] for p in points]
+    from .runner import shipped_folder
+
+    shipment, blobs = pack([p.get("base", base) for p in todo], fmus, shipped_folder())
+    shipment, cost = ship(cluster.client, shipment, blobs)
+    if shipped is not None:
+        shipped(cost)
+    study = Study(shipment, base, variant, runs, keep_runs, archive_limits, measure)
     failed = sum(1 for r in rows.values() if r["status"] != "ok")
+    bar = Progress(label, len(points), len(rows), progress)
     # a point may name its own base (a study over several tasks in one submission)
-    futures = [cluster.client.submit(run_point, p, p.get("base", base), variant, runs, fmus, str(out), keep_runs,
-                                     archive_limits, measure, key=f"{label}-{out.name}-{p['id']}-{_digest(p, archive_limits)}",
-                                     pure=False) for p in todo]
+    futures = {cluster.client.submit(run_point, p, study, key=f"{label}-{out.name}-{p['id']}-{_digest(p, archive_limits)}",
+                                     pure=False): p for p in todo}
     try:
         for fut in as_completed(futures):
-            row = fut.result()
-            tmp = pts_dir / f"{row['point']:05d}.json.tmp"
+            try:
+                row, kept = fut.result()
+            except KilledWorker:
+                p = futures[fut]
+                row, kept = {"point": p["id"], **p["params"], "status": "failed",
+                             "reason": "its worker died while running it, again when it was run on another",
+                             "wall_s": math.nan}, None
+            if kept is not None:
+                _unpacked(kept, out / "runs" / f"{row['point']:05d}")
+            tmp = pts_dir / f"{row['point']:05d}.json.tmp"   # whole, then renamed: a point on disk is complete
             tmp.write_text(json.dumps(row, default=_jsonable))
             os.replace(tmp, pts_dir / f"{row['point']:05d}.json")
             rows[row["point"]] = row
             failed += row["status"] != "ok"
-            if bar is not None:
-                bar.set_postfix(failed=failed)
-                bar.update(1)
+            bar.update(failed)
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
         for fut in futures:
             fut.cancel()
+        unship(cluster.client, shipment)
     return [rows[p["id"]] for p in points]
+
+
+def _points_done(folder: Path, points: list[dict[str, Any]]) -> dict[int, dict[str, Any]]:
+    """The rows of the points already in ``folder`` (made if missing), by id; a half-written one is removed
+    (it runs again)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    rows: dict[int, dict[str, Any]] = {}
+    for p in points:
+        f = folder / f"{p['id']:05d}.json"
+        if f.is_file():
+            try:
+                rows[p["id"]] = json.loads(f.read_text())
+            except json.JSONDecodeError:
+                f.unlink()
+    return rows
+
+
+class Progress:
+    """Progress over a study's points: a tqdm bar with the time left on a terminal; otherwise (a batch
+    job's log) one line at the first point, then every 5 % of the points or every minute, with the time left estimated from the
+    points finished in this session.  ``show``: None for a terminal only, False for none."""
+
+    def __init__(self, label: str, total: int, done: int, show: bool | None) -> None:
+        self.label, self.total, self.done, self.start = label, total, done, done
+        self.t0 = self.last = time.monotonic()
+        tty = sys.stderr.isatty()
+        self.bar: Any = None
+        self.lines = bool(show) and not tty
+        if (show or (show is None and tty)) and tty:
+            from tqdm import tqdm
+            self.bar = tqdm(total=total, initial=done, desc=label, unit="point", file=sys.stderr)
+        self.every = max(1, total // 20)
+
+    def update(self, failed: int) -> None:
+        self.done += 1
+        if self.bar is not None:
+            self.bar.set_postfix(failed=failed)
+            self.bar.update(1)
+        elif self.lines:
+            now = time.monotonic()
+            ran = self.done - self.start
+            if ran == 1 or ran % self.every == 0 or self.done == self.total or now - self.last >= 60:
+                self.last = now
+                print(self.line(failed, now), file=sys.stderr, flush=True)
+
+    def line(self, failed: int, now: float) -> str:
+        """"sweep: 12/40 points (1 failed), 1 min 3 s, about 2 min 27 s left"."""
+        elapsed = now - self.t0
+        ran = self.done - self.start
+        left = "" if self.done == self.total or ran == 0 else \
+            f", about {_duration(elapsed / ran * (self.total - self.done))} left"
+        return f"{self.label}: {self.done}/{count(self.total, 'point')} ({failed} failed), {_duration(elapsed)}{left}"
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _duration(s: float) -> str:
+    """'45 s', '3 min 5 s', '2 h 10 min'."""
+    s = round(s)
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60} s"
+    return f"{s // 3600} h {s % 3600 // 60} min"
 
 
 def _digest(p: dict[str, Any], archive_limits: LimitOverrides | None = None) -> str:
@@ -186,9 +307,15 @@ def _run_sweep(spec: "SweepSpec", out: Path, workers: int | None, scheduler: str
     meta_file.write_text(json.dumps(meta, indent=1) + "\n")
     own = cluster is None
     cl = cluster or Cluster(workers, scheduler, security, dashboard)
+
+    def shipped(cost: ShippingCost) -> None:   # what sending the files cost, in sweep.json
+        meta["shipping"] = {"bytes": cost.bytes, "seconds": round(cost.seconds, 6), "workers": {
+            w: {"written": n, "cached": c, "seconds": round(t, 6)} for w, (n, c, t) in sorted(cost.workers.items())}}
+        meta_file.write_text(json.dumps(meta, indent=1) + "\n")
+
     try:
         rows = run_points(points, spec.base, spec.variant, spec.runs, out, cl, spec.keep_runs, progress,
-                          archive_limits=archive_limits, fmus=fmus, measure=measure)
+                          archive_limits=archive_limits, fmus=fmus, measure=measure, shipped=shipped)
     finally:
         if own:
             cl.close()

@@ -58,6 +58,14 @@ class Protocol:
             raise ScenarioError(self.file, f"--variant {variant}", f"not declared by this file (declared: {known})")
         return self.scenario.variants[variant]
 
+    @classmethod
+    def from_document(cls, file: str, document: dict[str, Any], resolver: Resolver | None = None,
+                      limits: LimitOverrides | None = None) -> "Protocol":
+        """The protocol of a document already read (:func:`~.scenario.read_document`: its bases merged,
+        its paths absolute), parsed for the file ``file`` names in messages; ``limits``: the caller's
+        archive limits.  The document is not changed."""
+        return cls(file, document, scenario.parse(copy.deepcopy(document), file, resolver, limits), resolver, limits)
+
     def with_parameters(self, overrides: dict[str, Any] | None) -> Scenario:
         """The scenario with ``overrides`` ({'inst.param': value}) applied to a copy of the document."""
         if not overrides:
@@ -71,10 +79,8 @@ def read_protocol(path: str | os.PathLike, resolver: Resolver | None = None, lim
     """Read and parse a scenario file once (:class:`Protocol`); ``limits``: the caller's archive limits;
     ``shipped``: the caller's folder of scenario files a ``base`` may name
     (:func:`~.scenario.read_document`)."""
-    file = str(Path(path))
-    doc = scenario.read_document(Path(path), shipped=shipped)
-    sc = scenario.parse(copy.deepcopy(doc), file, resolver, limits)
-    return Protocol(file, doc, sc, resolver, limits)
+    return Protocol.from_document(str(Path(path)), scenario.read_document(Path(path), shipped=shipped), resolver,
+                                  limits)
 
 
 def _protocol(source: str | os.PathLike | Protocol, resolver: Resolver | None,
