@@ -316,17 +316,27 @@ def test_a_worker_killed_mid_sweep_costs_only_its_points(tmp_path):
     pd.testing.assert_frame_equal(_table(hit), _table(calm), check_exact=True)
 
 
-def _die(row, results, work):   # a measure that kills its worker (as a crashing FMU would)
+def _die(tries: str, row, results, work):   # a measure that kills its worker (as a crashing FMU would)
     if row["point"] == 1:
+        with open(tries, "a") as fh:
+            fh.write(f"{os.getpid()}\n")
         os.kill(os.getpid(), signal.SIGKILL)
 
 
 @pytest.mark.slow
 def test_a_point_that_kills_its_worker_each_time_is_a_failed_row(tmp_path):
+    """It runs twice, in two worker processes (once more after its worker died), then it is a failed row;
+    the other points end ok."""
+    import functools
+
     _dahlquist_system(tmp_path / "d")
     base = str(tmp_path / "d" / "system.toml")
     points = [{"id": i, "params": {"dq.k": k}} for i, k in enumerate((0.5, 1.0, 2.0))]
+    tries = tmp_path / "tries"
     with cluster.Cluster(workers=2) as cl:
-        rows = sweep.run_points(points, base, None, None, tmp_path / "out", cl, progress=False, fmus={}, measure=_die)
+        rows = sweep.run_points(points, base, None, None, tmp_path / "out", cl, progress=False, fmus={},
+                                measure=functools.partial(_die, str(tries)))
     assert [r["status"] for r in rows] == ["ok", "failed", "ok"]
     assert rows[1]["reason"] == "its worker died while running it, again when it was run on another"
+    pids = tries.read_text().split()
+    assert len(pids) == 2 and len(set(pids)) == 2
