@@ -85,10 +85,12 @@ NAME:
             *_instance_steps_* (every FMU step, the adaptive's three per macro step and the iterations'
             included) and *_wall_s_* of both runs.  ``--repeats`` is not used.
 
-    parallel  Jacobi over N isolated C FMUs (the probe FMU of the tests, built with BURN_US=50: each step
-            computes for 50 us) in a chain, 4,000 steps of 1 ms, for N = 2 and 4: serial (workers = 1) and
-            stepped at once (workers = N), interleaved, medians: us_per_step_serial_N, us_per_step_parallel_N,
-            speedup_N (target >= 1.7 for N = 2 on 2 cores) and same_results_N (bit for bit).
+    parallel  Jacobi over N C FMUs (the probe FMU of the tests, built with BURN_US: each step computes for
+            1 ms, 1,000 steps, or for 50 us, 4,000 steps) in a chain, N = 2 and 4, in this process (stepped in
+            threads) and isolated (each in a child process): serial (workers = 1) and stepped at once
+            (workers = N), interleaved, medians; per KIND_N_BURN (threads_2_1ms, isolated_4_50us, ...):
+            us_per_step_serial_..., us_per_step_..., speedup_... (target >= 1.8 for threads_2_1ms on 2 cores)
+            and same_results_... (bit for bit); cores.
 
 ``--against REV`` runs NAME in this checkout and in a worktree of commit REV, interleaved, ``--rounds``
 fresh processes each of ``--repeats`` runs (benchmarks/against.py): each figure's median over the rounds for
@@ -887,7 +889,8 @@ def bench_adaptive(repeats: int) -> dict[str, Any]:
 
 
 def bench_parallel(repeats: int) -> dict[str, Any]:
-    """Parallel Jacobi over isolated C FMUs against serial Jacobi (see the module's docstring)."""
+    """Parallel Jacobi against serial Jacobi (see the module's docstring): probes that burn 1 ms and 50 us
+    of CPU a step, 2 and 4 of them, in this process (stepped in threads) and in child processes."""
     import tempfile
     from pathlib import Path
 
@@ -900,31 +903,33 @@ def bench_parallel(repeats: int) -> dict[str, Any]:
 
     figures: dict[str, Any] = {}
     with tempfile.TemporaryDirectory() as tmp:
-        probe = build_probe(Path(tmp) / "fmu", "Burn", BURN_US=50)
-        for n in (2, 4):
-            names = [f"p{i}" for i in range(n)]
-            doc = {"experiment": {"start": 0.0, "stop": 4.0, "step": 0.001, "algorithm": "jacobi"},
-                   "instances": {m: {"fmu": str(probe), "isolate": True} for m in names},
-                   "connections": [{"from": f"{a}.y", "to": f"{b}.u"} for a, b in zip(names, names[1:])],
-                   "record": {"variables": [f"{m}.y" for m in names]}}
-            walls: dict[int, list[float]] = {1: [], n: []}
-            rows: dict[int, bytes] = {}
-            for r in range(max(1, repeats)):
-                for w in (1, n) if r % 2 == 0 else (n, 1):
-                    doc["experiment"]["workers"] = w
-                    plan = cosim.resolve(cosim.parse(doc, "parallel.toml"))
-                    out = Path(tmp) / f"n{n}w{w}r{r}"
-                    res = cosim.run(plan, out, progress=False)
-                    if res.status != "ok":
-                        raise SystemExit(f"parallel bench (N = {n}, workers = {w}): {res.message}")
-                    walls[w].append(res.wall_s)
-                    rows[w] = np.load(out / "signals.npy").tobytes()
-            steps = 4000
-            serial, par = (statistics.median(walls[w]) / steps * 1e6 for w in (1, n))
-            figures[f"us_per_step_serial_{n}"] = round(serial, 2)
-            figures[f"us_per_step_parallel_{n}"] = round(par, 2)
-            figures[f"speedup_{n}"] = round(serial / par, 3)
-            figures[f"same_results_{n}"] = rows[1] == rows[n]
+        for burn, label, steps in ((1000, "1ms", 1000), (50, "50us", 4000)):
+            probe = build_probe(Path(tmp) / f"fmu{burn}", "Burn", BURN_US=burn)
+            for kind in ("threads", "isolated"):
+                for n in (2, 4):
+                    names = [f"p{i}" for i in range(n)]
+                    doc = {"experiment": {"start": 0.0, "stop": steps * 0.001, "step": 0.001, "algorithm": "jacobi"},
+                           "instances": {m: {"fmu": str(probe), "isolate": kind == "isolated"} for m in names},
+                           "connections": [{"from": f"{a}.y", "to": f"{b}.u"} for a, b in zip(names, names[1:])],
+                           "record": {"variables": [f"{m}.y" for m in names]}}
+                    walls: dict[int, list[float]] = {1: [], n: []}
+                    rows: dict[int, bytes] = {}
+                    for r in range(max(1, repeats)):
+                        for w in (1, n) if r % 2 == 0 else (n, 1):
+                            doc["experiment"]["workers"] = w
+                            plan = cosim.resolve(cosim.parse(doc, "parallel.toml"))
+                            out = Path(tmp) / f"{kind}{n}w{w}r{r}b{burn}"
+                            res = cosim.run(plan, out, progress=False)
+                            if res.status != "ok":
+                                raise SystemExit(f"parallel bench ({kind}, N = {n}, workers = {w}): {res.message}")
+                            walls[w].append(res.wall_s)
+                            rows[w] = np.load(out / "signals.npy").tobytes()
+                    serial, par = (statistics.median(walls[w]) / steps * 1e6 for w in (1, n))
+                    key = f"{kind}_{n}_{label}"
+                    figures[f"us_per_step_serial_{key}"] = round(serial, 2)
+                    figures[f"us_per_step_{key}"] = round(par, 2)
+                    figures[f"speedup_{key}"] = round(serial / par, 3)
+                    figures[f"same_results_{key}"] = rows[1] == rows[n]
     figures["cores"] = __import__("os").cpu_count()
     return figures
 

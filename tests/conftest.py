@@ -39,6 +39,10 @@ STARTS_WORKER_PROCESSES = (
     "tests/test_security.py::test_the_sweep_command_listens_on_the_loopback_address_only",
     "tests/test_security.py::test_a_local_cluster_listens_on_the_loopback_address_only",
     "tests/test_sweep.py",
+    "tests/test_sweep_shipping.py::test_a_sweep_of_reference_fmus_on_workers_that_cannot_see_its_files",
+    "tests/test_sweep_shipping.py::test_the_foam_sweep_on_workers_that_cannot_see_its_files",
+    "tests/test_sweep_shipping.py::test_a_worker_killed_mid_sweep",
+    "tests/test_sweep_shipping.py::test_a_point_that_kills_its_worker_each_time",
 )
 
 

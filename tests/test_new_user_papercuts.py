@@ -105,7 +105,8 @@ def test_check_isolate_checks_what_run_isolate_would_run(work, capsys):
     assert code == 0, err
     assert "note: workers = 2: A, B (isolated) step at once, up to 2 together" in out
     code, out, _ = _run(capsys, "check", str(ring), "--workers", "2")
-    assert code == 0 and "note: workers = 2: no instance is isolated" in out
+    assert code == 0 and ("note: workers = 2: no instance is isolated; A, B (C FMUs in this process) in 2 lanes, "
+                          "the master's thread and 1 thread") in out
     code, out, err = _run(capsys, "check", str(DQ), "--isolate")
     assert code == 0 and ": ok: 1 instance (Dahlquist)" in out, err
 

@@ -117,8 +117,8 @@ def test_check_says_who_steps_at_once(probes, tmp_path, capsys):
     path = write_document(tmp_path / "p.toml", ring(probes["burn"], 2, 2))
     code, out, _ = _cli(capsys, "check", str(path))
     assert code == 0
-    assert ("note: workers = 2: p0, p1 (isolated) step at once, up to 2 together; in this process meanwhile, "
-            "one after another: ft") in out
+    assert "note: workers = 2: p0, p1 (isolated) step at once, up to 2 together; ft (in this process) on the " \
+           "master's thread\n" in out
     code, _, err = _cli(capsys, "run", str(path), "--out", str(tmp_path / "o"), "--quiet")
     assert code == 0, err
     assert json.loads((tmp_path / "o" / "summary.json").read_text())["stepping"]["workers"] == 2
@@ -142,3 +142,124 @@ def test_bad_workers_are_one_line_exit_2(probes, tmp_path, capsys, change, words
                                                           if command == "run" else []))
         lines = err.strip().splitlines()
         assert code == 2 and len(lines) == 1 and words in lines[0], (command, err)
+
+
+# ---------------------------------------------------------------------- C FMUs in this process, in threads
+@pytest.mark.parametrize("n, workers", [(2, 2), (4, 2), (4, 3)])
+def test_c_fmus_in_this_process_step_in_threads_with_the_serial_rows(probes, tmp_path, n, workers):
+    """Probes and the Feedthrough, all in this process, dealt to ``workers`` lanes (the master's thread
+    and workers - 1 threads) in the plan's order: the rows equal serial Jacobi's bit for bit."""
+    doc = ring(probes["burn"], n, 1, isolate=(False,) * n)
+    res1, serial = _run(doc, tmp_path / "serial")
+    doc["experiment"]["workers"] = workers
+    resn, par = _run(doc, tmp_path / "par")
+    assert res1.status == resn.status == "ok", (res1.message, resn.message)
+    assert par.tobytes() == serial.tobytes() and np.ptp(par["p0.y"]) > 0.0
+    st = resn.summary["stepping"]
+    order = [f"p{i}" for i in range(n)] + ["ft"]
+    lanes = min(workers, n + 1)
+    assert st["in_threads"] == [order[j::lanes] for j in range(lanes)]
+    assert st["stepped_at_once"] == [] and st["in_this_process"] == [] and st["alone"] == {}
+
+
+def test_threads_isolated_children_and_a_model_exchange_instance_together(probes, tmp_path):
+    """Two probes in child processes, two in threads, Dahlquist as Model Exchange on the master's thread
+    alone (its integrator runs in Python): the serial rows; the summary says why Dahlquist steps alone."""
+    doc = ring(probes["burn"], 4, 1, isolate=(True, False, True, False))
+    doc["instances"]["dq"] = {"fmu": str(REF / "fmi2" / "Dahlquist.fmu"), "interface": "model-exchange"}
+    doc["record"]["variables"].append("dq.x")
+    res1, serial = _run(doc, tmp_path / "serial")
+    doc["experiment"]["workers"] = 2
+    resn, par = _run(doc, tmp_path / "par")
+    assert res1.status == resn.status == "ok", (res1.message, resn.message)
+    assert par.tobytes() == serial.tobytes()
+    st = resn.summary["stepping"]
+    assert st["stepped_at_once"] == ["p0", "p2"] and st["in_threads"] == [["p1", "ft"], ["p3"]]
+    assert st["in_this_process"] == ["dq"] and "Model Exchange" in st["alone"]["dq"]
+
+
+def test_a_failure_in_a_thread_ends_the_run_as_the_serial_run_ends(tmp_path):
+    """Probes that return fmi2Error at t = 0.05 s, two of them in a lane's thread (their log messages sent
+    from that thread): the run fails with the serial run's message and rows; each log holds the serial
+    run's lines, and those of a step that the serial run, stopping at the first failure, did not take."""
+    fail = build_probe(tmp_path / "fmu", "Fail", ERROR_AT=0.05, VERBOSE=True)
+    doc = ring(fail, 3, 1, isolate=(False,) * 3)
+    for m in ("p0", "p1", "p2"):
+        doc["instances"][m]["logging"] = "all"
+    res1, serial = _run(doc, tmp_path / "serial")
+    doc["experiment"]["workers"] = 2
+    resn, par = _run(doc, tmp_path / "par")
+    assert res1.status == resn.status == "failed"
+    assert resn.message == res1.message and "p0" in resn.message
+    assert par.tobytes() == serial.tobytes()
+    for m in ("p0", "p1", "p2"):
+        assert (tmp_path / "par" / "logs" / f"{m}.log").read_text().startswith(
+            (tmp_path / "serial" / "logs" / f"{m}.log").read_text())
+
+
+def test_the_threaded_step_lets_go_of_the_gil_and_a_pythonfmu_fmu_has_none(built_fmus, tmp_path):
+    import ctypes
+    import zipfile
+
+    from wmr_cosim.cosim.instances import in_process
+
+    assert not in_process.runs_python(str(_unzipped(REF / "fmi2" / "Feedthrough.fmu", tmp_path / "ft")))
+    assert in_process.runs_python(str(_unzipped(built_fmus["WmrSensor"], tmp_path / "sensor")))
+    lib = ctypes.CDLL(None)
+    f = in_process.released(lib, "abs")
+    assert not f._flags_ & ctypes._FUNCFLAG_PYTHONAPI          # a CDLL function: the call releases the GIL
+    assert in_process.raw(lib, "abs")._flags_ & ctypes._FUNCFLAG_PYTHONAPI   # the usual one holds it
+    assert zipfile   # (used by _unzipped)
+
+
+def _unzipped(fmu: Path, dest: Path) -> Path:
+    import zipfile
+
+    with zipfile.ZipFile(fmu) as zf:
+        zf.extractall(dest)
+    return dest
+
+
+def test_check_says_which_instances_step_in_threads_and_which_alone_and_why(probes, built_fmus, tmp_path, capsys):
+    """Children, lanes of threads, and on the master's thread alone a Model Exchange instance and a
+    pythonfmu FMU (read from its archive: its binaries hold pythonfmu's exporter), each with why."""
+    doc = ring(probes["burn"], 4, 2, isolate=(True, False, True, False))
+    doc["instances"]["dq"] = {"fmu": str(REF / "fmi2" / "Dahlquist.fmu"), "interface": "model-exchange"}
+    doc["instances"]["sensor"] = {"fmu": str(built_fmus["WmrSensor"])}
+    code, out, err = _cli(capsys, "check", str(write_document(tmp_path / "p.toml", doc)))
+    assert code == 0, err
+    note = next(line for line in out.splitlines() if "note: workers" in line)
+    assert note.endswith("note: workers = 2: p0, p2 (isolated) step at once, up to 2 together; p1, p3, ft (C FMUs in "
+                         "this process) in 2 lanes, the master's thread and 1 thread; dq on the master's thread alone "
+                         "(a Model Exchange instance: its integrator runs in Python, which holds the GIL (isolate = "
+                         "true steps it in a process of its own)); sensor on the master's thread alone (a pythonfmu "
+                         "FMU: its step runs Python code, which holds the GIL (isolate = true steps it in a process "
+                         "of its own))"), note
+
+
+def test_the_lanes_run_in_threads_where_that_is_faster_and_on_the_master_alone_where_not():
+    """Probes of each way, the faster kept, then measured again: the choice follows the measured times."""
+    from wmr_cosim.cosim.stepping.parallel import LaneChoice
+
+    c = LaneChoice()
+    P, K = c.PROBE, c.KEEP
+    ways = []
+    for k in range(2 * (2 * P + K)):
+        threads = c.threads(k)
+        ways.append(threads)
+        first_cycle = k < 2 * P + K
+        c.took(threads, (1.0 if threads else 2.0) if first_cycle else (2.0 if threads else 1.0))
+    assert ways[:P] == [True] * P and ways[P:2 * P] == [False] * P
+    assert ways[2 * P:2 * P + K] == [True] * K            # threads were faster
+    n = 2 * P + K
+    assert ways[n:n + P] == [True] * P and ways[n + P:n + 2 * P] == [False] * P
+    assert ways[n + 2 * P:] == [False] * K                # now the master alone is
+    assert (c.in_threads, c.alone) == (2 * P + K, 2 * P + K)
+
+
+def test_every_step_is_counted_in_threads_or_on_the_master_alone(probes, tmp_path):
+    doc = ring(probes["burn"], 2, 2, isolate=(False, False))
+    res, _ = _run(doc, tmp_path / "par")
+    st = res.summary["stepping"]
+    assert st["steps_in_threads"] + st["steps_on_the_master_alone"] == 100
+    assert st["steps_on_the_master_alone"] >= 16 and st["steps_in_threads"] >= 16

@@ -69,6 +69,11 @@ class FastPath:
     # (``spin`` False: wait without polling)
     start_step: Callable[..., None] | None = None
     finish_step: Callable[[bool], int] | None = None
+    # the step through a view of the library that lets go of the GIL for the call, so that instances in
+    # this process step at once in threads (None: the step needs this process's Python; ``alone`` says
+    # why: a pythonfmu FMU, a Model Exchange instance's integrator, an instance in a child process)
+    threaded_step: Callable[..., int] | None = None
+    alone: str = ""
 
 
 class FmuInstance(ABC):

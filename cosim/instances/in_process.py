@@ -23,6 +23,7 @@ import math
 import os
 import weakref
 from collections import deque
+from pathlib import Path
 from typing import Any
 
 from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
@@ -31,6 +32,7 @@ from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFr
 from fmpy.fmi1 import FMICallException
 
 from ..messages.errors import RunError
+from ..model import binary
 from ..model.description import Variable, fmi2_cs_declares
 from .contract import FastPath, FmuInstance, status_label
 
@@ -91,6 +93,7 @@ class Instance(FmuInstance):
         self.initialised = False
         self.freed = False
         self.c = None
+        self.python = runs_python(unzipdir)
         self.fmu = self._slave(md, unzipdir)
 
     def _slave(self, md: Any, unzipdir: str) -> Any:
@@ -227,7 +230,13 @@ class Instance(FmuInstance):
         return self._handed(FastPath(ctypes.c_void_p(self.c), raw(dll, "fmi2SetReal"), raw(dll, "fmi2DoStep"),
                                      raw(dll, "fmi2GetReal"),
                                      in_val if in_val is not None else (ctypes.c_double * max(1, n_in))(),
-                                     step_tail=(1,)))
+                                     step_tail=(1,), **self._threading(dll, "fmi2DoStep")))
+
+    def _threading(self, dll: Any, do_step: str) -> dict[str, Any]:
+        """The fast path's step for threads (:attr:`FastPath.threaded_step`), or why there is none."""
+        if self.python:
+            return {"alone": binary.PYTHON_FMU}
+        return {"threaded_step": released(dll, do_step)}
 
     def _handed(self, fp: FastPath) -> FastPath:
         """A fast path handed out: kept, so that :meth:`allow_rollback` reaches it."""
@@ -392,7 +401,7 @@ class Instance3(Instance):
                                      in_val if in_val is not None else (ctypes.c_double * max(1, n_in))(),
                                      set_tail=(ctypes.c_size_t(n_in),), get_tail=(ctypes.c_size_t(n_out),),
                                      step_tail=(True, *(ctypes.byref(f) for f in flags)), terminated=flags[1],
-                                     last_time=flags[3]))
+                                     last_time=flags[3], **self._threading(dll, "fmi3DoStep")))
 
     def accessor(self, fmi_type: str, op: str) -> tuple[Any, Any]:
         ctype, tname = ACCESS[3][fmi_type]
@@ -412,6 +421,25 @@ def raw(dll: Any, name: str) -> Any:
     f = py[name]
     f.restype = ctypes.c_int
     return f
+
+
+def released(dll: Any, name: str) -> Any:
+    """:func:`raw`'s function through a CDLL view of the library: ctypes lets go of the GIL for the call,
+    so that another thread's FMU steps meanwhile (its log callbacks take the GIL back)."""
+    handle = dll._handle
+    c = _CDLLS.get(handle)
+    if c is None:
+        c = _CDLLS[handle] = ctypes.CDLL(dll._name, handle=handle)
+    f = c[name]
+    f.restype = ctypes.c_int
+    return f
+
+
+_CDLLS: dict[int, Any] = {}
+def runs_python(unzipdir: str) -> bool:
+    """Whether the FMU unpacked in ``unzipdir`` runs Python code in its steps (:func:`.model.binary.runs_python`)."""
+    folder = Path(unzipdir)
+    return binary.runs_python(p.relative_to(folder).as_posix() for p in folder.rglob("*"))
 
 
 #: FMI type -> (ctypes element type, the FMI function's type name) for FMI 2.0 and 3.0.

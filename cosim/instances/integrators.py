@@ -19,6 +19,11 @@ DEFAULT_RTOL = 1e-5
 DEFAULT_EVENT_TOLERANCE = 1e-10
 
 
+#: Why a Model Exchange instance in this process steps alone when instances step at once.
+ME_ALONE = ("a Model Exchange instance: its integrator runs in Python, which holds the GIL (isolate = true "
+            "steps it in a process of its own)")
+
+
 @dataclass(frozen=True)
 class SolverSpec:
     """One Model Exchange instance's integrator: ``name`` one of :data:`SOLVERS`; ``tolerance`` CVODE's

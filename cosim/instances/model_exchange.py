@@ -36,7 +36,7 @@ from ..model.description import Variable, declares_state
 from .contract import FastPath
 from .failure import Call
 from .in_process import Instance, Instance3, raw
-from .integrators import Equations, IntegrationError, Integrator, SolverSpec, crossed, make_integrator
+from .integrators import ME_ALONE, Equations, IntegrationError, Integrator, SolverSpec, crossed, make_integrator
 
 #: Events at one time after which the event iteration is taken not to end.
 MAX_EVENTS_AT_ONE_TIME = 1000
@@ -184,7 +184,8 @@ class ModelExchange:
             return self.advance(t.value, self.step_end(t.value, h.value))
 
         return FastPath(base.c, set_real, do_step, base.get_real, base.in_val, set_tail=base.set_tail,
-                        get_tail=base.get_tail, terminated=self._terminated, last_time=self._last_time)
+                        get_tail=base.get_tail, terminated=self._terminated, last_time=self._last_time,
+                        alone=ME_ALONE)
 
     def step_end(self, t: float, h: float) -> float:
         """The end of the step of ``h`` from ``t`` [s]: the master's grid point start + (k + 1) h where ``t``

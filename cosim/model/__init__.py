@@ -8,7 +8,7 @@ import lazy_loader
 
 if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
     from .archive import DEFAULT_LIMITS, ArchiveLimits, LimitOverrides, check_archive, limit_overrides, safe_extract
-    from .binary import library_problem
+    from .binary import PYTHON_FMU, library_problem, runs_python
     from .description import CO_SIMULATION, MODEL_EXCHANGE, FmuModel, Variable, fmi_version, load_model
     from .kinds import FileKind, file_kind, named_kind
     from .units import Unit, conversion, lookup, units_of
@@ -16,7 +16,7 @@ if TYPE_CHECKING:   # (for the type checker; at run time each name is imported w
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "archive": ["DEFAULT_LIMITS", "ArchiveLimits", "LimitOverrides", "check_archive", "limit_overrides",
                 "safe_extract"],
-    "binary": ["library_problem"],
+    "binary": ["PYTHON_FMU", "library_problem", "runs_python"],
     "description": ["CO_SIMULATION", "MODEL_EXCHANGE", "FmuModel", "Variable", "fmi_version", "load_model"],
     "kinds": ["FileKind", "file_kind", "named_kind"],
     "units": ["Unit", "conversion", "lookup", "units_of"],

@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import struct
 import sys
+from typing import Iterable
 
 #: The FMI functions each interface's binary must export (a binary FMU's functions are not prefixed): the
 #: ones the master calls first and at every step of that interface.
@@ -95,3 +96,19 @@ def load_failure(exc: BaseException, unzipdir: str) -> str:
     """The loader's reason for refusing an FMU's binary, from FMPy's exception, in one line with the
     paths inside the extracted archive made relative to it."""
     return " ".join(str(exc).replace(unzipdir.rstrip(os.sep) + os.sep, "").split())
+
+
+#: Why an instance of a pythonfmu FMU in this process steps alone when instances step at once.
+PYTHON_FMU = ("a pythonfmu FMU: its step runs Python code, which holds the GIL (isolate = true steps it in a "
+              "process of its own)")
+
+
+def runs_python(members: Iterable[str]) -> bool:
+    """Whether an FMU whose files are ``members`` (paths inside it, '/'-separated) runs Python code in its
+    steps: a pythonfmu FMU, whose binaries hold pythonfmu's exporter library and whose resources name the
+    module of its slave."""
+    for m in members:
+        if m == "resources/slavemodule.txt" or (m.startswith("binaries/") and
+                                                 m.rsplit("/", 1)[-1].startswith("libpythonfmu-export")):
+            return True
+    return False

@@ -18,13 +18,16 @@ import copy
 import dataclasses
 import math
 import re
+import zipfile
 from typing import Any, Callable, cast
 
 import numpy as np
 
-from ..instances.integrators import DEFAULT_EVENT_TOLERANCE, DEFAULT_RTOL, SolverSpec
+from ..instances.integrators import DEFAULT_EVENT_TOLERANCE, DEFAULT_RTOL, ME_ALONE, SolverSpec
 from ..messages.errors import CosimError, FmuLoadError, ScenarioError
 from ..messages.suggest import did_you_mean
+from ..messages.words import count
+from ..model.binary import PYTHON_FMU, runs_python
 from ..model.description import CO_SIMULATION, INTERFACE_NAMES, MODEL_EXCHANGE, PY_TYPES, FmuModel, Variable, load_model
 from ..model.kinds import FileKind, file_kind
 from ..model.units import conversion, lookup, same_unit, units_of
@@ -465,11 +468,38 @@ def _workers(sc: Scenario, insts: dict[str, InstancePlan], notes: list[str]) -> 
     if slow:
         raise ScenarioError(sc.file, "experiment.workers", f"{sc.workers}: {slow[0]} steps at its own rate; "
                                                            "instances at their own rates step one at a time")
-    apart = [n for n in sc.order if insts[n].spec.isolate]
-    here = [n for n in sc.order if not insts[n].spec.isolate]
-    notes.append(f"workers = {sc.workers}: " + (f"{', '.join(apart)} (isolated) step at once, up to "
-                                                 f"{sc.workers} together" if apart else "no instance is isolated")
-                 + (f"; in this process meanwhile, one after another: {', '.join(here)}" if here else ""))
+    notes.append(workers_note(sc.workers, [(n, insts[n]) for n in sc.order]))
+
+
+def workers_note(workers: int, insts: list[tuple[str, InstancePlan]]) -> str:
+    """Which instances step at once, and how (as :class:`~..stepping.parallel.ParallelJacobi` steps them):
+    the isolated ones in their processes, the C FMUs in this process in lanes of threads, and the others
+    on the master's thread alone, each with why."""
+    apart = [n for n, ip in insts if ip.spec.isolate]
+    alone = {n: alone_because(ip) for n, ip in insts if not ip.spec.isolate}
+    threaded = [n for n, why in alone.items() if not why]
+    lanes = min(workers, len(threaded))
+    parts = [f"{', '.join(apart)} (isolated) step at once, up to {workers} together" if apart
+             else "no instance is isolated"]
+    if lanes > 1:
+        parts.append(f"{', '.join(threaded)} (C FMUs in this process) in {lanes} lanes, the master's thread and "
+                     f"{count(lanes - 1, 'thread')}")
+    elif threaded:
+        parts.append(f"{', '.join(threaded)} (in this process) on the master's thread")
+    parts += [f"{n} on the master's thread alone ({why})" for n, why in alone.items() if why]
+    return f"workers = {workers}: " + "; ".join(parts)
+
+
+def alone_because(ip: InstancePlan) -> str:
+    """Why an instance in this process cannot step in a thread beside others ("" where it can)."""
+    if ip.solver is not None:
+        return ME_ALONE
+    try:
+        with zipfile.ZipFile(ip.model.path) as zf:
+            python = runs_python(zf.namelist())
+    except (OSError, zipfile.BadZipFile):
+        python = False
+    return PYTHON_FMU if python else ""
 
 
 def _rates(sc: Scenario, insts: dict[str, InstancePlan], conns: list[ConnectionPlan]) -> None:

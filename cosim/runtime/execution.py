@@ -465,6 +465,7 @@ class Execution:
                         self._set_status(RunStatus.FAILED, str(exc))
             self._instance_events = [e for n, inst in self.instances.items()
                                      for e in instance_entries(n, inst.handled_events())] + self._instance_events
+            self.algorithm.finish()   # (its threads end before the instances they step)
             for inst in self.instances.values():
                 inst.shutdown()
             self._recorder.close()

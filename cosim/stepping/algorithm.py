@@ -168,6 +168,10 @@ class Algorithm(ABC):
         """In initialisation mode, after the initial exchange of outputs to inputs: an algorithm that
         solves coupling loops solves them here (raising RunError when it cannot); the others do nothing."""
 
+    def finish(self) -> None:
+        """After the run's last step: let go of what the algorithm keeps for the run (threads); it may
+        still be asked for its :meth:`summary`."""
+
     def summary(self) -> dict[str, Any] | None:
         """The algorithm's own counts for summary.json ("stepping"): None when it has none."""
         return None

@@ -9,7 +9,7 @@ A row says (each a fact the checks and the execution act on):
 * ``one_pass``: one pass over the instances per step (Gauss-Seidel, Jacobi): may run instances at their own
   rates (:class:`.multirate.MultiRate`) and be the step the step-size control takes;
 * ``simultaneous``: every instance steps from the outputs of the previous step (Jacobi's order), so the
-  isolated instances may step at once (``workers``, :class:`.parallel.ParallelJacobi`);
+  isolated instances and C FMUs in this process may step at once (``workers``, :class:`.parallel.ParallelJacobi`);
 * ``solves_loops``: solves every coupling loop at every step (and the algebraic loops through it), rolling
   back the loop's instances: they must get and set their state, and ``[experiment.iteration]`` is read;
 * ``varies_step``: varies every instance's communication step and rolls every instance back when it
@@ -53,7 +53,7 @@ class AlgorithmRow:
 
     @property
     def workers(self) -> bool:
-        """Whether the isolated instances may step at once (``[experiment] workers``)."""
+        """Whether instances may step at once (``[experiment] workers``)."""
         return self.simultaneous
 
     @property
@@ -156,7 +156,7 @@ def make(name: str, iteration: IterationSpec | None = None, adaptive: AdaptiveSp
          workers: int = 1, own_rates: bool = False) -> Algorithm:
     """A new algorithm object for a name the scenario's checks accepted, with its settings (None: the
     defaults): at the instances' own rates (``own_rates``: some instance steps at a rate of its own), or
-    with isolated instances stepped at once (``workers`` > 1), where the resolver allowed it."""
+    with instances stepped at once (``workers`` > 1), where the resolver allowed it."""
     r = row(name)
     if own_rates:
         alg: Algorithm = MultiRate(jacobi=r.simultaneous)
