@@ -414,28 +414,30 @@ def raw(dll: Any, name: str) -> Any:
     called with the GIL held (through a PyDLL view of the library already loaded): an FMU's own Python
     code (pythonfmu) and its log callbacks take the GIL recursively, and a call saves the release and the
     re-acquisition of the GIL."""
-    handle = dll._handle
-    py = _PYDLLS.get(handle)
-    if py is None:
-        py = _PYDLLS[handle] = ctypes.PyDLL(dll._name, handle=handle)
-    f = py[name]
-    f.restype = ctypes.c_int
-    return f
+    return _function(dll, name, ctypes.PyDLL, _PYDLLS)
 
 
 def released(dll: Any, name: str) -> Any:
     """:func:`raw`'s function through a CDLL view of the library: ctypes lets go of the GIL for the call,
     so that another thread's FMU steps meanwhile (its log callbacks take the GIL back)."""
+    return _function(dll, name, ctypes.CDLL, _CDLLS)
+
+
+def _function(dll: Any, name: str, view: Any, views: dict[int, Any]) -> Any:
+    """``name`` of the library ``dll`` already loaded, through its ``view`` (PyDLL or CDLL, kept in
+    ``views`` by handle), returning an int status."""
     handle = dll._handle
-    c = _CDLLS.get(handle)
-    if c is None:
-        c = _CDLLS[handle] = ctypes.CDLL(dll._name, handle=handle)
-    f = c[name]
+    lib = views.get(handle)
+    if lib is None:
+        lib = views[handle] = view(dll._name, handle=handle)
+    f = lib[name]
     f.restype = ctypes.c_int
     return f
 
 
 _CDLLS: dict[int, Any] = {}
+
+
 def runs_python(unzipdir: str) -> bool:
     """Whether the FMU unpacked in ``unzipdir`` runs Python code in its steps (:func:`.model.binary.runs_python`)."""
     folder = Path(unzipdir)
