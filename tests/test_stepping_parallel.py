@@ -263,3 +263,55 @@ def test_every_step_is_counted_in_threads_or_on_the_master_alone(probes, tmp_pat
     st = res.summary["stepping"]
     assert st["steps_in_threads"] + st["steps_on_the_master_alone"] == 100
     assert st["steps_on_the_master_alone"] >= 16 and st["steps_in_threads"] >= 16
+
+
+def test_fmi3_fmus_in_threads_beside_fmi2_ones_give_the_serial_rows(tmp_path):
+    """FMI 3.0 Dahlquist and VanDerPol and an FMI 2.0 Dahlquist in this process, each feeding an FMI 3.0
+    Feedthrough: stepped in two lanes, the rows of serial Jacobi bit for bit."""
+    doc = {"experiment": {"start": 0.0, "stop": 1.0, "step": 0.01, "algorithm": "jacobi", "workers": 1},
+           "instances": {"d3": {"fmu": str(REF / "fmi3" / "Dahlquist.fmu"), "parameters": {"k": 2.0}},
+                         "vdp": {"fmu": str(REF / "fmi3" / "VanDerPol.fmu")},
+                         "d2": {"fmu": str(REF / "fmi2" / "Dahlquist.fmu")},
+                         "ft": {"fmu": str(REF / "fmi3" / "Feedthrough.fmu")}},
+           "connections": [{"from": "d3.x", "to": "ft.Float64_continuous_input"},
+                           {"from": "vdp.x0", "to": "ft.Float64_discrete_input"}],
+           "record": {"variables": ["d3.x", "vdp.x0", "vdp.x1", "d2.x", "ft.Float64_continuous_output",
+                                    "ft.Float64_discrete_output"]}}
+    res1, serial = _run(doc, tmp_path / "serial")
+    doc["experiment"]["workers"] = 2
+    res2, par = _run(doc, tmp_path / "par")
+    assert res1.status == res2.status == "ok", (res1.message, res2.message)
+    assert par.tobytes() == serial.tobytes() and np.ptp(par["vdp.x0"]) > 0.0
+    assert res2.summary["stepping"]["in_threads"] == [["d3", "d2"], ["vdp", "ft"]]
+
+
+def test_workers_travel_through_ssp_and_are_in_scenario_json(probes, tmp_path):
+    """Exported with workers = 3, imported: the archive's run steps its C FMUs in three lanes, with the rows
+    of the scenario's own run; scenario.json says workers = 3; a bad count in the archive is one line."""
+    from wmr_cosim.cosim.plan.ssp import OWN_NS, export_ssp, load_ssp
+
+    doc = ring(probes["burn"], 3, 3, isolate=(False,) * 3)
+    plan = cosim.resolve(cosim.parse(doc, str(tmp_path / "par.toml")))
+    res, rows = _run(doc, tmp_path / "toml")
+    assert json.loads((tmp_path / "toml" / "scenario.json").read_text())["experiment"]["workers"] == 3
+    archive = export_ssp(plan, tmp_path / "par.ssp")
+    arch = load_ssp(archive)
+    try:
+        assert arch.scenario.workers == 3
+        res2 = cosim.run(cosim.resolve(arch.scenario), tmp_path / "ssp", progress=False)
+        assert res2.status == "ok", res2.message
+        assert len(res2.summary["stepping"]["in_threads"]) == 3
+        back = np.load(tmp_path / "ssp" / "signals.npy")
+        assert all(back[c].tobytes() == rows[c].tobytes() for c in rows.dtype.names)
+    finally:
+        arch.cleanup()
+    import zipfile
+    with zipfile.ZipFile(archive) as zf, zipfile.ZipFile(tmp_path / "bad.ssp", "w") as out:
+        for item in zf.infolist():
+            data = zf.read(item)
+            if item.filename == "SystemStructure.ssd":
+                data = data.replace(b'workers="3"', b'workers="three"')
+                assert b"three" in data and OWN_NS.encode() in data
+            out.writestr(item, data)
+    with pytest.raises(cosim.ScenarioError, match=r"Experiment.workers: 'three' is not an integer"):
+        load_ssp(tmp_path / "bad.ssp")

@@ -12,7 +12,7 @@ Generic: nothing here knows the FMUs it packs.
   ``LinearTransformation`` where the scenario gives a factor or an offset (unit conversion is left to the
   connectors' units, as SSP prescribes), and a DefaultExperiment (start, stop) whose annotations carry the
   step: Open Simulation Platform's ``osp:FixedStepAlgorithm baseStepSize`` (read by libcosim and by this
-  module) and this master's own ``algorithm``/``order``/``step``.  The System's annotations: OpenModelica's
+  module) and this master's own ``algorithm``/``order``/``step`` (and ``workers``).  The System's annotations: OpenModelica's
   ``oms:SimulationInformation`` with a ``FixedStepMaster`` at the step (OMSimulator takes the system's type
   from it and aborts without one; its master is a Jacobi one), then this master's own annotation holding the
   String parameters left out of the parameter sets (:func:`held_strings`);
@@ -66,7 +66,8 @@ NS = {
 #: Open Simulation Platform's annotation (libcosim reads the fixed step from it).
 OSP_TYPE = "com.opensimulationplatform"
 OSP_NS = "http://opensimulationplatform.com/SSP/OSPAnnotations"
-#: This master's annotation: the step, the algorithm and the order of a Gauss-Seidel run.
+#: This master's annotation: the step, the algorithm and the order of a Gauss-Seidel run, the workers that
+#: step instances at once.
 OWN_TYPE = "org.wmr-cosim.experiment"
 OWN_NS = "https://wmr-cosim.invalid/ssp/experiment"
 #: OMSimulator's annotation on ``ssd:System``: it takes a system's type (here its fixed-step co-simulation
@@ -375,6 +376,8 @@ def _default_experiment(sc: Scenario):
     own = Annotation(OWN_TYPE)
     exp = ET.SubElement(own.root, f"{{{OWN_NS}}}Experiment", step=_fmt(sc.times()[2]), algorithm=sc.algorithm,
                         order=" ".join(sc.order))
+    if sc.workers > 1:
+        exp.set("workers", str(sc.workers))
     for tag, spec in (("Iteration", sc.iteration), ("Adaptive", sc.adaptive)):
         if spec is not None:
             ET.SubElement(exp, f"{{{OWN_NS}}}{tag}",
@@ -612,9 +615,9 @@ def _stepping_tables(exp, where: str) -> dict[str, dict[str, Any]]:
 
 
 def _step_from_annotations(root, where: str = "") -> tuple[float | None, str | None, list[str] | None,
-                                                          dict[str, dict[str, Any]]]:
+                                                          dict[str, Any]]:
     step = algorithm = order = None
-    tables: dict[str, dict[str, Any]] = {}
+    tables: dict[str, Any] = {}
     for de in root.findall("ssd:DefaultExperiment", NS):
         for a in de.iter(f"{{{OWN_NS}}}Experiment"):
             try:
@@ -623,7 +626,14 @@ def _step_from_annotations(root, where: str = "") -> tuple[float | None, str | N
                 pass
             algorithm = a.get("algorithm")
             order = a.get("order", "").split() or None
-            tables = _stepping_tables(a, where)
+            settings: dict[str, Any] = dict(_stepping_tables(a, where))
+            if a.get("workers") is not None:   # (the scenario's check refuses a value it cannot take)
+                try:
+                    settings["workers"] = int(a.get("workers"))
+                except ValueError:
+                    raise ScenarioError(where, f"Annotation {OWN_TYPE}: Experiment.workers",
+                                        f"{a.get('workers')!r} is not an integer") from None
+            tables = settings
         if step is None:
             for a in de.iter(f"{{{OSP_NS}}}FixedStepAlgorithm"):
                 try:

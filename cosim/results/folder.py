@@ -116,7 +116,7 @@ def resolved(plan: Plan) -> dict[str, Any]:
     their folded factors, what is recorded, the events) and the document it came from."""
     sc = plan.scenario
     return {"file": sc.file, "experiment": {"start": sc.start, "stop": sc.stop, "step": sc.step,
-                                            "algorithm": sc.algorithm, "order": sc.order,
+                                            "algorithm": sc.algorithm, "order": sc.order, "workers": sc.workers,
                                             "tolerance": sc.tolerance,
                                             **{k: spec.as_dict() for k, spec in ((algorithms.ITERATION_TABLE, sc.iteration),
                                                                                  (algorithms.ADAPTIVE_TABLE, sc.adaptive))
