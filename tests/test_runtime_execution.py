@@ -506,7 +506,7 @@ def test_scenario_and_summary_files_of_a_run(tmp_path):
     assert scen.pop("columns") == columns
     assert scen == {
         "file": "t.toml",
-        "experiment": {"start": 1.0, "stop": 1.1, "step": 0.02, "algorithm": "gauss-seidel", "order": ["a", "b"],
+        "experiment": {"start": 1.0, "stop": 1.1, "step": 0.02, "algorithm": "gauss-seidel", "order": ["a", "b"], "workers": 1,
                        "tolerance": None},
         "instances": {"a": {**inst, "parameters": {"Float64_continuous_input": 1.5}}, "b": {**inst, "parameters": {}}},
         "connections": [{"from": "a.Float64_continuous_output", "to": "b.Float64_continuous_input", "factor": 2.0,
