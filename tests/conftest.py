@@ -29,6 +29,18 @@ def built_fmus(tmp_path_factory):
     return build_all(fmu_cache(tmp_path_factory, "fmus"))
 
 
+@pytest.fixture(scope="module")
+def studies_run_the_session_fmus(built_fmus):
+    """For a module's tests of studies (``pytestmark = pytest.mark.usefixtures(...)``): their points run
+    the session's FMUs (robot_measures.fmu_paths, which the driver reads and ships to the workers)."""
+    from wmr_cosim import robot_measures
+
+    mp = pytest.MonkeyPatch()
+    mp.setattr(robot_measures, "fmu_paths", lambda: {k: str(v) for k, v in built_fmus.items()})
+    yield
+    mp.undo()
+
+
 #: Tests that start pools of worker processes (the paper job, Dask clusters).  Under mutation testing
 #: they are skipped: mutmut ends a mutant that overruns its time by killing its worker process, which
 #: leaves that worker's own children running and loading the machine, and what these tests check of the

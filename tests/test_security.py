@@ -8,7 +8,6 @@ import datetime
 import ipaddress
 import os
 import re
-import socket
 import struct
 import subprocess
 import sys
@@ -22,6 +21,7 @@ import psutil
 import pytest
 
 from cosim_support import G1, g1_with_paths
+from dask_support import free_port, stop
 from wmr_cosim.cosim.model import archive
 from wmr_cosim import cosim
 from wmr_cosim.cosim.model.archive import ArchiveLimits, check_archive, safe_extract
@@ -468,12 +468,6 @@ def _certificates(d: Path) -> dict[str, Path]:
     return files
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def test_a_clear_text_scheduler_beyond_this_machine_is_warned_about():
     from wmr_cosim.cluster import cleartext_warning
 
@@ -490,7 +484,7 @@ def test_a_sweep_on_a_tls_scheduler(tmp_path):
 
     certs = _certificates(tmp_path)
     tls = ["--tls-ca-file", str(certs["ca"]), "--tls-cert", str(certs["cert"]), "--tls-key", str(certs["key"])]
-    port = _free_port()
+    port = free_port()
     addr = f"tls://127.0.0.1:{port}"
     env = {**{k: v for k, v in os.environ.items() if not k.startswith("DASK_")},
            "DASK_DISTRIBUTED__WORKER__DAEMON": "True",
@@ -518,13 +512,7 @@ def test_a_sweep_on_a_tls_scheduler(tmp_path):
         p = _cli("sweep", f, "--out", tmp_path / "out3", "--scheduler", addr, "--tls-cert", certs["cert"], env=env)
         assert p.returncode == 2 and "--tls-ca-file: missing" in p.stderr, p.stderr
     finally:
-        for pr in reversed(procs):
-            pr.terminate()
-        for pr in procs:
-            try:
-                pr.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                pr.kill()
+        stop(procs)
 
 
 @pytest.mark.parametrize("value, message", [

@@ -245,7 +245,7 @@ def test_the_lanes_run_in_threads_where_that_is_faster_and_on_the_master_alone_w
     P, K = c.PROBE, c.KEEP
     ways = []
     for k in range(2 * (2 * P + K)):
-        threads = c.threads(k)
+        threads = c.threads()
         ways.append(threads)
         first_cycle = k < 2 * P + K
         c.took(threads, (1.0 if threads else 2.0) if first_cycle else (2.0 if threads else 1.0))

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import socket
 import subprocess
 import sys
 import time
@@ -15,19 +14,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from dask_support import free_port, stop
 from wmr_cosim import cluster, robot_measures, shipment, sweep, sweep_file, sweep_metrics
 from wmr_cosim.cosim.messages.errors import ScenarioError
 
 DATA = Path(__file__).parent / "data"
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _fmus(built_fmus):
-    """Points run on the session's FMUs (the workers are separate processes: they get the paths)."""
-    mp = pytest.MonkeyPatch()
-    mp.setattr(robot_measures, "fmu_paths", lambda: {k: str(v) for k, v in built_fmus.items()})
-    yield
-    mp.undo()
+pytestmark = pytest.mark.usefixtures("studies_run_the_session_fmus")
 
 
 def _sweep_file(tmp: Path, body: str, name: str = "sweep-test.toml") -> Path:
@@ -56,10 +50,7 @@ def cluster2():
 def _study(tmp: Path, base: str, **kw) -> sweep.Study:
     """A study of ``base`` whose files lie in the cache ``tmp/cache`` (as a worker's, for run_point here)."""
     ship, blobs = shipment.pack([base], robot_measures.fmu_paths())
-    names: dict[str, list[str]] = {}
-    for f in ship.files.values():
-        names.setdefault(f.sha256, []).append(f.name)
-    shipment.store(tmp / "cache", blobs, names)
+    shipment.store(tmp / "cache", blobs, ship.names())
     return sweep.Study(ship, base, **kw)
 
 
@@ -169,15 +160,9 @@ def test_gamma_search_finds_the_crossing(tmp_path):
     assert (tmp_path / "gs" / "gamma_search.png").is_file()
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.mark.slow
 def test_sweep_on_an_existing_scheduler_with_two_workers(tmp_path):
-    port = _free_port()
+    port = free_port()
     addr = f"tcp://127.0.0.1:{port}"
     env = {**os.environ, "DASK_DISTRIBUTED__WORKER__DAEMON": "True",
            "DASK_TEMPORARY_DIRECTORY": str(tmp_path / "dask")}  # the scheduler's scratch folder
@@ -206,13 +191,7 @@ def test_sweep_on_an_existing_scheduler_with_two_workers(tmp_path):
         assert p.returncode == 0, p.stderr
         assert "4 points (4 ok)" in p.stdout
     finally:
-        for pr in reversed(procs):
-            pr.terminate()
-        for pr in procs:
-            try:
-                pr.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                pr.kill()
+        stop(procs)
 
 
 @pytest.mark.slow

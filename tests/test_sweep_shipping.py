@@ -17,7 +17,6 @@ import os
 import shlex
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -29,7 +28,8 @@ from typing import Iterator
 import pandas as pd
 import pytest
 
-from wmr_cosim import cluster, robot_measures, shipment, sweep
+from dask_support import free_port, stop
+from wmr_cosim import cluster, shipment, sweep
 from wmr_cosim.cosim.messages.errors import CosimError
 from wmr_cosim.scenario_files import folder as scenarios_folder
 
@@ -37,13 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).parent / "data"
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _fmus(built_fmus):
-    """Points run on the session's FMUs."""
-    mp = pytest.MonkeyPatch()
-    mp.setattr(robot_measures, "fmu_paths", lambda: {k: str(v) for k, v in built_fmus.items()})
-    yield
-    mp.undo()
+pytestmark = pytest.mark.usefixtures("studies_run_the_session_fmus")
 
 
 def _table(df: pd.DataFrame) -> pd.DataFrame:
@@ -81,13 +75,6 @@ def _dahlquist_system(folder: Path, stop: float = 1.0, step: float = 0.01, ks: l
     return f
 
 
-def _cache_names(ship: shipment.Shipment) -> dict[str, list[str]]:
-    names: dict[str, list[str]] = {}
-    for f in ship.files.values():
-        names.setdefault(f.sha256, []).append(f.name)
-    return names
-
-
 # ---------------------------------------------------------------------- what travels (no cluster)
 def test_the_shipment_holds_the_merged_documents_and_the_files_by_content(tmp_path):
     f = _dahlquist_system(tmp_path / "d")
@@ -109,8 +96,8 @@ def test_the_worker_reads_the_cache_and_the_reasons_name_the_drivers_files(tmp_p
     base = str(tmp_path / "d" / "system.toml")
     ship, blobs = shipment.pack([base], {})
     cache = tmp_path / "cache"
-    assert shipment.store(cache, blobs, _cache_names(ship)) == (sum(map(len, blobs.values())), 0)
-    assert shipment.store(cache, blobs, _cache_names(ship)) == (0, sum(map(len, blobs.values())))  # once only
+    assert shipment.store(cache, blobs, ship.names()) == (sum(map(len, blobs.values())), 0)
+    assert shipment.store(cache, blobs, ship.names()) == (0, sum(map(len, blobs.values())))  # once only
     proto, back = ship.protocol(base, None, cache)
     fmu = proto.document["instances"]["dq"]["fmu"]
     assert fmu.startswith(str(cache)) and Path(fmu).read_bytes() == (tmp_path / "d" / "Dahlquist.fmu").read_bytes()
@@ -189,12 +176,6 @@ def _can_hide_folders() -> str | None:
     return None if p.returncode == 0 else f"unshare --mount fails here: {p.stderr.strip()}"
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @contextmanager
 def hidden_cluster(tmp: Path, hide: list[Path], workers: int = 2) -> Iterator[str]:
     """A scheduler and ``workers`` workers, separate processes; each worker in its own mount namespace
@@ -202,7 +183,7 @@ def hidden_cluster(tmp: Path, hide: list[Path], workers: int = 2) -> Iterator[st
     why = _can_hide_folders()
     if why:
         pytest.skip(why)
-    port = _free_port()
+    port = free_port()
     addr = f"tcp://127.0.0.1:{port}"
     env = {**os.environ, "DASK_DISTRIBUTED__WORKER__DAEMON": "True", "DASK_TEMPORARY_DIRECTORY": str(tmp / "dask")}
     log = open(tmp / "cluster.log", "wb")
@@ -220,14 +201,7 @@ def hidden_cluster(tmp: Path, hide: list[Path], workers: int = 2) -> Iterator[st
             c.wait_for_workers(workers, timeout=60)
         yield addr
     finally:
-        for pr in reversed(procs):
-            pr.terminate()
-        for pr in procs:
-            try:
-                pr.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                pr.kill()
-                pr.wait()
+        stop(procs, timeout=15)
         log.close()
 
 

@@ -21,6 +21,7 @@ worker's before a study starts (:func:`check_workers`) and which every point che
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
 import hashlib
 import os
@@ -90,11 +91,20 @@ class Shipment:
     build: str
     plugin: str = field(default="")
 
+    def names(self) -> dict[str, list[str]]:
+        """The base names of the files by SHA-256 (one content may come under several names)."""
+        names: dict[str, list[str]] = {}
+        for f in self.files.values():
+            if f.name not in names.setdefault(f.sha256, []):
+                names[f.sha256].append(f.name)
+        return names
+
     def cached(self, path: str, folder: Path) -> Path:
-        """Where the driver's file ``path`` lies in the worker cache ``folder``; CosimError if it is not there."""
+        """Where the driver's file ``path`` lies, whole, in the worker cache ``folder``; CosimError if it is
+        not there."""
         f = self.files[path]
         p = folder / f.sha256 / f.name
-        if not p.is_file():
+        if not p.is_file() or p.stat().st_size != f.size:
             raise CosimError(f"{path}: not shipped to this worker ({CACHE}/{f.sha256[:12]}... missing)")
         return p
 
@@ -121,7 +131,7 @@ class Shipment:
         inputs = doc.get("inputs")
         if isinstance(inputs, dict) and inputs.get("file") in self.files:
             inputs["file"] = local(inputs["file"])
-        models = {name: Path(local(path)) for name, path in self.models.items() if path in self.files}
+        models = {name: Path(local(path)) for name, path in self.models.items()}
 
         def unlocalise(text: str) -> str:
             for mine, theirs in back.items():
@@ -234,19 +244,15 @@ class ShippingCost:
 def ship(client: Any, shipment: Shipment, blobs: dict[str, bytes]) -> tuple[Shipment, ShippingCost]:
     """Send the files to every worker of ``client`` (and to each worker that joins while the study
     runs): the shipment naming its plugin, and what it cost.  :func:`unship` when the study ends."""
-    names: dict[str, list[str]] = {}
-    for f in shipment.files.values():
-        if f.name not in names.setdefault(f.sha256, []):
-            names[f.sha256].append(f.name)
     # unique per study: two studies on one scheduler do not remove each other's plugin
     name = f"wmr-cosim-files-{os.getpid()}-{time.time_ns()}"
-    plugin = FileShipping(name, blobs, names)
+    plugin = FileShipping(name, blobs, shipment.names())
     t0 = time.perf_counter()
     client.register_plugin(plugin, name=name)
     seconds = time.perf_counter() - t0
     per = {w: r for w, r in client.run(_received, name).items() if r is not None}
     cost = ShippingCost(sum(len(b) for b in blobs.values()), seconds, per)
-    return Shipment(shipment.documents, shipment.files, shipment.models, shipment.build, name), cost
+    return dataclasses.replace(shipment, plugin=name), cost
 
 
 def unship(client: Any, shipment: Shipment) -> None:

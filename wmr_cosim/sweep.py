@@ -39,6 +39,8 @@ from .sweep_metrics import SweepMeasure, check_metrics
 from .sweep_plots import plot_sweep
 
 
+#: The reason of a point whose worker died each time it ran it (Dask's ``allowed-failures`` over).
+KILLED = "its worker died while running it, again when it was run on another"
 #: What a point measures of its runs: ``measure(row, results, folder)`` (robot_measures.measure for ours).
 Measure = Callable[[dict[str, Any], dict[str, Any], Path], None]
 
@@ -67,12 +69,11 @@ def run_point(point: dict[str, Any], study: Study, cache: Path | None = None) ->
     ``measure(row, results, folder)`` puts the runs' metrics into the row and may set the status and
     reason) and, with ``keep_runs``, its run folders as a gzipped tar.  The runs read their FMUs and input
     tables from ``cache`` (this Dask worker's cache of shipped files by default) and write into a folder
-    beside it, removed after the point; every path of the cache
-    in a reason is the driver's again, so a row does not depend on the worker.  Never raises: a failure
-    is a row."""
+    beside it, removed after the point; every path of the cache in a reason is the driver's again, so a
+    row does not depend on the worker.  Never raises: a failure is a row."""
     from .runner import run_protocol
 
-    row: dict[str, Any] = {"point": point["id"], **point["params"], "status": "ok", "reason": ""}
+    row = _row(point)
     cache = cache if cache is not None else worker_cache()
     # beside the cache, in the worker's own folder: what a killed worker leaves goes with that folder
     work = Path(tempfile.mkdtemp(prefix="wmr-sweep-", dir=cache.parent))
@@ -102,6 +103,11 @@ def run_point(point: dict[str, Any], study: Study, cache: Path | None = None) ->
     row["reason"] = unlocalise(row["reason"])
     row["wall_s"] = time.perf_counter() - t0
     return row, runs
+
+
+def _row(point: dict[str, Any], status: str = "ok", reason: str = "") -> dict[str, Any]:
+    """A point's row before its metrics: id, parameters, status and reason."""
+    return {"point": point["id"], **point["params"], "status": status, "reason": reason}
 
 
 def _packed(folder: Path) -> bytes:
@@ -162,10 +168,8 @@ def run_points(points: list[dict[str, Any]], base: str, variant: str | None, run
             try:
                 row, kept = fut.result()
             except KilledWorker:
-                p = futures[fut]
-                row, kept = {"point": p["id"], **p["params"], "status": "failed",
-                             "reason": "its worker died while running it, again when it was run on another",
-                             "wall_s": math.nan}, None
+                row = _row(futures[fut], "failed", KILLED)
+                row["wall_s"], kept = math.nan, None
             if kept is not None:
                 _unpacked(kept, out / "runs" / f"{row['point']:05d}")
             tmp = pts_dir / f"{row['point']:05d}.json.tmp"   # whole, then renamed: a point on disk is complete
@@ -199,8 +203,9 @@ def _points_done(folder: Path, points: list[dict[str, Any]]) -> dict[int, dict[s
 
 class Progress:
     """Progress over a study's points: a tqdm bar with the time left on a terminal; otherwise (a batch
-    job's log) one line at the first point, then every 5 % of the points or every minute, with the time left estimated from the
-    points finished in this session.  ``show``: None for a terminal only, False for none."""
+    job's log) one line at the first point, then every 5 % of the points or every minute, with the time
+    left estimated from the points finished in this session.  ``show``: None for a terminal only, False for
+    none."""
 
     def __init__(self, label: str, total: int, done: int, show: bool | None) -> None:
         self.label, self.total, self.done, self.start = label, total, done, done
@@ -208,7 +213,7 @@ class Progress:
         tty = sys.stderr.isatty()
         self.bar: Any = None
         self.lines = bool(show) and not tty
-        if (show or (show is None and tty)) and tty:
+        if tty and show is not False:
             from tqdm import tqdm
             self.bar = tqdm(total=total, initial=done, desc=label, unit="point", file=sys.stderr)
         self.every = max(1, total // 20)

@@ -70,8 +70,9 @@ class FastPath:
     start_step: Callable[..., None] | None = None
     finish_step: Callable[[bool], int] | None = None
     # the step through a view of the library that lets go of the GIL for the call, so that instances in
-    # this process step at once in threads (None: the step needs this process's Python; ``alone`` says
-    # why: a pythonfmu FMU, a Model Exchange instance's integrator, an instance in a child process)
+    # this process step at once in threads (None: the step needs this process's Python, or the instance
+    # steps in a child process; ``alone`` says why for the first: a pythonfmu FMU, a Model Exchange
+    # instance's integrator)
     threaded_step: Callable[..., int] | None = None
     alone: str = ""
 

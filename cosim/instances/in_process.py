@@ -440,8 +440,9 @@ _CDLLS: dict[int, Any] = {}
 
 def runs_python(unzipdir: str) -> bool:
     """Whether the FMU unpacked in ``unzipdir`` runs Python code in its steps (:func:`.model.binary.runs_python`)."""
-    folder = Path(unzipdir)
-    return binary.runs_python(p.relative_to(folder).as_posix() for p in folder.rglob("*"))
+    folder = Path(unzipdir)   # (where the rule looks: the resources' top and the binaries' folders)
+    return binary.runs_python(p.relative_to(folder).as_posix()
+                              for p in (*folder.glob("resources/*"), *folder.glob("binaries/*/*")))
 
 
 #: FMI type -> (ctypes element type, the FMI function's type name) for FMI 2.0 and 3.0.

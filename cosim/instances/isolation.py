@@ -634,8 +634,7 @@ class IsolatedInstance(FmuInstance):
                 ctypes.memmove(out, outputs, size)
             return 0
         return FastPath(ctypes.c_void_p(0), set_real, do_step, get_real, inputs, terminated=terminated,
-                        last_time=last_time, start_step=start_step, finish_step=finish_step,
-                        alone="in a child process (isolate = true): stepped at once by its process")
+                        last_time=last_time, start_step=start_step, finish_step=finish_step)
 
     def accessor(self, fmi_type: str, op: str) -> tuple[Any, Any]:
         """(call, ctype) as :meth:`.fmu_instance.FmuInstance.accessor`, through the control channel."""

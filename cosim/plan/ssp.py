@@ -7,15 +7,16 @@ Generic: nothing here knows the FMUs it packs.
 - ``resources/<file>.fmu``: every FMU of the plan (one copy per file);
 - ``SystemStructure.ssd``: one System with one Component per instance (``application/x-fmu-sharedlibrary``;
   ``implementation="ModelExchange"`` for an instance run as model exchange, whose integrator's settings SSP
-  1.0 cannot say), its Connectors (the connected inputs and outputs, the recorded outputs and the
-  parameters set, under the FMU's own variable names, Real ones with their units, defined in the SSD's Units), the Connections with a
-  ``LinearTransformation`` where the scenario gives a factor or an offset (unit conversion is left to the
-  connectors' units, as SSP prescribes), and a DefaultExperiment (start, stop) whose annotations carry the
-  step: Open Simulation Platform's ``osp:FixedStepAlgorithm baseStepSize`` (read by libcosim and by this
-  module) and this master's own ``algorithm``/``order``/``step`` (and ``workers``).  The System's annotations: OpenModelica's
-  ``oms:SimulationInformation`` with a ``FixedStepMaster`` at the step (OMSimulator takes the system's type
-  from it and aborts without one; its master is a Jacobi one), then this master's own annotation holding the
-  String parameters left out of the parameter sets (:func:`held_strings`);
+  1.0 cannot say), its Connectors (the connected inputs and outputs, the recorded outputs and the parameters
+  set, under the FMU's own variable names, Real ones with their units, defined in the SSD's Units), the
+  Connections with a ``LinearTransformation`` where the scenario gives a factor or an offset (unit
+  conversion is left to the connectors' units, as SSP prescribes), and a DefaultExperiment (start, stop)
+  whose annotations carry the step: Open Simulation Platform's ``osp:FixedStepAlgorithm baseStepSize`` (read
+  by libcosim and by this module) and this master's own ``algorithm``/``order``/``step`` (and ``workers``).
+  The System's annotations: OpenModelica's ``oms:SimulationInformation`` with a ``FixedStepMaster`` at the
+  step (OMSimulator takes the system's type from it and aborts without one; its master is a Jacobi one),
+  then this master's own annotation holding the String parameters left out of the parameter sets
+  (:func:`held_strings`);
 - ``resources/<instance>.ssv``: the parameter values as one SSV parameter set named ``parameters``, one
   file per component, bound to the component (names without prefix).  This is the form that libcosim and
   ecos both apply (neither applies a system-level binding nor a prefix; measured).  A String parameter

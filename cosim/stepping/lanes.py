@@ -55,7 +55,6 @@ class Lanes:
         self._done[j].acquire()
         err = self._error[j]
         if err is not None:
-            self._error[j] = None
             raise err
         return self._answer[j]
 

@@ -40,6 +40,7 @@ class ParallelJacobi(SteppedAlgorithm):
             raise ValueError(f"workers: {workers}: must be at least 1")
         self.workers = workers
         self.lanes: Lanes | None = None
+        self.choice = LaneChoice()
 
     def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,
               check_inputs: bool = True) -> None:
@@ -100,7 +101,7 @@ class ParallelJacobi(SteppedAlgorithm):
         lanes, members = self.lanes, self.lanes_members
         first: Failure | None = None
         if lanes is not None:
-            threads = self.choice.threads(k)
+            threads = self.choice.threads()
             w0 = time.perf_counter()
             if threads:
                 steps = [[st._parts(i)[1] for i in m] for m in members]   # (made here: not in the threads)
@@ -187,8 +188,8 @@ class ParallelJacobi(SteppedAlgorithm):
                 "in_threads": [[ios[i].name for i in m] for m in lanes],
                 "in_this_process": [ios[i].name for i in getattr(self, "serial", [])],
                 "alone": {ios[i].name: ios[i].fast.alone for i in getattr(self, "serial", []) if ios[i].fast.alone},
-                "steps_in_threads": getattr(self, "choice", LaneChoice()).in_threads,
-                "steps_on_the_master_alone": getattr(self, "choice", LaneChoice()).alone,
+                "steps_in_threads": self.choice.in_threads,
+                "steps_on_the_master_alone": self.choice.alone,
                 "step_time_s": {io.name: round(w, 6) for io, w in zip(ios, getattr(self, "spent", []))}}
 
 
@@ -211,8 +212,8 @@ class LaneChoice:
         self.in_threads = 0     # steps taken each way
         self.alone = 0
 
-    def threads(self, k: int) -> bool:
-        """Whether step ``k`` runs the lanes in their threads."""
+    def threads(self) -> bool:
+        """Whether the next step runs the lanes in their threads."""
         if self.phase < self.PROBE:
             return True
         if self.phase < 2 * self.PROBE:
