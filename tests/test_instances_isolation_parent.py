@@ -29,7 +29,7 @@ import json, mmap, os, pickle, select, signal, stat, struct, sys, time
 
 shm_name, c_r, c_w, s_r, d_w = sys.argv[1], *map(int, sys.argv[2:6])
 mode = json.loads(sys.argv[6])
-name, log_path, logging, spin = sys.argv[7:11]
+name, log_path, logging = sys.argv[7:10]
 log = open(log_path, "a") if log_path else None
 
 
@@ -39,7 +39,7 @@ def note(*words):
         log.flush()
 
 
-note("start", name, logging, spin)
+note("start", name, logging)
 try:
     note("stdin", "pipe" if stat.S_ISFIFO(os.fstat(0).st_mode) else "other")
 except OSError:
@@ -49,7 +49,7 @@ print("stderr of", name, file=sys.stderr, flush=True)
 fd = os.open("/dev/shm/" + shm_name, os.O_RDWR)
 mem = mmap.mmap(fd, 0)
 os.close(fd)
-cap = (len(mem) - 24) // 16
+cap = (len(mem) - 32) // 16
 io = {"n_in": 0, "n_out": 0, "u": [], "t": 0.0, "h": 0.0}
 typed = {}
 
@@ -72,13 +72,13 @@ def act(what):
 
 
 def read_inputs():
-    io["u"] = list(struct.unpack_from(f"<{io['n_in']}d", mem, 24))
+    io["u"] = list(struct.unpack_from(f"<{io['n_in']}d", mem, 32))
 
 
 def write_outputs():
     y = [sum(io["u"]), io["t"], io["h"]] + [float(j) for j in range(3, io["n_out"])]
     for j in range(io["n_out"]):
-        struct.pack_into("<d", mem, 24 + 8 * cap + 8 * j, y[j])
+        struct.pack_into("<d", mem, 32 + 8 * cap + 8 * j, y[j])
 
 
 def handle(op, args):
@@ -208,7 +208,7 @@ def fake(tmp_path, monkeypatch):
 
     def child(mode: dict | None = None, log: Path | None = None, timeout: float | None = 5.0,
               spin: int = 0) -> Child:
-        c = Child("d", json.dumps(mode or {}), log, "warning", timeout, spin=spin)
+        c = Child("d", json.dumps(mode or {}), log, "warning", timeout, spin)
         made.append(c)
         return c
 
@@ -250,7 +250,7 @@ def test_the_childs_output_goes_to_a_file_beside_its_log(fake, tmp_path, capfd):
     assert "stdout of d" in out and "stderr of d" in out
     captured = capfd.readouterr()
     assert "of d" not in captured.out + captured.err
-    assert _lines(log)[0] == "start d warning 0"
+    assert _lines(log)[0] == "start d warning"
 
 
 def test_without_a_log_the_child_writes_no_file(fake, tmp_path, monkeypatch, capfd):

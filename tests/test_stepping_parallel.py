@@ -127,7 +127,8 @@ def test_check_says_who_steps_at_once(probes, tmp_path, capsys):
 @pytest.mark.parametrize("change, words", [
     ({"workers": 0}, "experiment.workers: 0: must be an integer >= 1"),
     ({"workers": 1.5}, "experiment.workers: 1.5: must be an integer >= 1"),
-    ({"workers": 2, "algorithm": "gauss-seidel"}, "stepping instances at once is algorithm \"jacobi\"'s"),
+    ({"workers": 2, "algorithm": "iterated"},
+     "stepping instances at once is algorithm \"gauss-seidel\" or \"jacobi\"'s, not 'iterated'"),
     ({"workers": 2, "rate": 0.002}, "ft steps at its own rate; instances at their own rates step one at a time"),
 ])
 def test_bad_workers_are_one_line_exit_2(probes, tmp_path, capsys, change, words):
@@ -235,24 +236,40 @@ def test_check_says_which_instances_step_in_threads_and_which_alone_and_why(prob
                          "of its own))"), note
 
 
-def test_the_lanes_run_in_threads_where_that_is_faster_and_on_the_master_alone_where_not():
-    """Probes of each way, the faster kept, then measured again: the choice follows the measured times."""
-    from wmr_cosim.cosim.stepping.parallel import LaneChoice
+def test_the_faster_way_is_kept_and_kept_longer_each_time_it_wins_again():
+    """Probes of each way, the faster kept, then measured again: the choice follows the measured times; the
+    same way winning again is kept twice as long; another way winning is kept for KEEP again."""
+    from wmr_cosim.cosim.instances.handoff import Measured
 
-    c = LaneChoice()
+    c = Measured(2)
     P, K = c.PROBE, c.KEEP
     ways = []
-    for k in range(2 * (2 * P + K)):
-        threads = c.threads()
-        ways.append(threads)
-        first_cycle = k < 2 * P + K
-        c.took(threads, (1.0 if threads else 2.0) if first_cycle else (2.0 if threads else 1.0))
-    assert ways[:P] == [True] * P and ways[P:2 * P] == [False] * P
-    assert ways[2 * P:2 * P + K] == [True] * K            # threads were faster
-    n = 2 * P + K
-    assert ways[n:n + P] == [True] * P and ways[n + P:n + 2 * P] == [False] * P
-    assert ways[n + 2 * P:] == [False] * K                # now the master alone is
-    assert (c.in_threads, c.alone) == (2 * P + K, 2 * P + K)
+
+    def cycles(n: int, faster: int) -> None:
+        for _ in range(n):
+            w = c.way()
+            ways.append(w)
+            c.took(w, 1e-3 if w == faster else 2e-3)
+    cycles(2 * P + K, faster=0)
+    assert ways[:P] == [0] * P and ways[P:2 * P] == [1] * P and ways[2 * P:] == [0] * K
+    ways.clear()
+    cycles(2 * P + 2 * K, faster=0)          # the same way again: kept twice as long
+    assert ways[2 * P:] == [0] * 2 * K and c.keep == 2 * K
+    ways.clear()
+    cycles(2 * P + K, faster=1)              # the other way wins: kept for KEEP
+    assert ways[:P] == [0] * P and ways[P:2 * P] == [1] * P and ways[2 * P:] == [1] * K
+    assert c.taken == [2 * P + 3 * K + P, 3 * P + K]
+    ways.clear()
+    c2 = Measured(2)                          # one pause does not decide
+    for k in range(2 * P):
+        w = c2.way()
+        c2.took(w, 10.0 if k == 0 else (1e-5 if w == 0 else 1e-4))
+    assert c2.way() == 0
+    c3 = Measured(2)                          # a way far slower than one before it loses the round at once
+    for _ in range(P + 1):
+        w = c3.way()
+        c3.took(w, 1e-5 if w == 0 else 1e-3)
+    assert c3.taken == [P, 1] and c3.way() == 0 and c3.rounds == 1
 
 
 def test_every_step_is_counted_in_threads_or_on_the_master_alone(probes, tmp_path):

@@ -42,15 +42,18 @@ from ..model.binary import load_failure
 from ..model.description import declares_state, fmi2_cs_declares
 from .contract import FastPath, FmuInstance
 from .failure import Call, InstanceLost
+from .handoff import Handoff
 from .in_process import ACCESS
 from .integrators import SolverSpec
 
-#: Header of the step slot: status (int64), t (float64), h (float64), then inputs and outputs (float64).
-_HEAD = 24
+#: Header of the step slot: status (int64), t (float64), h (float64), the spin count the child waits for the
+#: next request with (int64, set by the master: :class:`~.handoff.Handoff`), then inputs and outputs (float64).
+_HEAD = 32
 #: Polls of the other side's pipe before blocking on it (a few tens of microseconds): the answer to a step,
 #: and the next step's request, usually come within that, which saves the scheduler's wake-up each way.
 #: Only while every child can have a core of its own beside the master (see :func:`spin_for`): children
-#: spinning on a shared core only slow each other down.
+#: spinning on a shared core only slow each other down.  Whether to spin at all is measured as the run goes
+#: (:class:`~.handoff.Handoff`: on a busy machine both sides block at once).
 SPIN = 200
 
 
@@ -94,8 +97,10 @@ class Child:
     """The master's side of one child process."""
 
     def __init__(self, name: str, fmu_dir: str, log_path: Path | None, logging: str, step_timeout: float | None,
-                 spin: int, slot_values: int = 4096, solver: SolverSpec | None = None) -> None:
-        self.name, self.step_timeout, self.spin = name, step_timeout, spin
+                 handoff: Handoff | int, slot_values: int = 4096, solver: SolverSpec | None = None) -> None:
+        """``handoff``: the run's :class:`~.handoff.Handoff`, which chooses how both sides wait as the run
+        goes, or a spin count kept (0: block at once; negative: poll yielding the core)."""
+        self.name, self.step_timeout = name, step_timeout
         self.started = False      # the child has answered once
         self.shm = shared_memory.SharedMemory(create=True, size=_HEAD + 16 * slot_values)
         self.cap = slot_values
@@ -106,7 +111,7 @@ class Child:
         out: Any = open(str(log_path) + ".stdout", "wb") if log_path is not None else subprocess.DEVNULL
         self.proc = subprocess.Popen(
             [sys.executable, "-m", __name__, self.shm.name, str(c_r), str(c_w), str(s_r),
-             str(d_w), fmu_dir, name, str(log_path or ""), logging, str(spin),
+             str(d_w), fmu_dir, name, str(log_path or ""), logging,
              json.dumps(dataclasses.asdict(solver)) if solver is not None else ""],
             pass_fds=(c_r, c_w, s_r, d_w), stdin=subprocess.DEVNULL, stdout=out, stderr=out, close_fds=True)
         if out is not subprocess.DEVNULL:
@@ -120,6 +125,13 @@ class Child:
         self.status = ctypes.c_int64.from_address(self.addr)
         self.time = ctypes.c_double.from_address(self.addr + 8)
         self.h = ctypes.c_double.from_address(self.addr + 16)
+        self.spin_word = ctypes.c_int64.from_address(self.addr + 24)
+        self.spin = 0
+        self.handoff = handoff if isinstance(handoff, Handoff) else None
+        if self.handoff is not None:
+            self.handoff.add(self)
+        else:
+            self.set_spin(int(handoff))
         self.inputs: Any = None
         self.outputs: Any = None
 
@@ -163,6 +175,12 @@ class Child:
             code = None
         return _how(code)
 
+    def set_spin(self, spin: int) -> None:
+        """How both sides wait at a step from now on: poll ``abs(spin)`` times (yielding the core between
+        polls where negative), then block."""
+        self.spin = spin
+        self.spin_word.value = spin
+
     # ---------------------------------------------------------------- step slot
     def configure(self, in_vrs: list[int], n_in: int, out_vrs: list[int], n_out: int) -> tuple[Any, Any]:
         """The Float64 inputs and outputs of the step slot, as ctypes arrays over the shared memory."""
@@ -182,6 +200,8 @@ class Child:
         """A step's request: the child sets the inputs (in place), steps and gets the outputs while the
         master does something else; :meth:`finish` waits for it."""
         self.time.value, self.h.value, self.t = t, h, t
+        if self.handoff is not None:
+            self.handoff.tick(self)
         try:
             os.write(self.step_w, b"s")
         except BrokenPipeError:
@@ -192,7 +212,8 @@ class Child:
         stepped at once need the cores)."""
         fd = self.done_r
         yield_ = os.sched_yield if self.spin < 0 else None
-        for _ in range(abs(self.spin) if spin else 0):
+        polls = abs(self.spin) if spin else 0
+        for _ in range(polls):
             if yield_ is not None:
                 yield_()
             try:
@@ -201,6 +222,8 @@ class Child:
                 raise ChildDied(self._died())
             except BlockingIOError:
                 pass
+        if polls and self.handoff is not None:
+            self.handoff.ran_out += 1
         self._read(fd, 1, self.step_timeout)
         return self.status.value
 
@@ -352,7 +375,7 @@ def _serve(argv: list[str]) -> int:
     """The child: load the FMU, then answer the control channel and the step slot until the master
     closes them."""
     shm_name, c_r, c_w, s_r, d_w = argv[0], *map(int, argv[1:5])
-    fmu_dir, name, log_path, logging, spin = argv[5], argv[6], argv[7], argv[8], int(argv[9])
+    fmu_dir, name, log_path, logging = argv[5], argv[6], argv[7], argv[8]
     signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C is the master's to handle
     shm = shared_memory.SharedMemory(name=shm_name)
     try:  # the master owns the block: this process must not unlink it at exit
@@ -369,8 +392,8 @@ def _serve(argv: list[str]) -> int:
     ctl_in = os.fdopen(c_r, "rb", buffering=0)
     inst: FmuInstance
     try:
-        if len(argv) > 10 and argv[10]:   # a model exchange instance, with its integrator's settings
-            inst = model_exchange(name, md, fmu_dir, log_path or None, logging, SolverSpec(**json.loads(argv[10])))
+        if len(argv) > 9 and argv[9]:   # a model exchange instance, with its integrator's settings
+            inst = model_exchange(name, md, fmu_dir, log_path or None, logging, SolverSpec(**json.loads(argv[9])))
         else:
             inst = (Instance3 if md.fmiVersion.startswith("3") else Instance)(name, md, fmu_dir, log_path or None,
                                                                               logging)
@@ -381,10 +404,10 @@ def _serve(argv: list[str]) -> int:
             os.write(c_w, struct.pack("<q", len(data)) + data)
         return 1
     server = _Server(shm, inst)
-    return _loop(server, ctl_in, c_w, s_r, d_w, spin)
+    return _loop(server, ctl_in, c_w, s_r, d_w)
 
 
-def _loop(server: _Server, ctl_in: Any, c_w: int, s_r: int, d_w: int, spin: int) -> int:
+def _loop(server: _Server, ctl_in: Any, c_w: int, s_r: int, d_w: int) -> int:
     """Answer requests on the control channel and steps on the slot until the master has gone."""
     polls = select.poll()
     polls.register(ctl_in.fileno(), select.POLLIN)
@@ -393,7 +416,7 @@ def _loop(server: _Server, ctl_in: Any, c_w: int, s_r: int, d_w: int, spin: int)
     while True:
         for fd, _ in polls.poll():
             if fd == s_r:
-                if not _steps(s_r, d_w, server, spin):
+                if not _steps(s_r, d_w, server):
                     return 0
                 continue
             head = ctl_in.read(8)
@@ -404,8 +427,9 @@ def _loop(server: _Server, ctl_in: Any, c_w: int, s_r: int, d_w: int, spin: int)
             os.write(c_w, struct.pack("<q", len(data)) + data)
 
 
-def _steps(s_r: int, d_w: int, server: _Server, spin: int) -> bool:
-    """Answer step requests while they keep coming within the spin; False when the master has gone."""
+def _steps(s_r: int, d_w: int, server: _Server) -> bool:
+    """Answer step requests while they keep coming within the spin the master asks for (the slot's spin
+    word, read after each step); False when the master has gone."""
     try:
         if not os.read(s_r, 1):
             return False
@@ -415,9 +439,11 @@ def _steps(s_r: int, d_w: int, server: _Server, spin: int) -> bool:
     status = ctypes.c_int64.from_address(addr)
     time_ = ctypes.c_double.from_address(addr + 8)
     h_ = ctypes.c_double.from_address(addr + 16)
+    spin_word = ctypes.c_int64.from_address(addr + 24)
     while True:
         status.value = server.step(time_.value, h_.value)
         os.write(d_w, b"d")
+        spin = spin_word.value
         for _ in range(abs(spin)):
             if spin < 0:
                 os.sched_yield()
@@ -437,7 +463,7 @@ class IsolatedInstance(FmuInstance):
     life cycle goes through the control channel, the step through the slot (:meth:`fast_path`)."""
 
     def __init__(self, name: str, md: Any, unzipdir: str, log_path: str | os.PathLike | None, logging: str,
-                 step_timeout: float | None, spin: int, solver: SolverSpec | None = None) -> None:
+                 step_timeout: float | None, handoff: Handoff | int, solver: SolverSpec | None = None) -> None:
         """``solver``: host the FMU as model exchange with this integrator (None: co-simulation)."""
         self.name, self.md, self.logging, self.solver = name, md, logging, solver
         self.fmi_version = 3 if md.fmiVersion.startswith("3") else 2
@@ -445,7 +471,7 @@ class IsolatedInstance(FmuInstance):
         self.log_lines = self.received = self.n_errors = 0
         self.fatal = self.freed = False
         self.dead = ""
-        self.child = Child(name, unzipdir, Path(log_path) if log_path else None, logging, step_timeout, spin,
+        self.child = Child(name, unzipdir, Path(log_path) if log_path else None, logging, step_timeout, handoff,
                            solver=solver)
         self.c = 0
 

@@ -35,6 +35,7 @@ from ..scenario.document import (SOLVER_KEYS, ConnectionSpec, InstanceSpec, Scen
                                 steps_of)
 from ..scenario.inputs import InputPlan, read_inputs
 from ..stepping import table as algorithms
+from ..stepping.graph import levels
 from ..stepping.settings import SpecError, check_adaptive
 from .loops import check_iteration, coupling
 from .records import ConnectionPlan, EventPlan, InstancePlan, Plan, RecordPlan, unit_of
@@ -438,7 +439,7 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
     internal = _internal_steps(sc, insts)
     conns, driven = _connection_plans(sc, insts)
     _rates(sc, insts, conns)
-    _workers(sc, insts, notes)
+    _workers(sc, insts, conns, notes)
     coupled = coupling(sc.order, insts, conns)
     _check_stepping(sc, insts)
     check_iteration(sc, insts, coupled)
@@ -455,9 +456,10 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
     return plan
 
 
-def _workers(sc: Scenario, insts: dict[str, InstancePlan], notes: list[str]) -> None:
-    """Stepping instances at once is Jacobi's (under Gauss-Seidel each instance waits for the one before)
-    at one rate, and overlaps the steps of isolated instances; a note says which step at once."""
+def _workers(sc: Scenario, insts: dict[str, InstancePlan], conns: list[ConnectionPlan], notes: list[str]) -> None:
+    """Stepping instances at once: Jacobi's every instance, Gauss-Seidel's each level (the instances that
+    do not feed each other, from the connections), at one rate; a note says which step at once, how, and
+    when there are more workers than instances that can step at once."""
     if sc.workers == 1:
         return
     if not algorithms.row(sc.algorithm).workers:
@@ -468,25 +470,44 @@ def _workers(sc: Scenario, insts: dict[str, InstancePlan], notes: list[str]) -> 
     if slow:
         raise ScenarioError(sc.file, "experiment.workers", f"{sc.workers}: {slow[0]} steps at its own rate; "
                                                            "instances at their own rates step one at a time")
-    notes.append(workers_note(sc.workers, [(n, insts[n]) for n in sc.order]))
+    order = list(sc.order)
+    groups = [order]
+    if not algorithms.row(sc.algorithm).simultaneous:   # Gauss-Seidel: by levels
+        index = {n: i for i, n in enumerate(order)}
+        fed_by: list[set[int]] = [set() for _ in order]
+        for c in conns:
+            if c.src in index and c.dst in index:
+                fed_by[index[c.dst]].add(index[c.src])
+        groups = [[order[i] for i in lv] for lv in levels(len(order), fed_by)]
+    notes.append(workers_note(sc.workers, [(n, insts[n]) for n in order],
+                              groups if not algorithms.row(sc.algorithm).simultaneous else None))
 
 
-def workers_note(workers: int, insts: list[tuple[str, InstancePlan]]) -> str:
-    """Which instances step at once, and how (as :class:`~..stepping.parallel.ParallelJacobi` steps them):
-    the isolated ones in their processes, the C FMUs in this process in lanes of threads, and the others
-    on the master's thread alone, each with why."""
+def workers_note(workers: int, insts: list[tuple[str, InstancePlan]], levels_: list[list[str]] | None = None) -> str:
+    """Which instances step at once, and how (as :mod:`~..stepping.parallel` steps them): the isolated ones
+    in their processes, the C FMUs in this process in lanes of threads, and the others on the master's
+    thread alone, each with why; ``levels_``: Gauss-Seidel's levels (None: Jacobi, one group)."""
     apart = [n for n, ip in insts if ip.spec.isolate]
     alone = {n: alone_because(ip) for n, ip in insts if not ip.spec.isolate}
     threaded = [n for n, why in alone.items() if not why]
-    lanes = min(workers, len(threaded))
-    parts = [f"{', '.join(apart)} (isolated) step at once, up to {workers} together" if apart
-             else "no instance is isolated"]
+    groups = levels_ if levels_ is not None else [[n for n, _ in insts]]
+    lanes = max(min(workers, sum(n in threaded for n in g)) for g in groups)
+    parts = []
+    if levels_ is not None:
+        parts.append("Gauss-Seidel by levels, the instances of a level (they do not feed each other) at once: "
+                     + " | ".join(", ".join(g) for g in levels_))
+    parts.append(f"{', '.join(apart)} (isolated) step at once, up to {workers} together" if apart
+                 else "no instance is isolated")
     if lanes > 1:
         parts.append(f"{', '.join(threaded)} (C FMUs in this process) in {lanes} lanes, the master's thread and "
                      f"{count(lanes - 1, 'thread')}")
     elif threaded:
         parts.append(f"{', '.join(threaded)} (in this process) on the master's thread")
     parts += [f"{n} on the master's thread alone ({why})" for n, why in alone.items() if why]
+    able = max(sum(n in apart or n in threaded for n in g) for g in groups)
+    if workers > max(able, 1):
+        parts.append(f"more workers than instances that can step at once ({able}): {count(max(able, 1), 'worker')} "
+                     "will be busy at most")
     return f"workers = {workers}: " + "; ".join(parts)
 
 

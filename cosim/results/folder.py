@@ -39,6 +39,7 @@ class RunResult:
     signals: np.ndarray | None = None   # the recording in memory (when the execution was asked to keep it)
     stepping: dict[str, Any] | None = None   # the algorithm's own counts (iterations, accepted/rejected steps)
     events_left_out: int = 0   # entries of the event table beyond its limit (.event_log.MAX_ENTRIES)
+    handoff: dict[str, Any] | None = None   # how the master and the child processes waited (instances.handoff)
 
 
 class ResultsFolder:
@@ -91,6 +92,7 @@ def summary(plan: Plan, res: RunResult, rows: int, logs: dict[str, tuple[int, in
         **({"events_left_out": res.events_left_out} if res.events_left_out else {}),
         **({"real_time": res.real_time} if res.real_time is not None else {}),
         **({"stepping": res.stepping} if res.stepping is not None else {}),
+        **({"handoff": res.handoff} if res.handoff is not None else {}),
     }
 
 

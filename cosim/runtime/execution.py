@@ -34,6 +34,7 @@ from typing import Any, Callable
 
 from ..instances.contract import FmuInstance
 from ..instances.failure import Call, Failure, FmiStatus, InstanceLost
+from ..instances.handoff import Handoff
 from ..messages.errors import CosimError, RunError, ScenarioError
 from ..model.description import Variable
 from ..plan.records import Plan
@@ -49,7 +50,7 @@ from .interrupt import Interrupt
 from .manipulators import Actuator, ConditionEvents, EventStop, Manipulator, ScriptChanges, TimedEvents
 from .observers import Observer, Pacing, ProgressBar, Recorder, StepCallback
 from .pacing import Pacer
-from .startup import (exchange_initial, instance_io, load_instances, read_outputs, recorded_getters, recorded_types,
+from .startup import (exchange_initial, handoff_for, instance_io, load_instances, read_outputs, recorded_getters, recorded_types,
                       set_up)
 from .views import ManipulatedRun, ObservedRun
 
@@ -99,6 +100,7 @@ class Execution:
         self.pacer = Pacer(real_time) if real_time is not None else None
         self.columns = ["time"] + [r.column for r in plan.record]
         self.instances: dict[str, FmuInstance] = {}   # (filled at initialisation)
+        self.handoff: Handoff | None = None   # how the children and the master wait (filled at initialisation)
         self.ios: list[InstanceIO] = []
         self.observers: list[Observer] = []        # in the order added: the built-in ones first
         self.manipulators: list[Manipulator] = []  # likewise (the scenario's events first)
@@ -177,7 +179,8 @@ class Execution:
 
     def _initialise(self) -> None:
         plan, layout, wiring = self.plan, self._layout, self._wiring
-        self.instances.update(load_instances(plan, self._work, self._logs()))
+        self.handoff = handoff_for(plan)
+        self.instances.update(load_instances(plan, self._work, self._logs(), self.handoff))
         set_up(plan, self.instances)
         self.ios = [instance_io(plan, n, self.instances[n], layout, wiring, self.instances,
                                 self._fmi_acc if self.timing else None) for n in plan.order]
@@ -486,6 +489,7 @@ class Execution:
                         self._fmi_acc[0] if self.timing else None, events,
                         self.pacer.summary() if self.pacer is not None else None)
         res.stepping, res.events_left_out = algorithms.summary(self.algorithm), left_out
+        res.handoff = self.handoff.summary() if self.handoff is not None else None
         logs = {n: (i.log_lines, i.received) for n, i in self.instances.items()}
         res.summary = summary(self.plan, res, self._recorder.n_rows, logs)
         if self.folder is not None:

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ..instances.contract import FmuInstance
+from ..instances.handoff import Handoff
 from ..instances.in_process import Instance, Instance3, vr_array
 from ..instances.model_exchange import model_exchange
 from ..messages.errors import CosimError, FmuLoadError
@@ -27,22 +28,31 @@ from ..stepping.algorithm import InstanceIO
 from .observers import RecordedGetter
 
 
-def load_instances(plan: Plan, work: Path, logs: Path) -> dict[str, FmuInstance]:
+def handoff_for(plan: Plan) -> Handoff | None:
+    """How the run's child processes and the master wait for each other (None: no instance isolated)."""
+    n_isolated = sum(q.spec.isolate for q in plan.instances.values())
+    if not n_isolated:
+        return None
+    from ..instances.isolation import spin_for
+    return Handoff(spin_for(n_isolated))
+
+
+def load_instances(plan: Plan, work: Path, logs: Path, handoff: Handoff | None = None) -> dict[str, FmuInstance]:
     """Extract every FMU file once (into ``work``) and host each instance of the plan: in a child process
-    where it says ``isolate``, else in this one; as co-simulation or, where the plan says, as model exchange
-    with its integrator; its log goes to ``logs/<instance>.log``."""
+    where it says ``isolate`` (waiting for each other as ``handoff`` chooses: :func:`handoff_for`), else in
+    this one; as co-simulation or, where the plan says, as model exchange with its integrator; its log goes
+    to ``logs/<instance>.log``."""
     unz: dict[Path, str] = {}
     instances: dict[str, FmuInstance] = {}
-    n_isolated = sum(q.spec.isolate for q in plan.instances.values())
     for name, ip in plan.instances.items():
         p = ip.model.path.resolve()
         if p not in unz:
             unz[p] = str(safe_extract(p, work / f"{len(unz)}_{p.stem}", plan.archive_limits))
-        instances[name] = _host(name, ip, unz[p], logs / f"{name}.log", n_isolated)
+        instances[name] = _host(name, ip, unz[p], logs / f"{name}.log", handoff)
     return instances
 
 
-def _host(name: str, ip: InstancePlan, unzipdir: str, log: Path, n_isolated: int) -> FmuInstance:
+def _host(name: str, ip: InstancePlan, unzipdir: str, log: Path, handoff: Handoff | None) -> FmuInstance:
     """Instance ``name`` hosted: in a child process, as model exchange, or as co-simulation here.  A binary
     the loader refuses (``check`` reads its header and exports, not what it links against) ends the run
     with one line naming the instance, the FMU and the loader's reason; FMPy changes the working folder to
@@ -50,9 +60,9 @@ def _host(name: str, ip: InstancePlan, unzipdir: str, log: Path, n_isolated: int
     cwd = os.getcwd()
     try:
         if ip.spec.isolate:
-            from ..instances.isolation import IsolatedInstance, spin_for
+            from ..instances.isolation import SPIN, IsolatedInstance
             return IsolatedInstance(name, ip.model.md, unzipdir, log, ip.spec.logging,
-                                    ip.spec.step_timeout or 60.0, spin_for(n_isolated), ip.solver)
+                                    ip.spec.step_timeout or 60.0, handoff if handoff is not None else SPIN, ip.solver)
         if ip.solver is not None:   # model exchange
             return model_exchange(name, ip.model.md, unzipdir, log, ip.spec.logging, ip.solver)
         cls = Instance3 if ip.model.fmi == 3 else Instance
@@ -96,6 +106,7 @@ def instance_io(plan: Plan, name: str, inst: FmuInstance, layout: RowLayout, wir
         name, fast, in_vr=vr_array(vrs), n_in=ctypes.c_size_t(len(vrs)), out_vr=vr_array(out_vrs),
         out_val=layout.out_arr[name], n_out=ctypes.c_size_t(len(layout.reals[name])), copies=wiring.copies(name),
         other=[discrete_copier(instances, c) for c in plan.connections if c.dst == name and not is_real(c)],
+        reads=tuple(c.src for c in plan.connections if c.dst == name and not is_real(c)),
         feed=table_feeder(inst, wiring.tables.get(name),
                           [ip for ip in plan.inputs if ip.instance == name and not is_f64(ip.var)]),
         can_roll_back=inst.can_get_and_set_state, get_state=inst.get_state, set_state=inst.set_state, free_state=inst.free_state,

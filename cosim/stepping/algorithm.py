@@ -121,6 +121,7 @@ class InstanceIO:
     n_out: ctypes.c_size_t
     copies: list[Copy] = field(default_factory=list)
     other: list[Callable[[], int]] = field(default_factory=list)  # connections other than Float64 -> Float64
+    reads: tuple[str, ...] = ()                    # the instances whose outputs ``other`` reads (FMI gets)
     feed: Callable[[int], int] | None = None       # tabulated inputs of step k (wiring.table_feeder)
     # the instance's state and input derivatives, for the algorithms that roll steps back and iterate
     # (cosim.instances.contract: get_state, set_state, free_state, allow_rollback, set_input_derivatives,

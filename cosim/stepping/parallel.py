@@ -1,23 +1,27 @@
-"""Jacobi with instances stepped at once (``[experiment] workers = N``, N > 1, algorithm "jacobi").
+"""Instances stepped at once (``[experiment] workers = N``, N > 1): Jacobi, and Gauss-Seidel by levels.
 
-Every instance's inputs are set from the previous step's outputs, then the instances step, then every
-output is read, as in the serial Jacobi step; what differs is only when the steps run.  Three kinds of
-instance step at once, each its own way:
+Jacobi sets every instance's inputs from the previous step's outputs, steps them, reads every output:
+every instance may step at once.  Gauss-Seidel steps the instances in the plan's order, each seeing its
+predecessors' outputs of this step; its pass is cut into levels (:func:`.graph.levels`, from the
+connections: instances of one level do not feed each other) whose instances step at once, level after
+level: each level's inputs set, its steps, its outputs read.  What differs from the serial step is only
+when the steps run.  Three kinds of instance step at once, each its own way:
 
 * an instance of a C FMU in this process steps in one of N lanes: the master's thread and N - 1 threads
   that live for the run (:class:`~.lanes.Lanes`), its step a foreign call that lets go of the GIL
-  (:attr:`~..instances.contract.FastPath.threaded_step`); the instances are dealt to the lanes in the
-  plan's order, one each in turn, the master's lane first; where steps are too short to pay the hand-off,
-  or the cores are busy, the lanes run one after another on the master's thread (:class:`LaneChoice`
-  measures which is faster as the run goes);
+  (:attr:`~..instances.contract.FastPath.threaded_step`); a group's instances are dealt to the lanes in
+  the plan's order, one each in turn, the master's lane first; where steps are too short to pay the
+  hand-off, or the cores are busy, the lanes run one after another on the master's thread (which is
+  faster is measured as the run goes: :class:`~..instances.handoff.Measured`);
 * an instance hosted in a child process (``isolate = true``) steps in two halves: the master writes the
   request to each of up to N children, and waits for their answers after its own lane's steps;
 * an instance whose step needs this process's Python (a pythonfmu FMU, a Model Exchange instance) steps
   on the master's thread, after its lane: threads would give it nothing (the GIL), and the run's summary
   says why (``alone``).
 
-Each FMU gets the same calls with the same values as in the serial run, so the results are the serial
-Jacobi run's bit for bit.
+Each FMU gets the same calls with the same values in the same order as in the serial run, so the results
+are the serial run's bit for bit; of several failures in one group, the one the serial run meets first is
+reported.
 """
 from __future__ import annotations
 
@@ -26,46 +30,75 @@ import time
 from typing import Any, Callable
 
 from ..instances.failure import Call, Failure
+from ..instances.handoff import Measured
 from .algorithm import Clock, InstanceIO, Row, StepDone
+from .graph import levels
 from .lanes import Lanes
-from .stepper import SteppedAlgorithm
+from .stepper import SteppedAlgorithm, depends
+
+#: The ways a group's lanes step: in their threads, or one after another on the master's thread.
+THREADS, MASTER_ALONE = 0, 1
 
 
+class Group:
+    """Instances that step at once (a Jacobi step's, a Gauss-Seidel level's), sorted by how: ``split``
+    (isolated: requested, then answered), ``lanes`` (C FMUs in this process: lane 0 the master's thread),
+    ``serial`` (on the master's thread alone), each in the plan's order."""
 
-class ParallelJacobi(SteppedAlgorithm):
-    """Jacobi, the instances' steps overlapping (see the module's docstring)."""
+    def __init__(self, members: list[int], ios: list[InstanceIO], workers: int) -> None:
+        self.members = members
+        self.split = [i for i in members if ios[i].fast.start_step is not None]
+        threaded = [i for i in members if ios[i].fast.threaded_step is not None]
+        n = min(workers, len(threaded))
+        if n < 2:   # one lane: the master's thread, as the serial run
+            threaded = []
+        self.threaded = threaded
+        self.lanes = [threaded[j::n] for j in range(n)] if threaded else []
+        self.serial = [i for i in members if ios[i].fast.start_step is None and i not in threaded]
+        self.choice = Measured(2)   # THREADS or MASTER_ALONE
+
+
+class ParallelStepping(SteppedAlgorithm):
+    """The steps of groups of instances overlapping (see the module's docstring); a subclass says the
+    groups (:meth:`groups`) and the step (:meth:`take`)."""
 
     def __init__(self, workers: int = 2) -> None:
         if workers < 1:
             raise ValueError(f"workers: {workers}: must be at least 1")
         self.workers = workers
-        self.lanes: Lanes | None = None
-        self.choice = LaneChoice()
+        self.pool: Lanes | None = None
+        self.parts: list[Group] = []
 
     def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,
               check_inputs: bool = True) -> None:
         super().setup(ios, clock, layout, done, check_inputs)
-        self.split = [i for i, io in enumerate(ios) if io.fast.start_step is not None]
-        threaded = [i for i, io in enumerate(ios) if io.fast.threaded_step is not None]
-        n = min(self.workers, len(threaded))
-        if n < 2:   # one lane: the master's thread alone
-            threaded = []
-        # lane 0 is the master's thread; the instances dealt to the lanes in turn
-        self.lanes_members = [threaded[j::n] for j in range(n)] if threaded else []
-        self.serial = [i for i, io in enumerate(ios) if io.fast.start_step is None and i not in threaded]
         self.spent = [0.0] * len(ios)   # [s] wall time from each step's start to its end (overlapping)
+        self.walls = 0.0                # [s] wall time of the groups' steps
         self.index = {io.name: i for i, io in enumerate(ios)}
-        for i in threaded:   # (from now on every step of theirs lets go of the GIL)
-            ios[i].fast.do_step = ios[i].fast.threaded_step  # type: ignore[assignment]
-        self.lanes = Lanes(n - 1) if threaded else None
-        self.in_order = sorted(threaded)
-        self.choice = LaneChoice()
+        self._group(ios)
+
+    def _group(self, ios: list[InstanceIO]) -> None:
+        """The groups for the instances' connections as they are now; the threads they need."""
+        self.parts = [Group(m, ios, self.workers) for m in self.groups(ios)]
+        for g in self.parts:
+            for i in g.threaded:   # (from now on every step of theirs lets go of the GIL)
+                ios[i].fast.do_step = ios[i].fast.threaded_step  # type: ignore[assignment]
+        threads = max((len(g.lanes) - 1 for g in self.parts), default=0)
+        if self.pool is None or self.pool.n < threads:
+            if self.pool is not None:
+                self.pool.close()
+            self.pool = Lanes(threads) if threads > 0 else None
+
+    def groups(self, ios: list[InstanceIO]) -> list[list[int]]:
+        """The groups of instances that step at once, in the order they step."""
+        raise NotImplementedError
 
     def finish(self) -> None:
-        if self.lanes is not None:
-            self.lanes.close()
-            self.lanes = None
+        if self.pool is not None:
+            self.pool.close()
+            self.pool = None
 
+    # ------------------------------------------------------------------ a group's steps
     def _lane(self, members: list[int], k: int, t: float, h: float,
               steps: list[Callable[..., Failure | None]]) -> Failure | None:
         """One lane's instances stepped one after another; the first failure."""
@@ -78,67 +111,56 @@ class ParallelJacobi(SteppedAlgorithm):
                 return fail
         return None
 
-    def take(self, k: int, t: float, h: float) -> Failure | None:
-        st, ios = self.stepper, self.stepper.ios
-        for i in range(len(ios)):
-            fail = st.set_inputs(i, k, t)
-            if fail is not None:
-                return fail
-        st.T.value, st.H.value = t, h
-        fail = self._steps(k, t, h)
-        if fail is not None:
-            return fail
-        for i in range(len(ios)):
-            fail = st.get_outputs(i, k, t + h)
-            if fail is not None:
-                return fail
-        return None
+    def _first(self, a: Failure | None, b: Failure | None) -> Failure | None:
+        """Of two failures of one group's steps, the one of the instance first in the plan."""
+        if a is None or (b is not None and self.index[b.instance] < self.index[a.instance]):
+            return b
+        return a
 
-    def _here(self, k: int, t: float, h: float) -> Failure | None:
-        """The steps in this process: the lanes' (the threads' and the master's) at once, then those on the
-        master's thread alone; of several failures, the one of the instance first in the plan."""
-        st = self.stepper
-        lanes, members = self.lanes, self.lanes_members
+    def _here(self, g: Group, k: int, t: float, h: float) -> Failure | None:
+        """A group's steps in this process: the lanes' (the threads' and the master's) at once, then those on
+        the master's thread alone; the failure the serial run would meet first."""
+        st, pool = self.stepper, self.pool
         first: Failure | None = None
-        if lanes is not None:
-            threads = self.choice.threads()
+        if g.lanes:
+            way = g.choice.way()
             w0 = time.perf_counter()
-            if threads:
-                steps = [[st._parts(i)[1] for i in m] for m in members]   # (made here: not in the threads)
-                for j in range(1, len(members)):
-                    lanes.start(j - 1, functools.partial(self._lane, members[j], k, t, h, steps[j]))
+            if way == THREADS and pool is not None:
+                steps = [[st._parts(i)[1] for i in m] for m in g.lanes]   # (made here: not in the threads)
+                for j in range(1, len(g.lanes)):
+                    pool.start(j - 1, functools.partial(self._lane, g.lanes[j], k, t, h, steps[j]))
                 try:
-                    first = self._lane(members[0], k, t, h, steps[0])
+                    first = self._lane(g.lanes[0], k, t, h, steps[0])
                 finally:
-                    for j in range(1, len(members)):   # every lane answered before anything else happens
-                        fail = lanes.wait(j - 1)
-                        if fail is not None and (first is None or
-                                                 self.index[fail.instance] < self.index[first.instance]):
-                            first = fail
+                    for j in range(1, len(g.lanes)):   # every lane answered before anything else happens
+                        first = self._first(first, pool.wait(j - 1))
             else:   # the lanes one after another on the master's thread, in the plan's order
-                first = self._lane(self.in_order, k, t, h, [st._parts(i)[1] for i in self.in_order])
-            self.choice.took(threads, time.perf_counter() - w0)
-            st.n_do_steps += sum(len(m) for m in members)
-            if first is not None:
-                return first
+                first = self._lane(g.threaded, k, t, h, [st._parts(i)[1] for i in g.threaded])
+            g.choice.took(way, time.perf_counter() - w0)
+            st.n_do_steps += len(g.threaded)
         spent, clock = self.spent, time.perf_counter
-        for i in self.serial:
+        for i in g.serial:
+            if first is not None and i > self.index[first.instance]:
+                break
             w = clock()
             fail = st.do_step(i, k, t, h)
             spent[i] += clock() - w
-            if fail is not None:
-                return fail
-        return None
+            first = self._first(first, fail)
+        return first
 
-    def _steps(self, k: int, t: float, h: float) -> Failure | None:
-        """The isolated instances' steps, N children at once, and meanwhile (during the first N) the steps
-        in this process (:meth:`_here`)."""
+    def _steps(self, g: Group, k: int, t: float, h: float) -> Failure | None:
+        """A group's steps: its isolated instances N children at once, and meanwhile (during the first N)
+        the steps in this process (:meth:`_here`); the failure the serial run would meet first."""
         st, ios = self.stepper, self.stepper.ios
         n = self.workers
-        first = True
-        spent, clock = self.spent, time.perf_counter
-        for b in range(0, max(1, len(self.split)), n):
-            batch = self.split[b:b + n]
+        first: Failure | None = None
+        here_done = False
+        clock = time.perf_counter
+        spent = self.spent
+        w_group = clock()
+        for b in range(0, max(1, len(g.split)), n):
+            # (after a failure, only the children the serial run steps before it)
+            batch = [i for i in g.split[b:b + n] if first is None or i < self.index[first.instance]]
             w0 = clock()
             started: list[int] = []   # the steps requested and not yet answered
             try:
@@ -147,12 +169,9 @@ class ParallelJacobi(SteppedAlgorithm):
                     assert f.start_step is not None
                     f.start_step(f.c, st.T, st.H)
                     started.append(i)
-                if first:
-                    first = False
-                    fail = self._here(k, t, h)
-                    if fail is not None:
-                        self._drain(started)
-                        return fail
+                if not here_done:
+                    here_done = True
+                    first = self._first(first, self._here(g, k, t, h))
                 while started:
                     i = started.pop(0)
                     f = ios[i].fast
@@ -161,12 +180,12 @@ class ParallelJacobi(SteppedAlgorithm):
                     spent[i] += clock() - w0
                     st.n_do_steps += 1
                     if s:
-                        self._drain(started)
-                        return Failure(k, ios[i].name, Call.DO_STEP, s, t)
+                        first = self._first(first, Failure(k, ios[i].name, Call.DO_STEP, s, t))
             except BaseException:   # a child that died, a Ctrl-C: the other steps started are answered first
                 self._drain(started)
                 raise
-        return None
+        self.walls += clock() - w_group
+        return first
 
     def _drain(self, started: list[int]) -> None:
         """The answers of steps started and not answered before a failure (so that the children are idle
@@ -180,55 +199,100 @@ class ParallelJacobi(SteppedAlgorithm):
                 except Exception:   # (a child that died too: its own error is not the first)
                     pass
 
+    def _pass(self, g: Group, k: int, t: float, h: float) -> Failure | None:
+        """One group's inputs, steps and outputs; the failure the serial pass over its instances in the
+        plan's order (set, step, get each) would meet first."""
+        st = self.stepper
+        members = g.members
+        cut, fail_set = len(members), None
+        for n, i in enumerate(members):
+            fail_set = st.set_inputs(i, k, t)
+            if fail_set is not None:   # the instances before it step and give their outputs first
+                cut = n
+                break
+        stepped = members[:cut]
+        fail_step = self._steps(g if cut == len(members) else Group(stepped, st.ios, 1), k, t, h) if stepped else None
+        for i in stepped:
+            if fail_step is not None and i >= self.index[fail_step.instance]:
+                return fail_step
+            fail = st.get_outputs(i, k, t + h)
+            if fail is not None:
+                return fail
+        return fail_step or fail_set
+
+    # ------------------------------------------------------------------ the counts
     def summary(self) -> dict[str, Any] | None:
         ios = self.stepper.ios if hasattr(self, "stepper") else []
-        lanes = getattr(self, "lanes_members", [])
+        names = lambda idx: [ios[i].name for i in idx]   # noqa: E731
+        parts = self.parts
+        serial = [i for g in parts for i in g.serial]
+        busy = sum(getattr(self, "spent", []))
+        walls = getattr(self, "walls", 0.0)
         return {"workers": self.workers,
-                "stepped_at_once": [ios[i].name for i in getattr(self, "split", [])],
-                "in_threads": [[ios[i].name for i in m] for m in lanes],
-                "in_this_process": [ios[i].name for i in getattr(self, "serial", [])],
-                "alone": {ios[i].name: ios[i].fast.alone for i in getattr(self, "serial", []) if ios[i].fast.alone},
-                "steps_in_threads": self.choice.in_threads,
-                "steps_on_the_master_alone": self.choice.alone,
-                "step_time_s": {io.name: round(w, 6) for io, w in zip(ios, getattr(self, "spent", []))}}
+                "stepped_at_once": names(i for g in parts for i in g.split),
+                "in_threads": [names(m) for g in parts for m in g.lanes],
+                "in_this_process": names(serial),
+                "alone": {ios[i].name: ios[i].fast.alone for i in serial if ios[i].fast.alone},
+                "steps_in_threads": sum(g.choice.taken[THREADS] for g in parts),
+                "steps_on_the_master_alone": sum(g.choice.taken[MASTER_ALONE] for g in parts),
+                "step_time_s": {io.name: round(w, 6) for io, w in zip(ios, getattr(self, "spent", []))},
+                # the instances' step times over the wall time of the steps: 1 none overlapped, N all N at once
+                "overlap": round(busy / walls, 3) if walls > 0.0 else None}
 
 
+class ParallelJacobi(ParallelStepping):
+    """Jacobi, every instance's step overlapping (see the module's docstring)."""
 
-class LaneChoice:
-    """Whether a step's lanes run in their threads or one after another on the master's thread: the
-    results are the same either way (each FMU gets the same calls), so the faster one is taken.  Threads
-    gain where a step computes long enough to pay the hand-off (about 20 us there and back here) and
-    cores are free; on the master's thread alone wins where steps are short or the machine is busy.  The
-    choice is measured: ``PROBE`` steps in threads, then ``PROBE`` on the master alone, the faster mean
-    kept for ``KEEP`` steps, then measured again (a machine's load changes during a run)."""
+    def groups(self, ios: list[InstanceIO]) -> list[list[int]]:
+        return [list(range(len(ios)))]
 
-    PROBE = 16
-    KEEP = 2048
+    def take(self, k: int, t: float, h: float) -> Failure | None:
+        st, ios = self.stepper, self.stepper.ios
+        for i in range(len(ios)):
+            fail = st.set_inputs(i, k, t)
+            if fail is not None:
+                return fail
+        st.T.value, st.H.value = t, h
+        g = self.parts[0]
+        fail = self._steps(g, k, t, h)
+        if fail is not None:
+            return fail
+        for i in range(len(ios)):
+            fail = st.get_outputs(i, k, t + h)
+            if fail is not None:
+                return fail
+        return None
 
-    def __init__(self) -> None:
-        self.phase = 0          # steps into the current cycle of probe, probe, keep
-        self.sums = [0.0, 0.0]  # [s] the probes' wall times: threads, master alone
-        self.keep_threads = True
-        self.in_threads = 0     # steps taken each way
-        self.alone = 0
 
-    def threads(self) -> bool:
-        """Whether the next step runs the lanes in their threads."""
-        if self.phase < self.PROBE:
-            return True
-        if self.phase < 2 * self.PROBE:
-            return False
-        return self.keep_threads
+class ParallelGaussSeidel(ParallelStepping):
+    """Gauss-Seidel, level by level, the steps of each level's instances overlapping (see the module's
+    docstring)."""
 
-    def took(self, threads: bool, seconds: float) -> None:
-        """A step took ``seconds`` [s] of wall time, in threads or not."""
-        if threads:
-            self.in_threads += 1
-        else:
-            self.alone += 1
-        if self.phase < 2 * self.PROBE:
-            self.sums[0 if threads else 1] += seconds
-            if self.phase == 2 * self.PROBE - 1:
-                self.keep_threads = self.sums[0] <= self.sums[1]
-                self.sums = [0.0, 0.0]
-        self.phase = (self.phase + 1) % (2 * self.PROBE + self.KEEP)
+    def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,
+              check_inputs: bool = True) -> None:
+        self.fed_by: list[set[int]] = []
+        super().setup(ios, clock, layout, done, check_inputs)
+
+    def groups(self, ios: list[InstanceIO]) -> list[list[int]]:
+        self.fed_by = depends(ios)
+        return levels(len(ios), self.fed_by)
+
+    def inputs_changed(self) -> None:
+        """The copies changed (an event, the script): the levels again where who feeds whom changed."""
+        if depends(self.stepper.ios) != self.fed_by:
+            self._group(self.stepper.ios)
+
+    def take(self, k: int, t: float, h: float) -> Failure | None:
+        st = self.stepper
+        st.T.value, st.H.value = t, h
+        for g in self.parts:
+            fail = self._pass(g, k, t, h)
+            if fail is not None:
+                return fail
+        return None
+
+    def summary(self) -> dict[str, Any] | None:
+        own = super().summary()
+        assert own is not None
+        ios = self.stepper.ios if hasattr(self, "stepper") else []
+        return {**own, "levels": [[ios[i].name for i in g.members] for g in self.parts]}

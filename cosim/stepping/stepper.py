@@ -29,6 +29,13 @@ def feeders(ios: list[InstanceIO]) -> list[set[int]]:
     return [{owner[id(c.src)] for c in io.copies if id(c.src) in owner} for io in ios]
 
 
+def depends(ios: list[InstanceIO]) -> list[set[int]]:
+    """For each instance, the instances whose outputs its inputs take now: through its copies (Float64,
+    :func:`feeders`) and through its other connections (read with the FMI get calls)."""
+    index = {io.name: i for i, io in enumerate(ios)}
+    return [srcs | {index[n] for n in io.reads if n in index} for srcs, io in zip(feeders(ios), ios)]
+
+
 def components(ios: list[InstanceIO]) -> list[list[int]]:
     """The strongly connected components of the graph "outputs of a feed inputs of b", each in the plan's
     order, the components in the order of their first instance (the order in which the instances step).

@@ -8,8 +8,9 @@ A row says (each a fact the checks and the execution act on):
 
 * ``one_pass``: one pass over the instances per step (Gauss-Seidel, Jacobi): may run instances at their own
   rates (:class:`.multirate.MultiRate`) and be the step the step-size control takes;
-* ``simultaneous``: every instance steps from the outputs of the previous step (Jacobi's order), so the
-  isolated instances and C FMUs in this process may step at once (``workers``, :class:`.parallel.ParallelJacobi`);
+* ``simultaneous``: every instance steps from the outputs of the previous step (Jacobi's order);
+* ``workers``: instances that do not feed each other in a step may step at once (``[experiment] workers``,
+  :mod:`.parallel`): every instance under Jacobi, each level's under Gauss-Seidel;
 * ``solves_loops``: solves every coupling loop at every step (and the algebraic loops through it), rolling
   back the loop's instances: they must get and set their state, and ``[experiment.iteration]`` is read;
 * ``varies_step``: varies every instance's communication step and rolls every instance back when it
@@ -26,7 +27,7 @@ from .algorithm import Algorithm
 from .generated import GaussSeidel, Jacobi
 from .iterated import Iterated
 from .multirate import MultiRate
-from .parallel import ParallelJacobi
+from .parallel import ParallelGaussSeidel, ParallelJacobi
 from .settings import ADAPTIVE_KEYS, AdaptiveSpec, IterationSpec, SpecError, check_adaptive, positive
 
 GAUSS_SEIDEL, JACOBI, ITERATED, ADAPTIVE = "gauss-seidel", "jacobi", "iterated", "adaptive"
@@ -43,6 +44,7 @@ class AlgorithmRow:
     summary: str               # how it takes a step, in words (docs, ``check``)
     one_pass: bool = False
     simultaneous: bool = False
+    workers: bool = False
     solves_loops: bool = False
     varies_step: bool = False
 
@@ -52,11 +54,6 @@ class AlgorithmRow:
         return ((ITERATION_TABLE,) if self.solves_loops else ()) + ((ADAPTIVE_TABLE,) if self.varies_step else ())
 
     @property
-    def workers(self) -> bool:
-        """Whether instances may step at once (``[experiment] workers``)."""
-        return self.simultaneous
-
-    @property
     def rolls_back(self) -> str | None:
         """Which instances it rolls back: "every" instance, the coupling "loops"' instances, or None."""
         return "every" if self.varies_step else "loops" if self.solves_loops else None
@@ -64,9 +61,9 @@ class AlgorithmRow:
 
 ROWS: tuple[AlgorithmRow, ...] = (
     AlgorithmRow(GAUSS_SEIDEL, GaussSeidel, "one pass per step in the plan's order, each instance seeing its "
-                 "predecessors' outputs of this step", one_pass=True),
+                 "predecessors' outputs of this step", one_pass=True, workers=True),
     AlgorithmRow(JACOBI, Jacobi, "one pass per step, every instance seeing the outputs of the previous step",
-                 one_pass=True, simultaneous=True),
+                 one_pass=True, simultaneous=True, workers=True),
     AlgorithmRow(ITERATED, Iterated, "every coupling loop iterated to its tolerance at every step (fixed point "
                  "or Newton, the loop rolled back per iteration)", solves_loops=True),
     AlgorithmRow(ADAPTIVE, Adaptive, "the step size controlled by step doubling, a rejected step rolled back "
@@ -161,7 +158,7 @@ def make(name: str, iteration: IterationSpec | None = None, adaptive: AdaptiveSp
     if own_rates:
         alg: Algorithm = MultiRate(jacobi=r.simultaneous)
     elif workers > 1:
-        alg = ParallelJacobi(workers)
+        alg = ParallelJacobi(workers) if r.simultaneous else ParallelGaussSeidel(workers)
     elif r.solves_loops:
         alg = Iterated(iteration or IterationSpec())
     elif r.varies_step:
@@ -183,6 +180,8 @@ def name_of(alg: Algorithm) -> str:
         return JACOBI if alg.jacobi else GAUSS_SEIDEL
     if isinstance(alg, ParallelJacobi):
         return JACOBI
+    if isinstance(alg, ParallelGaussSeidel):
+        return GAUSS_SEIDEL
     return next((r.name for r in ROWS if type(alg) is r.cls), "")
 
 
