@@ -92,7 +92,8 @@ NAME:
             threads) and isolated (each in a child process): serial (workers = 1) and stepped at once
             (workers = N), interleaved, medians; per KIND_N_BURN (threads_2_1ms, isolated_4_50us, ...):
             us_per_step_serial_..., us_per_step_..., speedup_... (target >= 1.8 for threads_2_1ms on 2 cores)
-            and same_results_... (bit for bit); cores.
+            and same_results_... (bit for bit); the same for Gauss-Seidel over two independent chains of two
+            1 ms probes, stepped by levels in threads (threads_gauss_seidel_2_chains_1ms); cores.
 
 ``--against REV`` runs NAME in this checkout and in a worktree of commit REV, interleaved, ``--rounds``
 fresh processes each of ``--repeats`` runs (benchmarks/against.py): each figure's median over the rounds for
@@ -925,7 +926,8 @@ def bench_adaptive(repeats: int) -> dict[str, Any]:
 
 def bench_parallel(repeats: int) -> dict[str, Any]:
     """Parallel Jacobi against serial Jacobi (see the module's docstring): probes that burn 1 ms and 50 us
-    of CPU a step, 2 and 4 of them, in this process (stepped in threads) and in child processes."""
+    of CPU a step, 2 and 4 of them, in this process (stepped in threads) and in child processes; Gauss-Seidel
+    by levels against serial Gauss-Seidel over two independent chains of 1 ms probes."""
     import tempfile
     from pathlib import Path
 
@@ -937,6 +939,27 @@ def bench_parallel(repeats: int) -> dict[str, Any]:
     from wmr_cosim import cosim
 
     figures: dict[str, Any] = {}
+
+    def against_serial(doc: dict[str, Any], n: int, steps: int, key: str, tmp: str) -> None:
+        """``doc`` run with workers = 1 and n, interleaved: the figures of ``key``."""
+        walls: dict[int, list[float]] = {1: [], n: []}
+        rows: dict[int, bytes] = {}
+        for r in range(max(1, repeats)):
+            for w in (1, n) if r % 2 == 0 else (n, 1):
+                doc["experiment"]["workers"] = w
+                plan = cosim.resolve(cosim.parse(doc, "parallel.toml"))
+                out = Path(tmp) / f"{key}w{w}r{r}"
+                res = cosim.run(plan, out, progress=False)
+                if res.status != "ok":
+                    raise SystemExit(f"parallel bench ({key}, workers = {w}): {res.message}")
+                walls[w].append(res.wall_s)
+                rows[w] = np.load(out / "signals.npy").tobytes()
+        serial, par = (statistics.median(walls[w]) / steps * 1e6 for w in (1, n))
+        figures[f"us_per_step_serial_{key}"] = round(serial, 2)
+        figures[f"us_per_step_{key}"] = round(par, 2)
+        figures[f"speedup_{key}"] = round(serial / par, 3)
+        figures[f"same_results_{key}"] = rows[1] == rows[n]
+
     with tempfile.TemporaryDirectory() as tmp:
         for burn, label, steps in ((1000, "1ms", 1000), (50, "50us", 4000)):
             probe = build_probe(Path(tmp) / f"fmu{burn}", "Burn", BURN_US=burn)
@@ -947,24 +970,15 @@ def bench_parallel(repeats: int) -> dict[str, Any]:
                            "instances": {m: {"fmu": str(probe), "isolate": kind == "isolated"} for m in names},
                            "connections": [{"from": f"{a}.y", "to": f"{b}.u"} for a, b in zip(names, names[1:])],
                            "record": {"variables": [f"{m}.y" for m in names]}}
-                    walls: dict[int, list[float]] = {1: [], n: []}
-                    rows: dict[int, bytes] = {}
-                    for r in range(max(1, repeats)):
-                        for w in (1, n) if r % 2 == 0 else (n, 1):
-                            doc["experiment"]["workers"] = w
-                            plan = cosim.resolve(cosim.parse(doc, "parallel.toml"))
-                            out = Path(tmp) / f"{kind}{n}w{w}r{r}b{burn}"
-                            res = cosim.run(plan, out, progress=False)
-                            if res.status != "ok":
-                                raise SystemExit(f"parallel bench ({kind}, N = {n}, workers = {w}): {res.message}")
-                            walls[w].append(res.wall_s)
-                            rows[w] = np.load(out / "signals.npy").tobytes()
-                    serial, par = (statistics.median(walls[w]) / steps * 1e6 for w in (1, n))
-                    key = f"{kind}_{n}_{label}"
-                    figures[f"us_per_step_serial_{key}"] = round(serial, 2)
-                    figures[f"us_per_step_{key}"] = round(par, 2)
-                    figures[f"speedup_{key}"] = round(serial / par, 3)
-                    figures[f"same_results_{key}"] = rows[1] == rows[n]
+                    against_serial(doc, n, steps, f"{kind}_{n}_{label}", tmp)
+            if burn == 1000:   # Gauss-Seidel: two independent chains a0 -> a1, b0 -> b1, by levels, in threads
+                names = ["a0", "b0", "a1", "b1"]
+                doc = {"experiment": {"start": 0.0, "stop": steps * 0.001, "step": 0.001,
+                                      "algorithm": "gauss-seidel", "order": names},
+                       "instances": {m: {"fmu": str(probe)} for m in names},
+                       "connections": [{"from": "a0.y", "to": "a1.u"}, {"from": "b0.y", "to": "b1.u"}],
+                       "record": {"variables": [f"{m}.y" for m in names]}}
+                against_serial(doc, 2, steps, f"threads_gauss_seidel_2_chains_{label}", tmp)
     figures["cores"] = __import__("os").cpu_count()
     return figures
 

@@ -127,11 +127,12 @@ class Child:
         self.h = ctypes.c_double.from_address(self.addr + 16)
         self.spin_word = ctypes.c_int64.from_address(self.addr + 24)
         self.spin = 0
-        self.handoff = handoff if isinstance(handoff, Handoff) else None
-        if self.handoff is not None:
-            self.handoff.add(self)
+        self.handoff: Handoff | None = None
+        if isinstance(handoff, Handoff):
+            self.handoff = handoff
+            handoff.add(self)
         else:
-            self.set_spin(int(handoff))
+            self.set_spin(handoff)
         self.inputs: Any = None
         self.outputs: Any = None
 

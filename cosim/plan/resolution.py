@@ -471,16 +471,15 @@ def _workers(sc: Scenario, insts: dict[str, InstancePlan], conns: list[Connectio
         raise ScenarioError(sc.file, "experiment.workers", f"{sc.workers}: {slow[0]} steps at its own rate; "
                                                            "instances at their own rates step one at a time")
     order = list(sc.order)
-    groups = [order]
+    by_levels = None
     if not algorithms.row(sc.algorithm).simultaneous:   # Gauss-Seidel: by levels
         index = {n: i for i, n in enumerate(order)}
         fed_by: list[set[int]] = [set() for _ in order]
         for c in conns:
             if c.src in index and c.dst in index:
                 fed_by[index[c.dst]].add(index[c.src])
-        groups = [[order[i] for i in lv] for lv in levels(len(order), fed_by)]
-    notes.append(workers_note(sc.workers, [(n, insts[n]) for n in order],
-                              groups if not algorithms.row(sc.algorithm).simultaneous else None))
+        by_levels = [[order[i] for i in lv] for lv in levels(len(order), fed_by)]
+    notes.append(workers_note(sc.workers, [(n, insts[n]) for n in order], by_levels))
 
 
 def workers_note(workers: int, insts: list[tuple[str, InstancePlan]], levels_: list[list[str]] | None = None) -> str:
