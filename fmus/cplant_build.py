@@ -1,11 +1,15 @@
 """Build WmrCPlant.fmu, the plant FMU "from another toolchain": C sources (fmus/c_plant/) compiled with the
 C compiler through the CMake project and FMI 2.0 headers that FMPy ships (``fmpy/c-code``).
 
-The FMU holds ``modelDescription.xml``, ``sources/`` (so it is also a source FMU any tool can rebuild)
+The FMU holds ``modelDescription.xml``, ``sources/`` with its ``buildDescription.xml`` (so it is also a
+source FMU any tool can rebuild: FMPy, Simulink)
 and ``binaries/linux64/WmrCPlant.so``, one library for both of its interfaces, co-simulation and Model
-Exchange (one ``modelIdentifier``).  It is rebuilt only when its inputs change: a SHA-256 over the model
-description, the C sources, this script, FMPy's CMake project and the compiler's identity is stored
-beside it (``WmrCPlant.fmu.sha256``).  Needs ``cmake`` (>= 3.15) and a C compiler (gcc or clang) on PATH.
+Exchange (one ``modelIdentifier``); where the MinGW-w64 cross compiler is on PATH
+(``x86_64-w64-mingw32-gcc``, Debian's ``gcc-mingw-w64-x86-64``) also ``binaries/win64/WmrCPlant.dll``,
+from the same sources with the same flags (the DLL alone: no import library).  It is rebuilt only when
+its inputs change: a SHA-256 over the model description, the C sources, this script, FMPy's CMake
+project and the compilers' identities is stored beside it (``WmrCPlant.fmu.sha256``).  Needs ``cmake``
+(>= 3.15) and a C compiler (gcc or clang) on PATH.
 
 Floating point: compiled with ``-ffp-contract=off`` (no fused multiply-add) so that the plant's arithmetic
 is the IEEE double arithmetic of components/plant.py, operation for operation.
@@ -27,6 +31,10 @@ MODEL = "WmrCPlant"
 C_FLAGS = "-O2 -ffp-contract=off -fno-fast-math"
 #: Libraries the FMU's binary declares (DT_NEEDED) besides libc.
 C_LIBS = "-lm"
+#: The MinGW-w64 cross compilers for win64 (the C one builds the DLL; FMPy's CMake project also asks for
+#: a C++ one), and the linker flags: libgcc kept out of the DLL's imports (KERNEL32 and msvcrt only), no symbols.
+MINGW_CC, MINGW_CXX = "x86_64-w64-mingw32-gcc", "x86_64-w64-mingw32-g++"
+WIN64_LDFLAGS = "-static-libgcc -s"
 
 
 class CBuildError(RuntimeError):
@@ -41,8 +49,8 @@ def _tool(name: str) -> str:
     return path
 
 
-def _compiler_id() -> str:
-    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+def _compiler_id(cc: str | None = None) -> str:
+    cc = cc or os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
     if cc is None:
         raise CBuildError(f"building {MODEL}.fmu needs a C compiler (cc, gcc or clang) on PATH")
     try:
@@ -50,6 +58,12 @@ def _compiler_id() -> str:
     except OSError as exc:
         raise CBuildError(f"C compiler {cc}: {exc}") from None
     return cc + "\n" + out.splitlines()[0] if out else cc
+
+
+def mingw() -> tuple[str, str] | None:
+    """The MinGW-w64 C and C++ cross compilers for win64, or None where either is not on PATH."""
+    cc, cxx = shutil.which(MINGW_CC), shutil.which(MINGW_CXX)
+    return (cc, cxx) if cc and cxx else None
 
 
 def _fmpy_c_code() -> Path:
@@ -61,7 +75,8 @@ def _fmpy_c_code() -> Path:
 
 
 def _inputs() -> list[Path]:
-    files = [SRC / "modelDescription.xml"] + sorted((SRC / "sources").glob("*.[ch]"))
+    files = [SRC / "modelDescription.xml"] + sorted((SRC / "sources").glob("*.[ch]")) \
+        + [SRC / "sources" / "buildDescription.xml"]
     for f in files:
         if not f.is_file():
             raise CBuildError(f"{f}: missing")
@@ -86,6 +101,8 @@ def digest() -> str:
     add("flags", C_FLAGS.encode())
     add("libs", C_LIBS.encode())
     add("compiler", _compiler_id().encode())
+    cross = mingw()
+    add("win64", (_compiler_id(cross[0]) + WIN64_LDFLAGS).encode() if cross else b"")
     return h.hexdigest()
 
 
@@ -109,32 +126,25 @@ def build_c_plant(out_dir: str | os.PathLike | None = None, force: bool = False)
     except OSError:
         pass
     cmake = _tool("cmake")
-    from fmpy.build import create_cmake_settings
-
     with tempfile.TemporaryDirectory(prefix="wmr_cplant_build_") as tmp:
         unz = Path(tmp) / "fmu"
         (unz / "sources").mkdir(parents=True)
         shutil.copyfile(SRC / "modelDescription.xml", unz / "modelDescription.xml")
         for f in _inputs()[1:]:
             shutil.copyfile(f, unz / "sources" / f.name)
-        build = Path(tmp) / "build"
-        build.mkdir()
-        # FMPy writes the CMake cache (model identifier, sources, include dirs, target folder) ...
         # (FMPy's project links no libm: the plant's exp, tanh, sincos and nearbyint need it declared, or a
         # host without libm already loaded fails with "undefined symbol: sincos")
-        create_cmake_settings(unz, build, cmake_options={"CMAKE_C_FLAGS:STRING": C_FLAGS,
-                                                         "CMAKE_C_STANDARD_LIBRARIES:STRING": C_LIBS})
-        env = dict(os.environ)
-        for cmd in ([cmake, "-S", str(_fmpy_c_code()), "-B", str(build)],
-                    [cmake, "--build", str(build), "--target", "install", "--config", "Release"]):
-            p = subprocess.run(cmd, capture_output=True, text=True, env=env)
-            if p.returncode != 0:
-                tail = "\n".join((p.stdout + p.stderr).strip().splitlines()[-15:])
-                raise CBuildError(f"{' '.join(cmd[:2])} failed (exit {p.returncode}):\n{tail}")
-        # ... and its project installs the shared library into binaries/<platform>/
-        libs = list((unz / "binaries").rglob(f"{MODEL}.*"))
-        if not libs:
-            raise CBuildError(f"the build produced no binaries/*/{MODEL} library")
+        _cmake(cmake, unz, Path(tmp) / "build", {"CMAKE_C_FLAGS:STRING": C_FLAGS,
+                                                 "CMAKE_C_STANDARD_LIBRARIES:STRING": C_LIBS})
+        cross = mingw()
+        if cross is not None:   # the same sources and flags for win64, into binaries/win64
+            _cmake(cmake, unz, Path(tmp) / "build-win64", {
+                "CMAKE_SYSTEM_NAME:STRING": "Windows", "CMAKE_C_COMPILER:FILEPATH": cross[0],
+                "CMAKE_CXX_COMPILER:FILEPATH": cross[1], "CMAKE_C_FLAGS:STRING": C_FLAGS,
+                "CMAKE_SHARED_LINKER_FLAGS:STRING": WIN64_LDFLAGS}, platform="win64")
+            for f in (unz / "binaries" / "win64").iterdir():   # the DLL alone (no import library)
+                if f.name != f"{MODEL}.dll":
+                    f.unlink()
         hash_file.unlink(missing_ok=True)
         part = out / f".{MODEL}.fmu.part"
         with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as zf:
@@ -144,6 +154,30 @@ def build_c_plant(out_dir: str | os.PathLike | None = None, force: bool = False)
         os.replace(part, fmu)
         hash_file.write_text(dg + "\n")
     return fmu
+
+
+def _cmake(cmake: str, unz: Path, build: Path, options: dict[str, str], platform: str | None = None) -> None:
+    """FMPy's CMake project over the unpacked FMU ``unz``, built in ``build`` with ``options``: it installs
+    the library into ``unz/binaries/<this platform>`` (``platform``: into ``binaries/<platform>``)."""
+    from fmpy.build import create_cmake_settings
+
+    build.mkdir()
+    # FMPy writes the CMake cache (model identifier, sources, include dirs, target folder) ...
+    create_cmake_settings(unz, build, cmake_options=options)
+    if platform is not None:   # (FMPy names the folder of the platform it runs on)
+        cache = build / "CMakeCache.txt"
+        lines = [f"FMI_TARGET_DIR:STRING={(unz / 'binaries' / platform).as_posix()}"
+                 if ln.startswith("FMI_TARGET_DIR:") else ln for ln in cache.read_text().splitlines()]
+        cache.write_text("\n".join(lines) + "\n")
+    for cmd in ([cmake, "-S", str(_fmpy_c_code()), "-B", str(build)],
+                [cmake, "--build", str(build), "--target", "install", "--config", "Release"]):
+        p = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ))
+        if p.returncode != 0:
+            tail = "\n".join((p.stdout + p.stderr).strip().splitlines()[-15:])
+            raise CBuildError(f"{' '.join(cmd[:2])} failed (exit {p.returncode}):\n{tail}")
+    # ... and its project installs the shared library into binaries/<platform>/
+    if not list((unz / "binaries").rglob(f"{platform or '*'}/{MODEL}.*")):
+        raise CBuildError(f"the build produced no binaries/{platform or '*'}/{MODEL} library")
 
 
 def main(argv: list[str] | None = None) -> int:

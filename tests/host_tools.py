@@ -1,4 +1,6 @@
-"""The prebuilt third-party FMI hosts the tests compare against (fmusim, OMSimulator): C/C++ programs that
+"""The FMI hosts the tests run our FMUs in besides this project's Python: the plain C host's spec and output
+(tests/c_host/fmi_host.c, built by the tests for Linux and, with MinGW-w64, for Windows), and the prebuilt
+third-party hosts the tests compare against (fmusim, OMSimulator): C/C++ programs that
 no package index provides.  They are looked for in the folder ``WMR_HOST_TOOLS`` names, else in the
 folder ``tools`` of a folder ``shared`` beside the checkout (fmusim in ``fmusim/fmusim``, OMSimulator in
 ``omsimulator/bin/OMSimulator``); a test that needs one skips, saying why, where it is absent or cannot
@@ -12,6 +14,7 @@ from functools import lru_cache
 from pathlib import Path
 
 import pytest
+from fmpy import read_model_description
 
 TOOLS = Path(os.environ.get("WMR_HOST_TOOLS") or Path(__file__).resolve().parents[2] / "shared" / "tools")
 FMUSIM = "fmusim/fmusim"
@@ -39,3 +42,36 @@ def tool(relative: str) -> Path:
     if why is not None:
         pytest.skip(why)
     return TOOLS / relative
+
+
+# ------------------------------------------------------------------------------------------ the C host
+# (tests/c_host/fmi_host.c: its spec and its output)
+class Model:
+    """What the C host and a reference need of one (extracted) FMU: its identifier, inputs and outputs."""
+
+    def __init__(self, d: Path):
+        self.dir = d
+        self.md = read_model_description(str(d / "modelDescription.xml"))
+        self.id = self.md.coSimulation.modelIdentifier
+        self.inputs = [v for v in self.md.modelVariables if v.causality == "input"]
+        self.outputs = [v for v in self.md.modelVariables if v.causality == "output"]
+
+
+def spec_lines(m: Model, instance: str, inputs) -> list[str]:
+    lines = [f"fmu {m.dir} {m.id} {m.md.guid} {instance}"]
+    for v, k in zip(m.inputs, inputs, strict=True):
+        lines.append(f"in {v.valueReference} " + " ".join(repr(float(x)) for x in k))
+    kinds = {"Real": "real", "Integer": "int", "Boolean": "bool"}
+    lines += [f"{kinds[v.type]} {v.valueReference}" for v in m.outputs]
+    return lines
+
+
+def host_outputs(stdout: str) -> dict[str, list[list[float]]]:
+    out: dict[str, list[list[float]]] = {}
+    for line in stdout.splitlines():
+        if line.startswith("OUT "):
+            _, inst, k, *vals = line.split()
+            rows = out.setdefault(inst, [])
+            assert int(k) == len(rows)
+            rows.append([float(x) for x in vals])
+    return out

@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from host_tools import FMUSIM, OMSIMULATOR, tool
-from fmpy import extract, read_model_description
+from host_tools import FMUSIM, OMSIMULATOR, Model, host_outputs, spec_lines, tool
+from fmpy import extract
 from fmpy.fmi2 import FMU2Slave
 
 from wmr_cosim.fmus import cplant_build
@@ -74,26 +74,6 @@ def unzipped(all_fmus, tmp_path_factory) -> dict[str, Path]:
     return {m: Path(extract(str(p), unzipdir=str(root / m))) for m, p in all_fmus.items()}
 
 
-class Model:
-    """What the host and the reference need of one FMU: vrs of inputs and outputs."""
-
-    def __init__(self, d: Path):
-        self.dir = d
-        self.md = read_model_description(str(d / "modelDescription.xml"))
-        self.id = self.md.coSimulation.modelIdentifier
-        self.inputs = [v for v in self.md.modelVariables if v.causality == "input"]
-        self.outputs = [v for v in self.md.modelVariables if v.causality == "output"]
-
-
-def spec_lines(m: Model, instance: str, inputs) -> list[str]:
-    lines = [f"fmu {m.dir} {m.id} {m.md.guid} {instance}"]
-    for v, k in zip(m.inputs, inputs, strict=True):
-        lines.append(f"in {v.valueReference} " + " ".join(repr(float(x)) for x in k))
-    kinds = {"Real": "real", "Integer": "int", "Boolean": "bool"}
-    lines += [f"{kinds[v.type]} {v.valueReference}" for v in m.outputs]
-    return lines
-
-
 def run_host(host: Path, blocks: list[list[str]], tmp: Path, env: dict[str, str] | None = None,
              n: int = N, parallel: bool = False) -> subprocess.CompletedProcess:
     """The C host on the given instances, with an empty environment plus ``env``."""
@@ -102,17 +82,6 @@ def run_host(host: Path, blocks: list[list[str]], tmp: Path, env: dict[str, str]
                     + ("parallel\n" if parallel else ""))
     return subprocess.run([str(host), str(spec)], env=dict(env or {}), capture_output=True, text=True,
                            timeout=600, cwd=tmp)
-
-
-def host_outputs(stdout: str) -> dict[str, list[list[float]]]:
-    out: dict[str, list[list[float]]] = {}
-    for line in stdout.splitlines():
-        if line.startswith("OUT "):
-            _, inst, k, *vals = line.split()
-            rows = out.setdefault(inst, [])
-            assert int(k) == len(rows)
-            rows.append([float(x) for x in vals])
-    return out
 
 
 def fmpy_outputs(m: Model, inputs, n: int = N) -> list[list[float]]:
@@ -161,6 +130,31 @@ def test_a_c_host_with_an_empty_environment_runs_each_fmu_as_fmpy_does(model, c_
     assert len(got) == N + 1
     assert got == fmpy_outputs(m, INPUTS[model])
     assert got[-1] != got[0]  # the run moved
+
+
+def test_the_c_plant_as_a_source_fmu_built_by_fmpy_steps_as_our_binary(c_host, host_copy, tmp_path):
+    """WmrCPlant's sources and build description, its binaries removed, built by FMPy's own build
+    (``build_platform_binary``, linking the math library the build description names: FMPy's project
+    does not read it): in the C host, outputs equal to our binary's bit for bit."""
+    from fmpy.build import build_platform_binary
+    from fmpy.model_description import read_build_description
+    from fmpy.validation import validate_fmu
+
+    ours = host_copy["WmrCPlant"]
+    built = tmp_path / "source_fmu"
+    shutil.copytree(ours.dir, built, ignore=shutil.ignore_patterns("binaries"))
+    (bc,) = read_build_description(str(built), validate=True)
+    assert bc.modelIdentifier == "WmrCPlant" and bc.sourceFileSets[0].sourceFiles == ["wmr_c_plant.c"]
+    assert 'name="m"' in (built / "sources" / "buildDescription.xml").read_text()
+    (tmp_path / "build").mkdir()
+    build_platform_binary(built, tmp_path / "build", cmake_options={"CMAKE_C_STANDARD_LIBRARIES:STRING": "-lm"})
+    assert (built / "binaries" / "linux64" / "WmrCPlant.so").is_file()
+    assert validate_fmu(str(built)) == []
+    runs = [run_host(c_host, [spec_lines(m, "one", INPUTS["WmrCPlant"])], tmp_path)
+            for m in (ours, Model(built))]
+    assert all(p.returncode == 0 for p in runs), [p.stdout[-500:] for p in runs]
+    a, b = (host_outputs(p.stdout)["one"] for p in runs)
+    assert len(a) == N + 1 and a == b and a[-1] != a[0]
 
 
 def test_the_fmu_binary_is_our_loader_with_pythonfmus_beside_it(unzipped):
