@@ -94,7 +94,8 @@ _OUTSIDE = """## Running the FMUs outside this project
 An FMU file is self-contained apart from Python itself: its `resources/` hold the slave script, a copy
 of the component code under a package name unique to the build (`wmrfmu_<component>_<hash8>`), the
 paper's constants (`paper_results.json`) and pythonfmu's Python part. Any FMI 2.0 host on Linux x86-64
-(the only platform built) loads it, Python or not, with nothing set up; the machine needs the Python
+(the only platform they are built for; the C plant also carries win64: [hosts.md](hosts.md#platform))
+loads it, Python or not, with nothing set up; the machine needs the Python
 version the FMUs were built with (its shared library and standard library only, no numpy), and the
 environment variable `WMR_FMU_LIBPYTHON` selects another: see [hosts.md](hosts.md).
 After an fmi2Fatal (only possible during initialisation, or on a refused call) the host must not call
