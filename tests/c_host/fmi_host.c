@@ -193,7 +193,16 @@ static int print_outputs(Inst *in, int k) {
 
 static void instantiate(Inst *in) {
     char uri[2100];
+#ifdef _WIN32
+    char full[1024];   /* file:///C:/path/resources (under Wine, a Linux path is on drive Z:) */
+    DWORD n = GetFullPathNameA(in->lib->dir, sizeof full, full, NULL);
+    if (n == 0 || n >= sizeof full) snprintf(full, sizeof full, "%s", in->lib->dir);
+    for (char *p = full; *p; ++p)
+        if (*p == '\\') *p = '/';
+    snprintf(uri, sizeof uri, "file:///%s/resources", full);
+#else
     snprintf(uri, sizeof uri, "file://%s/resources", in->lib->dir);
+#endif
     in->c = in->lib->instantiate(in->name, fmi2CoSimulation, in->guid, uri, &cb, fmi2False, fmi2True);
 }
 
