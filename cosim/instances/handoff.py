@@ -2,12 +2,13 @@
 
 Waiting for a partner (a child process's answer, its next request; a thread's) can spin (poll, with the
 core kept) or block (sleep in the kernel until woken).  Which is faster depends on the machine's load,
-not on the FMUs: on free cores spinning saves the wake-up each way (measured here: about 24 us a round
-trip blocking, 7 spinning), but beside a busy process a partner that spins takes the core the other
-needs (spinning: 100-500 us a step, blocking: 20-45).  The results do not depend on how anyone waits,
-so the way is measured and the faster taken (:class:`Measured`): the same logic picks between spinning
-and blocking for child processes (:class:`Handoff`) and between threads and the master's thread alone for
-C FMUs stepped at once (:class:`~..stepping.parallel.ParallelJacobi`).
+not on the FMUs: on free cores spinning saves the wake-up each way, beside a busy process a partner that
+spins takes the core the other needs.  Measured on this 2-core machine: a pipe round trip between two
+processes, about 20 us blocking and 5-7 us polling when quiet; G1 with its plant in a child process
+beside one busy process, 190 us a step blocking and 630-750 us polling (docs/benchmarks.md).  The results
+do not depend on how anyone waits, so the way is measured and the faster taken (:class:`Measured`): the
+same logic picks between spinning and blocking for child processes (:class:`Handoff`) and between threads
+and the master's thread alone for C FMUs stepped at once (:mod:`~..stepping.parallel`).
 """
 from __future__ import annotations
 
