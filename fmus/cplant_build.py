@@ -171,7 +171,7 @@ def _cmake(cmake: str, unz: Path, build: Path, options: dict[str, str], platform
         cache.write_text("\n".join(lines) + "\n")
     for cmd in ([cmake, "-S", str(_fmpy_c_code()), "-B", str(build)],
                 [cmake, "--build", str(build), "--target", "install", "--config", "Release"]):
-        p = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ))
+        p = subprocess.run(cmd, capture_output=True, text=True)
         if p.returncode != 0:
             tail = "\n".join((p.stdout + p.stderr).strip().splitlines()[-15:])
             raise CBuildError(f"{' '.join(cmd[:2])} failed (exit {p.returncode}):\n{tail}")

@@ -45,7 +45,31 @@ def tool(relative: str) -> Path:
 
 
 # ------------------------------------------------------------------------------------------ the C host
-# (tests/c_host/fmi_host.c: its spec and its output)
+# (tests/c_host/fmi_host.c: built, its spec and its output)
+C_HOST = Path(__file__).resolve().parent / "c_host" / "fmi_host.c"
+
+
+def system_cc() -> str:
+    """This machine's C compiler (``CC``, else cc or gcc on PATH), or a skip."""
+    import shutil
+
+    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        pytest.skip("no C compiler on PATH")
+    return cc
+
+
+def build_c_host(exe: Path, cc: str, windows: bool = False) -> Path:
+    """The C host compiled by ``cc`` into ``exe``: for Linux, or (``windows``: a MinGW-w64 compiler) for
+    Windows."""
+    import fmpy
+
+    inc = f"-I{Path(fmpy.__file__).parent / 'c-code'}"
+    libs = ["-static-libgcc"] if windows else ["-ldl", "-lpthread"]
+    subprocess.run([cc, "-O2", "-ffp-contract=off", "-Wall", inc, "-o", str(exe), str(C_HOST), *libs], check=True)
+    return exe
+
+
 class Model:
     """What the C host and a reference need of one (extracted) FMU: its identifier, inputs and outputs."""
 

@@ -20,14 +20,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from host_tools import FMUSIM, OMSIMULATOR, Model, host_outputs, spec_lines, tool
+from host_tools import FMUSIM, OMSIMULATOR, Model, build_c_host, host_outputs, spec_lines, system_cc, tool
 from fmpy import extract
 from fmpy.fmi2 import FMU2Slave
 
 from wmr_cosim.fmus import cplant_build
 from wmr_cosim.fmus.build import LIBPYTHON_ENV, REAL_BINARY, build_python
 
-TESTS = Path(__file__).resolve().parent
 H = 0.002
 N = 1000
 PI2 = math.pi / 2
@@ -50,14 +49,7 @@ def _u(spec, t):
 # ------------------------------------------------------------------------------------------ fixtures
 @pytest.fixture(scope="session")
 def c_host(tmp_path_factory) -> Path:
-    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
-    if cc is None:
-        pytest.skip("no C compiler on PATH")
-    import fmpy
-    exe = tmp_path_factory.mktemp("c_host") / "fmi_host"
-    subprocess.run([cc, "-O2", "-ffp-contract=off", "-Wall", f"-I{Path(fmpy.__file__).parent / 'c-code'}",
-                    "-o", str(exe), str(TESTS / "c_host" / "fmi_host.c"), "-ldl", "-lpthread"], check=True)
-    return exe
+    return build_c_host(tmp_path_factory.mktemp("c_host") / "fmi_host", system_cc())
 
 
 @pytest.fixture(scope="session")

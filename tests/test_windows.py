@@ -5,8 +5,6 @@ runs these alone; they skip, saying which Debian package is missing, where MinGW
 installed."""
 from __future__ import annotations
 
-import os
-import shutil
 import subprocess
 import zipfile
 from pathlib import Path
@@ -15,7 +13,7 @@ from typing import Iterator
 import numpy as np
 import pytest
 
-from host_tools import Model, host_outputs, spec_lines
+from host_tools import Model, build_c_host, host_outputs, spec_lines, system_cc
 from windows_support import Wine, mingw_cc, pe_exports, pe_imports, wine_session
 
 from wmr_cosim import cosim
@@ -60,17 +58,8 @@ def c_plant(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="module")
 def hosts(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """The C host built for Linux and for Windows."""
-    import fmpy
-
-    inc = f"-I{Path(fmpy.__file__).parent / 'c-code'}"
-    src = str(TESTS / "c_host" / "fmi_host.c")
     d = tmp_path_factory.mktemp("hosts")
-    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or pytest.skip("no C compiler")
-    subprocess.run([cc, "-O2", "-ffp-contract=off", "-Wall", inc, "-o", str(d / "fmi_host"), src, "-ldl",
-                    "-lpthread"], check=True)
-    subprocess.run([mingw_cc(), "-O2", "-ffp-contract=off", "-Wall", "-Wextra", inc, "-o", str(d / "fmi_host.exe"),
-                    src, "-static-libgcc"], check=True)
-    return d / "fmi_host", d / "fmi_host.exe"
+    return build_c_host(d / "fmi_host", system_cc()), build_c_host(d / "fmi_host.exe", mingw_cc(), windows=True)
 
 
 @pytest.fixture(scope="module")

@@ -26,19 +26,21 @@ def mingw_cc() -> str:
     return cc
 
 
-def pe_imports(dll: Path) -> list[str]:
-    """The DLLs a PE file imports (MinGW-w64's objdump)."""
+def _headers(dll: Path) -> str:
+    """A PE file's headers as MinGW-w64's objdump prints them (``-p``)."""
     objdump = shutil.which(MINGW_OBJDUMP) or pytest.skip(f"{MINGW_OBJDUMP} not on PATH")
-    out = subprocess.run([objdump, "-p", str(dll)], capture_output=True, text=True, check=True).stdout
-    return [ln.split(":", 1)[1].strip() for ln in out.splitlines() if ln.strip().startswith("DLL Name:")]
+    return subprocess.run([objdump, "-p", str(dll)], capture_output=True, text=True, check=True).stdout
+
+
+def pe_imports(dll: Path) -> list[str]:
+    """The DLLs a PE file imports."""
+    return [ln.split(":", 1)[1].strip() for ln in _headers(dll).splitlines() if ln.strip().startswith("DLL Name:")]
 
 
 def pe_exports(dll: Path) -> set[str]:
     """The names a PE file exports."""
-    objdump = shutil.which(MINGW_OBJDUMP) or pytest.skip(f"{MINGW_OBJDUMP} not on PATH")
-    out = subprocess.run([objdump, "-p", str(dll)], capture_output=True, text=True, check=True).stdout
     names, table = set(), False
-    for ln in out.splitlines():
+    for ln in _headers(dll).splitlines():
         if "[Ordinal/Name Pointer] Table" in ln:
             table = True
         elif table and ln.strip().startswith("["):

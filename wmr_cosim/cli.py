@@ -495,8 +495,8 @@ def _experiment_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--step", "--output-interval", dest="step", type=float, default=None, metavar="H",
                    help=f"communication step [s]: sets experiment.step (default: that {what})")
     p.add_argument("--workers", "--parallel", dest="workers", type=int, default=None, metavar="N",
-                   help="Jacobi: up to N isolated instances, and C FMUs in this process in N threads, step at "
-                        "once: sets experiment.workers (default 1)")
+                   help="up to N isolated instances, and C FMUs in this process in N threads, step at once "
+                        "(Jacobi: all; Gauss-Seidel: each level's): sets experiment.workers (default 1)")
     p.add_argument("--record", "--output-variables", dest="record", nargs="+", action="extend", default=None,
                    metavar="VAR", help="the variables to record, as [record] variables: names or patterns "
                                        "(plant.x_A, \"controller.W*\", \"*.*\"); replaces the file's list")

@@ -39,11 +39,12 @@ def handoff_for(plan: Plan) -> Handoff | None:
 
 def load_instances(plan: Plan, work: Path, logs: Path, handoff: Handoff | None = None) -> dict[str, FmuInstance]:
     """Extract every FMU file once (into ``work``) and host each instance of the plan: in a child process
-    where it says ``isolate`` (waiting for each other as ``handoff`` chooses: :func:`handoff_for`), else in
-    this one; as co-simulation or, where the plan says, as model exchange with its integrator; its log goes
-    to ``logs/<instance>.log``."""
+    where it says ``isolate`` (waiting for each other as ``handoff`` chooses; None: a new one,
+    :func:`handoff_for`), else in this one; as co-simulation or, where the plan says, as model exchange with
+    its integrator; its log goes to ``logs/<instance>.log``."""
     unz: dict[Path, str] = {}
     instances: dict[str, FmuInstance] = {}
+    handoff = handoff if handoff is not None else handoff_for(plan)
     for name, ip in plan.instances.items():
         p = ip.model.path.resolve()
         if p not in unz:
@@ -60,9 +61,10 @@ def _host(name: str, ip: InstancePlan, unzipdir: str, log: Path, handoff: Handof
     cwd = os.getcwd()
     try:
         if ip.spec.isolate:
-            from ..instances.isolation import SPIN, IsolatedInstance
+            from ..instances.isolation import IsolatedInstance
+            assert handoff is not None   # (handoff_for gives one where an instance is isolated)
             return IsolatedInstance(name, ip.model.md, unzipdir, log, ip.spec.logging,
-                                    ip.spec.step_timeout or 60.0, handoff if handoff is not None else SPIN, ip.solver)
+                                    ip.spec.step_timeout or 60.0, handoff, ip.solver)
         if ip.solver is not None:   # model exchange
             return model_exchange(name, ip.model.md, unzipdir, log, ip.spec.logging, ip.solver)
         cls = Instance3 if ip.model.fmi == 3 else Instance
@@ -99,14 +101,14 @@ def instance_io(plan: Plan, name: str, inst: FmuInstance, layout: RowLayout, wir
     vrs, nvals = wiring.vrs[name], len(wiring.values[name])
     out_vrs = [vr for vr, _ in layout.reals[name]]
     fast = inst.fast_path(vrs, nvals, out_vrs, sum(size for _, size in layout.reals[name]))
+    discrete = [c for c in plan.connections if c.dst == name and not is_real(c)]
     if timing is not None:
         fast.set_real, fast.do_step, fast.get_real = (timed(f, timing) for f in (fast.set_real, fast.do_step,
                                                                                   fast.get_real))
     return InstanceIO(
         name, fast, in_vr=vr_array(vrs), n_in=ctypes.c_size_t(len(vrs)), out_vr=vr_array(out_vrs),
         out_val=layout.out_arr[name], n_out=ctypes.c_size_t(len(layout.reals[name])), copies=wiring.copies(name),
-        other=[discrete_copier(instances, c) for c in plan.connections if c.dst == name and not is_real(c)],
-        reads=tuple(c.src for c in plan.connections if c.dst == name and not is_real(c)),
+        other=[discrete_copier(instances, c) for c in discrete], reads=tuple(c.src for c in discrete),
         feed=table_feeder(inst, wiring.tables.get(name),
                           [ip for ip in plan.inputs if ip.instance == name and not is_f64(ip.var)]),
         can_roll_back=inst.can_get_and_set_state, get_state=inst.get_state, set_state=inst.set_state, free_state=inst.free_state,

@@ -131,7 +131,7 @@ class Scenario:
     algorithm: str = algorithms.DEFAULT
     iteration: IterationSpec | None = None   # [experiment.iteration]: algorithm "iterated" (or adaptive over it)
     adaptive: AdaptiveSpec | None = None     # [experiment.adaptive]: algorithm "adaptive"
-    workers: int = 1                         # instances stepped at once (Jacobi: isolated ones, C FMUs in threads)
+    workers: int = 1                         # instances stepped at once: isolated ones, C FMUs in threads
     order: list[str] = field(default_factory=list)
     instances: dict[str, InstanceSpec] = field(default_factory=dict)
     connections: list[ConnectionSpec] = field(default_factory=list)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import functools
 import time
+from abc import abstractmethod
 from typing import Any, Callable
 
 from ..instances.failure import Call, Failure
@@ -89,9 +90,9 @@ class ParallelStepping(SteppedAlgorithm):
                 self.pool.close()
             self.pool = Lanes(threads) if threads > 0 else None
 
+    @abstractmethod
     def groups(self, ios: list[InstanceIO]) -> list[list[int]]:
         """The groups of instances that step at once, in the order they step."""
-        raise NotImplementedError
 
     def finish(self) -> None:
         if self.pool is not None:
