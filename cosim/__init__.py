@@ -6,6 +6,7 @@ Its folders are its concepts, from the bottom up (each imports only those below 
 * ``model``: what an FMU is before it runs (model description, binary, archive, units, file kinds);
 * ``instances``: the instance contract and its implementations (in process, Model Exchange, isolated);
 * ``stepping``: the algorithm contract, the table of algorithms and the algorithms;
+* ``requirements``: requirements in signal temporal logic, their check and their online monitor;
 * ``scenario``: scenario documents (TOML, conditions, input tables);
 * ``plan``: a scenario resolved against its FMUs (records, coupling structure, wiring, SSP);
 * ``results``: the recording and the results folder;

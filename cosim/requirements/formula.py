@@ -1,0 +1,610 @@
+"""Requirements in signal temporal logic (STL): the formula language, its parser (a tokenizer and a
+recursive-descent parser of our own, never ``eval``) and its check against the variables' types and units.
+
+Grammar (keywords are case-sensitive; precedence from loosest to tightest)::
+
+    formula     := implication
+    implication := disjunction ["implies" implication]
+    disjunction := conjunction ("or" conjunction)*
+    conjunction := until ("and" until)*
+    until       := unary [("until" | "since") [BOUND] unary]
+    unary       := ("not" | "always" | "eventually" | "historically" | "once") [BOUND] unary | comparison
+    comparison  := sum [COMPARE sum]
+    sum         := product (("+" | "-") product)*
+    product     := sign (("*" | "/") sign)*
+    sign        := "-" sign | atom
+    atom        := NUMBER [UNIT] | "t" | "true" | "false" | NAME | "abs" "(" sum ")" | "(" formula ")"
+    BOUND       := "[" NUMBER "," NUMBER "]"          (seconds, from now: future for always, eventually,
+                                                        until; past for historically, once, since)
+    COMPARE     := "<" | "<=" | ">" | ">=" | "==" | "!="
+    NAME        := instance "." variable
+
+A constant may carry a unit (``0.05 m``, ``8 N.m``, ``5 cm``): it is converted into the unit of what it is
+compared with or added to (a unit of another dimension is refused); a constant without a unit is in that
+unit.  ``t`` is the time [s].
+
+The quantitative semantics (robustness: how far from violation, in the comparison's unit), on the
+communication points t_k = k h: ``a > b`` and ``a >= b`` give a - b, ``a < b`` and ``a <= b`` give b - a,
+``a == b`` gives -|a - b|, ``a != b`` gives |a - b|; a Boolean variable (or ``true``/``false``) gives +inf
+when true and -inf when false; ``not`` negates, ``and``/``or`` take the minimum/maximum, ``p implies q`` is
+``not p or q``; ``always[a,b] p`` at t_k is the minimum of p over t_k+a..t_k+b, ``eventually`` the
+maximum, ``historically`` and ``once`` the same over t_k-b..t_k-a (without a bound: from the start);
+``p until[a,b] q`` at t_k is the maximum over t_j in t_k+a..t_k+b of min(q(t_j), p over t_k..t_j-h), and
+``p since[a,b] q`` the maximum over t_j in t_k-b..t_k-a of min(q(t_j), p over t_j+h..t_k) (rtamt's
+discrete-time semantics).  A requirement holds when its robustness is >= 0.
+
+A requirement is evaluated at t = 0; one without a temporal operator means "at every communication point"
+(it is read as ``always p``).  ``always`` without a bound is allowed as the outermost operator only (over
+the whole run); every other future operator needs a bound (a verdict must be reachable in a finite run).
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from typing import Callable
+
+from ..messages.errors import CosimError
+from ..model.units import KNOWN, Unit, conversion
+
+KEYWORDS = {"and", "or", "not", "implies", "always", "eventually", "historically", "once", "until", "since",
+            "true", "false", "t", "abs"}
+UNARY_TEMPORAL = {"always": "future", "eventually": "future", "historically": "past", "once": "past"}
+BINARY_TEMPORAL = {"until": "future", "since": "past"}
+COMPARE = ("<", "<=", ">", ">=", "==", "!=")
+MAX_LENGTH = 4000   # characters of a formula
+MAX_DEPTH = 60      # nesting
+
+_TOKEN = re.compile(r"""
+    (?P<space>\s+)
+  | (?P<number>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)
+  | (?P<op><=|>=|==|!=|<|>|\+|-|\*|/)
+  | (?P<paren>[()\[\],])
+  | (?P<name>[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*(?:\[\d+(?:,\d+)*\])?)*)
+""", re.VERBOSE)
+#: A unit after a number: letters, digits and . / ^ * (``N.m``, ``m/s2``, ``rad/s^2``), starting with a letter.
+_UNIT = re.compile(r"[A-Za-z][A-Za-z0-9]*(?:[./^*][A-Za-z0-9]+)*")
+
+
+class FormulaError(ValueError):
+    """A formula that does not parse or check; ``pos`` is the 1-based character position (0: the whole)."""
+
+    def __init__(self, reason: str, pos: int = 0) -> None:
+        self.reason, self.pos = reason, pos
+        super().__init__(f"at character {pos}: {reason}" if pos else reason)
+
+
+@dataclass(frozen=True)
+class Token:
+    kind: str      # number, unit, op, paren, name, keyword, end
+    text: str
+    pos: int       # 1-based
+
+
+def tokenize(text: str) -> list[Token]:
+    """The tokens of a formula, ending with an ``end`` token."""
+    if not isinstance(text, str):
+        raise FormulaError(f"a formula is a string, not {text!r}")
+    if len(text) > MAX_LENGTH:
+        raise FormulaError(f"a formula of {len(text)} characters: at most {MAX_LENGTH}")
+    out: list[Token] = []
+    pos = 0
+    while pos < len(text):
+        m = _TOKEN.match(text, pos)
+        if m is None:
+            raise FormulaError(f"unexpected {text[pos]!r}", pos + 1)
+        kind = m.lastgroup
+        assert kind is not None
+        if kind != "space":
+            word = m.group()
+            if kind == "name" and word in KEYWORDS:
+                kind = "keyword"
+            elif kind == "name" and "." not in word:
+                raise FormulaError(f"{word!r}: a variable is \"instance.variable\" (or t for the time)", pos + 1)
+            out.append(Token(kind, word, pos + 1))
+            if kind == "number":   # a unit may follow
+                j = m.end()
+                while j < len(text) and text[j] in " \t":
+                    j += 1
+                u = _UNIT.match(text, j)
+                if u is not None and u.group() not in KEYWORDS:
+                    out.append(Token("unit", u.group(), j + 1))
+                    pos = u.end()
+                    continue
+        pos = m.end()
+    out.append(Token("end", "", len(text) + 1))
+    return out
+
+
+# ------------------------------------------------------------------------------------------- syntax tree
+@dataclass(frozen=True)
+class Node:
+    pos: int
+
+
+@dataclass(frozen=True)
+class Num(Node):
+    value: float
+    unit: str | None = None
+    unit_pos: int = 0
+
+
+@dataclass(frozen=True)
+class Bool(Node):
+    value: bool
+
+
+@dataclass(frozen=True)
+class Time(Node):
+    pass
+
+
+@dataclass(frozen=True)
+class Var(Node):
+    name: str
+
+
+@dataclass(frozen=True)
+class Neg(Node):
+    a: Node
+
+
+@dataclass(frozen=True)
+class Abs(Node):
+    a: Node
+
+
+@dataclass(frozen=True)
+class Arith(Node):
+    op: str
+    a: Node
+    b: Node
+
+
+@dataclass(frozen=True)
+class Cmp(Node):
+    op: str
+    a: Node
+    b: Node
+
+
+@dataclass(frozen=True)
+class Not(Node):
+    a: Node
+
+
+@dataclass(frozen=True)
+class Logic(Node):
+    op: str        # and, or, implies
+    a: Node
+    b: Node
+
+
+@dataclass(frozen=True)
+class Temporal(Node):
+    op: str        # always, eventually, historically, once
+    lo: float      # [s]
+    hi: float | None   # [s]; None: unbounded
+    a: Node
+
+
+@dataclass(frozen=True)
+class Until(Node):
+    op: str        # until, since
+    lo: float
+    hi: float | None
+    a: Node
+    b: Node
+
+
+class _Parser:
+    def __init__(self, text: str) -> None:
+        self.text = text
+        self.toks = tokenize(text)
+        self.i = 0
+        self.depth = 0
+
+    def peek(self) -> Token:
+        return self.toks[self.i]
+
+    def take(self) -> Token:
+        tok = self.toks[self.i]
+        self.i += 1
+        return tok
+
+    def is_kw(self, *words: str) -> bool:
+        return self.peek().kind == "keyword" and self.peek().text in words
+
+    def fail(self, tok: Token, wanted: str) -> FormulaError:
+        found = "the end" if tok.kind == "end" else repr(tok.text)
+        return FormulaError(f"expected {wanted}, found {found}", tok.pos)
+
+    def deeper(self, tok: Token) -> None:
+        self.depth += 1
+        if self.depth > MAX_DEPTH:
+            raise FormulaError(f"nested more than {MAX_DEPTH} deep", tok.pos)
+
+    def parse(self) -> Node:
+        if self.peek().kind == "end":
+            raise FormulaError("an empty formula")
+        node = self.implication()
+        if self.peek().kind != "end":
+            raise self.fail(self.peek(), "an operator or the end")
+        return node
+
+    def implication(self) -> Node:
+        node = self.disjunction()
+        if self.is_kw("implies"):
+            tok = self.take()
+            self.deeper(tok)
+            node = Logic(tok.pos, "implies", node, self.implication())
+            self.depth -= 1
+        return node
+
+    def disjunction(self) -> Node:
+        node = self.conjunction()
+        while self.is_kw("or"):
+            tok = self.take()
+            node = Logic(tok.pos, "or", node, self.conjunction())
+        return node
+
+    def conjunction(self) -> Node:
+        node = self.until()
+        while self.is_kw("and"):
+            tok = self.take()
+            node = Logic(tok.pos, "and", node, self.until())
+        return node
+
+    def until(self) -> Node:
+        node = self.unary()
+        if self.is_kw("until", "since"):
+            tok = self.take()
+            lo, hi = self.bound(tok)
+            node = Until(tok.pos, tok.text, lo, hi, node, self.unary())
+        return node
+
+    def bound(self, op: Token) -> tuple[float, float | None]:
+        if not (self.peek().kind == "paren" and self.peek().text == "["):
+            return 0.0, None
+        self.take()
+        lo = self.number("the bound's start [s]")
+        comma = self.take()
+        if comma.text != ",":
+            raise self.fail(comma, "','")
+        hi = self.number("the bound's end [s]")
+        close = self.take()
+        if close.text != "]":
+            raise self.fail(close, "']'")
+        if not (0.0 <= lo <= hi) or not math.isfinite(hi):
+            raise FormulaError(f"{op.text}[{lo:g},{hi:g}]: a bound [a,b] needs 0 <= a <= b (seconds)", op.pos)
+        return lo, hi
+
+    def number(self, what: str) -> float:
+        tok = self.take()
+        if tok.kind != "number":
+            raise self.fail(tok, what)
+        if self.peek().kind == "unit":
+            unit = self.take()
+            if unit.text != "s":
+                raise FormulaError(f"a time bound is in seconds, not {unit.text}", unit.pos)
+        return float(tok.text)
+
+    def unary(self) -> Node:
+        if self.is_kw("not"):
+            tok = self.take()
+            self.deeper(tok)
+            node: Node = Not(tok.pos, self.unary())
+            self.depth -= 1
+            return node
+        if self.is_kw(*UNARY_TEMPORAL):
+            tok = self.take()
+            lo, hi = self.bound(tok)
+            self.deeper(tok)
+            node = Temporal(tok.pos, tok.text, lo, hi, self.unary())
+            self.depth -= 1
+            return node
+        return self.comparison()
+
+    def comparison(self) -> Node:
+        node = self.sum()
+        if self.peek().kind == "op" and self.peek().text in COMPARE:
+            tok = self.take()
+            node = Cmp(tok.pos, tok.text, node, self.sum())
+        return node
+
+    def sum(self) -> Node:
+        node = self.product()
+        while self.peek().kind == "op" and self.peek().text in ("+", "-"):
+            tok = self.take()
+            node = Arith(tok.pos, tok.text, node, self.product())
+        return node
+
+    def product(self) -> Node:
+        node = self.sign()
+        while self.peek().kind == "op" and self.peek().text in ("*", "/"):
+            tok = self.take()
+            node = Arith(tok.pos, tok.text, node, self.sign())
+        return node
+
+    def sign(self) -> Node:
+        if self.peek().kind == "op" and self.peek().text == "-":
+            tok = self.take()
+            self.deeper(tok)
+            node: Node = Neg(tok.pos, self.sign())
+            self.depth -= 1
+            return node
+        return self.atom()
+
+    def atom(self) -> Node:
+        tok = self.take()
+        if tok.kind == "number":
+            if self.peek().kind == "unit":
+                unit = self.take()
+                return Num(tok.pos, float(tok.text), unit.text, unit.pos)
+            return Num(tok.pos, float(tok.text))
+        if tok.kind == "keyword" and tok.text in ("true", "false"):
+            return Bool(tok.pos, tok.text == "true")
+        if tok.kind == "keyword" and tok.text == "t":
+            return Time(tok.pos)
+        if tok.kind == "name":
+            return Var(tok.pos, tok.text)
+        if tok.kind == "keyword" and tok.text == "abs":
+            open_ = self.take()
+            if open_.text != "(":
+                raise self.fail(open_, "'(' after abs")
+            self.deeper(tok)
+            node: Node = Abs(tok.pos, self.sum())
+            self.depth -= 1
+            close = self.take()
+            if close.text != ")":
+                raise self.fail(close, "')'")
+            return node
+        if tok.kind == "paren" and tok.text == "(":
+            self.deeper(tok)
+            node = self.implication()
+            self.depth -= 1
+            close = self.take()
+            if close.text != ")":
+                raise self.fail(close, "')'")
+            return node
+        raise self.fail(tok, "a variable, a number, t, true, false, abs(...) or '('")
+
+
+def parse(text: str) -> Node:
+    """The syntax tree of a formula (FormulaError with the position if it does not parse)."""
+    return _Parser(text).parse()
+
+
+def children(node: Node) -> tuple[Node, ...]:
+    """The direct subformulas or operands of a node."""
+    if isinstance(node, (Neg, Abs, Not, Temporal)):
+        return (node.a,)
+    if isinstance(node, (Arith, Cmp, Logic, Until)):
+        return (node.a, node.b)
+    return ()
+
+
+def variables(node: Node) -> list[str]:
+    """The "instance.variable" names a formula reads, in order of first appearance."""
+    out: list[str] = []
+
+    def walk(n: Node) -> None:
+        if isinstance(n, Var) and n.name not in out:
+            out.append(n.name)
+        for c in children(n):
+            walk(c)
+    walk(node)
+    return out
+
+
+def temporal(node: Node) -> bool:
+    """Whether a formula has a temporal operator."""
+    return isinstance(node, (Temporal, Until)) or any(temporal(c) for c in children(node))
+
+
+# ------------------------------------------------------------------------------------------- the check
+@dataclass(frozen=True)
+class VarInfo:
+    """What the check needs of a variable: its FMI type name and its unit (None: none declared)."""
+
+    type: str
+    unit: Unit | None
+
+
+@dataclass
+class Checked:
+    """A formula checked against its variables: the syntax tree as it is evaluated (the outermost
+    ``always`` made explicit), the unit of each comparison's robustness, the notes (bounds beyond the
+    run) and the scaling of each constant and variable into the unit it is compared in."""
+
+    text: str
+    node: Node
+    variables: list[str]
+    notes: list[str] = field(default_factory=list)
+    #: per numeric node (by id): (factor, offset) into the unit of its comparison
+    scale: dict[int, tuple[float, float]] = field(default_factory=dict)
+    #: per comparison node (by id): the unit of its robustness ("" when none)
+    unit_of: dict[int, str] = field(default_factory=dict)
+
+
+def _unit_named(name: str, pos: int) -> Unit:
+    if name in KNOWN:
+        return KNOWN[name]
+    raise FormulaError(f"unknown unit {name!r} (known: {', '.join(sorted(KNOWN))})", pos)
+
+
+class _Checker:
+    def __init__(self, text: str, info: dict[str, VarInfo], step: float, stop: float) -> None:
+        self.text, self.info, self.step, self.stop = text, info, step, stop
+        self.out = Checked(text, Bool(0, True), [])   # (its node is set once checked)
+
+    # numbers: return the unit (None: free) of a numeric expression; record conversions
+    def numeric(self, n: Node) -> Unit | None:
+        if isinstance(n, Num):
+            return _unit_named(n.unit, n.unit_pos) if n.unit else None
+        if isinstance(n, Time):
+            return KNOWN["s"]
+        if isinstance(n, Var):
+            v = self.var(n)
+            if v.type not in ("Real", "Integer", "Enumeration"):
+                raise FormulaError(f"{n.name} is {v.type}: arithmetic and comparisons take numbers", n.pos)
+            return v.unit
+        if isinstance(n, (Neg, Abs)):
+            return self.numeric(n.a)
+        if isinstance(n, Arith):
+            ua, ub = self.numeric(n.a), self.numeric(n.b)
+            if n.op in ("+", "-"):
+                return self.same(n, n.a, ua, n.b, ub)
+            if ua is None or ub is None:
+                return ua or ub
+            if not ua.exps or not ub.exps:
+                raise FormulaError(f"{ua.name} {n.op} {ub.name}: a product of units of unknown dimension", n.pos)
+            sign = 1 if n.op == "*" else -1
+            exps = tuple(x + sign * y for x, y in zip(ua.exps, ub.exps))
+            return Unit(f"({ua.name}){n.op}({ub.name})", exps, ua.factor * ub.factor ** sign)
+        if isinstance(n, (Bool, Cmp, Not, Logic, Temporal, Until)):
+            raise FormulaError("a condition where a number is expected", n.pos)
+        raise AssertionError(n)
+
+    def same(self, op: Node, a: Node, ua: Unit | None, b: Node, ub: Unit | None) -> Unit | None:
+        """The common unit of two operands: the first one's, or the second one's when the first is a
+        constant and the second is not (a constant is converted into the unit of what it meets); the other
+        operand is converted into it."""
+        if ua is None or ub is None:
+            return ua or ub
+        if isinstance(a, Num) and not isinstance(b, Num):
+            a, ua, b, ub = b, ub, a, ua
+        try:
+            factor, offset = conversion(ub, ua)
+        except CosimError:
+            raise FormulaError(f"{ub.name} does not convert to {ua.name}: another dimension", op.pos) from None
+        if (factor, offset) != (1.0, 0.0):
+            self.out.scale[id(b)] = (factor, offset)
+        return ua
+
+    def var(self, n: Var) -> VarInfo:
+        if n.name not in self.info:
+            raise FormulaError(f"unknown variable {n.name}", n.pos)
+        return self.info[n.name]
+
+    def boolean(self, n: Node, top: bool = False) -> None:
+        if isinstance(n, Bool):
+            return
+        if isinstance(n, Var):
+            if self.var(n).type != "Boolean":
+                raise FormulaError(f"{n.name} is a number, not a condition: compare it (e.g. {n.name} > 0)", n.pos)
+            return
+        if isinstance(n, Cmp):
+            ua, ub = self.numeric(n.a), self.numeric(n.b)
+            unit = self.same(n, n.a, ua, n.b, ub)
+            self.out.unit_of[id(n)] = unit.name if unit else ""
+            return
+        if isinstance(n, Not):
+            self.boolean(n.a)
+            return
+        if isinstance(n, Logic):
+            self.boolean(n.a)
+            self.boolean(n.b)
+            return
+        if isinstance(n, (Temporal, Until)):
+            self.bounds(n, top)
+            self.boolean(n.a)
+            if isinstance(n, Until):
+                self.boolean(n.b)
+            return
+        raise FormulaError("a number where a condition is expected (compare it)", n.pos)
+
+    def bounds(self, n: Temporal | Until, top: bool) -> None:
+        future = (UNARY_TEMPORAL.get(n.op) or BINARY_TEMPORAL.get(n.op)) == "future"
+        if n.hi is None:
+            if future and not (top and n.op == "always"):
+                raise FormulaError(f"{n.op} without a bound: a future operator needs one ({n.op}[a,b], "
+                                   "seconds; only an outermost always may go without, over the whole run)", n.pos)
+            return
+        for value in (n.lo, n.hi):
+            k = value / self.step
+            if abs(k - round(k)) > 1e-9 * max(1.0, abs(k)):
+                raise FormulaError(f"{n.op}[{n.lo:g},{n.hi:g}]: {value:g} s is not a multiple of the communication "
+                                   f"step {self.step:g} s (the formula is evaluated at the communication points)",
+                                   n.pos)
+        if future and n.hi > self.stop + 1e-12:
+            self.out.notes.append(f"{n.op}[{n.lo:g},{n.hi:g}] at character {n.pos} reaches beyond the stop time "
+                                  f"{self.stop:g} s: its verdict may stay undecided")
+
+
+def check(text: str, info: dict[str, VarInfo], step: float, stop: float) -> Checked:
+    """Parse and check a requirement's formula against its variables (``info``: by "instance.variable"),
+    the communication step [s] and the stop time [s]; FormulaError with the position where it fails.
+    A formula without a temporal operator becomes ``always`` of it."""
+    node = parse(text)
+    c = _Checker(text, info, step, stop)
+    if not temporal(node):
+        node = Temporal(1, "always", 0.0, None, node)
+    c.boolean(node, top=True)
+    c.out.node = node
+    c.out.variables = variables(node)
+    return c.out
+
+
+# ------------------------------------------------------------------------------- atoms as functions
+
+def compile_numeric(n: Node, checked: Checked, read: dict[str, Callable[[], float]]) -> Callable[[float], float]:
+    """A function of the time [s] giving a numeric expression's value now, in its comparison's unit."""
+    f = _numeric(n, checked, read)
+    scale = checked.scale.get(id(n))
+    if scale is not None:
+        factor, offset = scale
+        return lambda t: factor * f(t) + offset
+    return f
+
+
+def _numeric(n: Node, checked: Checked, read: dict[str, Callable[[], float]]) -> Callable[[float], float]:
+    if isinstance(n, Num):
+        value = n.value
+        return lambda t: value
+    if isinstance(n, Time):
+        return lambda t: t
+    if isinstance(n, Var):
+        get = read[n.name]
+        return lambda t: float(get())
+    if isinstance(n, Neg):
+        a = compile_numeric(n.a, checked, read)
+        return lambda t: -a(t)
+    if isinstance(n, Abs):
+        a = compile_numeric(n.a, checked, read)
+        return lambda t: abs(a(t))
+    assert isinstance(n, Arith)
+    a, b = compile_numeric(n.a, checked, read), compile_numeric(n.b, checked, read)
+    if n.op == "+":
+        return lambda t: a(t) + b(t)
+    if n.op == "-":
+        return lambda t: a(t) - b(t)
+    if n.op == "*":
+        return lambda t: a(t) * b(t)
+
+    def divide(t: float) -> float:
+        x, y = a(t), b(t)
+        if y == 0.0:   # (IEEE 754's quotient, without Python's ZeroDivisionError)
+            return math.nan if x == 0.0 or math.isnan(x) else math.copysign(math.inf, x) * math.copysign(1.0, y)
+        return x / y
+    return divide
+
+
+def compile_atom(n: Node, checked: Checked, read: dict[str, Callable[[], float]]) -> Callable[[float], float]:
+    """A function of the time [s] giving the robustness of an atom (a comparison or a Boolean) now."""
+    if isinstance(n, Bool):
+        value = math.inf if n.value else -math.inf
+        return lambda t: value
+    if isinstance(n, Var):
+        get = read[n.name]
+        return lambda t: math.inf if get() else -math.inf
+    assert isinstance(n, Cmp)
+    a, b = compile_numeric(n.a, checked, read), compile_numeric(n.b, checked, read)
+    op = n.op
+    if op in (">", ">="):
+        return lambda t: a(t) - b(t)
+    if op in ("<", "<="):
+        return lambda t: b(t) - a(t)
+    if op == "==":
+        return lambda t: -abs(a(t) - b(t))
+    return lambda t: abs(a(t) - b(t))

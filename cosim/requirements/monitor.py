@@ -1,0 +1,345 @@
+"""The online monitor of a requirement: the robustness of each subformula at the communication points
+t_k = k h, computed as the run goes (each value as soon as the samples it needs are in), and the verdict
+as early as the logic allows.
+
+Every subformula is a stream of robustness values by step index.  An atom's value at k is known at t_k;
+``always[a,b]``/``eventually[a,b]`` at k are known once their operand is known at k + b/h (a sliding
+minimum/maximum over a monotonic queue: constant time per step); past operators at once; ``until`` and
+``since`` with a bound over the window's samples (numpy), ``since`` without a bound by its recurrence.
+When the run ends, the values still waiting are computed over the samples there are (the windows cut at
+the last point, as rtamt's offline monitor does) and marked incomplete: a verdict never rests on them.
+
+The requirement (see formula.py) is its formula at t = 0.  When the outermost operator is ``always[a,b]``
+(or the implicit one of a formula without a temporal operator) its robustness is the lowest value of the
+operand over the window, and the verdict "violated" comes at the first negative value (the time it
+refers to is the first violation; the sample that decided it may come later by the operand's look-ahead);
+when it is ``eventually[a,b]``, the highest value, and "holds" comes at the first value >= 0; otherwise
+the formula's value at t = 0 once known.  A window the run ended inside leaves the verdict "undecided".
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+
+from .formula import Bool, Checked, Cmp, Logic, Node, Not, Temporal, Until, Var, compile_atom
+
+INF = math.inf
+
+
+class _Stream:
+    """The robustness values of one subformula by step index, as far as known; ``lag``: how many steps
+    after k the value at k is known (its look-ahead into the future)."""
+
+    lag = 0
+
+    def __init__(self) -> None:
+        self.values: list[float] = []
+        self.complete = 0      # values below this index rest on complete windows
+
+    def update(self, n: int, final: bool) -> None:
+        """Extend the values as far as the operands allow, ``n`` samples being in (``final``: the run has
+        ended, compute what remains over cut windows)."""
+        raise NotImplementedError
+
+
+class _Atom(_Stream):
+    def __init__(self, f: Callable[[float], float]) -> None:
+        super().__init__()
+        self.f = f
+
+    def push(self, t: float) -> None:
+        self.values.append(self.f(t))
+        self.complete = len(self.values)
+
+    def update(self, n: int, final: bool) -> None:
+        pass
+
+
+class _Not(_Stream):
+    def __init__(self, a: _Stream) -> None:
+        super().__init__()
+        self.a, self.lag = a, a.lag
+
+    def update(self, n: int, final: bool) -> None:
+        self.a.update(n, final)
+        av, out = self.a.values, self.values
+        for k in range(len(out), len(av)):
+            out.append(-av[k])
+        self.complete = self.a.complete
+
+
+class _Logic(_Stream):
+    def __init__(self, op: str, a: _Stream, b: _Stream) -> None:
+        super().__init__()
+        self.op, self.a, self.b, self.lag = op, a, b, max(a.lag, b.lag)
+
+    def update(self, n: int, final: bool) -> None:
+        self.a.update(n, final)
+        self.b.update(n, final)
+        av, bv, out = self.a.values, self.b.values, self.values
+        op = self.op
+        for k in range(len(out), min(len(av), len(bv))):
+            x, y = av[k], bv[k]
+            out.append(min(x, y) if op == "and" else max(x, y) if op == "or" else max(-x, y))
+        self.complete = min(self.a.complete, self.b.complete)
+
+
+class _Window(_Stream):
+    """min (``always``, ``historically``) or max (``eventually``, ``once``) of the operand over
+    [k + lo, k + hi] (future) or [k - hi, k - lo] (past; hi None: from the start), in steps."""
+
+    def __init__(self, lowest: bool, future: bool, lo: int, hi: int | None, a: _Stream) -> None:
+        super().__init__()
+        self.lowest, self.future, self.lo, self.hi, self.a = lowest, future, lo, hi, a
+        self.lag = a.lag + (hi if future and hi is not None else 0)
+        self.queue: deque[int] = deque()   # operand indices, their values monotonic
+        self.pushed = 0                     # operand indices pushed so far
+
+    def _push(self, j: int) -> None:
+        v, q = self.a.values, self.queue
+        x = v[j]
+        if self.lowest:
+            while q and v[q[-1]] >= x:
+                q.pop()
+        else:
+            while q and v[q[-1]] <= x:
+                q.pop()
+        q.append(j)
+        self.pushed = j + 1
+
+    def update(self, n: int, final: bool) -> None:
+        self.a.update(n, final)
+        av, out, q = self.a.values, self.values, self.queue
+        empty = INF if self.lowest else -INF
+        while True:
+            k = len(out)
+            if self.future:
+                assert self.hi is not None
+                first, last = k + self.lo, k + self.hi
+                if last >= len(av) and not (final and k < len(av)):
+                    break
+                last = min(last, len(av) - 1)
+            else:
+                if k >= len(av):
+                    break
+                first = 0 if self.hi is None else k - self.hi
+                last = k - self.lo
+            while self.pushed <= last:
+                self._push(self.pushed)
+            while q and q[0] < first:
+                q.popleft()
+            out.append(av[q[0]] if q and first <= last else empty)
+        # complete: k + hi (future) or k - lo (past) below the operand's complete values
+        within = self.a.complete - (self.hi or 0) if self.future else self.a.complete + self.lo
+        self.complete = max(0, min(len(out), within))
+
+
+class _Until(_Stream):
+    """``a until[lo,hi] b`` (future) or ``a since[lo,hi] b`` (past), in steps (hi None: past, from the
+    start)."""
+
+    def __init__(self, future: bool, lo: int, hi: int | None, a: _Stream, b: _Stream) -> None:
+        super().__init__()
+        self.future, self.lo, self.hi, self.a, self.b = future, lo, hi, a, b
+        self.lag = max(a.lag, b.lag) + (hi if future and hi is not None else 0)
+
+    def update(self, n: int, final: bool) -> None:
+        self.a.update(n, final)
+        self.b.update(n, final)
+        av, bv, out = self.a.values, self.b.values, self.values
+        known = min(len(av), len(bv))
+        while True:
+            k = len(out)
+            if self.future:
+                assert self.hi is not None
+                if k + self.hi >= known and not (final and k < known):
+                    break
+                out.append(self._until(k, min(k + self.hi, known - 1), av, bv))
+            else:
+                if k >= known:
+                    break
+                out.append(self._since(k, av, bv))
+        # complete: a up to k + hi - 1 and b up to k + hi (future); a up to k and b up to k - lo (past)
+        ca, cb = self.a.complete, self.b.complete
+        hi = self.hi or 0
+        within = min(ca - hi + 1, cb - hi) if self.future else min(ca, cb + self.lo)
+        self.complete = max(0, min(len(out), within))
+
+    def _until(self, k: int, last: int, av: list[float], bv: list[float]) -> float:
+        first = k + self.lo
+        if first > last:
+            return -INF
+        # before[j - k] = min of a over k .. j - 1 (+inf for j = k)
+        before = np.minimum.accumulate(np.array(av[k:last], dtype=float)) if last > k else np.empty(0)
+        before = np.concatenate(([INF], before))[first - k:last - k + 1]
+        return float(np.max(np.minimum(np.array(bv[first:last + 1], dtype=float), before)))
+
+    def _since(self, k: int, av: list[float], bv: list[float]) -> float:
+        if self.hi is None and self.lo == 0:   # the recurrence: max(b(k), min(a(k), value(k - 1)))
+            prev = self.values[k - 1] if k > 0 else -INF
+            return max(bv[k], min(av[k], prev))
+        first = 0 if self.hi is None else max(0, k - self.hi)
+        last = k - self.lo
+        if last < first:
+            return -INF
+        # after[j - first] = min of a over j + 1 .. k (+inf for j = k)
+        seg = np.array(av[first + 1:k + 1], dtype=float)[::-1]
+        after = np.concatenate(([INF], np.minimum.accumulate(seg)))[::-1]   # index j - first, j = first..k
+        return float(np.max(np.minimum(np.array(bv[first:last + 1], dtype=float), after[:last - first + 1])))
+
+
+def _steps(seconds: float, step: float) -> int:
+    return int(round(seconds / step))
+
+
+def _build(n: Node, checked: Checked, read: dict[str, Callable[[], float]], step: float,
+           atoms: list[_Atom]) -> _Stream:
+    if isinstance(n, (Bool, Var, Cmp)):
+        atom = _Atom(compile_atom(n, checked, read))
+        atoms.append(atom)
+        return atom
+    if isinstance(n, Not):
+        return _Not(_build(n.a, checked, read, step, atoms))
+    if isinstance(n, Logic):
+        return _Logic(n.op, _build(n.a, checked, read, step, atoms), _build(n.b, checked, read, step, atoms))
+    if isinstance(n, Temporal):
+        hi = None if n.hi is None else _steps(n.hi, step)
+        return _Window(n.op in ("always", "historically"), n.op in ("always", "eventually"), _steps(n.lo, step),
+                       hi, _build(n.a, checked, read, step, atoms))
+    assert isinstance(n, Until)
+    hi = None if n.hi is None else _steps(n.hi, step)
+    return _Until(n.op == "until", _steps(n.lo, step), hi, _build(n.a, checked, read, step, atoms),
+                  _build(n.b, checked, read, step, atoms))
+
+
+@dataclass
+class Verdict:
+    """What a requirement's run says: ``verdict`` "holds", "violated" or "undecided"; ``robustness`` (in
+    the unit of its comparison) and ``at`` [s], the time it refers to (the lowest value of an
+    ``always``, the highest of an ``eventually``, else 0); ``first_violation`` [s] (None if none);
+    ``decided_at`` [s], the communication point at which the verdict was known (None: undecided)."""
+
+    name: str
+    formula: str
+    verdict: str
+    robustness: float
+    at: float
+    first_violation: float | None
+    decided_at: float | None
+
+    def as_dict(self) -> dict[str, object]:
+        return {"name": self.name, "formula": self.formula, "verdict": self.verdict,
+                "robustness": self.robustness, "at": self.at, "first_violation": self.first_violation,
+                "decided_at": self.decided_at}
+
+
+class Monitor:
+    """One requirement, monitored online: :meth:`sample` at every communication point (k = 0, 1, ...,
+    t_k = k h), :meth:`finish` at the end; :attr:`verdict` at any time, :meth:`signal` the robustness of
+    the operand of the outermost ``always``/``eventually`` (else of the formula) by step."""
+
+    def __init__(self, name: str, checked: Checked, read: dict[str, Callable[[], float]], step: float) -> None:
+        self.name, self.checked, self.step = name, checked, step
+        self.atoms: list[_Atom] = []
+        node = checked.node
+        self.mode = "single"
+        self.lo: int = 0
+        self.hi: int | None = 0
+        if isinstance(node, Temporal) and node.op in ("always", "eventually"):
+            self.mode = "min" if node.op == "always" else "max"
+            self.lo = _steps(node.lo, step)
+            self.hi = None if node.hi is None else _steps(node.hi, step)
+            node = node.a
+        self.body = _build(node, checked, read, step, self.atoms)
+        self.n = 0                          # samples in
+        self.seen = 0                       # body values folded into the verdict
+        self.best = INF if self.mode == "min" else -INF
+        self.best_k = 0
+        self.first_violation: float | None = None
+        self.decided: str | None = None
+        self.decided_at: float | None = None
+        self.violated_now = False            # set by the sample that decided "violated"
+        self.finished = False
+
+    def sample(self, t: float) -> None:
+        """The values at the next communication point t [s] (the read functions give them now)."""
+        self.violated_now = False
+        for a in self.atoms:
+            a.push(t)
+        self.n += 1
+        self.body.update(self.n, False)
+        self._fold(t, self.body.complete)
+
+    def finish(self) -> None:
+        """The run has ended: the values still waiting are computed over cut windows (never judged)."""
+        self.body.update(self.n, True)
+        self.finished = True
+
+    def _fold(self, t: float, upto: int) -> None:
+        v = self.body.values
+        k = self.seen
+        if self.mode == "single":
+            if self.decided is None and upto > 0:
+                self.best, self.best_k = v[0], 0
+                self._decide("holds" if v[0] >= 0 else "violated", t, 0)
+            self.seen = upto
+            return
+        end = upto if self.hi is None else min(upto, self.hi + 1)
+        for k in range(max(k, self.lo), end):
+            x = v[k]
+            if (x < self.best) if self.mode == "min" else (x > self.best):
+                self.best, self.best_k = x, k
+            if self.mode == "min" and x < 0 and self.first_violation is None:
+                self.first_violation = k * self.step
+                self._decide("violated", t, k)
+            if self.mode == "max" and x >= 0:
+                self._decide("holds", t, k)
+        self.seen = max(self.seen, end)
+        if self.hi is not None and upto > self.hi:   # the window is complete
+            self._decide("holds" if self.mode == "min" else "violated", t, self.hi)
+
+    def _decide(self, verdict: str, t: float, k: int) -> None:
+        if self.decided is not None:
+            return
+        self.decided, self.decided_at = verdict, t
+        if verdict == "violated":
+            self.violated_now = True
+            if self.first_violation is None:
+                self.first_violation = t if self.mode == "max" else k * self.step
+
+    @property
+    def verdict(self) -> Verdict:
+        """The verdict so far (after :meth:`finish`: of the run)."""
+        verdict = self.decided or "undecided"
+        if self.decided is None and self.mode == "min" and self.hi is None and self.seen > 0 and self.finished:
+            verdict = "holds"   # an unbounded always over the whole run, every judged value >= 0
+        return Verdict(self.name, self.checked.text, verdict, self.best, self.best_k * self.step,
+                       self.first_violation, self.decided_at if self.decided else None)
+
+    def signal(self) -> np.ndarray:
+        """The robustness of the body by step index (NaN where it rests on a cut window or is unknown)."""
+        out = np.full(self.n, np.nan)
+        v = self.body.values[:self.body.complete]
+        out[:len(v)] = v
+        return out
+
+
+def evaluate(name: str, checked: Checked, time: Sequence[float], signals: dict[str, np.ndarray],
+             step: float) -> tuple[Verdict, np.ndarray]:
+    """The monitor run over recorded signals (``signals[name]``: one value per communication point of
+    ``time``): the same verdict as online, and the body's robustness by step."""
+    k = [0]
+
+    def reader(a: np.ndarray) -> Callable[[], float]:
+        return lambda: float(a[k[0]])
+    read = {v: reader(np.asarray(signals[v], dtype=float)) for v in checked.variables}
+    m = Monitor(name, checked, read, step)
+    for i, t in enumerate(time):
+        k[0] = i
+        m.sample(float(t))
+    m.finish()
+    return m.verdict, m.signal()
