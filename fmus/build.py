@@ -58,8 +58,8 @@ from pathlib import Path
 
 try:
     from .cplant_build import MINGW_CC, WIN64_LDFLAGS
-except ImportError:   # run as a script (python fmus/build.py): its folder is on sys.path
-    from cplant_build import MINGW_CC, WIN64_LDFLAGS  # type: ignore[no-redef]
+except ImportError:   # run as a script (python fmus/build.py): from the installed package
+    from wmr_cosim.fmus.cplant_build import MINGW_CC, WIN64_LDFLAGS  # type: ignore[no-redef]
 
 _HERE = Path(__file__).resolve().parent
 

@@ -45,7 +45,8 @@ def test_no_import_cycle_among_the_modules_of_the_master():
 
 def test_every_folder_has_a_face_and_at_most_twelve_modules():
     names = [p.name for p in folders()]
-    assert names == sorted(["messages", "model", "instances", "stepping", "scenario", "plan", "results", "runtime"])
+    assert names == sorted(["messages", "model", "instances", "stepping", "requirements", "scenario", "plan", "results",
+                            "runtime"])
     assert sorted(p.name for p in COSIM.glob("*.py")) == ["__init__.py"]   # no module outside the folders
     for folder in folders():
         modules = [p for p in folder.glob("*.py") if p.name != "__init__.py"]

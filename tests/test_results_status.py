@@ -20,7 +20,7 @@ def test_each_status_has_its_exit_code(status, code, well):
 def test_a_status_is_its_value_in_json_and_in_text():
     assert json.dumps({"status": RunStatus.DIVERGED}) == '{"status": "diverged"}'
     assert f"{RunStatus.OK}" == "ok" and RunStatus("failed") is RunStatus.FAILED
-    assert [s.value for s in RunStatus] == ["ok", "terminated", "stopped", "failed", "interrupted", "diverged"]
+    assert [s.value for s in RunStatus] == ["ok", "terminated", "stopped", "violated", "failed", "interrupted", "diverged"]
 
 
 def test_a_run_result_carries_a_status_and_its_exit_code(tmp_path):

@@ -369,8 +369,8 @@ def test_a_point_whose_run_did_not_end_ok_is_failed_whatever_it_measures(tmp_pat
 
     from wmr_cosim import runner
 
-    ends = {"first": SimpleNamespace(status="ok", message=""),
-            "second": SimpleNamespace(status="stopped", message="stopped by events[0] at t = 0.5 s")}
+    ends = {"first": SimpleNamespace(status="ok", message="", requirements=[]),
+            "second": SimpleNamespace(status="stopped", message="stopped by events[0] at t = 0.5 s", requirements=[])}
     monkeypatch.setattr(runner, "run_protocol", lambda *a, **kw: ends)
     monkeypatch.setattr(shipment.Shipment, "protocol", lambda *a: (SimpleNamespace(resolver=None), str))
     measure = sweep_metrics.SweepMeasure((sweep_metrics.MetricSpec("x_end", "final", "dq.x", run="first"),))
@@ -378,3 +378,22 @@ def test_a_point_whose_run_did_not_end_ok_is_failed_whatever_it_measures(tmp_pat
     row, _ = sweep.run_point({"id": 3, "params": {"dq.k": 1.0}}, study, tmp_path / "cache")
     assert row["status"] == "failed" and row["reason"] == "second: stopped by events[0] at t = 0.5 s"
     assert math.isnan(row["x_end"])   # (nothing recorded here: the fake runs wrote no signals)
+
+
+def test_a_sweeps_table_has_each_requirements_robustness_and_verdict(tmp_path, cluster2):
+    """Dahlquist (x' = -k x, x(0) = 1; the Reference FMU's explicit Euler of 0.1 s: x(1) = (1 - 0.1 k)^10)
+    with the requirement "x stays above 0.3" over k: its robustness column is the lowest x - 0.3 recorded,
+    its verdict column holds for k = 0.5 and 1 (x(1) = 0.599, 0.349) and is violated for 1.5 and 2."""
+    base = _dahlquist_base(tmp_path)
+    with open(base, "a") as f:
+        f.write('[[requirements]]\nname = "above"\nformula = "dq.x > 0.3"\n')
+    ks = [0.5, 1.0, 1.5, 2.0]
+    sw = tmp_path / "req-sweep.toml"
+    sw.write_text(f'base = "{base.name}"\nkeep_runs = true\nsets = []\n[grid]\n"dq.k" = [{", ".join(map(str, ks))}]\n')
+    df = sweep.run_sweep(sw, tmp_path / "out", cluster=cluster2, progress=False)
+    assert list(df["status"]) == ["ok"] * 4
+    for i, row in df.iterrows():
+        x = np.load(tmp_path / "out" / "runs" / f"{i:05d}" / "run" / "signals.npy")["dq.x"]
+        assert row["run.above.robustness"] == float(np.min(x - 0.3))
+        assert row["run.above.robustness"] == pytest.approx((1 - 0.1 * row["dq.k"]) ** 10 - 0.3, abs=1e-12)
+    assert list(df["run.above.verdict"]) == ["holds", "holds", "violated", "violated"]

@@ -65,6 +65,12 @@ class Result:
         """The last recorded value of each column."""
         return dict(self.summary.get("final", {}))
 
+    @property
+    def requirements(self) -> dict[str, dict[str, Any]]:
+        """Each requirement's verdict by name: ``verdict`` ("holds", "violated", "undecided"),
+        ``robustness`` (in ``unit``) and ``at`` [s], ``first_violation`` [s] (None), ``decided_at`` [s]."""
+        return {r["name"]: dict(r) for r in self.summary.get("requirements", [])}
+
     def dataframe(self):
         """The signals as a pandas DataFrame, one column per variable, indexed by time [s] (needs pandas)."""
         try:
@@ -179,6 +185,14 @@ class Simulation:
         ``"plant.y_A > 1.5 and t > 5"``), ``trigger`` (once, each), ``delay`` [s], ``variable``, ``action``
         (override, bias, reset, set, stop), ``value``."""
         self.document.setdefault("events", []).append(dict(fields))
+        return self
+
+    def require(self, name: str, formula: str, *, on_violation: str = "record", description: str = "") -> "Simulation":
+        """Add a requirement, as ``[[requirements]]``: its ``name``, its ``formula`` in signal temporal logic
+        (e.g. ``"always[10,30] abs(controller.e1) < 0.05 rad"``; docs/requirements.md), and whether a
+        violation is recorded (``"record"``) or stops the run (``"stop"``: status "violated")."""
+        self.document.setdefault("requirements", []).append(
+            {"name": name, "formula": formula, "on_violation": on_violation, "description": description})
         return self
 
     def parameter(self, ref: str, value: Any) -> "Simulation":

@@ -21,7 +21,7 @@ from .components.metrics import run_metrics
 from .components.plant import PlantParams
 from .components.sensor import SensorParams
 from .components.validation import ParameterError
-from .exit_codes import OK as EXIT_OK, RUN_FAILED as EXIT_FAILED, for_error, for_status, for_statuses
+from .exit_codes import OK as EXIT_OK, RUN_FAILED as EXIT_FAILED, for_error, for_run, for_status, for_statuses
 from .scenario_files import scenario_path
 
 
@@ -198,7 +198,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                        force=args.force, isolate=args.isolate, real_time=args.real_time, limits=args.limits,
                        parsed=parsed, fields=fields, on_plan=lambda plan: _print_notes(plan.scenario.notes))
     _report_run(args, res, out)
-    return for_status(res.status)
+    return for_run(res.status, res.requirements)
 
 
 def scenario_file(args: argparse.Namespace) -> Any:
@@ -260,6 +260,27 @@ def _report_run(args: argparse.Namespace, res: Any, out: Path) -> None:
         print(f"wmr-cosim: run {res.status}: {res.message}", file=sys.stderr)
         print(f"{args.scenario}: {res.status} after {count(res.steps, 'step')} (t = {res.t_end:g} s); "
               f"{_what_was_recorded(res, out)}", file=sys.stderr)
+    for line in requirement_lines(res.requirements):
+        print(line)
+
+
+def requirement_lines(verdicts: list[dict[str, Any]]) -> list[str]:
+    """One line per requirement verdict (summary.json's ``requirements``): holds, violated or undecided,
+    with the robustness in its unit and the times."""
+    out = []
+    for v in verdicts:
+        unit = f" {v['unit']}" if v.get("unit") else ""
+        rob = f"robustness {v['robustness']:.6g}{unit} at t = {v['at']:.6g} s"
+        if v["verdict"] == "violated":
+            what = (f"VIOLATED at t = {v['first_violation']:.6g} s (known at t = {v['decided_at']:.6g} s); "
+                    f"{rob}")
+        elif v["verdict"] == "holds":
+            what = f"holds; {rob}"
+        else:
+            what = "undecided: the run ended before the formula's horizon" + (
+                f"; {rob} so far" if v["robustness"] == v["robustness"] and abs(v["robustness"]) != float("inf") else "")
+        out.append(f"requirement {v['name']!r}: {what}")
+    return out
 
 
 def _what_was_recorded(res: Any, out: Path) -> str:
@@ -314,6 +335,9 @@ def _report_check(args: argparse.Namespace, plan: Any) -> None:
         print(f"  {line}")
     if plan.not_recorded:
         print(f"note: String outputs are not recorded: {', '.join(plan.not_recorded)}")
+    for r in plan.requirements:
+        print(f"  requirement {r.name!r}: {r.formula}" + (" (stops the run when violated)" if r.on_violation == "stop"
+                                                         else ""))
     for note in [*sc.notes, *plan.notes]:
         print(f"note: {note}")
     for name, n in plan.internal_steps.items():
@@ -370,7 +394,8 @@ def cmd_plot(args: argparse.Namespace) -> int:
     from .plot import PlotError, plot_results
 
     try:
-        done = plot_results(args.results, args.variables or None, out=args.out, show=args.show)
+        done = plot_results(args.results, args.variables or None, out=args.out, show=args.show,
+                            requirements=args.requirement)
     except PlotError as exc:
         raise UsageError(str(exc)) from None
     print(f"{args.results}: {', '.join(done.variables)} drawn in {done.path}")
@@ -440,6 +465,26 @@ def cmd_gamma_search(args: argparse.Namespace) -> int:
     print(r["note"])
     print(f"results in {out} (gamma_search.json, gamma_search.csv, gamma_search.png)")
     return EXIT_OK
+
+
+def cmd_falsify(args: argparse.Namespace) -> int:
+    """A global search of a parameter space for the lowest robustness of a requirement."""
+    from .cluster import cluster_options
+    from .falsify import falsify
+
+    out = args.out if args.out is not None else Path("results") / args.spec.stem
+    say = None if args.quiet else (lambda line: print(line, file=sys.stderr))
+    r = falsify(args.spec, out, progress=not args.quiet, archive_limits=args.limits, say=say,
+                **cluster_options(args))
+    w, n = r["worst"], r["nominal"]
+    print(f"nominal run: robustness {n['robustness']:.6g} ({n['verdict']})")
+    print(f"worst case of {r['optimiser']['runs']} runs: robustness {w['robustness']:.6g} ({w['verdict']}) at "
+          + ", ".join(f"{k} = {v:.6g}" for k, v in w["params"].items()))
+    print(f"its re-run: robustness {r['rerun']['robustness']:.6g}"
+          f"{'' if r['rerun']['same'] else ' (NOT the same as in the search)'}; run it again with:")
+    print(f"  {w['command']}")
+    print(f"results in {out} (falsify.json, falsify.csv, falsify.png, worst/)")
+    return EXIT_OK if r["rerun"]["same"] else EXIT_FAILED
 
 
 def _dask_options(p: argparse.ArgumentParser) -> None:
@@ -535,6 +580,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_paper(sub)
     _add_sweep(sub)
     _add_gamma_search(sub)
+    _add_falsify(sub)
     return ap
 
 
@@ -632,6 +678,9 @@ def _add_plot(sub: Any) -> None:
                         "first 4 recorded, in the order of summary.json's columns)")
     p.add_argument("--out", type=Path, default=None, metavar="FILE.png",
                    help="the figure to write (default RESULTS/plot.png; .pdf, .svg, ... by the suffix)")
+    p.add_argument("--requirement", action="append", default=None, metavar="NAME",
+                   help="also draw this requirement's robustness over time below the signals (by default the "
+                        "signals its formula names); repeat it for several")
     p.add_argument("--show", action="store_true",
                    help="also open a window (where there is a display; without one, only the file is written)")
     p.set_defaults(func=cmd_plot, subparser=p)
@@ -723,6 +772,20 @@ def _add_gamma_search(sub: Any) -> None:
     gs.add_argument("--variant", default="freeze", help="a variant the protocol declares (default freeze)")
     _dask_options(gs)
     gs.set_defaults(func=cmd_gamma_search, subparser=gs)
+
+
+def _add_falsify(sub: Any) -> None:
+    """The ``falsify`` command."""
+    fa = sub.add_parser("falsify", help="search a parameter space for the worst case of a requirement",
+                        description="Differential evolution over the file's parameter space (every point a full "
+                                    "co-simulation on Dask, within the file's budget of runs) for the lowest "
+                                    "robustness of one of the base scenario's requirements; reports the worst case "
+                                    "found, its robustness against the nominal run's, and re-runs it "
+                                    "(docs/requirements.md).")
+    fa.add_argument("spec", type=scenario_path, help="falsification file (.toml), e.g. scenarios/falsify-foam.toml")
+    fa.add_argument("--out", type=Path, default=None, metavar="DIR", help="results folder (default results/<file>)")
+    _dask_options(fa)
+    fa.set_defaults(func=cmd_falsify, subparser=fa)
 
 
 def archive_limits(args: argparse.Namespace) -> Any:

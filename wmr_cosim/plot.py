@@ -1,6 +1,8 @@
 """``wmr-cosim plot``: recorded signals of a results folder (what ``run`` writes: signals.npy,
 summary.json, scenario.json) drawn against time [s], one subplot per unit (each y label carries its
-unit), the event log's actions as vertical lines.
+unit), the event log's actions as vertical lines; with requirements named, each one's robustness over
+time (requirements.npy) in a subplot below the signals its formula names, zero and its first violation
+marked.
 
 Units come from summary.json's ``columns`` (else scenario.json's, written before the first step, so a
 run still going or killed is drawn too); the events from summary.json's ``events`` (each with a
@@ -41,6 +43,8 @@ class Results:
     signals: np.ndarray
     units: dict[str, str | None] = field(default_factory=dict)
     events: list[dict[str, Any]] = field(default_factory=list)
+    requirements: dict[str, dict[str, Any]] = field(default_factory=dict)   # summary.json's, by name
+    robustness: np.ndarray | None = None   # requirements.npy: time and each requirement's robustness
 
     @property
     def columns(self) -> list[str]:
@@ -78,7 +82,14 @@ def read_results(folder: str | Path) -> Results:
     columns = summary.get("columns") or _json(folder / "scenario.json").get("columns") or {}
     units = {n: (c.get("unit") if isinstance(c, dict) else None) for n, c in columns.items()}
     events = [e for e in summary.get("events") or [] if isinstance(e, dict) and _number(e.get("time"))]
-    return Results(folder, signals, units, events)
+    reqs = {r["name"]: r for r in summary.get("requirements") or [] if isinstance(r, dict) and "name" in r}
+    robustness = None
+    if (folder / "requirements.npy").is_file():
+        try:
+            robustness = np.load(folder / "requirements.npy")
+        except (OSError, ValueError) as exc:
+            raise PlotError(f"{folder / 'requirements.npy'}: cannot be read ({' '.join(str(exc).split())})") from None
+    return Results(folder, signals, units, events, reqs, robustness)
 
 
 def _json(path: Path) -> dict[str, Any]:
@@ -117,6 +128,18 @@ def choose(res: Results, variables: list[str] | None) -> list[str]:
     return chosen
 
 
+def requirement_names(res: Results, names: list[str]) -> list[str]:
+    """The requirements to draw, checked against the folder's (PlotError naming the known ones)."""
+    if res.robustness is None or not res.requirements:
+        raise PlotError(f"{res.folder}: no requirements.npy (the run's scenario declared no [[requirements]])")
+    for n in names:
+        if n not in res.requirements or n not in (res.robustness.dtype.names or ()):
+            best = close_names(n, list(res.requirements))
+            raise PlotError(f"{res.folder}: no requirement {n!r}" + (f" (did you mean {best[0]!r}?)" if best else "")
+                            + f"; the run's: {', '.join(res.requirements)}")
+    return names
+
+
 def by_unit(res: Results, variables: list[str]) -> list[tuple[str | None, list[str]]]:
     """The variables grouped by unit, in the order each unit first appears: one subplot each."""
     groups: dict[str | None, list[str]] = {}
@@ -133,16 +156,22 @@ def event_label(event: dict[str, Any]) -> str:
     return f"event: {event['action']}" if event.get("action") else "event"
 
 
-def draw(res: Results, variables: list[str], fig: Any = None) -> Any:
+def draw(res: Results, variables: list[str], fig: Any = None, requirements: list[str] | None = None) -> Any:
     """The figure (a matplotlib Figure; ``fig``: one to draw into): one subplot per unit, sharing the time
-    axis (``time [s]``), each y label with its unit; every event inside the recorded time as a vertical
-    line, named once in the legend of the first subplot."""
+    axis (``time [s]``), each y label with its unit; then one subplot per requirement named, its robustness
+    over time; every event inside the recorded time as a vertical line, named once in the legend of the
+    first subplot."""
     from matplotlib.figure import Figure
 
     groups = by_unit(res, variables)
+    reqs = requirements or []
     if fig is None:
-        fig = Figure(figsize=(WIDTH_IN, 1.0 + AXIS_IN * len(groups)), dpi=DPI)
-    axes = fig.subplots(len(groups), 1, sharex=True, squeeze=False)[:, 0]
+        fig = Figure(figsize=(WIDTH_IN, 1.0 + AXIS_IN * (len(groups) + len(reqs))), dpi=DPI)
+    axes = fig.subplots(len(groups) + len(reqs), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, name in zip(axes[len(groups):], reqs):
+        _draw_robustness(res, name, ax)
+    axes[-1].set_xlabel("time [s]")
+    axes = axes[:len(groups)] if groups else axes
     t = np.asarray(res.signals["time"], dtype=float)
     for ax, (unit, names) in zip(axes, groups):
         for n in names:
@@ -155,10 +184,35 @@ def draw(res: Results, variables: list[str], fig: Any = None) -> Any:
     _mark_events(res, axes, t)
     for ax in axes:
         ax.legend(fontsize=7, loc="best")
-    axes[-1].set_xlabel("time [s]")
     fig.suptitle(str(res.folder), fontsize=9)
     fig.tight_layout()
     return fig
+
+
+def _draw_robustness(res: Results, name: str, ax: Any) -> None:
+    """One requirement's robustness over time (NaN where a window the run cut leaves it unknown), zero,
+    the negative side shaded, its first violation and the time its robustness refers to marked."""
+    assert res.robustness is not None
+    v = res.requirements[name]
+    t, r = np.asarray(res.robustness["time"], dtype=float), np.asarray(res.robustness[name], dtype=float)
+    ax.plot(t, r, lw=1.0, color="k", label=f"robustness of {name!r} ({v.get('verdict')})")
+    ax.axhline(0.0, color="C2", lw=0.8)
+    window = v.get("window")
+    if isinstance(window, list) and len(window) == 2 and _number(window[0]):   # the times not judged, greyed
+        end = window[1] if _number(window[1]) else t[-1]
+        if window[0] > t[0]:
+            ax.axvspan(t[0], window[0], color="0.85", lw=0, label="not judged")
+        if end < t[-1]:
+            ax.axvspan(end, t[-1], color="0.85", lw=0, label="_nolegend_" if window[0] > t[0] else "not judged")
+    ax.fill_between(t, np.minimum(r, 0.0), 0.0, where=np.isfinite(r) & (r < 0), color="C3", alpha=0.3, lw=0)
+    if _number(v.get("first_violation")):
+        ax.axvline(v["first_violation"], color="C3", lw=1.0, label=f"first violation, t = {v['first_violation']:.6g} s")
+    if _number(v.get("at")) and _number(v.get("robustness")):
+        ax.plot([v["at"]], [v["robustness"]], "o", color="C3", ms=4, label=f"{v['robustness']:.4g} at t = {v['at']:.6g} s")
+    unit = v.get("unit")
+    ax.set_ylabel(f"{name} [{unit}]" if unit else name)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, loc="best")
 
 
 def _mark_events(res: Results, axes: Any, t: np.ndarray) -> None:
@@ -181,25 +235,31 @@ def has_display() -> bool:
 
 
 def plot_results(folder: str | Path, variables: list[str] | None = None, out: str | Path | None = None,
-                 show: bool = False) -> Plotted:
-    """Draw ``variables`` of the results folder (default: :func:`choose`'s) against time [s] and write the
+                 show: bool = False, requirements: list[str] | None = None) -> Plotted:
+    """Draw ``variables`` of the results folder (default: :func:`choose`'s, or with ``requirements`` the
+    variables their formulas name) against time [s], then each requirement's robustness, and write the
     figure to ``out`` (default FOLDER/plot.png; the format from its suffix); ``show`` also opens a window
     where there is a display (none: the file only, and a note).  PlotError (one line) for bad input."""
     res = read_results(folder)
-    chosen = choose(res, variables)
+    reqs = requirement_names(res, requirements) if requirements else []
+    if reqs and not variables:
+        named = [n for r in reqs for n in res.requirements[r].get("variables", [])]
+        variables = [n for i, n in enumerate(named) if n not in named[:i]]
+    chosen = choose(res, variables) if variables or not reqs else []
     if not len(res.signals):
         raise PlotError(f"{res.folder}: signals.npy has no rows: nothing to draw")
     path = Path(out) if out is not None else res.folder / "plot.png"
     window = show and has_display()
     plt = _pyplot() if window else None
-    fig = draw(res, chosen, plt.figure(figsize=(WIDTH_IN, 1.0 + AXIS_IN * len(by_unit(res, chosen))), dpi=DPI)
-               if plt is not None else None)
+    n_axes = len(by_unit(res, chosen)) + len(reqs)
+    fig = draw(res, chosen, plt.figure(figsize=(WIDTH_IN, 1.0 + AXIS_IN * n_axes), dpi=DPI) if plt is not None
+               else None, reqs)
     _save(fig, path)
     if plt is not None:
         plt.show()
         plt.close(fig)
     note = "no display: --show opens no window; the figure is only written" if show and not window else None
-    return Plotted(path, chosen, fig, note)
+    return Plotted(path, chosen + [f"robustness of {r}" for r in reqs], fig, note)
 
 
 def _pyplot() -> Any:

@@ -86,7 +86,8 @@ def run_point(point: dict[str, Any], study: Study, cache: Path | None = None) ->
                                progress=False, only=study.runs)
         if study.measure is not None:
             study.measure(row, results, work)
-        failed = next((name for name, res in results.items() if res.status != "ok"), None)
+        requirement_columns(row, results)
+        failed = next((name for name, res in results.items() if res.status not in ("ok", "violated")), None)
         if failed is not None and row["status"] == "ok":   # (whatever the measure: the first run that failed)
             row["status"], row["reason"] = "failed", f"{failed}: {results[failed].message}"
     except CosimError as exc:
@@ -103,6 +104,15 @@ def run_point(point: dict[str, Any], study: Study, cache: Path | None = None) ->
     row["reason"] = unlocalise(row["reason"])
     row["wall_s"] = time.perf_counter() - t0
     return row, runs
+
+
+def requirement_columns(row: dict[str, Any], results: dict[str, Any]) -> None:
+    """Each run's requirements into ``row``: ``<run>.<requirement>.robustness`` (in its unit; +-inf for a
+    requirement on Booleans alone) and ``<run>.<requirement>.verdict`` (holds, violated, undecided)."""
+    for run, res in results.items():
+        for v in res.requirements:
+            row[f"{run}.{v['name']}.robustness"] = v["robustness"]
+            row[f"{run}.{v['name']}.verdict"] = v["verdict"]
 
 
 def _row(point: dict[str, Any], status: str = "ok", reason: str = "") -> dict[str, Any]:

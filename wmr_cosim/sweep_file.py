@@ -128,7 +128,7 @@ def _check_grid(f: str, doc: dict[str, Any], spec: SweepSpec) -> None:
     if not isinstance(grid, dict):
         raise ScenarioError(f, "grid", "must be a table \"instance.param\" = [values]")
     for key, values in grid.items():
-        _refs(f, f"grid.{key}", key)
+        parameter_refs(f, f"grid.{key}", key)
         if not isinstance(values, list) or not values:
             raise ScenarioError(f, f"grid.{key}", "must be a non-empty array of values")
         spec.grid[key] = list(values)
@@ -141,7 +141,7 @@ def _check_random(f: str, doc: dict[str, Any], spec: SweepSpec) -> None:
         raise ScenarioError(f, "random", "must be a table \"instance.param\" = {dist = ..., ...}")
     for key, d in rnd.items():
         fld = f"random.{key}"
-        _refs(f, fld, key)
+        parameter_refs(f, fld, key)
         _check_distribution(f, fld, d)
         spec.random[key] = dict(d)
 
@@ -175,7 +175,8 @@ def _check_base(f: str, spec: SweepSpec) -> None:
                 raise ScenarioError(f, "runs", f"{r!r} is not a run of {spec.base} ({', '.join(names)})")
 
 
-def _refs(file: str, fld: str, key: str) -> list[str]:
+def parameter_refs(file: str, fld: str, key: str) -> list[str]:
+    """The parameters a key of [grid] or [random] names ("a.x+b.y": linked), each "instance.param"."""
     refs = key.split("+")
     for r in refs:
         if r.count(".") < 1 or not all(r.split(".", 1)):

@@ -112,6 +112,21 @@ class EventPlan:
 
 
 @dataclass
+class RequirementPlan:
+    """A checked requirement: the scenario's (name, formula, what a violation does, description), the
+    formula as checked against its variables (``checked``: :class:`cosim.requirements.formula.Checked`)
+    and what it reads (its name -> (instance, variable))."""
+
+    name: str
+    formula: str
+    on_violation: str
+    description: str
+    index: int
+    checked: Any
+    reads: dict[str, tuple[str, Variable]] = field(default_factory=dict)
+
+
+@dataclass
 class Plan:
     scenario: Scenario
     instances: dict[str, InstancePlan]
@@ -127,13 +142,15 @@ class Plan:
     archive_limits: ArchiveLimits = DEFAULT_LIMITS   # the scenario's: what extracting its FMUs may unpack
     coupling: Coupling = field(default_factory=Coupling)   # its coupling loops and algebraic loops
     last_step: float | None = None   # [s] a short last step, where the step does not divide the run
+    requirements: list[RequirementPlan] = field(default_factory=list)   # monitored at every communication point
 
     @property
     def watched(self) -> list[tuple[str, Variable]]:
-        """The variables the conditions read (the Float64 outputs among them are kept in the row buffer)."""
+        """The variables the conditions and the requirements read (the Float64 outputs among them are kept
+        in the row buffer)."""
         out: list[tuple[str, Variable]] = []
-        for ev in self.conditions:
-            for pair in ev.reads.values():
+        for reads in [ev.reads for ev in self.conditions] + [r.reads for r in self.requirements]:
+            for pair in reads.values():
                 if pair not in out:
                     out.append(pair)
         return out

@@ -38,7 +38,7 @@ from ..stepping import table as algorithms
 from ..stepping.graph import levels
 from ..stepping.settings import SpecError, check_adaptive
 from .loops import check_iteration, coupling
-from .records import ConnectionPlan, EventPlan, InstancePlan, Plan, RecordPlan, unit_of
+from .records import ConnectionPlan, EventPlan, InstancePlan, Plan, RecordPlan, RequirementPlan, unit_of
 
 
 def checked_value(file: str, fld: str, var: Variable, value: Any, check_range: bool = True) -> Any:
@@ -424,6 +424,46 @@ def _condition_reads(file: str, fld: str, e: Any, insts: dict[str, InstancePlan]
     return reads
 
 
+def _requirements(sc: Scenario, insts: dict[str, InstancePlan], notes: list[str]) -> list[RequirementPlan]:
+    """The requirements checked against their variables (each exists and is a scalar; types, units, the
+    bounds against the communication step and the stop time), with what each reads; every variable a
+    formula names is recorded.  A bound beyond the stop time is a note."""
+    from ..requirements.formula import FormulaError, VarInfo, check, parse, variables
+
+    file = sc.file
+    start, stop, step = sc.times()
+    out: list[RequirementPlan] = []
+    extra: list[str] = []
+    for r in sc.requirements:
+        fld = f"requirements[{r.index}].formula"
+        reads: dict[str, tuple[str, Variable]] = {}
+        info: dict[str, VarInfo] = {}
+        for ref, pos in variables(parse(r.formula)).items():
+            inst, vname = ref.split(".", 1)
+            where = f"requirement {r.name!r}: at character {pos}"
+            try:
+                var = variable(file, fld, insts[inst], vname)
+            except ScenarioError as exc:
+                raise ScenarioError(file, fld, f"{where}: {exc.reason}") from None
+            if var.shape:
+                raise ScenarioError(file, fld, f"{where}: {ref} is an array: a formula reads scalars")
+            if var.causality == "independent":
+                raise ScenarioError(file, fld, f"{where}: {ref} is the independent variable: use t for the time")
+            reads[ref] = (inst, var)
+            info[ref] = VarInfo(var.type, unit_of(insts[inst], var) if var.type == "Real" else None)
+            if ref not in extra:
+                extra.append(ref)
+        try:
+            checked = check(r.formula, info, step, stop - start)
+        except FormulaError as exc:
+            raise ScenarioError(file, fld, f"requirement {r.name!r}: {exc}") from None
+        notes += [f"requirement {r.name!r}: {n}" for n in checked.notes]
+        out.append(RequirementPlan(r.name, r.formula, r.on_violation, r.description, r.index, checked, reads))
+    if extra:   # what a formula names is recorded
+        sc.record = (sc.record or ["*.*"]) + [ref for ref in extra if ref not in (sc.record or [])]
+    return out
+
+
 def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) -> Plan:
     """Load every FMU of the scenario and run all the checks (the one preflight that ``check`` and ``run``
     share); returns the executable plan.  ``force`` lifts the limits of steps and recording size;
@@ -443,6 +483,7 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
     coupled = coupling(sc.order, insts, conns)
     _check_stepping(sc, insts)
     check_iteration(sc, insts, coupled)
+    requirements = _requirements(sc, insts, notes)
     record, not_recorded = _record(sc, insts)
     inputs = _inputs(sc, insts, driven)
     start, stop, step = sc.times()
@@ -451,7 +492,7 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
     events = sorted((ev for ev in checked if ev.condition is None), key=lambda ev: ev.step)  # stable within a step
     conditions = [ev for ev in checked if ev.condition is not None]
     plan = Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs, not_recorded,
-                conditions, notes, internal, sc.archive_limits, coupled, last_step)
+                conditions, notes, internal, sc.archive_limits, coupled, last_step, requirements)
     _check_recording_size(plan)
     return plan
 

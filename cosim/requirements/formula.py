@@ -384,13 +384,14 @@ def children(node: Node) -> tuple[Node, ...]:
     return ()
 
 
-def variables(node: Node) -> list[str]:
-    """The "instance.variable" names a formula reads, in order of first appearance."""
-    out: list[str] = []
+def variables(node: Node) -> dict[str, int]:
+    """The "instance.variable" names a formula reads, in order of first appearance, each with the
+    character position of its first appearance."""
+    out: dict[str, int] = {}
 
     def walk(n: Node) -> None:
         if isinstance(n, Var) and n.name not in out:
-            out.append(n.name)
+            out[n.name] = n.pos
         for c in children(n):
             walk(c)
     walk(node)
@@ -542,7 +543,7 @@ def check(text: str, info: dict[str, VarInfo], step: float, stop: float) -> Chec
         node = Temporal(1, "always", 0.0, None, node)
     c.boolean(node, top=True)
     c.out.node = node
-    c.out.variables = variables(node)
+    c.out.variables = list(variables(node))
     return c.out
 
 

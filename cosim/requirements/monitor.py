@@ -221,7 +221,8 @@ class Verdict:
     """What a requirement's run says: ``verdict`` "holds", "violated" or "undecided"; ``robustness`` (in
     the unit of its comparison) and ``at`` [s], the time it refers to (the lowest value of an
     ``always``, the highest of an ``eventually``, else 0); ``first_violation`` [s] (None if none);
-    ``decided_at`` [s], the communication point at which the verdict was known (None: undecided)."""
+    ``decided_at`` [s], the communication point at which the verdict was known (None: undecided);
+    ``window`` [s], the times whose values the verdict rests on (from the start of the run)."""
 
     name: str
     formula: str
@@ -230,16 +231,18 @@ class Verdict:
     at: float
     first_violation: float | None
     decided_at: float | None
+    window: tuple[float, float | None] = (0.0, 0.0)   # [s] the times judged (None: to the end of the run)
 
     def as_dict(self) -> dict[str, object]:
         return {"name": self.name, "formula": self.formula, "verdict": self.verdict,
                 "robustness": self.robustness, "at": self.at, "first_violation": self.first_violation,
-                "decided_at": self.decided_at}
+                "decided_at": self.decided_at, "window": list(self.window)}
 
 
 class Monitor:
-    """One requirement, monitored online: :meth:`sample` at every communication point (k = 0, 1, ...,
-    t_k = k h), :meth:`finish` at the end; :attr:`verdict` at any time, :meth:`signal` the robustness of
+    """One requirement, monitored online: :meth:`sample` at every communication point (k = 0, 1, ...; the
+    bounds are counted in steps of ``step`` [s], the times reported are the samples'), :meth:`finish` at
+    the end; :attr:`verdict` at any time, :meth:`signal` the robustness of
     the operand of the outermost ``always``/``eventually`` (else of the formula) by step."""
 
     def __init__(self, name: str, checked: Checked, read: dict[str, Callable[[], float]], step: float) -> None:
@@ -264,10 +267,12 @@ class Monitor:
         self.decided_at: float | None = None
         self.violated_now = False            # set by the sample that decided "violated"
         self.finished = False
+        self.times: list[float] = []         # [s] the communication point of each sample
 
     def sample(self, t: float) -> None:
         """The values at the next communication point t [s] (the read functions give them now)."""
         self.violated_now = False
+        self.times.append(t)
         for a in self.atoms:
             a.push(t)
         self.n += 1
@@ -294,7 +299,7 @@ class Monitor:
             if (x < self.best) if self.mode == "min" else (x > self.best):
                 self.best, self.best_k = x, k
             if self.mode == "min" and x < 0 and self.first_violation is None:
-                self.first_violation = k * self.step
+                self.first_violation = self.times[k]
                 self._decide("violated", t, k)
             if self.mode == "max" and x >= 0:
                 self._decide("holds", t, k)
@@ -309,7 +314,7 @@ class Monitor:
         if verdict == "violated":
             self.violated_now = True
             if self.first_violation is None:
-                self.first_violation = t if self.mode == "max" else k * self.step
+                self.first_violation = t if self.mode == "max" else self.times[k]
 
     @property
     def verdict(self) -> Verdict:
@@ -317,8 +322,12 @@ class Monitor:
         verdict = self.decided or "undecided"
         if self.decided is None and self.mode == "min" and self.hi is None and self.seen > 0 and self.finished:
             verdict = "holds"   # an unbounded always over the whole run, every judged value >= 0
-        return Verdict(self.name, self.checked.text, verdict, self.best, self.best_k * self.step,
-                       self.first_violation, self.decided_at if self.decided else None)
+        at = self.times[self.best_k] if self.best_k < len(self.times) else math.nan
+        t0 = self.times[0] if self.times else 0.0
+        hi = None if self.hi is None else t0 + self.hi * self.step
+        return Verdict(self.name, self.checked.text, verdict, self.best, at,
+                       self.first_violation, self.decided_at if self.decided else None,
+                       (t0 + self.lo * self.step, hi))
 
     def signal(self) -> np.ndarray:
         """The robustness of the body by step index (NaN where it rests on a cut window or is unknown)."""

@@ -40,6 +40,7 @@ class RunResult:
     stepping: dict[str, Any] | None = None   # the algorithm's own counts (iterations, accepted/rejected steps)
     events_left_out: int = 0   # entries of the event table beyond its limit (.event_log.MAX_ENTRIES)
     handoff: dict[str, Any] | None = None   # how the master and the child processes waited (instances.handoff)
+    requirements: list[dict[str, Any]] = field(default_factory=list)   # each requirement's verdict
 
 
 class ResultsFolder:
@@ -54,7 +55,7 @@ class ResultsFolder:
         """logs/ made, stale signals, summary and logs removed, scenario.json written."""
         out = self.path
         (out / "logs").mkdir(exist_ok=True)
-        for stale in ("signals.npy", "signals.csv", "signals.mat", "summary.json"):
+        for stale in ("signals.npy", "signals.csv", "signals.mat", "summary.json", "requirements.npy"):
             (out / stale).unlink(missing_ok=True)
         for old in (out / "logs").glob("*.log"):
             old.unlink()
@@ -93,7 +94,19 @@ def summary(plan: Plan, res: RunResult, rows: int, logs: dict[str, tuple[int, in
         **({"real_time": res.real_time} if res.real_time is not None else {}),
         **({"stepping": res.stepping} if res.stepping is not None else {}),
         **({"handoff": res.handoff} if res.handoff is not None else {}),
+        **({"requirements": res.requirements} if res.requirements else {}),
     }
+
+
+def write_robustness(path: Path, signals: dict[str, np.ndarray], times: list[float]) -> None:
+    """requirements.npy: a structured array, ``time`` [s] and each requirement's robustness by name, one
+    row per communication point monitored (NaN where a window the run cut leaves it unknown)."""
+    rows = len(times)
+    data = np.zeros(rows, dtype=[("time", "<f8")] + [(name, "<f8") for name in signals])
+    data["time"] = times
+    for name, values in signals.items():
+        data[name] = values[:rows]
+    np.save(path, data)
 
 
 def write_results(folder: ResultsFolder, plan: Plan, res: RunResult) -> None:

@@ -10,6 +10,8 @@ class RunStatus(StrEnum):
     - ``OK``: every step was taken;
     - ``TERMINATED``: an FMU ended the simulation itself (Discard with fmi2Terminated / fmi3 terminateSimulation);
     - ``STOPPED``: a stop event, or the script, ended it early;
+    - ``VIOLATED``: a requirement with ``on_violation = "stop"`` was violated: the run ended when that was
+      known (the recording up to it is kept);
     - ``FAILED``: an FMU returned a non-OK status, a value became non-finite, or the master raised;
     - ``INTERRUPTED``: the user pressed Ctrl-C;
     - ``DIVERGED``: the run ended ok but an application's check of its results rejected it (the paper's
@@ -19,11 +21,13 @@ class RunStatus(StrEnum):
     OK = "ok"
     TERMINATED = "terminated"
     STOPPED = "stopped"
+    VIOLATED = "violated"
     FAILED = "failed"
     INTERRUPTED = "interrupted"
     DIVERGED = "diverged"
 
     @property
     def ended_well(self) -> bool:
-        """Whether the run gave its results as asked (ok, or ended early by an FMU or a stop)."""
-        return self in (RunStatus.OK, RunStatus.TERMINATED, RunStatus.STOPPED)
+        """Whether the run gave its results as asked (ok, or ended early by an FMU, a stop, or a requirement
+        that stops it)."""
+        return self in (RunStatus.OK, RunStatus.TERMINATED, RunStatus.STOPPED, RunStatus.VIOLATED)

@@ -40,7 +40,7 @@ from ..model.description import Variable
 from ..plan.records import Plan
 from ..plan.wiring import RowLayout, Wiring
 from ..results.event_log import ended_entry, instance_entries, table
-from ..results.folder import ResultsFolder, RunResult, scenario_record, summary, write_results
+from ..results.folder import ResultsFolder, RunResult, scenario_record, summary, write_results, write_robustness
 from ..results.status import RunStatus
 from ..stepping import table as algorithms
 from ..stepping.algorithm import Algorithm, Clock, InstanceIO
@@ -48,6 +48,7 @@ from ..stepping.multirate import MultiRate
 from .access import VariableAccess
 from .interrupt import Interrupt
 from .manipulators import Actuator, ConditionEvents, EventStop, Manipulator, ScriptChanges, TimedEvents
+from .monitoring import RequirementMonitors
 from .observers import Observer, Pacing, ProgressBar, Recorder, StepCallback
 from .pacing import Pacer
 from .startup import (exchange_initial, handoff_for, instance_io, load_instances, read_outputs, recorded_getters, recorded_types,
@@ -137,6 +138,8 @@ class Execution:
         # the built-in parts, added as a script adds its own (and so before them)
         self.add_manipulator(TimedEvents(actuator, plan.events))
         self.add_manipulator(ConditionEvents(actuator, plan.conditions))
+        self._requirements = RequirementMonitors(plan.requirements)
+        self.add_manipulator(self._requirements)
         self.add_observer(self._recorder)
         self.add_observer(ProgressBar(progress, self.clock, sum(plan.internal_steps.values())))
 
@@ -392,11 +395,12 @@ class Execution:
         return f"the run has ended ({r.status}: {r.message or 'at the stop time'})"
 
     # ------------------------------------------------------------------ the end
-    def stop(self, message: str | None = None) -> None:
-        """End the run cleanly at the current time (from an observer or between steps): status "stopped"."""
+    def stop(self, message: str | None = None, status: RunStatus = RunStatus.STOPPED) -> None:
+        """End the run cleanly at the current time (from an observer or between steps): status "stopped"
+        (or ``status``: "violated" for a requirement that stops the run)."""
         if self.result is not None:
             return
-        self._set_status(RunStatus.STOPPED, message or f"stopped at t = {self.time:.6g} s")
+        self._set_status(status, message or f"stopped at t = {self.time:.6g} s")
         self._stop_requested = True
         if not self._in_step:
             self._finish()
@@ -473,6 +477,7 @@ class Execution:
                 inst.shutdown()
             self._recorder.close()
             shutil.rmtree(self._work, ignore_errors=True)
+            self._verdicts = self._requirements.finish() if self._requirements.monitors else []
             self.result = self._result()
         finally:
             if self.folder is not None:
@@ -490,6 +495,10 @@ class Execution:
                         self.pacer.summary() if self.pacer is not None else None)
         res.stepping, res.events_left_out = algorithms.summary(self.algorithm), left_out
         res.handoff = self.handoff.summary() if self.handoff is not None else None
+        res.requirements = self._verdicts
+        if self.folder is not None and self._verdicts:
+            write_robustness(self.folder.path / "requirements.npy", self._requirements.signals(),
+                             self._requirements.monitors[0].times)
         logs = {n: (i.log_lines, i.received) for n, i in self.instances.items()}
         res.summary = summary(self.plan, res, self._recorder.n_rows, logs)
         if self.folder is not None:

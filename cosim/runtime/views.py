@@ -11,6 +11,7 @@ from __future__ import annotations
 from typing import Any, Callable, Protocol
 
 from ..model.description import Variable
+from ..results.status import RunStatus
 from ..stepping.algorithm import Clock
 
 
@@ -36,7 +37,7 @@ class Manipulable(Observable, Protocol):
 
     def release(self, ref: str) -> None: ...
 
-    def stop(self, message: str | None = None) -> None: ...
+    def stop(self, message: str | None = None, status: RunStatus = RunStatus.STOPPED) -> None: ...
 
 
 class ObservedRun:
@@ -74,5 +75,5 @@ class ManipulatedRun(ObservedRun):
     def release(self, ref: str) -> None:
         self._run.release(ref)
 
-    def stop(self, message: str | None = None) -> None:
-        self._run.stop(message)
+    def stop(self, message: str | None = None, status: RunStatus = RunStatus.STOPPED) -> None:
+        self._run.stop(message, status)

@@ -32,7 +32,7 @@ INTERFACES = (CO_SIMULATION, MODEL_EXCHANGE)
 SOLVER_KEYS = ("solver", "max_step", "event_tolerance")
 
 _TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "record", "events", "runs",
-             "variants", "inputs", "limits"}
+             "variants", "inputs", "limits", "requirements"}
 _INPUTS_KEYS = {"file", "interpolation"}
 _EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps", "max_internal_steps",
                     algorithms.ITERATION_TABLE, algorithms.ADAPTIVE_TABLE, "workers"}
@@ -43,6 +43,9 @@ _RECORD_KEYS = {"variables", "decimation", "csv", "mat", "max_bytes"}
 _RUN_KEYS = {"name", "description", "parameters", "carry"}
 _VARIANT_KEYS = {"description", "parameters"}
 _EVENT_KEYS = {"time", "when", "trigger", "delay", "variable", "action", "value"}
+_REQUIREMENT_KEYS = {"name", "formula", "on_violation", "description"}
+#: What a requirement's violation does: recorded in the results, or the run stopped at once.
+ON_VIOLATION = ("record", "stop")
 
 
 @dataclass
@@ -105,6 +108,18 @@ class EventSpec:
 
 
 @dataclass
+class RequirementSpec:
+    """A requirement: its ``name``, its ``formula`` in signal temporal logic (:mod:`cosim.requirements.formula`),
+    what a violation does (``on_violation``: "record" it, or "stop" the run) and a description."""
+
+    name: str
+    formula: str
+    on_violation: str = "record"
+    description: str = ""
+    index: int = 0
+
+
+@dataclass
 class RunSpec:
     """One run of a protocol: parameter values ("instance.param" -> value) and values carried from an
     earlier run's final outputs ("instance.param" -> "run.instance.variable")."""
@@ -136,6 +151,7 @@ class Scenario:
     instances: dict[str, InstanceSpec] = field(default_factory=dict)
     connections: list[ConnectionSpec] = field(default_factory=list)
     record: list[str] = field(default_factory=list)
+    requirements: list[RequirementSpec] = field(default_factory=list)
     decimation: int = 1
     events: list[EventSpec] = field(default_factory=list)
     csv: bool = True
@@ -343,6 +359,7 @@ def parse(doc: dict[str, Any], file: str, resolver=None, limits: LimitOverrides 
     _parse_runs(sc, doc)
     _parse_inputs(sc, doc)
     _parse_events(sc, doc)
+    _parse_requirements(sc, doc)
     return sc
 
 
@@ -628,6 +645,42 @@ def _parse_events(sc: Scenario, doc: dict[str, Any]) -> None:
         if action == "reset" and "value" in e:
             raise ScenarioError(file, f"{fld}.value", "a reset takes no value")
         sc.events.append(EventSpec(t, e["variable"], action, e.get("value"), i, when, cond, trigger, delay))
+
+
+def _parse_requirements(sc: Scenario, doc: dict[str, Any]) -> None:
+    """[[requirements]]: a name, a formula (parsed here: its syntax; its variables, types, units and bounds
+    are checked with the FMUs), what a violation does, a description."""
+    from ..requirements.formula import FormulaError, parse as parse_formula, variables as formula_variables
+
+    file = sc.file
+    seen: set[str] = set()
+    for i, (fld, r) in enumerate(_tables(file, doc, "requirements", _REQUIREMENT_KEYS)):
+        name = r.get("name")
+        if not isinstance(name, str) or not name.strip():
+            raise ScenarioError(file, f"{fld}.name", "missing: every requirement has a name")
+        if name in seen:
+            raise ScenarioError(file, f"{fld}.name", f"{name!r} names two requirements")
+        seen.add(name)
+        formula = r.get("formula")
+        if not isinstance(formula, str):
+            raise ScenarioError(file, f"{fld}.formula", f"requirement {name!r}: missing (a formula in signal "
+                                                        "temporal logic, e.g. \"always abs(plant.u1) < 8 N.m\")")
+        try:
+            node = parse_formula(formula)
+        except FormulaError as exc:
+            raise ScenarioError(file, f"{fld}.formula", f"requirement {name!r}: {exc}") from None
+        for ref, pos in formula_variables(node).items():
+            inst = ref.split(".", 1)[0]
+            if inst not in sc.instances:
+                raise ScenarioError(file, f"{fld}.formula", f"requirement {name!r}: at character {pos}: {ref}: "
+                                                            f"unknown instance {inst!r}")
+        action = r.get("on_violation", "record")
+        if action not in ON_VIOLATION:
+            raise ScenarioError(file, f"{fld}.on_violation", f"{action!r}: must be one of {', '.join(ON_VIOLATION)}")
+        description = r.get("description", "")
+        if not isinstance(description, str):
+            raise ScenarioError(file, f"{fld}.description", "must be a string")
+        sc.requirements.append(RequirementSpec(name, formula, action, description, i))
 
 
 def check_experiment(sc: Scenario, where: str = "experiment") -> None:

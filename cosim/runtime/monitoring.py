@@ -1,0 +1,56 @@
+"""The scenario's requirements monitored as the run goes (:mod:`cosim.requirements`): each one's online
+monitor sampled at every communication point (the start included), a requirement with
+``on_violation = "stop"`` ending the run with status "violated" at the communication point at which its
+violation is known, the verdicts and the robustness over time at the end."""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..plan.records import RequirementPlan
+from ..requirements.monitor import Monitor
+from ..results.status import RunStatus
+from .manipulators import Manipulator
+from .views import Manipulable
+
+
+class RequirementMonitors(Manipulator):
+    """A monitor per requirement, compiled over readers of the variables its formula names."""
+
+    def __init__(self, requirements: list[RequirementPlan]) -> None:
+        self.requirements = requirements
+        self.per_step = bool(requirements)
+        self.monitors: list[Monitor] = []
+
+    def started(self, ex: Manipulable) -> None:
+        for r in self.requirements:
+            read = {ref: ex.reader(inst, var) for ref, (inst, var) in r.reads.items()}
+            self.monitors.append(Monitor(r.name, r.checked, read, ex.clock.step))
+        self.stepped(ex, 0)
+
+    def stepped(self, ex: Manipulable, k: int) -> None:
+        t = ex.clock.time(k)
+        for r, m in zip(self.requirements, self.monitors):
+            m.sample(t)
+            if m.violated_now and r.on_violation == "stop":
+                v = m.verdict
+                ex.stop(f"requirement {r.name!r} violated at t = {v.first_violation:.6g} s (known at t = {t:.6g} s, "
+                        f"robustness {v.robustness:.6g})", RunStatus.VIOLATED)
+                return
+
+    def finish(self) -> list[dict[str, Any]]:
+        """The verdicts of the run (summary.json's ``requirements``): each monitor told the run has ended."""
+        out = []
+        for r, m in zip(self.requirements, self.monitors):
+            m.finish()
+            v = m.verdict.as_dict()
+            unit = sorted(set(r.checked.unit_of.values()) - {""})
+            out.append({**v, "on_violation": r.on_violation, "description": r.description,
+                        "unit": unit[0] if len(unit) == 1 else None, "variables": list(r.checked.variables)})
+        return out
+
+    def signals(self) -> dict[str, np.ndarray]:
+        """Each requirement's robustness over time (of the operand of its outermost always or eventually)
+        by communication point, NaN where a window the run cut leaves it unknown."""
+        return {r.name: m.signal() for r, m in zip(self.requirements, self.monitors)}

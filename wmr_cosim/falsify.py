@@ -1,0 +1,302 @@
+"""Falsification: the search of a parameter space for the point where a requirement is closest to failing,
+or fails worst (the lowest robustness), with a global optimiser, every point a full co-simulation on the
+sweep machinery (Dask, one JSON per point: a search started again with the same output folder takes the
+points already run, and, being deterministic for its seed, gives the same answer).
+
+A falsification file (``scenarios/falsify-*.toml``)::
+
+    base = "g1_requirements.toml"     # a scenario or protocol with [[requirements]]
+    requirement = "tracking"          # the one whose robustness is minimised
+    run = "foam"                      # which run of a protocol (optional for a scenario of one run)
+    variant = "freeze"                # optional: a variant the base declares
+    seed = 1
+    budget = 40                       # co-simulations of the search (the nominal run and the re-run of the
+                                      # worst case come on top)
+    [space]                           # the box searched ('+' links parameters to one value)
+    "plant.foam_da1+plant.foam_da2" = { low = 0.2, high = 1.2 }
+    "plant.foam_t_on" = { low = 5.0, high = 11.0 }
+
+The optimiser is scipy's differential evolution (``scipy.optimize.differential_evolution``: deferred
+updating, so that each generation's population is one batch of points run in parallel; its initial
+population a Latin hypercube drawn from the seed; no local polish, which would add runs beyond the
+budget).  With N axes the population has M = max(5, min(10 N, budget // 4)) members and the search runs
+budget // M - 1 generations after the initial one: budget // M * M co-simulations.  Why not dual
+annealing or CMA-ES: each proposes one point after another (no batch to run in parallel); Nevergrad
+would be one more dependency for the same batched evolution.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import shlex
+import tomllib
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from .cluster import Cluster
+from .cosim import CosimError, LimitOverrides, ScenarioError
+from . import robot_measures
+from .sweep import run_points
+
+_KEYS = {"description", "base", "requirement", "run", "variant", "seed", "budget", "space"}
+
+
+@dataclass
+class FalsifySpec:
+    file: str
+    base: str
+    requirement: str
+    run: str = "run"
+    variant: str | None = None
+    seed: int = 0
+    budget: int = 40
+    space: dict[str, tuple[float, float]] = field(default_factory=dict)   # "a.x+b.y" -> (low, high)
+    description: str = ""
+
+    @property
+    def column(self) -> str:
+        """The results table's column of the requirement's robustness."""
+        return f"{self.run}.{self.requirement}.robustness"
+
+
+def load_falsification(path: str | os.PathLike) -> FalsifySpec:
+    """Read and check a falsification file: its keys, the space (finite bounds, low < high, parameters
+    as "instance.param"), the budget, and the base: it parses, declares the requirement, and the run."""
+    from .cosim import plan_runs
+    from .sweep_file import parameter_refs
+
+    p = Path(path)
+    f = str(p)
+    try:
+        doc = tomllib.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(f, "", f"cannot read: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f, "", f"not valid TOML: {exc}") from None
+    unknown = sorted(set(doc) - _KEYS)
+    if unknown:
+        raise ScenarioError(f, unknown[0], f"unknown key (allowed: {', '.join(sorted(_KEYS))})")
+    for key in ("base", "requirement"):
+        if not isinstance(doc.get(key), str):
+            raise ScenarioError(f, key, "missing (a string)")
+    base = doc["base"]
+    base = str((p.parent / base).resolve()) if not os.path.isabs(base) else base
+    spec = FalsifySpec(f, base, doc["requirement"], description=str(doc.get("description", "")))
+    for key in ("seed", "budget"):
+        if key in doc:
+            v = doc[key]
+            if not isinstance(v, int) or isinstance(v, bool) or v < 0:
+                raise ScenarioError(f, key, f"{v!r}: must be an integer >= 0")
+            setattr(spec, key, v)
+    space = doc.get("space")
+    if not isinstance(space, dict) or not space:
+        raise ScenarioError(f, "space", "missing: a table \"instance.param\" = { low = ..., high = ... }")
+    for key, box in space.items():
+        fld = f"space.{key}"
+        parameter_refs(f, fld, key)
+        if not isinstance(box, dict) or set(box) != {"low", "high"}:
+            raise ScenarioError(f, fld, "must be { low = ..., high = ... }")
+        lo, hi = box["low"], box["high"]
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in (lo, hi)):
+            raise ScenarioError(f, fld, "low and high must be finite numbers")
+        if not lo < hi:
+            raise ScenarioError(f, f"{fld}.high", "must be above low")
+        spec.space[key] = (float(lo), float(hi))
+    if spec.budget < 5 * (1 + 1):
+        raise ScenarioError(f, "budget", f"{spec.budget}: at least 10 co-simulations (a population of 5, two "
+                                         "generations)")
+    if "variant" in doc:
+        spec.variant = str(doc["variant"])
+    sc, runs, _ = plan_runs(spec.base, lambda name: Path(name), spec.variant)
+    names = [r.name for r in runs]
+    spec.run = str(doc.get("run", names[0] if len(names) == 1 else ""))
+    if spec.run not in names:
+        raise ScenarioError(f, "run", f"{spec.run!r}: one of the base's runs ({', '.join(names)})" if spec.run
+                            else f"the base has runs {', '.join(names)}: say which one's requirement")
+    known = [r.name for r in sc.requirements]
+    if spec.requirement not in known:
+        raise ScenarioError(f, "requirement", f"{spec.requirement!r}: the base declares "
+                                              f"{', '.join(repr(k) for k in known) or 'no requirements'}")
+    return spec
+
+
+def population(budget: int, axes: int) -> tuple[int, int]:
+    """(members, generations after the initial one) for a budget of co-simulations over ``axes`` axes."""
+    members = max(5, min(10 * axes, budget // 4))
+    return members, budget // members - 1
+
+
+def falsify(path: str | os.PathLike, out: str | os.PathLike | None = None, workers: int | None = None,
+            scheduler: str | None = None, progress: bool | None = None, security: Any = None,
+            dashboard: bool = False, archive_limits: LimitOverrides | None = None,
+            say: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """Search the file's space for the lowest robustness of its requirement; write falsify.json,
+    falsify.csv and falsify.png into ``out`` (default results/<file>) and the worst case's re-run into
+    ``out/worst``; return falsify.json's content.  ``say``: told a line after each generation."""
+    from .cosim import OutputLock, make_folder
+
+    spec = load_falsification(path)
+    out = make_folder(Path(out) if out is not None else Path("results") / Path(path).stem)
+    with OutputLock(out):
+        return _search(spec, out, workers, scheduler, progress, security, dashboard, archive_limits, say)
+
+
+def _params(spec: FalsifySpec, x: np.ndarray) -> dict[str, float]:
+    params: dict[str, float] = {}
+    for key, v in zip(spec.space, x):
+        for ref in key.split("+"):
+            params[ref] = float(v)
+    return params
+
+
+def _robustness(spec: FalsifySpec, row: dict[str, Any]) -> float:
+    """A point's robustness of the requirement; +inf for a point that failed (it gave no robustness)."""
+    v = row.get(spec.column)
+    if row["status"] in ("ok", "violated", "diverged") and isinstance(v, (int, float)) and not math.isnan(v):
+        return float(v)
+    return math.inf
+
+
+def _search(spec: FalsifySpec, out: Path, workers: int | None, scheduler: str | None, progress: bool | None,
+            security: Any, dashboard: bool, archive_limits: LimitOverrides | None,
+            say: Callable[[str], None] | None) -> dict[str, Any]:
+    meta = out / "falsify.json"
+    if meta.is_file():
+        old = json.loads(meta.read_text()).get("spec")
+        if old != json.loads(json.dumps(asdict(spec))):
+            raise CosimError(f"{out}: holds the results of another search (a different file, seed or space); "
+                             "use another --out")
+    members, generations = population(spec.budget, len(spec.space))
+    rows: list[dict[str, Any]] = []
+    study = {"archive_limits": archive_limits, "fmus": robot_measures.fmu_paths(), "measure": None}
+    with Cluster(workers, scheduler, security, dashboard) as cl:
+        # every run of the base (a later run may carry an earlier one's values)
+        nominal = run_points([{"id": 0, "params": {}}], spec.base, spec.variant, None, out, cl,
+                             progress=False, label="falsify nominal", **study)[0]
+
+        def run(pts: list[dict[str, Any]], label: str) -> list[dict[str, Any]]:
+            return run_points(pts, spec.base, spec.variant, None, out, cl, progress=progress, label=label, **study)
+        _evolve(spec, members, generations, run, rows, out, say)
+    worst = min(rows, key=lambda r: (_robustness(spec, r), r["point"]))
+    result = _result(spec, members, generations, rows, nominal, worst, out, archive_limits)
+    meta.write_text(json.dumps(result, indent=1, default=str) + "\n")
+    _table(spec, rows, out / "falsify.csv")
+    _plot(spec, rows, result, out / "falsify.png")
+    return result
+
+
+def _evolve(spec: FalsifySpec, members: int, generations: int,
+            run: Callable[[list[dict[str, Any]], str], list[dict[str, Any]]], rows: list[dict[str, Any]], out: Path,
+            say: Callable[[str], None] | None) -> None:
+    """scipy's differential evolution, each generation's population one batch of points (``run``); every
+    point's row appended to ``rows`` with its generation."""
+    from scipy.optimize import differential_evolution
+    from scipy.stats import qmc
+
+    axes = list(spec.space)
+    bounds = [spec.space[k] for k in axes]
+    lo, hi = np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds])
+    init = lo + qmc.LatinHypercube(d=len(axes), seed=spec.seed).random(members) * (hi - lo)
+
+    def batch(_func: Any, xs: Any) -> list[float]:
+        """One generation: its points run on the cluster at once (scipy's ``workers`` map)."""
+        generation = len(rows) // members
+        pts = [{"id": 1 + len(rows) + i, "params": _params(spec, np.asarray(x))} for i, x in enumerate(xs)]
+        done = run(pts, f"falsify generation {generation}")
+        for p, r in zip(pts, done):
+            if {k: r.get(k) for k in p["params"]} != p["params"]:
+                raise CosimError(f"{out}: point {p['id']} on disk has other parameters; use another --out")
+            r["generation"] = generation
+            rows.append(r)
+        if say is not None:
+            best = min(rows, key=lambda r: _robustness(spec, r))
+            say(f"falsify: generation {generation} of {generations}, {len(rows)}/{members * (generations + 1)} runs: "
+                f"lowest robustness {_robustness(spec, best):.6g} at "
+                + ", ".join(f"{k} = {best[k.split('+')[0]]:.6g}" for k in axes))
+        return [_robustness(spec, r) for r in done]
+
+    differential_evolution(lambda x: 0.0, bounds, init=init, maxiter=generations, seed=spec.seed,
+                           updating="deferred", workers=batch, polish=False, tol=0.0, atol=0.0)
+
+
+def _result(spec: FalsifySpec, members: int, generations: int, rows: list[dict[str, Any]], nominal: dict[str, Any],
+            worst: dict[str, Any], out: Path, archive_limits: LimitOverrides | None) -> dict[str, Any]:
+    """falsify.json: the spec, the optimiser, the nominal run, the worst case with the command that runs
+    it, its re-run here (into ``out/worst``), the points that failed."""
+    params = {k: worst[k] for k in _params(spec, np.zeros(len(spec.space)))}
+    command = (f"wmr-cosim run {shlex.quote(spec.base)}"
+               + (f" --variant {shlex.quote(spec.variant)}" if spec.variant else "")
+               + "".join(f" --set {shlex.quote(f'{k}={v!r}')}" for k, v in params.items())
+               + f" --out {shlex.quote(str(out / 'worst'))}")
+    verdict = f"{spec.run}.{spec.requirement}.verdict"
+    return {
+        "spec": json.loads(json.dumps(asdict(spec))),
+        "optimiser": {"name": "scipy.optimize.differential_evolution", "members": members, "generations": generations,
+                      "runs": len(rows), "updating": "deferred", "init": "latin hypercube", "polish": False},
+        "nominal": {"robustness": _robustness(spec, nominal), "verdict": nominal.get(verdict), "status": nominal["status"]},
+        "worst": {"point": worst["point"], "generation": worst["generation"], "params": params,
+                  "robustness": _robustness(spec, worst), "verdict": worst.get(verdict), "command": command},
+        "rerun": _rerun(spec, worst, out / "worst", archive_limits),
+        "failed": sum(1 for r in rows if _robustness(spec, r) == math.inf),
+    }
+
+
+def _rerun(spec: FalsifySpec, worst: dict[str, Any], folder: Path, archive_limits: LimitOverrides | None
+           ) -> dict[str, Any]:
+    """The worst point run again here (as its command runs it): its robustness and whether it is the same."""
+    from .runner import run_protocol
+
+    params = {k: worst[k] for k in _params(spec, np.zeros(len(spec.space)))}
+    results = run_protocol(spec.base, folder, variant=spec.variant, overrides=params, progress=False,
+                           limits=archive_limits)
+    verdicts = {v["name"]: v for v in results[spec.run].requirements}
+    v = verdicts.get(spec.requirement, {})
+    rob = v.get("robustness", math.inf)
+    return {"folder": str(folder), "robustness": rob, "verdict": v.get("verdict"),
+            "same": rob == _robustness(spec, worst)}
+
+
+def _table(spec: FalsifySpec, rows: list[dict[str, Any]], path: Path) -> None:
+    import pandas as pd
+
+    cols = ["point", "generation", *[k.split("+")[0] for k in spec.space], "robustness", "verdict", "status", "reason"]
+    df = pd.DataFrame([{**r, "robustness": _robustness(spec, r),
+                        "verdict": r.get(f"{spec.run}.{spec.requirement}.verdict")} for r in rows])
+    df[[c for c in cols if c in df]].to_csv(path, index=False)
+
+
+def _plot(spec: FalsifySpec, rows: list[dict[str, Any]], result: dict[str, Any], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rob = np.array([_robustness(spec, r) for r in rows])
+    shown = np.where(np.isfinite(rob), rob, np.nan)
+    axes = [k.split("+")[0] for k in spec.space]
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
+    a.plot(np.arange(1, len(rob) + 1), shown, "o", ms=4, label="a point")
+    a.plot(np.arange(1, len(rob) + 1), np.fmin.accumulate(shown), "-", color="C3", label="lowest so far")
+    a.axhline(result["nominal"]["robustness"], color="k", ls="--", lw=0.8, label="nominal run")
+    a.axhline(0.0, color="C2", lw=0.8)
+    a.set_xlabel("co-simulation of the search")
+    a.set_ylabel(f"robustness of {spec.requirement!r}")
+    a.legend(fontsize=7)
+    a.grid(True, alpha=0.3)
+    x = [r[axes[0]] for r in rows]
+    y = [r[axes[1]] for r in rows] if len(axes) > 1 else list(shown)
+    sc = b.scatter(x, y, c=shown, cmap="viridis", s=25)
+    w = result["worst"]["params"]
+    b.plot([w[axes[0]]], [w[axes[1]] if len(axes) > 1 else result["worst"]["robustness"]], "x", color="C3", ms=12,
+           label="worst case")
+    b.set_xlabel(axes[0])
+    b.set_ylabel(axes[1] if len(axes) > 1 else "robustness")
+    fig.colorbar(sc, ax=b, label="robustness")
+    b.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
