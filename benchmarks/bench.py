@@ -48,6 +48,11 @@ NAME:
             (no hooks), noop_callback / get_callback (a per-step callback doing nothing / reading one
             variable), condition (one condition event that never fires), each with *_overhead_us_per_step
             over plain (medians of interleaved runs).
+    requirements what monitoring requirements costs per step on G1 on foam (scenarios/g1_requirements.toml):
+            plain_us_per_step (without them), three (its three requirements), look_ahead (one requirement
+            looking 5 s ahead), each with *_overhead_us_per_step (medians of interleaved runs); and the
+            monitor alone over the recorded signals: monitor_tracking_us_per_sample,
+            monitor_look_ahead_us_per_sample.
     loader  what the FMUs' Python loader (binaries/linux64/<model>.so forwarding to pythonfmu's binary) costs:
             the sensor FMU stepped 25,000 times (setReal + doStep + getReal through ctypes, as a master does)
             once through the loader and once through pythonfmu's binary loaded directly, in one process,
@@ -786,6 +791,57 @@ def bench_scripting(repeats: int) -> dict[str, float]:
     return out
 
 
+def bench_requirements(repeats: int) -> dict[str, Any]:
+    """What monitoring requirements costs per step on G1 on foam (scenarios/g1_requirements.toml, 25,000
+    steps, the analysis' recording), medians of interleaved runs through the Python API: without its
+    requirements, with its three (torque, goal, tracking), and with the tracking one looking ahead 5 s
+    (``always (|e| > 0.5 rad implies eventually[0,5] |e| < 0.05 rad)``: a window of 2,500 steps); and the
+    monitor alone on those recorded signals (requirements.monitor.evaluate, no co-simulation)."""
+    import time as _time
+
+    import numpy as np
+
+    from wmr_cosim import Simulation
+    from wmr_cosim.cosim.model.units import KNOWN
+    from wmr_cosim.cosim.requirements.formula import VarInfo, check
+    from wmr_cosim.cosim.requirements.monitor import evaluate
+
+    root = __import__("pathlib").Path(__file__).resolve().parents[1]
+    base = Simulation.load(root / "scenarios" / "g1_requirements.toml")
+    base.document["record"] = {"variables": ANALYSIS_RECORD, "csv": False}
+    plain = Simulation({k: v for k, v in base.document.items() if k != "requirements"})
+    ahead = Simulation({k: v for k, v in base.document.items() if k != "requirements"}).require(
+        "settle", "always (abs(controller.e1) > 0.5 rad implies eventually[0,5] abs(controller.e1) < 0.05 rad)")
+    kinds = {"plain": plain.run, "three": base.run, "look_ahead": ahead.run}
+    walls: dict[str, list[float]] = {k: [] for k in kinds}
+    steps, last = 0, None
+    for _ in range(repeats):
+        for k, fn in kinds.items():
+            r = fn()
+            walls[k].append(r.summary["wall_s"])
+            steps = r.steps
+            if k == "three":
+                last = r
+    us = {k: statistics.median(v) / steps * 1e6 for k, v in walls.items()}
+    out: dict[str, Any] = {f"{k}_us_per_step": round(v, 2) for k, v in us.items()}
+    out.update({f"{k}_overhead_us_per_step": round(us[k] - us["plain"], 2) for k in kinds if k != "plain"})
+    assert last is not None
+    sig = last.signals
+    info = {n: VarInfo("Real", KNOWN["rad"] if n.endswith(("e1", "e2")) else KNOWN["N.m"])
+            for n in ("controller.e1", "controller.e2", "controller.u1", "controller.u2")}
+    alone = {}
+    for name, text in (("tracking", "always[10,30] (abs(controller.e1) < 0.05 rad and abs(controller.e2) < 0.05 rad)"),
+                       ("look_ahead", "always (abs(controller.e1) > 0.5 rad implies eventually[0,5] "
+                                      "abs(controller.e1) < 0.05 rad)")):
+        checked = check(text, info, 0.002, 50.0)
+        t0 = _time.perf_counter()
+        evaluate(name, checked, sig["time"], {n: np.asarray(sig[n]) for n in checked.variables}, 0.002)
+        alone[name] = (_time.perf_counter() - t0) / len(sig) * 1e6
+    out.update({f"monitor_{k}_us_per_sample": round(v, 2) for k, v in alone.items()})
+    out["steps"] = steps
+    return out
+
+
 def bench_mutation(repeats: int) -> dict:
     """Mutation testing of components/, cosim/ and the analysis code (benchmarks/mutation.py)."""
     import mutation
@@ -986,6 +1042,7 @@ def bench_parallel(repeats: int) -> dict[str, Any]:
 BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "fmi3": bench_fmi3, "paper": bench_paper,
            "sweep": bench_sweep, "interop": bench_interop, "archive": bench_archive, "loader": bench_loader,
            "isolation": bench_isolation, "scripting": bench_scripting, "mutation": bench_mutation,
+           "requirements": bench_requirements,
            "bugs": bench_bugs, "exit": bench_exit, "me": bench_me,
            "adaptive": bench_adaptive, "parallel": bench_parallel}
 

@@ -35,7 +35,7 @@ def brute(sig: np.ndarray) -> dict[str, tuple[np.ndarray, int, int]]:
     e1, e2 = sig["controller.e1"], sig["controller.e2"]
     n = len(sig)
     return {"torque": (np.minimum(8 - np.abs(u1), 8 - np.abs(u2)), 0, n - 1),
-            "goal": (np.minimum(0.05 - np.abs(x - 2), 0.05 - np.abs(y - 5)), 0, 20000),
+            "goal": (0.05 - np.sqrt((x - 2) * (x - 2) + (y - 5) * (y - 5)), 0, 20000),
             "tracking": (np.minimum(0.05 - np.abs(e1), 0.05 - np.abs(e2)), 5000, 15000)}
 
 
@@ -103,7 +103,8 @@ def test_run_prints_the_verdicts_and_exits_3_when_one_is_violated(g1_run: Path, 
 def test_check_lists_the_requirements(capsys) -> None:
     assert main(["check", str(SCENARIO)]) == 0
     out = capsys.readouterr().out
-    assert "  requirement 'goal': eventually[0,40] (abs(plant.x_A - 2 m) < 5 cm and abs(plant.y_A - 5 m) < 5 cm)" in out
+    assert ("  requirement 'goal': eventually[0,40] sqrt((plant.x_A - 2 m) * (plant.x_A - 2 m) + (plant.y_A - 5 m) * "
+            "(plant.y_A - 5 m)) < 5 cm") in out
 
 
 @pytest.mark.parametrize("formula,message", [
@@ -142,3 +143,28 @@ def test_plot_draws_a_requirements_robustness_below_the_signals_it_names(g1_run:
     assert main(["plot", str(g1_run), "--requirement", "trackin", "--out", str(tmp_path / "s.png")]) == 2
     assert "no requirement 'trackin' (did you mean 'tracking'?)" in capsys.readouterr().err
     assert not (tmp_path / "s.png").exists()
+
+
+def test_the_paper_scenarios_state_their_signal_claims_as_requirements_of_the_learning_run() -> None:
+    """scenarios/paper: the goal (every go-to-goal task) and G1's static error, monitored in the learning
+    run only (``runs``); the formulas the same in protocol.toml and g1.toml, the static bound the paper's
+    smaller figure; LINE declares none."""
+    from wmr_cosim.components import paper
+
+    paper_dir = SCENARIO.parent / "paper"
+    plans = cosim.check_protocol(str(paper_dir / "g1.toml"), resolve_model)
+    assert [r.name for r in plans["learn"].requirements] == ["goal", "static"]
+    assert plans["frozen"].requirements == [] and plans["foam"].requirements == []
+    proto = {r.name: r for r in cosim.load(str(paper_dir / "protocol.toml"), lambda n: Path(n)).requirements}
+    g1 = {r.name: r for r in cosim.load(str(paper_dir / "g1.toml"), lambda n: Path(n)).requirements}
+    assert proto["goal"].formula == g1["goal"].formula and "controller.eps_G" in g1["goal"].formula
+    static = min(paper.results()["reported_figures"]["G1_static_error_rad"])
+    assert f">= {static:g} rad" in g1["static"].formula
+    assert cosim.load(str(paper_dir / "line.toml"), lambda n: Path(n)).requirements == []
+
+
+def test_a_requirements_runs_must_be_the_protocols(tmp_path: Path, capsys) -> None:
+    sc = tmp_path / "bad.toml"
+    sc.write_text(f'base = "{SCENARIO}"\n[[requirements]]\nname = "r"\nruns = ["foam"]\nformula = "t > 0"\n')
+    assert main(["check", str(sc)]) == 2
+    assert "requirements[0].runs: 'foam' is not a run of this file (run)" in capsys.readouterr().err

@@ -39,6 +39,7 @@ RTAMT = [   # (ours, rtamt's): every operator, bounded and unbounded past
     ("once[2,5] (a.x + 2 * a.y >= 1 - a.x / 4)", "once[2,5](x + 2 * y >= 1 - x / 4)"),
     ("always[0,2] (a.x == a.y or a.x != 0.5)", "always[0,2]((x == y) or (x !== 0.5))"),
     ("eventually[0,4] (a.x <= -1 and not always[1,2] a.y > -a.x)", "eventually[0,4]((x <= -1) and not(always[1,2](y > 0 - x)))"),
+    ("always[0,2] sqrt(a.x * a.x + a.y * a.y) < 1.5", "always[0,2](sqrt(x * x + y * y) < 1.5)"),
 ]
 
 
@@ -122,6 +123,8 @@ def num(node, sig: dict[str, np.ndarray], n: int) -> list[float]:
         return list(sig[node.name])
     if isinstance(node, f.Abs):
         return [abs(v) for v in num(node.a, sig, n)]
+    if isinstance(node, f.Sqrt):
+        return [math.sqrt(v) for v in num(node.a, sig, n)]
     if isinstance(node, f.Neg):
         return [-v for v in num(node.a, sig, n)]
     a, b = num(node.a, sig, n), num(node.b, sig, n)
@@ -132,7 +135,7 @@ def num(node, sig: dict[str, np.ndarray], n: int) -> list[float]:
 def random_formula(rng: random.Random, depth: int) -> str:
     """A random formula over a.x and a.y with bounds in whole seconds (the step is 1 s here)."""
     if depth == 0 or rng.random() < 0.25:
-        lhs = rng.choice(["a.x", "a.y", "abs(a.x)", "a.x - a.y", "2 * a.y"])
+        lhs = rng.choice(["a.x", "a.y", "abs(a.x)", "a.x - a.y", "2 * a.y", "sqrt(a.x * a.x + a.y * a.y)"])
         return f"{lhs} {rng.choice(['<', '>', '>=', '<=', '==', '!='])} {rng.choice(['0', '1', '-0.5', 'a.y'])}"
     lo = rng.randint(0, 3)
     hi = lo + rng.randint(0, 4)
@@ -216,12 +219,16 @@ def test_a_constant_with_a_unit_is_converted_into_the_variables() -> None:
     assert v.verdict == "violated" and v.robustness == pytest.approx(0.05 - 0.07, abs=1e-15)
     c = check("abs(a.u) <= 8 N.m", INFO, 0.5, 1.0)
     assert c.unit_of and set(c.unit_of.values()) == {"N.m"}
+    d = check("sqrt((a.x - 2 m) * (a.x - 2 m) + a.y * a.y) < 5 cm", INFO, 0.5, 1.0)   # a distance, in m
+    assert set(d.unit_of.values()) == {"m"}
+    v, _ = online("sqrt((a.x - 2 m) * (a.x - 2 m) + a.y * a.y) < 5 cm", {"a.x": np.array([1.97]), "a.y": np.array([0.04])})
+    assert v.robustness == pytest.approx(0.05 - math.hypot(0.03, 0.04), abs=1e-15) and v.robustness == pytest.approx(0.0)
     with pytest.raises(FormulaError, match=r"at character 5: N\.m does not convert to m"):
         check("a.x < 8 N.m", INFO, 0.5, 1.0)
 
 
 @pytest.mark.parametrize("formula,message", [
-    ("a.x > ", "at character 7: expected a variable, a number, t, true, false, abs(...) or '(', found the end"),
+    ("a.x > ", "at character 7: expected a variable, a number, t, true, false, abs(...), sqrt(...) or '(', found the end"),
     ("a.x > 0 and (a.y < 1", "at character 21: expected ')', found the end"),
     ("a.z > 0", "at character 1: unknown variable a.z"),
     ("a.x > 5 furlong", "at character 9: unknown unit 'furlong'"),
@@ -234,11 +241,21 @@ def test_a_constant_with_a_unit_is_converted_into_the_variables() -> None:
     ("a.b > 1", "at character 1: a.b is Boolean"),
     ("x > 0", "at character 1: 'x': a variable is \"instance.variable\""),
     ("a.x > 0 $", "at character 9: unexpected '$'"),
+    ("sqrt(a.x) < 1", "at character 1: sqrt of m: a unit whose exponents are not all even"),
 ])
 def test_bad_formulas_say_where(formula: str, message: str) -> None:
     with pytest.raises(FormulaError) as e:
         check(formula, INFO, 0.2, 10.0)
     assert str(e.value).startswith(message), str(e.value)
+
+
+def test_a_comparison_of_nan_is_false_with_robustness_minus_infinity() -> None:
+    """sqrt of a negative number is NaN: the comparison it enters is violated, robustness -inf, whatever
+    the order of the minimum it meets."""
+    x = np.array([4.0, -1.0, 9.0])
+    v, seen = online("sqrt(a.x * a.x * a.x / 1 m) > 1 m", {"a.x": x})
+    assert v.verdict == "violated" and v.first_violation == 0.5 and v.robustness == -math.inf
+    assert online("a.x > 0 and sqrt(a.x * a.x * a.x / 1 m) > 1 m", {"a.x": x})[0].robustness == -math.inf
 
 
 def test_a_bound_beyond_the_stop_time_is_a_note() -> None:

@@ -30,6 +30,19 @@ DIVERGED_E_RAD = 1.0
 TRACKING_ERRORS = ("controller.e1", "controller.e2", "controller.edot1", "controller.edot2")
 
 
+def requirement_verdicts(folder: str | Path) -> dict[str, dict[str, Any]]:
+    """The verdicts of a run's requirements, by name (summary.json's ``requirements``; {} when it has none
+    or no summary)."""
+    import json
+
+    f = Path(folder) / "summary.json"
+    try:
+        doc = json.loads(f.read_text(encoding="utf-8")) if f.is_file() else {}
+    except (OSError, ValueError):
+        return {}
+    return {r["name"]: r for r in doc.get("requirements") or [] if isinstance(r, dict) and "name" in r}
+
+
 def load_signals(folder: str | Path) -> Signals | None:
     """The signals of one run folder (None if it recorded nothing)."""
     f = Path(folder) / "signals.npy"

@@ -241,7 +241,11 @@ def _run_protocol(args: argparse.Namespace, parsed: Any, out: Path, overrides: d
                   f"results in {out / name}")
         else:
             print(f"wmr-cosim: run {name} {r.status}: {r.message}", file=sys.stderr)
-    return for_statuses(r.status for r in results.values())
+        for line in requirement_lines(r.requirements):
+            print(f"[{name}] {line}")
+    code = for_statuses(r.status for r in results.values())
+    return max(code, for_run(RunStatus.OK, [v for r in results.values() for v in r.requirements])) \
+        if code == EXIT_OK else code
 
 
 def _report_run(args: argparse.Namespace, res: Any, out: Path) -> None:
@@ -270,15 +274,14 @@ def requirement_lines(verdicts: list[dict[str, Any]]) -> list[str]:
     out = []
     for v in verdicts:
         unit = f" {v['unit']}" if v.get("unit") else ""
-        rob = f"robustness {v['robustness']:.6g}{unit} at t = {v['at']:.6g} s"
+        rob = f"robustness {v['robustness']:.6g}{unit} at t = {v['at']:.6g} s" if v["robustness"] is not None else ""
         if v["verdict"] == "violated":
             what = (f"VIOLATED at t = {v['first_violation']:.6g} s (known at t = {v['decided_at']:.6g} s); "
                     f"{rob}")
         elif v["verdict"] == "holds":
             what = f"holds; {rob}"
         else:
-            what = "undecided: the run ended before the formula's horizon" + (
-                f"; {rob} so far" if v["robustness"] == v["robustness"] and abs(v["robustness"]) != float("inf") else "")
+            what = "undecided: the run ended before the formula's horizon" + (f"; {rob} so far" if rob else "")
         out.append(f"requirement {v['name']!r}: {what}")
     return out
 

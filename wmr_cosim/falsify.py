@@ -255,7 +255,7 @@ def _rerun(spec: FalsifySpec, worst: dict[str, Any], folder: Path, archive_limit
                            limits=archive_limits)
     verdicts = {v["name"]: v for v in results[spec.run].requirements}
     v = verdicts.get(spec.requirement, {})
-    rob = v.get("robustness", math.inf)
+    rob = math.inf if v.get("robustness") is None else v["robustness"]
     return {"folder": str(folder), "robustness": rob, "verdict": v.get("verdict"),
             "same": rob == _robustness(spec, worst)}
 

@@ -19,7 +19,7 @@ from typing import Any
 
 from .cosim import LimitOverrides, RunStatus
 
-from .analysis import (RUNS, fidelity, load_signals, position_error, run_summary,
+from .analysis import (RUNS, fidelity, load_signals, position_error, requirement_verdicts, run_summary,
                        table1_disturbance_analysis)
 from .components import paper
 from .paper_report import claims, provenance, report_blocks
@@ -97,6 +97,7 @@ def analyse(folder: Path, statuses: dict[str, dict[str, dict[str, Any]]]) -> tup
             signals[task][run] = sig
             summ = run_summary(sig, goal, st["status"])
             summ["position_error_to_paper"] = position_error(task, summ.get("final_position")) if run == "learn" else None
+            summ["requirements"] = requirement_verdicts(folder / task / run)
             tasks[task][run] = summ
         fr, fo = signals[task].get("frozen"), signals[task].get("foam")
         if fr is not None and fo is not None:

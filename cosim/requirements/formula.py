@@ -13,7 +13,7 @@ Grammar (keywords are case-sensitive; precedence from loosest to tightest)::
     sum         := product (("+" | "-") product)*
     product     := sign (("*" | "/") sign)*
     sign        := "-" sign | atom
-    atom        := NUMBER [UNIT] | "t" | "true" | "false" | NAME | "abs" "(" sum ")" | "(" formula ")"
+    atom        := NUMBER [UNIT] | "t" | "true" | "false" | NAME | ("abs" | "sqrt") "(" sum ")" | "(" formula ")"
     BOUND       := "[" NUMBER "," NUMBER "]"          (seconds, from now: future for always, eventually,
                                                         until; past for historically, once, since)
     COMPARE     := "<" | "<=" | ">" | ">=" | "==" | "!="
@@ -21,7 +21,9 @@ Grammar (keywords are case-sensitive; precedence from loosest to tightest)::
 
 A constant may carry a unit (``0.05 m``, ``8 N.m``, ``5 cm``): it is converted into the unit of what it is
 compared with or added to (a unit of another dimension is refused); a constant without a unit is in that
-unit.  ``t`` is the time [s].
+unit.  ``t`` is the time [s].  ``sqrt`` halves the exponents of its operand's unit (a distance:
+``sqrt((a.x - 2 m) * (a.x - 2 m) + a.y * a.y) < 5 cm``); a square root of a negative number is NaN, and a
+comparison whose value is NaN (of either side) is false, robustness -inf.
 
 The quantitative semantics (robustness: how far from violation, in the comparison's unit), on the
 communication points t_k = k h: ``a > b`` and ``a >= b`` give a - b, ``a < b`` and ``a <= b`` give b - a,
@@ -48,7 +50,7 @@ from ..messages.errors import CosimError
 from ..model.units import KNOWN, Unit, conversion
 
 KEYWORDS = {"and", "or", "not", "implies", "always", "eventually", "historically", "once", "until", "since",
-            "true", "false", "t", "abs"}
+            "true", "false", "t", "abs", "sqrt"}
 UNARY_TEMPORAL = {"always": "future", "eventually": "future", "historically": "past", "once": "past"}
 BINARY_TEMPORAL = {"until": "future", "since": "past"}
 COMPARE = ("<", "<=", ">", ">=", "==", "!=")
@@ -151,6 +153,11 @@ class Neg(Node):
 
 @dataclass(frozen=True)
 class Abs(Node):
+    a: Node
+
+
+@dataclass(frozen=True)
+class Sqrt(Node):
     a: Node
 
 
@@ -348,12 +355,12 @@ class _Parser:
             return Time(tok.pos)
         if tok.kind == "name":
             return Var(tok.pos, tok.text)
-        if tok.kind == "keyword" and tok.text == "abs":
+        if tok.kind == "keyword" and tok.text in ("abs", "sqrt"):
             open_ = self.take()
             if open_.text != "(":
-                raise self.fail(open_, "'(' after abs")
+                raise self.fail(open_, f"'(' after {tok.text}")
             self.deeper(tok)
-            node: Node = Abs(tok.pos, self.sum())
+            node: Node = (Abs if tok.text == "abs" else Sqrt)(tok.pos, self.sum())
             self.depth -= 1
             close = self.take()
             if close.text != ")":
@@ -367,7 +374,7 @@ class _Parser:
             if close.text != ")":
                 raise self.fail(close, "')'")
             return node
-        raise self.fail(tok, "a variable, a number, t, true, false, abs(...) or '('")
+        raise self.fail(tok, "a variable, a number, t, true, false, abs(...), sqrt(...) or '('")
 
 
 def parse(text: str) -> Node:
@@ -377,7 +384,7 @@ def parse(text: str) -> Node:
 
 def children(node: Node) -> tuple[Node, ...]:
     """The direct subformulas or operands of a node."""
-    if isinstance(node, (Neg, Abs, Not, Temporal)):
+    if isinstance(node, (Neg, Abs, Sqrt, Not, Temporal)):
         return (node.a,)
     if isinstance(node, (Arith, Cmp, Logic, Until)):
         return (node.a, node.b)
@@ -428,6 +435,14 @@ class Checked:
     unit_of: dict[int, str] = field(default_factory=dict)
 
 
+def _derived(name: str, exps: tuple[int, ...], factor: float) -> Unit:
+    """A unit made by arithmetic, named as the common unit of its dimension and factor where there is one
+    (sqrt of m*m is m), else ``name``."""
+    same = sorted((u.name for u in KNOWN.values() if u.exps == exps and u.factor == factor and not u.offset),
+                  key=lambda n: (len(n), n))
+    return Unit(same[0] if same else name, exps, factor)
+
+
 def _unit_named(name: str, pos: int) -> Unit:
     if name in KNOWN:
         return KNOWN[name]
@@ -452,6 +467,13 @@ class _Checker:
             return v.unit
         if isinstance(n, (Neg, Abs)):
             return self.numeric(n.a)
+        if isinstance(n, Sqrt):
+            u = self.numeric(n.a)
+            if u is None:
+                return None
+            if not u.exps or any(e % 2 for e in u.exps) or u.offset:
+                raise FormulaError(f"sqrt of {u.name}: a unit whose exponents are not all even", n.pos)
+            return _derived(f"sqrt({u.name})", tuple(e // 2 for e in u.exps), math.sqrt(u.factor))
         if isinstance(n, Arith):
             ua, ub = self.numeric(n.a), self.numeric(n.b)
             if n.op in ("+", "-"):
@@ -462,7 +484,7 @@ class _Checker:
                 raise FormulaError(f"{ua.name} {n.op} {ub.name}: a product of units of unknown dimension", n.pos)
             sign = 1 if n.op == "*" else -1
             exps = tuple(x + sign * y for x, y in zip(ua.exps, ub.exps))
-            return Unit(f"({ua.name}){n.op}({ub.name})", exps, ua.factor * ub.factor ** sign)
+            return _derived(f"({ua.name}){n.op}({ub.name})", exps, ua.factor * ub.factor ** sign)
         if isinstance(n, (Bool, Cmp, Not, Logic, Temporal, Until)):
             raise FormulaError("a condition where a number is expected", n.pos)
         raise AssertionError(n)
@@ -574,6 +596,9 @@ def _numeric(n: Node, checked: Checked, read: dict[str, Callable[[], float]]) ->
     if isinstance(n, Abs):
         a = compile_numeric(n.a, checked, read)
         return lambda t: abs(a(t))
+    if isinstance(n, Sqrt):
+        a = compile_numeric(n.a, checked, read)
+        return lambda t: math.sqrt(x) if (x := a(t)) >= 0.0 else math.nan
     assert isinstance(n, Arith)
     a, b = compile_numeric(n.a, checked, read), compile_numeric(n.b, checked, read)
     if n.op == "+":
@@ -603,9 +628,11 @@ def compile_atom(n: Node, checked: Checked, read: dict[str, Callable[[], float]]
     a, b = compile_numeric(n.a, checked, read), compile_numeric(n.b, checked, read)
     op = n.op
     if op in (">", ">="):
-        return lambda t: a(t) - b(t)
-    if op in ("<", "<="):
-        return lambda t: b(t) - a(t)
-    if op == "==":
-        return lambda t: -abs(a(t) - b(t))
-    return lambda t: abs(a(t) - b(t))
+        f = lambda t: a(t) - b(t)   # noqa: E731
+    elif op in ("<", "<="):
+        f = lambda t: b(t) - a(t)   # noqa: E731
+    elif op == "==":
+        f = lambda t: -abs(a(t) - b(t))   # noqa: E731
+    else:
+        f = lambda t: abs(a(t) - b(t))   # noqa: E731
+    return lambda t: r if (r := f(t)) == r else -math.inf   # a comparison of NaN: false, -inf

@@ -220,15 +220,16 @@ def _build(n: Node, checked: Checked, read: dict[str, Callable[[], float]], step
 class Verdict:
     """What a requirement's run says: ``verdict`` "holds", "violated" or "undecided"; ``robustness`` (in
     the unit of its comparison) and ``at`` [s], the time it refers to (the lowest value of an
-    ``always``, the highest of an ``eventually``, else 0); ``first_violation`` [s] (None if none);
+    ``always``, the highest of an ``eventually``, else 0; both None when no value was judged: the run ended
+    before the window); ``first_violation`` [s] (None if none);
     ``decided_at`` [s], the communication point at which the verdict was known (None: undecided);
     ``window`` [s], the times whose values the verdict rests on (from the start of the run)."""
 
     name: str
     formula: str
     verdict: str
-    robustness: float
-    at: float
+    robustness: float | None
+    at: float | None
     first_violation: float | None
     decided_at: float | None
     window: tuple[float, float | None] = (0.0, 0.0)   # [s] the times judged (None: to the end of the run)
@@ -261,6 +262,7 @@ class Monitor:
         self.n = 0                          # samples in
         self.seen = 0                       # body values folded into the verdict
         self.best = INF if self.mode == "min" else -INF
+        self.judged = 0                      # body values folded into the verdict
         self.best_k = 0
         self.first_violation: float | None = None
         self.decided: str | None = None
@@ -289,13 +291,14 @@ class Monitor:
         k = self.seen
         if self.mode == "single":
             if self.decided is None and upto > 0:
-                self.best, self.best_k = v[0], 0
+                self.best, self.best_k, self.judged = v[0], 0, 1
                 self._decide("holds" if v[0] >= 0 else "violated", t, 0)
             self.seen = upto
             return
         end = upto if self.hi is None else min(upto, self.hi + 1)
         for k in range(max(k, self.lo), end):
             x = v[k]
+            self.judged += 1
             if (x < self.best) if self.mode == "min" else (x > self.best):
                 self.best, self.best_k = x, k
             if self.mode == "min" and x < 0 and self.first_violation is None:
@@ -322,10 +325,11 @@ class Monitor:
         verdict = self.decided or "undecided"
         if self.decided is None and self.mode == "min" and self.hi is None and self.seen > 0 and self.finished:
             verdict = "holds"   # an unbounded always over the whole run, every judged value >= 0
-        at = self.times[self.best_k] if self.best_k < len(self.times) else math.nan
+        judged = self.judged > 0
+        at = self.times[self.best_k] if judged else None
         t0 = self.times[0] if self.times else 0.0
         hi = None if self.hi is None else t0 + self.hi * self.step
-        return Verdict(self.name, self.checked.text, verdict, self.best, at,
+        return Verdict(self.name, self.checked.text, verdict, self.best if judged else None, at,
                        self.first_violation, self.decided_at if self.decided else None,
                        (t0 + self.lo * self.step, hi))
 

@@ -35,8 +35,9 @@ class RequirementMonitors(Manipulator):
             m.sample(t)
             if m.violated_now and r.on_violation == "stop":
                 v = m.verdict
-                ex.stop(f"requirement {r.name!r} violated at t = {v.first_violation:.6g} s (known at t = {t:.6g} s, "
-                        f"robustness {v.robustness:.6g})", RunStatus.VIOLATED)
+                rob = "" if v.robustness is None else f", robustness {v.robustness:.6g}"
+                ex.stop(f"requirement {r.name!r} violated at t = {v.first_violation:.6g} s (known at t = {t:.6g} s"
+                        f"{rob})", RunStatus.VIOLATED)
                 return
 
     def finish(self) -> list[dict[str, Any]]:

@@ -15,6 +15,7 @@ named "run".
 from __future__ import annotations
 
 import copy
+import dataclasses
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -102,8 +103,11 @@ _STAND_IN: dict[str, Any] = {"Real": 0.0, "Integer": 0, "Enumeration": 0, "Boole
 
 def _resolve_run(proto: Protocol, run: str, params: dict[str, Any], force: bool, isolate: bool) -> system.Plan:
     """The checked plan of one run; a failure names the run."""
+    sc = proto.with_parameters(params)
+    if any(r.runs is not None for r in sc.requirements):   # the requirements of this run (a copy: not shared)
+        sc = dataclasses.replace(sc, requirements=[r for r in sc.requirements if r.runs is None or run in r.runs])
     try:
-        return system.resolve(proto.with_parameters(params), force, isolate_all=isolate)
+        return system.resolve(sc, force, isolate_all=isolate)
     except ScenarioError as exc:
         where = f"runs.{run}: {exc.field}" if exc.field else f"runs.{run}"
         raise ScenarioError(exc.file, where, exc.reason) from None

@@ -43,7 +43,7 @@ _RECORD_KEYS = {"variables", "decimation", "csv", "mat", "max_bytes"}
 _RUN_KEYS = {"name", "description", "parameters", "carry"}
 _VARIANT_KEYS = {"description", "parameters"}
 _EVENT_KEYS = {"time", "when", "trigger", "delay", "variable", "action", "value"}
-_REQUIREMENT_KEYS = {"name", "formula", "on_violation", "description"}
+_REQUIREMENT_KEYS = {"name", "formula", "on_violation", "description", "runs"}
 #: What a requirement's violation does: recorded in the results, or the run stopped at once.
 ON_VIOLATION = ("record", "stop")
 
@@ -110,13 +110,15 @@ class EventSpec:
 @dataclass
 class RequirementSpec:
     """A requirement: its ``name``, its ``formula`` in signal temporal logic (:mod:`cosim.requirements.formula`),
-    what a violation does (``on_violation``: "record" it, or "stop" the run) and a description."""
+    what a violation does (``on_violation``: "record" it, or "stop" the run), a description, and the runs
+    of a protocol it is monitored in."""
 
     name: str
     formula: str
     on_violation: str = "record"
     description: str = ""
     index: int = 0
+    runs: list[str] | None = None   # the protocol's runs it is monitored in (None: every run)
 
 
 @dataclass
@@ -649,7 +651,7 @@ def _parse_events(sc: Scenario, doc: dict[str, Any]) -> None:
 
 def _parse_requirements(sc: Scenario, doc: dict[str, Any]) -> None:
     """[[requirements]]: a name, a formula (parsed here: its syntax; its variables, types, units and bounds
-    are checked with the FMUs), what a violation does, a description."""
+    are checked with the FMUs), what a violation does, a description, the runs it is monitored in."""
     from ..requirements.formula import FormulaError, parse as parse_formula, variables as formula_variables
 
     file = sc.file
@@ -680,7 +682,15 @@ def _parse_requirements(sc: Scenario, doc: dict[str, Any]) -> None:
         description = r.get("description", "")
         if not isinstance(description, str):
             raise ScenarioError(file, f"{fld}.description", "must be a string")
-        sc.requirements.append(RequirementSpec(name, formula, action, description, i))
+        runs = r.get("runs")
+        if runs is not None:
+            names = [run.name for run in sc.runs] or ["run"]
+            if not isinstance(runs, list) or not runs or not all(isinstance(x, str) for x in runs):
+                raise ScenarioError(file, f"{fld}.runs", "must be a list of the protocol's run names")
+            for x in runs:
+                if x not in names:
+                    raise ScenarioError(file, f"{fld}.runs", f"{x!r} is not a run of this file ({', '.join(names)})")
+        sc.requirements.append(RequirementSpec(name, formula, action, description, i, runs))
 
 
 def check_experiment(sc: Scenario, where: str = "experiment") -> None:
