@@ -21,7 +21,7 @@ from .components.metrics import run_metrics
 from .components.plant import PlantParams
 from .components.sensor import SensorParams
 from .components.validation import ParameterError
-from .exit_codes import OK as EXIT_OK, RUN_FAILED as EXIT_FAILED, for_error, for_run, for_status, for_statuses
+from .exit_codes import OK as EXIT_OK, RUN_FAILED as EXIT_FAILED, for_error, for_runs
 from .scenario_files import scenario_path
 
 
@@ -198,7 +198,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                        force=args.force, isolate=args.isolate, real_time=args.real_time, limits=args.limits,
                        parsed=parsed, fields=fields, on_plan=lambda plan: _print_notes(plan.scenario.notes))
     _report_run(args, res, out)
-    return for_run(res.status, res.requirements)
+    return for_runs([res.status], res.requirements)
 
 
 def scenario_file(args: argparse.Namespace) -> Any:
@@ -243,9 +243,7 @@ def _run_protocol(args: argparse.Namespace, parsed: Any, out: Path, overrides: d
             print(f"wmr-cosim: run {name} {r.status}: {r.message}", file=sys.stderr)
         for line in requirement_lines(r.requirements):
             print(f"[{name}] {line}")
-    code = for_statuses(r.status for r in results.values())
-    return max(code, for_run(RunStatus.OK, [v for r in results.values() for v in r.requirements])) \
-        if code == EXIT_OK else code
+    return for_runs([r.status for r in results.values()], [v for r in results.values() for v in r.requirements])
 
 
 def _report_run(args: argparse.Namespace, res: Any, out: Path) -> None:

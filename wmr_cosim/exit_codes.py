@@ -26,11 +26,11 @@ def for_status(status: str) -> int:
     return INTERRUPTED if s is RunStatus.INTERRUPTED else RUN_FAILED
 
 
-def for_run(status: str, requirements: Iterable[dict]) -> int:
-    """The exit code of a command whose run ended with ``status`` and gave these requirement verdicts
-    (summary.json's ``requirements``): :func:`for_status`, but 3 for a run that ended well with a
-    requirement violated."""
-    code = for_status(status)
+def for_runs(statuses: Iterable[str], requirements: Iterable[dict]) -> int:
+    """The exit code of a command of runs that ended with ``statuses`` and gave these requirement verdicts
+    (summary.json's ``requirements``): :func:`for_statuses`, but 3 where every run ended well and a
+    requirement was violated."""
+    code = for_statuses(statuses)
     if code == OK and any(r.get("verdict") == "violated" for r in requirements):
         return REQUIREMENT_VIOLATED
     return code

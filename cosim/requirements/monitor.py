@@ -31,10 +31,8 @@ INF = math.inf
 
 
 class _Stream:
-    """The robustness values of one subformula by step index, as far as known; ``lag``: how many steps
-    after k the value at k is known (its look-ahead into the future)."""
-
-    lag = 0
+    """The robustness values of one subformula by step index, as far as known; ``complete``: the values
+    below it rest on complete windows (the others, computed when the run ended, on cut ones)."""
 
     def __init__(self) -> None:
         self.values: list[float] = []
@@ -62,7 +60,7 @@ class _Atom(_Stream):
 class _Not(_Stream):
     def __init__(self, a: _Stream) -> None:
         super().__init__()
-        self.a, self.lag = a, a.lag
+        self.a = a
 
     def update(self, n: int, final: bool) -> None:
         self.a.update(n, final)
@@ -75,7 +73,7 @@ class _Not(_Stream):
 class _Logic(_Stream):
     def __init__(self, op: str, a: _Stream, b: _Stream) -> None:
         super().__init__()
-        self.op, self.a, self.b, self.lag = op, a, b, max(a.lag, b.lag)
+        self.op, self.a, self.b = op, a, b
 
     def update(self, n: int, final: bool) -> None:
         self.a.update(n, final)
@@ -95,7 +93,6 @@ class _Window(_Stream):
     def __init__(self, lowest: bool, future: bool, lo: int, hi: int | None, a: _Stream) -> None:
         super().__init__()
         self.lowest, self.future, self.lo, self.hi, self.a = lowest, future, lo, hi, a
-        self.lag = a.lag + (hi if future and hi is not None else 0)
         self.queue: deque[int] = deque()   # operand indices, their values monotonic
         self.pushed = 0                     # operand indices pushed so far
 
@@ -145,7 +142,6 @@ class _Until(_Stream):
     def __init__(self, future: bool, lo: int, hi: int | None, a: _Stream, b: _Stream) -> None:
         super().__init__()
         self.future, self.lo, self.hi, self.a, self.b = future, lo, hi, a, b
-        self.lag = max(a.lag, b.lag) + (hi if future and hi is not None else 0)
 
     def update(self, n: int, final: bool) -> None:
         self.a.update(n, final)
