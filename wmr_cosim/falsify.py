@@ -58,6 +58,11 @@ class FalsifySpec:
     description: str = ""
 
     @property
+    def parameters(self) -> list[str]:
+        """Every parameter the space sets ("a.x+b.y" sets both)."""
+        return [ref for key in self.space for ref in key.split("+")]
+
+    @property
     def column(self) -> str:
         """The results table's column of the requirement's robustness."""
         return f"{self.run}.{self.requirement}.robustness"
@@ -227,7 +232,7 @@ def _result(spec: FalsifySpec, members: int, generations: int, rows: list[dict[s
             worst: dict[str, Any], out: Path, archive_limits: LimitOverrides | None) -> dict[str, Any]:
     """falsify.json: the spec, the optimiser, the nominal run, the worst case with the command that runs
     it, its re-run here (into ``out/worst``), the points that failed."""
-    params = {k: worst[k] for k in _params(spec, np.zeros(len(spec.space)))}
+    params = {k: worst[k] for k in spec.parameters}
     command = (f"wmr-cosim run {shlex.quote(spec.base)}"
                + (f" --variant {shlex.quote(spec.variant)}" if spec.variant else "")
                + "".join(f" --set {shlex.quote(f'{k}={v!r}')}" for k, v in params.items())
@@ -240,17 +245,17 @@ def _result(spec: FalsifySpec, members: int, generations: int, rows: list[dict[s
         "nominal": {"robustness": _robustness(spec, nominal), "verdict": nominal.get(verdict), "status": nominal["status"]},
         "worst": {"point": worst["point"], "generation": worst["generation"], "params": params,
                   "robustness": _robustness(spec, worst), "verdict": worst.get(verdict), "command": command},
-        "rerun": _rerun(spec, worst, out / "worst", archive_limits),
+        "rerun": _rerun(spec, worst, params, out / "worst", archive_limits),
         "failed": sum(1 for r in rows if _robustness(spec, r) == math.inf),
     }
 
 
-def _rerun(spec: FalsifySpec, worst: dict[str, Any], folder: Path, archive_limits: LimitOverrides | None
-           ) -> dict[str, Any]:
-    """The worst point run again here (as its command runs it): its robustness and whether it is the same."""
+def _rerun(spec: FalsifySpec, worst: dict[str, Any], params: dict[str, Any], folder: Path,
+           archive_limits: LimitOverrides | None) -> dict[str, Any]:
+    """The worst point (its ``params``) run again here, as its command runs it: its robustness and whether
+    it is the same."""
     from .runner import run_protocol
 
-    params = {k: worst[k] for k in _params(spec, np.zeros(len(spec.space)))}
     results = run_protocol(spec.base, folder, variant=spec.variant, overrides=params, progress=False,
                            limits=archive_limits)
     verdicts = {v["name"]: v for v in results[spec.run].requirements}

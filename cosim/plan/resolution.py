@@ -428,7 +428,7 @@ def _requirements(sc: Scenario, insts: dict[str, InstancePlan], notes: list[str]
     """The requirements checked against their variables (each exists and is a scalar; types, units, the
     bounds against the communication step and the stop time), with what each reads; every variable a
     formula names is recorded.  A bound beyond the stop time is a note."""
-    from ..requirements.formula import FormulaError, VarInfo, check, parse, variables
+    from ..requirements.formula import FormulaError, VarInfo, check, variables
 
     file = sc.file
     start, stop, step = sc.times()
@@ -438,7 +438,7 @@ def _requirements(sc: Scenario, insts: dict[str, InstancePlan], notes: list[str]
         fld = f"requirements[{r.index}].formula"
         reads: dict[str, tuple[str, Variable]] = {}
         info: dict[str, VarInfo] = {}
-        for ref, pos in variables(parse(r.formula)).items():
+        for ref, pos in variables(r.node).items():
             inst, vname = ref.split(".", 1)
             where = f"requirement {r.name!r}: at character {pos}"
             try:
@@ -454,7 +454,7 @@ def _requirements(sc: Scenario, insts: dict[str, InstancePlan], notes: list[str]
             if ref not in extra:
                 extra.append(ref)
         try:
-            checked = check(r.formula, info, step, stop - start)
+            checked = check(r.formula, info, step, stop - start, r.node)
         except FormulaError as exc:
             raise ScenarioError(file, fld, f"requirement {r.name!r}: {exc}") from None
         notes += [f"requirement {r.name!r}: {n}" for n in checked.notes]

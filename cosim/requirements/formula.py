@@ -44,7 +44,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Generic, TypeVar
 
 from ..messages.errors import CosimError
 from ..model.units import KNOWN, Unit, conversion
@@ -204,20 +204,31 @@ class Until(Node):
     b: Node
 
 
-class _Parser:
-    def __init__(self, text: str) -> None:
+_T = TypeVar("_T")
+
+
+class Cursor(Generic[_T]):
+    """A recursive-descent parser's place in its tokens (ending with an ``end`` token) and its nesting;
+    this language's parser and the events' conditions' (cosim.scenario.condition) build on it."""
+
+    def __init__(self, text: str, toks: list[_T]) -> None:
         self.text = text
-        self.toks = tokenize(text)
+        self.toks = toks
         self.i = 0
         self.depth = 0
 
-    def peek(self) -> Token:
+    def peek(self) -> _T:
         return self.toks[self.i]
 
-    def take(self) -> Token:
+    def take(self) -> _T:
         tok = self.toks[self.i]
         self.i += 1
         return tok
+
+
+class _Parser(Cursor[Token]):
+    def __init__(self, text: str) -> None:
+        super().__init__(text, tokenize(text))
 
     def is_kw(self, *words: str) -> bool:
         return self.peek().kind == "keyword" and self.peek().text in words
@@ -555,11 +566,12 @@ class _Checker:
                                   f"{self.stop:g} s: its verdict may stay undecided")
 
 
-def check(text: str, info: dict[str, VarInfo], step: float, stop: float) -> Checked:
-    """Parse and check a requirement's formula against its variables (``info``: by "instance.variable"),
-    the communication step [s] and the stop time [s]; FormulaError with the position where it fails.
-    A formula without a temporal operator becomes ``always`` of it."""
-    node = parse(text)
+def check(text: str, info: dict[str, VarInfo], step: float, stop: float, node: Node | None = None) -> Checked:
+    """Check a requirement's formula (``node``: its syntax tree, parsed here when not given) against its
+    variables (``info``: by "instance.variable"), the communication step [s] and the stop time [s];
+    FormulaError with the position where it fails.  A formula without a temporal operator becomes
+    ``always`` of it."""
+    node = parse(text) if node is None else node
     c = _Checker(text, info, step, stop)
     if not temporal(node):
         node = Temporal(1, "always", 0.0, None, node)
@@ -626,13 +638,9 @@ def compile_atom(n: Node, checked: Checked, read: dict[str, Callable[[], float]]
         return lambda t: math.inf if get() else -math.inf
     assert isinstance(n, Cmp)
     a, b = compile_numeric(n.a, checked, read), compile_numeric(n.b, checked, read)
-    op = n.op
-    if op in (">", ">="):
-        f = lambda t: a(t) - b(t)   # noqa: E731
-    elif op in ("<", "<="):
-        f = lambda t: b(t) - a(t)   # noqa: E731
-    elif op == "==":
-        f = lambda t: -abs(a(t) - b(t))   # noqa: E731
-    else:
-        f = lambda t: abs(a(t) - b(t))   # noqa: E731
-    return lambda t: r if (r := f(t)) == r else -math.inf   # a comparison of NaN: false, -inf
+    # the robustness a - b, b - a, -|a - b| or |a - b|; a comparison of NaN (r != r) is false: -inf
+    ordered = {">": 1.0, ">=": 1.0, "<": -1.0, "<=": -1.0}
+    sign = ordered.get(n.op, -1.0 if n.op == "==" else 1.0)
+    if n.op in ordered:
+        return lambda t: r if (r := sign * (a(t) - b(t))) == r else -math.inf
+    return lambda t: r if (r := sign * abs(a(t) - b(t))) == r else -math.inf

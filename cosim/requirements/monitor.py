@@ -38,9 +38,9 @@ class _Stream:
         self.values: list[float] = []
         self.complete = 0      # values below this index rest on complete windows
 
-    def update(self, n: int, final: bool) -> None:
-        """Extend the values as far as the operands allow, ``n`` samples being in (``final``: the run has
-        ended, compute what remains over cut windows)."""
+    def update(self, final: bool) -> None:
+        """Extend the values as far as the operands allow (``final``: the run has ended, compute what
+        remains over cut windows)."""
         raise NotImplementedError
 
 
@@ -53,7 +53,7 @@ class _Atom(_Stream):
         self.values.append(self.f(t))
         self.complete = len(self.values)
 
-    def update(self, n: int, final: bool) -> None:
+    def update(self, final: bool) -> None:
         pass
 
 
@@ -62,8 +62,8 @@ class _Not(_Stream):
         super().__init__()
         self.a = a
 
-    def update(self, n: int, final: bool) -> None:
-        self.a.update(n, final)
+    def update(self, final: bool) -> None:
+        self.a.update(final)
         av, out = self.a.values, self.values
         for k in range(len(out), len(av)):
             out.append(-av[k])
@@ -75,9 +75,9 @@ class _Logic(_Stream):
         super().__init__()
         self.op, self.a, self.b = op, a, b
 
-    def update(self, n: int, final: bool) -> None:
-        self.a.update(n, final)
-        self.b.update(n, final)
+    def update(self, final: bool) -> None:
+        self.a.update(final)
+        self.b.update(final)
         av, bv, out = self.a.values, self.b.values, self.values
         op = self.op
         for k in range(len(out), min(len(av), len(bv))):
@@ -108,8 +108,8 @@ class _Window(_Stream):
         q.append(j)
         self.pushed = j + 1
 
-    def update(self, n: int, final: bool) -> None:
-        self.a.update(n, final)
+    def update(self, final: bool) -> None:
+        self.a.update(final)
         av, out, q = self.a.values, self.values, self.queue
         empty = INF if self.lowest else -INF
         while True:
@@ -143,9 +143,9 @@ class _Until(_Stream):
         super().__init__()
         self.future, self.lo, self.hi, self.a, self.b = future, lo, hi, a, b
 
-    def update(self, n: int, final: bool) -> None:
-        self.a.update(n, final)
-        self.b.update(n, final)
+    def update(self, final: bool) -> None:
+        self.a.update(final)
+        self.b.update(final)
         av, bv, out = self.a.values, self.b.values, self.values
         known = min(len(av), len(bv))
         while True:
@@ -255,7 +255,6 @@ class Monitor:
             self.hi = None if node.hi is None else _steps(node.hi, step)
             node = node.a
         self.body = _build(node, checked, read, step, self.atoms)
-        self.n = 0                          # samples in
         self.seen = 0                       # body values folded into the verdict
         self.best = INF if self.mode == "min" else -INF
         self.judged = 0                      # body values folded into the verdict
@@ -273,13 +272,12 @@ class Monitor:
         self.times.append(t)
         for a in self.atoms:
             a.push(t)
-        self.n += 1
-        self.body.update(self.n, False)
+        self.body.update(False)
         self._fold(t, self.body.complete)
 
     def finish(self) -> None:
         """The run has ended: the values still waiting are computed over cut windows (never judged)."""
-        self.body.update(self.n, True)
+        self.body.update(True)
         self.finished = True
 
     def _fold(self, t: float, upto: int) -> None:
@@ -331,7 +329,7 @@ class Monitor:
 
     def signal(self) -> np.ndarray:
         """The robustness of the body by step index (NaN where it rests on a cut window or is unknown)."""
-        out = np.full(self.n, np.nan)
+        out = np.full(len(self.times), np.nan)
         v = self.body.values[:self.body.complete]
         out[:len(v)] = v
         return out

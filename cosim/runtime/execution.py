@@ -138,8 +138,9 @@ class Execution:
         # the built-in parts, added as a script adds its own (and so before them)
         self.add_manipulator(TimedEvents(actuator, plan.events))
         self.add_manipulator(ConditionEvents(actuator, plan.conditions))
-        self._requirements = RequirementMonitors(plan.requirements)
-        self.add_manipulator(self._requirements)
+        self._requirements = RequirementMonitors(plan.requirements) if plan.requirements else None
+        if self._requirements is not None:   # (a run without requirements has no part that sees every step)
+            self.add_manipulator(self._requirements)
         self.add_observer(self._recorder)
         self.add_observer(ProgressBar(progress, self.clock, sum(plan.internal_steps.values())))
 
@@ -477,7 +478,6 @@ class Execution:
                 inst.shutdown()
             self._recorder.close()
             shutil.rmtree(self._work, ignore_errors=True)
-            self._verdicts = self._requirements.finish() if self._requirements.monitors else []
             self.result = self._result()
         finally:
             if self.folder is not None:
@@ -495,10 +495,11 @@ class Execution:
                         self.pacer.summary() if self.pacer is not None else None)
         res.stepping, res.events_left_out = algorithms.summary(self.algorithm), left_out
         res.handoff = self.handoff.summary() if self.handoff is not None else None
-        res.requirements = self._verdicts
-        if self.folder is not None and self._verdicts:
-            write_robustness(self.folder.path / "requirements.npy", self._requirements.signals(),
-                             self._requirements.monitors[0].times)
+        monitors = self._requirements
+        if monitors is not None and monitors.monitors:   # (none: the run ended before it started)
+            res.requirements = monitors.finish()
+            if self.folder is not None:
+                write_robustness(self.folder.path / "requirements.npy", monitors.signals(), monitors.monitors[0].times)
         logs = {n: (i.log_lines, i.received) for n, i in self.instances.items()}
         res.summary = summary(self.plan, res, self._recorder.n_rows, logs)
         if self.folder is not None:

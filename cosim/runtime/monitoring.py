@@ -20,7 +20,7 @@ class RequirementMonitors(Manipulator):
 
     def __init__(self, requirements: list[RequirementPlan]) -> None:
         self.requirements = requirements
-        self.per_step = bool(requirements)
+        self.per_step = True
         self.monitors: list[Monitor] = []
 
     def started(self, ex: Manipulable) -> None:

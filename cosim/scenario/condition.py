@@ -23,6 +23,8 @@ import re
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from ..requirements.formula import Cursor
+
 COMPARE = {"<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge, "==": operator.eq,
            "!=": operator.ne}
 KEYWORDS = {"and", "or", "not", "true", "false", "t"}
@@ -83,20 +85,9 @@ def tokenize(text: str) -> list[Token]:
 Node = tuple
 
 
-class _Parser:
+class _Parser(Cursor[Token]):
     def __init__(self, text: str) -> None:
-        self.text = text
-        self.toks = tokenize(text)
-        self.i = 0
-        self.depth = 0
-
-    def peek(self) -> Token:
-        return self.toks[self.i]
-
-    def take(self) -> Token:
-        tok = self.toks[self.i]
-        self.i += 1
-        return tok
+        super().__init__(text, tokenize(text))
 
     def fail(self, tok: Token, wanted: str) -> ConditionError:
         where = "at the end" if tok.kind == "end" else f"{tok.text!r} at character {tok.pos + 1}"

@@ -119,6 +119,7 @@ class RequirementSpec:
     description: str = ""
     index: int = 0
     runs: list[str] | None = None   # the protocol's runs it is monitored in (None: every run)
+    node: Any = None                # the parsed formula (cosim.requirements.formula syntax tree)
 
 
 @dataclass
@@ -690,7 +691,7 @@ def _parse_requirements(sc: Scenario, doc: dict[str, Any]) -> None:
             for x in runs:
                 if x not in names:
                     raise ScenarioError(file, f"{fld}.runs", f"{x!r} is not a run of this file ({', '.join(names)})")
-        sc.requirements.append(RequirementSpec(name, formula, action, description, i, runs))
+        sc.requirements.append(RequirementSpec(name, formula, action, description, i, runs, node))
 
 
 def check_experiment(sc: Scenario, where: str = "experiment") -> None:

@@ -454,28 +454,6 @@ static int wmr_ensure_python(void) {
     return ok;
 }
 
-/* The folder of a resource location (FMI 2.0: a file:// URI, is_uri 1; FMI 3.0: a path), as UTF-16. */
-static int wmr_resource_dir(const char *resources, int is_uri, wchar_t *out, size_t n) {
-    const char *p = resources;
-    if (is_uri && strncmp(p, "file://", 7) == 0) p += 7;
-    if (is_uri && strncmp(p, "localhost/", 10) == 0) p += 9;
-    if (is_uri && p[0] == '/' && p[1] && p[2] == ':') ++p; /* file:///C:/... */
-    char res[WMR_PATH_LEN];
-    size_t j = 0;
-    for (; *p && j + 1 < sizeof res; ++p) { /* undo a URI's %XX escapes */
-        if (is_uri && p[0] == '%' && p[1] && p[2]) {
-            char hex[3] = {p[1], p[2], 0};
-            res[j++] = (char)strtol(hex, NULL, 16);
-            p += 2;
-        } else {
-            res[j++] = *p == '/' ? '\\' : *p;
-        }
-    }
-    res[j] = '\0';
-    while (j > 1 && res[j - 1] == '\\') res[--j] = '\0';
-    return MultiByteToWideChar(CP_UTF8, 0, res, -1, out, (int)n) > 0;
-}
-
 /* What pythonfmu's binary imports besides python3.dll and Windows itself: the Visual C++ runtime (FMI 2.0;
  * pythonfmu3's binary links it statically).  Named in the message when one of them is missing. */
 static void wmr_missing_runtime(char *out, size_t n) {
@@ -641,11 +619,24 @@ static int wmr_ensure_python(void) {
     return ok;
 }
 
-/* The folder of a resource location (FMI 2.0: a file:// URI, is_uri 1; FMI 3.0: a path). */
-static int wmr_resource_dir(const char *resources, int is_uri, char *res, size_t n) {
+#endif
+
+/* ---- both platforms: the binary, the exit and Fatal guards ----------------------------------------- */
+
+/* The folder of a resource location (FMI 2.0: a file:// URI, is_uri 1, with %XX escapes; FMI 3.0: a
+ * path) into `res` (UTF-8), with the platform's separator and no trailing one; file:///C:/... gives C:\... */
+static void wmr_resource_dir(const char *resources, int is_uri, char *res, size_t n) {
+#ifdef _WIN32
+    const char sep = '\\';
+#else
+    const char sep = '/';
+#endif
     const char *p = resources;
     if (is_uri && strncmp(p, "file://", 7) == 0) p += 7;
     if (is_uri && strncmp(p, "localhost/", 10) == 0) p += 9;
+#ifdef _WIN32
+    if (is_uri && p[0] == '/' && p[1] && p[2] == ':') ++p; /* file:///C:/... */
+#endif
     size_t j = 0;
     for (; *p && j + 1 < n; ++p) { /* undo a URI's %XX escapes */
         if (is_uri && p[0] == '%' && p[1] && p[2]) {
@@ -653,16 +644,12 @@ static int wmr_resource_dir(const char *resources, int is_uri, char *res, size_t
             res[j++] = (char)strtol(hex, NULL, 16);
             p += 2;
         } else {
-            res[j++] = *p;
+            res[j++] = *p == '/' ? sep : *p;
         }
     }
     res[j] = '\0';
-    while (j > 1 && res[j - 1] == '/') res[--j] = '\0';
-    return 1;
+    while (j > 1 && res[j - 1] == sep) res[--j] = '\0';
 }
-#endif
-
-/* ---- both platforms: the binary, the exit and Fatal guards ----------------------------------------- */
 
 /* The binary's finalizePythonInterpreter (see "Exit" above). */
 static finalize_python_interpreter_t wmr_finalize_binary;
@@ -673,8 +660,11 @@ static finalize_python_interpreter_t wmr_finalize_binary;
 static wmr_lib wmr_load_binary(const wmr_char *dir, const char *resources, int is_uri, const char *platform) {
 #ifdef _WIN32
     wchar_t path[WMR_PATH_LEN], res[WMR_PATH_LEN], plat[64], rel[128];
+    char res8[WMR_PATH_LEN];
     if (!wmr_join(path, WMR_PATH_LEN, dir, WMR_REAL_BINARY)) path[0] = L'\0';
-    if (!wmr_is_file(path) && resources && wmr_resource_dir(resources, is_uri, res, WMR_PATH_LEN)) {
+    if (!wmr_is_file(path) && resources) {
+        wmr_resource_dir(resources, is_uri, res8, sizeof res8);
+        MultiByteToWideChar(CP_UTF8, 0, res8, -1, res, WMR_PATH_LEN);
         MultiByteToWideChar(CP_UTF8, 0, platform, -1, plat, 64);
         _snwprintf(rel, 128, L"..\\binaries\\%ls\\%ls", plat, WMR_REAL_BINARY);
         rel[127] = 0;
@@ -701,8 +691,10 @@ static wmr_lib wmr_load_binary(const wmr_char *dir, const char *resources, int i
     char path[PATH_MAX];
     if (snprintf(path, sizeof path, "%s/" WMR_REAL_BINARY, dir) >= (int)sizeof path) path[0] = '\0';
     char res[PATH_MAX];
-    if (!wmr_is_file(path) && resources && wmr_resource_dir(resources, is_uri, res, sizeof res))
+    if (!wmr_is_file(path) && resources) {
+        wmr_resource_dir(resources, is_uri, res, sizeof res);
         snprintf(path, sizeof path, "%s/../binaries/%s/%s", res, platform, WMR_REAL_BINARY);
+    }
     void *real = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     if (real == NULL) {
         const char *e = dlerror();
