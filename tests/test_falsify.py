@@ -45,7 +45,7 @@ def test_the_population_spends_the_budget() -> None:
 def test_a_search_of_40_runs_finds_a_worse_case_than_the_nominal_run_and_its_rerun_agrees(tmp_path: Path) -> None:
     """Budget 40 on two axes (the friction change and its onset): the worst case's robustness is below the
     nominal run's, the re-run of the worst case gives the same value bit for bit, every run is in the
-    table; started again on the same folder it runs nothing new and answers the same."""
+    table."""
     spec = files(tmp_path, 40)
     r = falsify(spec, tmp_path / "out", workers=2, progress=False)
     assert r["optimiser"]["runs"] == 40 and r["failed"] == 0
@@ -53,8 +53,6 @@ def test_a_search_of_40_runs_finds_a_worse_case_than_the_nominal_run_and_its_rer
     assert r["rerun"]["same"] and r["rerun"]["robustness"] == r["worst"]["robustness"]
     table = pd.read_csv(tmp_path / "out" / "falsify.csv")
     assert len(table) == 40 and table["robustness"].min() == r["worst"]["robustness"]
-    again = falsify(spec, tmp_path / "out", workers=2, progress=False)
-    assert again["worst"] == r["worst"]
 
 
 def test_the_search_is_deterministic_for_its_seed(tmp_path: Path) -> None:
