@@ -10,7 +10,8 @@ Its folders are its concepts, from the bottom up (each imports only those below 
 * ``scenario``: scenario documents (TOML, conditions, input tables);
 * ``plan``: a scenario resolved against its FMUs (records, coupling structure, wiring, SSP);
 * ``results``: the recording and the results folder;
-* ``runtime``: the execution, its observers and manipulators, start-up, pacing, protocols.
+* ``runtime``: the execution, its observers and manipulators, start-up, pacing, protocols;
+* ``linearisation``: linear models of FMUs and of the system around a point of a run, loops and margins.
 
 This face exports what the application and users' scripts use; each folder's face exports its own.
 """
@@ -22,6 +23,7 @@ import lazy_loader
 
 if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
     from .instances import SOLVERS, SolverSpec
+    from .linearisation import LinearModel, Linearisation, Linearizer, LoopAnalysis, Request, plot_loop
     from .messages import (CosimError, FmuLoadError, OtherFileError, OutputError, RunError, ScenarioError,
                            close_names, count, did_you_mean)
     from .model import (CO_SIMULATION, DEFAULT_LIMITS, MODEL_EXCHANGE, ArchiveLimits, FileKind, FmuModel,
@@ -37,6 +39,7 @@ if TYPE_CHECKING:   # (for the type checker; at run time each name is imported w
 
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "instances": ["SOLVERS", "SolverSpec"],
+    "linearisation": ["LinearModel", "Linearisation", "Linearizer", "LoopAnalysis", "Request", "plot_loop"],
     "messages": ["CosimError", "FmuLoadError", "OtherFileError", "OutputError", "RunError", "ScenarioError",
                  "close_names", "count", "did_you_mean"],
     "model": ["CO_SIMULATION", "DEFAULT_LIMITS", "MODEL_EXCHANGE", "ArchiveLimits", "FileKind", "FmuModel",

@@ -46,6 +46,7 @@ def test_no_import_cycle_among_the_modules_of_the_master():
 def test_every_folder_has_a_face_and_at_most_twelve_modules():
     names = [p.name for p in folders()]
     assert names == sorted(["messages", "model", "instances", "stepping", "requirements", "scenario", "plan", "results",
+                            "linearisation",
                             "runtime"])
     assert sorted(p.name for p in COSIM.glob("*.py")) == ["__init__.py"]   # no module outside the folders
     for folder in folders():

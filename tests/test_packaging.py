@@ -80,7 +80,8 @@ IMPORTS = {
     "matplotlib": ("matplotlib", None), "tqdm": ("tqdm", None), "pyssp_standard": ("pyssp-standard", None),
     "lxml": ("lxml", None), "lazy_loader": ("lazy_loader", None),
     "pandas": ("pandas", "sweep"), "distributed": ("dask[distributed]", "sweep"),  # sweep, gamma-search
-    "scipy": ("scipy", "sweep"),   # falsify
+    "scipy": ("scipy", "sweep"),   # falsify (and linearize: in the linear extra too)
+    "control": ("control", "linear"),   # linearize (python-control)
     "libcosimpy": ("libcosimpy", "test"), "ecospy": ("ecospy", "test"),  # wmr_cosim.interop (other masters)
 }
 

@@ -488,6 +488,28 @@ def cmd_falsify(args: argparse.Namespace) -> int:
     return EXIT_OK if r["rerun"]["same"] else EXIT_FAILED
 
 
+def cmd_linearize(args: argparse.Namespace) -> int:
+    """A linear model around a point of a run; with a break, the loop's margins."""
+    from .linearize import linearize, parse_break, parse_states, report, write
+    from .runner import parse_set
+
+    lin = linearize(args.target, at=args.at, inputs=_names(args.inputs), outputs=_names(args.outputs),
+                    breaks=parse_break(args.breaks) if args.breaks else None, discrete=args.discrete,
+                    method=args.method, steps=args.steps, order=args.order, pulse=args.pulse,
+                    states=parse_states(args.state), overrides=parse_set(args.set), limits=args.limits)
+    for line in report(lin):
+        print(line)
+    out = args.out if args.out is not None else Path("results") / f"linear-{Path(args.target).stem}"
+    files = write(lin, out)
+    print(f"results in {out} ({', '.join(f.name for f in files)})")
+    return EXIT_OK
+
+
+def _names(items: list[str] | None) -> list[str]:
+    """Repeated or comma-separated names -> one list."""
+    return [n.strip() for item in items or [] for n in item.split(",") if n.strip()]
+
+
 def _dask_options(p: argparse.ArgumentParser) -> None:
     """--workers, --scheduler, --dashboard, --tls-*, --quiet: where the points of a sweep or gamma search run."""
     p.add_argument("--workers", type=int, default=None, help="local worker processes (default: one per core)")
@@ -582,6 +604,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sweep(sub)
     _add_gamma_search(sub)
     _add_falsify(sub)
+    _add_linearize(sub)
     return ap
 
 
@@ -789,6 +812,43 @@ def _add_falsify(sub: Any) -> None:
     fa.set_defaults(func=cmd_falsify, subparser=fa)
 
 
+def _add_linearize(sub: Any) -> None:
+    """The ``linearize`` command."""
+    li = sub.add_parser("linearize", help="a linear model of an FMU or a system around a point of its run",
+                        description="Run a scenario (one run) or an FMU to t = --at, then linearise there: "
+                                    "Model Exchange FMUs and memoryless ones as a continuous-time model "
+                                    "(directional derivatives, else central differences; the blocks closed through "
+                                    "the connections), anything else as a discrete-time model at the communication "
+                                    "step realised from pulse responses taken with rollback. With --break, the loop "
+                                    "opened at that connection: its margins, Bode and Nyquist plots. Writes "
+                                    "linear.npz, linear.mat, linear.json (docs/linearisation.md). Exit codes: 0 ok, "
+                                    "1 the run failed, 2 bad input.")
+    li.add_argument("target", type=scenario_path, help="scenario file (.toml) of one run, or one FMU (.fmu)")
+    li.add_argument("--at", type=float, default=None, metavar="T", help="the operating point's time [s] (default: "
+                                                                        "the start)")
+    li.add_argument("--inputs", action="append", metavar="INST.VAR,...",
+                    help="inputs of the model (an FMU alone: default every Real input); an input a connection "
+                         "drives gets the signal added to what it carries")
+    li.add_argument("--outputs", action="append", metavar="INST.VAR,...",
+                    help="outputs of the model (an FMU alone: default every Real output)")
+    li.add_argument("--break", dest="breaks", default=None, metavar="FROM->TO",
+                    help="open this connection: inject at TO, read the return at FROM; the loop's margins")
+    li.add_argument("--discrete", action="store_true",
+                    help="a discrete-time model from pulse responses even where a continuous one can be taken")
+    li.add_argument("--method", choices=("auto", "directional", "differences"), default="auto",
+                    help="the Jacobian of Model Exchange FMUs (default: directional derivatives where provided)")
+    li.add_argument("--steps", type=int, default=None, help="length of the pulse responses [steps] (default 200)")
+    li.add_argument("--order", type=int, default=None, help="order of the realisation (default: from the Hankel "
+                                                             "singular values)")
+    li.add_argument("--pulse", type=float, default=None, help="the pulse, relative to max(|u|, nominal) (default 1e-4)")
+    li.add_argument("--state", action="append", metavar="INST.STATE=VALUE",
+                    help="set a continuous state at the point (Model Exchange)")
+    li.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
+    li.add_argument("--out", type=Path, default=None, metavar="DIR",
+                    help="results folder (default results/linear-<target>)")
+    li.set_defaults(func=cmd_linearize, subparser=li)
+
+
 def archive_limits(args: argparse.Namespace) -> Any:
     """The archive limits of --max-archive-size and --max-archive-ratio (None when neither is given), which
     every command passes down as an argument (paper, sweep and gamma-search send them to their worker
@@ -819,6 +879,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wmr-cosim: error: {error_message(exc)}", file=sys.stderr)
         return for_error(exc)
     except ImportError as exc:
+        if exc.name and exc.name.split(".")[0] == "control":
+            print(f"wmr-cosim: error: {args.command} needs python-control: pip install 'wmr-cosim[linear]'",
+                  file=sys.stderr)
+            return for_error(exc)
         if exc.name and exc.name.split(".")[0] in ("dask", "distributed", "pandas", "pyarrow"):
             print(f"wmr-cosim: error: {args.command} needs {exc.name}: pip install 'wmr-cosim[sweep]'", file=sys.stderr)
             return for_error(exc)

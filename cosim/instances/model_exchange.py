@@ -353,6 +353,71 @@ class ModelExchange:
             return not bool(getattr(me, "completedIntegratorStepNotNeeded", False))
         return bool(getattr(me, "needsCompletedIntegratorStep", False))
 
+    # ------------------------------------------------------------------ the point, for a linearisation
+    def continuous_states(self) -> list[float]:
+        """The continuous states now (fmi2GetContinuousStates), in the order of the model structure's
+        derivatives."""
+        buf = (ctypes.c_double * max(1, self.nx))()
+        self._check_eq(self.eq.get_x(buf), 2)
+        return buf[:self.nx]
+
+    def set_continuous_states(self, x: list[float]) -> None:
+        """Set the continuous states (fmi2SetContinuousStates); the integrator restarts at the next step."""
+        self._check_eq(self.eq.set_x((ctypes.c_double * max(1, self.nx))(*x)), 1)
+        self.dirty = True
+
+    def state_derivatives(self) -> list[float]:
+        """The derivatives of the states now (fmi2GetDerivatives) [state unit/s]."""
+        buf = (ctypes.c_double * max(1, self.nx))()
+        self._check_eq(self.eq.get_dx(buf), 3)
+        return buf[:self.nx]
+
+    def state_nominals(self) -> list[float]:
+        """The nominal values of the states (fmi2GetNominalsOfContinuousStates)."""
+        buf = (ctypes.c_double * max(1, self.nx))()
+        self._check_eq(self.eq.get_nominals(buf), 4)
+        return buf[:self.nx]
+
+    def get_reals(self, vrs: list[int]) -> list[float]:
+        """The Float64 values of these value references now (scalars)."""
+        call, ctype = super().accessor("Real" if self.fmi_version == 2 else "Float64", "Get")   # type: ignore[misc]
+        n = len(vrs)
+        buf = (ctype * max(1, n))()
+        self._check_call(call((ctypes.c_uint * max(1, n))(*vrs), ctypes.c_size_t(n), buf, ctypes.c_size_t(n)),
+                         "Get")
+        return buf[:n]
+
+    def set_continuous_inputs(self, vrs: list[int], values: list[float]) -> None:
+        """Set continuous Float64 inputs in continuous-time mode, where the standard allows it without an
+        event (the integrator restarts at the next step)."""
+        call, ctype = super().accessor("Real" if self.fmi_version == 2 else "Float64", "Set")   # type: ignore[misc]
+        n = len(vrs)
+        self._check_call(call((ctypes.c_uint * max(1, n))(*vrs), ctypes.c_size_t(n), (ctype * max(1, n))(*values),
+                              ctypes.c_size_t(n)), "Set")
+        self.dirty = True
+
+    @property
+    def provides_directional_derivative(self) -> bool:
+        """The model exchange interface declares providesDirectionalDerivative."""
+        return bool(getattr(self.md.modelExchange, "providesDirectionalDerivative", False))
+
+    def directional_derivative(self, unknowns: list[int], knowns: list[int], seed: list[float]) -> tuple[int, list[float]]:
+        """fmi2GetDirectionalDerivative / fmi3GetDirectionalDerivative: (status, d unknowns = J seed)."""
+        if not self.provides_directional_derivative:
+            raise RunError(f"{self.name}: this FMU gives no directional derivatives", self.name)
+        what = f"fmi{self.fmi_version}GetDirectionalDerivative"
+        values = self.call(what, self.fmu.getDirectionalDerivative, list(unknowns), list(knowns), list(seed), t=self.t)
+        return 0, list(values)
+
+    def _check_eq(self, status: int, which: int) -> None:
+        if status > 1:
+            raise self.fail_status(self.eq.names[which], status, self.t)   # type: ignore[attr-defined]
+
+    def _check_call(self, status: int, op: str) -> None:
+        if status > 1:
+            what = f"fmi2{op}Real" if self.fmi_version == 2 else f"fmi3{op}Float64"
+            raise self.fail_status(what, status, self.t)   # type: ignore[attr-defined]
+
     # ------------------------------------------------------------------ state (rollback)
     @property
     def can_get_and_set_state(self) -> bool:

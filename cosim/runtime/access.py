@@ -57,6 +57,11 @@ class VariableAccess:
         inst, var = self.variable(ref)
         self.script.set(inst, var, checked_value(self.plan.scenario.file, ref, var, value))
 
+    def bias(self, ref: str, value: float) -> None:
+        """Add ``value`` to what reaches a connected Real input or what an output feeds its connections."""
+        inst, var = self.variable(ref)
+        self.script.bias(inst, var, checked_value(self.plan.scenario.file, ref, var, float(value), check_range=False))
+
     def release(self, ref: str) -> None:
-        """End an override :meth:`set` put on a connected input or an output."""
+        """End an override :meth:`set` or a :meth:`bias` put on a connected input or an output."""
         self.script.release(*self.variable(ref))

@@ -25,11 +25,13 @@ script ends it cleanly before its stop time.  What was recorded up to there is o
 """
 from __future__ import annotations
 
+import ctypes
 import math
 import shutil
 import tempfile
 import time as _time
 from pathlib import Path
+from dataclasses import dataclass
 from typing import Any, Callable
 
 from ..instances.contract import FmuInstance
@@ -71,6 +73,18 @@ def _algorithm(plan: Plan) -> Algorithm:
     sc = plan.scenario
     return algorithms.make(sc.algorithm, sc.iteration, sc.adaptive, workers=sc.workers,
                            own_rates=any(ip.decimation > 1 for ip in plan.instances.values()))
+
+
+@dataclass
+class SavedPoint:
+    """A communication point of a run to come back to (:meth:`Execution.save_point`): the steps done, the
+    row's bytes, each instance's saved state, the wiring's overrides and biases, the event log's length."""
+
+    k: int
+    row: bytes
+    states: dict[str, Any]
+    overrides: dict[tuple[str, int, str], tuple[str, float]]
+    n_log: int
 
 
 class Execution:
@@ -378,6 +392,65 @@ class Execution:
         """End an override :meth:`set` put on a connected input or an output."""
         self._alive()
         self.access.release(ref)
+
+    def bias(self, ref: str, value: float) -> None:
+        """Add ``value`` to what reaches a connected Real input (in its unit), or to an output feeding
+        connections, from the next step on, on top of any bias before; :meth:`release` ends it."""
+        self._alive()
+        self.access.bias(ref, value)
+
+    # ------------------------------------------------------------------ going back to a communication point
+    def save_point(self) -> "SavedPoint":
+        """What the steps from here change, to come back to this communication point with
+        :meth:`restore_point` and step again exactly as from here: every instance's state (fmi2GetFMUstate
+        and its kin), the outputs in the row, the steps done, the script's overrides and biases.  Refused
+        (CosimError naming why) where the steps keep more than that: an instance that cannot save its state,
+        an algorithm other than one pass per step at one rate (the others carry iterates or step sizes from
+        step to step), condition events, requirements or parts added to the execution (their memory is not
+        saved), a results folder (the recording is not rolled back).  :meth:`free_point` lets it go."""
+        self._alive()
+        if self.folder is not None:
+            raise CosimError("a point of a run cannot be saved while it records to a results folder "
+                             "(the recording is not rolled back): run it without one")
+        alg = self.algorithm
+        if not alg.name or not algorithms.row(alg.name).one_pass or isinstance(alg, MultiRate):
+            raise CosimError(f"the algorithm {alg.name or type(alg).__name__!r} keeps more than the outputs from "
+                             f"step to step: a point is saved under one pass per step at one rate "
+                             f"({', '.join(r.name for r in algorithms.ROWS if r.one_pass)})")
+        if self.plan.conditions or self._requirements is not None or len(self.manipulators) > 2 \
+                or len(self.observers) > 2:
+            raise CosimError("a point cannot be saved in a run with condition events, requirements or parts "
+                             "added to its execution: their memory is not saved")
+        for name, inst in self.instances.items():
+            if not inst.can_get_and_set_state:
+                raise CosimError(f"{name}: its FMU cannot save and restore its state "
+                                 "(canGetAndSetFMUstate is not declared): the run cannot go back to a point")
+        for inst in self.instances.values():
+            inst.allow_rollback()
+        states = {name: inst.get_state() for name, inst in self.instances.items()}
+        return SavedPoint(self.k_done, bytes(self._layout.buf), states, dict(self._wiring.overrides),
+                          len(self._actuator.log))
+
+    def restore_point(self, point: "SavedPoint") -> None:
+        """Back to a point :meth:`save_point` saved (it stays saved: restore it again, then free it)."""
+        self._alive()
+        for name, st in point.states.items():
+            self.instances[name].set_state(st)
+        ctypes.memmove(self._layout.buf, point.row, len(point.row))
+        self._wiring.overrides.clear()
+        self._wiring.overrides.update(point.overrides)
+        del self._actuator.log[point.n_log:]
+        self.k_done = point.k
+        for io in self.ios:
+            io.copies = self._wiring.copies(io.name)
+        self.algorithm.inputs_changed()
+
+    def free_point(self, point: "SavedPoint") -> None:
+        """Free the instances' saved states of a point."""
+        for name, st in point.states.items():
+            if not self.instances[name].fatal:
+                self.instances[name].free_state(st)
+        point.states.clear()
 
     @property
     def events(self) -> list[dict[str, Any]]:

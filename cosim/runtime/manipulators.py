@@ -118,8 +118,18 @@ class Actuator:
         raise CosimError(f"{ref} is {var.causality}: only inputs, outputs feeding connections and tunable "
                          "parameters can be set between steps")
 
+    def bias(self, inst: str, var: Variable, value: float) -> bool:
+        """Add ``value`` to a connected Real input or an output feeding connections until :meth:`release`
+        (on top of a bias or an override before); whether the copies changed."""
+        if not (is_f64(var) and var.causality in ("input", "output") and self.wiring.is_wired(inst, var.vr,
+                                                                                              var.causality)):
+            ref = f"{inst}.{self.plan.instances[inst].our_name(var)}"
+            raise CosimError(f"{ref} is no Real input or output on a connection: only those take a bias")
+        return self.wiring.act(inst, var.vr, var.causality, "bias", value)
+
     def release(self, inst: str, var: Variable) -> bool:
-        """End an override set by :meth:`set` (the value follows its source again); whether the copies changed."""
+        """End an override set by :meth:`set` or a :meth:`bias` (the value follows its source again); whether
+        the copies changed."""
         if is_f64(var) and self.wiring.is_wired(inst, var.vr, var.causality):
             return self.wiring.act(inst, var.vr, var.causality, "reset", None)
         return False
@@ -215,6 +225,9 @@ class ScriptChanges(Manipulator):
 
     def set(self, inst: str, var: Variable, value: Any) -> None:
         self.dirty = self.actuator.set(inst, var, value) or self.dirty
+
+    def bias(self, inst: str, var: Variable, value: float) -> None:
+        self.dirty = self.actuator.bias(inst, var, value) or self.dirty
 
     def release(self, inst: str, var: Variable) -> None:
         self.dirty = self.actuator.release(inst, var) or self.dirty

@@ -1,0 +1,337 @@
+"""Linearise a system around a point of its run: what is asked (:class:`Request`), checked against the plan
+before anything runs, the run to the point, and the way the model is taken there.
+
+* **Continuous time** when every instance is a Model Exchange FMU or memoryless (a co-simulation FMU that
+  declares no state and every output of which depends, by its model structure, on its inputs alone):
+  each is linearised at the point (:mod:`.jacobian`; the memoryless ones give D alone) and the blocks are
+  closed through the connections (:mod:`.interconnection`).  At the point, every connected input is first
+  given the value its connection carries from the outputs at that time (an exchange repeated until the
+  values hold, for the algebraic loops), so that x(t) and u(t) are a consistent point of the system.
+* **Discrete time** otherwise, or when asked: pulse responses with rollback realised at the communication
+  step (:mod:`.realisation`); every instance must be able to save its state.
+
+A break ``src -> dst`` opens one connection: the model is then taken from ``dst`` (the injection) to
+``src`` (the return) with that connection cut, and the loop is analysed (:mod:`.loop`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..messages.errors import CosimError, RunError, ScenarioError
+from ..model.description import MODEL_EXCHANGE, Variable
+from ..plan.records import ConnectionPlan, Plan
+from ..plan.resolution import INPUTS, variable
+from ..runtime.execution import Execution
+from ..scenario.document import split_ref
+from .interconnection import Link, close
+from .jacobian import Signal, jacobian, linear_model, states_of
+from .loop import LoopAnalysis, analyse
+from .model import LinearModel
+from .realisation import RELATIVE_PULSE, Injection, pulse_responses, realise
+
+#: Sweeps of the exchange of connected values at the point before it is taken as not settling.
+EXCHANGE_SWEEPS = 100
+#: The default length of the pulse responses [communication steps].
+DEFAULT_STEPS = 200
+
+
+@dataclass
+class Request:
+    """What to linearise: at ``at`` [s] of the run (None: its start), from ``inputs`` to ``outputs``
+    ("instance.variable"); ``breaks`` a connection to cut ("src", "dst"); ``discrete``: a realisation from
+    pulse responses even where a continuous model could be taken; ``method`` of the Jacobian ("auto",
+    "directional", "differences"); ``steps`` of the responses and their realised ``order`` (None: from the
+    singular values), ``pulse`` their size relative to the input; ``states``: state values to set at the
+    point ("instance.state": value, Model Exchange only)."""
+
+    at: float | None = None
+    inputs: list[str] = field(default_factory=list)
+    outputs: list[str] = field(default_factory=list)
+    breaks: tuple[str, str] | None = None
+    discrete: bool = False
+    method: str = "auto"
+    steps: int = DEFAULT_STEPS
+    order: int | None = None
+    pulse: float = RELATIVE_PULSE
+    states: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class Linearisation:
+    """The model from the inputs to the outputs; with a break, the loop's analysis and the eigenvalues of
+    the system linearised as a whole (closed), to compare with the loop's closed through the break."""
+
+    model: LinearModel
+    loop: LoopAnalysis | None = None
+    whole_eigenvalues: np.ndarray | None = None
+    notes: list[str] = field(default_factory=list)
+
+
+class Linearizer:
+    """A request checked against a plan (:meth:`check`, before any FMU runs), then taken (:meth:`run`)."""
+
+    def __init__(self, plan: Plan, request: Request) -> None:
+        self.plan, self.req = plan, request
+        self.file = plan.scenario.file
+        start, stop, step = plan.scenario.times()
+        self.start, self.stop, self.step = start, stop, step
+        self.link: ConnectionPlan | None = None
+
+    # ------------------------------------------------------------------ the checks
+    def check(self) -> None:
+        """Every check that needs no run: ScenarioError naming the field."""
+        req = self.req
+        at = self.start if req.at is None else req.at
+        if not (isinstance(at, (int, float)) and math.isfinite(at)) or at < self.start or at > self.stop:
+            raise ScenarioError(self.file, "--at", f"t = {at} s is outside the run ({self.start:g} s to "
+                                                   f"{self.stop:g} s)")
+        for ref in req.inputs:
+            self._var(ref, "--inputs", INPUTS, "input")
+        for ref in req.outputs:
+            self._var(ref, "--outputs", None, "output")
+        if req.breaks is not None:
+            src, dst = req.breaks
+            self.link = next((c for c in self.plan.connections if self._ref(c.src, c.src_var) == src
+                              and self._ref(c.dst, c.dst_var) == dst), None)
+            if self.link is None:
+                raise ScenarioError(self.file, "--break", f"no connection {src} -> {dst} in the system"
+                                    + self._connections_hint())
+        if req.steps < 2:
+            raise ScenarioError(self.file, "--steps", f"{req.steps}: the responses need at least 2 steps")
+        if not (req.pulse > 0 and math.isfinite(req.pulse)):
+            raise ScenarioError(self.file, "--pulse", f"{req.pulse}: a positive size")
+        if self.discrete():
+            if not req.inputs and req.breaks is None:
+                raise ScenarioError(self.file, "--inputs", "a model from pulse responses needs the inputs to "
+                                                           "inject them at (or a --break)")
+            self._check_rollback()
+        for ref in req.states:
+            inst, _ = split_ref(self.file, "--state", ref)
+            if inst not in self.plan.instances or self.plan.instances[inst].interface != MODEL_EXCHANGE:
+                raise ScenarioError(self.file, "--state", f"{ref}: states are set on Model Exchange instances only")
+
+    def _connections_hint(self) -> str:
+        names = [f"{self._ref(c.src, c.src_var)} -> {self._ref(c.dst, c.dst_var)}" for c in self.plan.connections]
+        return f" (its connections: {', '.join(names)})" if names else " (it has no connections)"
+
+    def _ref(self, inst: str, var: Variable) -> str:
+        return f"{inst}.{self.plan.instances[inst].our_name(var)}"
+
+    def _var(self, ref: str, fld: str, fits: Any, kind: str) -> tuple[str, Variable]:
+        inst, name = split_ref(self.file, fld, ref)
+        if inst not in self.plan.instances:
+            raise ScenarioError(self.file, fld, f"{ref}: unknown instance {inst!r}")
+        var = variable(self.file, fld, self.plan.instances[inst], name, fits)
+        if var.fmi_type not in ("Real", "Float64") or var.shape:
+            raise ScenarioError(self.file, fld, f"{ref} is not a scalar real: only those are linearised")
+        if kind == "input" and var.causality != "input":
+            raise ScenarioError(self.file, fld, f"{ref} is {var.causality}, not an input")
+        return inst, var
+
+    def discrete(self) -> bool:
+        """Whether the model is realised from pulse responses (asked, or an instance neither Model
+        Exchange nor memoryless)."""
+        return self.req.discrete or any(not self._continuous(n) for n in self.plan.instances)
+
+    def _continuous(self, name: str) -> bool:
+        ip = self.plan.instances[name]
+        return ip.interface == MODEL_EXCHANGE or memoryless(ip.model.md)
+
+    def _check_rollback(self) -> None:
+        for name, ip in self.plan.instances.items():
+            if not ip.model.declares_state(ip.interface):
+                raise ScenarioError(self.file, f"instances.{name}",
+                                    f"{name} ({ip.model.path.name}) cannot save and restore its state "
+                                    "(canGetAndSetFMUstate): a model from pulse responses goes back to the "
+                                    "point for each of them")
+        if self.plan.conditions:
+            raise ScenarioError(self.file, "events", "condition events: the responses go back to the point, "
+                                                     "which such events do not follow")
+        at = self.start if self.req.at is None else float(self.req.at)
+        end = at + self.req.steps * self.step
+        for ev in self.plan.events:
+            if ev.time is not None and at <= ev.time < end:
+                raise ScenarioError(self.file, "--at", f"an event acts at t = {ev.time:g} s, within the "
+                                    f"{self.req.steps} steps of the responses from {at:g} s: choose a point "
+                                    "whose responses it does not cross")
+        if end > self.stop + 1e-9 * max(1.0, abs(self.stop)):
+            raise ScenarioError(self.file, "--steps", f"{self.req.steps} steps from t = {at:g} s go beyond "
+                                                      f"the run's stop time {self.stop:g} s")
+
+    # ------------------------------------------------------------------ the run
+    def run(self) -> Linearisation:
+        """The run to the point, the model taken there (the FMUs freed after)."""
+        self.check()
+        plan = dataclasses.replace(self.plan, requirements=[])
+        ex = Execution(plan, None)
+        try:
+            ex.initialize()
+            at = self.start if self.req.at is None else float(self.req.at)
+            ex.step_to(at)
+            if ex.ended:
+                raise RunError(f"the run ended at t = {ex.time:g} s, before the point t = {at:g} s: "
+                               f"{ex.result.message if ex.result else ''}")
+            return self._discrete(ex) if self.discrete() else self._continuous_model(ex)
+        finally:
+            ex.close()
+
+    def _discrete(self, ex: Execution) -> Linearisation:
+        req, t = self.req, ex.time
+        link = self.link
+        injections, units_in = [], []
+        refs = list(req.inputs) + ([self._ref(link.dst, link.dst_var)] if link is not None and
+                                   self._ref(link.dst, link.dst_var) not in req.inputs else [])
+        for ref in refs:
+            inst, var = self._var(ref, "--inputs", INPUTS, "input")
+            u = float(ex.get(ref))
+            delta = req.pulse * max(abs(u), _nominal(self.plan.instances[inst].model.md, var))
+            wired = any(self._ref(c.dst, c.dst_var) == ref for c in self.plan.connections) or \
+                any(self._ref(ip.instance, ip.var) == ref for ip in self.plan.inputs)
+            injections.append(Injection(ref, (u + delta) - u, wired))
+            units_in.append(_unit(var))
+        outputs = list(req.outputs)
+        if link is not None and self._ref(link.src, link.src_var) not in outputs:
+            outputs.append(self._ref(link.src, link.src_var))
+        units_out = [_unit(self._var(r, "--outputs", None, "output")[1]) for r in outputs]
+        cut = self._ref(link.dst, link.dst_var) if link is not None else None
+        H = pulse_responses(ex, injections, outputs, req.steps, cut)
+        model = realise(H, self.step, refs, outputs, order=req.order, t=t, input_units=units_in,
+                        output_units=units_out)
+        out = Linearisation(model)
+        if link is not None:
+            j, i = refs.index(self._ref(link.dst, link.dst_var)), outputs.index(self._ref(link.src, link.src_var))
+            gain = realise(H[i:i + 1, j:j + 1, :] * link.factor, self.step, [refs[j]], [outputs[i]],
+                           order=req.order, t=t)
+            out.loop = analyse(gain, outputs[i], refs[j])
+            # the system as a whole: the same point of injection, the loop closed, realised at the loop's order
+            closed = pulse_responses(ex, [injections[j]], [outputs[i]], req.steps)
+            out.whole_eigenvalues = realise(closed, self.step, [refs[j]], [outputs[i]], order=len(gain.states),
+                                            t=t).eigenvalues()
+        return out
+
+    def _continuous_model(self, ex: Execution) -> Linearisation:
+        req = self.req
+        for ref, value in req.states.items():
+            self._set_state(ex, ref, value)
+        self._exchange(ex)
+        links = [Link(self._ref(c.src, c.src_var), self._ref(c.dst, c.dst_var), c.factor)
+                 for c in self.plan.connections if c.src_var.fmi_type in ("Real", "Float64")]
+        wanted_in = set(req.inputs) | {lk.dst for lk in links}
+        wanted_out = set(req.outputs) | {lk.src for lk in links}
+        blocks = [self._block(ex, name, wanted_in, wanted_out) for name in self.plan.order]
+        model = close(blocks, links, req.inputs, req.outputs) if req.inputs or req.outputs else None
+        out = Linearisation(model if model is not None else close(blocks, links, [], []))
+        link = self.link
+        if link is not None:
+            src, dst = self._ref(link.src, link.src_var), self._ref(link.dst, link.dst_var)
+            cut = Link(src, dst, link.factor)
+            G = close(blocks, links, [dst], [src], broken=[cut])
+            G.C, G.D = G.C * link.factor, G.D * link.factor
+            out.loop = analyse(G, src, dst)
+            out.whole_eigenvalues = close(blocks, links, [], []).eigenvalues()
+            if model is None:
+                out.model = close(blocks, links, [dst], [src], broken=[cut])
+        return out
+
+    def _block(self, ex: Execution, name: str, wanted_in: set[str], wanted_out: set[str]) -> LinearModel:
+        ip, inst = self.plan.instances[name], ex.instances[name]
+        ins = [v for v in ip.model.variables.values() if v.causality == "input" and self._ref(name, v) in wanted_in]
+        outs = [v for v in ip.model.variables.values() if v.causality == "output" and self._ref(name, v) in wanted_out]
+        md = ip.model.md
+        sig_in = [Signal(self._ref(name, v), v.vr, _unit(v), _nominal(md, v)) for v in ins]
+        sig_out = [Signal(self._ref(name, v), v.vr, _unit(v), _nominal(md, v)) for v in outs]
+        if ip.interface == MODEL_EXCHANGE:
+            states, ders = states_of(ip.model.md, name, lambda n: _unit(ip.model.variables.get(n)))
+            J, how = jacobian(inst, states, ders, sig_in, sig_out, self.req.method)
+            return linear_model(J, states, sig_in, sig_out, ex.time, f"{name}: {how}")
+        D = _memoryless_gain(inst, md, ins, outs)
+        return linear_model(D, [], sig_in, sig_out, ex.time, f"{name}: central differences (memoryless)")
+
+    def _set_state(self, ex: Execution, ref: str, value: float) -> None:
+        inst_name, name = split_ref(self.file, "--state", ref)
+        ip, inst = self.plan.instances[inst_name], ex.instances[inst_name]
+        states, _ = states_of(ip.model.md, inst_name, lambda n: "")
+        names = [s.name for s in states]
+        if ref not in names:
+            raise ScenarioError(self.file, "--state", f"{ref} is no continuous state of {inst_name} (its states: "
+                                                      f"{', '.join(names) or 'none'})")
+        x = list(inst.continuous_states())   # type: ignore[attr-defined]
+        x[names.index(ref)] = float(value)
+        inst.set_continuous_states(x)   # type: ignore[attr-defined]
+
+    def _exchange(self, ex: Execution) -> None:
+        """Every connected Real input set to what its connection carries at the point, until they hold."""
+        conns = [c for c in self.plan.connections if c.src_var.fmi_type in ("Real", "Float64")]
+        for _ in range(EXCHANGE_SWEEPS):
+            changed = False
+            for c in conns:
+                me_src, me_dst = (self.plan.instances[n].interface == MODEL_EXCHANGE for n in (c.src, c.dst))
+                value = c.factor * _get(ex.instances[c.src], c.src_var, me_src) + c.offset
+                if _get(ex.instances[c.dst], c.dst_var, me_dst) != value:
+                    _set(ex.instances[c.dst], c.dst_var, value, me_dst)
+                    changed = True
+            if not changed:
+                return
+        raise CosimError(f"the connected values at t = {ex.time:g} s do not settle after {EXCHANGE_SWEEPS} "
+                         "exchanges (an algebraic loop without a fixed point)")
+
+
+def memoryless(md: Any) -> bool:
+    """A co-simulation FMU that declares no continuous state, no discrete variable, and every output of
+    which depends on inputs alone by its model structure (declared dependencies)."""
+    if md.derivatives or any(v.variability == "discrete" and v.causality in ("local", "output")
+                             for v in md.modelVariables):
+        return False
+    return bool(md.outputs) and all(u.dependencies is not None and all(d.causality == "input" for d in u.dependencies)
+                                    for u in md.outputs)
+
+
+def _memoryless_gain(inst: Any, md: Any, ins: list[Variable], outs: list[Variable]) -> np.ndarray:
+    """D of a memoryless co-simulation FMU by central differences of its outputs after setting its inputs."""
+    from .jacobian import fd_step
+
+    D = np.zeros((len(outs), len(ins)))
+    for j, v in enumerate(ins):
+        u = float(inst.get_value(v))
+        h = fd_step(u, _nominal(md, v))
+        cols = []
+        for sign in (1.0, -1.0):
+            inst.set_values([(v, u + sign * h)])
+            cols.append([float(inst.get_value(y)) for y in outs])
+        inst.set_values([(v, u)])
+        D[:, j] = (np.array(cols[0]) - np.array(cols[1])) / (2.0 * h)
+    return D
+
+
+def _get(inst: Any, var: Variable, me: bool) -> float:
+    """A Real's value now (a Model Exchange instance: without leaving continuous-time mode)."""
+    return float(inst.get_reals([var.vr])[0]) if me else float(inst.get_value(var))
+
+
+def _set(inst: Any, var: Variable, value: float, me: bool) -> None:
+    """Set a Real input (a Model Exchange instance: a continuous input, without an event)."""
+    if me:
+        inst.set_continuous_inputs([var.vr], [value])
+    else:
+        inst.set_values([(var, value)])
+
+
+def _unit(var: Variable | None) -> str:
+    return var.unit.name if var is not None and var.unit is not None else ""
+
+
+def _nominal(md: Any, var: Variable) -> float:
+    """The variable's declared nominal value (1 where none is declared)."""
+    for v in md.modelVariables:
+        if v.name == var.name:
+            try:
+                nominal = float(v.nominal) if v.nominal is not None else 1.0
+            except (TypeError, ValueError):
+                return 1.0
+            return abs(nominal) if math.isfinite(nominal) and nominal != 0 else 1.0
+    return 1.0

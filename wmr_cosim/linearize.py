@@ -1,0 +1,161 @@
+"""``wmr-cosim linearize``: a linear model of an FMU or of a scenario's system around a point of its run,
+its eigenvalues and, with a break, the loop's margins, printed and written to a folder (linear.npz,
+linear.mat, linear.json, bode.png and nyquist.png).  The master's linearisation does the work
+(``cosim.linearisation``); this module loads what is named, words the result and writes the files.
+
+    from wmr_cosim.linearize import linearize
+    lin = linearize("g1_learn.toml", at=20.0, breaks=("controller.u1", "plant.u1"))
+    lin.model.statespace()            # python-control StateSpace
+    lin.loop.gain_margin, lin.loop.phase_margin
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from .cosim import CosimError, MODEL_EXCHANGE, Linearisation, Linearizer, Request, ScenarioError, load_model, plot_loop
+
+#: linear.json: the model's figures beside the matrices' files.
+SUMMARY_FILE = "linear.json"
+
+
+def linearize(target: str | Path, *, at: float | None = None, inputs: Sequence[str] = (),
+              outputs: Sequence[str] = (), breaks: tuple[str, str] | None = None, discrete: bool = False,
+              method: str = "auto", steps: int | None = None, order: int | None = None, pulse: float | None = None,
+              states: dict[str, float] | None = None, overrides: dict[str, Any] | None = None,
+              limits: Any = None) -> Linearisation:
+    """Linearise ``target`` (a scenario file of one run, a shipped scenario's name, or an FMU run alone)
+    around t = ``at`` [s] of its run (see :class:`wmr_cosim.cosim.linearisation.Request` for the rest).
+    An FMU alone runs as Model Exchange where it has that interface (unless ``discrete``), from every Real
+    input to every Real output unless they are named.  ScenarioError for bad input; RunError when the run
+    to the point fails."""
+    from .runner import fmu_plan, is_fmu, load_plan
+    from .scenario_files import scenario_path
+
+    path = scenario_path(str(target))
+    req = Request(at=at, inputs=list(inputs), outputs=list(outputs), breaks=breaks, discrete=discrete,
+                  method=method, order=order, states=dict(states or {}))
+    if steps is not None:
+        req.steps = steps
+    if pulse is not None:
+        req.pulse = pulse
+    if is_fmu(path):
+        model = load_model(path)
+        fields = {"interface": MODEL_EXCHANGE} if model.has_me and not discrete else {}
+        plan = fmu_plan(path, overrides, limits=limits, fields=fields)
+        name = plan.order[0]
+        ip = plan.instances[name]
+        if not req.inputs and breaks is None:
+            req.inputs = [f"{name}.{ip.our_name(v)}" for v in ip.model.variables.values() if _real(v, "input")]
+        if not req.outputs:
+            req.outputs = [f"{name}.{ip.our_name(v)}" for v in ip.model.variables.values() if _real(v, "output")]
+    else:
+        plan = load_plan(path, overrides, limits=limits)
+        if plan.scenario.runs:
+            raise ScenarioError(str(path), "runs", "a protocol (several runs): linearise the scenario of one run")
+    return Linearizer(plan, req).run()
+
+
+def _real(v: Any, causality: str) -> bool:
+    return v.causality == causality and v.fmi_type in ("Real", "Float64") and not v.shape
+
+
+def summary(lin: Linearisation) -> dict[str, Any]:
+    """linear.json: the model's signals, eigenvalues, method and time; the loop's margins."""
+    m = lin.model
+    out: dict[str, Any] = {"time": m.t, "dt": m.dt, "continuous": m.continuous, "method": m.method,
+                           "states": m.states, "inputs": m.inputs, "outputs": m.outputs,
+                           "state_units": m.state_units, "input_units": m.input_units, "output_units": m.output_units,
+                           "eigenvalues": _complex(m.eigenvalues())}
+    if m.singular_values is not None:
+        out["hankel_singular_values"] = [float(s) for s in m.singular_values]
+    if lin.loop is not None:
+        out["loop"] = lin.loop.summary()
+        out["loop"]["closed_eigenvalues"] = _complex(lin.loop.closed_eigenvalues)
+        out["loop"]["order"] = len(lin.loop.gain.states)
+    if lin.whole_eigenvalues is not None:
+        out["whole_eigenvalues"] = _complex(lin.whole_eigenvalues)
+    return out
+
+
+def _complex(values: np.ndarray) -> list[list[float]]:
+    """Eigenvalues as [real, imaginary] pairs, sorted by real part then imaginary part."""
+    return [[float(v.real), float(v.imag)] for v in sorted(np.asarray(values, dtype=complex),
+                                                          key=lambda z: (z.real, z.imag))]
+
+
+def write(lin: Linearisation, out: str | Path) -> list[Path]:
+    """The folder ``out``: linear.npz, linear.mat, linear.json; with a break, bode.png and nyquist.png."""
+    out = Path(out)
+    files = list(lin.model.save(out))
+    (out / SUMMARY_FILE).write_text(json.dumps(summary(lin), indent=2) + "\n")
+    files.append(out / SUMMARY_FILE)
+    if lin.loop is not None:
+        files += plot_loop(lin.loop, out)
+    return files
+
+
+def report(lin: Linearisation) -> list[str]:
+    """What the command prints: the model, its eigenvalues, the singular values of a realisation, the loop."""
+    m = lin.model
+    kind = "continuous time" if m.continuous else f"discrete time, dt = {m.dt:g} s"
+    lines = [f"linear model at t = {m.t:g} s ({kind}; {m.method}): {len(m.states)} states, "
+             f"{len(m.inputs)} inputs, {len(m.outputs)} outputs",
+             "  inputs:  " + (", ".join(_named(m.inputs, m.input_units)) or "none"),
+             "  outputs: " + (", ".join(_named(m.outputs, m.output_units)) or "none")]
+    if m.singular_values is not None:
+        sv = m.singular_values
+        shown = ", ".join(f"{s:.3g}" for s in sv[:max(len(m.states) + 3, 6)])
+        lines.append(f"  Hankel singular values: {shown}{' ...' if len(sv) > len(m.states) + 3 else ''} "
+                     f"(order {len(m.states)})")
+    lines.append("  eigenvalues: " + (", ".join(_z(z) for z in sorted(m.eigenvalues(), key=lambda z: (z.real, z.imag)))
+                                      or "none"))
+    if lin.loop is not None:
+        s = lin.loop.summary()
+        lines.append(f"loop broken at {s['break']} (L = -G, G from the injection to the return):")
+        lines.append(f"  gain margin {_num(s['gain_margin'])} ({_num(s['gain_margin_db'])} dB) at "
+                     f"{_num(s['phase_crossover_rad_s'])} rad/s; phase margin {_num(s['phase_margin_deg'])} deg at "
+                     f"{_num(s['gain_crossover_rad_s'])} rad/s; stability margin {_num(s['stability_margin'])}")
+        lines.append(f"  closed loop {'stable' if s['closed_loop_stable'] else 'UNSTABLE'}; its eigenvalues: "
+                     + ", ".join(_z(z) for z in sorted(lin.loop.closed_eigenvalues, key=lambda z: (z.real, z.imag))))
+    return lines
+
+
+def _named(names: list[str], units: list[str]) -> list[str]:
+    return [f"{n} [{u}]" if u else n for n, u in zip(names, units)]
+
+
+def _z(z: complex) -> str:
+    z = complex(z)
+    return f"{z.real:.6g}" if z.imag == 0 else f"{z.real:.6g}{z.imag:+.6g}j"
+
+
+def _num(x: Any) -> str:
+    return f"{x:.4g}" if isinstance(x, float) and math.isfinite(x) else str(x)
+
+
+def parse_break(text: str) -> tuple[str, str]:
+    """``"FROM->TO"`` -> (FROM, TO); CosimError for another form."""
+    parts = [p.strip() for p in text.split("->")]
+    if len(parts) != 2 or not all(parts):
+        raise CosimError(f"--break {text!r}: give one connection as FROM->TO, e.g. controller.u1->plant.u1")
+    return parts[0], parts[1]
+
+
+def parse_states(items: Sequence[str] | None) -> dict[str, float]:
+    """``--state NAME=VALUE`` items -> {name: value}; CosimError naming a bad one."""
+    out: dict[str, float] = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        try:
+            x = float(value)
+        except ValueError:
+            x = math.nan
+        if not sep or not name.strip() or not math.isfinite(x):
+            raise CosimError(f"--state {item!r}: give INSTANCE.STATE=VALUE with a finite number")
+        out[name.strip()] = x
+    return out
