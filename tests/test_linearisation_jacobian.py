@@ -60,7 +60,7 @@ def test_a_point_of_the_run_is_where_the_run_is():
 def test_dahlquist_is_minus_k():
     path = reference_fmu("fmi2", "Dahlquist")
     for k in (1.0, 3.5):
-        lin = Linearizer(_me("d", path, k=k).check(), Request(at=0.3, outputs=["d.x"])).run()
+        lin = _me("d", path, k=k).linearize(at=0.3, outputs=["d.x"])   # (the scripting API's way)
         np.testing.assert_allclose(lin.model.A, [[-k]], rtol=1e-8)
 
 

@@ -217,6 +217,15 @@ class Simulation:
         raises the ScenarioError the command line prints."""
         return resolve(self.scenario(), force)
 
+    def linearize(self, at: float | None = None, **request: Any) -> Any:
+        """A linear model around t = ``at`` [s] of this scenario's run (docs/linearisation.md): the keyword
+        arguments of :class:`wmr_cosim.cosim.Request` (``inputs``, ``outputs``, ``breaks=("FROM", "TO")``,
+        ``discrete``, ``method``, ``steps``, ``order``, ``pulse``, ``states``); returns the
+        :class:`~wmr_cosim.cosim.Linearisation` (``.model.statespace()``, ``.loop.gain_margin``, ...)."""
+        from .cosim import Linearizer, Request
+
+        return Linearizer(self.check(), Request(at=at, **request)).run()
+
     def start(self, out: str | Path | None = None, *, real_time: float | None = None,
               progress: bool | None = False, force: bool = False) -> "Run":
         """Check, load and initialise: a :class:`Run` at the start time, to step, read and change.

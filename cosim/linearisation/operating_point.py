@@ -93,7 +93,11 @@ class Linearizer:
         for ref in req.inputs:
             self._var(ref, "--inputs", INPUTS, "input")
         for ref in req.outputs:
-            self._var(ref, "--outputs", None, "output")
+            _, var = self._var(ref, "--outputs", None, "output")
+            if var.causality != "output" and not self.discrete():
+                raise ScenarioError(self.file, "--outputs", f"{ref} is {var.causality}: a continuous-time model's "
+                                                            "outputs are the FMUs' outputs (--discrete reads any "
+                                                            "variable)")
         if req.breaks is not None:
             src, dst = req.breaks
             self.link = next((c for c in self.plan.connections if self._ref(c.src, c.src_var) == src
@@ -111,9 +115,18 @@ class Linearizer:
                                                            "inject them at (or a --break)")
             self._check_rollback()
         for ref in req.states:
-            inst, _ = split_ref(self.file, "--state", ref)
-            if inst not in self.plan.instances or self.plan.instances[inst].interface != MODEL_EXCHANGE:
-                raise ScenarioError(self.file, "--state", f"{ref}: states are set on Model Exchange instances only")
+            self._state_index(ref)
+
+    def _state_index(self, ref: str) -> int:
+        """The place of a continuous state ("instance.state") in its instance's state vector, or ScenarioError."""
+        inst, _ = split_ref(self.file, "--state", ref)
+        if inst not in self.plan.instances or self.plan.instances[inst].interface != MODEL_EXCHANGE:
+            raise ScenarioError(self.file, "--state", f"{ref}: states are set on Model Exchange instances only")
+        names = [s.name for s in states_of(self.plan.instances[inst].model.md, inst, lambda n: "")[0]]
+        if ref not in names:
+            raise ScenarioError(self.file, "--state", f"{ref} is no continuous state of {inst} (its states: "
+                                                      f"{', '.join(names) or 'none'})")
+        return names.index(ref)
 
     def _connections_hint(self) -> str:
         names = [f"{self._ref(c.src, c.src_var)} -> {self._ref(c.dst, c.dst_var)}" for c in self.plan.connections]
@@ -253,15 +266,9 @@ class Linearizer:
         return linear_model(D, [], sig_in, sig_out, ex.time, f"{name}: central differences (memoryless)")
 
     def _set_state(self, ex: Execution, ref: str, value: float) -> None:
-        inst_name, name = split_ref(self.file, "--state", ref)
-        ip, inst = self.plan.instances[inst_name], ex.instances[inst_name]
-        states, _ = states_of(ip.model.md, inst_name, lambda n: "")
-        names = [s.name for s in states]
-        if ref not in names:
-            raise ScenarioError(self.file, "--state", f"{ref} is no continuous state of {inst_name} (its states: "
-                                                      f"{', '.join(names) or 'none'})")
+        inst = ex.instances[ref.split(".", 1)[0]]
         x = list(inst.continuous_states())   # type: ignore[attr-defined]
-        x[names.index(ref)] = float(value)
+        x[self._state_index(ref)] = float(value)
         inst.set_continuous_states(x)   # type: ignore[attr-defined]
 
     def _exchange(self, ex: Execution) -> None:

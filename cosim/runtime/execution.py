@@ -149,14 +149,20 @@ class Execution:
         self._recorder = Recorder(self.folder.signals if self.folder is not None else None, self.columns,
                                   recorded_types(plan),
                                   [0] + [layout.slot(r) for r in plan.record], layout, layout.n_int, self.clock)
-        # the built-in parts, added as a script adds its own (and so before them)
-        self.add_manipulator(TimedEvents(actuator, plan.events))
-        self.add_manipulator(ConditionEvents(actuator, plan.conditions))
         self._requirements = RequirementMonitors(plan.requirements) if plan.requirements else None
+        self._add_builtin_parts(progress)
+
+    def _add_builtin_parts(self, progress: bool | None) -> None:
+        """The scenario's events, its requirements' monitors, the recording and the progress bar, added as a
+        script adds its own (and so before them)."""
+        plan = self.plan
+        self.add_manipulator(TimedEvents(self._actuator, plan.events))
+        self.add_manipulator(ConditionEvents(self._actuator, plan.conditions))
         if self._requirements is not None:   # (a run without requirements has no part that sees every step)
             self.add_manipulator(self._requirements)
         self.add_observer(self._recorder)
         self.add_observer(ProgressBar(progress, self.clock, sum(plan.internal_steps.values())))
+        self._builtin_parts = len(self.manipulators) + len(self.observers)
 
     # ------------------------------------------------------------------ state
     @property
@@ -417,8 +423,8 @@ class Execution:
             raise CosimError(f"the algorithm {alg.name or type(alg).__name__!r} keeps more than the outputs from "
                              f"step to step: a point is saved under one pass per step at one rate "
                              f"({', '.join(r.name for r in algorithms.ROWS if r.one_pass)})")
-        if self.plan.conditions or self._requirements is not None or len(self.manipulators) > 2 \
-                or len(self.observers) > 2:
+        if self.plan.conditions or self._requirements is not None \
+                or len(self.manipulators) + len(self.observers) > self._builtin_parts:
             raise CosimError("a point cannot be saved in a run with condition events, requirements or parts "
                              "added to its execution: their memory is not saved")
         for name, inst in self.instances.items():
