@@ -151,21 +151,37 @@ def bench_cosim(repeats: int) -> dict[str, float]:
     sc = cosim.load(root / "scenarios" / "g1_learn.toml", resolve_model)
     sc.record = ANALYSIS_RECORD
     plan = cosim.resolve(sc)
-    walls, setups = [], []
+    walls, setups, python_walls = [], [], []
     res = None
-    for _ in range(repeats):
-        res = cosim.run(plan, None, progress=False)
-        if res.status != "ok":
-            raise SystemExit(f"co-simulation failed: {res.message}")
-        walls.append(res.wall_s)
-        setups.append(res.setup_s)
-    timed = [cosim.run(plan, None, progress=False, timing=True) for _ in range(max(1, repeats // 2))]
+    for _ in range(repeats):   # the compiled loop (where a compiler is at hand) and the Python loop, interleaved
+        for loop, times in (("", walls), ("python", python_walls)):
+            os.environ["WMR_COSIM_LOOP"] = loop
+            try:
+                res = cosim.run(plan, None, progress=False)
+            finally:
+                os.environ.pop("WMR_COSIM_LOOP", None)
+            if res.status != "ok":
+                raise SystemExit(f"co-simulation failed: {res.message}")
+            times.append(res.wall_s)
+            if not loop:
+                setups.append(res.setup_s)
+    # the time inside the FMI calls, timed one by one (through the Python loop, which the timing wraps)
+    os.environ["WMR_COSIM_LOOP"] = "python"
+    try:
+        timed = [cosim.run(plan, None, progress=False, timing=True) for _ in range(max(1, repeats // 2))]
+    finally:
+        os.environ.pop("WMR_COSIM_LOOP", None)
+    fmi_s = statistics.median(r.fmi_s for r in timed)
     overhead = statistics.median((r.wall_s - r.fmi_s) / r.steps / len(plan.instances) * 1e6 for r in timed)
-    cosim_s = statistics.median(walls)
+    cosim_s, python_s = statistics.median(walls), statistics.median(python_walls)
+    n_fmu_steps = res.steps * len(plan.instances)
     return {"cosim_s": round(cosim_s, 4), "cosim_setup_s": round(statistics.median(setups), 4),
             "cosim_us_per_step": round(cosim_s / res.steps * 1e6, 2),
+            "cosim_python_s": round(python_s, 4), "cosim_python_us_per_step": round(python_s / res.steps * 1e6, 2),
             "cosim_recorded_columns": len(res.columns),
-            "master_us_per_fmu_step": round(overhead, 3)}
+            "loop": (res.stepping or {}).get("loop", ""),
+            "master_us_per_fmu_step": round(overhead, 3),
+            "master_compiled_us_per_fmu_step": round((cosim_s - fmi_s) / n_fmu_steps * 1e6, 3)}
 
 
 def plain_algorithm():
@@ -266,6 +282,7 @@ def bench_loop_all(repeats: int) -> dict[str, float]:
     figures = bench_loop(repeats)
     figures.update(bench_cosim(repeats))
     figures["cosim_to_direct"] = round(figures["cosim_s"] / figures["direct_s"], 3)
+    figures["cosim_python_to_direct"] = round(figures["cosim_python_s"] / figures["direct_s"], 3)
     figures.update(bench_plain(repeats))
     figures.update(bench_fmi3(repeats))
     return figures
@@ -463,11 +480,50 @@ def _fmpy_loop(plan: Any) -> tuple[float, Any]:
     return wall, out
 
 
+def _c_floor(plan: Any, tmp: str) -> tuple[float, Any] | None:
+    """The chain stepped by hand in C (benchmarks/floor_loop.c, built here with the system's compiler):
+    (seconds of its stepping loop, the outputs), or None without a compiler."""
+    import shutil
+    import subprocess
+    from pathlib import Path
+
+    import fmpy
+    import numpy as np
+    from fmpy import extract
+
+    cc = shutil.which(os.environ.get("CC") or "cc")
+    if cc is None:
+        return None
+    here, work = Path(__file__).resolve().parent, Path(tmp)
+    exe = work / "floor_loop"
+    if not exe.is_file():
+        subprocess.run([cc, "-O2", "-I", str(Path(fmpy.__file__).parent / "c-code"), str(here / "floor_loop.c"),
+                        "-o", str(exe), "-ldl"], check=True, capture_output=True)
+    vr = {n: {v.name: v.vr for v in ip.model.variables.values()} for n, ip in plan.instances.items()}
+    lines = [f"{plan.n_steps} {plan.scenario.step!r}",
+             f"{vr['d']['k']} {next(v for var, v in plan.instances['d'].parameters if var.name == 'k')!r}"]
+    chain = [("d", -1, 1.0, "x"), ("f1", vr["f1"]["Float64_continuous_input"], 1.0, "Float64_continuous_output"),
+             ("f2", vr["f2"]["Float64_continuous_input"], 2.0, "Float64_continuous_output")]
+    for name, in_vr, factor, out in chain:
+        ip = plan.instances[name]
+        d = Path(extract(str(ip.model.path), unzipdir=str(work / f"floor-{name}")))
+        ident = ip.model.md.coSimulation.modelIdentifier
+        lines.append(f"{d / 'binaries' / 'linux64' / (ident + '.so')} {ip.model.md.guid} {(d / 'resources').as_uri()}/ "
+                     f"{name} {in_vr} {factor!r} {vr[name][out]}")
+    (work / "floor.cfg").write_text("\n".join(lines) + "\n")
+    p = subprocess.run([str(exe), str(work / "floor.cfg"), str(work / "floor.bin")], capture_output=True, text=True,
+                       check=True)
+    return json.loads(p.stdout)["loop_s"], np.fromfile(work / "floor.bin").reshape(plan.n_steps, 3)
+
+
 def bench_generic(repeats: int) -> dict[str, Any]:
     """Three C FMUs (Reference FMUs Dahlquist -> Feedthrough -> Feedthrough), 100,000 steps, under ours,
-    a plain loop on FMPy's FMU2Slave, libcosim and ecos; us_per_fmu_step = wall time (creating the system,
-    initialisation and stepping, recording included) / steps / 3, median of the repeats.  ``ours_loop``
-    is our stepping loop alone (RunResult.wall_s).  Target: ours the fastest, <= 2 us per FMU and step."""
+    a plain loop on FMPy's FMU2Slave, libcosim and ecos (also pinned to one core); us_per_fmu_step = wall
+    time (creating the system, initialisation and stepping, recording included) / steps / 3, median of the
+    repeats.  ``ours_loop`` is our stepping loop alone (RunResult.wall_s: the compiled loop where a C
+    compiler is at hand), ``ours_python_loop`` the same through the generated Python loop, ``c_floor`` the
+    chain stepped by hand in C (benchmarks/floor_loop.c: the FMUs' own cost and the calls, the floor of
+    any master); ``floor_ratio`` = ours_loop / c_floor.  Targets: ours the fastest; ours_loop under 0.2 us."""
     import tempfile
     from pathlib import Path
 
@@ -475,6 +531,7 @@ def bench_generic(repeats: int) -> dict[str, Any]:
 
     from wmr_cosim import cosim
     from wmr_cosim.cosim.plan.ssp import export_ssp
+    from wmr_cosim.cosim.stepping import native
     from wmr_cosim.interop import run_peer
 
     n = max(1, min(repeats, 5))
@@ -486,21 +543,36 @@ def bench_generic(repeats: int) -> dict[str, Any]:
         stop, h = plan.scenario.stop, plan.scenario.step
         results = {}
         for _ in range(n):  # interleaved, so that a slow phase of the machine hits every master alike
-            for peer in ("ours", "libcosim", "ecos"):
-                r = run_peer(peer, ssp, stop, h, signals)  # ours: Gauss-Seidel, as the archive says
+            for peer in ("ours", "ours_python", "libcosim", "ecos", "ecos_pinned"):
+                forced = peer == "ours_python"
+                if forced:
+                    os.environ["WMR_COSIM_LOOP"] = "python"
+                try:
+                    r = run_peer("ours" if forced else peer, ssp, stop, h, signals)  # ours: Gauss-Seidel
+                finally:
+                    os.environ.pop("WMR_COSIM_LOOP", None)
                 walls.setdefault(peer, []).append(r["wall_s"])
-                if peer == "ours":
-                    walls.setdefault("ours_loop", []).append(r["loop_s"])
+                if peer.startswith("ours"):
+                    walls.setdefault("ours_loop" if peer == "ours" else "ours_python_loop", []).append(r["loop_s"])
                 results[peer] = r
             wall, loop_out = _fmpy_loop(plan)
             walls.setdefault("fmpy_loop", []).append(wall)
+            floor = _c_floor(plan, tmp)
+            if floor is not None:
+                walls.setdefault("c_floor", []).append(floor[0])
     per = {k: round(statistics.median(v) / plan.n_steps / 3 * 1e6, 3) for k, v in walls.items()}
     ours = results["ours"]["signals"]
     same = all(np.array_equal(ours[s][1:], loop_out[:, j]) for j, s in enumerate(signals))  # (ours: + t0 row)
-    default = {k: v for k, v in per.items() if k != "ours_loop"}
+    same_python = all(np.array_equal(ours[s], results["ours_python"]["signals"][s]) for s in signals)
+    same_floor = floor is not None and all(np.array_equal(ours[s][1:], floor[1][:, j]) for j, s in enumerate(signals))
+    default = {k: v for k, v in per.items() if k not in ("ours_loop", "ours_python_loop", "c_floor", "ours_python")}
+    lib, why = native.library()
     return {"us_per_fmu_step": per, "steps": plan.n_steps, "repeats": n,
+            "loop": native.NATIVE if lib is not None else f"{native.PYTHON} ({why})",
+            "floor_ratio": round(per["ours_loop"] / per["c_floor"], 2) if "c_floor" in per else None,
             "ours_fastest": min(default, key=default.get) == "ours",
-            "ours_equals_fmpy_loop": bool(same),
+            "ours_equals_fmpy_loop": bool(same), "ours_equals_python_loop": bool(same_python),
+            "ours_equals_c_floor": bool(same_floor),
             "libcosim_steps": results["libcosim"]["steps"], "ecos_steps": results["ecos"]["steps"]}
 
 

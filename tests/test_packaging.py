@@ -175,6 +175,9 @@ def test_wheel_in_a_fresh_environment_runs_the_commands_from_any_folder(venv, tm
     summary = json.loads((work / "example" / "summary.json").read_text())
     assert summary["status"] == "ok" and sig["time"][-1] == pytest.approx(20.0)
     assert np.isfinite(sig["plant.x_A"]).all()
+    if shutil.which("cc"):   # the compiled loop's source ships with the package, its build goes to the cache
+        assert summary["stepping"]["loop"] == "compiled (C)"
+        assert len(list((tmp_path / "cache" / "wmr-cosim").glob("native-loop-*.so"))) == 1
     assert sorted(f.name for f in fmus.glob("*.fmu")) == ["WmrController.fmu", "WmrPlant.fmu", "WmrSensor.fmu"]
     cli("check", "scenarios/g1_learn.toml")
 

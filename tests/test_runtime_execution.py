@@ -518,6 +518,11 @@ def test_scenario_and_summary_files_of_a_run(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary.pop("columns") == columns
     wall, setup, per_step = summary.pop("wall_s"), summary.pop("setup_s"), summary.pop("us_per_step")
+    from wmr_cosim.cosim.stepping import native
+    stepping = summary.pop("stepping")   # which loop ran: the compiled one where a C compiler is at hand
+    lib, why = native.library()
+    assert stepping == {"algorithm": "gauss-seidel",
+                        "loop": native.NATIVE if lib is not None else f"{native.PYTHON} ({why})"}
     assert wall == round(res.wall_s, 6) and setup == round(res.setup_s, 6)
     assert per_step == round(res.wall_s / 5 * 1e6, 3) and per_step > 0
     events = [{"time": 1.02, "source": "events[1]", "kind": "condition", "event": 1, "action": "bias",

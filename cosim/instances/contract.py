@@ -75,6 +75,9 @@ class FastPath:
     # instance's integrator)
     threaded_step: Callable[..., int] | None = None
     alone: str = ""
+    # 2 or 3: those of set_real, do_step and get_real that are the library's own functions take FMI 2.0's
+    # or FMI 3.0's arguments (the tails as given), so that a loop in C may call them directly; 0: none is
+    abi: int = 0
 
 
 class FmuInstance(ABC):

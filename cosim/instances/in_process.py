@@ -230,7 +230,7 @@ class Instance(FmuInstance):
         return self._handed(FastPath(ctypes.c_void_p(self.c), raw(dll, "fmi2SetReal"), raw(dll, "fmi2DoStep"),
                                      raw(dll, "fmi2GetReal"),
                                      in_val if in_val is not None else (ctypes.c_double * max(1, n_in))(),
-                                     step_tail=(1,), **self._threading(dll, "fmi2DoStep")))
+                                     step_tail=(1,), abi=2, **self._threading(dll, "fmi2DoStep")))
 
     def _threading(self, dll: Any, do_step: str) -> dict[str, Any]:
         """The fast path's step for threads (:attr:`FastPath.threaded_step`), or why there is none."""
@@ -401,7 +401,7 @@ class Instance3(Instance):
                                      in_val if in_val is not None else (ctypes.c_double * max(1, n_in))(),
                                      set_tail=(ctypes.c_size_t(n_in),), get_tail=(ctypes.c_size_t(n_out),),
                                      step_tail=(True, *(ctypes.byref(f) for f in flags)), terminated=flags[1],
-                                     last_time=flags[3], **self._threading(dll, "fmi3DoStep")))
+                                     last_time=flags[3], abi=3, **self._threading(dll, "fmi3DoStep")))
 
     def accessor(self, fmi_type: str, op: str) -> tuple[Any, Any]:
         ctype, tname = ACCESS[3][fmi_type]

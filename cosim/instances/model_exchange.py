@@ -185,7 +185,7 @@ class ModelExchange:
 
         return FastPath(base.c, set_real, do_step, base.get_real, base.in_val, set_tail=base.set_tail,
                         get_tail=base.get_tail, terminated=self._terminated, last_time=self._last_time,
-                        alone=ME_ALONE)
+                        alone=ME_ALONE, abi=base.abi)
 
     def step_end(self, t: float, h: float) -> float:
         """The end of the step of ``h`` from ``t`` [s]: the master's grid point start + (k + 1) h where ``t``

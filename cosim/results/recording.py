@@ -210,13 +210,22 @@ class RowBuffer:
         self.cols = list(cols)
         self.n_double = n_double
         self.dtype = np.dtype([("d", "<f8", (n_double,)), ("i", "<i8", (n_int,))])
-        self.chunk: list[bytes] = []
+        self.chunk: list[bytes] = []   # each a row, or several (:meth:`extend`)
+        self.more = 0                  # the rows beyond one per element of chunk
 
     def __len__(self) -> int:
-        return len(self.chunk)
+        return len(self.chunk) + self.more
+
+    def extend(self, rows: bytes, n: int) -> None:
+        """Take ``n`` whole rows at once (a compiled loop's segment)."""
+        self.chunk.append(rows)
+        self.more += n - 1
 
     def last_time(self) -> float | None:
-        return float(np.frombuffer(self.chunk[-1], "<f8", 1)[0]) if self.chunk else None
+        if not self.chunk:
+            return None
+        last = self.chunk[-1]
+        return float(np.frombuffer(last, "<f8", 1, len(last) - self.dtype.itemsize)[0])
 
     def flush(self) -> None:
         """Write the rows; RunError at the first non-finite value (rows up to it are written)."""
@@ -224,6 +233,7 @@ class RowBuffer:
             return
         raw = np.frombuffer(b"".join(self.chunk), dtype=self.dtype)
         self.chunk.clear()
+        self.more = 0
         d, i = raw["d"], raw["i"]
         cols = [d[:, c] if c < self.n_double else i[:, c - self.n_double] for c in self.cols]
         reals = [j for j, c in enumerate(self.cols) if c < self.n_double]

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..instances.failure import Call, Failure
 from ..results.recording import MemoryRecorder, NpyRecorder, RecordedRows, RowBuffer
-from ..stepping.algorithm import Clock, Row, StepDone
+from ..stepping.algorithm import Clock, NativeRecording, Row, StepDone
 from .pacing import Pacer
 from .views import Observable
 
@@ -145,6 +145,15 @@ class Recorder(Observer):
                     return Failure(k, x.instance, Call.GET_RECORDED, s)
             append(bytes(buf))
             return None
+
+        def read_others(k: int) -> Failure | None:
+            for x in getters:
+                s = x.read(row)
+                if s:
+                    return Failure(k, x.instance, Call.GET_RECORDED, s)
+            return None
+        take.native = NativeRecording(buf, ctypes.sizeof(buf), dec, n, stop, t0, h,   # type: ignore[attr-defined]
+                                      read_others if getters else None, self.rows.extend)
         return take
 
     def record_at(self, t: float) -> None:

@@ -12,7 +12,9 @@ An algorithm is an object behind :class:`Algorithm`.  Its contract, for an imple
    row, then calls ``done(k + 1, ended)`` (the run's observers of every step: the recording takes the
    row there when that point is recorded) and stops at the Failure it returns; a failure that came after
    the step to t_{k+1} (a get) is reported at step k + 1 (:attr:`.failure.Call.after_step`).  An
-   algorithm does not record: what is recorded, and when, is the recorder's.
+   algorithm does not record: what is recorded, and when, is the recorder's.  A loop in native code may
+   instead copy the row where ``done.native`` (a :class:`NativeRecording`) says, exactly when ``done``
+   would take it, and hand the rows over after the segment.
 3. Each Real input is set, before the step that uses it, to ``src[idx] * factor + offset`` over the
    instance's copies (``InstanceIO.copies``) as they are when :meth:`~Algorithm.advance` is called; the
    tabulated inputs of step k (``feed(k)``) and the other connections (``other``) are put in place with
@@ -58,6 +60,26 @@ class Row(Protocol):
 #: the simulation in that step: None, or the Failure that ends the segment there (a recorded value that
 #: could not be read).  The execution gives it: the recording's ``take`` (``runtime.observers.Recorder``).
 StepDone = Callable[[int, bool], "Failure | None"]
+
+
+@dataclass
+class NativeRecording:
+    """What the recording gives a native loop (a :data:`StepDone` may carry it as ``done.native``: the recording's does): its
+    row (``buf``, ``row_bytes``: the doubles and integers the loop leaves the outputs in), when a row is
+    taken (every ``decimation``-th point of ``n_steps``, the last one, an FMU's end), the last point's time
+    ``stop`` [s] where the last step is short, ``t0`` and ``h`` [s]; ``read_others(k)`` reads the recorded
+    outputs of other types into the row (None: there are none), returning None or the Failure; ``extend``
+    takes the rows written (bytes of n whole rows, n)."""
+
+    buf: Any
+    row_bytes: int
+    decimation: int
+    n_steps: int
+    stop: float | None
+    t0: float
+    h: float
+    read_others: Callable[[int], Failure | None] | None
+    extend: Callable[[bytes, int], None]
 
 
 class Copy(NamedTuple):

@@ -23,12 +23,19 @@ from .algorithm import Algorithm, Clock, InstanceIO, Row, StepDone
 
 class GeneratedLoop(Algorithm):
     """A fixed-step algorithm whose loop is generated (see the module's docstring); a subclass says the
-    order of work in a step in :meth:`body`."""
+    order of work in a step in :meth:`body`, and whether every instance sees the previous step's outputs
+    (``simultaneous``).  Where the compiled loop can be built (:mod:`.native`), it runs the same steps in
+    C; else the generated Python loop does (``loop_used`` says which, and why)."""
+
+    simultaneous = False
+    native = True                  # False: the Python loop (a test's, or an algorithm's own)
+    loop_used = ""                 # the loop that ran: "compiled (C)", or "Python (why)"
 
     def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,
               check_inputs: bool = True) -> None:
         self.ios, self.clock, self.layout, self.done, self.check_inputs = ios, clock, layout, done, check_inputs
         self.loop: Callable[[int, int], Failure | None] | None = None
+        self.loop_used = ""
 
     def inputs_changed(self) -> None:
         self.loop = None
@@ -39,8 +46,18 @@ class GeneratedLoop(Algorithm):
         return self.loop(k0, k1)
 
     def compile(self) -> Callable[[int, int], Failure | None]:
-        """The loop for the instances' copies as they are now."""
+        """The loop for the instances' copies as they are now: the compiled one where it can be built."""
+        from . import native
+
+        lib, why = native.library() if self.native else (None, "asked for")
+        if lib is not None:
+            self.loop_used = native.NATIVE
+            return native.NativeLoop(lib, self.ios, self.simultaneous, self.clock, self.done, self.check_inputs)
+        self.loop_used = f"{native.PYTHON} ({why})"
         return compile_loop(self.ios, self.body, self.clock, self.done, self.check_inputs)
+
+    def summary(self) -> dict[str, Any] | None:
+        return {"loop": self.loop_used} if self.loop_used else None
 
     @abstractmethod
     def body(self, s: "LoopSource", ios: list[InstanceIO], ind: str) -> None:
@@ -59,6 +76,8 @@ class GaussSeidel(GeneratedLoop):
 
 class Jacobi(GeneratedLoop):
     """Every instance's inputs, then every step, then every output."""
+
+    simultaneous = True
 
     def body(self, s: "LoopSource", ios: list[InstanceIO], ind: str) -> None:
         for i, io in enumerate(ios):
