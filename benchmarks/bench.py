@@ -6,10 +6,13 @@ NAME:
             - the co-simulation of the three FMUs (Gauss-Seidel) recording what the analysis needs:
               cosim_s (the stepping loop, first step to last, recording included), cosim_setup_s
               (extraction, instantiation, initialisation), cosim_us_per_step (target <= 22 us),
-              cosim_to_direct (target <= 1.8), and, from a separate run that times every FMI call of the
-              loop, master_us_per_fmu_step = (loop time - time inside FMI calls) / steps / FMUs (target <= 1.5 us);
-            - the same co-simulation with a plain loop over the instances in place of the generated one
-              (interleaved runs): cosim_plain_us_per_step, cosim_generated_us_per_step, generated_speedup;
+              cosim_to_direct (target <= 1.8), the loop that ran (loop: the compiled one where a C compiler
+              is at hand), the same through the generated Python loop, interleaved: cosim_python_s,
+              cosim_python_us_per_step, cosim_python_to_direct; and, from a separate run of the Python loop
+              that times every FMI call, master_us_per_fmu_step = (loop time - time inside FMI calls) / steps /
+              FMUs (target <= 1.5 us);
+            - the same co-simulation with a plain loop over the instances in place of the generated Python
+              one (interleaved runs): cosim_plain_us_per_step, cosim_generated_us_per_step, generated_speedup;
             - the same co-simulation through the FMI 3.0 FMUs (WmrPlant3, WmrSensor3, WmrController3),
               interleaved with runs through the FMI 2.0 ones: cosim3_us_per_step, cosim2_us_per_step (the
               FMI 2.0 figure of the same runs) and cosim3_to_cosim2 (target <= 1.10).
@@ -25,7 +28,11 @@ NAME:
             Gauss-Seidel) under ours, a plain loop on FMPy's FMU2Slave, libcosim and ecos (Jacobi, their
             only algorithm for an SSP), each creating, initialising and stepping the system and recording the
             three outputs: us_per_fmu_step per master (target: ours the fastest, <= 2 us), ours_loop (our
-            stepping loop alone), ours_equals_fmpy_loop (bit for bit).
+            stepping loop alone: the compiled loop where a C compiler is at hand; target < 0.2 us),
+            ours_python / ours_python_loop (through the generated Python loop), ecos_pinned (one core),
+            c_floor (benchmarks/floor_loop.c: the chain stepped by hand in C, the FMUs' own cost: the
+            floor), floor_ratio (ours_loop / c_floor), ours_equals_fmpy_loop, ours_equals_python_loop,
+            ours_equals_c_floor (bit for bit).
     interop the G1 learning system (Jacobi, exported as SSP with the signals the comparison needs) under our
             master and third-party masters, each in a fresh process as its users run it, with its defaults
             (wmr_cosim.interop): peers = wall seconds per master (median of up to 3 runs; creating the
@@ -153,6 +160,7 @@ def bench_cosim(repeats: int) -> dict[str, float]:
     plan = cosim.resolve(sc)
     walls, setups, python_walls = [], [], []
     res = None
+    loop_used = ""
     for _ in range(repeats):   # the compiled loop (where a compiler is at hand) and the Python loop, interleaved
         for loop, times in (("", walls), ("python", python_walls)):
             os.environ["WMR_COSIM_LOOP"] = loop
@@ -165,23 +173,22 @@ def bench_cosim(repeats: int) -> dict[str, float]:
             times.append(res.wall_s)
             if not loop:
                 setups.append(res.setup_s)
-    # the time inside the FMI calls, timed one by one (through the Python loop, which the timing wraps)
+                loop_used = (res.stepping or {}).get("loop", "")
+    # the master's own time per FMU and step: the loop's time minus the time inside the FMI calls, timed one
+    # by one (through the Python loop: the timing wraps each call in Python, which the compiled loop would
+    # then call back)
     os.environ["WMR_COSIM_LOOP"] = "python"
     try:
         timed = [cosim.run(plan, None, progress=False, timing=True) for _ in range(max(1, repeats // 2))]
     finally:
         os.environ.pop("WMR_COSIM_LOOP", None)
-    fmi_s = statistics.median(r.fmi_s for r in timed)
     overhead = statistics.median((r.wall_s - r.fmi_s) / r.steps / len(plan.instances) * 1e6 for r in timed)
     cosim_s, python_s = statistics.median(walls), statistics.median(python_walls)
-    n_fmu_steps = res.steps * len(plan.instances)
     return {"cosim_s": round(cosim_s, 4), "cosim_setup_s": round(statistics.median(setups), 4),
             "cosim_us_per_step": round(cosim_s / res.steps * 1e6, 2),
             "cosim_python_s": round(python_s, 4), "cosim_python_us_per_step": round(python_s / res.steps * 1e6, 2),
-            "cosim_recorded_columns": len(res.columns),
-            "loop": (res.stepping or {}).get("loop", ""),
-            "master_us_per_fmu_step": round(overhead, 3),
-            "master_compiled_us_per_fmu_step": round((cosim_s - fmi_s) / n_fmu_steps * 1e6, 3)}
+            "cosim_recorded_columns": len(res.columns), "loop": loop_used,
+            "master_us_per_fmu_step": round(overhead, 3)}
 
 
 def plain_algorithm():
@@ -243,9 +250,13 @@ def bench_plain(repeats: int) -> dict[str, float]:
     sc = cosim.load(root / "scenarios" / "g1_learn.toml", resolve_model)
     sc.record = ANALYSIS_RECORD
     plan = cosim.resolve(sc)
+    def generated() -> GaussSeidel:   # the generated Python loop (the compiled one is bench_cosim's)
+        alg = GaussSeidel()
+        alg.native = False
+        return alg
     walls: dict[str, list[float]] = {"generated": [], "plain": []}
     for _ in range(repeats):
-        for kind, make in (("generated", GaussSeidel), ("plain", plain_algorithm)):
+        for kind, make in (("generated", generated), ("plain", plain_algorithm)):
             walls[kind].append(cosim.run(plan, None, progress=False, algorithm=make()).wall_s)
     g, p = statistics.median(walls["generated"]), statistics.median(walls["plain"])
     return {"cosim_plain_us_per_step": round(p / plan.n_steps * 1e6, 2),
