@@ -154,3 +154,21 @@ def test_without_a_c_compiler_the_run_takes_the_python_loop_and_says_so(tmp_path
     import json
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert summary["stepping"]["loop"] == "Python (no C compiler (cc) on PATH)"
+
+
+def test_a_unit_conversion_with_an_offset_on_a_connection(tmp_path, monkeypatch):
+    """degF -> degC with the scenario's factor and offset folded in (0.5 (v - 32) 5/9 - 3), both ways round
+    through the two loops."""
+    from c_fmu_support import build_c_fmu
+    from coupling_fmus import C_FMUS
+    from test_plan_unit_offset_connections import THERMO, UNITS
+
+    fmus = {u: build_c_fmu(C_FMUS / "affine.c", THERMO.format(name=f"Thermo_{u}", units=UNITS, unit=u), tmp_path,
+                           f"Thermo_{u}") for u in ("degF", "degC")}
+    doc = {"experiment": {"start": 0.0, "stop": 0.2, "step": 0.01},
+           "instances": {"src": {"fmu": str(fmus["degF"]), "parameters": {"a": 0.0, "b0": 20.0, "b1": 10.0}},
+                         "dst": {"fmu": str(fmus["degC"])}},
+           "connections": [{"from": "src.y", "to": "dst.u", "factor": 0.5, "offset": -3.0}],
+           "record": {"variables": ["src.y", "dst.u"]}}
+    sig = _same(_both(doc, tmp_path, monkeypatch))
+    np.testing.assert_allclose(sig["dst.u"][1:], 0.5 * (sig["src.y"][1:] - 32.0) * 5.0 / 9.0 - 3.0, rtol=1e-12)

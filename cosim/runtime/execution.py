@@ -30,8 +30,8 @@ import math
 import shutil
 import tempfile
 import time as _time
-from pathlib import Path
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable
 
 from ..instances.contract import FmuInstance
@@ -433,6 +433,7 @@ class Execution:
                                  "(canGetAndSetFMUstate is not declared): the run cannot go back to a point")
         for inst in self.instances.values():
             inst.allow_rollback()
+        self.algorithm.inputs_changed()   # (its loop made again: the steps' noSetFMUStatePriorToCurrentPoint false)
         states = {name: inst.get_state() for name, inst in self.instances.items()}
         return SavedPoint(self.k_done, bytes(self._layout.buf), states, dict(self._wiring.overrides),
                           len(self._actuator.log))
