@@ -149,4 +149,5 @@ def test_the_g1_loop_broken_at_the_right_torque_has_the_documented_margins(tmp_p
     assert loop["closed_loop_stable"]
     closed = np.array([complex(*z) for z in loop["closed_eigenvalues"]])
     whole = np.array([complex(*z) for z in s["whole_eigenvalues"]])
-    assert np.abs(np.sort_complex(closed) - np.sort_complex(whole)).max() <= doc["closed against whole, largest difference"]
+    apart = np.abs(np.sort_complex(closed) - np.sort_complex(whole)).max()
+    assert apart <= doc["closed against whole, largest difference"]

@@ -23,7 +23,8 @@ ME = {"interface": "model-exchange"}
 def fmus(tmp_path_factory) -> dict[str, str]:
     out = tmp_path_factory.mktemp("linear-fmus")
     return {"lag": str(build_lag(out)), "gain": str(build_lag(out, gain=True)),
-            "lag_dd": str(build_lag(out, directional=True)), "gain_dd": str(build_lag(out, gain=True, directional=True))}
+            "lag_dd": str(build_lag(out, directional=True)),
+            "gain_dd": str(build_lag(out, gain=True, directional=True))}
 
 
 def _chain(fmus: dict[str, str], n_lags: int, K: float, tau: float, k: float = 1.0, fields=ME, lag: str = "lag",
@@ -158,3 +159,17 @@ def test_going_back_to_a_point_of_a_closed_loop_repeats_it_bit_for_bit(fmus):
         ex.free_point(point)
     finally:
         ex.close()
+
+
+def test_a_connection_that_is_not_real_to_real_is_held_and_said(fmus):
+    """A Real -> Boolean connection (a threshold) has no derivative to take: the model says it held it."""
+    from reference_fmus import fmu as reference_fmu
+
+    sim = Simulation().experiment(start=0.0, stop=1.0, step=0.01) \
+        .instance("lag", fmus["lag"], fields=ME).instance("ft", reference_fmu("fmi2", "Feedthrough"), fields=ME) \
+        .connect("lag.y", "ft.Boolean_input", convert=True, threshold=0.5) \
+        .connect("ft.Float64_continuous_output", "lag.u")
+    lin = Linearizer(sim.check(), Request(at=0.0, inputs=["ft.Float64_continuous_input"], outputs=["lag.y"])).run()
+    assert lin.notes == ["lag.y -> ft.Boolean_input (Real to Boolean) is not a real-to-real connection: held as it "
+                         "is at the point, not linearised"]
+    assert control.dcgain(lin.model.statespace()) == pytest.approx(1.0, rel=1e-6)   # ft passes u through to lag

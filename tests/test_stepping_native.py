@@ -57,7 +57,8 @@ def _chain(version: str, algorithm: str, stop: float = 1.0, step: float = 0.001)
                             {"from": "f2.Float64_continuous_output", "to": "f1.Float64_discrete_input"}],
             "events": [{"time": 0.3 * stop, "variable": "f1.Int32_input", "action": "override", "value": 4},
                        {"time": 0.35 * stop, "variable": "f1.Float64_tunable_parameter", "action": "set", "value": 1.5},
-                       {"time": 0.5 * stop, "variable": "f2.Float64_continuous_input", "action": "bias", "value": 0.25}],
+                       {"time": 0.5 * stop, "variable": "f2.Float64_continuous_input", "action": "bias",
+                        "value": 0.25}],
             "record": {"variables": ["*.*"]}}
 
 

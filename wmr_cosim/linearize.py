@@ -79,6 +79,7 @@ def summary(lin: Linearisation) -> dict[str, Any]:
         out["loop"]["order"] = len(lin.loop.gain.states)
     if lin.whole_eigenvalues is not None:
         out["whole_eigenvalues"] = _complex(lin.whole_eigenvalues)
+    out["notes"] = list(lin.notes)
     return out
 
 
@@ -114,6 +115,7 @@ def report(lin: Linearisation) -> list[str]:
                      f"(order {len(m.states)})")
     lines.append("  eigenvalues: " + (", ".join(_z(z) for z in sorted(m.eigenvalues(), key=lambda z: (z.real, z.imag)))
                                       or "none"))
+    lines += [f"  note: {n}" for n in lin.notes]
     if lin.loop is not None:
         s = lin.loop.summary()
         lines.append(f"loop broken at {s['break']} (L = -G, G from the injection to the return):")

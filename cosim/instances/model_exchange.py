@@ -401,7 +401,8 @@ class ModelExchange:
         """The model exchange interface declares providesDirectionalDerivative."""
         return bool(getattr(self.md.modelExchange, "providesDirectionalDerivative", False))
 
-    def directional_derivative(self, unknowns: list[int], knowns: list[int], seed: list[float]) -> tuple[int, list[float]]:
+    def directional_derivative(self, unknowns: list[int], knowns: list[int],
+                               seed: list[float]) -> tuple[int, list[float]]:
         """fmi2GetDirectionalDerivative / fmi3GetDirectionalDerivative: (status, d unknowns = J seed)."""
         if not self.provides_directional_derivative:
             raise RunError(f"{self.name}: this FMU gives no directional derivatives", self.name)

@@ -232,13 +232,16 @@ class Linearizer:
         for ref, value in req.states.items():
             self._set_state(ex, ref, value)
         self._exchange(ex)
-        links = [Link(self._ref(c.src, c.src_var), self._ref(c.dst, c.dst_var), c.factor)
-                 for c in self.plan.connections if c.src_var.fmi_type in ("Real", "Float64")]
+        reals = [c for c in self.plan.connections if _real(c.src_var) and _real(c.dst_var)]
+        links = [Link(self._ref(c.src, c.src_var), self._ref(c.dst, c.dst_var), c.factor) for c in reals]
         wanted_in = set(req.inputs) | {lk.dst for lk in links}
         wanted_out = set(req.outputs) | {lk.src for lk in links}
         blocks = [self._block(ex, name, wanted_in, wanted_out) for name in self.plan.order]
         model = close(blocks, links, req.inputs, req.outputs) if req.inputs or req.outputs else None
         out = Linearisation(model if model is not None else close(blocks, links, [], []))
+        out.notes += [f"{self._ref(c.src, c.src_var)} -> {self._ref(c.dst, c.dst_var)} ({c.src_var.fmi_type} to "
+                      f"{c.dst_var.fmi_type}) is not a real-to-real connection: held as it is at the point, not "
+                      "linearised" for c in self.plan.connections if c not in reals]
         link = self.link
         if link is not None:
             src, dst = self._ref(link.src, link.src_var), self._ref(link.dst, link.dst_var)
@@ -273,7 +276,7 @@ class Linearizer:
 
     def _exchange(self, ex: Execution) -> None:
         """Every connected Real input set to what its connection carries at the point, until they hold."""
-        conns = [c for c in self.plan.connections if c.src_var.fmi_type in ("Real", "Float64")]
+        conns = [c for c in self.plan.connections if _real(c.src_var) and _real(c.dst_var)]
         for _ in range(EXCHANGE_SWEEPS):
             changed = False
             for c in conns:
@@ -326,6 +329,10 @@ def _set(inst: Any, var: Variable, value: float, me: bool) -> None:
         inst.set_continuous_inputs([var.vr], [value])
     else:
         inst.set_values([(var, value)])
+
+
+def _real(var: Variable) -> bool:
+    return var.fmi_type in ("Real", "Float64")
 
 
 def _unit(var: Variable | None) -> str:

@@ -64,7 +64,8 @@ StepDone = Callable[[int, bool], "Failure | None"]
 
 @dataclass
 class NativeRecording:
-    """What the recording gives a native loop (a :data:`StepDone` may carry it as ``done.native``: the recording's does): its
+    """What the recording gives a native loop (a :data:`StepDone` may carry it as ``done.native``: the
+    recording's does): its
     row (``buf``, ``row_bytes``: the doubles and integers the loop leaves the outputs in), when a row is
     taken (every ``decimation``-th point of ``n_steps``, the last one, an FMU's end), the last point's time
     ``stop`` [s] where the last step is short, ``t0`` and ``h`` [s]; ``read_others(k)`` reads the recorded

@@ -172,10 +172,10 @@ class NativeLoop:
         p.raw_set = int(native and _raw(f.set_real))
         p.raw_step = int(native and _raw(f.do_step))
         p.raw_get = int(native and _raw(f.get_real))
-        p.set = self._fn(f.set_real) if p.raw_set else self._cb(_IO, lambda: f.set_real(f.c, io.in_vr, io.n_in, f.in_val,
-                                                                                           *f.set_tail))
-        p.get = self._fn(f.get_real) if p.raw_get else self._cb(_IO, lambda: f.get_real(f.c, io.out_vr, io.n_out,
-                                                                                           io.out_val, *f.get_tail))
+        p.set = self._fn(f.set_real) if p.raw_set else \
+            self._cb(_IO, lambda: f.set_real(f.c, io.in_vr, io.n_in, f.in_val, *f.set_tail))
+        p.get = self._fn(f.get_real) if p.raw_get else \
+            self._cb(_IO, lambda: f.get_real(f.c, io.out_vr, io.n_out, io.out_val, *f.get_tail))
         if p.raw_step:
             p.step = self._fn(f.do_step)
         else:
