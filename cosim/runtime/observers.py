@@ -135,22 +135,23 @@ class Recorder(Observer):
         dec, n, t0, h, stop, append = c.decimation, c.n_steps, float(c.start), float(c.step), c.stop, \
             self.rows.chunk.append
 
+        def read_others(k: int) -> Failure | None:
+            """The recorded outputs of other types than Float64 into the row."""
+            for x in getters:
+                s = x.read(row)
+                if s:
+                    return Failure(k, x.instance, Call.GET_RECORDED, s)
+            return None
+
         def take(k: int, ended: bool) -> Failure | None:
             if k % dec and k != n and not ended:
                 return None
             rowd[0] = stop if k == n and stop is not None else t0 + k * h
-            for x in getters:
-                s = x.read(row)
-                if s:
-                    return Failure(k, x.instance, Call.GET_RECORDED, s)
+            if getters:
+                fail = read_others(k)
+                if fail is not None:
+                    return fail
             append(bytes(buf))
-            return None
-
-        def read_others(k: int) -> Failure | None:
-            for x in getters:
-                s = x.read(row)
-                if s:
-                    return Failure(k, x.instance, Call.GET_RECORDED, s)
             return None
         take.native = NativeRecording(buf, ctypes.sizeof(buf), dec, n, stop, t0, h,   # type: ignore[attr-defined]
                                       read_others if getters else None, self.rows.extend)
