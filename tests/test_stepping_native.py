@@ -1,6 +1,6 @@
-"""The compiled stepping loop (cosim/stepping/native.py, native_loop.c) against the generated Python loop
-it stands in for: bit for bit the same recordings (Gauss-Seidel and Jacobi, FMI 2.0 and 3.0, unit factors
-and offsets, discrete connections, recorded integers, tables, events, decimation, a short last step, Model
+"""The compiled stepping loop (cosim/stepping/native.py, native_loop.c) against the Python loops it stands
+in for: bit for bit the same recordings (Gauss-Seidel and Jacobi, FMI 2.0 and 3.0, instances at their own
+rates, unit factors and offsets, discrete connections, recorded integers, tables, events, decimation, a short last step, Model
 Exchange and isolated instances through callbacks, our pythonfmu FMUs in G1), the same failures with
 the same rows on disk, and the Python loop, named, where there is no C compiler."""
 from __future__ import annotations
@@ -69,6 +69,19 @@ def test_the_compiled_loop_records_what_the_python_loop_records(version, algorit
     assert len(sig) == 1001 and np.ptp(sig["f2.Float64_continuous_output"]) > 0
 
 
+@pytest.mark.parametrize("algorithm", ["gauss-seidel", "jacobi"])
+def test_instances_at_their_own_rates(algorithm, tmp_path, monkeypatch):
+    """f1 every 4 base steps, d every 2 (multi-rate): the same rows, steps counted alike."""
+    doc = _chain("fmi2", algorithm)
+    doc["instances"]["f1"]["step"] = 0.004
+    doc["instances"]["d"]["step"] = 0.002
+    out = _both(doc, tmp_path, monkeypatch)
+    sig = _same(out)
+    rates = [out[loop][0].summary["stepping"]["rates"] for loop in ("python", "native")]
+    assert [{n: r["steps"] for n, r in x.items()} for x in rates] == [{"d": 500, "f1": 250, "f2": 1000}] * 2
+    assert np.ptp(sig["f2.Float64_continuous_output"]) > 0
+
+
 def test_decimation_and_a_short_last_step(tmp_path, monkeypatch):
     doc = _chain("fmi2", "gauss-seidel", stop=0.1005)
     doc["record"]["decimation"] = 7
@@ -101,11 +114,13 @@ def probes(tmp_path_factory) -> dict[str, Path]:
             "terminate": build_probe(out, "TerminateAt", TERMINATE_AT="0.0405")}
 
 
-@pytest.mark.parametrize("kind,status", [("error", "failed"), ("terminate", "terminated")])
-def test_a_failure_ends_both_loops_alike_with_the_same_rows(kind, status, probes, tmp_path, monkeypatch):
+@pytest.mark.parametrize("kind,status,rate", [("error", "failed", None), ("terminate", "terminated", None),
+                                              ("error", "failed", 0.002), ("terminate", "terminated", 0.002)])
+def test_a_failure_ends_both_loops_alike_with_the_same_rows(kind, status, rate, probes, tmp_path, monkeypatch):
+    """(``rate``: the probe at a rate of its own, the multi-rate passes)"""
     ft = str(REF / "fmi2" / "Feedthrough.fmu")
     doc = {"experiment": {"start": 0.0, "stop": 0.1, "step": 0.001},
-           "instances": {"f": {"fmu": ft}, "p": {"fmu": str(probes[kind])}},
+           "instances": {"f": {"fmu": ft}, "p": {"fmu": str(probes[kind]), **({"step": rate} if rate else {})}},
            "connections": [{"from": "p.y", "to": "f.Float64_continuous_input"},
                            {"from": "f.Float64_continuous_output", "to": "p.u"}],
            "record": {"variables": ["*.*"]}}

@@ -17,7 +17,8 @@ between: the recording, at the base step, shows each output as last completed.
   a fast plant samples the plant at the end of its own step, as it does when both run at its rate), and
   its successors see its outputs in the same base step.
 
-With every decimation 1 the passes are the fixed-step algorithms' bit for bit.
+With every decimation 1 the passes are the fixed-step algorithms' bit for bit.  Where a C compiler is at
+hand they run in the compiled loop (:mod:`.native`), bit for bit these.
 
 Events, tables and the script act on the base grid: a value set between an instance's points reaches it
 at its next step (under Gauss-Seidel, the step taken at the end of the interval the value was set in).
@@ -42,12 +43,39 @@ class MultiRate(SteppedAlgorithm):
         self.jacobi = jacobi
         self.steps: list[int] = []
 
+    native = True                          # False: the passes in Python (a test's)
+    loop_used = ""
+
     def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,
               check_inputs: bool = True) -> None:
         super().setup(ios, clock, layout, done, check_inputs)
+        self.ios, self.done, self.check_inputs = ios, done, check_inputs
         self.dec = [io.decimation for io in ios]
         self.steps = [0] * len(ios)
         self.spent = [0.0] * len(ios)      # [s] wall time in each instance's steps
+        self.compiled: Any = None
+
+    def inputs_changed(self) -> None:
+        self.compiled = None
+
+    def advance(self, k0: int, k1: int) -> Failure | None:
+        """The passes in the compiled loop where it can be built (:mod:`.native`), else in Python."""
+        if self.compiled is None:
+            from . import native
+
+            lib, why = native.library() if self.native else (None, "asked for")
+            if lib is None:
+                self.loop_used = f"{native.PYTHON} ({why})"
+                return super().advance(k0, k1)
+            self.loop_used = native.NATIVE
+            self.compiled = native.NativeLoop(lib, self.ios, self.jacobi, self.clock, self.done, self.check_inputs,
+                                              rates=self.dec)
+        try:
+            return self.compiled(k0, k1)
+        finally:
+            for i, (n, w) in enumerate(self.compiled.counts()):
+                self.steps[i] += n
+                self.spent[i] += w
 
     def take(self, k: int, t: float, h: float) -> Failure | None:
         return self._jacobi(k, t, h) if self.jacobi else self._gauss_seidel(k, t, h)
@@ -93,5 +121,6 @@ class MultiRate(SteppedAlgorithm):
     def summary(self) -> dict[str, Any] | None:
         ios = self.stepper.ios if hasattr(self, "stepper") else []
         h = self.clock.step if hasattr(self, "clock") else 0.0
-        return {"rates": {io.name: {"step": d * h, "decimation": d, "steps": n, "step_time_s": round(w, 6)}
-                          for io, d, n, w in zip(ios, self.dec, self.steps, self.spent)}}
+        rates = {"rates": {io.name: {"step": d * h, "decimation": d, "steps": n, "step_time_s": round(w, 6)}
+                           for io, d, n, w in zip(ios, self.dec, self.steps, self.spent)}}
+        return {**rates, "loop": self.loop_used} if self.loop_used else rates

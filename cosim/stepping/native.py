@@ -1,4 +1,5 @@
-"""The fixed-step loop in C (native_loop.c beside this module): built with the system's C compiler the first
+"""The fixed-step loop in C (native_loop.c beside this module: Gauss-Seidel and Jacobi, at one rate or with
+instances at their own rates): built with the system's C compiler the first
 time it is needed and kept in a cache folder under the hash of its source and the compiler, loaded with
 ctypes, and given the same wiring the generated Python loop takes (:mod:`.generated`): each instance's
 fast path (its FMI functions called directly where they are the library's own, else a callback into
@@ -46,7 +47,7 @@ class Inst(ctypes.Structure):
                 ("no_set_prior", ctypes.c_int), ("flags", _P * 3), ("last_success", _P), ("terminated", _P),
                 ("last_time", _P), ("n_copies", ctypes.c_int), ("pos", _P), ("src", _P), ("slot", _P),
                 ("factor", _P), ("offset", _P), ("plain", _P), ("feed", _P), ("n_other", ctypes.c_int),
-                ("other", _P)]
+                ("other", _P), ("dec", ctypes.c_long), ("taken", ctypes.c_long), ("spent", ctypes.c_double)]
 
 
 class Loop(ctypes.Structure):
@@ -56,7 +57,8 @@ class Loop(ctypes.Structure):
                 ("decimation", ctypes.c_long), ("n_steps", ctypes.c_long), ("has_stop", ctypes.c_int),
                 ("stop", ctypes.c_double), ("getters", _P), ("rec", _P), ("rec_cap", ctypes.c_long),
                 ("rec_n", ctypes.c_long), ("f_step", ctypes.c_long), ("f_inst", ctypes.c_int),
-                ("f_call", ctypes.c_int), ("f_value", ctypes.c_double)]
+                ("f_call", ctypes.c_int), ("f_value", ctypes.c_double), ("f_time", ctypes.c_double),
+                ("multirate", ctypes.c_int)]
 
 
 _IO = ctypes.CFUNCTYPE(ctypes.c_int)
@@ -145,10 +147,12 @@ def _raw(fn: Any) -> bool:
 
 
 class NativeLoop:
-    """``loop(k0, k1) -> Failure | None`` over these instances as the generated loop's, in C."""
+    """``loop(k0, k1) -> Failure | None`` over these instances as the generated loop's, in C; with
+    ``rates`` (each instance's decimation), as the multi-rate algorithm's (:mod:`.multirate`), whose
+    failures carry their time and whose steps taken and their wall time are counted (:meth:`counts`)."""
 
     def __init__(self, lib: Any, ios: list[InstanceIO], simultaneous: bool, clock: Clock, done: StepDone,
-                 check_inputs: bool) -> None:
+                 check_inputs: bool, rates: list[int] | None = None) -> None:
         self.lib, self.ios, self.done = lib, ios, done
         self.error: BaseException | None = None
         self.failure: Failure | None = None
@@ -160,6 +164,9 @@ class NativeLoop:
                           check_inputs=int(check_inputs), t0=float(clock.start), h=float(clock.step))
         L.k_last, L.h_last = (clock.n_steps - 1, float(clock.length(clock.n_steps - 1))) if clock.stop is not None \
             else (-1, float(clock.step))
+        L.multirate = int(rates is not None)
+        for i, d in enumerate(rates or [1] * len(ios)):
+            self.insts[i].dec = d
         self._recording(done, clock)
 
     # ------------------------------------------------------------------ set-up
@@ -282,6 +289,15 @@ class NativeLoop:
             return self.failure
         io = self.ios[L.f_inst]
         call = _CALLS[L.f_call]
-        if call is Call.NON_FINITE_INPUT or call is Call.TERMINATED:
-            return Failure(L.f_step, io.name, call, float(L.f_value))
-        return Failure(L.f_step, io.name, call, int(L.f_value))
+        value = float(L.f_value) if call is Call.NON_FINITE_INPUT or call is Call.TERMINATED else int(L.f_value)
+        if L.multirate and call is not Call.TERMINATED:
+            return Failure(L.f_step, io.name, call, value, float(L.f_time))
+        return Failure(L.f_step, io.name, call, value)
+
+    def counts(self) -> list[tuple[int, float]]:
+        """Multi-rate: each instance's steps taken and their wall time [s] since the last call (then zeroed)."""
+        out = []
+        for p in self.insts[:len(self.ios)]:
+            out.append((int(p.taken), float(p.spent)))
+            p.taken, p.spent = 0, 0.0
+        return out

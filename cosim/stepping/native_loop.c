@@ -1,5 +1,6 @@
-/* The fixed-step stepping loop in C: Gauss-Seidel or Jacobi over the instances, a segment of steps k0 ..
- * k1 - 1 without returning to Python (cosim/stepping/native.py builds it, fills the structures below and
+/* The fixed-step stepping loop in C: Gauss-Seidel or Jacobi over the instances (at one rate, or each at its
+ * own: the multi-rate passes of cosim/stepping/multirate.py), a segment of steps k0 .. k1 - 1 without
+ * returning to Python (cosim/stepping/native.py builds it, fills the structures below and
  * calls wmr_loop through a view of the library that keeps the GIL: an FMU's own Python code (pythonfmu)
  * and the callbacks take it recursively).
  *
@@ -20,6 +21,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <string.h>
+#include <time.h>
 
 typedef int (*set2_t)(void *, const unsigned *, size_t, const double *);
 typedef int (*step2_t)(void *, double, double, int);
@@ -50,6 +52,8 @@ typedef struct {
     int *pos; double **src; long *slot; double *factor; double *offset; int *plain;
     cb_feed_t feed;           /* the tabulated inputs of step k (NULL: none) */
     int n_other; cb_io_t *other;   /* the other connections (NULL: none) */
+    long dec;                 /* multi-rate: it steps every dec base steps, over dec h */
+    long taken; double spent; /* multi-rate: its steps taken, and their wall time [s] */
 } Inst;
 
 typedef struct {
@@ -63,13 +67,26 @@ typedef struct {
     cb_take_t getters;        /* reads the recorded outputs of other types into the row (NULL: none); or,
                                  where the recording is not a row to copy, takes the point itself */
     char *rec; long rec_cap, rec_n;   /* rec NULL: no row copied */
-    /* the failure: at step f_step, instance f_inst, call f_call (C_*), FMI status or value f_value */
-    long f_step; int f_inst; int f_call; double f_value;
+    /* the failure: at step f_step, instance f_inst, call f_call (C_*), FMI status or value f_value, at
+     * the time f_time [s] (multi-rate: its failures carry their time, as the stepper's) */
+    long f_step; int f_inst; int f_call; double f_value; double f_time;
+    int multirate;            /* the instances at their rates (Inst.dec), as cosim/stepping/multirate.py */
 } Loop;
+
+static double now_s(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
 
 static int fail(Loop *L, long k, int i, int call, double value) {
     L->f_step = k; L->f_inst = i; L->f_call = call; L->f_value = value;
     return FAILED;
+}
+
+static int fail_at(int s, Loop *L, double t) {   /* a failure of the multi-rate passes: its time */
+    if (s == FAILED) L->f_time = t;
+    return s;
 }
 
 /* instance i's inputs of step k: tables, copies (checked), the set, the other connections */
@@ -141,6 +158,54 @@ static int take(Loop *L, long k, int ended) {
     return OK;
 }
 
+/* multi-rate, Gauss-Seidel: in the plan's order, an instance takes its step from t_{k+1-d} in the base
+ * step k that ends it, its inputs as they are then; Jacobi: the instances whose step starts at t_k take
+ * their inputs, then step, then those whose step ends at t_{k+1} give their outputs */
+static int pass_rates(Loop *L, long k, double t, double h) {
+    int i, s, dummy = -1;
+    double dummy_at = 0.0, w;
+    for (i = 0; i < L->n; i++) {
+        Inst *p = &L->inst[i];
+        long d = p->dec, k0 = k + 1 - d;
+        double t0;
+        if (L->simultaneous) {
+            if (k % d) continue;
+            if ((s = fail_at(inputs(L, i, k), L, t))) return s;
+            continue;
+        }
+        if ((k + 1) % d) continue;
+        t0 = d == 1 ? t : L->t0 + (double)k0 * L->h;
+        if ((s = fail_at(inputs(L, i, k0), L, t0))) return s;
+        w = now_s();
+        s = step(L, i, k0, t0, (double)d * h, &dummy, &dummy_at);
+        p->spent += now_s() - w;
+        if ((s = fail_at(s, L, t0))) return s;
+        if ((s = fail_at(outputs(L, i, k), L, t + h))) return s;
+        p->taken++;
+    }
+    if (!L->simultaneous) return OK;
+    for (i = 0; i < L->n; i++) {
+        Inst *p = &L->inst[i];
+        if (k % p->dec) continue;
+        w = now_s();
+        s = step(L, i, k, t, (double)p->dec * h, &dummy, &dummy_at);
+        p->spent += now_s() - w;
+        if ((s = fail_at(s, L, t))) return s;
+        p->taken++;
+    }
+    for (i = 0; i < L->n; i++)
+        if ((k + 1) % L->inst[i].dec == 0 && (s = fail_at(outputs(L, i, k), L, t + h))) return s;
+    return OK;
+}
+
+/* multi-rate: after the pass, the first instance (in the plan's order) that has ended the simulation */
+static int first_ended(Loop *L, double *at) {
+    int i;
+    for (i = 0; i < L->n; i++)
+        if (L->inst[i].terminated && *L->inst[i].terminated) { *at = *L->inst[i].last_time; return i; }
+    return -1;
+}
+
 int wmr_loop(Loop *L, long k0, long k1) {
     long k;
     int i, s;
@@ -149,7 +214,10 @@ int wmr_loop(Loop *L, long k0, long k1) {
         double h = (k == L->k_last) ? L->h_last : L->h;
         int ended = -1;
         double ended_at = 0.0;
-        if (L->simultaneous) {
+        if (L->multirate) {
+            if ((s = pass_rates(L, k, t, h))) return s;
+            ended = first_ended(L, &ended_at);
+        } else if (L->simultaneous) {
             for (i = 0; i < L->n; i++) if ((s = inputs(L, i, k))) return s;
             for (i = 0; i < L->n; i++) if ((s = step(L, i, k, t, h, &ended, &ended_at))) return s;
             for (i = 0; i < L->n; i++) if ((s = outputs(L, i, k))) return s;
