@@ -114,9 +114,10 @@ both and their ratio, this / that.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import json
-from typing import Any
+from typing import Any, Iterator
 import platform
 import statistics
 import sys
@@ -150,6 +151,18 @@ ANALYSIS_RECORD = ["plant.x_A", "plant.y_A", "plant.beta", "plant.dF*", "control
                    "controller.v_A_d", "controller.beta_dot_d", "controller.profile", "controller.t_goal"]
 
 
+@contextlib.contextmanager
+def stepping_loop(python: bool) -> Iterator[None]:
+    """Runs (in this process and the ones it starts) through the Python loop where ``python``, else through
+    the compiled one where a C compiler is at hand (cosim/stepping/native.py: WMR_COSIM_LOOP)."""
+    if python:
+        os.environ["WMR_COSIM_LOOP"] = "python"
+    try:
+        yield
+    finally:
+        os.environ.pop("WMR_COSIM_LOOP", None)
+
+
 def bench_cosim(repeats: int) -> dict[str, float]:
     from wmr_cosim import cosim
     from wmr_cosim.runner import resolve_model
@@ -162,26 +175,20 @@ def bench_cosim(repeats: int) -> dict[str, float]:
     res = None
     loop_used = ""
     for _ in range(repeats):   # the compiled loop (where a compiler is at hand) and the Python loop, interleaved
-        for loop, times in (("", walls), ("python", python_walls)):
-            os.environ["WMR_COSIM_LOOP"] = loop
-            try:
+        for python, times in ((False, walls), (True, python_walls)):
+            with stepping_loop(python):
                 res = cosim.run(plan, None, progress=False)
-            finally:
-                os.environ.pop("WMR_COSIM_LOOP", None)
             if res.status != "ok":
                 raise SystemExit(f"co-simulation failed: {res.message}")
             times.append(res.wall_s)
-            if not loop:
+            if not python:
                 setups.append(res.setup_s)
                 loop_used = (res.stepping or {}).get("loop", "")
     # the master's own time per FMU and step: the loop's time minus the time inside the FMI calls, timed one
     # by one (through the Python loop: the timing wraps each call in Python, which the compiled loop would
     # then call back)
-    os.environ["WMR_COSIM_LOOP"] = "python"
-    try:
+    with stepping_loop(python=True):
         timed = [cosim.run(plan, None, progress=False, timing=True) for _ in range(max(1, repeats // 2))]
-    finally:
-        os.environ.pop("WMR_COSIM_LOOP", None)
     overhead = statistics.median((r.wall_s - r.fmi_s) / r.steps / len(plan.instances) * 1e6 for r in timed)
     cosim_s, python_s = statistics.median(walls), statistics.median(python_walls)
     return {"cosim_s": round(cosim_s, 4), "cosim_setup_s": round(statistics.median(setups), 4),
@@ -555,13 +562,8 @@ def bench_generic(repeats: int) -> dict[str, Any]:
         results = {}
         for _ in range(n):  # interleaved, so that a slow phase of the machine hits every master alike
             for peer in ("ours", "ours_python", "libcosim", "ecos", "ecos_pinned"):
-                forced = peer == "ours_python"
-                if forced:
-                    os.environ["WMR_COSIM_LOOP"] = "python"
-                try:
-                    r = run_peer("ours" if forced else peer, ssp, stop, h, signals)  # ours: Gauss-Seidel
-                finally:
-                    os.environ.pop("WMR_COSIM_LOOP", None)
+                with stepping_loop(python=peer == "ours_python"):   # (ours: Gauss-Seidel)
+                    r = run_peer("ours" if peer == "ours_python" else peer, ssp, stop, h, signals)
                 walls.setdefault(peer, []).append(r["wall_s"])
                 if peer.startswith("ours"):
                     walls.setdefault("ours_loop" if peer == "ours" else "ours_python_loop", []).append(r["loop_s"])

@@ -48,6 +48,19 @@ def fd_step(v: float, nominal: float) -> float:
     return (v + h) - v
 
 
+def central_column(put: Callable[[float], None], v: float, nominal: float,
+                   evaluate: Callable[[], Sequence[float]]) -> np.ndarray:
+    """The central difference (F(v + h) - F(v - h)) / 2h of ``evaluate`` by one known at ``v``, which
+    ``put`` sets (and sets back to ``v`` after), with the step of :func:`fd_step`."""
+    h = fd_step(v, nominal)
+    cols = []
+    for sign in (1.0, -1.0):
+        put(v + sign * h)
+        cols.append(np.array(evaluate(), dtype=float))
+    put(v)
+    return (cols[0] - cols[1]) / (2.0 * h)
+
+
 def states_of(md: Any, prefix: str, unit_of: Callable[[str], str]) -> tuple[list[Signal], list[int]]:
     """The states of a model description in the order of its derivatives (the state vector's order) and
     the value references of the derivatives."""
@@ -99,7 +112,7 @@ def _by_directional_derivatives(inst: Any, states: Sequence[Signal], der_vrs: Se
 
 def _by_differences(inst: Any, states: Sequence[Signal], inputs: Sequence[Signal],
                     outputs: Sequence[Signal]) -> np.ndarray:
-    x0 = inst.continuous_states()
+    x0 = list(inst.continuous_states())
     in_vrs, out_vrs = [u.vr for u in inputs], [y.vr for y in outputs]
     u0 = inst.get_reals(in_vrs) if in_vrs else []
     nominals = inst.state_nominals() if x0 else []
@@ -107,26 +120,18 @@ def _by_differences(inst: Any, states: Sequence[Signal], inputs: Sequence[Signal
     def evaluate() -> list[float]:
         return list(inst.state_derivatives()) + (list(inst.get_reals(out_vrs)) if out_vrs else [])
 
+    def put_state(j: int) -> Callable[[float], None]:
+        return lambda value: inst.set_continuous_states(x0[:j] + [value] + x0[j + 1:])
+
+    def put_input(j: int) -> Callable[[float], None]:
+        return lambda value: inst.set_continuous_inputs([in_vrs[j]], [value])
+
     J = np.zeros((len(x0) + len(out_vrs), len(x0) + len(in_vrs)))
     try:
         for j, v in enumerate(x0):
-            h = fd_step(v, nominals[j])
-            cols = []
-            for sign in (1.0, -1.0):
-                x = list(x0)
-                x[j] = v + sign * h
-                inst.set_continuous_states(x)
-                cols.append(evaluate())
-            J[:, j] = (np.array(cols[0]) - np.array(cols[1])) / (2.0 * h)
-        inst.set_continuous_states(x0)
+            J[:, j] = central_column(put_state(j), v, nominals[j], evaluate)
         for j, v in enumerate(u0):
-            h = fd_step(v, inputs[j].nominal)
-            cols = []
-            for sign in (1.0, -1.0):
-                inst.set_continuous_inputs([in_vrs[j]], [v + sign * h])
-                cols.append(evaluate())
-            inst.set_continuous_inputs([in_vrs[j]], [v])
-            J[:, len(x0) + j] = (np.array(cols[0]) - np.array(cols[1])) / (2.0 * h)
+            J[:, len(x0) + j] = central_column(put_input(j), v, inputs[j].nominal, evaluate)
     finally:
         if x0:
             inst.set_continuous_states(x0)

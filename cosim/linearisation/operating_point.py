@@ -18,18 +18,19 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from ..messages.errors import CosimError, RunError, ScenarioError
 from ..model.description import MODEL_EXCHANGE, Variable
-from ..plan.records import ConnectionPlan, Plan
+from ..plan.records import ConnectionPlan, InstancePlan, Plan, unit_of
 from ..plan.resolution import INPUTS, variable
+from ..plan.wiring import is_f64
 from ..runtime.execution import Execution
 from ..scenario.document import split_ref
 from .interconnection import Link, close
-from .jacobian import Signal, jacobian, linear_model, states_of
+from .jacobian import Signal, central_column, jacobian, linear_model, states_of
 from .loop import LoopAnalysis, analyse
 from .model import LinearModel
 from .realisation import RELATIVE_PULSE, Injection, pulse_responses, realise
@@ -206,11 +207,12 @@ class Linearizer:
             wired = any(self._ref(c.dst, c.dst_var) == ref for c in self.plan.connections) or \
                 any(self._ref(ip.instance, ip.var) == ref for ip in self.plan.inputs)
             injections.append(Injection(ref, (u + delta) - u, wired))
-            units_in.append(_unit(var))
+            units_in.append(_unit(self.plan.instances[inst], var))
         outputs = list(req.outputs)
         if link is not None and self._ref(link.src, link.src_var) not in outputs:
             outputs.append(self._ref(link.src, link.src_var))
-        units_out = [_unit(self._var(r, "--outputs", None, "output")[1]) for r in outputs]
+        units_out = [_unit(self.plan.instances[r.split(".", 1)[0]], self._var(r, "--outputs", None, "output")[1])
+                     for r in outputs]
         cut = self._ref(link.dst, link.dst_var) if link is not None else None
         H = pulse_responses(ex, injections, outputs, req.steps, cut)
         model = realise(H, self.step, refs, outputs, order=req.order, t=t, input_units=units_in,
@@ -232,26 +234,28 @@ class Linearizer:
         for ref, value in req.states.items():
             self._set_state(ex, ref, value)
         self._exchange(ex)
-        reals = [c for c in self.plan.connections if _real(c.src_var) and _real(c.dst_var)]
+        reals = [c for c in self.plan.connections if is_f64(c.src_var) and is_f64(c.dst_var)]
         links = [Link(self._ref(c.src, c.src_var), self._ref(c.dst, c.dst_var), c.factor) for c in reals]
         wanted_in = set(req.inputs) | {lk.dst for lk in links}
         wanted_out = set(req.outputs) | {lk.src for lk in links}
         blocks = [self._block(ex, name, wanted_in, wanted_out) for name in self.plan.order]
-        model = close(blocks, links, req.inputs, req.outputs) if req.inputs or req.outputs else None
-        out = Linearisation(model if model is not None else close(blocks, links, [], []))
+        asked = bool(req.inputs or req.outputs)
+        link = self.link
+        whole = close(blocks, links, [], []) if link is not None or not asked else None
+        model = close(blocks, links, req.inputs, req.outputs) if asked else whole
+        assert model is not None
+        out = Linearisation(model)
         out.notes += [f"{self._ref(c.src, c.src_var)} -> {self._ref(c.dst, c.dst_var)} ({c.src_var.fmi_type} to "
                       f"{c.dst_var.fmi_type}) is not a real-to-real connection: held as it is at the point, not "
                       "linearised" for c in self.plan.connections if c not in reals]
-        link = self.link
         if link is not None:
+            assert whole is not None
             src, dst = self._ref(link.src, link.src_var), self._ref(link.dst, link.dst_var)
-            cut = Link(src, dst, link.factor)
-            G = close(blocks, links, [dst], [src], broken=[cut])
-            G.C, G.D = G.C * link.factor, G.D * link.factor
-            out.loop = analyse(G, src, dst)
-            out.whole_eigenvalues = close(blocks, links, [], []).eigenvalues()
-            if model is None:
-                out.model = close(blocks, links, [dst], [src], broken=[cut])
+            opened = close(blocks, links, [dst], [src], broken=[Link(src, dst, link.factor)])
+            if not asked:
+                out.model = opened
+            out.loop = analyse(dataclasses.replace(opened, C=opened.C * link.factor, D=opened.D * link.factor), src, dst)
+            out.whole_eigenvalues = whole.eigenvalues()
         return out
 
     def _block(self, ex: Execution, name: str, wanted_in: set[str], wanted_out: set[str]) -> LinearModel:
@@ -259,10 +263,10 @@ class Linearizer:
         ins = [v for v in ip.model.variables.values() if v.causality == "input" and self._ref(name, v) in wanted_in]
         outs = [v for v in ip.model.variables.values() if v.causality == "output" and self._ref(name, v) in wanted_out]
         md = ip.model.md
-        sig_in = [Signal(self._ref(name, v), v.vr, _unit(v), _nominal(md, v)) for v in ins]
-        sig_out = [Signal(self._ref(name, v), v.vr, _unit(v), _nominal(md, v)) for v in outs]
+        sig_in = [Signal(self._ref(name, v), v.vr, _unit(ip, v), _nominal(md, v)) for v in ins]
+        sig_out = [Signal(self._ref(name, v), v.vr, _unit(ip, v), _nominal(md, v)) for v in outs]
         if ip.interface == MODEL_EXCHANGE:
-            states, ders = states_of(ip.model.md, name, lambda n: _unit(ip.model.variables.get(n)))
+            states, ders = states_of(ip.model.md, name, lambda n: _unit(ip, ip.model.variables.get(n)))
             J, how = jacobian(inst, states, ders, sig_in, sig_out, self.req.method)
             return linear_model(J, states, sig_in, sig_out, ex.time, f"{name}: {how}")
         D = _memoryless_gain(inst, md, ins, outs)
@@ -276,7 +280,7 @@ class Linearizer:
 
     def _exchange(self, ex: Execution) -> None:
         """Every connected Real input set to what its connection carries at the point, until they hold."""
-        conns = [c for c in self.plan.connections if _real(c.src_var) and _real(c.dst_var)]
+        conns = [c for c in self.plan.connections if is_f64(c.src_var) and is_f64(c.dst_var)]
         for _ in range(EXCHANGE_SWEEPS):
             changed = False
             for c in conns:
@@ -303,18 +307,13 @@ def memoryless(md: Any) -> bool:
 
 def _memoryless_gain(inst: Any, md: Any, ins: list[Variable], outs: list[Variable]) -> np.ndarray:
     """D of a memoryless co-simulation FMU by central differences of its outputs after setting its inputs."""
-    from .jacobian import fd_step
+    def put(v: Variable) -> Callable[[float], None]:
+        return lambda value: inst.set_values([(v, value)])
 
     D = np.zeros((len(outs), len(ins)))
     for j, v in enumerate(ins):
-        u = float(inst.get_value(v))
-        h = fd_step(u, _nominal(md, v))
-        cols = []
-        for sign in (1.0, -1.0):
-            inst.set_values([(v, u + sign * h)])
-            cols.append([float(inst.get_value(y)) for y in outs])
-        inst.set_values([(v, u)])
-        D[:, j] = (np.array(cols[0]) - np.array(cols[1])) / (2.0 * h)
+        D[:, j] = central_column(put(v), float(inst.get_value(v)), _nominal(md, v),
+                                 lambda: [float(inst.get_value(y)) for y in outs])
     return D
 
 
@@ -331,12 +330,10 @@ def _set(inst: Any, var: Variable, value: float, me: bool) -> None:
         inst.set_values([(var, value)])
 
 
-def _real(var: Variable) -> bool:
-    return var.fmi_type in ("Real", "Float64")
-
-
-def _unit(var: Variable | None) -> str:
-    return var.unit.name if var is not None and var.unit is not None else ""
+def _unit(ip: InstancePlan, var: Variable | None) -> str:
+    """A variable's unit as the scenario declares it, else as its FMU does ("" where none)."""
+    unit = unit_of(ip, var) if var is not None else None
+    return unit.name if unit is not None else ""
 
 
 def _nominal(md: Any, var: Variable) -> float:

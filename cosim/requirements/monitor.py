@@ -255,9 +255,8 @@ class Monitor:
             self.hi = None if node.hi is None else _steps(node.hi, step)
             node = node.a
         self.body = _build(node, checked, read, step, self.atoms)
-        self.seen = 0                       # body values folded into the verdict
+        self.seen = 0                       # body values looked at (those from lo on folded into the verdict)
         self.best = INF if self.mode == "min" else -INF
-        self.judged = 0                      # body values folded into the verdict
         self.best_k = 0
         self.first_violation: float | None = None
         self.decided: str | None = None
@@ -285,14 +284,13 @@ class Monitor:
         k = self.seen
         if self.mode == "single":
             if self.decided is None and upto > 0:
-                self.best, self.best_k, self.judged = v[0], 0, 1
+                self.best, self.best_k = v[0], 0
                 self._decide("holds" if v[0] >= 0 else "violated", t, 0)
             self.seen = upto
             return
         end = upto if self.hi is None else min(upto, self.hi + 1)
         for k in range(max(k, self.lo), end):
             x = v[k]
-            self.judged += 1
             if (x < self.best) if self.mode == "min" else (x > self.best):
                 self.best, self.best_k = x, k
             if self.mode == "min" and x < 0 and self.first_violation is None:
@@ -319,7 +317,7 @@ class Monitor:
         verdict = self.decided or "undecided"
         if self.decided is None and self.mode == "min" and self.hi is None and self.seen > 0 and self.finished:
             verdict = "holds"   # an unbounded always over the whole run, every judged value >= 0
-        judged = self.judged > 0
+        judged = self.seen > self.lo   # (some value of the window was folded in)
         at = self.times[self.best_k] if judged else None
         t0 = self.times[0] if self.times else 0.0
         hi = None if self.hi is None else t0 + self.hi * self.step

@@ -311,9 +311,7 @@ class Execution:
         while k < k_target and not self._stop_requested:
             acted = [m.act(self._manipulated, k) for m in self.manipulators]
             if self._script.act(self._manipulated, k) or any(acted):   # (the script's changes last: a manipulator may set)
-                for io in self.ios:
-                    io.copies = self._wiring.copies(io.name)
-                self.algorithm.inputs_changed()
+                self._copies_changed()
             k_end = self._segment_end(k, k_target)
             self._errors = {n: i.n_errors for n, i in self.instances.items()}   # (see _failed)
             fail = self.algorithm.advance(k, k_end)
@@ -323,6 +321,12 @@ class Execution:
                 self._failed(fail)
             self.k_done = k = k_end
             self._stepped(k)
+
+    def _copies_changed(self) -> None:
+        """Every instance's copies taken again from the wiring, and the algorithm told."""
+        for io in self.ios:
+            io.copies = self._wiring.copies(io.name)
+        self.algorithm.inputs_changed()
 
     def _segment_end(self, k: int, k_target: int) -> int:
         """The nearest of ``k_target``, the observers' boundaries and the manipulators' next actions (one
@@ -448,9 +452,7 @@ class Execution:
         self._wiring.overrides.update(point.overrides)
         del self._actuator.log[point.n_log:]
         self.k_done = point.k
-        for io in self.ios:
-            io.copies = self._wiring.copies(io.name)
-        self.algorithm.inputs_changed()
+        self._copies_changed()
 
     def free_point(self, point: "SavedPoint") -> None:
         """Free the instances' saved states of a point."""

@@ -49,7 +49,6 @@ class MultiRate(SteppedAlgorithm):
     def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,
               check_inputs: bool = True) -> None:
         super().setup(ios, clock, layout, done, check_inputs)
-        self.ios, self.done, self.check_inputs = ios, done, check_inputs
         self.dec = [io.decimation for io in ios]
         self.steps = [0] * len(ios)
         self.spent = [0.0] * len(ios)      # [s] wall time in each instance's steps
@@ -68,7 +67,8 @@ class MultiRate(SteppedAlgorithm):
                 self.loop_used = f"{native.PYTHON} ({why})"
                 return super().advance(k0, k1)
             self.loop_used = native.NATIVE
-            self.compiled = native.NativeLoop(lib, self.ios, self.jacobi, self.clock, self.done, self.check_inputs,
+            st = self.stepper
+            self.compiled = native.NativeLoop(lib, st.ios, self.jacobi, self.clock, st.done, st.check_inputs,
                                               rates=self.dec)
         try:
             return self.compiled(k0, k1)

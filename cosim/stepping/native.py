@@ -235,22 +235,21 @@ class NativeLoop:
         self.buf = ctypes.create_string_buffer(0)
         if rec is None:
             L.decimation, L.n_steps = 1, clock.n_steps
-
-            def take(k: int, ended: int) -> int:
-                self.failure = done(k, bool(ended))
-                return 1 if self.failure is not None else 0
-            L.getters = self._cb(_TAKE, take)
+            L.getters = self._failing(lambda k, ended: done(k, bool(ended)))
             return
         L.row, L.row_bytes = ctypes.addressof(rec.buf), rec.row_bytes
         L.decimation, L.n_steps = rec.decimation, rec.n_steps
         L.has_stop, L.stop = int(rec.stop is not None), float(rec.stop or 0.0)
-        if rec.read_others is not None:
-            read = rec.read_others
+        read = rec.read_others
+        if read is not None:
+            L.getters = self._failing(lambda k, ended: read(k))
 
-            def others(k: int, ended: int) -> int:
-                self.failure = read(k)
-                return 1 if self.failure is not None else 0
-            L.getters = self._cb(_TAKE, others)
+    def _failing(self, fn: Callable[[int, int], Failure | None]) -> int:
+        """A C callback ``(k, ended)`` of ``fn``, whose Failure is kept for the segment's end (status 1)."""
+        def call(k: int, ended: int) -> int:
+            self.failure = fn(k, ended)
+            return 1 if self.failure is not None else 0
+        return self._cb(_TAKE, call)
 
     def _fn(self, fn: Any) -> int:
         self.keep.append(fn)
