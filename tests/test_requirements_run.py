@@ -170,3 +170,57 @@ def test_a_requirements_runs_must_be_the_protocols(tmp_path: Path, capsys) -> No
     sc.write_text(f'base = "{SCENARIO}"\n[[requirements]]\nname = "r"\nruns = ["foam"]\nformula = "t > 0"\n')
     assert main(["check", str(sc)]) == 2
     assert "requirements[0].runs: 'foam' is not a run of this file (run)" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ a run that ends before its planned stop
+def _dahlquist(tmp_path: Path, stopper: bool) -> Path:
+    """Dahlquist (x' = -x, x(0) = 1, forward Euler at the step: x_k = 0.9^k) for 2 s of 0.1 s steps, with
+    requirements of every kind of window; ``stopper``: first of them one that stops the run at 0.7 s."""
+    from reference_fmus import REF
+
+    sc = tmp_path / ("stopped.toml" if stopper else "full.toml")
+    text = f'[experiment]\nstop = 2.0\nstep = 0.1\n[instances.d]\nfmu = "{REF / "fmi2" / "Dahlquist.fmu"}"\n'
+    if stopper:
+        text += '[[requirements]]\nname = "stopper"\nformula = "d.x > 0.5"\non_violation = "stop"\n'
+    for name, formula in [("whole", "always d.x > 0"), ("early", "eventually[0,0.5] d.x < 0.85"),
+                          ("bounded", "always[0,1] d.x > 0"), ("ahead", "always (d.x > 0 implies eventually[0,0.3] d.x < 0.9)"),
+                          ("until", "d.x > 0 until[0,0.5] d.x < 0.7")]:
+        text += f'[[requirements]]\nname = "{name}"\nformula = "{formula}"\n'
+    sc.write_text(text)
+    return sc
+
+
+def test_a_run_stopped_early_leaves_its_unbounded_always_undecided(tmp_path: Path, capsys) -> None:
+    """Stopped by a requirement at 0.7 s of 2 s: the unbounded always (over the whole run) and the one over
+    [0, 1] s are undecided (no decided_at; the robustness the lowest so far), what was decided stays (the
+    eventually at 0.2 s, the until when its window closed at 0.5 s); requirements.npy has every monitor's 8 points (it was not
+    written at all when the stopping requirement came first); run says why, exit code 3."""
+    code = main(["run", str(_dahlquist(tmp_path, True)), "--out", str(tmp_path / "o"), "--quiet"])
+    out = capsys.readouterr().out
+    assert code == 3
+    v = {r["name"]: r for r in json.loads((tmp_path / "o" / "summary.json").read_text())["requirements"]}
+    x = 0.9 ** np.arange(8)
+    assert v["stopper"]["verdict"] == "violated" and v["stopper"]["decided_at"] == pytest.approx(0.7)
+    for name in ("whole", "bounded", "ahead"):
+        assert v[name]["verdict"] == "undecided" and v[name]["decided_at"] is None, name
+    assert v["whole"]["robustness"] == pytest.approx(x[7], abs=1e-12) and v["whole"]["window"] == [0.0, None]
+    assert v["early"]["verdict"] == "holds" and v["early"]["decided_at"] == pytest.approx(0.2)
+    assert v["until"]["verdict"] == "holds" and v["until"]["decided_at"] == pytest.approx(0.5)
+    rob = np.load(tmp_path / "o" / "requirements.npy")
+    assert len(rob) == 8 and np.allclose(rob["whole"], x, rtol=0, atol=1e-12)
+    assert "requirement 'whole': undecided: the run ended before its planned stop; robustness 0.478297 at t = 0.7 s so far" in out
+    assert "requirement 'bounded': undecided: the run ended before the formula's horizon" in out
+
+
+def test_a_run_to_its_planned_stop_decides_every_window_it_covers(tmp_path: Path, capsys) -> None:
+    """The same requirements over the whole run: the unbounded always holds, known at the run's end (2 s);
+    the one over [0, 1] s at 1 s; the one whose operand looks 0.3 s ahead holds over the points judged
+    (its window ends at 1.7 s); exit code 0."""
+    code = main(["run", str(_dahlquist(tmp_path, False)), "--out", str(tmp_path / "o"), "--quiet"])
+    assert code == 0, capsys.readouterr().err
+    v = {r["name"]: r for r in json.loads((tmp_path / "o" / "summary.json").read_text())["requirements"]}
+    assert all(r["verdict"] == "holds" for r in v.values()), v
+    assert v["whole"]["decided_at"] == pytest.approx(2.0) and v["whole"]["window"] == [0.0, None]
+    assert v["whole"]["robustness"] == pytest.approx(0.9 ** 20, abs=1e-12)
+    assert v["bounded"]["decided_at"] == pytest.approx(1.0)
+    assert v["ahead"]["decided_at"] == pytest.approx(2.0) and v["ahead"]["window"] == [0.0, pytest.approx(1.7)]

@@ -162,8 +162,9 @@ def test_robustness_equals_a_brute_force_evaluation_on_random_formulas() -> None
 
 
 # --------------------------------------------------------------------------------------- verdicts
-def online(formula: str, sig: dict[str, np.ndarray], step: float = 0.5):
-    """The monitor fed point by point; the verdict after each point."""
+def online(formula: str, sig: dict[str, np.ndarray], step: float = 0.5, covered: bool = True):
+    """The monitor fed point by point; the verdict after each point (``covered``: the run reached its
+    planned stop)."""
     n = len(next(iter(sig.values())))
     c = check(formula, INFO, step, step * (n - 1))
     k = [0]
@@ -174,7 +175,7 @@ def online(formula: str, sig: dict[str, np.ndarray], step: float = 0.5):
         k[0] = i
         m.sample(i * step)
         seen.append((m.verdict.verdict, m.violated_now))
-    m.finish()
+    m.finish(covered=covered)
     return m.verdict, seen
 
 
@@ -269,3 +270,33 @@ def test_a_formula_without_a_temporal_operator_is_read_as_always_over_the_run() 
     assert c.node.op == "always" and c.node.hi is None   # type: ignore[attr-defined]
     v, _ = online("a.b", {"a.b": np.array([1.0, 1.0, 1.0])})
     assert v.verdict == "holds" and v.robustness == math.inf
+
+
+def test_an_unbounded_always_holds_only_over_a_run_that_reached_its_planned_stop() -> None:
+    """Every value >= 0: over a run to its stop, holds, known at its last point (2.5 s); over a run that
+    ended early, undecided (robustness and its time: the lowest so far); an operand that looks 1 s ahead
+    leaves the last points unjudged: the window ends at the last point judged; a run too short for any
+    point to be judged is undecided with no robustness."""
+    x = np.array([3.0, 2.0, 1.0, 2.0, 3.0, 4.0])
+    v, _ = online("always a.x > 0", {"a.x": x})
+    assert (v.verdict, v.decided_at, v.robustness, v.at, v.window) == ("holds", 2.5, 1.0, 1.0, (0.0, None))
+    v, _ = online("always a.x > 0", {"a.x": x}, covered=False)
+    assert (v.verdict, v.decided_at, v.robustness, v.at) == ("undecided", None, 1.0, 1.0)
+    v, _ = online("always eventually[0,1] a.x > 0", {"a.x": x})
+    assert (v.verdict, v.decided_at, v.window) == ("holds", 2.5, (0.0, 1.5))
+    v, _ = online("always eventually[0,1] a.x > 0", {"a.x": x[:2]})
+    assert (v.verdict, v.decided_at, v.robustness, v.at) == ("undecided", None, None, None)
+
+
+@pytest.mark.parametrize("covered", [True, False])
+def test_every_decided_verdict_says_when_it_was_decided(covered: bool) -> None:
+    """A run that ended early keeps what was decided before it ended, with its time; a bounded window it
+    did not reach is undecided whether or not the run reached its planned stop."""
+    x = np.array([3.0, 2.0, -1.0, 2.0, 3.0, 4.0])
+    cases = [("always[0,0.5] a.x > 0", "holds", 0.5), ("eventually[0,2] a.x < 0", "holds", 1.0),
+             ("always a.x > 0", "violated", 1.0), ("eventually[0,0.5] a.x < 0", "violated", 0.5),
+             ("a.x > 0 until[0,2] a.x < 0", "holds", 2.0), ("not always[0,0.5] a.x > 2.5", "holds", 0.5),
+             ("always[0,4] a.x > -2", "undecided", None)]
+    for formula, verdict, at in cases:
+        v, _ = online(formula, {"a.x": x}, covered=covered)
+        assert (v.verdict, v.decided_at) == (verdict, at), formula

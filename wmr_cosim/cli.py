@@ -279,7 +279,9 @@ def requirement_lines(verdicts: list[dict[str, Any]]) -> list[str]:
         elif v["verdict"] == "holds":
             what = f"holds; {rob}"
         else:
-            what = "undecided: the run ended before the formula's horizon" + (f"; {rob} so far" if rob else "")
+            window = v.get("window") or [0.0, None]
+            why = "its planned stop" if window[1] is None else "the formula's horizon"
+            what = f"undecided: the run ended before {why}" + (f"; {rob} so far" if rob else "")
         out.append(f"requirement {v['name']!r}: {what}")
     return out
 

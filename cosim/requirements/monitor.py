@@ -14,13 +14,16 @@ The requirement (see formula.py) is its formula at t = 0.  When the outermost op
 operand over the window, and the verdict "violated" comes at the first negative value (the time it
 refers to is the first violation; the sample that decided it may come later by the operand's look-ahead);
 when it is ``eventually[a,b]``, the highest value, and "holds" comes at the first value >= 0; otherwise
-the formula's value at t = 0 once known.  A window the run ended inside leaves the verdict "undecided".
+the formula's value at t = 0 once known.  A window the run ended inside leaves the verdict "undecided";
+so does an unbounded ``always`` (over the whole run) when the run ended before its planned stop: it holds
+only at the end of a run that reached it.
 """
 from __future__ import annotations
 
 import math
 from collections import deque
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Callable, Sequence
 
 import numpy as np
@@ -28,6 +31,17 @@ import numpy as np
 from .formula import Bool, Checked, Cmp, Logic, Node, Not, Temporal, Until, Var, compile_atom
 
 INF = math.inf
+
+
+class Outcome(StrEnum):
+    """A requirement's verdict: a str (``Outcome.HOLDS == "holds"``), written to JSON and CSV as its value."""
+
+    HOLDS = "holds"            # decided: every value the window needs is in and the formula holds
+    VIOLATED = "violated"      # decided: known to fail, whatever comes after
+    UNDECIDED = "undecided"    # the run ended before the window did (or before its planned stop, unbounded)
+
+
+HOLDS, VIOLATED, UNDECIDED = Outcome.HOLDS, Outcome.VIOLATED, Outcome.UNDECIDED
 
 
 class _Stream:
@@ -214,16 +228,17 @@ def _build(n: Node, checked: Checked, read: dict[str, Callable[[], float]], step
 
 @dataclass
 class Verdict:
-    """What a requirement's run says: ``verdict`` "holds", "violated" or "undecided"; ``robustness`` (in
-    the unit of its comparison) and ``at`` [s], the time it refers to (the lowest value of an
-    ``always``, the highest of an ``eventually``, else 0; both None when no value was judged: the run ended
-    before the window); ``first_violation`` [s] (None if none);
-    ``decided_at`` [s], the communication point at which the verdict was known (None: undecided);
-    ``window`` [s], the times whose values the verdict rests on (from the start of the run)."""
+    """What a requirement's run says: ``verdict`` (:class:`Outcome`); ``robustness`` (in the unit of its
+    comparison) and ``at`` [s], the time it refers to (the lowest value of an ``always``, the highest of an
+    ``eventually``, else 0; for an undecided verdict the lowest or highest of the values judged so far;
+    both None when no value was judged: the run ended before the window); ``first_violation`` [s] (None if
+    none); ``decided_at`` [s], the communication point at which the verdict was known (given for every
+    holds and violated; None: undecided); ``window`` [s], the times whose values the verdict rests on (from
+    the start of the run; None: to the run's planned stop)."""
 
     name: str
     formula: str
-    verdict: str
+    verdict: Outcome
     robustness: float | None
     at: float | None
     first_violation: float | None
@@ -231,7 +246,7 @@ class Verdict:
     window: tuple[float, float | None] = (0.0, 0.0)   # [s] the times judged (None: to the end of the run)
 
     def as_dict(self) -> dict[str, object]:
-        return {"name": self.name, "formula": self.formula, "verdict": self.verdict,
+        return {"name": self.name, "formula": self.formula, "verdict": str(self.verdict),
                 "robustness": self.robustness, "at": self.at, "first_violation": self.first_violation,
                 "decided_at": self.decided_at, "window": list(self.window)}
 
@@ -259,10 +274,11 @@ class Monitor:
         self.best = INF if self.mode == "min" else -INF
         self.best_k = 0
         self.first_violation: float | None = None
-        self.decided: str | None = None
+        self.decided: Outcome | None = None
         self.decided_at: float | None = None
         self.violated_now = False            # set by the sample that decided "violated"
         self.finished = False
+        self.covered = False                 # set by finish: the run reached its planned stop
         self.times: list[float] = []         # [s] the communication point of each sample
 
     def sample(self, t: float) -> None:
@@ -274,10 +290,13 @@ class Monitor:
         self.body.update(False)
         self._fold(t, self.body.complete)
 
-    def finish(self) -> None:
-        """The run has ended: the values still waiting are computed over cut windows (never judged)."""
+    def finish(self, covered: bool = True) -> None:
+        """The run has ended: the values still waiting are computed over cut windows (never judged).
+        ``covered``: the run reached its planned stop; a run that ended early (stopped, violated, failed,
+        terminated by an FMU) did not cover an unbounded window, which leaves its verdict undecided."""
         self.body.update(True)
         self.finished = True
+        self.covered = covered
 
     def _fold(self, t: float, upto: int) -> None:
         v = self.body.values
@@ -285,7 +304,7 @@ class Monitor:
         if self.mode == "single":
             if self.decided is None and upto > 0:
                 self.best, self.best_k = v[0], 0
-                self._decide("holds" if v[0] >= 0 else "violated", t, 0)
+                self._decide(HOLDS if v[0] >= 0 else VIOLATED, t, 0)
             self.seen = upto
             return
         end = upto if self.hi is None else min(upto, self.hi + 1)
@@ -295,18 +314,18 @@ class Monitor:
                 self.best, self.best_k = x, k
             if self.mode == "min" and x < 0 and self.first_violation is None:
                 self.first_violation = self.times[k]
-                self._decide("violated", t, k)
+                self._decide(VIOLATED, t, k)
             if self.mode == "max" and x >= 0:
-                self._decide("holds", t, k)
+                self._decide(HOLDS, t, k)
         self.seen = max(self.seen, end)
         if self.hi is not None and upto > self.hi:   # the window is complete
-            self._decide("holds" if self.mode == "min" else "violated", t, self.hi)
+            self._decide(HOLDS if self.mode == "min" else VIOLATED, t, self.hi)
 
-    def _decide(self, verdict: str, t: float, k: int) -> None:
+    def _decide(self, verdict: Outcome, t: float, k: int) -> None:
         if self.decided is not None:
             return
         self.decided, self.decided_at = verdict, t
-        if verdict == "violated":
+        if verdict == VIOLATED:
             self.violated_now = True
             if self.first_violation is None:
                 self.first_violation = t if self.mode == "max" else self.times[k]
@@ -314,16 +333,21 @@ class Monitor:
     @property
     def verdict(self) -> Verdict:
         """The verdict so far (after :meth:`finish`: of the run)."""
-        verdict = self.decided or "undecided"
-        if self.decided is None and self.mode == "min" and self.hi is None and self.seen > 0 and self.finished:
-            verdict = "holds"   # an unbounded always over the whole run, every judged value >= 0
+        verdict, decided_at = self.decided or UNDECIDED, self.decided_at if self.decided else None
         judged = self.seen > self.lo   # (some value of the window was folded in)
-        at = self.times[self.best_k] if judged else None
         t0 = self.times[0] if self.times else 0.0
         hi = None if self.hi is None else t0 + self.hi * self.step
+        if (self.decided is None and self.mode == "min" and self.hi is None and judged and self.finished
+                and self.covered):
+            # an unbounded always over a run that reached its planned stop, every judged value >= 0: it holds,
+            # known at the run's end; where the operand looks ahead its last points are not judged, and the
+            # window ends at the last one that is
+            verdict, decided_at = HOLDS, self.times[-1]
+            if self.seen < len(self.times):
+                hi = self.times[self.seen - 1]
+        at = self.times[self.best_k] if judged else None
         return Verdict(self.name, self.checked.text, verdict, self.best if judged else None, at,
-                       self.first_violation, self.decided_at if self.decided else None,
-                       (t0 + self.lo * self.step, hi))
+                       self.first_violation, decided_at, (t0 + self.lo * self.step, hi))
 
     def signal(self) -> np.ndarray:
         """The robustness of the body by step index (NaN where it rests on a cut window or is unknown)."""

@@ -579,7 +579,7 @@ class Execution:
         res.handoff = self.handoff.summary() if self.handoff is not None else None
         monitors = self._requirements
         if monitors is not None and monitors.monitors:   # (none: the run ended before it started)
-            res.requirements = monitors.finish()
+            res.requirements = monitors.finish(self.status)
             if self.folder is not None:
                 write_robustness(self.folder.path / "requirements.npy", monitors.signals(), monitors.monitors[0].times)
         logs = {n: (i.log_lines, i.received) for n, i in self.instances.items()}

@@ -31,8 +31,9 @@ class RequirementMonitors(Manipulator):
 
     def stepped(self, ex: Manipulable, k: int) -> None:
         t = ex.clock.time(k)
-        for r, m in zip(self.requirements, self.monitors):
+        for m in self.monitors:   # every monitor sees the point, also the one after a requirement that stops
             m.sample(t)
+        for r, m in zip(self.requirements, self.monitors):
             if m.violated_now and r.on_violation == "stop":
                 v = m.verdict
                 rob = "" if v.robustness is None else f", robustness {v.robustness:.6g}"
@@ -40,11 +41,13 @@ class RequirementMonitors(Manipulator):
                         f"{rob})", RunStatus.VIOLATED)
                 return
 
-    def finish(self) -> list[dict[str, Any]]:
-        """The verdicts of the run (summary.json's ``requirements``): each monitor told the run has ended."""
+    def finish(self, status: RunStatus) -> list[dict[str, Any]]:
+        """The verdicts of the run that ended with ``status`` (summary.json's ``requirements``): each monitor
+        told the run has ended, and whether it reached its planned stop (status ok: an unbounded ``always``
+        can hold; a run that ended early leaves it undecided)."""
         out = []
         for r, m in zip(self.requirements, self.monitors):
-            m.finish()
+            m.finish(covered=status == RunStatus.OK)
             v = m.verdict.as_dict()
             unit = sorted(set(r.checked.unit_of.values()) - {""})
             out.append({**v, "on_violation": r.on_violation, "description": r.description,
