@@ -224,3 +224,49 @@ def test_a_run_to_its_planned_stop_decides_every_window_it_covers(tmp_path: Path
     assert v["whole"]["robustness"] == pytest.approx(0.9 ** 20, abs=1e-12)
     assert v["bounded"]["decided_at"] == pytest.approx(1.0)
     assert v["ahead"]["decided_at"] == pytest.approx(2.0) and v["ahead"]["window"] == [0.0, pytest.approx(1.7)]
+
+
+@pytest.mark.parametrize("entry,message", [
+    ('name = "time"', "requirements[0].name: 'time' is reserved: requirements.npy's column of the time; another name"),
+    ('name = "a\\nb"', "requirements[0].name: 'a\\nb': a name of printable characters"),
+    ('name = "a\\tb"', "requirements[0].name: 'a\\tb': a name of printable characters"),
+    ('name = ""', "requirements[0].name: missing: every requirement has a name"),
+    ("name = 5", "requirements[0].name: must be a string, not 5"),
+])
+def test_a_requirement_name_requirements_npy_cannot_hold_is_refused_at_check(tmp_path: Path, capsys, entry: str,
+                                                                           message: str) -> None:
+    """Refused before the run (the run used to end with a ValueError writing requirements.npy and no
+    summary.json for a requirement named time)."""
+    from reference_fmus import REF
+
+    sc = tmp_path / "bad.toml"
+    sc.write_text(f'[experiment]\nstop = 0.3\nstep = 0.1\n[instances.d]\nfmu = "{REF / "fmi2" / "Dahlquist.fmu"}"\n'
+                  f'[[requirements]]\n{entry}\nformula = "d.x > 0"\n')
+    for cmd in (["check", str(sc)], ["run", str(sc), "--out", str(tmp_path / "o"), "--quiet"]):
+        assert main(cmd) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and message in err[0], err
+    assert not (tmp_path / "o").exists()
+
+
+def test_any_other_name_is_a_column_of_requirements_npy(tmp_path: Path, capsys) -> None:
+    """Names beyond Latin-1, of 300 characters, with spaces, dots and commas, and "f0" (numpy's default
+    field name): each its own column of requirements.npy, read back by numpy without a warning, and a
+    verdict in summary.json."""
+    import warnings
+
+    from reference_fmus import REF
+
+    names = ["Überschwingung ≤ 5 %", "x" * 300, "a.b, c", "f0", "时间"]
+    sc = tmp_path / "names.toml"
+    sc.write_text(f'[experiment]\nstop = 0.3\nstep = 0.1\n[instances.d]\nfmu = "{REF / "fmi2" / "Dahlquist.fmu"}"\n'
+                  + "".join(f'[[requirements]]\nname = "{n}"\nformula = "d.x > {i / 10}"\n' for i, n in enumerate(names)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["run", str(sc), "--out", str(tmp_path / "o"), "--quiet"]) == 0, capsys.readouterr().err
+        rob = np.load(tmp_path / "o" / "requirements.npy")
+    assert rob.dtype.names == ("time", *names)
+    for i, n in enumerate(names):
+        assert np.allclose(rob[n], 0.9 ** np.arange(4) - i / 10, rtol=0, atol=1e-12), n
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text(encoding="utf-8"))
+    assert [r["name"] for r in summary["requirements"]] == names

@@ -243,6 +243,14 @@ def test_a_constant_with_a_unit_is_converted_into_the_variables() -> None:
     ("x > 0", "at character 1: 'x': a variable is \"instance.variable\""),
     ("a.x > 0 $", "at character 9: unexpected '$'"),
     ("sqrt(a.x) < 1", "at character 1: sqrt of m: a unit whose exponents are not all even"),
+    ("eventualy[0,1] a.x > 0", "at character 1: 'eventualy': not an operator, nor a variable (\"instance.variable\") "
+                               "(did you mean 'eventually'?)"),
+    ("alwys (a.x > 0)", "at character 1: 'alwys': not an operator, nor a variable (\"instance.variable\") "
+                        "(did you mean 'always'?)"),
+    ("(a.x > 0) untl[0,1] a.y > 0", "at character 11: 'untl': not an operator, nor a variable (\"instance.variable\") "
+                                    "(did you mean 'until'?)"),
+    ("a.x > 0 untl[0,1] a.y > 0", "at character 9: 'untl': not a unit, nor an operator (did you mean 'until'?)"),
+    ("a.x > 0 adn a.y > 0", "at character 9: 'adn': not a unit, nor an operator (did you mean 'and'?)"),
 ])
 def test_bad_formulas_say_where(formula: str, message: str) -> None:
     with pytest.raises(FormulaError) as e:

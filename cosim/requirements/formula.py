@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Generic, TypeVar
 
 from ..messages.errors import CosimError
+from ..messages.suggest import did_you_mean
 from ..model.units import KNOWN, Unit, conversion
 
 KEYWORDS = {"and", "or", "not", "implies", "always", "eventually", "historically", "once", "until", "since",
@@ -102,6 +103,10 @@ def tokenize(text: str) -> list[Token]:
             if kind == "name" and word in KEYWORDS:
                 kind = "keyword"
             elif kind == "name" and "." not in word:
+                hint = did_you_mean(word, KEYWORDS)   # a misspelt operator (eventualy, untl)
+                if hint:
+                    raise FormulaError(f"{word!r}: not an operator, nor a variable (\"instance.variable\"){hint}",
+                                       pos + 1)
                 raise FormulaError(f"{word!r}: a variable is \"instance.variable\" (or t for the time)", pos + 1)
             out.append(Token(kind, word, pos + 1))
             if kind == "number":   # a unit may follow
@@ -110,6 +115,9 @@ def tokenize(text: str) -> list[Token]:
                     j += 1
                 u = _UNIT.match(text, j)
                 if u is not None and u.group() not in KEYWORDS:
+                    hint = "" if u.group() in KNOWN else did_you_mean(u.group(), KEYWORDS)
+                    if hint:   # a misspelt operator after a number (a.x > 0 untl ...), not a unit
+                        raise FormulaError(f"{u.group()!r}: not a unit, nor an operator{hint}", j + 1)
                     out.append(Token("unit", u.group(), j + 1))
                     pos = u.end()
                     continue

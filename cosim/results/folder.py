@@ -100,13 +100,24 @@ def summary(plan: Plan, res: RunResult, rows: int, logs: dict[str, tuple[int, in
 
 def write_robustness(path: Path, signals: dict[str, np.ndarray], times: list[float]) -> None:
     """requirements.npy: a structured array, ``time`` [s] and each requirement's robustness by name, one
-    row per communication point monitored (NaN where a window the run cut leaves it unknown)."""
+    row per communication point monitored (NaN where a window the run cut leaves it unknown).  A name
+    beyond Latin-1 takes the .npy format 3.0 (its header in UTF-8; NumPy 1.17 on reads it)."""
     rows = len(times)
     data = np.zeros(rows, dtype=[("time", "<f8")] + [(name, "<f8") for name in signals])
     data["time"] = times
     for name, values in signals.items():
         data[name] = values[:rows]
-    np.save(path, data)
+    latin1 = all(name.isascii() or _encodes(name, "latin1") for name in signals)
+    with open(path, "wb") as f:
+        np.lib.format.write_array(f, data, version=None if latin1 else (3, 0), allow_pickle=False)
+
+
+def _encodes(text: str, codec: str) -> bool:
+    try:
+        text.encode(codec)
+    except UnicodeEncodeError:
+        return False
+    return True
 
 
 def write_results(folder: ResultsFolder, plan: Plan, res: RunResult) -> None:

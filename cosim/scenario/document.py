@@ -650,6 +650,11 @@ def _parse_events(sc: Scenario, doc: dict[str, Any]) -> None:
         sc.events.append(EventSpec(t, e["variable"], action, e.get("value"), i, when, cond, trigger, delay))
 
 
+#: Names a requirement cannot take, with why: requirements.npy's columns are the requirements' names beside
+#: the time's.
+RESERVED_REQUIREMENT_NAMES = {"time": "requirements.npy's column of the time"}
+
+
 def _parse_requirements(sc: Scenario, doc: dict[str, Any]) -> None:
     """[[requirements]]: a name, a formula (parsed here: its syntax; its variables, types, units and bounds
     are checked with the FMUs), what a violation does, a description, the runs it is monitored in."""
@@ -659,8 +664,16 @@ def _parse_requirements(sc: Scenario, doc: dict[str, Any]) -> None:
     seen: set[str] = set()
     for i, (fld, r) in enumerate(_tables(file, doc, "requirements", _REQUIREMENT_KEYS)):
         name = r.get("name")
+        if name is not None and not isinstance(name, str):
+            raise ScenarioError(file, f"{fld}.name", f"must be a string, not {name!r}")
         if not isinstance(name, str) or not name.strip():
             raise ScenarioError(file, f"{fld}.name", "missing: every requirement has a name")
+        if not name.isprintable():
+            raise ScenarioError(file, f"{fld}.name", f"{name!r}: a name of printable characters (no control "
+                                                     "characters, tabs or line breaks)")
+        if name in RESERVED_REQUIREMENT_NAMES:
+            raise ScenarioError(file, f"{fld}.name", f"{name!r} is reserved: "
+                                                     f"{RESERVED_REQUIREMENT_NAMES[name]}; another name")
         if name in seen:
             raise ScenarioError(file, f"{fld}.name", f"{name!r} names two requirements")
         seen.add(name)
