@@ -270,3 +270,38 @@ def test_any_other_name_is_a_column_of_requirements_npy(tmp_path: Path, capsys) 
         assert np.allclose(rob[n], 0.9 ** np.arange(4) - i / 10, rtol=0, atol=1e-12), n
     summary = json.loads((tmp_path / "o" / "summary.json").read_text(encoding="utf-8"))
     assert [r["name"] for r in summary["requirements"]] == names
+
+
+def test_plot_shades_what_decides_the_verdict(tmp_path: Path) -> None:
+    """Dahlquist (x_k = 0.9^k) for 2 s: a holding eventually (x < 0.7 from 0.4 s) has no red, green over
+    the values that satisfy it inside its window [0, 1] s; a violated eventually (x < 0.5 within [0, 0.5] s)
+    red over its window only; a violated always (x > 0.5) red from its first violation (0.7 s) on.  Read
+    from the figure's filled areas: their colour and the times they span."""
+    from matplotlib.colors import to_rgba
+
+    from reference_fmus import REF
+    from wmr_cosim.plot import plot_results
+
+    sc = tmp_path / "s.toml"
+    sc.write_text(f'[experiment]\nstop = 2.0\nstep = 0.1\n[instances.d]\nfmu = "{REF / "fmi2" / "Dahlquist.fmu"}"\n'
+                  + "".join(f'[[requirements]]\nname = "{n}"\nformula = "{f}"\n' for n, f in [
+                      ("reaches", "eventually[0,1] d.x < 0.7"), ("late", "eventually[0,0.5] d.x < 0.5"),
+                      ("above", "d.x > 0.5")]))
+    assert main(["run", str(sc), "--out", str(tmp_path / "o"), "--quiet"]) == 3
+    plotted = plot_results(tmp_path / "o", requirements=["reaches", "late", "above"], out=tmp_path / "p.png")
+    red, green = to_rgba("C3", 0.3), to_rgba("C2", 0.3)
+
+    def shaded(ax, colour) -> list[tuple[float, float]]:
+        """The time spans of the filled areas of ``colour`` (empty ones left out)."""
+        out = []
+        for c in ax.collections:
+            fc = c.get_facecolor()
+            for p in c.get_paths():
+                if len(fc) and np.allclose(fc[0], colour) and len(p.vertices):
+                    out.append((float(p.vertices[:, 0].min()), float(p.vertices[:, 0].max())))
+        return out
+    reaches, late, above = plotted.figure.axes[-3:]
+    assert shaded(reaches, red) == []
+    assert shaded(reaches, green) == [(pytest.approx(0.4), pytest.approx(1.0))]
+    assert shaded(late, red) == [(pytest.approx(0.0), pytest.approx(0.5))] and shaded(late, green) == []
+    assert shaded(above, red) == [(pytest.approx(0.7), pytest.approx(2.0))]

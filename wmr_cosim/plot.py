@@ -2,7 +2,7 @@
 summary.json, scenario.json) drawn against time [s], one subplot per unit (each y label carries its
 unit), the event log's actions as vertical lines; with requirements named, each one's robustness over
 time (requirements.npy) in a subplot below the signals its formula names, zero and its first violation
-marked.
+marked, the values that violate it shaded red, those that satisfy an ``eventually`` green.
 
 Units come from summary.json's ``columns`` (else scenario.json's, written before the first step, so a
 run still going or killed is drawn too); the events from summary.json's ``events`` (each with a
@@ -191,7 +191,8 @@ def draw(res: Results, variables: list[str], fig: Any = None, requirements: list
 
 def _draw_robustness(res: Results, name: str, ax: Any) -> None:
     """One requirement's robustness over time (NaN where a window the run cut leaves it unknown), zero,
-    the negative side shaded, its first violation and the time its robustness refers to marked."""
+    what decides its verdict shaded (:func:`_shade`), its first violation and the time its robustness
+    refers to marked (red when negative, else green)."""
     assert res.robustness is not None
     v = res.requirements[name]
     t, r = np.asarray(res.robustness["time"], dtype=float), np.asarray(res.robustness[name], dtype=float)
@@ -204,15 +205,46 @@ def _draw_robustness(res: Results, name: str, ax: Any) -> None:
             ax.axvspan(t[0], window[0], color="0.85", lw=0, label="not judged")
         if end < t[-1]:
             ax.axvspan(end, t[-1], color="0.85", lw=0, label="_nolegend_" if window[0] > t[0] else "not judged")
-    ax.fill_between(t, np.minimum(r, 0.0), 0.0, where=np.isfinite(r) & (r < 0), color="C3", alpha=0.3, lw=0)
+    _shade(ax, t, r, v)
     if _number(v.get("first_violation")):
         ax.axvline(v["first_violation"], color="C3", lw=1.0, label=f"first violation, t = {v['first_violation']:.6g} s")
     if _number(v.get("at")) and _number(v.get("robustness")):
-        ax.plot([v["at"]], [v["robustness"]], "o", color="C3", ms=4, label=f"{v['robustness']:.4g} at t = {v['at']:.6g} s")
+        ax.plot([v["at"]], [v["robustness"]], "o", color=VIOLATING if v["robustness"] < 0 else SATISFYING, ms=4, label=f"{v['robustness']:.4g} at t = {v['at']:.6g} s")
     unit = v.get("unit")
     ax.set_ylabel(f"{name} [{unit}]" if unit else name)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, loc="best")
+
+
+#: The colours of the values that violate a requirement and of those that satisfy an ``eventually``.
+VIOLATING, SATISFYING = "C3", "C2"
+
+
+def _shade(ax: Any, t: np.ndarray, r: np.ndarray, v: dict[str, Any]) -> None:
+    """Shade what decides the verdict, inside the window judged: for an ``always`` (or a formula without a
+    temporal operator) every negative value, red: each one violates it; for an ``eventually`` the values
+    >= 0, green: each one satisfies it, and red the window's values only when it is violated (none was
+    >= 0; a negative value alone violates nothing); for another formula its value at the start, red
+    when negative."""
+    from .cosim.requirements.formula import FormulaError, parse
+    from .cosim.requirements.monitor import fold_of
+
+    try:
+        fold = fold_of(parse(str(v.get("formula", ""))))
+    except FormulaError:   # (a summary.json not written by this version: shade as for an always)
+        fold = "min"
+    window = v.get("window")
+    lo = float(window[0]) if isinstance(window, list) and len(window) == 2 and _number(window[0]) else t[0]
+    hi = float(window[1]) if isinstance(window, list) and len(window) == 2 and _number(window[1]) else t[-1]
+    eps = 1e-9 * max(1.0, abs(t[-1]))
+    inside = np.isfinite(r) & (t >= lo - eps) & (t <= hi + eps)
+    if fold == "max":
+        ax.fill_between(t, 0.0, np.maximum(r, 0.0), where=inside & (r >= 0), color=SATISFYING, alpha=0.3, lw=0,
+                        label="satisfies it")
+        if v.get("verdict") != "violated":
+            return
+    ax.fill_between(t, np.minimum(r, 0.0), 0.0, where=inside & (r < 0), color=VIOLATING, alpha=0.3, lw=0,
+                    label="violates it")
 
 
 def _mark_events(res: Results, axes: Any, t: np.ndarray) -> None:

@@ -28,7 +28,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .formula import Bool, Checked, Cmp, Logic, Node, Not, Temporal, Until, Var, compile_atom
+from .formula import Bool, Checked, Cmp, Logic, Node, Not, Temporal, Until, Var, compile_atom, temporal
 
 INF = math.inf
 
@@ -226,6 +226,15 @@ def _build(n: Node, checked: Checked, read: dict[str, Callable[[], float]], step
                   _build(n.b, checked, read, step, atoms))
 
 
+def fold_of(node: Node) -> str:
+    """How a requirement's verdict folds the robustness of its body over its window: "min" for an outermost
+    ``always`` (or a formula without a temporal operator, read as one: every value must be >= 0), "max"
+    for an outermost ``eventually`` (one value >= 0 suffices), "single" otherwise (the value at t = 0)."""
+    if isinstance(node, Temporal) and node.op in ("always", "eventually"):
+        return "min" if node.op == "always" else "max"
+    return "single" if temporal(node) else "min"
+
+
 @dataclass
 class Verdict:
     """What a requirement's run says: ``verdict`` (:class:`Outcome`); ``robustness`` (in the unit of its
@@ -261,11 +270,10 @@ class Monitor:
         self.name, self.checked, self.step = name, checked, step
         self.atoms: list[_Atom] = []
         node = checked.node
-        self.mode = "single"
+        self.mode = fold_of(node)
         self.lo: int = 0
         self.hi: int | None = 0
-        if isinstance(node, Temporal) and node.op in ("always", "eventually"):
-            self.mode = "min" if node.op == "always" else "max"
+        if isinstance(node, Temporal) and self.mode != "single":
             self.lo = _steps(node.lo, step)
             self.hi = None if node.hi is None else _steps(node.hi, step)
             node = node.a
