@@ -305,3 +305,28 @@ def test_plot_shades_what_decides_the_verdict(tmp_path: Path) -> None:
     assert shaded(reaches, green) == [(pytest.approx(0.4), pytest.approx(1.0))]
     assert shaded(late, red) == [(pytest.approx(0.0), pytest.approx(0.5))] and shaded(late, green) == []
     assert shaded(above, red) == [(pytest.approx(0.7), pytest.approx(2.0))]
+
+
+def test_long_formulas_run_and_too_deep_ones_are_one_line(tmp_path: Path, capsys) -> None:
+    """495 ors and 1,990 +s (within the 4,000 characters) check and run to the verdict of their shallow
+    equivalent (a RecursionError before); 61 levels of parentheses: one line, exit 2, before the run."""
+    from reference_fmus import REF
+
+    head = f'[experiment]\nstop = 0.5\nstep = 0.1\n[instances.d]\nfmu = "{REF / "fmi2" / "Dahlquist.fmu"}"\n'
+    formulas = {"ors": "or ".join(f"d.x>{k % 10}" for k in range(496)), "sum": "d.x" + "+0" * 1990 + ">0",
+                "short": "d.x > 0"}
+    sc = tmp_path / "long.toml"
+    sc.write_text(head + "".join(f'[[requirements]]\nname = "{n}"\nformula = "{f}"\n' for n, f in formulas.items()))
+    assert main(["run", str(sc), "--out", str(tmp_path / "o"), "--quiet"]) == 0, capsys.readouterr().err
+    v = {r["name"]: r for r in json.loads((tmp_path / "o" / "summary.json").read_text())["requirements"]}
+    for name in ("ors", "sum"):
+        assert {k: v[name][k] for k in ("verdict", "robustness", "at", "decided_at")} == \
+               {k: v["short"][k] for k in ("verdict", "robustness", "at", "decided_at")}
+    assert v["short"]["verdict"] == "holds" and v["short"]["robustness"] == pytest.approx(0.9 ** 5, abs=1e-12)
+    deep = tmp_path / "deep.toml"
+    deep.write_text(head + '[[requirements]]\nname = "r"\nformula = "' + "(" * 61 + "d.x > 0" + ")" * 61 + '"\n')
+    capsys.readouterr()
+    assert main(["run", str(deep), "--out", str(tmp_path / "p"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "requirements[0].formula: requirement 'r': at character 61: nested too deeply (at most 60" in err[0]
+    assert not (tmp_path / "p").exists()

@@ -73,10 +73,13 @@ def brute(node, sig: dict[str, np.ndarray], n: int) -> list[float]:
                  else -abs(x - y) if node.op == "==" else abs(x - y)) for x, y in zip(a, b)]
     if isinstance(node, f.Not):
         return [-v for v in brute(node.a, sig, n)]
-    if isinstance(node, f.Logic):
-        a, b = brute(node.a, sig, n), brute(node.b, sig, n)
-        op = {"and": min, "or": max, "implies": lambda x, y: max(-x, y)}[node.op]
-        return [math.nan if math.isnan(x) or math.isnan(y) else op(x, y) for x, y in zip(a, b)]
+    if isinstance(node, f.Logic):   # (a chain of and/or folded left to right: nested pairs)
+        out = brute(node.args[0], sig, n)
+        for arg in node.args[1:]:
+            a, b = out, brute(arg, sig, n)
+            op = {"and": min, "or": max, "implies": lambda x, y: max(-x, y)}[node.op]
+            out = [math.nan if math.isnan(x) or math.isnan(y) else op(x, y) for x, y in zip(a, b)]
+        return out
     if isinstance(node, f.Temporal):
         a = brute(node.a, sig, n)
         agg = min if node.op in ("always", "historically") else max
@@ -127,9 +130,11 @@ def num(node, sig: dict[str, np.ndarray], n: int) -> list[float]:
         return [math.sqrt(v) for v in num(node.a, sig, n)]
     if isinstance(node, f.Neg):
         return [-v for v in num(node.a, sig, n)]
-    a, b = num(node.a, sig, n), num(node.b, sig, n)
-    return [x + y if node.op == "+" else x - y if node.op == "-" else x * y if node.op == "*" else x / y
-            for x, y in zip(a, b)]
+    out = num(node.first, sig, n)   # an Arith chain, left to right
+    for op, _, operand in node.rest:
+        a, b = out, num(operand, sig, n)
+        out = [x + y if op == "+" else x - y if op == "-" else x * y if op == "*" else x / y for x, y in zip(a, b)]
+    return out
 
 
 def random_formula(rng: random.Random, depth: int) -> str:
@@ -308,3 +313,62 @@ def test_every_decided_verdict_says_when_it_was_decided(covered: bool) -> None:
     for formula, verdict, at in cases:
         v, _ = online(formula, {"a.x": x}, covered=covered)
         assert (v.verdict, v.decided_at) == (verdict, at), formula
+
+
+# ------------------------------------------------------------------------- long and deeply nested formulas
+def _same_as(long: str, short: str, sig: dict[str, np.ndarray]) -> None:
+    """``long`` (within the length limit) checks, survives pickling and copying (a sweep ships it to its
+    workers) and gives the verdict and robustness of ``short`` at every point, exactly."""
+    import copy
+    import pickle
+
+    assert len(long) <= 4000
+    c = check(long, INFO, 0.5, 10.0)
+    assert pickle.loads(pickle.dumps(c.node)) == c.node and copy.deepcopy(c.node) == c.node
+    n = len(next(iter(sig.values())))
+    (v, r), (w, s) = (evaluate("r", check(f, INFO, 0.5, 10.0), [k * 0.5 for k in range(n)], sig, 0.5)
+                      for f in (long, short))
+    assert (v.verdict, v.robustness, v.at, v.decided_at) == (w.verdict, w.robustness, w.at, w.decided_at)
+    assert np.array_equal(r, s, equal_nan=True)
+
+
+def test_a_chain_of_495_ors_equals_its_shallow_equivalent() -> None:
+    """The or of a.x > k for k cycling over 0..9, 495 times (a RecursionError before): the maximum of
+    x - k, that is a.x > 0; the and of 388 of them, a.x > 9."""
+    long = "or ".join(f"a.x>{k % 10}" for k in range(496))
+    assert long.count("or") == 495
+    _same_as(long, "a.x > 0", {"a.x": np.array([3.0, -1.0, 0.5, 12.0, -7.0])})
+    _same_as(long[:3500].rsplit("or", 1)[0].replace("or", "and"), "a.x > 9",
+             {"a.x": np.array([13.0, 11.0, 9.5, 12.0, 10.0, -1.0])})
+
+
+def test_a_sum_of_1990_terms_equals_its_shallow_equivalent() -> None:
+    """a.x + 1 + 1 + ... (1,990 +) against a.x + 1990, on integers (every partial sum exact), and a chain
+    of 600 products and quotients against the one product it amounts to."""
+    x = np.array([3.0, -2000.0, 10.0, -1990.0, 7.0])
+    long = "a.x" + "+1" * 1990 + " > 5"
+    assert long.count("+") == 1990
+    _same_as(long, "a.x + 1990 > 5", {"a.x": x})
+    _same_as("a.x" + "*2/2" * 300 + " >= 5", "a.x >= 5", {"a.x": x})
+    _same_as("a.x" + "-1" * 1000 + "+1" * 990 + " < -3", "a.x - 10 < -3", {"a.x": x})
+
+
+@pytest.mark.parametrize("depth", [60, 61])
+def test_deep_nesting_is_honoured_up_to_its_limit_and_refused_in_one_line_beyond(depth: int) -> None:
+    """60 levels of parentheses, of not, of always, of abs(...) and of implies give what their shallow
+    equivalent gives; one level more is a FormulaError naming the limit (never a RecursionError)."""
+    sig = {"a.x": np.array([3.0, -1.0, 0.5, 2.0, -7.0, 1.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]),
+           "a.y": np.array([1.0, 2.0, -3.0, 0.5, 1.0, -1.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0])}
+    cases = [("(" * depth + "a.x > 0" + ")" * depth, "a.x > 0"),
+             ("not " * depth + "a.x > 0", "a.x > 0" if depth % 2 == 0 else "not a.x > 0"),
+             ("a.x > " + "abs(" * depth + "a.y" + ")" * depth, "a.x > abs(a.y)"),
+             ("always[0,0] " * depth + "a.y < 2", "always[0,0] a.y < 2"),
+             (" implies ".join(["a.y > 0"] * depth + ["a.x > 0"]), "a.y > 0 implies a.x > 0"),
+             ("(" * (depth - 40) + "(a.x > 0 or (a.y > 0 and " * 20 + "a.x > 1" + "))" * 20 + ")" * (depth - 40),
+              "a.x > 0 or (a.y > 0 and a.x > 1)")]
+    for long, short in cases:
+        if depth <= 60:
+            _same_as(long, short, sig)
+        else:
+            with pytest.raises(FormulaError, match=r"nested too deeply \(at most 60 levels"):
+                check(long, INFO, 0.5, 10.0)

@@ -19,6 +19,11 @@ Grammar (keywords are case-sensitive; precedence from loosest to tightest)::
     COMPARE     := "<" | "<=" | ">" | ">=" | "==" | "!="
     NAME        := instance "." variable
 
+A chain of one operator (``or``, ``and``, ``+ -``, ``* /``) is one node of all its operands, parsed in a
+loop and evaluated left to right (the roundings of nested pairs), so that no walk of a long formula
+recurses deeply; what nests (parentheses, the prefix operators, abs/sqrt, ``implies``) is refused beyond
+MAX_DEPTH levels.
+
 A constant may carry a unit (``0.05 m``, ``8 N.m``, ``5 cm``): it is converted into the unit of what it is
 compared with or added to (a unit of another dimension is refused); a constant without a unit is in that
 unit.  ``t`` is the time [s].  ``sqrt`` halves the exponents of its operand's unit (a distance:
@@ -44,7 +49,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
-from typing import Callable, Generic, TypeVar
+from typing import Callable, Generic, Iterator, TypeVar
 
 from ..messages.errors import CosimError
 from ..messages.suggest import did_you_mean
@@ -171,9 +176,11 @@ class Sqrt(Node):
 
 @dataclass(frozen=True)
 class Arith(Node):
-    op: str
-    a: Node
-    b: Node
+    """A left-associative chain of arithmetic, ((first op x1) op x2) ...: each of ``rest`` is (operator, its
+    1-based position, its right operand); the operators of one chain are all + and - or all * and /.
+    (A chain, not nested pairs: a formula of 2,000 terms is walked in a loop, never by deep recursion.)"""
+    first: Node
+    rest: tuple[tuple[str, int, Node], ...]
 
 
 @dataclass(frozen=True)
@@ -190,9 +197,10 @@ class Not(Node):
 
 @dataclass(frozen=True)
 class Logic(Node):
+    """``and``/``or`` of every one of ``args`` (two or more, a chain parsed in a loop, evaluated left to
+    right), or ``implies`` of two (p implies q: not p or q)."""
     op: str        # and, or, implies
-    a: Node
-    b: Node
+    args: tuple[Node, ...]
 
 
 @dataclass(frozen=True)
@@ -248,7 +256,8 @@ class _Parser(Cursor[Token]):
     def deeper(self, tok: Token) -> None:
         self.depth += 1
         if self.depth > MAX_DEPTH:
-            raise FormulaError(f"nested more than {MAX_DEPTH} deep", tok.pos)
+            raise FormulaError(f"nested too deeply (at most {MAX_DEPTH} levels of parentheses, prefix operators "
+                               "and implies)", tok.pos)
 
     def parse(self) -> Node:
         if self.peek().kind == "end":
@@ -263,23 +272,25 @@ class _Parser(Cursor[Token]):
         if self.is_kw("implies"):
             tok = self.take()
             self.deeper(tok)
-            node = Logic(tok.pos, "implies", node, self.implication())
+            node = Logic(tok.pos, "implies", (node, self.implication()))
             self.depth -= 1
         return node
 
+    # A chain of one operator (a or b or ...) is parsed in a loop into one node (its position the last
+    # operator's); the loops are written out, so that a level of parentheses costs as few frames as it can.
     def disjunction(self) -> Node:
-        node = self.conjunction()
+        args, pos = [self.conjunction()], 0
         while self.is_kw("or"):
-            tok = self.take()
-            node = Logic(tok.pos, "or", node, self.conjunction())
-        return node
+            pos = self.take().pos
+            args.append(self.conjunction())
+        return args[0] if len(args) == 1 else Logic(pos, "or", tuple(args))
 
     def conjunction(self) -> Node:
-        node = self.until()
+        args, pos = [self.until()], 0
         while self.is_kw("and"):
-            tok = self.take()
-            node = Logic(tok.pos, "and", node, self.until())
-        return node
+            pos = self.take().pos
+            args.append(self.until())
+        return args[0] if len(args) == 1 else Logic(pos, "and", tuple(args))
 
     def until(self) -> Node:
         node = self.unary()
@@ -339,18 +350,18 @@ class _Parser(Cursor[Token]):
         return node
 
     def sum(self) -> Node:
-        node = self.product()
+        first, rest = self.product(), []
         while self.peek().kind == "op" and self.peek().text in ("+", "-"):
             tok = self.take()
-            node = Arith(tok.pos, tok.text, node, self.product())
-        return node
+            rest.append((tok.text, tok.pos, self.product()))
+        return Arith(rest[-1][1], first, tuple(rest)) if rest else first
 
     def product(self) -> Node:
-        node = self.sign()
+        first, rest = self.sign(), []
         while self.peek().kind == "op" and self.peek().text in ("*", "/"):
             tok = self.take()
-            node = Arith(tok.pos, tok.text, node, self.sign())
-        return node
+            rest.append((tok.text, tok.pos, self.sign()))
+        return Arith(rest[-1][1], first, tuple(rest)) if rest else first
 
     def sign(self) -> Node:
         if self.peek().kind == "op" and self.peek().text == "-":
@@ -402,31 +413,40 @@ def parse(text: str) -> Node:
 
 
 def children(node: Node) -> tuple[Node, ...]:
-    """The direct subformulas or operands of a node."""
+    """The direct subformulas or operands of a node, left to right."""
     if isinstance(node, (Neg, Abs, Sqrt, Not, Temporal)):
         return (node.a,)
-    if isinstance(node, (Arith, Cmp, Logic, Until)):
+    if isinstance(node, (Cmp, Until)):
         return (node.a, node.b)
+    if isinstance(node, Logic):
+        return node.args
+    if isinstance(node, Arith):
+        return (node.first, *(x for _, _, x in node.rest))
     return ()
+
+
+def walk(node: Node) -> Iterator[Node]:
+    """Every node of a formula, depth first, left to right (a loop over a stack: no recursion)."""
+    stack = [node]
+    while stack:
+        n = stack.pop()
+        yield n
+        stack.extend(reversed(children(n)))
 
 
 def variables(node: Node) -> dict[str, int]:
     """The "instance.variable" names a formula reads, in order of first appearance, each with the
     character position of its first appearance."""
     out: dict[str, int] = {}
-
-    def walk(n: Node) -> None:
+    for n in walk(node):
         if isinstance(n, Var) and n.name not in out:
             out[n.name] = n.pos
-        for c in children(n):
-            walk(c)
-    walk(node)
     return out
 
 
 def temporal(node: Node) -> bool:
     """Whether a formula has a temporal operator."""
-    return isinstance(node, (Temporal, Until)) or any(temporal(c) for c in children(node))
+    return any(isinstance(n, (Temporal, Until)) for n in walk(node))
 
 
 # ------------------------------------------------------------------------------------------- the check
@@ -493,25 +513,32 @@ class _Checker:
             if not u.exps or any(e % 2 for e in u.exps) or u.offset:
                 raise FormulaError(f"sqrt of {u.name}: a unit whose exponents are not all even", n.pos)
             return _derived(f"sqrt({u.name})", tuple(e // 2 for e in u.exps), math.sqrt(u.factor))
-        if isinstance(n, Arith):
-            ua, ub = self.numeric(n.a), self.numeric(n.b)
-            if n.op in ("+", "-"):
-                return self.same(n, n.a, ua, n.b, ub)
-            if ua is None or ub is None:
-                return ua or ub
-            if not ua.exps or not ub.exps:
-                raise FormulaError(f"{ua.name} {n.op} {ub.name}: a product of units of unknown dimension", n.pos)
-            sign = 1 if n.op == "*" else -1
-            exps = tuple(x + sign * y for x, y in zip(ua.exps, ub.exps))
-            return _derived(f"({ua.name}){n.op}({ub.name})", exps, ua.factor * ub.factor ** sign)
+        if isinstance(n, Arith):   # left to right, as ((first op x1) op x2) ...
+            left, ua = n.first, self.numeric(n.first)
+            for op, pos, b in n.rest:
+                ub = self.numeric(b)
+                ua = self.same(pos, left, ua, b, ub) if op in ("+", "-") else self.product(op, pos, ua, ub)
+                left = n   # (the sum so far: not a constant)
+            return ua
         if isinstance(n, (Bool, Cmp, Not, Logic, Temporal, Until)):
             raise FormulaError("a condition where a number is expected", n.pos)
         raise AssertionError(n)
 
-    def same(self, op: Node, a: Node, ua: Unit | None, b: Node, ub: Unit | None) -> Unit | None:
-        """The common unit of two operands: the first one's, or the second one's when the first is a
-        constant and the second is not (a constant is converted into the unit of what it meets); the other
-        operand is converted into it."""
+    @staticmethod
+    def product(op: str, pos: int, ua: Unit | None, ub: Unit | None) -> Unit | None:
+        """The unit of a product or quotient (``op`` at character ``pos``) of operands in ``ua`` and ``ub``."""
+        if ua is None or ub is None:
+            return ua or ub
+        if not ua.exps or not ub.exps:
+            raise FormulaError(f"{ua.name} {op} {ub.name}: a product of units of unknown dimension", pos)
+        sign = 1 if op == "*" else -1
+        exps = tuple(x + sign * y for x, y in zip(ua.exps, ub.exps))
+        return _derived(f"({ua.name}){op}({ub.name})", exps, ua.factor * ub.factor ** sign)
+
+    def same(self, pos: int, a: Node, ua: Unit | None, b: Node, ub: Unit | None) -> Unit | None:
+        """The common unit of two operands (of the operator at character ``pos``): the first one's, or the
+        second one's when the first is a constant and the second is not (a constant is converted into the
+        unit of what it meets); the other operand is converted into it."""
         if ua is None or ub is None:
             return ua or ub
         if isinstance(a, Num) and not isinstance(b, Num):
@@ -519,7 +546,7 @@ class _Checker:
         try:
             factor, offset = conversion(ub, ua)
         except CosimError:
-            raise FormulaError(f"{ub.name} does not convert to {ua.name}: another dimension", op.pos) from None
+            raise FormulaError(f"{ub.name} does not convert to {ua.name}: another dimension", pos) from None
         if (factor, offset) != (1.0, 0.0):
             self.out.scale[id(b)] = (factor, offset)
         return ua
@@ -538,15 +565,15 @@ class _Checker:
             return
         if isinstance(n, Cmp):
             ua, ub = self.numeric(n.a), self.numeric(n.b)
-            unit = self.same(n, n.a, ua, n.b, ub)
+            unit = self.same(n.pos, n.a, ua, n.b, ub)
             self.out.unit_of[id(n)] = unit.name if unit else ""
             return
         if isinstance(n, Not):
             self.boolean(n.a)
             return
         if isinstance(n, Logic):
-            self.boolean(n.a)
-            self.boolean(n.b)
+            for a in n.args:
+                self.boolean(a)
             return
         if isinstance(n, (Temporal, Until)):
             self.bounds(n, top)
@@ -620,20 +647,39 @@ def _numeric(n: Node, checked: Checked, read: dict[str, Callable[[], float]]) ->
         a = compile_numeric(n.a, checked, read)
         return lambda t: math.sqrt(x) if (x := a(t)) >= 0.0 else math.nan
     assert isinstance(n, Arith)
-    a, b = compile_numeric(n.a, checked, read), compile_numeric(n.b, checked, read)
-    if n.op == "+":
-        return lambda t: a(t) + b(t)
-    if n.op == "-":
-        return lambda t: a(t) - b(t)
-    if n.op == "*":
-        return lambda t: a(t) * b(t)
+    first = compile_numeric(n.first, checked, read)
+    if len(n.rest) == 1:   # (the common case, without the loop)
+        op, _, b = n.rest[0]
+        return _binary(op, first, compile_numeric(b, checked, read))
+    rest = [(_OPS[op], compile_numeric(b, checked, read)) for op, _, b in n.rest]
 
-    def divide(t: float) -> float:
-        x, y = a(t), b(t)
-        if y == 0.0:   # (IEEE 754's quotient, without Python's ZeroDivisionError)
-            return math.nan if x == 0.0 or math.isnan(x) else math.copysign(math.inf, x) * math.copysign(1.0, y)
-        return x / y
-    return divide
+    def chain(t: float) -> float:   # left to right: the same roundings as nested pairs
+        x = first(t)
+        for f, b in rest:
+            x = f(x, b(t))
+        return x
+    return chain
+
+
+def _divide(x: float, y: float) -> float:
+    """x / y as IEEE 754 has it (without Python's ZeroDivisionError)."""
+    if y == 0.0:
+        return math.nan if x == 0.0 or math.isnan(x) else math.copysign(math.inf, x) * math.copysign(1.0, y)
+    return x / y
+
+
+_OPS: dict[str, Callable[[float, float], float]] = {
+    "+": lambda x, y: x + y, "-": lambda x, y: x - y, "*": lambda x, y: x * y, "/": _divide}
+
+
+def _binary(op: str, a: Callable[[float], float], b: Callable[[float], float]) -> Callable[[float], float]:
+    if op == "+":
+        return lambda t: a(t) + b(t)
+    if op == "-":
+        return lambda t: a(t) - b(t)
+    if op == "*":
+        return lambda t: a(t) * b(t)
+    return lambda t: _divide(a(t), b(t))
 
 
 def compile_atom(n: Node, checked: Checked, read: dict[str, Callable[[], float]]) -> Callable[[float], float]:

@@ -85,19 +85,28 @@ class _Not(_Stream):
 
 
 class _Logic(_Stream):
-    def __init__(self, op: str, a: _Stream, b: _Stream) -> None:
+    """``and`` (minimum) or ``or`` (maximum) of every operand, or ``implies`` of two (max(-a, b)), folded
+    left to right."""
+
+    def __init__(self, op: str, args: list[_Stream]) -> None:
         super().__init__()
-        self.op, self.a, self.b = op, a, b
+        self.op, self.args = op, args
 
     def update(self, final: bool) -> None:
-        self.a.update(final)
-        self.b.update(final)
-        av, bv, out = self.a.values, self.b.values, self.values
+        for a in self.args:
+            a.update(final)
+        first, *rest = [a.values for a in self.args]
+        out = self.values
         op = self.op
-        for k in range(len(out), min(len(av), len(bv))):
-            x, y = av[k], bv[k]
-            out.append(min(x, y) if op == "and" else max(x, y) if op == "or" else max(-x, y))
-        self.complete = min(self.a.complete, self.b.complete)
+        for k in range(len(out), min(len(v) for v in (first, *rest))):
+            x = first[k]
+            if op == "implies":
+                x = -x
+            for v in rest:
+                y = v[k]
+                x = min(x, y) if op == "and" else max(x, y)
+            out.append(x)
+        self.complete = min(a.complete for a in self.args)
 
 
 class _Window(_Stream):
@@ -215,7 +224,7 @@ def _build(n: Node, checked: Checked, read: dict[str, Callable[[], float]], step
     if isinstance(n, Not):
         return _Not(_build(n.a, checked, read, step, atoms))
     if isinstance(n, Logic):
-        return _Logic(n.op, _build(n.a, checked, read, step, atoms), _build(n.b, checked, read, step, atoms))
+        return _Logic(n.op, [_build(a, checked, read, step, atoms) for a in n.args])
     if isinstance(n, Temporal):
         hi = None if n.hi is None else _steps(n.hi, step)
         return _Window(n.op in ("always", "historically"), n.op in ("always", "eventually"), _steps(n.lo, step),
