@@ -372,3 +372,15 @@ def test_deep_nesting_is_honoured_up_to_its_limit_and_refused_in_one_line_beyond
         else:
             with pytest.raises(FormulaError, match=r"nested too deeply \(at most 60 levels"):
                 check(long, INFO, 0.5, 10.0)
+
+
+def test_an_unbounded_always_whose_operand_looks_ahead_is_a_note() -> None:
+    """The last points of the run are not judged: check says how many seconds (the sum of the future
+    bounds on the deepest way down), and the monitor's window ends there."""
+    c = check("always (a.x > 0 implies eventually[0,1] (a.y > 0 or a.x > 0 until[0,0.5] a.y < 0))", INFO, 0.5, 10.0)
+    assert c.notes == ["always without a bound at character 1 over an operand that looks 1.5 s ahead: the last "
+                       "1.5 s of the run are not judged (its window ends there)"]
+    assert check("always historically[0,3] a.x > 0", INFO, 0.5, 10.0).notes == []
+    v, _ = online("always (a.x > 0 implies eventually[0,1] (a.y > 0 or a.x > 0 until[0,0.5] a.y < 0))",
+                  {"a.x": np.ones(8), "a.y": np.ones(8)})
+    assert (v.verdict, v.window, v.decided_at) == ("holds", (0.0, 3.5 - 1.5), 3.5)

@@ -611,9 +611,20 @@ def check(text: str, info: dict[str, VarInfo], step: float, stop: float, node: N
     if not temporal(node):
         node = Temporal(1, "always", 0.0, None, node)
     c.boolean(node, top=True)
+    if isinstance(node, Temporal) and node.op == "always" and node.hi is None and (ahead := horizon(node.a)) > 0:
+        c.out.notes.append(f"always without a bound at character {node.pos} over an operand that looks {ahead:g} s "
+                           f"ahead: the last {ahead:g} s of the run are not judged (its window ends there)")
     c.out.node = node
     c.out.variables = list(variables(node))
     return c.out
+
+
+def horizon(node: Node) -> float:
+    """How far a formula looks ahead of the time it is evaluated at [s]: the sum of the bounds' ends of
+    the future operators on the way down, the largest over its operands."""
+    if isinstance(node, (Temporal, Until)) and (UNARY_TEMPORAL.get(node.op) or BINARY_TEMPORAL.get(node.op)) == "future":
+        return (node.hi or 0.0) + max((horizon(c) for c in children(node)), default=0.0)
+    return max((horizon(c) for c in children(node) if isinstance(c, (Temporal, Until, Logic, Not))), default=0.0)
 
 
 # ------------------------------------------------------------------------------- atoms as functions
