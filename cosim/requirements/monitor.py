@@ -95,9 +95,15 @@ class _Logic(_Stream):
     def update(self, final: bool) -> None:
         for a in self.args:
             a.update(final)
+        out, op = self.values, self.op
+        if len(self.args) == 2:   # (the common case, without the inner loop)
+            av, bv = self.args[0].values, self.args[1].values
+            for k in range(len(out), min(len(av), len(bv))):
+                x, y = av[k], bv[k]
+                out.append(min(x, y) if op == "and" else max(x, y) if op == "or" else max(-x, y))
+            self.complete = min(self.args[0].complete, self.args[1].complete)
+            return
         first, *rest = [a.values for a in self.args]
-        out = self.values
-        op = self.op
         for k in range(len(out), min(len(v) for v in (first, *rest))):
             x = first[k]
             if op == "implies":
@@ -375,9 +381,10 @@ class Monitor:
 
 
 def evaluate(name: str, checked: Checked, time: Sequence[float], signals: dict[str, np.ndarray],
-             step: float) -> tuple[Verdict, np.ndarray]:
+             step: float, covered: bool = True) -> tuple[Verdict, np.ndarray]:
     """The monitor run over recorded signals (``signals[name]``: one value per communication point of
-    ``time``): the same verdict as online, and the body's robustness by step."""
+    ``time``; ``covered``: they reach the run's planned stop): the same verdict as online, and the body's
+    robustness by step."""
     k = [0]
 
     def reader(a: np.ndarray) -> Callable[[], float]:
@@ -387,5 +394,5 @@ def evaluate(name: str, checked: Checked, time: Sequence[float], signals: dict[s
     for i, t in enumerate(time):
         k[0] = i
         m.sample(float(t))
-    m.finish()
+    m.finish(covered)
     return m.verdict, m.signal()
