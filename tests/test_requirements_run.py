@@ -232,6 +232,7 @@ def test_a_run_to_its_planned_stop_decides_every_window_it_covers(tmp_path: Path
     ('name = "a\\tb"', "requirements[0].name: 'a\\tb': a name of printable characters"),
     ('name = ""', "requirements[0].name: missing: every requirement has a name"),
     ("name = 5", "requirements[0].name: must be a string, not 5"),
+    ('name = "r"\nformula = "d.x > 1"\n[[requirements]]\nname = "r"', "requirements[1].name: 'r' names two requirements"),
 ])
 def test_a_requirement_name_requirements_npy_cannot_hold_is_refused_at_check(tmp_path: Path, capsys, entry: str,
                                                                            message: str) -> None:
