@@ -256,6 +256,8 @@ def test_a_constant_with_a_unit_is_converted_into_the_variables() -> None:
                                     "(did you mean 'until'?)"),
     ("a.x > 0 untl[0,1] a.y > 0", "at character 9: 'untl': not a unit, nor an operator (did you mean 'until'?)"),
     ("a.x > 0 adn a.y > 0", "at character 9: 'adn': not a unit, nor an operator (did you mean 'and'?)"),
+    ("a.x > 1e400", "at character 7: 1e400: beyond the largest number (about 1.8e308)"),
+    ("eventually[0,1e999] a.x > 0", "at character 14: 1e999: beyond the largest number"),
 ])
 def test_bad_formulas_say_where(formula: str, message: str) -> None:
     with pytest.raises(FormulaError) as e:

@@ -113,6 +113,8 @@ def tokenize(text: str) -> list[Token]:
                     raise FormulaError(f"{word!r}: not an operator, nor a variable (\"instance.variable\"){hint}",
                                        pos + 1)
                 raise FormulaError(f"{word!r}: a variable is \"instance.variable\" (or t for the time)", pos + 1)
+            if kind == "number" and not math.isfinite(float(word)):
+                raise FormulaError(f"{word}: beyond the largest number (about 1.8e308)", pos + 1)
             out.append(Token(kind, word, pos + 1))
             if kind == "number":   # a unit may follow
                 j = m.end()

@@ -267,7 +267,7 @@ class Verdict:
     at: float | None
     first_violation: float | None
     decided_at: float | None
-    window: tuple[float, float | None] = (0.0, 0.0)   # [s] the times judged (None: to the end of the run)
+    window: tuple[float, float | None] = (0.0, 0.0)   # [s] the times judged (None: to the planned stop)
 
     def as_dict(self) -> dict[str, object]:
         return {"name": self.name, "formula": self.formula, "verdict": str(self.verdict),
