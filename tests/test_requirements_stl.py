@@ -386,3 +386,24 @@ def test_an_unbounded_always_whose_operand_looks_ahead_is_a_note() -> None:
     v, _ = online("always (a.x > 0 implies eventually[0,1] (a.y > 0 or a.x > 0 until[0,0.5] a.y < 0))",
                   {"a.x": np.ones(8), "a.y": np.ones(8)})
     assert (v.verdict, v.window, v.decided_at) == ("holds", (0.0, 3.5 - 1.5), 3.5)
+
+
+def test_an_unbounded_always_from_a_later_start_over_a_run_that_ended_before_it_is_undecided() -> None:
+    """always[2 s, end of run) (a tree the language does not write but the monitor takes): a run of 1.5 s
+    judges none of its values: undecided, no robustness, even at its planned stop; a run of 2.5 s holds."""
+    import dataclasses
+
+    from wmr_cosim.cosim.requirements.formula import Temporal
+
+    c = check("a.x > 0", INFO, 0.5, 1.5)
+    c = dataclasses.replace(c, node=Temporal(1, "always", 2.0, None, c.node.a))   # type: ignore[attr-defined]
+    for n, verdict in ((4, "undecided"), (6, "holds")):
+        k = [0]
+        m = Monitor("r", c, {"a.x": lambda: 1.0 + k[0]}, 0.5)
+        for i in range(n):
+            k[0] = i
+            m.sample(i * 0.5)
+        m.finish()   # (the run reached its planned stop)
+        v = m.verdict
+        assert v.verdict == verdict and v.window == (2.0, None)
+        assert (v.robustness, v.decided_at) == ((None, None) if verdict == "undecided" else (5.0, 2.5))
