@@ -151,3 +151,78 @@ def test_the_g1_loop_broken_at_the_right_torque_has_the_documented_margins(tmp_p
     whole = np.array([complex(*z) for z in s["whole_eigenvalues"]])
     apart = np.abs(np.sort_complex(closed) - np.sort_complex(whole)).max()
     assert apart <= doc["closed against whole, largest difference"]
+
+
+# ---------------------------------------------------------------- the operating point, the plots' titles
+def test_the_operating_point_is_saved_with_its_names_and_units_and_read_back(fmus, tmp_path, capsys):
+    """The Lag alone from x0 = 0.5 under u = 2 (k = 3, tau = 0.25 s): at t = 0.5 s its state and output are
+    6 + (0.5 - 6) exp(-2) (the run's integrator's tolerance); the input the value set."""
+    from linear_fmus import lag_response
+
+    out = tmp_path / "lin"
+    assert main(["linearize", str(fmus["lag"]), "--at", "0.5", "--set", "Lag.tau=0.25", "--set", "Lag.k=3",
+                 "--set", "Lag.x0=0.5", "--set", "Lag.u=2", "--out", str(out)]) == 0
+    capsys.readouterr()
+    y = float(lag_response(0.5, u=2.0, k=3.0, tau=0.25, x0=0.5))
+    m = LinearModel.load(out / "linear.npz")
+    np.testing.assert_allclose([m.x[0], m.u[0], m.y[0]], [y, 2.0, y], rtol=1e-4)
+    assert m.y[0] == m.x[0]   # y = x, exactly
+    point = json.loads((out / "linear.json").read_text())["operating_point"]
+    assert point["time"] == 0.5
+    assert point["states"] == [{"name": "Lag.x", "unit": "", "value": m.x[0]}]
+    assert point["inputs"] == [{"name": "Lag.u", "unit": "", "value": 2.0}]
+    assert point["outputs"] == [{"name": "Lag.y", "unit": "", "value": m.y[0]}]
+    mat = loadmat(out / "linear.mat")
+    np.testing.assert_array_equal(np.ravel(mat["x"]), m.x)
+
+
+def test_a_realisation_saves_the_point_of_its_inputs_and_outputs_not_of_its_coordinates(fmus, tmp_path, capsys):
+    """Co-simulation, the loop lag -> ctrl (kp = -3) -> lag (k = 2, tau = 0.5 s) from x0 = 1, broken at the
+    controller's output: the point's input (lag.u) and output (ctrl.y) at t = 0.5 s are the run's there
+    (a run to the same time, bit for bit); the realisation's states have no value at the point (nan, null)."""
+    from wmr_cosim.cosim import Execution
+    from wmr_cosim.runner import load_plan
+
+    scenario = _loop_scenario(tmp_path, fmus, "co-simulation")
+    scenario.write_text(scenario.read_text().replace("k = 2.0\n", "k = 2.0\nx0 = 1.0\n"))
+    out = tmp_path / "lin"
+    assert main(["linearize", str(scenario), "--at", "0.5", "--break", "ctrl.y->lag.u", "--steps", "100",
+                 "--out", str(out)]) == 0
+    capsys.readouterr()
+    m = LinearModel.load(out / "linear.npz")
+    ex = Execution(load_plan(scenario), None)
+    try:
+        ex.initialize()
+        ex.step_to(0.5)
+        expected_u, expected_y = float(ex.get("lag.u")), float(ex.get("ctrl.y"))
+    finally:
+        ex.close()
+    assert (m.inputs, m.outputs) == (["lag.u"], ["ctrl.y"])
+    assert (m.u[0], m.y[0]) == (expected_u, expected_y) and expected_y != 0.0
+    assert np.isnan(m.x).all() and m.x.size == len(m.states)
+    point = json.loads((out / "linear.json").read_text())["operating_point"]
+    assert [s["value"] for s in point["states"]] == [None] * len(m.states)
+
+
+def test_the_plots_are_titled_by_the_loop_without_choosing_a_backend(fmus, tmp_path, capsys):
+    import matplotlib
+    from PIL import Image
+
+    from wmr_cosim.cosim.linearisation.loop import loop_figures
+    from wmr_cosim.linearize import linearize
+
+    lin = linearize(_loop_scenario(tmp_path, fmus), at=0.25, breaks=("ctrl.y", "lag.u"))
+    bode, nyquist = loop_figures(lin.loop)
+    assert bode.get_suptitle() == "Loop broken at ctrl.y -> lag.u, t = 0.25 s: L = -G"
+    assert nyquist.get_suptitle() == "Loop broken at ctrl.y -> lag.u, t = 0.25 s: Nyquist of L = -G"
+    before = matplotlib.get_backend()
+    matplotlib.use("svg")   # a backend of the caller's: the plots must leave it as it is
+    try:
+        assert main(["linearize", str(_loop_scenario(tmp_path, fmus)), "--at", "0.25", "--break", "ctrl.y->lag.u",
+                     "--out", str(tmp_path / "o")]) == 0
+        assert matplotlib.get_backend() == "svg"
+    finally:
+        matplotlib.use(before)
+    capsys.readouterr()
+    with Image.open(tmp_path / "o" / "bode.png") as im:
+        assert im.text["Title"] == "Loop broken at ctrl.y -> lag.u, t = 0.25 s: L = -G"

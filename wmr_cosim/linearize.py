@@ -65,12 +65,14 @@ def _real(v: Any, causality: str) -> bool:
 
 
 def summary(lin: Linearisation) -> dict[str, Any]:
-    """linear.json: the model's signals, eigenvalues, method and time; the loop's margins."""
+    """linear.json: the model's signals, eigenvalues, method, time and operating point (x, u, y with their
+    names and units); the loop's margins at every crossover and the open-loop poles on or outside the
+    stability boundary."""
     m = lin.model
     out: dict[str, Any] = {"time": m.t, "dt": m.dt, "continuous": m.continuous, "method": m.method,
                            "states": m.states, "inputs": m.inputs, "outputs": m.outputs,
                            "state_units": m.state_units, "input_units": m.input_units, "output_units": m.output_units,
-                           "eigenvalues": _complex(m.eigenvalues())}
+                           "eigenvalues": _complex(m.eigenvalues()), "operating_point": m.operating_point()}
     if m.singular_values is not None:
         out["hankel_singular_values"] = [float(s) for s in m.singular_values]
     if lin.loop is not None:
@@ -117,13 +119,34 @@ def report(lin: Linearisation) -> list[str]:
                                       or "none"))
     lines += [f"  note: {n}" for n in lin.notes]
     if lin.loop is not None:
-        s = lin.loop.summary()
-        lines.append(f"loop broken at {s['break']} (L = -G, G from the injection to the return):")
-        lines.append(f"  gain margin {_num(s['gain_margin'])} ({_num(s['gain_margin_db'])} dB) at "
-                     f"{_num(s['phase_crossover_rad_s'])} rad/s; phase margin {_num(s['phase_margin_deg'])} deg at "
-                     f"{_num(s['gain_crossover_rad_s'])} rad/s; stability margin {_num(s['stability_margin'])}")
-        lines.append(f"  closed loop {'stable' if s['closed_loop_stable'] else 'UNSTABLE'}; its eigenvalues: "
-                     + ", ".join(_z(z) for z in sorted(lin.loop.closed_eigenvalues, key=lambda z: (z.real, z.imag))))
+        lines += _loop_lines(lin.loop)
+    return lines
+
+
+def _loop_lines(loop: Any) -> list[str]:
+    """The loop's printout: every crossover, the upper and lower gain margins, the poles on or outside the
+    stability boundary (a warning), the closed loop."""
+    s = loop.summary()
+    lines = [f"loop broken at {s['break']} (L = -G, G from the injection to the return):"]
+    lines.append(f"  gain margin {_num(s['gain_margin'])} ({_num(s['gain_margin_db'])} dB) at "
+                 f"{_num(s['phase_crossover_rad_s'])} rad/s; phase margin {_num(s['phase_margin_deg'])} deg at "
+                 f"{_num(s['gain_crossover_rad_s'])} rad/s; stability margin {_num(s['stability_margin'])}")
+    crossings = [f"{_num(c['gain_margin'])} ({_num(c['gain_margin_db'])} dB, {c['kind']}) at {_num(c['rad_s'])} rad/s"
+                 for c in s["phase_crossovers"]]
+    lines.append("  every phase crossover (gain margin): " + ("; ".join(crossings) or "none"))
+    pms = [f"{_num(c['phase_margin_deg'])} deg at {_num(c['rad_s'])} rad/s" for c in s["gain_crossovers"]]
+    lines.append("  every gain crossover (phase margin): " + ("; ".join(pms) or "none"))
+    lines.append(f"  upper gain margin {_num(s['upper_gain_margin'])}, lower gain margin {_num(s['lower_gain_margin'])} "
+                 "(the factors the loop gain may rise to and fall to before a crossover reaches -1)")
+    if s["open_loop_poles_on_or_outside"]:
+        where = "in the closed right half plane (Re s >= -" if loop.gain.continuous else \
+            "on or outside the unit circle (|z| >= 1 - "
+        poles = ", ".join(_z(complex(*z)) for z in s["open_loop_poles_on_or_outside"])
+        lines.append(f"  warning: open-loop poles {where}{_num(s['pole_tolerance'])}, the model's accuracy): {poles}; "
+                     "the margins at w = 0 depend on the side they lie (an integrator, or an unstable pole the "
+                     "feedback stabilises, which a lower gain margin bounds)")
+    lines.append(f"  closed loop {'stable' if s['closed_loop_stable'] else 'UNSTABLE'}; its eigenvalues: "
+                 + ", ".join(_z(z) for z in sorted(loop.closed_eigenvalues, key=lambda z: (z.real, z.imag))))
     return lines
 
 

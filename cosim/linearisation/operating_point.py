@@ -214,9 +214,12 @@ class Linearizer:
         units_out = [_unit(self.plan.instances[r.split(".", 1)[0]], self._var(r, "--outputs", None, "output")[1])
                      for r in outputs]
         cut = self._ref(link.dst, link.dst_var) if link is not None else None
+        point_u = [float(ex.get(ref)) for ref in refs]
+        point_y = [float(ex.get(ref)) for ref in outputs]
         H = pulse_responses(ex, injections, outputs, req.steps, cut)
         model = realise(H, self.step, refs, outputs, order=req.order, t=t, input_units=units_in,
                         output_units=units_out)
+        model.u, model.y = np.array(point_u), np.array(point_y)   # (x: the realisation's coordinates, nan)
         out = Linearisation(model)
         if link is not None:
             j, i = refs.index(self._ref(link.dst, link.dst_var)), outputs.index(self._ref(link.src, link.src_var))
@@ -244,6 +247,7 @@ class Linearizer:
         whole = close(blocks, links, [], []) if link is not None or not asked else None
         model = close(blocks, links, req.inputs, req.outputs) if asked else whole
         assert model is not None
+        self._point(ex, model)
         out = Linearisation(model)
         out.notes += [f"{self._ref(c.src, c.src_var)} -> {self._ref(c.dst, c.dst_var)} ({c.src_var.fmi_type} to "
                       f"{c.dst_var.fmi_type}) is not a real-to-real connection: held as it is at the point, not "
@@ -252,6 +256,7 @@ class Linearizer:
             assert whole is not None
             src, dst = self._ref(link.src, link.src_var), self._ref(link.dst, link.dst_var)
             opened = close(blocks, links, [dst], [src], broken=[Link(src, dst, link.factor)])
+            self._point(ex, opened)
             if not asked:
                 out.model = opened
             out.loop = analyse(dataclasses.replace(opened, C=opened.C * link.factor, D=opened.D * link.factor), src, dst)
@@ -271,6 +276,23 @@ class Linearizer:
             return linear_model(J, states, sig_in, sig_out, ex.time, f"{name}: {how}")
         D = _memoryless_gain(inst, md, ins, outs)
         return linear_model(D, [], sig_in, sig_out, ex.time, f"{name}: central differences (memoryless)")
+
+    def _point(self, ex: Execution, model: LinearModel) -> None:
+        """The operating point of a continuous-time ``model`` of the system: its states' values (the Model
+        Exchange instances' continuous states), its inputs' and outputs' values now."""
+        x: dict[str, float] = {}
+        for name in self.plan.order:
+            ip = self.plan.instances[name]
+            if ip.interface == MODEL_EXCHANGE:
+                states = states_of(ip.model.md, name, lambda n: "")[0]
+                x.update(zip((st.name for st in states), map(float, ex.instances[name].continuous_states())))
+
+        def value(ref: str, fld: str) -> float:
+            inst, var = self._var(ref, fld, INPUTS if fld == "--inputs" else None, fld[2:-1])
+            return _get(ex.instances[inst], var, self.plan.instances[inst].interface == MODEL_EXCHANGE)
+        model.x = np.array([x.get(n, math.nan) for n in model.states])
+        model.u = np.array([value(r, "--inputs") for r in model.inputs])
+        model.y = np.array([value(r, "--outputs") for r in model.outputs])
 
     def _set_state(self, ex: Execution, ref: str, value: float) -> None:
         inst = ex.instances[ref.split(".", 1)[0]]
