@@ -226,3 +226,35 @@ def test_the_plots_are_titled_by_the_loop_without_choosing_a_backend(fmus, tmp_p
     capsys.readouterr()
     with Image.open(tmp_path / "o" / "bode.png") as im:
         assert im.text["Title"] == "Loop broken at ctrl.y -> lag.u, t = 0.25 s: L = -G"
+
+
+@pytest.mark.parametrize("algorithm,delay", [("gauss-seidel", 0.5), ("jacobi", 1.5)])
+def test_a_continuous_loop_is_shown_beside_the_co_simulated_one(fmus, tmp_path, capsys, algorithm, delay):
+    """L = 6 / (0.5 s + 1) at 10 ms: the co-simulated loop's phase margin is short of the continuous one's by
+    w_c h d at the gain crossover w_c = sqrt(35) / 0.5, to the O(h^2) left out: Gauss-Seidel (lag, ctrl)
+    adds the lag's hold alone (d = 1/2: the controller reads the lag at t_k+1), Jacobi a step more (d = 3/2:
+    the controller's output at t_k+1 is what it made of the lag at t_k). The largest step within the budget
+    ~ budget / (w_c d); printed and in linear.json."""
+    out = tmp_path / "loop"
+    scenario = _loop_scenario(tmp_path, fmus)
+    scenario.write_text(scenario.read_text().replace("step = 0.01\n", f'step = 0.01\nalgorithm = "{algorithm}"\n'))
+    assert main(["linearize", str(scenario), "--break", "ctrl.y->lag.u", "--phase-budget", "3", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    wc = np.sqrt(35.0) / 0.5
+    cost = np.degrees(wc * 0.01 * delay)
+    c = json.loads((out / "linear.json").read_text())["coupling"]
+    assert c["algorithm"] == algorithm and c["step_s"] == 0.01 and c["phase_budget_deg"] == 3.0
+    assert c["phase_cost_deg"] == pytest.approx(cost, rel=0.05)
+    assert c["cosimulated"]["phase_margin_deg"] == pytest.approx(c["continuous"]["phase_margin_deg"] - c["phase_cost_deg"])
+    assert c["largest_step_s"] == pytest.approx(0.01 * 3.0 / cost, rel=0.1) and c["largest_step_limit"] == "the budget"
+    assert f"the loop as {algorithm} realises it at the step 0.01 s" in printed
+    assert f"the coupling costs {c['phase_cost_deg']:.4g} deg" in printed
+    assert f"the largest step that keeps the cost within 3 deg: {c['largest_step_s']:.4g} s" in printed
+
+
+@pytest.mark.parametrize("budget", ["0", "-1", "nan", "inf"])
+def test_a_phase_budget_that_is_not_a_positive_finite_angle_is_refused(fmus, tmp_path, capsys, budget):
+    out = tmp_path / "o"
+    _one_line(capsys, main(["linearize", str(_loop_scenario(tmp_path, fmus)), "--break", "ctrl.y->lag.u",
+                            f"--phase-budget={budget}", "--out", str(out)]), "--phase-budget", "positive, finite")
+    assert not out.exists()

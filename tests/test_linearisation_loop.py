@@ -247,3 +247,81 @@ def test_an_integrator_in_the_loop_is_a_pole_on_the_boundary_and_said(fmus, fiel
     warning = [line for line in report(lin) if "warning: open-loop poles" in line]
     assert len(warning) == 1 and ("right half plane" if fields == ME else "unit circle") in warning[0]
     assert len(summary(lin)["loop"]["open_loop_poles_on_or_outside"]) == 1
+
+
+# ---------------------------------------------------------------- the continuous loop beside the co-simulated one
+def _pulse(G: LinearModel, n: int) -> np.ndarray:
+    """h[1..n] = C A^(k-1) B of a discrete-time one-input, one-output model."""
+    out, x = [], G.B.copy()
+    for _ in range(n):
+        out.append((G.C @ x)[0, 0])
+        x = G.A @ x
+    return np.array(out)
+
+
+@pytest.mark.parametrize("algorithm,delay", [("gauss-seidel", -0.5), ("jacobi", 2.5)])
+def test_the_co_simulated_loop_costs_the_phase_of_its_delays(fmus, algorithm, delay):
+    """Three lags (tau = 0.5 s) and a controller (K = 4): at a small step H the co-simulated loop's phase
+    margin is the continuous loop's less w_c H d rad, where d counts the steps of delay the coupling adds
+    at the gain crossover w_c: H / 2 for each lag's hold, H for the memoryless controller whose input Jacobi
+    reads at t_k; Gauss-Seidel in the order lag1, lag2, lag3, ctrl reads three of the four connections at
+    t_k+1 (an advance of H each): d = 1.5 + 1 = 2.5 (Jacobi), 1.5 - 3 + 1 = -0.5 (Gauss-Seidel: a lead).
+    To 1 % at H = 1 ms (the rest is O(H^2)); the largest step within the budget has the budget's cost."""
+    from wmr_cosim.cosim.linearisation.cosimulated import phase_cost
+
+    K, tau, h = 4.0, 0.5, 1e-3
+    sim = _chain(fmus, 3, K, tau).experiment(step=h, stop=4.0, algorithm=algorithm)
+    lin = Linearizer(sim.check(), Request(at=0.5, breaks=("ctrl.y", "lag1.u"), phase_budget=2.0)).run()
+    c = lin.coupling
+    assert c is not None and c.algorithm == algorithm and c.step == h and c.budget == 2.0
+    wc = math.sqrt(K ** (2.0 / 3.0) - 1.0) / tau
+    assert c.continuous.gain_crossover == pytest.approx(wc, rel=1e-6)
+    assert c.phase_cost == pytest.approx(math.degrees(wc * h * delay), rel=1e-2)
+    assert c.cosimulated.phase_margin == pytest.approx(c.continuous.phase_margin - c.phase_cost, rel=1e-12)
+    assert c.cosimulated.gain.dt == h and c.cosimulated.closed_stable
+    assert c.cosimulated.gain.inputs == ["lag1.u"] and c.cosimulated.gain.outputs == ["ctrl.y"]
+    # the largest step within 2 deg: the cost there is the budget (the bisection's bracket: 0.1 % of the step)
+    assert c.limit == "the budget"
+    assert phase_cost(c.continuous, c.loop_at(c.largest_step)) == pytest.approx(2.0, rel=1e-2)
+    assert phase_cost(c.continuous, c.loop_at(c.largest_step * 1.01)) > 2.0
+    if delay > 0:   # a loss growing as w_c H d: the step ~ budget / (w_c d), to the O(H^2) left out
+        assert c.largest_step == pytest.approx(math.radians(2.0) / (wc * delay), rel=0.05)
+
+
+@pytest.mark.parametrize("algorithm", ["gauss-seidel", "jacobi"])
+def test_the_co_simulated_loop_is_the_one_rollback_measures(fmus, algorithm):
+    """The loop the derivation gives at the step (zero-order holds, the algorithm's exchange) has the pulse
+    response of the same loop in co-simulation realised by rollback: the lags' co-simulation step is their
+    exact solution under a held input, so they agree to the realisation's accuracy (1e-6); and the Model
+    Exchange instances stepped by the master's integrator (CVODE) to its tolerance."""
+    K, tau, h = 2.0, 0.5, 0.01
+    cont = Linearizer(_chain(fmus, 3, K, tau).experiment(step=h, stop=4.0, algorithm=algorithm).check(),
+                      Request(at=0.5, breaks=("ctrl.y", "lag1.u"))).run()
+    derived = _pulse(cont.coupling.cosimulated.gain, 100)
+    # (realised at the derived loop's order: Jacobi's, the lags' and the controller's held input, is 4, more
+    # than the singular values' cut keeps of a one-step delay)
+    order = len(cont.coupling.cosimulated.gain.states)
+    cosim = Linearizer(_chain(fmus, 3, K, tau, fields={}).experiment(step=h, stop=4.0, algorithm=algorithm).check(),
+                       Request(at=0.5, breaks=("ctrl.y", "lag1.u"), steps=150, order=order)).run()
+    measured = _pulse(cosim.loop.gain, 100)
+    np.testing.assert_allclose(derived, measured, rtol=1e-6, atol=1e-8 * np.abs(derived).max())
+    if algorithm == "gauss-seidel":   # the closed form of the chain as Gauss-Seidel steps it (above)
+        np.testing.assert_allclose(derived, _gauss_seidel_chain_pulse(K, tau, h, 100), rtol=1e-9,
+                                   atol=1e-12)
+    # the margins of the two agree as well
+    assert cont.coupling.cosimulated.phase_margin == pytest.approx(cosim.loop.phase_margin, rel=1e-4)
+    assert cont.coupling.cosimulated.upper_gain_margin == pytest.approx(cosim.loop.upper_gain_margin, rel=1e-4)
+    # rollback of the Model Exchange loop itself (CVODE between the points, at a tolerance of 1e-10; the
+    # pulse 1e-2 relative: the difference of two integrations is the pulse response to ~1e-8 / 1e-2)
+    tight = {**ME, "tolerance": 1e-10}
+    me = Linearizer(_chain(fmus, 3, K, tau, fields=tight).experiment(step=h, stop=4.0, algorithm=algorithm).check(),
+                    Request(at=0.5, breaks=("ctrl.y", "lag1.u"), steps=150, discrete=True, pulse=1e-2,
+                            order=order)).run()
+    np.testing.assert_allclose(derived, _pulse(me.loop.gain, 100), rtol=1e-5, atol=1e-6 * np.abs(derived).max())
+
+
+def test_no_co_simulated_loop_for_an_algorithm_it_is_not_derived_for(fmus):
+    sim = _chain(fmus, 3, 2.0, 0.5).experiment(algorithm="iterated")
+    lin = Linearizer(sim.check(), Request(at=0.5, breaks=("ctrl.y", "lag1.u"))).run()
+    assert lin.coupling is None
+    assert any("the co-simulated loop is derived for one pass per step" in n for n in lin.notes)

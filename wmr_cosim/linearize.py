@@ -27,7 +27,7 @@ def linearize(target: str | Path, *, at: float | None = None, inputs: Sequence[s
               outputs: Sequence[str] = (), breaks: tuple[str, str] | None = None, discrete: bool = False,
               method: str = "auto", steps: int | None = None, order: int | None = None, pulse: float | None = None,
               states: dict[str, float] | None = None, overrides: dict[str, Any] | None = None,
-              limits: Any = None) -> Linearisation:
+              limits: Any = None, phase_budget: float | None = None) -> Linearisation:
     """Linearise ``target`` (a scenario file of one run, a shipped scenario's name, or an FMU run alone)
     around t = ``at`` [s] of its run (see :class:`wmr_cosim.cosim.linearisation.Request` for the rest).
     An FMU alone runs as Model Exchange where it has that interface (unless ``discrete``), from every Real
@@ -43,6 +43,8 @@ def linearize(target: str | Path, *, at: float | None = None, inputs: Sequence[s
         req.steps = steps
     if pulse is not None:
         req.pulse = pulse
+    if phase_budget is not None:
+        req.phase_budget = phase_budget
     if is_fmu(path):
         model = load_model(path)
         fields = {"interface": MODEL_EXCHANGE} if model.has_me and not discrete else {}
@@ -81,6 +83,8 @@ def summary(lin: Linearisation) -> dict[str, Any]:
         out["loop"]["order"] = len(lin.loop.gain.states)
     if lin.whole_eigenvalues is not None:
         out["whole_eigenvalues"] = _complex(lin.whole_eigenvalues)
+    if lin.coupling is not None:
+        out["coupling"] = lin.coupling.summary()
     out["notes"] = list(lin.notes)
     return out
 
@@ -120,6 +124,29 @@ def report(lin: Linearisation) -> list[str]:
     lines += [f"  note: {n}" for n in lin.notes]
     if lin.loop is not None:
         lines += _loop_lines(lin.loop)
+    if lin.coupling is not None:
+        lines += _coupling_lines(lin.coupling)
+    return lines
+
+
+def _coupling_lines(c: Any) -> list[str]:
+    """The continuous loop's margins beside the co-simulated loop's, the cost, the largest step."""
+    s = c.summary()
+    a, b = s["continuous"], s["cosimulated"]
+    lines = [f"the loop as {c.algorithm} realises it at the step {c.step:g} s (the blocks held over each step), "
+             "beside the continuous loop:",
+             f"  phase margin: continuous {_num(a['phase_margin_deg'])} deg at {_num(a['gain_crossover_rad_s'])} rad/s, "
+             f"co-simulated {_num(b['phase_margin_deg'])} deg at {_num(b['gain_crossover_rad_s'])} rad/s: the "
+             f"coupling costs {_num(s['phase_cost_deg'])} deg",
+             f"  upper gain margin: continuous {_num(a['upper_gain_margin'])}, co-simulated "
+             f"{_num(b['upper_gain_margin'])}; lower: continuous {_num(a['lower_gain_margin'])}, co-simulated "
+             f"{_num(b['lower_gain_margin'])}; co-simulated closed loop "
+             f"{'stable' if b['closed_loop_stable'] else 'UNSTABLE'}"]
+    if isinstance(s["largest_step_s"], float) and s["largest_step_s"] > 0:
+        lines.append(f"  the largest step that keeps the cost within {c.budget:g} deg: {_num(s['largest_step_s'])} s "
+                     f"(bounded by {s['largest_step_limit']})")
+    else:
+        lines.append(f"  the largest step within {c.budget:g} deg: none ({s['largest_step_limit']})")
     return lines
 
 

@@ -145,6 +145,7 @@ def margins(gain: LinearModel) -> tuple[list[tuple[float, float]], list[tuple[fl
     L = -gain.statespace()
     with warnings.catch_warnings():   # (its note that a discrete L is taken by the frequency response)
         warnings.filterwarnings("ignore", message="stability_margins: Falling back", category=UserWarning)
+        warnings.filterwarnings("ignore", message="Badly conditioned filter coefficients")   # (scipy's, on the way)
         gms, pms, _, w180, wc, _ = control.stability_margins(L, returnall=True)
         gm, pm, sm, wpc, wgc, _ = control.stability_margins(L)
     phase = [(float(w), float(g)) for w, g in zip(np.atleast_1d(w180), np.atleast_1d(gms)) if g <= NOISE_GAIN_MARGIN]

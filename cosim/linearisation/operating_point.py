@@ -34,6 +34,7 @@ from .jacobian import Signal, central_column, jacobian, linear_model, states_of
 from .loop import LoopAnalysis, analyse
 from .model import LinearModel
 from .realisation import RELATIVE_PULSE, Injection, pulse_responses, realise
+from .cosimulated import PHASE_BUDGET, CouplingCost, coupling_cost
 
 #: Sweeps of the exchange of connected values at the point before it is taken as not settling.
 EXCHANGE_SWEEPS = 100
@@ -48,7 +49,8 @@ class Request:
     pulse responses even where a continuous model could be taken; ``method`` of the Jacobian ("auto",
     "directional", "differences"); ``steps`` of the responses and their realised ``order`` (None: from the
     singular values), ``pulse`` their size relative to the input; ``states``: state values to set at the
-    point ("instance.state": value, Model Exchange only)."""
+    point ("instance.state": value, Model Exchange only); ``phase_budget`` [deg]: the phase margin the
+    coupling may cost a continuous loop broken at ``breaks``, which bounds the largest step reported."""
 
     at: float | None = None
     inputs: list[str] = field(default_factory=list)
@@ -60,17 +62,21 @@ class Request:
     order: int | None = None
     pulse: float = RELATIVE_PULSE
     states: dict[str, float] = field(default_factory=dict)
+    phase_budget: float = PHASE_BUDGET
 
 
 @dataclass
 class Linearisation:
     """The model from the inputs to the outputs; with a break, the loop's analysis and the eigenvalues of
-    the system linearised as a whole (closed), to compare with the loop's closed through the break."""
+    the system linearised as a whole (closed), to compare with the loop's closed through the break; a
+    continuous loop's ``coupling``: the loop as the co-simulation realises it at the step, its margins
+    beside the continuous loop's (:mod:`.cosimulated`)."""
 
     model: LinearModel
     loop: LoopAnalysis | None = None
     whole_eigenvalues: np.ndarray | None = None
     notes: list[str] = field(default_factory=list)
+    coupling: CouplingCost | None = None
 
 
 class Linearizer:
@@ -110,6 +116,10 @@ class Linearizer:
             raise ScenarioError(self.file, "--steps", f"{req.steps}: the responses need at least 2 steps")
         if not (req.pulse > 0 and math.isfinite(req.pulse)):
             raise ScenarioError(self.file, "--pulse", f"{req.pulse}: a positive size")
+        if not (isinstance(req.phase_budget, (int, float)) and math.isfinite(req.phase_budget)
+                and req.phase_budget > 0):
+            raise ScenarioError(self.file, "--phase-budget", f"{req.phase_budget}: a positive, finite number of "
+                                                             "degrees")
         if self.discrete():
             if not req.inputs and req.breaks is None:
                 raise ScenarioError(self.file, "--inputs", "a model from pulse responses needs the inputs to "
@@ -261,6 +271,7 @@ class Linearizer:
                 out.model = opened
             out.loop = analyse(dataclasses.replace(opened, C=opened.C * link.factor, D=opened.D * link.factor), src, dst)
             out.whole_eigenvalues = whole.eigenvalues()
+            out.coupling = self._coupling(out, blocks, links, Link(src, dst, link.factor))
         return out
 
     def _block(self, ex: Execution, name: str, wanted_in: set[str], wanted_out: set[str]) -> LinearModel:
@@ -276,6 +287,24 @@ class Linearizer:
             return linear_model(J, states, sig_in, sig_out, ex.time, f"{name}: {how}")
         D = _memoryless_gain(inst, md, ins, outs)
         return linear_model(D, [], sig_in, sig_out, ex.time, f"{name}: central differences (memoryless)")
+
+    def _coupling(self, out: Linearisation, blocks: list[LinearModel], links: list[Link],
+                  cut: Link) -> CouplingCost | None:
+        """The continuous loop against the loop the scenario's algorithm realises at its step (one pass per
+        step at one rate: Gauss-Seidel, Jacobi); else None and a note saying why."""
+        from ..stepping import table as algorithms
+
+        name = self.plan.scenario.algorithm
+        row = algorithms.row(name)
+        rates = [n for n, ip in self.plan.instances.items() if ip.decimation > 1]
+        if not row.one_pass or rates:
+            why = f"{', '.join(rates)} at their own rates" if rates else f"the algorithm {name}"
+            out.notes.append(f"the co-simulated loop is derived for one pass per step at one rate (Gauss-Seidel, "
+                             f"Jacobi), not for {why}: its margins are not given")
+            return None
+        assert out.loop is not None
+        return coupling_cost(out.loop, blocks, links, cut, self.plan.order, name, row.simultaneous, self.step,
+                             self.req.phase_budget)
 
     def _point(self, ex: Execution, model: LinearModel) -> None:
         """The operating point of a continuous-time ``model`` of the system: its states' values (the Model
