@@ -142,9 +142,14 @@ def test_the_g1_loop_broken_at_the_right_torque_has_the_documented_margins(tmp_p
     doc = _documented()
     loop = s["loop"]
     assert loop["order"] == doc["realised order"]
-    assert loop["gain_margin"] == pytest.approx(doc["gain margin"], rel=1e-3)
+    assert loop["upper_gain_margin"] == pytest.approx(doc["upper gain margin"], rel=1e-3)
+    assert loop["lower_gain_margin"] == pytest.approx(doc["lower gain margin"], rel=1e-3)
+    assert [c["kind"] for c in loop["phase_crossovers"]] == ["lower", "upper"]
+    # the integrator from torque to wheel angle, realised just outside the unit circle (within 1e-3): said
+    assert [abs(complex(*z)) for z in loop["open_loop_poles_on_or_outside"]] == \
+        [pytest.approx(doc["open-loop pole on the unit circle"], abs=1e-4)]
     assert loop["phase_margin_deg"] == pytest.approx(doc["phase margin [deg]"], rel=1e-3)
-    assert loop["phase_crossover_rad_s"] == pytest.approx(doc["phase crossover [rad/s]"], rel=1e-3)
+    assert loop["phase_crossovers"][1]["rad_s"] == pytest.approx(doc["phase crossover [rad/s]"], rel=1e-3)
     assert loop["gain_crossover_rad_s"] == pytest.approx(doc["gain crossover [rad/s]"], rel=1e-3)
     assert loop["closed_loop_stable"]
     closed = np.array([complex(*z) for z in loop["closed_eigenvalues"]])

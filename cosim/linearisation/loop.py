@@ -146,8 +146,7 @@ def margins(gain: LinearModel) -> tuple[list[tuple[float, float]], list[tuple[fl
     with warnings.catch_warnings():   # (its note that a discrete L is taken by the frequency response)
         warnings.filterwarnings("ignore", message="stability_margins: Falling back", category=UserWarning)
         warnings.filterwarnings("ignore", message="Badly conditioned filter coefficients")   # (scipy's, on the way)
-        gms, pms, _, w180, wc, _ = control.stability_margins(L, returnall=True)
-        gm, pm, sm, wpc, wgc, _ = control.stability_margins(L)
+        gms, pms, sms, w180, wc, _ = control.stability_margins(L, returnall=True)
     phase = [(float(w), float(g)) for w, g in zip(np.atleast_1d(w180), np.atleast_1d(gms)) if g <= NOISE_GAIN_MARGIN]
     if not gain.continuous and gain.A.size:
         nyquist = math.pi / gain.dt
@@ -156,10 +155,14 @@ def margins(gain: LinearModel) -> tuple[list[tuple[float, float]], list[tuple[fl
             if value is not None and -value < 0 and all(abs(w - v) > 1e-9 * nyquist for v, _ in phase):
                 phase.append((w, 1.0 / abs(value)))
     phase.sort()
-    if phase:   # (python-control's rule over them all: the margin nearest 1)
-        gm, wpc = min(((g, w) for w, g in phase), key=lambda gw: abs(math.log(gw[0])) if gw[0] > 0 else math.inf)
     gains = sorted((float(w), float(p)) for w, p in zip(np.atleast_1d(wc), np.atleast_1d(pms)))
-    return phase, gains, (float(gm), float(pm), float(sm), float(wpc), float(wgc))
+    # python-control's own choice among them (its stability_margins without returnall): the gain margin
+    # nearest 1, the phase margin least in magnitude, the least stability margin
+    gm, wpc = min(((g, w) for w, g in phase), key=lambda gw: abs(math.log(gw[0])) if gw[0] > 0 else math.inf,
+                  default=(math.inf, math.nan))
+    wgc, pm = min(gains, key=lambda wp: abs(wp[1]), default=(math.nan, math.inf))
+    sm = float(np.min(sms)) if np.size(sms) else math.inf
+    return phase, gains, (float(gm), float(pm), sm, float(wpc), float(wgc))
 
 
 def _response(gain: LinearModel, z: complex) -> float | None:
