@@ -116,7 +116,7 @@ class CouplingCost:
     budget: float
     largest_step: float
     limit: str
-    loop_at: Callable[[float], LoopAnalysis] = field(repr=False, compare=False, default=lambda h: None)  # type: ignore
+    loop_at: Callable[[float], LoopAnalysis] | None = field(default=None, repr=False, compare=False)
 
     def summary(self) -> dict[str, Any]:
         def num(x: float) -> float | str:

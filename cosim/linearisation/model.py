@@ -128,9 +128,10 @@ class LinearModel:
     def operating_point(self) -> dict[str, Any]:
         """The point as linear.json gives it: ``time`` [s] and, for the states, inputs and outputs, each one's
         name, unit and value (None where not defined)."""
-        def rows(names: list[str], units: list[str], values: np.ndarray) -> list[dict[str, Any]]:
+        def rows(names: list[str], units: list[str], values: np.ndarray | None) -> list[dict[str, Any]]:
+            known = np.full(len(names), np.nan) if values is None else values
             return [{"name": n, "unit": u, "value": float(v) if np.isfinite(v) else None}
-                    for n, u, v in zip(names, units, values)]
+                    for n, u, v in zip(names, units, known)]
         return {"time": self.t, "states": rows(self.states, self.state_units, self.x),
                 "inputs": rows(self.inputs, self.input_units, self.u),
                 "outputs": rows(self.outputs, self.output_units, self.y)}

@@ -314,7 +314,8 @@ class Linearizer:
             ip = self.plan.instances[name]
             if ip.interface == MODEL_EXCHANGE:
                 states = states_of(ip.model.md, name, lambda n: "")[0]
-                x.update(zip((st.name for st in states), map(float, ex.instances[name].continuous_states())))
+                values = ex.instances[name].continuous_states()   # type: ignore[attr-defined]
+                x.update(zip((st.name for st in states), map(float, values)))
 
         def value(ref: str, fld: str) -> float:
             inst, var = self._var(ref, fld, INPUTS if fld == "--inputs" else None, fld[2:-1])
