@@ -263,3 +263,18 @@ def test_a_phase_budget_that_is_not_a_positive_finite_angle_is_refused(fmus, tmp
     _one_line(capsys, main(["linearize", str(_loop_scenario(tmp_path, fmus)), "--break", "ctrl.y->lag.u",
                             f"--phase-budget={budget}", "--out", str(out)]), "--phase-budget", "positive, finite")
     assert not out.exists()
+
+
+def test_a_phase_budget_where_no_coupling_cost_is_derived_is_refused(fmus, tmp_path, capsys):
+    """--phase-budget bounds the step of a continuous loop under Gauss-Seidel or Jacobi: without a break, for a
+    model realised from responses, or under another algorithm it could not be honoured: refused, named."""
+    scenario, out = _loop_scenario(tmp_path, fmus), tmp_path / "o"
+    _one_line(capsys, main(["linearize", str(scenario), "--inputs", "lag.u", "--phase-budget", "2", "--out", str(out)]),
+              "--phase-budget", "no loop is broken")
+    _one_line(capsys, main(["linearize", str(scenario), "--break", "ctrl.y->lag.u", "--discrete", "--steps", "50",
+                            "--phase-budget", "2", "--out", str(out)]), "--phase-budget", "realised from pulse responses")
+    iterated = tmp_path / "iterated.toml"
+    iterated.write_text(scenario.read_text().replace("step = 0.01\n", 'step = 0.01\nalgorithm = "iterated"\n'))
+    _one_line(capsys, main(["linearize", str(iterated), "--break", "ctrl.y->lag.u", "--phase-budget", "2",
+                            "--out", str(out)]), "--phase-budget", "the algorithm is iterated")
+    assert not out.exists()

@@ -246,6 +246,7 @@ def test_an_integrator_in_the_loop_is_a_pole_on_the_boundary_and_said(fmus, fiel
         assert loop.pole_tolerance >= 1e-3
     warning = [line for line in report(lin) if "warning: open-loop poles" in line]
     assert len(warning) == 1 and ("right half plane" if fields == ME else "unit circle") in warning[0]
+    assert "(on it, within the accuracy)" in warning[0] and "outside)" not in warning[0]
     assert len(summary(lin)["loop"]["open_loop_poles_on_or_outside"]) == 1
 
 

@@ -168,7 +168,12 @@ def _loop_lines(loop: Any) -> list[str]:
     if s["open_loop_poles_on_or_outside"]:
         where = "in the closed right half plane (Re s >= -" if loop.gain.continuous else \
             "on or outside the unit circle (|z| >= 1 - "
-        poles = ", ".join(_z(complex(*z)) for z in s["open_loop_poles_on_or_outside"])
+        tol = s["pole_tolerance"]
+
+        def side(z: complex) -> str:
+            off = z.real if loop.gain.continuous else abs(z) - 1.0
+            return "on it, within the accuracy" if abs(off) <= tol else "outside"
+        poles = ", ".join(f"{_z(z)} ({side(z)})" for z in (complex(*p) for p in s["open_loop_poles_on_or_outside"]))
         lines.append(f"  warning: open-loop poles {where}{_num(s['pole_tolerance'])}, the model's accuracy): {poles}; "
                      "the margins at w = 0 depend on the side they lie (an integrator, or an unstable pole the "
                      "feedback stabilises, which a lower gain margin bounds)")

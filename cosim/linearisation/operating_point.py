@@ -50,7 +50,8 @@ class Request:
     "directional", "differences"); ``steps`` of the responses and their realised ``order`` (None: from the
     singular values), ``pulse`` their size relative to the input; ``states``: state values to set at the
     point ("instance.state": value, Model Exchange only); ``phase_budget`` [deg]: the phase margin the
-    coupling may cost a continuous loop broken at ``breaks``, which bounds the largest step reported."""
+    coupling may cost a continuous loop broken at ``breaks``, which bounds the largest step reported (None:
+    :data:`.cosimulated.PHASE_BUDGET`; given, it is refused where there is no such loop)."""
 
     at: float | None = None
     inputs: list[str] = field(default_factory=list)
@@ -62,7 +63,7 @@ class Request:
     order: int | None = None
     pulse: float = RELATIVE_PULSE
     states: dict[str, float] = field(default_factory=dict)
-    phase_budget: float = PHASE_BUDGET
+    phase_budget: float | None = None   # [deg]; None: PHASE_BUDGET
 
 
 @dataclass
@@ -116,10 +117,8 @@ class Linearizer:
             raise ScenarioError(self.file, "--steps", f"{req.steps}: the responses need at least 2 steps")
         if not (req.pulse > 0 and math.isfinite(req.pulse)):
             raise ScenarioError(self.file, "--pulse", f"{req.pulse}: a positive size")
-        if not (isinstance(req.phase_budget, (int, float)) and math.isfinite(req.phase_budget)
-                and req.phase_budget > 0):
-            raise ScenarioError(self.file, "--phase-budget", f"{req.phase_budget}: a positive, finite number of "
-                                                             "degrees")
+        if req.phase_budget is not None:
+            self._check_budget(req.phase_budget)
         if self.discrete():
             if not req.inputs and req.breaks is None:
                 raise ScenarioError(self.file, "--inputs", "a model from pulse responses needs the inputs to "
@@ -127,6 +126,29 @@ class Linearizer:
             self._check_rollback()
         for ref in req.states:
             self._state_index(ref)
+
+    def _check_budget(self, budget: Any) -> None:
+        """A phase budget: a positive, finite angle, for a loop whose coupling's cost is derived."""
+        if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not math.isfinite(budget) \
+                or budget <= 0:
+            raise ScenarioError(self.file, "--phase-budget", f"{budget}: a positive, finite number of degrees")
+        why = "no loop is broken (--break)" if self.req.breaks is None else \
+            "the model is realised from pulse responses (an instance neither Model Exchange nor memoryless, or " \
+            "--discrete)" if self.discrete() else self._coupling_unsupported()
+        if why:
+            raise ScenarioError(self.file, "--phase-budget", f"the coupling's cost is derived for a continuous "
+                                                             f"loop under Gauss-Seidel or Jacobi at one rate; here {why}")
+
+    def _coupling_unsupported(self) -> str | None:
+        """Why the loop the co-simulation realises cannot be derived for this plan (None: it can): it is for
+        one pass per step at one rate (Gauss-Seidel, Jacobi)."""
+        from ..stepping import table as algorithms
+
+        rates = [n for n, ip in self.plan.instances.items() if ip.decimation > 1]
+        if rates:
+            return f"{', '.join(rates)} step at their own rates"
+        name = self.plan.scenario.algorithm
+        return None if algorithms.row(name).one_pass else f"the algorithm is {name}"
 
     def _state_index(self, ref: str) -> int:
         """The place of a continuous state ("instance.state") in its instance's state vector, or ScenarioError."""
@@ -294,17 +316,16 @@ class Linearizer:
         step at one rate: Gauss-Seidel, Jacobi); else None and a note saying why."""
         from ..stepping import table as algorithms
 
-        name = self.plan.scenario.algorithm
-        row = algorithms.row(name)
-        rates = [n for n, ip in self.plan.instances.items() if ip.decimation > 1]
-        if not row.one_pass or rates:
-            why = f"{', '.join(rates)} at their own rates" if rates else f"the algorithm {name}"
+        why = self._coupling_unsupported()
+        if why:
             out.notes.append(f"the co-simulated loop is derived for one pass per step at one rate (Gauss-Seidel, "
-                             f"Jacobi), not for {why}: its margins are not given")
+                             f"Jacobi); here {why}: its margins are not given")
             return None
         assert out.loop is not None
-        return coupling_cost(out.loop, blocks, links, cut, self.plan.order, name, row.simultaneous, self.step,
-                             self.req.phase_budget)
+        name = self.plan.scenario.algorithm
+        budget = PHASE_BUDGET if self.req.phase_budget is None else self.req.phase_budget
+        return coupling_cost(out.loop, blocks, links, cut, self.plan.order, name, algorithms.row(name).simultaneous,
+                             self.step, budget)
 
     def _point(self, ex: Execution, model: LinearModel) -> None:
         """The operating point of a continuous-time ``model`` of the system: its states' values (the Model
