@@ -220,6 +220,9 @@ def test_the_plots_are_titled_by_the_loop_without_choosing_a_backend(fmus, tmp_p
     bode, nyquist = loop_figures(lin.loop)
     assert bode.get_suptitle() == "Loop broken at ctrl.y -> lag.u, t = 0.25 s: L = -G"
     assert nyquist.get_suptitle() == "Loop broken at ctrl.y -> lag.u, t = 0.25 s: Nyquist of L = -G"
+    # the margins line over the Bode plot: every crossover (here none of the phase; L = 6 / (0.5 s + 1))
+    pm = 180.0 - np.degrees(np.arctan(np.sqrt(35.0)))
+    assert bode.axes[0].get_title() == f"GM inf; PM {pm:.4g} deg at {np.sqrt(35.0) / 0.5:.4g} rad/s"
     before = matplotlib.get_backend()
     matplotlib.use("svg")   # a backend of the caller's: the plots must leave it as it is
     try:
