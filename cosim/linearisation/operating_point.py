@@ -11,7 +11,9 @@ before anything runs, the run to the point, and the way the model is taken there
   step (:mod:`.realisation`); every instance must be able to save its state.
 
 A break ``src -> dst`` opens one connection: the model is then taken from ``dst`` (the injection) to
-``src`` (the return) with that connection cut, and the loop is analysed (:mod:`.loop`).
+``src`` (the return) with that connection cut, and the loop is analysed (:mod:`.loop`); a continuous loop
+beside the loop the scenario's algorithm realises at its step (:mod:`.cosimulated`).  The model keeps its
+operating point: the states', inputs' and outputs' values at the point.
 """
 from __future__ import annotations
 
@@ -29,12 +31,13 @@ from ..plan.resolution import INPUTS, variable
 from ..plan.wiring import is_f64
 from ..runtime.execution import Execution
 from ..scenario.document import split_ref
+from ..stepping import table as algorithms
+from .cosimulated import PHASE_BUDGET, CouplingCost, coupling_cost
 from .interconnection import Link, close
 from .jacobian import Signal, central_column, jacobian, linear_model, states_of
 from .loop import LoopAnalysis, analyse
 from .model import LinearModel
 from .realisation import RELATIVE_PULSE, Injection, pulse_responses, realise
-from .cosimulated import PHASE_BUDGET, CouplingCost, coupling_cost
 
 #: Sweeps of the exchange of connected values at the point before it is taken as not settling.
 EXCHANGE_SWEEPS = 100
@@ -142,8 +145,6 @@ class Linearizer:
     def _coupling_unsupported(self) -> str | None:
         """Why the loop the co-simulation realises cannot be derived for this plan (None: it can): it is for
         one pass per step at one rate (Gauss-Seidel, Jacobi)."""
-        from ..stepping import table as algorithms
-
         rates = [n for n, ip in self.plan.instances.items() if ip.decimation > 1]
         if rates:
             return f"{', '.join(rates)} step at their own rates"
@@ -314,8 +315,6 @@ class Linearizer:
                   cut: Link) -> CouplingCost | None:
         """The continuous loop against the loop the scenario's algorithm realises at its step (one pass per
         step at one rate: Gauss-Seidel, Jacobi); else None and a note saying why."""
-        from ..stepping import table as algorithms
-
         why = self._coupling_unsupported()
         if why:
             out.notes.append(f"the co-simulated loop is derived for one pass per step at one rate (Gauss-Seidel, "
