@@ -250,7 +250,9 @@ def test_a_continuous_loop_is_shown_beside_the_co_simulated_one(fmus, tmp_path, 
     printed = capsys.readouterr().out
     wc = np.sqrt(35.0) / 0.5
     cost = np.degrees(wc * 0.01 * delay)
-    c = json.loads((out / "linear.json").read_text())["coupling"]
+    def strict(constant: str) -> None:
+        raise AssertionError(f"linear.json holds {constant}: not JSON")
+    c = json.loads((out / "linear.json").read_text(), parse_constant=strict)["coupling"]
     assert c["algorithm"] == algorithm and c["step_s"] == 0.01 and c["phase_budget_deg"] == 3.0
     assert c["phase_cost_deg"] == pytest.approx(cost, rel=0.05)
     assert c["cosimulated"]["phase_margin_deg"] == pytest.approx(c["continuous"]["phase_margin_deg"] - c["phase_cost_deg"])
