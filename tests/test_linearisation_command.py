@@ -142,12 +142,144 @@ def test_the_g1_loop_broken_at_the_right_torque_has_the_documented_margins(tmp_p
     doc = _documented()
     loop = s["loop"]
     assert loop["order"] == doc["realised order"]
-    assert loop["gain_margin"] == pytest.approx(doc["gain margin"], rel=1e-3)
+    assert loop["upper_gain_margin"] == pytest.approx(doc["upper gain margin"], rel=1e-3)
+    assert loop["lower_gain_margin"] == pytest.approx(doc["lower gain margin"], rel=1e-3)
+    assert [c["kind"] for c in loop["phase_crossovers"]] == ["lower", "upper"]
+    # the integrator from torque to wheel angle, realised just outside the unit circle (within 1e-3): said
+    assert [abs(complex(*z)) for z in loop["open_loop_poles_on_or_outside"]] == \
+        [pytest.approx(doc["open-loop pole on the unit circle"], abs=1e-4)]
     assert loop["phase_margin_deg"] == pytest.approx(doc["phase margin [deg]"], rel=1e-3)
-    assert loop["phase_crossover_rad_s"] == pytest.approx(doc["phase crossover [rad/s]"], rel=1e-3)
+    assert loop["phase_crossovers"][1]["rad_s"] == pytest.approx(doc["phase crossover [rad/s]"], rel=1e-3)
     assert loop["gain_crossover_rad_s"] == pytest.approx(doc["gain crossover [rad/s]"], rel=1e-3)
     assert loop["closed_loop_stable"]
     closed = np.array([complex(*z) for z in loop["closed_eigenvalues"]])
     whole = np.array([complex(*z) for z in s["whole_eigenvalues"]])
     apart = np.abs(np.sort_complex(closed) - np.sort_complex(whole)).max()
     assert apart <= doc["closed against whole, largest difference"]
+
+
+# ---------------------------------------------------------------- the operating point, the plots' titles
+def test_the_operating_point_is_saved_with_its_names_and_units_and_read_back(fmus, tmp_path, capsys):
+    """The Lag alone from x0 = 0.5 under u = 2 (k = 3, tau = 0.25 s): at t = 0.5 s its state and output are
+    6 + (0.5 - 6) exp(-2) (the run's integrator's tolerance); the input the value set."""
+    from linear_fmus import lag_response
+
+    out = tmp_path / "lin"
+    assert main(["linearize", str(fmus["lag"]), "--at", "0.5", "--set", "Lag.tau=0.25", "--set", "Lag.k=3",
+                 "--set", "Lag.x0=0.5", "--set", "Lag.u=2", "--out", str(out)]) == 0
+    capsys.readouterr()
+    y = float(lag_response(0.5, u=2.0, k=3.0, tau=0.25, x0=0.5))
+    m = LinearModel.load(out / "linear.npz")
+    np.testing.assert_allclose([m.x[0], m.u[0], m.y[0]], [y, 2.0, y], rtol=1e-4)
+    assert m.y[0] == m.x[0]   # y = x, exactly
+    point = json.loads((out / "linear.json").read_text())["operating_point"]
+    assert point["time"] == 0.5
+    assert point["states"] == [{"name": "Lag.x", "unit": "", "value": m.x[0]}]
+    assert point["inputs"] == [{"name": "Lag.u", "unit": "", "value": 2.0}]
+    assert point["outputs"] == [{"name": "Lag.y", "unit": "", "value": m.y[0]}]
+    mat = loadmat(out / "linear.mat")
+    np.testing.assert_array_equal(np.ravel(mat["x"]), m.x)
+
+
+def test_a_realisation_saves_the_point_of_its_inputs_and_outputs_not_of_its_coordinates(fmus, tmp_path, capsys):
+    """Co-simulation, the loop lag -> ctrl (kp = -3) -> lag (k = 2, tau = 0.5 s) from x0 = 1, broken at the
+    controller's output: the point's input (lag.u) and output (ctrl.y) at t = 0.5 s are the run's there
+    (a run to the same time, bit for bit); the realisation's states have no value at the point (nan, null)."""
+    from wmr_cosim.cosim import Execution
+    from wmr_cosim.runner import load_plan
+
+    scenario = _loop_scenario(tmp_path, fmus, "co-simulation")
+    scenario.write_text(scenario.read_text().replace("k = 2.0\n", "k = 2.0\nx0 = 1.0\n"))
+    out = tmp_path / "lin"
+    assert main(["linearize", str(scenario), "--at", "0.5", "--break", "ctrl.y->lag.u", "--steps", "100",
+                 "--out", str(out)]) == 0
+    capsys.readouterr()
+    m = LinearModel.load(out / "linear.npz")
+    ex = Execution(load_plan(scenario), None)
+    try:
+        ex.initialize()
+        ex.step_to(0.5)
+        expected_u, expected_y = float(ex.get("lag.u")), float(ex.get("ctrl.y"))
+    finally:
+        ex.close()
+    assert (m.inputs, m.outputs) == (["lag.u"], ["ctrl.y"])
+    assert (m.u[0], m.y[0]) == (expected_u, expected_y) and expected_y != 0.0
+    assert np.isnan(m.x).all() and m.x.size == len(m.states)
+    point = json.loads((out / "linear.json").read_text())["operating_point"]
+    assert [s["value"] for s in point["states"]] == [None] * len(m.states)
+
+
+def test_the_plots_are_titled_by_the_loop_without_choosing_a_backend(fmus, tmp_path, capsys):
+    import matplotlib
+    from PIL import Image
+
+    from wmr_cosim.cosim.linearisation.loop import loop_figures
+    from wmr_cosim.linearize import linearize
+
+    lin = linearize(_loop_scenario(tmp_path, fmus), at=0.25, breaks=("ctrl.y", "lag.u"))
+    bode, nyquist = loop_figures(lin.loop)
+    assert bode.get_suptitle() == "Loop broken at ctrl.y -> lag.u, t = 0.25 s: L = -G"
+    assert nyquist.get_suptitle() == "Loop broken at ctrl.y -> lag.u, t = 0.25 s: Nyquist of L = -G"
+    # the margins line over the Bode plot: every crossover (here none of the phase; L = 6 / (0.5 s + 1))
+    pm = 180.0 - np.degrees(np.arctan(np.sqrt(35.0)))
+    assert bode.axes[0].get_title() == f"GM inf; PM {pm:.4g} deg at {np.sqrt(35.0) / 0.5:.4g} rad/s"
+    before = matplotlib.get_backend()
+    matplotlib.use("svg")   # a backend of the caller's: the plots must leave it as it is
+    try:
+        assert main(["linearize", str(_loop_scenario(tmp_path, fmus)), "--at", "0.25", "--break", "ctrl.y->lag.u",
+                     "--out", str(tmp_path / "o")]) == 0
+        assert matplotlib.get_backend() == "svg"
+    finally:
+        matplotlib.use(before)
+    capsys.readouterr()
+    with Image.open(tmp_path / "o" / "bode.png") as im:
+        assert im.text["Title"] == "Loop broken at ctrl.y -> lag.u, t = 0.25 s: L = -G"
+
+
+@pytest.mark.parametrize("algorithm,delay", [("gauss-seidel", 0.5), ("jacobi", 1.5)])
+def test_a_continuous_loop_is_shown_beside_the_co_simulated_one(fmus, tmp_path, capsys, algorithm, delay):
+    """L = 6 / (0.5 s + 1) at 10 ms: the co-simulated loop's phase margin is short of the continuous one's by
+    w_c h d at the gain crossover w_c = sqrt(35) / 0.5, to the O(h^2) left out: Gauss-Seidel (lag, ctrl)
+    adds the lag's hold alone (d = 1/2: the controller reads the lag at t_k+1), Jacobi a step more (d = 3/2:
+    the controller's output at t_k+1 is what it made of the lag at t_k). The largest step within the budget
+    ~ budget / (w_c d); printed and in linear.json."""
+    out = tmp_path / "loop"
+    scenario = _loop_scenario(tmp_path, fmus)
+    scenario.write_text(scenario.read_text().replace("step = 0.01\n", f'step = 0.01\nalgorithm = "{algorithm}"\n'))
+    assert main(["linearize", str(scenario), "--break", "ctrl.y->lag.u", "--phase-budget", "3", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    wc = np.sqrt(35.0) / 0.5
+    cost = np.degrees(wc * 0.01 * delay)
+    def strict(constant: str) -> None:
+        raise AssertionError(f"linear.json holds {constant}: not JSON")
+    c = json.loads((out / "linear.json").read_text(), parse_constant=strict)["coupling"]
+    assert c["algorithm"] == algorithm and c["step_s"] == 0.01 and c["phase_budget_deg"] == 3.0
+    assert c["phase_cost_deg"] == pytest.approx(cost, rel=0.05)
+    assert c["cosimulated"]["phase_margin_deg"] == pytest.approx(c["continuous"]["phase_margin_deg"] - c["phase_cost_deg"])
+    assert c["largest_step_s"] == pytest.approx(0.01 * 3.0 / cost, rel=0.1) and c["largest_step_limit"] == "the budget"
+    assert f"the loop as {algorithm} realises it at the step 0.01 s" in printed
+    assert f"the coupling costs {c['phase_cost_deg']:.4g} deg" in printed
+    assert f"the largest step that keeps the cost within 3 deg: {c['largest_step_s']:.4g} s" in printed
+
+
+@pytest.mark.parametrize("budget", ["0", "-1", "nan", "inf"])
+def test_a_phase_budget_that_is_not_a_positive_finite_angle_is_refused(fmus, tmp_path, capsys, budget):
+    out = tmp_path / "o"
+    _one_line(capsys, main(["linearize", str(_loop_scenario(tmp_path, fmus)), "--break", "ctrl.y->lag.u",
+                            f"--phase-budget={budget}", "--out", str(out)]), "--phase-budget", "positive, finite")
+    assert not out.exists()
+
+
+def test_a_phase_budget_where_no_coupling_cost_is_derived_is_refused(fmus, tmp_path, capsys):
+    """--phase-budget bounds the step of a continuous loop under Gauss-Seidel or Jacobi: without a break, for a
+    model realised from responses, or under another algorithm it could not be honoured: refused, named."""
+    scenario, out = _loop_scenario(tmp_path, fmus), tmp_path / "o"
+    _one_line(capsys, main(["linearize", str(scenario), "--inputs", "lag.u", "--phase-budget", "2", "--out", str(out)]),
+              "--phase-budget", "no loop is broken")
+    _one_line(capsys, main(["linearize", str(scenario), "--break", "ctrl.y->lag.u", "--discrete", "--steps", "50",
+                            "--phase-budget", "2", "--out", str(out)]), "--phase-budget", "realised from pulse responses")
+    iterated = tmp_path / "iterated.toml"
+    iterated.write_text(scenario.read_text().replace("step = 0.01\n", 'step = 0.01\nalgorithm = "iterated"\n'))
+    _one_line(capsys, main(["linearize", str(iterated), "--break", "ctrl.y->lag.u", "--phase-budget", "2",
+                            "--out", str(out)]), "--phase-budget", "the algorithm is iterated")
+    assert not out.exists()

@@ -173,3 +173,156 @@ def test_a_connection_that_is_not_real_to_real_is_held_and_said(fmus):
     assert lin.notes == ["lag.y -> ft.Boolean_input (Real to Boolean) is not a real-to-real connection: held as it "
                          "is at the point, not linearised"]
     assert control.dcgain(lin.model.statespace()) == pytest.approx(1.0, rel=1e-6)   # ft passes u through to lag
+
+
+# ---------------------------------------------------------------- every crossover, the lower gain margin, the poles
+def _model(sys, name: str = "G") -> LinearModel:
+    """A python-control system as a one-input, one-output LinearModel."""
+    n = sys.nstates
+    return LinearModel(sys.A, sys.B, sys.C, sys.D, [f"x{i}" for i in range(n)], ["w"], ["r"], dt=float(sys.dt or 0.0))
+
+
+def test_every_crossover_and_the_lower_gain_margin_of_a_conditionally_stable_loop():
+    """L = K / ((s - 1)(0.1 s + 1)^2): an unstable pole that the feedback stabilises for 1 < K < 16.2 (the
+    characteristic polynomial 0.01 s^3 + 0.19 s^2 + 0.8 s + K - 1, Routh). L crosses the negative real axis
+    at w = 0 (L = -K: the lower gain margin 1 / K) and at w = sqrt(80) (L = -K / 16.2: the upper 16.2 / K).
+    The same loop discretised (zero-order hold, 1 ms) keeps L(z = 1) = -K: the lower margin at w = 0 too."""
+    from wmr_cosim.cosim.linearisation.loop import analyse
+
+    K = 4.0
+    s = control.tf("s")
+    G = -control.ss(K / ((s - 1) * (0.1 * s + 1) ** 2))
+    for sysm in (G, control.c2d(G, 1e-3, "zoh")):
+        loop = analyse(_model(sysm), "a.y", "b.u")
+        ws = [w for w, _ in loop.phase_crossovers]
+        gms = [g for _, g in loop.phase_crossovers]
+        assert len(ws) == 2 and ws[0] == 0.0, loop.phase_crossovers
+        assert loop.lower_gain_margin == pytest.approx(1.0 / K, rel=1e-3) == gms[0]
+        # the upper one: exact in continuous time; the hold's half-step lag moves it by O(w h) in discrete time
+        assert loop.upper_gain_margin == pytest.approx(16.2 / K, rel=1e-3 if sysm.dt == 0 else 3e-2) == gms[1]
+        assert ws[1] == pytest.approx(math.sqrt(80.0), rel=1e-3 if sysm.dt == 0 else 3e-2)
+        assert loop.closed_stable
+        summary = loop.summary()
+        assert [c["kind"] for c in summary["phase_crossovers"]] == ["lower", "upper"]
+        assert summary["lower_gain_margin"] == pytest.approx(1.0 / K, rel=1e-3)
+        # the unstable open-loop pole, named: s = 1 (z = exp(1e-3))
+        assert np.allclose(loop.boundary_poles, [1.0 if sysm.dt == 0 else math.exp(1e-3)], rtol=1e-9)
+        assert summary["open_loop_poles_on_or_outside"] == [[pytest.approx(loop.boundary_poles[0].real), 0.0]]
+
+
+def test_three_lags_list_their_one_phase_crossover_and_no_lower_margin(fmus):
+    K, tau = 4.0, 0.5
+    loop = Linearizer(_chain(fmus, 3, K, tau).check(), Request(at=0.5, breaks=("ctrl.y", "lag1.u"))).run().loop
+    assert [w for w, _ in loop.phase_crossovers] == [pytest.approx(math.sqrt(3.0) / tau, rel=1e-3)]
+    assert loop.upper_gain_margin == pytest.approx(8.0 / K, rel=1e-3) and loop.lower_gain_margin == 0.0
+    wc = math.sqrt(K ** (2.0 / 3.0) - 1.0)
+    assert loop.gain_crossovers == [(pytest.approx(wc / tau, rel=1e-3),
+                                     pytest.approx(180.0 - 3.0 * math.degrees(math.atan(wc)), rel=1e-3))]
+    assert loop.boundary_poles.size == 0   # three lags at -1 / tau: nothing near the boundary
+
+
+def _integrator_chain(fmus, fields=ME) -> Simulation:
+    """lag1 made an integrator to 1e-9 (x' = (k u - x) / tau with k = tau = 1e9: x' = u - 1e-9 x), two lags
+    of 0.5 s and the controller y = -0.5 u: L = 0.5 / (s (0.5 s + 1)^2), stable closed."""
+    sim = _chain(fmus, 3, 0.5, 0.5, fields=fields).experiment(stop=4.0)
+    return sim.instance("lag1", fmus["lag"], fields=fields, k=1e9, tau=1e9, x0=0.1)
+
+
+@pytest.mark.parametrize("fields", [ME, {}], ids=["continuous", "realised"])
+def test_an_integrator_in_the_loop_is_a_pole_on_the_boundary_and_said(fmus, fields):
+    """The continuous model has the integrator at s = -1e-9 (within 1e-6 of the largest pole, 2 /s, of the
+    imaginary axis); the realisation from responses (co-simulation) at z = exp(-1e-11), within its 1e-3."""
+    from wmr_cosim.linearize import report, summary
+
+    lin = Linearizer(_integrator_chain(fmus, fields).check(),
+                     Request(at=0.5, breaks=("ctrl.y", "lag1.u"), steps=150)).run()
+    loop = lin.loop
+    assert loop.closed_stable and loop.boundary_poles.size == 1
+    if fields == ME:
+        assert loop.boundary_poles[0] == pytest.approx(-1e-9, abs=1e-12)
+        assert loop.pole_tolerance == pytest.approx(2e-6, rel=1e-6)
+    else:
+        assert loop.boundary_poles[0] == pytest.approx(1.0, abs=1e-6)
+        assert loop.pole_tolerance >= 1e-3
+    warning = [line for line in report(lin) if "warning: open-loop poles" in line]
+    assert len(warning) == 1 and ("right half plane" if fields == ME else "unit circle") in warning[0]
+    assert "(on it, within the accuracy)" in warning[0] and "outside)" not in warning[0]
+    assert len(summary(lin)["loop"]["open_loop_poles_on_or_outside"]) == 1
+
+
+# ---------------------------------------------------------------- the continuous loop beside the co-simulated one
+def _pulse(G: LinearModel, n: int) -> np.ndarray:
+    """h[1..n] = C A^(k-1) B of a discrete-time one-input, one-output model."""
+    out, x = [], G.B.copy()
+    for _ in range(n):
+        out.append((G.C @ x)[0, 0])
+        x = G.A @ x
+    return np.array(out)
+
+
+@pytest.mark.parametrize("algorithm,delay", [("gauss-seidel", -0.5), ("jacobi", 2.5)])
+def test_the_co_simulated_loop_costs_the_phase_of_its_delays(fmus, algorithm, delay):
+    """Three lags (tau = 0.5 s) and a controller (K = 4): at a small step H the co-simulated loop's phase
+    margin is the continuous loop's less w_c H d rad, where d counts the steps of delay the coupling adds
+    at the gain crossover w_c: H / 2 for each lag's hold, H for the memoryless controller whose input Jacobi
+    reads at t_k; Gauss-Seidel in the order lag1, lag2, lag3, ctrl reads three of the four connections at
+    t_k+1 (an advance of H each): d = 1.5 + 1 = 2.5 (Jacobi), 1.5 - 3 + 1 = -0.5 (Gauss-Seidel: a lead).
+    To 1 % at H = 1 ms (the rest is O(H^2)); the largest step within the budget has the budget's cost."""
+    from wmr_cosim.cosim.linearisation.cosimulated import phase_cost
+
+    K, tau, h = 4.0, 0.5, 1e-3
+    sim = _chain(fmus, 3, K, tau).experiment(step=h, stop=4.0, algorithm=algorithm)
+    lin = Linearizer(sim.check(), Request(at=0.5, breaks=("ctrl.y", "lag1.u"), phase_budget=2.0)).run()
+    c = lin.coupling
+    assert c is not None and c.algorithm == algorithm and c.step == h and c.budget == 2.0
+    wc = math.sqrt(K ** (2.0 / 3.0) - 1.0) / tau
+    assert c.continuous.gain_crossover == pytest.approx(wc, rel=1e-6)
+    assert c.phase_cost == pytest.approx(math.degrees(wc * h * delay), rel=1e-2)
+    assert c.cosimulated.phase_margin == pytest.approx(c.continuous.phase_margin - c.phase_cost, rel=1e-12)
+    assert c.cosimulated.gain.dt == h and c.cosimulated.closed_stable
+    assert c.cosimulated.gain.inputs == ["lag1.u"] and c.cosimulated.gain.outputs == ["ctrl.y"]
+    # the largest step within 2 deg: the cost there is the budget (the bisection's bracket: 0.1 % of the step)
+    assert c.limit == "the budget"
+    assert phase_cost(c.continuous, c.loop_at(c.largest_step)) == pytest.approx(2.0, rel=1e-2)
+    assert phase_cost(c.continuous, c.loop_at(c.largest_step * 1.01)) > 2.0
+    if delay > 0:   # a loss growing as w_c H d: the step ~ budget / (w_c d), to the O(H^2) left out
+        assert c.largest_step == pytest.approx(math.radians(2.0) / (wc * delay), rel=0.05)
+
+
+@pytest.mark.parametrize("algorithm", ["gauss-seidel", "jacobi"])
+def test_the_co_simulated_loop_is_the_one_rollback_measures(fmus, algorithm):
+    """The loop the derivation gives at the step (zero-order holds, the algorithm's exchange) has the pulse
+    response of the same loop in co-simulation realised by rollback: the lags' co-simulation step is their
+    exact solution under a held input, so they agree to the realisation's accuracy (1e-6); and the Model
+    Exchange instances stepped by the master's integrator (CVODE) to its tolerance."""
+    K, tau, h = 2.0, 0.5, 0.01
+    cont = Linearizer(_chain(fmus, 3, K, tau).experiment(step=h, stop=4.0, algorithm=algorithm).check(),
+                      Request(at=0.5, breaks=("ctrl.y", "lag1.u"))).run()
+    derived = _pulse(cont.coupling.cosimulated.gain, 100)
+    # (realised at the derived loop's order: Jacobi's, the lags' and the controller's held input, is 4, more
+    # than the singular values' cut keeps of a one-step delay)
+    order = len(cont.coupling.cosimulated.gain.states)
+    cosim = Linearizer(_chain(fmus, 3, K, tau, fields={}).experiment(step=h, stop=4.0, algorithm=algorithm).check(),
+                       Request(at=0.5, breaks=("ctrl.y", "lag1.u"), steps=150, order=order)).run()
+    measured = _pulse(cosim.loop.gain, 100)
+    np.testing.assert_allclose(derived, measured, rtol=1e-6, atol=1e-8 * np.abs(derived).max())
+    if algorithm == "gauss-seidel":   # the closed form of the chain as Gauss-Seidel steps it (above)
+        np.testing.assert_allclose(derived, _gauss_seidel_chain_pulse(K, tau, h, 100), rtol=1e-9,
+                                   atol=1e-12)
+    # the margins of the two agree as well
+    assert cont.coupling.cosimulated.phase_margin == pytest.approx(cosim.loop.phase_margin, rel=1e-4)
+    assert cont.coupling.cosimulated.upper_gain_margin == pytest.approx(cosim.loop.upper_gain_margin, rel=1e-4)
+    # rollback of the Model Exchange loop itself (CVODE between the points, at a tolerance of 1e-10; the
+    # pulse 1e-2 relative: the difference of two integrations is the pulse response to ~1e-8 / 1e-2)
+    tight = {**ME, "tolerance": 1e-10}
+    me = Linearizer(_chain(fmus, 3, K, tau, fields=tight).experiment(step=h, stop=4.0, algorithm=algorithm).check(),
+                    Request(at=0.5, breaks=("ctrl.y", "lag1.u"), steps=150, discrete=True, pulse=1e-2,
+                            order=order)).run()
+    np.testing.assert_allclose(derived, _pulse(me.loop.gain, 100), rtol=1e-5, atol=1e-6 * np.abs(derived).max())
+
+
+def test_no_co_simulated_loop_for_an_algorithm_it_is_not_derived_for(fmus):
+    sim = _chain(fmus, 3, 2.0, 0.5).experiment(algorithm="iterated")
+    lin = Linearizer(sim.check(), Request(at=0.5, breaks=("ctrl.y", "lag1.u"))).run()
+    assert lin.coupling is None
+    assert any("the co-simulated loop is derived for one pass per step" in n for n in lin.notes)

@@ -220,7 +220,7 @@ class Simulation:
     def linearize(self, at: float | None = None, **request: Any) -> Any:
         """A linear model around t = ``at`` [s] of this scenario's run (docs/linearisation.md): the keyword
         arguments of :class:`wmr_cosim.cosim.Request` (``inputs``, ``outputs``, ``breaks=("FROM", "TO")``,
-        ``discrete``, ``method``, ``steps``, ``order``, ``pulse``, ``states``); returns the
+        ``discrete``, ``method``, ``steps``, ``order``, ``pulse``, ``states``, ``phase_budget``); returns the
         :class:`~wmr_cosim.cosim.Linearisation` (``.model.statespace()``, ``.loop.gain_margin``, ...)."""
         from .cosim import Linearizer, Request
 

@@ -498,7 +498,8 @@ def cmd_linearize(args: argparse.Namespace) -> int:
     lin = linearize(args.target, at=args.at, inputs=_names(args.inputs), outputs=_names(args.outputs),
                     breaks=parse_break(args.breaks) if args.breaks else None, discrete=args.discrete,
                     method=args.method, steps=args.steps, order=args.order, pulse=args.pulse,
-                    states=parse_states(args.state), overrides=parse_set(args.set), limits=args.limits)
+                    states=parse_states(args.state), overrides=parse_set(args.set), limits=args.limits,
+                    phase_budget=args.phase_budget)
     for line in report(lin):
         print(line)
     out = args.out if args.out is not None else Path("results") / f"linear-{Path(args.target).stem}"
@@ -845,6 +846,9 @@ def _add_linearize(sub: Any) -> None:
     li.add_argument("--pulse", type=float, default=None, help="the pulse, relative to max(|u|, nominal) (default 1e-4)")
     li.add_argument("--state", action="append", metavar="INST.STATE=VALUE",
                     help="set a continuous state at the point (Model Exchange)")
+    li.add_argument("--phase-budget", type=float, default=None, metavar="DEG",
+                    help="with --break on a continuous loop: the phase margin [deg] the co-simulation's coupling may "
+                         "cost; the largest step within it is reported (default 5)")
     li.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
     li.add_argument("--out", type=Path, default=None, metavar="DIR",
                     help="results folder (default results/linear-<target>)")

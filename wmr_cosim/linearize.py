@@ -27,7 +27,7 @@ def linearize(target: str | Path, *, at: float | None = None, inputs: Sequence[s
               outputs: Sequence[str] = (), breaks: tuple[str, str] | None = None, discrete: bool = False,
               method: str = "auto", steps: int | None = None, order: int | None = None, pulse: float | None = None,
               states: dict[str, float] | None = None, overrides: dict[str, Any] | None = None,
-              limits: Any = None) -> Linearisation:
+              limits: Any = None, phase_budget: float | None = None) -> Linearisation:
     """Linearise ``target`` (a scenario file of one run, a shipped scenario's name, or an FMU run alone)
     around t = ``at`` [s] of its run (see :class:`wmr_cosim.cosim.linearisation.Request` for the rest).
     An FMU alone runs as Model Exchange where it has that interface (unless ``discrete``), from every Real
@@ -43,6 +43,8 @@ def linearize(target: str | Path, *, at: float | None = None, inputs: Sequence[s
         req.steps = steps
     if pulse is not None:
         req.pulse = pulse
+    if phase_budget is not None:
+        req.phase_budget = phase_budget
     if is_fmu(path):
         model = load_model(path)
         fields = {"interface": MODEL_EXCHANGE} if model.has_me and not discrete else {}
@@ -65,12 +67,14 @@ def _real(v: Any, causality: str) -> bool:
 
 
 def summary(lin: Linearisation) -> dict[str, Any]:
-    """linear.json: the model's signals, eigenvalues, method and time; the loop's margins."""
+    """linear.json: the model's signals, eigenvalues, method, time and operating point (x, u, y with their
+    names and units); the loop's margins at every crossover and the open-loop poles on or outside the
+    stability boundary."""
     m = lin.model
     out: dict[str, Any] = {"time": m.t, "dt": m.dt, "continuous": m.continuous, "method": m.method,
                            "states": m.states, "inputs": m.inputs, "outputs": m.outputs,
                            "state_units": m.state_units, "input_units": m.input_units, "output_units": m.output_units,
-                           "eigenvalues": _complex(m.eigenvalues())}
+                           "eigenvalues": _complex(m.eigenvalues()), "operating_point": m.operating_point()}
     if m.singular_values is not None:
         out["hankel_singular_values"] = [float(s) for s in m.singular_values]
     if lin.loop is not None:
@@ -79,6 +83,8 @@ def summary(lin: Linearisation) -> dict[str, Any]:
         out["loop"]["order"] = len(lin.loop.gain.states)
     if lin.whole_eigenvalues is not None:
         out["whole_eigenvalues"] = _complex(lin.whole_eigenvalues)
+    if lin.coupling is not None:
+        out["coupling"] = lin.coupling.summary()
     out["notes"] = list(lin.notes)
     return out
 
@@ -117,13 +123,62 @@ def report(lin: Linearisation) -> list[str]:
                                       or "none"))
     lines += [f"  note: {n}" for n in lin.notes]
     if lin.loop is not None:
-        s = lin.loop.summary()
-        lines.append(f"loop broken at {s['break']} (L = -G, G from the injection to the return):")
-        lines.append(f"  gain margin {_num(s['gain_margin'])} ({_num(s['gain_margin_db'])} dB) at "
-                     f"{_num(s['phase_crossover_rad_s'])} rad/s; phase margin {_num(s['phase_margin_deg'])} deg at "
-                     f"{_num(s['gain_crossover_rad_s'])} rad/s; stability margin {_num(s['stability_margin'])}")
-        lines.append(f"  closed loop {'stable' if s['closed_loop_stable'] else 'UNSTABLE'}; its eigenvalues: "
-                     + ", ".join(_z(z) for z in sorted(lin.loop.closed_eigenvalues, key=lambda z: (z.real, z.imag))))
+        lines += _loop_lines(lin.loop)
+    if lin.coupling is not None:
+        lines += _coupling_lines(lin.coupling)
+    return lines
+
+
+def _coupling_lines(c: Any) -> list[str]:
+    """The continuous loop's margins beside the co-simulated loop's, the cost, the largest step."""
+    s = c.summary()
+    a, b = s["continuous"], s["cosimulated"]
+    lines = [f"the loop as {c.algorithm} realises it at the step {c.step:g} s (the blocks held over each step), "
+             "beside the continuous loop:",
+             f"  phase margin: continuous {_num(a['phase_margin_deg'])} deg at {_num(a['gain_crossover_rad_s'])} rad/s, "
+             f"co-simulated {_num(b['phase_margin_deg'])} deg at {_num(b['gain_crossover_rad_s'])} rad/s: the "
+             f"coupling costs {_num(s['phase_cost_deg'])} deg",
+             f"  upper gain margin: continuous {_num(a['upper_gain_margin'])}, co-simulated "
+             f"{_num(b['upper_gain_margin'])}; lower: continuous {_num(a['lower_gain_margin'])}, co-simulated "
+             f"{_num(b['lower_gain_margin'])}; co-simulated closed loop "
+             f"{'stable' if b['closed_loop_stable'] else 'UNSTABLE'}"]
+    if isinstance(s["largest_step_s"], float) and s["largest_step_s"] > 0:
+        lines.append(f"  the largest step that keeps the cost within {c.budget:g} deg: {_num(s['largest_step_s'])} s "
+                     f"(bounded by {s['largest_step_limit']})")
+    else:
+        lines.append(f"  the largest step within {c.budget:g} deg: none ({s['largest_step_limit']})")
+    return lines
+
+
+def _loop_lines(loop: Any) -> list[str]:
+    """The loop's printout: every crossover, the upper and lower gain margins, the poles on or outside the
+    stability boundary (a warning), the closed loop."""
+    s = loop.summary()
+    lines = [f"loop broken at {s['break']} (L = -G, G from the injection to the return):"]
+    lines.append(f"  gain margin {_num(s['gain_margin'])} ({_num(s['gain_margin_db'])} dB) at "
+                 f"{_num(s['phase_crossover_rad_s'])} rad/s; phase margin {_num(s['phase_margin_deg'])} deg at "
+                 f"{_num(s['gain_crossover_rad_s'])} rad/s; stability margin {_num(s['stability_margin'])}")
+    crossings = [f"{_num(c['gain_margin'])} ({_num(c['gain_margin_db'])} dB, {c['kind']}) at {_num(c['rad_s'])} rad/s"
+                 for c in s["phase_crossovers"]]
+    lines.append("  every phase crossover (gain margin): " + ("; ".join(crossings) or "none"))
+    pms = [f"{_num(c['phase_margin_deg'])} deg at {_num(c['rad_s'])} rad/s" for c in s["gain_crossovers"]]
+    lines.append("  every gain crossover (phase margin): " + ("; ".join(pms) or "none"))
+    lines.append(f"  upper gain margin {_num(s['upper_gain_margin'])}, lower gain margin {_num(s['lower_gain_margin'])} "
+                 "(the factors the loop gain may rise to and fall to before a crossover reaches -1)")
+    if s["open_loop_poles_on_or_outside"]:
+        where = "in the closed right half plane (Re s >= -" if loop.gain.continuous else \
+            "on or outside the unit circle (|z| >= 1 - "
+        tol = s["pole_tolerance"]
+
+        def side(z: complex) -> str:
+            off = z.real if loop.gain.continuous else abs(z) - 1.0
+            return "on it, within the accuracy" if abs(off) <= tol else "outside"
+        poles = ", ".join(f"{_z(z)} ({side(z)})" for z in (complex(*p) for p in s["open_loop_poles_on_or_outside"]))
+        lines.append(f"  warning: open-loop poles {where}{_num(s['pole_tolerance'])}, the model's accuracy): {poles}; "
+                     "the margins at w = 0 depend on the side they lie (an integrator, or an unstable pole the "
+                     "feedback stabilises, which a lower gain margin bounds)")
+    lines.append(f"  closed loop {'stable' if s['closed_loop_stable'] else 'UNSTABLE'}; its eigenvalues: "
+                 + ", ".join(_z(z) for z in sorted(loop.closed_eigenvalues, key=lambda z: (z.real, z.imag))))
     return lines
 
 

@@ -1,7 +1,8 @@
 """Linear models of FMUs and of the co-simulated system around a point of its run: the Jacobian of a Model
 Exchange FMU (jacobian.py), blocks closed through the connections (interconnection.py), a discrete-time
 model realised from pulse responses taken with rollback (realisation.py), a loop broken at a connection
-and its margins (loop.py), the request checked and taken around a run (operating_point.py), the model
+and its margins (loop.py), a continuous loop beside the loop the co-simulation realises at its step
+(cosimulated.py), the request checked and taken around a run (operating_point.py), the model
 itself with its names, units and files (model.py).  python-control and scipy are imported where used."""
 from __future__ import annotations
 
@@ -10,17 +11,19 @@ from typing import TYPE_CHECKING
 import lazy_loader
 
 if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
+    from .cosimulated import CouplingCost, cosimulated_loop, coupling_cost
     from .interconnection import Link, close
     from .jacobian import CUBE_ROOT_EPS, Signal, fd_step, jacobian
-    from .loop import LoopAnalysis, analyse, plot_loop
+    from .loop import LoopAnalysis, analyse, loop_figures, plot_loop
     from .model import MAT_FILE, NPZ_FILE, LinearModel, control_name
     from .operating_point import DEFAULT_STEPS, Linearisation, Linearizer, Request, memoryless
     from .realisation import Injection, pulse_responses, realise
 
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
+    "cosimulated": ["CouplingCost", "cosimulated_loop", "coupling_cost"],
     "interconnection": ["Link", "close"],
     "jacobian": ["CUBE_ROOT_EPS", "Signal", "fd_step", "jacobian"],
-    "loop": ["LoopAnalysis", "analyse", "plot_loop"],
+    "loop": ["LoopAnalysis", "analyse", "loop_figures", "plot_loop"],
     "model": ["MAT_FILE", "NPZ_FILE", "LinearModel", "control_name"],
     "operating_point": ["DEFAULT_STEPS", "Linearisation", "Linearizer", "Request", "memoryless"],
     "realisation": ["Injection", "pulse_responses", "realise"],

@@ -4,10 +4,17 @@ The connection ``src -> dst`` is cut; a signal w is injected at ``dst`` and the 
 the connection would carry, in the unit of ``dst``) is read, everything else connected as in the run.  G is
 the model from w to r; closing the connection again is w = r, so the closed loop's characteristic equation
 is 1 - G = 0.  The loop gain is taken as L = -G, the convention of a negative-feedback loop (1 + L = 0),
-whose margins python-control's ``stability_margins`` gives: the gain margin is the factor by which L may be
-multiplied before the loop becomes unstable at the phase crossover; the phase margin the lag that may be
-added at the gain crossover.  A discrete-time G (a realisation from responses) gives the margins up to the
-Nyquist frequency pi / dt.
+whose margins python-control's ``stability_margins`` gives (``returnall``: every crossover): at each phase
+crossover (L on the negative real axis) the gain margin, the factor by which L may be multiplied before the
+loop's stability changes there: above 1 an upper margin (the loop destabilises when the gain grows past
+it), below 1 a lower one (when the gain falls below it: a conditionally stable loop, or an open loop with a
+pole on or outside the stability boundary); at each gain crossover (|L| = 1) the phase margin, the lag
+that may be added there.  A discrete-time G (a realisation from responses) gives the margins up to the
+Nyquist frequency pi / dt, its ends w = 0 (z = 1) and pi / dt (z = -1) included.
+
+The open loop's poles on or outside the stability boundary (the closed right half plane, the unit circle
+and beyond) are named, within the model's accuracy (:func:`pole_tolerance`): a loop that needs its
+feedback to be stable, or an integrator that a realisation puts a little inside or outside the circle.
 """
 from __future__ import annotations
 
@@ -20,14 +27,49 @@ from typing import Any
 import numpy as np
 
 from .model import LinearModel
+from .realisation import ORDER_RTOL
+
+#: A continuous-time model's poles within this fraction of its largest pole's magnitude from the imaginary
+#: axis are taken as on it (its Jacobian's accuracy: the differences are checked to 1e-6).
+JACOBIAN_RTOL = 1e-6
+
+
+#: A phase crossover where |L| is below 1 / this is the rounding of python-control's polynomial method (where
+#: L has rolled off to nothing, its phase is noise: three lags give one at 1e8 rad/s with |L| = 2e-30): dropped.
+NOISE_GAIN_MARGIN = 1e12
+
+
+def pole_tolerance(model: LinearModel) -> float:
+    """How close to the stability boundary a pole of ``model`` counts as on it: in continuous time
+    :data:`JACOBIAN_RTOL` times the largest pole's magnitude [1/s]; for a realisation from responses
+    (discrete time) the relative size of the first Hankel singular value left out, at least the order's
+    cut :data:`ORDER_RTOL` (on |z|: a pole with |z| >= 1 - tolerance is on or outside the unit circle)."""
+    if model.continuous:
+        ev = model.eigenvalues()
+        return JACOBIAN_RTOL * (float(np.abs(ev).max()) if ev.size else 1.0)
+    sv = model.singular_values
+    n = len(model.states)
+    cut = float(sv[n] / sv[0]) if sv is not None and len(sv) > n and sv[0] > 0 else 0.0
+    return max(ORDER_RTOL, cut)
+
+
+def unstable_poles(model: LinearModel, tol: float) -> np.ndarray:
+    """The poles of ``model`` on or beyond the stability boundary within ``tol`` (:func:`pole_tolerance`)."""
+    ev = model.eigenvalues()
+    if model.continuous:
+        return ev[ev.real >= -tol]
+    return ev[np.abs(ev) >= 1.0 - tol]
 
 
 @dataclass
 class LoopAnalysis:
     """The loop broken at ``src -> dst``: ``gain`` = G (the model from the injection to the return) and the
-    margins of L = -G: ``gain_margin`` (a factor; inf where the phase never crosses -180 deg), ``phase_margin``
-    [deg], at ``phase_crossover`` and ``gain_crossover`` [rad/s] (nan where there is none), ``stability_margin``
-    (the least distance of L to -1); the closed loop's eigenvalues."""
+    margins of L = -G: ``gain_margin`` (a factor; python-control's choice among the phase crossovers, the
+    one nearest 1; inf where the phase never crosses -180 deg), ``phase_margin`` [deg] (the least, at its
+    crossover), at ``phase_crossover`` and ``gain_crossover`` [rad/s] (nan where there is none),
+    ``stability_margin`` (the least distance of L to -1); every crossover: ``phase_crossovers`` (w [rad/s],
+    gain margin) and ``gain_crossovers`` (w [rad/s], phase margin [deg]), by frequency; the closed loop's
+    eigenvalues; the open loop's poles on or outside the stability boundary within ``pole_tolerance``."""
 
     src: str
     dst: str
@@ -38,15 +80,45 @@ class LoopAnalysis:
     gain_crossover: float
     stability_margin: float
     closed_eigenvalues: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=complex))
+    phase_crossovers: list[tuple[float, float]] = field(default_factory=list)
+    gain_crossovers: list[tuple[float, float]] = field(default_factory=list)
+    pole_tolerance: float = 0.0
+    boundary_poles: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=complex))
+
+    @property
+    def upper_gain_margin(self) -> float:
+        """The least gain margin above 1 (inf where there is none)."""
+        return min((g for _, g in self.phase_crossovers if g > 1.0), default=math.inf)
+
+    @property
+    def lower_gain_margin(self) -> float:
+        """The greatest gain margin below 1 (0 where there is none: no gain too small)."""
+        return max((g for _, g in self.phase_crossovers if g < 1.0), default=0.0)
+
+    @property
+    def title(self) -> str:
+        """What the plots are titled: the loop and the time of its point."""
+        return f"Loop broken at {self.src} -> {self.dst}, t = {self.gain.t:g} s"
+
+    def margins_text(self) -> str:
+        """Every crossover in a line: "GM 42.03 (upper) at 98.75 rad/s, 0.0373 (lower) at 0 rad/s; PM 86.45
+        deg at 5.92 rad/s"."""
+        gms = ", ".join(f"{g:.4g} ({'lower' if g < 1 else 'upper'}) at {w:.4g} rad/s" for w, g in self.phase_crossovers)
+        pms = ", ".join(f"{p:.4g} deg at {w:.4g} rad/s" for w, p in self.gain_crossovers)
+        return f"GM {gms or 'inf'}; PM {pms or 'inf'}"
 
     def summary(self) -> dict[str, Any]:
-        """The figures as plain numbers (summary.json, the command's printout)."""
-        def num(x: float) -> float | str:
-            return x if math.isfinite(x) else str(x)
-        return {"break": f"{self.src}->{self.dst}", "gain_margin": num(self.gain_margin),
-                "gain_margin_db": num(20.0 * math.log10(self.gain_margin)) if self.gain_margin > 0 else "nan",
-                "phase_margin_deg": num(self.phase_margin), "phase_crossover_rad_s": num(self.phase_crossover),
-                "gain_crossover_rad_s": num(self.gain_crossover), "stability_margin": num(self.stability_margin),
+        """The figures as plain numbers (linear.json, the command's printout)."""
+        return {"break": f"{self.src}->{self.dst}", "gain_margin": _num(self.gain_margin),
+                "gain_margin_db": _db(self.gain_margin),
+                "phase_margin_deg": _num(self.phase_margin), "phase_crossover_rad_s": _num(self.phase_crossover),
+                "gain_crossover_rad_s": _num(self.gain_crossover), "stability_margin": _num(self.stability_margin),
+                "upper_gain_margin": _num(self.upper_gain_margin), "lower_gain_margin": _num(self.lower_gain_margin),
+                "phase_crossovers": [{"rad_s": _num(w), "gain_margin": _num(g), "gain_margin_db": _db(g),
+                                      "kind": "lower" if g < 1.0 else "upper"} for w, g in self.phase_crossovers],
+                "gain_crossovers": [{"rad_s": _num(w), "phase_margin_deg": _num(p)} for w, p in self.gain_crossovers],
+                "open_loop_poles_on_or_outside": [[float(z.real), float(z.imag)] for z in self.boundary_poles],
+                "pole_tolerance": self.pole_tolerance,
                 "closed_loop_stable": bool(self.closed_stable)}
 
     @property
@@ -61,20 +133,63 @@ class LoopAnalysis:
         return -self.gain.statespace()
 
 
-def analyse(gain: LinearModel, src: str, dst: str) -> LoopAnalysis:
-    """The margins of the loop whose injection-to-return model is ``gain`` (one input, one output)."""
+def _num(x: float) -> float | str:
+    x = float(x)
+    return x if math.isfinite(x) else str(x)
+
+
+def _db(g: float) -> float | str:
+    return _num(20.0 * math.log10(g)) if g > 0 else "-inf" if g == 0 else "nan"
+
+
+def margins(gain: LinearModel) -> tuple[list[tuple[float, float]], list[tuple[float, float]], tuple[float, ...]]:
+    """Every crossover of L = -G: (phase crossovers (w [rad/s], gain margin), gain crossovers (w [rad/s],
+    phase margin [deg]), python-control's own choice (gm, pm, sm, w_pc, w_gc)).  In discrete time the ends
+    of the frequency range, z = 1 and z = -1, where L is real, are phase crossovers too when L is negative
+    there (python-control's frequency-response fallback does not look at them)."""
     import control
 
-    if gain.A.shape[0] and (len(gain.inputs), len(gain.outputs)) != (1, 1):
-        raise ValueError("a loop is analysed from one injection to one return")
-    G = gain.statespace()
-    L = -G
+    L = -gain.statespace()
     with warnings.catch_warnings():   # (its note that a discrete L is taken by the frequency response)
         warnings.filterwarnings("ignore", message="stability_margins: Falling back", category=UserWarning)
-        gm, pm, sm, wpc, wgc, _ = control.stability_margins(L)
+        warnings.filterwarnings("ignore", message="Badly conditioned filter coefficients")   # (scipy's, on the way)
+        gms, pms, sms, w180, wc, _ = control.stability_margins(L, returnall=True)
+    phase = [(float(w), float(g)) for w, g in zip(np.atleast_1d(w180), np.atleast_1d(gms)) if g <= NOISE_GAIN_MARGIN]
+    if not gain.continuous and gain.A.size:
+        nyquist = math.pi / gain.dt
+        for w, z in ((0.0, 1.0), (nyquist, -1.0)):
+            value = _response(gain, z)
+            if value is not None and -value < 0 and all(abs(w - v) > 1e-9 * nyquist for v, _ in phase):
+                phase.append((w, 1.0 / abs(value)))
+    phase.sort()
+    gains = sorted((float(w), float(p)) for w, p in zip(np.atleast_1d(wc), np.atleast_1d(pms)))
+    # python-control's own choice among them (its stability_margins without returnall): the gain margin
+    # nearest 1, the phase margin least in magnitude, the least stability margin
+    gm, wpc = min(((g, w) for w, g in phase), key=lambda gw: abs(math.log(gw[0])) if gw[0] > 0 else math.inf,
+                  default=(math.inf, math.nan))
+    wgc, pm = min(gains, key=lambda wp: abs(wp[1]), default=(math.nan, math.inf))
+    sm = float(np.min(sms)) if np.size(sms) else math.inf
+    return phase, gains, (float(gm), float(pm), sm, float(wpc), float(wgc))
+
+
+def _response(gain: LinearModel, z: complex) -> float | None:
+    """G(z) = C (z I - A)^-1 B + D at a real z, or None where z is a pole (to the conditioning's accuracy)."""
+    M = z * np.eye(len(gain.A)) - gain.A
+    if np.linalg.cond(M) > 1e14:
+        return None
+    return float(np.real((gain.C @ np.linalg.solve(M, gain.B) + gain.D)[0, 0]))
+
+
+def analyse(gain: LinearModel, src: str, dst: str) -> LoopAnalysis:
+    """The margins of the loop whose injection-to-return model is ``gain`` (one input, one output)."""
+    if gain.A.shape[0] and (len(gain.inputs), len(gain.outputs)) != (1, 1):
+        raise ValueError("a loop is analysed from one injection to one return")
+    phase, gains, (gm, pm, sm, wpc, wgc) = margins(gain)
     closed = np.linalg.eigvals(gain.A + gain.B @ np.linalg.solve(np.eye(1) - gain.D, gain.C)) \
         if gain.A.size else np.zeros(0, dtype=complex)
-    return LoopAnalysis(src, dst, gain, float(gm), float(pm), float(wpc), float(wgc), float(sm), closed)
+    tol = pole_tolerance(gain)
+    return LoopAnalysis(src, dst, gain, gm, pm, wpc, wgc, sm, closed, phase, gains, tol,
+                        unstable_poles(gain, tol))
 
 
 def frequencies(gain: LinearModel, n: int = 400) -> np.ndarray:
@@ -91,26 +206,35 @@ def frequencies(gain: LinearModel, n: int = 400) -> np.ndarray:
     return np.logspace(math.log10(lo), math.log10(max(hi, lo * 10)), n)
 
 
-def plot_loop(analysis: LoopAnalysis, folder: str | Path) -> list[Path]:
-    """``bode.png`` and ``nyquist.png`` of L in ``folder`` (python-control's plots, margins marked)."""
+def loop_figures(analysis: LoopAnalysis) -> tuple[Any, Any]:
+    """The Bode and Nyquist plots of L (python-control's, margins marked) as matplotlib ``Figure`` objects
+    on their own Agg canvases, titled by the loop (:attr:`LoopAnalysis.title`): no pyplot, no backend
+    chosen for the process."""
     import control
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
-    folder = Path(folder)
     L = analysis.loop_gain()
     w = frequencies(analysis.gain)
+    bode = Figure(figsize=(7, 6))
+    FigureCanvasAgg(bode)
+    axes = np.asarray(bode.subplots(2, 1, sharex=True)).reshape(2, 1)
+    control.bode_plot(L, w, ax=axes, display_margins=True)
+    axes[0, 0].set_title(analysis.margins_text(), fontsize=8)   # (every crossover, not python-control's one)
+    bode.suptitle(f"{analysis.title}: L = -G")
+    nyquist = Figure(figsize=(6, 6))
+    FigureCanvasAgg(nyquist)
+    control.nyquist_plot(L, w, ax=nyquist.add_subplot())
+    nyquist.suptitle(f"{analysis.title}: Nyquist of L = -G")
+    return bode, nyquist
+
+
+def plot_loop(analysis: LoopAnalysis, folder: str | Path) -> list[Path]:
+    """``bode.png`` and ``nyquist.png`` of L in ``folder`` (:func:`loop_figures`; each PNG's ``Title``
+    holds its title)."""
+    folder = Path(folder)
     out = []
-    fig = plt.figure(figsize=(7, 6))
-    control.bode_plot(L, w, display_margins=True, title=f"loop gain L = -G, broken at {analysis.src} -> "
-                                                         f"{analysis.dst}")
-    out.append(folder / "bode.png")
-    fig.savefig(out[-1], dpi=110)
-    plt.close(fig)
-    fig = plt.figure(figsize=(6, 6))
-    control.nyquist_plot(L, w, title=f"Nyquist of L, broken at {analysis.src} -> {analysis.dst}")
-    out.append(folder / "nyquist.png")
-    fig.savefig(out[-1], dpi=110)
-    plt.close(fig)
+    for fig, name in zip(loop_figures(analysis), ("bode.png", "nyquist.png")):
+        out.append(folder / name)
+        fig.savefig(out[-1], dpi=110, metadata={"Title": fig.get_suptitle()})
     return out

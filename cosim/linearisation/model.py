@@ -4,8 +4,9 @@
     discrete time (``dt > 0``):      x[k+1] = A x[k] + B u[k], y[k] = C x[k] + D u[k]
 
 with every state, input and output named and given its unit (the FMU's declared unit: the matrices are in
-those units), how it was obtained, and where (the time of the operating point).  It converts to a
-python-control ``StateSpace`` and saves to ``linear.npz`` and ``linear.mat``.
+those units), how it was obtained, and where: the time of the operating point and its values x, u, y (the
+model is that of the deviations from them).  It converts to a python-control ``StateSpace`` and saves to
+``linear.npz`` and ``linear.mat``.
 """
 from __future__ import annotations
 
@@ -42,6 +43,12 @@ class LinearModel:
     t: float = 0.0                   # the operating point's time [s]
     method: str = ""                 # how the matrices were obtained, in words
     singular_values: np.ndarray | None = None   # of the Hankel matrix (a realisation from responses)
+    #: The operating point: the states', inputs' and outputs' values at ``t`` (in their units); nan where a
+    #: value is not defined (a realisation's states are coordinates of the deviations, 0 at the point by
+    #: construction, not values of the FMUs' states); None: not recorded (all nan).
+    x: np.ndarray | None = None
+    u: np.ndarray | None = None
+    y: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n, m, p = len(self.states), len(self.inputs), len(self.outputs)
@@ -49,6 +56,10 @@ class LinearModel:
         self.B = np.asarray(self.B, dtype=float).reshape(n, m)
         self.C = np.asarray(self.C, dtype=float).reshape(p, n)
         self.D = np.asarray(self.D, dtype=float).reshape(p, m)
+        for name, count in (("x", n), ("u", m), ("y", p)):
+            value = getattr(self, name)
+            setattr(self, name, np.full(count, np.nan) if value is None
+                    else np.asarray(value, dtype=float).reshape(count))
         for name, units, count in (("state_units", self.state_units, n), ("input_units", self.input_units, m),
                                    ("output_units", self.output_units, p)):
             if not units:
@@ -76,13 +87,16 @@ class LinearModel:
 
     def arrays(self) -> dict[str, Any]:
         """What linear.npz and linear.mat hold: A, B, C, D, dt [s], t [s], the names and units of the
-        states, inputs and outputs, the method, the singular values (empty where there are none)."""
+        states, inputs and outputs, the method, the singular values (empty where there are none), the
+        operating point ``x``, ``u``, ``y`` (nan where not defined)."""
         text = {"states": self.states, "inputs": self.inputs, "outputs": self.outputs,
                 "state_units": self.state_units, "input_units": self.input_units, "output_units": self.output_units}
         out: dict[str, Any] = {"A": self.A, "B": self.B, "C": self.C, "D": self.D, "dt": np.float64(self.dt),
                                "t": np.float64(self.t), "method": np.str_(self.method),
                                "singular_values": np.zeros(0) if self.singular_values is None
-                               else np.asarray(self.singular_values, dtype=float)}
+                               else np.asarray(self.singular_values, dtype=float),
+                               "x": np.asarray(self.x, dtype=float), "u": np.asarray(self.u, dtype=float),
+                               "y": np.asarray(self.y, dtype=float)}
         out.update({k: np.array(v, dtype=str) if v else np.zeros(0, dtype="<U1") for k, v in text.items()})
         return out
 
@@ -101,10 +115,23 @@ class LinearModel:
 
     @classmethod
     def load(cls, path: str | Path) -> "LinearModel":
-        """A model saved by :meth:`save` (linear.npz)."""
+        """A model saved by :meth:`save` (linear.npz; one saved before the operating point was: its x, u, y
+        nan)."""
         with np.load(path) as z:
             sv = z["singular_values"]
+            point = {k: z[k] for k in ("x", "u", "y") if k in z.files}
             return cls(z["A"], z["B"], z["C"], z["D"], list(map(str, z["states"])), list(map(str, z["inputs"])),
                        list(map(str, z["outputs"])), list(map(str, z["state_units"])),
                        list(map(str, z["input_units"])), list(map(str, z["output_units"])), float(z["dt"]),
-                       float(z["t"]), str(z["method"]), sv if sv.size else None)
+                       float(z["t"]), str(z["method"]), sv if sv.size else None, **point)
+
+    def operating_point(self) -> dict[str, Any]:
+        """The point as linear.json gives it: ``time`` [s] and, for the states, inputs and outputs, each one's
+        name, unit and value (None where not defined)."""
+        def rows(names: list[str], units: list[str], values: np.ndarray | None) -> list[dict[str, Any]]:
+            known = np.full(len(names), np.nan) if values is None else values
+            return [{"name": n, "unit": u, "value": float(v) if np.isfinite(v) else None}
+                    for n, u, v in zip(names, units, known)]
+        return {"time": self.t, "states": rows(self.states, self.state_units, self.x),
+                "inputs": rows(self.inputs, self.input_units, self.u),
+                "outputs": rows(self.outputs, self.output_units, self.y)}

@@ -11,7 +11,9 @@ before anything runs, the run to the point, and the way the model is taken there
   step (:mod:`.realisation`); every instance must be able to save its state.
 
 A break ``src -> dst`` opens one connection: the model is then taken from ``dst`` (the injection) to
-``src`` (the return) with that connection cut, and the loop is analysed (:mod:`.loop`).
+``src`` (the return) with that connection cut, and the loop is analysed (:mod:`.loop`); a continuous loop
+beside the loop the scenario's algorithm realises at its step (:mod:`.cosimulated`).  The model keeps its
+operating point: the states', inputs' and outputs' values at the point.
 """
 from __future__ import annotations
 
@@ -29,6 +31,8 @@ from ..plan.resolution import INPUTS, variable
 from ..plan.wiring import is_f64
 from ..runtime.execution import Execution
 from ..scenario.document import split_ref
+from ..stepping import table as algorithms
+from .cosimulated import PHASE_BUDGET, CouplingCost, coupling_cost
 from .interconnection import Link, close
 from .jacobian import Signal, central_column, jacobian, linear_model, states_of
 from .loop import LoopAnalysis, analyse
@@ -48,7 +52,9 @@ class Request:
     pulse responses even where a continuous model could be taken; ``method`` of the Jacobian ("auto",
     "directional", "differences"); ``steps`` of the responses and their realised ``order`` (None: from the
     singular values), ``pulse`` their size relative to the input; ``states``: state values to set at the
-    point ("instance.state": value, Model Exchange only)."""
+    point ("instance.state": value, Model Exchange only); ``phase_budget`` [deg]: the phase margin the
+    coupling may cost a continuous loop broken at ``breaks``, which bounds the largest step reported (None:
+    :data:`.cosimulated.PHASE_BUDGET`; given, it is refused where there is no such loop)."""
 
     at: float | None = None
     inputs: list[str] = field(default_factory=list)
@@ -60,17 +66,21 @@ class Request:
     order: int | None = None
     pulse: float = RELATIVE_PULSE
     states: dict[str, float] = field(default_factory=dict)
+    phase_budget: float | None = None   # [deg]; None: PHASE_BUDGET
 
 
 @dataclass
 class Linearisation:
     """The model from the inputs to the outputs; with a break, the loop's analysis and the eigenvalues of
-    the system linearised as a whole (closed), to compare with the loop's closed through the break."""
+    the system linearised as a whole (closed), to compare with the loop's closed through the break; a
+    continuous loop's ``coupling``: the loop as the co-simulation realises it at the step, its margins
+    beside the continuous loop's (:mod:`.cosimulated`)."""
 
     model: LinearModel
     loop: LoopAnalysis | None = None
     whole_eigenvalues: np.ndarray | None = None
     notes: list[str] = field(default_factory=list)
+    coupling: CouplingCost | None = None
 
 
 class Linearizer:
@@ -110,6 +120,8 @@ class Linearizer:
             raise ScenarioError(self.file, "--steps", f"{req.steps}: the responses need at least 2 steps")
         if not (req.pulse > 0 and math.isfinite(req.pulse)):
             raise ScenarioError(self.file, "--pulse", f"{req.pulse}: a positive size")
+        if req.phase_budget is not None:
+            self._check_budget(req.phase_budget)
         if self.discrete():
             if not req.inputs and req.breaks is None:
                 raise ScenarioError(self.file, "--inputs", "a model from pulse responses needs the inputs to "
@@ -117,6 +129,27 @@ class Linearizer:
             self._check_rollback()
         for ref in req.states:
             self._state_index(ref)
+
+    def _check_budget(self, budget: Any) -> None:
+        """A phase budget: a positive, finite angle, for a loop whose coupling's cost is derived."""
+        if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not math.isfinite(budget) \
+                or budget <= 0:
+            raise ScenarioError(self.file, "--phase-budget", f"{budget}: a positive, finite number of degrees")
+        why = "no loop is broken (--break)" if self.req.breaks is None else \
+            "the model is realised from pulse responses (an instance neither Model Exchange nor memoryless, or " \
+            "--discrete)" if self.discrete() else self._coupling_unsupported()
+        if why:
+            raise ScenarioError(self.file, "--phase-budget", f"the coupling's cost is derived for a continuous "
+                                                             f"loop under Gauss-Seidel or Jacobi at one rate; here {why}")
+
+    def _coupling_unsupported(self) -> str | None:
+        """Why the loop the co-simulation realises cannot be derived for this plan (None: it can): it is for
+        one pass per step at one rate (Gauss-Seidel, Jacobi)."""
+        rates = [n for n, ip in self.plan.instances.items() if ip.decimation > 1]
+        if rates:
+            return f"{', '.join(rates)} step at their own rates"
+        name = self.plan.scenario.algorithm
+        return None if algorithms.row(name).one_pass else f"the algorithm is {name}"
 
     def _state_index(self, ref: str) -> int:
         """The place of a continuous state ("instance.state") in its instance's state vector, or ScenarioError."""
@@ -214,9 +247,12 @@ class Linearizer:
         units_out = [_unit(self.plan.instances[r.split(".", 1)[0]], self._var(r, "--outputs", None, "output")[1])
                      for r in outputs]
         cut = self._ref(link.dst, link.dst_var) if link is not None else None
+        point_u = [float(ex.get(ref)) for ref in refs]
+        point_y = [float(ex.get(ref)) for ref in outputs]
         H = pulse_responses(ex, injections, outputs, req.steps, cut)
         model = realise(H, self.step, refs, outputs, order=req.order, t=t, input_units=units_in,
                         output_units=units_out)
+        model.u, model.y = np.array(point_u), np.array(point_y)   # (x: the realisation's coordinates, nan)
         out = Linearisation(model)
         if link is not None:
             j, i = refs.index(self._ref(link.dst, link.dst_var)), outputs.index(self._ref(link.src, link.src_var))
@@ -244,6 +280,7 @@ class Linearizer:
         whole = close(blocks, links, [], []) if link is not None or not asked else None
         model = close(blocks, links, req.inputs, req.outputs) if asked else whole
         assert model is not None
+        self._point(ex, model)
         out = Linearisation(model)
         out.notes += [f"{self._ref(c.src, c.src_var)} -> {self._ref(c.dst, c.dst_var)} ({c.src_var.fmi_type} to "
                       f"{c.dst_var.fmi_type}) is not a real-to-real connection: held as it is at the point, not "
@@ -252,10 +289,12 @@ class Linearizer:
             assert whole is not None
             src, dst = self._ref(link.src, link.src_var), self._ref(link.dst, link.dst_var)
             opened = close(blocks, links, [dst], [src], broken=[Link(src, dst, link.factor)])
+            self._point(ex, opened)
             if not asked:
                 out.model = opened
             out.loop = analyse(dataclasses.replace(opened, C=opened.C * link.factor, D=opened.D * link.factor), src, dst)
             out.whole_eigenvalues = whole.eigenvalues()
+            out.coupling = self._coupling(out, blocks, links, Link(src, dst, link.factor))
         return out
 
     def _block(self, ex: Execution, name: str, wanted_in: set[str], wanted_out: set[str]) -> LinearModel:
@@ -271,6 +310,39 @@ class Linearizer:
             return linear_model(J, states, sig_in, sig_out, ex.time, f"{name}: {how}")
         D = _memoryless_gain(inst, md, ins, outs)
         return linear_model(D, [], sig_in, sig_out, ex.time, f"{name}: central differences (memoryless)")
+
+    def _coupling(self, out: Linearisation, blocks: list[LinearModel], links: list[Link],
+                  cut: Link) -> CouplingCost | None:
+        """The continuous loop against the loop the scenario's algorithm realises at its step (one pass per
+        step at one rate: Gauss-Seidel, Jacobi); else None and a note saying why."""
+        why = self._coupling_unsupported()
+        if why:
+            out.notes.append(f"the co-simulated loop is derived for one pass per step at one rate (Gauss-Seidel, "
+                             f"Jacobi); here {why}: its margins are not given")
+            return None
+        assert out.loop is not None
+        name = self.plan.scenario.algorithm
+        budget = PHASE_BUDGET if self.req.phase_budget is None else self.req.phase_budget
+        return coupling_cost(out.loop, blocks, links, cut, self.plan.order, name, algorithms.row(name).simultaneous,
+                             self.step, budget)
+
+    def _point(self, ex: Execution, model: LinearModel) -> None:
+        """The operating point of a continuous-time ``model`` of the system: its states' values (the Model
+        Exchange instances' continuous states), its inputs' and outputs' values now."""
+        x: dict[str, float] = {}
+        for name in self.plan.order:
+            ip = self.plan.instances[name]
+            if ip.interface == MODEL_EXCHANGE:
+                states = states_of(ip.model.md, name, lambda n: "")[0]
+                values = ex.instances[name].continuous_states()   # type: ignore[attr-defined]
+                x.update(zip((st.name for st in states), map(float, values)))
+
+        def value(ref: str, fld: str) -> float:
+            inst, var = self._var(ref, fld, INPUTS if fld == "--inputs" else None, fld[2:-1])
+            return _get(ex.instances[inst], var, self.plan.instances[inst].interface == MODEL_EXCHANGE)
+        model.x = np.array([x.get(n, math.nan) for n in model.states])
+        model.u = np.array([value(r, "--inputs") for r in model.inputs])
+        model.y = np.array([value(r, "--outputs") for r in model.outputs])
 
     def _set_state(self, ex: Execution, ref: str, value: float) -> None:
         inst = ex.instances[ref.split(".", 1)[0]]
