@@ -33,7 +33,7 @@ from .interconnection import Link, close
 from .jacobian import Signal, central_column, jacobian, linear_model, states_of
 from .loop import LoopAnalysis, analyse
 from .model import LinearModel
-from .realisation import RELATIVE_PULSE, Injection, pulse_responses, realise
+from .realisation import RELATIVE_PULSE, Injection, max_order, order_note, pulse_responses, realise
 
 #: Sweeps of the exchange of connected values at the point before it is taken as not settling.
 EXCHANGE_SWEEPS = 100
@@ -114,9 +114,47 @@ class Linearizer:
             if not req.inputs and req.breaks is None:
                 raise ScenarioError(self.file, "--inputs", "a model from pulse responses needs the inputs to "
                                                            "inject them at (or a --break)")
+            if req.method != "auto":
+                raise ScenarioError(self.file, "--method", f"{req.method}: the method of a Jacobian, which a model "
+                                                           "realised from pulse responses does not take")
+            self._check_order()
             self._check_rollback()
+        else:
+            if req.order is not None:
+                raise ScenarioError(self.file, "--order", f"{req.order}: the order of a realisation from pulse "
+                                                          "responses; this model is continuous-time, of the FMUs' "
+                                                          "own states (--discrete realises one)")
+            self._check_method()
         for ref in req.states:
             self._state_index(ref)
+
+    def _check_order(self) -> None:
+        """An order asked for: positive, and at most what the responses can realise."""
+        order = self.req.order
+        if order is None:
+            return
+        if isinstance(order, bool) or not isinstance(order, int) or order < 1:
+            raise ScenarioError(self.file, "--order", f"{order}: a realisation's order is a positive whole number")
+        p = len(set(self.req.outputs) | ({self.req.breaks[0]} if self.req.breaks else set()))
+        m = len(set(self.req.inputs) | ({self.req.breaks[1]} if self.req.breaks else set()))
+        if self.req.breaks is None:
+            most = max_order(self.req.steps, p, m)
+        else:   # (the loop's model, of one injection and one return, is realised at the order too)
+            most = min(max_order(self.req.steps, p, m), max_order(self.req.steps, 1, 1))
+        if order > most:
+            raise ScenarioError(self.file, "--order", f"{order} is more than responses of {self.req.steps} steps "
+                                                      f"can realise (at most {most}): take more --steps")
+
+    def _check_method(self) -> None:
+        """--method directional: every Model Exchange instance declares directional derivatives."""
+        if self.req.method != "directional":
+            return
+        for name, ip in self.plan.instances.items():
+            if ip.interface == MODEL_EXCHANGE and not getattr(ip.model.md.modelExchange,
+                                                              "providesDirectionalDerivative", False):
+                raise ScenarioError(self.file, "--method", f"directional: {name} ({ip.model.path.name}) declares no "
+                                                           "directional derivatives (providesDirectionalDerivative): "
+                                                           "take --method differences or auto")
 
     def _state_index(self, ref: str) -> int:
         """The place of a continuous state ("instance.state") in its instance's state vector, or ScenarioError."""
@@ -173,9 +211,10 @@ class Linearizer:
                 raise ScenarioError(self.file, "--at", f"an event acts at t = {ev.time:g} s, within the "
                                     f"{self.req.steps} steps of the responses from {at:g} s: choose a point "
                                     "whose responses it does not cross")
-        if end > self.stop + 1e-9 * max(1.0, abs(self.stop)):
-            raise ScenarioError(self.file, "--steps", f"{self.req.steps} steps from t = {at:g} s go beyond "
-                                                      f"the run's stop time {self.stop:g} s")
+        if end > self.stop - 1e-9 * max(1.0, abs(self.stop)):   # (the run ends at its stop time: no going back)
+            raise ScenarioError(self.file, "--steps", f"{self.req.steps} steps from t = {at:g} s reach "
+                                                      f"the run's stop time {self.stop:g} s, where the run ends: "
+                                                      "take fewer steps or an earlier --at")
 
     # ------------------------------------------------------------------ the run
     def run(self) -> Linearisation:
@@ -204,6 +243,10 @@ class Linearizer:
             inst, var = self._var(ref, "--inputs", INPUTS, "input")
             u = float(ex.get(ref))
             delta = req.pulse * max(abs(u), _nominal(self.plan.instances[inst].model.md, var))
+            if not all(math.isfinite(x) for x in (u + delta, u - delta, 2.0 * delta)):
+                raise ScenarioError(self.file, "--pulse", f"{req.pulse:g} times {max(abs(u), 1.0):g} at {ref} "
+                                                          f"(u = {u:g} at t = {t:g} s) is beyond the range of "
+                                                          "floating point numbers")
             wired = any(self._ref(c.dst, c.dst_var) == ref for c in self.plan.connections) or \
                 any(self._ref(ip.instance, ip.var) == ref for ip in self.plan.inputs)
             injections.append(Injection(ref, (u + delta) - u, wired))
@@ -218,10 +261,20 @@ class Linearizer:
         model = realise(H, self.step, refs, outputs, order=req.order, t=t, input_units=units_in,
                         output_units=units_out)
         out = Linearisation(model)
+        if req.order is not None and model.singular_values is not None:
+            note = order_note(model.singular_values, req.order)
+            out.notes += [note] if note else []
         if link is not None:
             j, i = refs.index(self._ref(link.dst, link.dst_var)), outputs.index(self._ref(link.src, link.src_var))
             gain = realise(H[i:i + 1, j:j + 1, :] * link.factor, self.step, [refs[j]], [outputs[i]],
                            order=req.order, t=t)
+            if not gain.states:   # (L = 0: no margins, and nothing to call the closed loop stable)
+                raise ScenarioError(self.file, "--break", f"the return {outputs[i]} does not respond to the injection "
+                                                          f"at {refs[j]} over {req.steps} steps from t = {t:g} s "
+                                                          "(every Hankel singular value 0): no loop to analyse there")
+            if req.order is not None and gain.singular_values is not None and len(refs) + len(outputs) > 2:
+                note = order_note(gain.singular_values, req.order)
+                out.notes += [f"the loop's model: {note}"] if note else []
             out.loop = analyse(gain, outputs[i], refs[j])
             # the system as a whole: the same point of injection, the loop closed, realised at the loop's order
             closed = pulse_responses(ex, [injections[j]], [outputs[i]], req.steps)
@@ -268,9 +321,27 @@ class Linearizer:
         if ip.interface == MODEL_EXCHANGE:
             states, ders = states_of(ip.model.md, name, lambda n: _unit(ip, ip.model.variables.get(n)))
             J, how = jacobian(inst, states, ders, sig_in, sig_out, self.req.method)
+            self._finite(J, name, [s.name for s in states], [u.name for u in sig_in], [y.name for y in sig_out],
+                         ex.time)
             return linear_model(J, states, sig_in, sig_out, ex.time, f"{name}: {how}")
         D = _memoryless_gain(inst, md, ins, outs)
+        self._finite(D, name, [], [u.name for u in sig_in], [y.name for y in sig_out], ex.time)
         return linear_model(D, [], sig_in, sig_out, ex.time, f"{name}: central differences (memoryless)")
+
+    def _finite(self, J: np.ndarray, name: str, states: list[str], inputs: list[str], outputs: list[str],
+                t: float) -> None:
+        """RunError naming the entries of a block's [[A, B], [C, D]] that are not finite (and the states set
+        by --state, where they are the cause)."""
+        bad = np.argwhere(~np.isfinite(J))
+        if not bad.size:
+            return
+        rows = [f"der({x})" for x in states] + outputs
+        cols = states + inputs
+        shown = ", ".join(f"d {rows[i]}/d {cols[j]} = {J[i, j]}" for i, j in bad[:3])
+        more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
+        given = [f"{r}={v:g}" for r, v in self.req.states.items() if r.split(".", 1)[0] == name]
+        at = f" with --state {', '.join(given)}" if given else ""
+        raise RunError(f"{name}: its linearisation at t = {t:g} s{at} is not finite: {shown}{more}", name, t)
 
     def _set_state(self, ex: Execution, ref: str, value: float) -> None:
         inst = ex.instances[ref.split(".", 1)[0]]
