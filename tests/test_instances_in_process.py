@@ -286,6 +286,19 @@ def test_a_raw_get_that_leaves_a_python_error_behind_is_an_error_status_with_the
                                "C long (raised in the FMU's code)")
 
 
+def test_no_fmu_state_call_reaches_an_instance_freed_already(fake):
+    """FMPy unloads the FMU's library with fmi2FreeInstance: a state call after it would jump into unmapped
+    memory (the execution frees its saved states before its instances; this is the instance's own guard)."""
+    inst, fmu = fake(name="P")
+    inst.instantiate()
+    inst.shutdown()
+    before = list(fmu.names())
+    for call in (lambda: inst.free_state(object()), lambda: inst.set_state(object()), inst.get_state):
+        with pytest.raises(RunError, match="after the instance was freed"):
+            call()
+    assert fmu.names() == before
+
+
 # ---------------------------------------------------------------- reading values (FMI 2.0)
 def test_fmi2_get_value_reads_each_type_with_its_fmi_call(fake):
     inst, fmu = fake()

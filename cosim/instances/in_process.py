@@ -316,13 +316,22 @@ class Instance(FmuInstance):
         return f"fmi{self.fmi_version}{op}FMU{'state' if self.fmi_version == 2 else 'State'}"
 
     def get_state(self) -> Any:
+        self._not_freed(self._state_call("Get"))
         return self.call(self._state_call("Get"), self.fmu.getFMUState)
 
     def set_state(self, state: Any) -> None:
+        self._not_freed(self._state_call("Set"))
         self.call(self._state_call("Set"), self.fmu.setFMUState, state)
 
     def free_state(self, state: Any) -> None:
+        self._not_freed(self._state_call("Free"))
         self.call(self._state_call("Free"), self.fmu.freeFMUState, state)
+
+    def _not_freed(self, what: str) -> None:
+        """RunError for a call on an instance freed already (FMPy unloads the FMU's library with it: the
+        call would jump into unmapped memory); its saved states went with it."""
+        if self.freed:
+            raise RunError(f"{self.name}: {what} after the instance was freed (its states went with it)", self.name)
 
     def shutdown(self) -> None:
         """Terminate (if initialised) and free, exactly once; nothing at all after a Fatal."""
