@@ -166,6 +166,8 @@ BAD_INPUTS = [
     ("lag", ["--at", "inf"], ["--at", "finite"]),
     ("lag", ["--at", "-1"], ["--at", "outside the run"]),
     ("lag", ["--at", "soon"], ["--at", "number"]),
+    ("lag", ["--at", "5"], ["--at", "stop time 5 s"]),       # (the FMU's default experiment: 0 s to 5 s)
+    ("lag", ["--at", "4.999999"], ["--at", "t = 4.999999 s", "stop time"]),
     # --inputs, --outputs: empty, unknown, given twice
     ("lag", ["--inputs", ""], ["--inputs", "empty name"]),
     ("lag", ["--inputs", "Lag.u,"], ["--inputs", "empty name"]),

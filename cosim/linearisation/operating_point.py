@@ -91,6 +91,9 @@ class Linearizer:
         if not (isinstance(at, (int, float)) and math.isfinite(at)) or at < self.start or at > self.stop:
             raise ScenarioError(self.file, "--at", f"t = {at} s is outside the run ({self.start:g} s to "
                                                    f"{self.stop:g} s)")
+        if math.ceil((at - self.start) / self.step - 1e-9) >= self.plan.n_steps:   # (as Execution.step_to)
+            raise ScenarioError(self.file, "--at", f"t = {at:.10g} s: the run ends at its stop time {self.stop:g} s "
+                                                   "and frees its FMUs; take a point before its last step")
         for ref in req.inputs:
             self._var(ref, "--inputs", INPUTS, "input")
         for ref in req.outputs:
@@ -227,8 +230,9 @@ class Linearizer:
             at = self.start if self.req.at is None else float(self.req.at)
             ex.step_to(at)
             if ex.ended:
-                raise RunError(f"the run ended at t = {ex.time:g} s, before the point t = {at:g} s: "
-                               f"{ex.result.message if ex.result else ''}")
+                why = ex.result.message if ex.result is not None and ex.result.message else ""
+                raise RunError(f"the run ended at t = {ex.time:g} s, before the point t = {at:g} s"
+                               + (f": {why}" if why else ""))
             return self._discrete(ex) if self.discrete() else self._continuous_model(ex)
         finally:
             ex.close()
