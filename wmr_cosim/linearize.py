@@ -41,11 +41,7 @@ def linearize(target: str | Path, *, at: float | None = None, inputs: Sequence[s
 
     path = scenario_path(str(target))
     req = Request(at=at, inputs=list(inputs), outputs=list(outputs), breaks=breaks, discrete=discrete,
-                  method=method, order=order, states=dict(states or {}))
-    if steps is not None:
-        req.steps = steps
-    if pulse is not None:
-        req.pulse = pulse
+                  method=method, steps=steps, order=order, pulse=pulse, states=dict(states or {}))
     if is_fmu(path):
         model = load_model(path)
         fields = {"interface": MODEL_EXCHANGE} if model.has_me and not discrete else {}
@@ -60,12 +56,7 @@ def linearize(target: str | Path, *, at: float | None = None, inputs: Sequence[s
         plan = load_plan(path, overrides, limits=limits)
         if plan.scenario.runs:
             raise ScenarioError(str(path), "runs", "a protocol (several runs): linearise the scenario of one run")
-    lz = Linearizer(plan, req)
-    unused = [o for o, v in (("--steps", steps), ("--pulse", pulse)) if v is not None]
-    if unused and not lz.discrete():
-        raise ScenarioError(str(path), unused[0], "a realisation from pulse responses takes it; this model is "
-                                                  "continuous-time, of the FMUs' own states (--discrete realises one)")
-    return lz.run()
+    return Linearizer(plan, req).run()
 
 
 def _real(v: Any, causality: str) -> bool:

@@ -46,9 +46,10 @@ class Request:
     """What to linearise: at ``at`` [s] of the run (None: its start), from ``inputs`` to ``outputs``
     ("instance.variable"); ``breaks`` a connection to cut ("src", "dst"); ``discrete``: a realisation from
     pulse responses even where a continuous model could be taken; ``method`` of the Jacobian ("auto",
-    "directional", "differences"); ``steps`` of the responses and their realised ``order`` (None: from the
-    singular values), ``pulse`` their size relative to the input; ``states``: state values to set at the
-    point ("instance.state": value, Model Exchange only)."""
+    "directional", "differences"); ``steps`` of the responses (None: :data:`DEFAULT_STEPS`) and their
+    realised ``order`` (None: from the singular values), ``pulse`` their size relative to the input (None:
+    :data:`.realisation.RELATIVE_PULSE`), the three a realisation's only (refused for a continuous model);
+    ``states``: state values to set at the point ("instance.state": value, Model Exchange only)."""
 
     at: float | None = None
     inputs: list[str] = field(default_factory=list)
@@ -56,9 +57,9 @@ class Request:
     breaks: tuple[str, str] | None = None
     discrete: bool = False
     method: str = "auto"
-    steps: int = DEFAULT_STEPS
+    steps: int | None = None           # None: DEFAULT_STEPS
     order: int | None = None
-    pulse: float = RELATIVE_PULSE
+    pulse: float | None = None         # None: RELATIVE_PULSE
     states: dict[str, float] = field(default_factory=dict)
 
 
@@ -82,6 +83,8 @@ class Linearizer:
         start, stop, step = plan.scenario.times()
         self.start, self.stop, self.step = start, stop, step
         self.link: ConnectionPlan | None = None
+        self.steps = DEFAULT_STEPS if request.steps is None else request.steps      # of the responses
+        self.pulse = RELATIVE_PULSE if request.pulse is None else request.pulse    # relative to the input
 
     # ------------------------------------------------------------------ the checks
     def check(self) -> None:
@@ -109,10 +112,11 @@ class Linearizer:
             if self.link is None:
                 raise ScenarioError(self.file, "--break", f"no connection {src} -> {dst} in the system"
                                     + self._connections_hint())
-        if req.steps < 2:
-            raise ScenarioError(self.file, "--steps", f"{req.steps}: the responses need at least 2 steps")
-        if not (req.pulse > 0 and math.isfinite(req.pulse)):
-            raise ScenarioError(self.file, "--pulse", f"{req.pulse}: a positive size")
+        if isinstance(self.steps, bool) or not isinstance(self.steps, int) or self.steps < 2:
+            raise ScenarioError(self.file, "--steps", f"{self.steps}: the responses need a whole number of at "
+                                                      "least 2 steps")
+        if not (self.pulse > 0 and math.isfinite(self.pulse)):
+            raise ScenarioError(self.file, "--pulse", f"{self.pulse}: a positive size")
         if self.discrete():
             if not req.inputs and req.breaks is None:
                 raise ScenarioError(self.file, "--inputs", "a model from pulse responses needs the inputs to "
@@ -123,10 +127,12 @@ class Linearizer:
             self._check_order()
             self._check_rollback()
         else:
-            if req.order is not None:
-                raise ScenarioError(self.file, "--order", f"{req.order}: the order of a realisation from pulse "
-                                                          "responses; this model is continuous-time, of the FMUs' "
-                                                          "own states (--discrete realises one)")
+            given = [(o, v) for o, v in (("--steps", req.steps), ("--order", req.order), ("--pulse", req.pulse))
+                     if v is not None]
+            if given:
+                raise ScenarioError(self.file, given[0][0], f"{given[0][1]}: a realisation from pulse responses "
+                                                            "takes it; this model is continuous-time, of the FMUs' "
+                                                            "own states (--discrete realises one)")
             self._check_method()
         for ref in req.states:
             self._state_index(ref)
@@ -141,11 +147,11 @@ class Linearizer:
         p = len(set(self.req.outputs) | ({self.req.breaks[0]} if self.req.breaks else set()))
         m = len(set(self.req.inputs) | ({self.req.breaks[1]} if self.req.breaks else set()))
         if self.req.breaks is None:
-            most = max_order(self.req.steps, p, m)
+            most = max_order(self.steps, p, m)
         else:   # (the loop's model, of one injection and one return, is realised at the order too)
-            most = min(max_order(self.req.steps, p, m), max_order(self.req.steps, 1, 1))
+            most = min(max_order(self.steps, p, m), max_order(self.steps, 1, 1))
         if order > most:
-            raise ScenarioError(self.file, "--order", f"{order} is more than responses of {self.req.steps} steps "
+            raise ScenarioError(self.file, "--order", f"{order} is more than responses of {self.steps} steps "
                                                       f"can realise (at most {most}): take more --steps")
 
     def _check_method(self) -> None:
@@ -208,14 +214,14 @@ class Linearizer:
             raise ScenarioError(self.file, "events", "condition events: the responses go back to the point, "
                                                      "which such events do not follow")
         at = self.start if self.req.at is None else float(self.req.at)
-        end = at + self.req.steps * self.step
+        end = at + self.steps * self.step
         for ev in self.plan.events:
             if ev.time is not None and at <= ev.time < end:
                 raise ScenarioError(self.file, "--at", f"an event acts at t = {ev.time:g} s, within the "
-                                    f"{self.req.steps} steps of the responses from {at:g} s: choose a point "
+                                    f"{self.steps} steps of the responses from {at:g} s: choose a point "
                                     "whose responses it does not cross")
         if end > self.stop - 1e-9 * max(1.0, abs(self.stop)):   # (the run ends at its stop time: no going back)
-            raise ScenarioError(self.file, "--steps", f"{self.req.steps} steps from t = {at:g} s reach "
+            raise ScenarioError(self.file, "--steps", f"{self.steps} steps from t = {at:g} s reach "
                                                       f"the run's stop time {self.stop:g} s, where the run ends: "
                                                       "take fewer steps or an earlier --at")
 
@@ -246,9 +252,9 @@ class Linearizer:
         for ref in refs:
             inst, var = self._var(ref, "--inputs", INPUTS, "input")
             u = float(ex.get(ref))
-            delta = req.pulse * max(abs(u), _nominal(self.plan.instances[inst].model.md, var))
+            delta = self.pulse * max(abs(u), _nominal(self.plan.instances[inst].model.md, var))
             if not all(math.isfinite(x) for x in (u + delta, u - delta, 2.0 * delta)):
-                raise ScenarioError(self.file, "--pulse", f"{req.pulse:g} times {max(abs(u), 1.0):g} at {ref} "
+                raise ScenarioError(self.file, "--pulse", f"{self.pulse:g} times {max(abs(u), 1.0):g} at {ref} "
                                                           f"(u = {u:g} at t = {t:g} s) is beyond the range of "
                                                           "floating point numbers")
             wired = any(self._ref(c.dst, c.dst_var) == ref for c in self.plan.connections) or \
@@ -261,7 +267,7 @@ class Linearizer:
         units_out = [_unit(self.plan.instances[r.split(".", 1)[0]], self._var(r, "--outputs", None, "output")[1])
                      for r in outputs]
         cut = self._ref(link.dst, link.dst_var) if link is not None else None
-        H = pulse_responses(ex, injections, outputs, req.steps, cut)
+        H = pulse_responses(ex, injections, outputs, self.steps, cut)
         model = realise(H, self.step, refs, outputs, order=req.order, t=t, input_units=units_in,
                         output_units=units_out)
         out = Linearisation(model)
@@ -274,14 +280,14 @@ class Linearizer:
                            order=req.order, t=t)
             if not gain.states:   # (L = 0: no margins, and nothing to call the closed loop stable)
                 raise ScenarioError(self.file, "--break", f"the return {outputs[i]} does not respond to the injection "
-                                                          f"at {refs[j]} over {req.steps} steps from t = {t:g} s "
+                                                          f"at {refs[j]} over {self.steps} steps from t = {t:g} s "
                                                           "(every Hankel singular value 0): no loop to analyse there")
             if req.order is not None and gain.singular_values is not None and len(refs) + len(outputs) > 2:
                 note = order_note(gain.singular_values, req.order)
                 out.notes += [f"the loop's model: {note}"] if note else []
             out.loop = analyse(gain, outputs[i], refs[j])
             # the system as a whole: the same point of injection, the loop closed, realised at the loop's order
-            closed = pulse_responses(ex, [injections[j]], [outputs[i]], req.steps)
+            closed = pulse_responses(ex, [injections[j]], [outputs[i]], self.steps)
             out.whole_eigenvalues = realise(closed, self.step, [refs[j]], [outputs[i]], order=len(gain.states),
                                             t=t).eigenvalues()
         return out
