@@ -197,12 +197,14 @@ BAD_INPUTS = [
     # --out: an existing file, or under one
     ("lag", ["--out", "FILE"], ["--out", "not a folder"]),
     ("lag", ["--out", "FILE/sub"], ["--out", "not a folder"]),
+    ("lag", ["--out", ""], ["--out", "give a folder"]),   # (not the working folder)
 ]
 
 
 @pytest.mark.parametrize("target, args, words", BAD_INPUTS, ids=[" ".join(a) for _, a, _ in BAD_INPUTS])
 def test_each_bad_option_is_one_line_exit_2_before_the_run_with_nothing_written(scenarios, tmp_path, capsys,
-                                                                                target, args, words):
+                                                                                monkeypatch, target, args, words):
+    monkeypatch.chdir(tmp_path)   # (nothing written in the working folder either)
     out = tmp_path / "o"
     args = [str(scenarios["file"]) + a[4:] if a.startswith("FILE") else a for a in args]
     code = main(["linearize", str(scenarios[target]), *args] + ([] if "--out" in args else ["--out", str(out)]))

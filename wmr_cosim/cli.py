@@ -843,8 +843,7 @@ def _add_linearize(sub: Any) -> None:
     li.add_argument("--state", action="append", metavar="INST.STATE=VALUE",
                     help="set a continuous state at the point (Model Exchange)")
     li.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
-    li.add_argument("--out", type=Path, default=None, metavar="DIR",
-                    help="results folder (default results/linear-<target>)")
+    li.add_argument("--out", default=None, metavar="DIR", help="results folder (default results/linear-<target>)")
     li.set_defaults(func=cmd_linearize, subparser=li)
 
 

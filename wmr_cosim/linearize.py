@@ -207,6 +207,8 @@ def check_out(out: str | Path) -> Path:
     Nothing is made here."""
     from .cosim import OutputError
 
+    if not str(out).strip():
+        raise OutputError(f"--out {str(out)!r}: give a folder")
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise OutputError(f"--out {out}: exists and is not a folder")
