@@ -252,11 +252,11 @@ class Linearizer:
         for ref in refs:
             inst, var = self._var(ref, "--inputs", INPUTS, "input")
             u = float(ex.get(ref))
-            delta = self.pulse * max(abs(u), _nominal(self.plan.instances[inst].model.md, var))
+            scale = max(abs(u), _nominal(self.plan.instances[inst].model.md, var))
+            delta = self.pulse * scale
             if not all(math.isfinite(x) for x in (u + delta, u - delta, 2.0 * delta)):
-                raise ScenarioError(self.file, "--pulse", f"{self.pulse:g} times {max(abs(u), 1.0):g} at {ref} "
-                                                          f"(u = {u:g} at t = {t:g} s) is beyond the range of "
-                                                          "floating point numbers")
+                raise ScenarioError(self.file, "--pulse", f"{self.pulse:g} times {scale:g} at {ref} (u = {u:g} at "
+                                                          f"t = {t:g} s) is beyond the range of floating point numbers")
             wired = any(self._ref(c.dst, c.dst_var) == ref for c in self.plan.connections) or \
                 any(self._ref(ip.instance, ip.var) == ref for ip in self.plan.inputs)
             injections.append(Injection(ref, (u + delta) - u, wired))
