@@ -261,6 +261,44 @@ def test_an_exception_in_a_call_names_instance_call_and_time(fake):
     assert (exc.value.instance, exc.value.time) == ("P", 0.25)
 
 
+@pytest.mark.parametrize("cls, version", [(Instance, 2), (Instance3, 3)])
+def test_a_raw_get_that_leaves_a_python_error_behind_is_an_error_status_with_the_error_logged(fake, monkeypatch,
+                                                                                          cls, version):
+    """A pythonfmu FMU whose Integer no longer fits a C long returns OK with -1 and its Python error left
+    set, which ctypes raises on return (the call is made through a PyDLL): the call's status is Error (the
+    value is not valid), the error in the instance's log, for the stepping loop to report with its time."""
+    inst, fmu = fake(cls, name="sensor")
+    inst.instantiate()
+    named = []
+
+    def raw(dll, name):
+        named.append(name)
+
+        def call(*args):
+            raise OverflowError("Python int too large to convert to C long")
+        return call
+    monkeypatch.setattr(instance_mod, "raw", raw)
+    get, _ = inst.accessor("Integer" if version == 2 else "Int32", "Get")
+    assert get(None, None, None, None) == ERROR
+    assert named == [f"fmi{version}GetInt{'eger' if version == 2 else '32'}"]
+    assert inst.n_errors == 1
+    assert inst.last_log() == (f"[Error] exception: {named[0]}: OverflowError: Python int too large to convert to "
+                               "C long (raised in the FMU's code)")
+
+
+def test_no_fmu_state_call_reaches_an_instance_freed_already(fake):
+    """FMPy unloads the FMU's library with fmi2FreeInstance: a state call after it would jump into unmapped
+    memory (the execution frees its saved states before its instances; this is the instance's own guard)."""
+    inst, fmu = fake(name="P")
+    inst.instantiate()
+    inst.shutdown()
+    before = list(fmu.names())
+    for call in (lambda: inst.free_state(object()), lambda: inst.set_state(object()), inst.get_state):
+        with pytest.raises(RunError, match="after the instance was freed"):
+            call()
+    assert fmu.names() == before
+
+
 # ---------------------------------------------------------------- reading values (FMI 2.0)
 def test_fmi2_get_value_reads_each_type_with_its_fmi_call(fake):
     inst, fmu = fake()

@@ -104,12 +104,206 @@ def test_bad_input_is_one_line_and_exit_code_2(fmus, tmp_path, capsys):
               "--at", "outside the run (0 s to 2 s)")
     # responses that run past the stop time, a state that is none, a bad state value
     _one_line(capsys, main(["linearize", str(_loop_scenario(tmp_path, fmus, "co-simulation")), "--at", "1.5",
-                            "--break", "ctrl.y->lag.u", "--out", out]), "--steps", "beyond the run's stop time")
+                            "--break", "ctrl.y->lag.u", "--out", out]), "--steps", "reach the run's stop time")
     _one_line(capsys, main(["linearize", str(scenario), "--inputs", "lag.u", "--state", "lag.y=1", "--out", out]),
               "--state", "no continuous state of lag", "lag.x")
     _one_line(capsys, main(["linearize", str(scenario), "--inputs", "lag.u", "--state", "lag.x=abc", "--out", out]),
               "--state", "INSTANCE.STATE=VALUE")
     assert not Path(out).exists()   # refused before anything is written
+
+
+def _chain_scenario(folder: Path, fmus: dict[str, Path], stop: float = 2.0, **extra: str) -> Path:
+    """Two lags in series in co-simulation (lag1.y -> lag2.u, taus 0.1 s and 0.5 s): order 2 from lag1.u to
+    lag2.y; ``extra``: more TOML text appended by name (not used by name)."""
+    text = (f'[experiment]\nstart = 0.0\nstop = {stop}\nstep = 0.01\n'
+            f'[instances.lag1]\nfmu = "{fmus["lag"]}"\ninterface = "co-simulation"\n'
+            f'[instances.lag1.parameters]\ntau = 0.1\n'
+            f'[instances.lag2]\nfmu = "{fmus["lag"]}"\ninterface = "co-simulation"\n'
+            f'[instances.lag2.parameters]\ntau = 0.5\n'
+            '[[connections]]\nfrom = "lag1.y"\nto = "lag2.u"\n' + "".join(extra.values()))
+    path = folder / "chain.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture(scope="module")
+def scenarios(fmus, tmp_path_factory) -> dict[str, Path]:
+    folder = tmp_path_factory.mktemp("linear-scenarios")
+    out = {"me": _loop_scenario(folder, fmus), "cs": _loop_scenario(folder, fmus, "co-simulation"),
+           "chain": _chain_scenario(folder, fmus), "lag": fmus["lag"]}
+    (folder / "a-file").write_text("not a folder\n")
+    out["file"] = folder / "a-file"
+    return out
+
+
+#: (target, arguments, words of the one line): bad input, refused before anything runs, nothing written.
+BAD_INPUTS = [
+    # --order: a positive whole number, no more than the responses realise, of a realisation only
+    ("cs", ["--at", "0.5", "--break", "ctrl.y->lag.u", "--steps", "50", "--order", "0"], ["--order", "positive"]),
+    ("cs", ["--at", "0.5", "--break", "ctrl.y->lag.u", "--steps", "50", "--order", "-1"], ["--order", "positive"]),
+    ("cs", ["--at", "0.5", "--break", "ctrl.y->lag.u", "--steps", "50", "--order", "26"],
+     ["--order", "at most 25", "--steps"]),
+    ("cs", ["--at", "0.5", "--break", "ctrl.y->lag.u", "--steps", "50", "--order", "1.5"], ["--order", "whole"]),
+    ("cs", ["--at", "0.5", "--break", "ctrl.y->lag.u", "--steps", "50", "--order", "two"], ["--order", "number"]),
+    ("me", ["--break", "ctrl.y->lag.u", "--order", "2"], ["--order", "continuous-time", "--discrete"]),
+    ("me", ["--break", "ctrl.y->lag.u", "--steps", "20"], ["--steps", "continuous-time"]),
+    ("me", ["--break", "ctrl.y->lag.u", "--pulse", "0.1"], ["--pulse", "continuous-time"]),
+    # --steps
+    ("cs", ["--break", "ctrl.y->lag.u", "--steps", "0"], ["--steps", "at least 2"]),
+    ("cs", ["--break", "ctrl.y->lag.u", "--steps", "-1"], ["--steps", "at least 2"]),
+    ("cs", ["--break", "ctrl.y->lag.u", "--steps", "1e9"], ["--steps", "stop time"]),
+    ("cs", ["--break", "ctrl.y->lag.u", "--steps", "2.5"], ["--steps", "whole"]),
+    # the responses may not reach the stop time, where the run ends (200 steps of 0.01 s from 0 s: 2 s)
+    ("cs", ["--break", "ctrl.y->lag.u"], ["--steps", "reach the run's stop time 2 s"]),
+    # --pulse: finite and positive; one beyond the floating point numbers at the input
+    ("cs", ["--break", "ctrl.y->lag.u", "--steps", "50", "--pulse", "0"], ["--pulse", "positive"]),
+    ("cs", ["--break", "ctrl.y->lag.u", "--steps", "50", "--pulse", "-1"], ["--pulse", "positive"]),
+    ("cs", ["--break", "ctrl.y->lag.u", "--steps", "50", "--pulse", "nan"], ["--pulse", "finite"]),
+    ("cs", ["--break", "ctrl.y->lag.u", "--steps", "50", "--pulse", "inf"], ["--pulse", "finite"]),
+    ("cs", ["--break", "ctrl.y->lag.u", "--steps", "50", "--pulse", "1e308"], ["--pulse", "range"]),
+    # --at
+    ("lag", ["--at", "nan"], ["--at", "finite"]),
+    ("lag", ["--at", "inf"], ["--at", "finite"]),
+    ("lag", ["--at", "-1"], ["--at", "outside the run"]),
+    ("lag", ["--at", "soon"], ["--at", "number"]),
+    ("lag", ["--at", "5"], ["--at", "stop time 5 s"]),       # (the FMU's default experiment: 0 s to 5 s)
+    ("lag", ["--at", "4.999999"], ["--at", "t = 4.999999 s", "stop time"]),
+    # --inputs, --outputs: empty, unknown, given twice
+    ("lag", ["--inputs", ""], ["--inputs", "empty name"]),
+    ("lag", ["--inputs", "Lag.u,"], ["--inputs", "empty name"]),
+    ("lag", ["--outputs", ""], ["--outputs", "empty name"]),
+    ("lag", ["--outputs", "Lag.yy"], ["--outputs", "no variable 'yy'"]),
+    ("lag", ["--inputs", "Lag.u", "--inputs", "Lag.u"], ["--inputs", "twice"]),
+    ("lag", ["--outputs", "Nobody.y"], ["--outputs", "unknown instance"]),
+    # --break: malformed, or no such connection
+    ("me", ["--break", ""], ["--break", "FROM->TO"]),
+    ("me", ["--break=->"], ["--break", "FROM->TO"]),
+    ("me", ["--break", "lag.y->ctrl.u->lag.u"], ["--break", "FROM->TO"]),
+    ("me", ["--break", "ctrl.y->"], ["--break", "FROM->TO"]),
+    ("me", ["--break", "ctrl.y-lag.u"], ["--break", "FROM->TO"]),
+    ("me", ["--break", "ctrl->lag.u"], ["--break", "no connection"]),
+    # --state: malformed, not a state, twice, on a co-simulation instance
+    ("lag", ["--state", ""], ["--state", "INSTANCE.STATE=VALUE"]),
+    ("lag", ["--state", "=1"], ["--state", "INSTANCE.STATE=VALUE"]),
+    ("lag", ["--state", "Lag.x"], ["--state", "INSTANCE.STATE=VALUE"]),
+    ("lag", ["--state", "Lag.x=nan"], ["--state", "finite"]),
+    ("lag", ["--state", "x=1"], ["--state", "instance.variable"]),
+    ("lag", ["--state", "Lag.x=1", "--state", "Lag.x=2"], ["--state", "twice"]),
+    ("lag", ["--state", "Lag.u=1"], ["--state", "no continuous state"]),
+    ("lag", ["--discrete", "--state", "Lag.x=1"], ["--state", "Model Exchange"]),
+    # --method: directional where the model description declares none; a Jacobian's method for a realisation
+    ("lag", ["--method", "directional"], ["--method", "declares no directional derivatives"]),
+    ("cs", ["--break", "ctrl.y->lag.u", "--steps", "50", "--method", "differences"], ["--method", "pulse responses"]),
+    # --out: an existing file, or under one
+    ("lag", ["--out", "FILE"], ["--out", "not a folder"]),
+    ("lag", ["--out", "FILE/sub"], ["--out", "not a folder"]),
+    ("lag", ["--out", ""], ["--out", "give a folder"]),   # (not the working folder)
+]
+
+
+@pytest.mark.parametrize("target, args, words", BAD_INPUTS, ids=[" ".join(a) for _, a, _ in BAD_INPUTS])
+def test_each_bad_option_is_one_line_exit_2_before_the_run_with_nothing_written(scenarios, tmp_path, capsys,
+                                                                                monkeypatch, target, args, words):
+    monkeypatch.chdir(tmp_path)   # (nothing written in the working folder either)
+    out = tmp_path / "o"
+    args = [str(scenarios["file"]) + a[4:] if a.startswith("FILE") else a for a in args]
+    code = main(["linearize", str(scenarios[target]), *args] + ([] if "--out" in args else ["--out", str(out)]))
+    _one_line(capsys, code, *words)
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == []
+    assert scenarios["file"].read_text() == "not a folder\n"
+
+
+def test_an_order_below_the_singular_values_is_a_truncation_and_says_so(scenarios, tmp_path, capsys):
+    """Two lags in series realise order 2; --order 1 discards the second Hankel singular value, which the
+    printout and linear.json say, with its value."""
+    base = ["linearize", str(scenarios["chain"]), "--at", "0.5", "--inputs", "lag1.u", "--outputs", "lag2.y",
+            "--steps", "60"]
+    assert main([*base, "--out", str(tmp_path / "auto")]) == 0
+    auto = json.loads((tmp_path / "auto" / "linear.json").read_text())
+    sv = auto["hankel_singular_values"]
+    assert len(auto["states"]) == 2 and sv[1] > 1e-3 * sv[0] and auto["notes"] == []
+    capsys.readouterr()
+    assert main([*base, "--order", "1", "--out", str(tmp_path / "one")]) == 0
+    printed = capsys.readouterr().out
+    one = json.loads((tmp_path / "one" / "linear.json").read_text())
+    assert len(one["states"]) == 1
+    note = [n for n in one["notes"] if "truncation" in n]
+    assert len(note) == 1 and f"({sv[1]:.3g})" in note[0] and "realise order 2" in note[0], one["notes"]
+    assert f"note: {note[0]}" in printed and "0 states" not in printed
+
+
+def test_a_return_that_does_not_respond_to_the_injection_is_no_loop_not_a_stable_one(fmus, tmp_path, capsys):
+    """A controller of gain 0: the loop's responses are all 0; no margins, no "closed loop stable"."""
+    text = _loop_scenario(tmp_path, fmus, "co-simulation").read_text().replace("kp = -3.0", "kp = 0.0")
+    (tmp_path / "open.toml").write_text(text)
+    _one_line(capsys, main(["linearize", str(tmp_path / "open.toml"), "--at", "0.5", "--break", "ctrl.y->lag.u",
+                            "--steps", "50", "--out", str(tmp_path / "o")]), "--break", "does not respond")
+    assert not (tmp_path / "o").exists()
+
+
+def _shell(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+    import os
+    return subprocess.run([sys.executable, "-m", "wmr_cosim.cli", "linearize", *args], capture_output=True,
+                          text=True, timeout=300, env={**os.environ, **(env or {})})
+
+
+def test_an_fmu_failing_in_a_response_ends_the_run_with_one_line_not_a_crash(fmus, tmp_path):
+    """A lag of gain 1e300 pulsed by 1e10: its output overflows in the first response and the run fails
+    there.  The saved point's FMU states are freed before the instances (freeing them after, in a library
+    FMPy has unloaded, was a segmentation fault); in a shell, so that a crash shows as the return code."""
+    text = _loop_scenario(tmp_path, fmus, "co-simulation").read_text().replace("k = 2.0", "k = 1e300")
+    (tmp_path / "big.toml").write_text(text)
+    p = _shell(str(tmp_path / "big.toml"), "--at", "0.5", "--break", "ctrl.y->lag.u", "--pulse", "1e10", "--steps",
+               "20", "--out", str(tmp_path / "o"))
+    assert p.returncode == 1, (p.returncode, p.stderr[-3000:])
+    assert p.stderr.count("\n") == 1 and "Traceback" not in p.stderr, p.stderr
+    assert "the response to a pulse of +1e+10 at lag.u from t = 0.5 s failed" in p.stderr, p.stderr
+    assert "non-finite" in p.stderr and not (tmp_path / "o").exists()
+
+
+def test_a_response_that_is_not_finite_is_a_failed_run_naming_the_output(fmus, tmp_path, capsys):
+    """An FMU alone (no connection to carry the overflow to): its output itself is not finite."""
+    code = main(["linearize", str(fmus["lag"]), "--discrete", "--inputs", "Lag.u", "--set", "Lag.k=1e10",
+                 "--pulse", "1e300", "--steps", "10", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 1 and err.count("\n") == 1, err
+    assert "the response to a pulse of +1e+300 at Lag.u from t = 0 s is not finite: Lag.y = " in err, err
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_state_that_makes_the_jacobian_non_finite_is_one_line_naming_the_entries(tmp_path, capsys):
+    """Van der Pol at x0 = 1e200: der(x1) = mu (1 - x0^2) x1 - x0 overflows; exit code 1, the model at the
+    point the user chose cannot be taken (the value itself is a valid one: the FMU declares no range)."""
+    from reference_fmus import fmi2
+
+    code = main(["linearize", str(fmi2("VanDerPol")), "--state", "VanDerPol.x0=1e200", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 1 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert "--state VanDerPol.x0=1e+200 is not finite: d der(VanDerPol.x1)/d VanDerPol.x0 = " in err, err
+    assert not (tmp_path / "o").exists()
+
+
+BLOCKER = """import sys
+class _Blocker:
+    def find_spec(self, name, path=None, target=None):
+        if name.split(".")[0] == {name!r}:
+            raise ModuleNotFoundError(f"No module named {{name!r}}", name=name)
+sys.meta_path.insert(0, _Blocker())
+"""
+
+
+@pytest.mark.parametrize("missing, named", [("scipy", "scipy"), ("control", "python-control")])
+def test_without_the_linear_extra_one_line_says_how_to_install_it(fmus, tmp_path, missing, named):
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "sitecustomize.py").write_text(BLOCKER.format(name=missing))
+    import os
+    p = _shell(str(fmus["lag"]), "--out", str(tmp_path / "o"),
+               env={"PYTHONPATH": os.pathsep.join([str(site), str(ROOT)])})
+    assert p.returncode == 2, p.stderr[-3000:]
+    assert p.stderr.count("\n") == 1 and "Traceback" not in p.stderr, p.stderr
+    assert f"linearize needs {named}" in p.stderr and "wmr-cosim[linear]" in p.stderr, p.stderr
+    assert not (tmp_path / "o").exists()
 
 
 def test_the_command_runs_from_a_shell_with_python_control_named_where_missing(fmus, tmp_path):
@@ -283,3 +477,16 @@ def test_a_phase_budget_where_no_coupling_cost_is_derived_is_refused(fmus, tmp_p
     _one_line(capsys, main(["linearize", str(iterated), "--break", "ctrl.y->lag.u", "--phase-budget", "2",
                             "--out", str(out)]), "--phase-budget", "the algorithm is iterated")
     assert not out.exists()
+
+@pytest.mark.slow
+def test_g1_pulsed_beyond_its_encoder_fails_in_one_line(tmp_path):
+    """The issue's case: G1's loop pulsed by 1e10 at the right torque; the encoder's count no longer fits a C
+    long and the sensor (pythonfmu) leaves its Python error behind its fmi2GetInteger: the run fails there,
+    in one line naming the sensor, the call and the error (it was a segmentation fault in fmi2FreeFMUstate)."""
+    p = _shell("g1_learn.toml", "--at", "0.5", "--break", "controller.u1->plant.u1", "--pulse", "1e10", "--steps",
+               "5", "--out", str(tmp_path / "o"))
+    assert p.returncode == 1, (p.returncode, p.stderr[-3000:])
+    assert p.stderr.count("\n") == 1 and "Traceback" not in p.stderr, p.stderr
+    for words in ("the response to a pulse of +1e+10 at plant.u1 from t = 0.5 s failed", "sensor: fmi2Get",
+                  "fmi2GetInteger: OverflowError"):
+        assert words in p.stderr, p.stderr

@@ -326,3 +326,17 @@ def test_no_co_simulated_loop_for_an_algorithm_it_is_not_derived_for(fmus):
     lin = Linearizer(sim.check(), Request(at=0.5, breaks=("ctrl.y", "lag1.u"))).run()
     assert lin.coupling is None
     assert any("the co-simulated loop is derived for one pass per step" in n for n in lin.notes)
+
+def test_a_realisations_options_are_refused_for_a_continuous_model_and_checked_for_one(fmus):
+    """steps, order and pulse belong to a realisation from responses: given for a model of Model Exchange
+    FMUs they would be ignored, so they are refused (as the command's --steps, --order, --pulse); for a
+    realisation, a number of steps that is not whole is refused before the run."""
+    sim = Simulation().experiment(start=0.0, stop=1.0, step=0.01).instance("lag1", fmus["lag"], fields=ME)
+    for given, option in ((dict(steps=20), "--steps"), (dict(order=1), "--order"), (dict(pulse=0.1), "--pulse")):
+        with pytest.raises(CosimError, match=f"{option}: .* a realisation from pulse responses takes it"):
+            Linearizer(sim.check(), Request(at=0.1, inputs=["lag1.u"], outputs=["lag1.y"], **given)).check()
+    with pytest.raises(CosimError, match="--steps: 20.5: the responses need a whole number"):
+        Linearizer(sim.check(), Request(at=0.1, inputs=["lag1.u"], outputs=["lag1.y"], discrete=True,
+                                        steps=20.5)).check()
+    Linearizer(sim.check(), Request(at=0.1, inputs=["lag1.u"], outputs=["lag1.y"], discrete=True, steps=20,
+                                    order=1, pulse=0.1)).check()

@@ -136,3 +136,39 @@ def test_what_cannot_go_back_is_refused(tmp_path):
             ex.save_point()
     finally:
         ex.close()
+
+
+def test_the_end_of_the_run_frees_the_saved_states_before_the_instances():
+    """A point still saved when the run ends (a failure in the responses ends it): each instance's state is
+    freed while the instance lives, then the instance; freeing the point after is a no-op, restoring it
+    refused."""
+    ex = _execution(_plant("co-simulation"))
+    calls: list[str] = []
+    inst = ex.instances["plant"]
+    free_state, shutdown = inst.free_state, inst.shutdown
+    inst.free_state = lambda st: (calls.append("free_state"), free_state(st))[1]   # type: ignore[method-assign]
+    inst.shutdown = lambda: (calls.append("shutdown"), shutdown())[1]               # type: ignore[method-assign]
+    ex.step(5)
+    point = ex.save_point()
+    ex.step(5)
+    ex.close()
+    assert calls == ["free_state", "shutdown"]
+    ex.free_point(point)
+    assert calls == ["free_state", "shutdown"] and point.states == {}
+
+
+def test_freeing_a_point_after_the_run_ended_does_not_call_into_the_freed_fmu():
+    """fmi2FreeFMUstate after fmi2FreeInstance called into the library FMPy had unloaded: a segmentation
+    fault (in a shell, so that a crash shows as the return code)."""
+    import subprocess
+    import sys
+
+    script = ("from wmr_cosim.api import Simulation\nfrom wmr_cosim.cosim import CosimError, Execution\n"
+              "sim = Simulation().instance('plant', 'WmrCPlant', fields={'interface': 'co-simulation'})"
+              ".experiment(start=0.0, stop=1.0, step=0.002)\n"
+              "ex = Execution(sim.check(), None)\nex.initialize()\nex.step(5)\npoint = ex.save_point()\nex.step(5)\n"
+              "ex.close()\nex.free_point(point)\n"
+              "try:\n    ex.restore_point(point)\nexcept CosimError as exc:\n    print('refused:', exc)\n")
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, (p.returncode, p.stderr[-3000:])
+    assert "refused: the run has ended" in p.stdout, p.stdout

@@ -492,25 +492,23 @@ def cmd_falsify(args: argparse.Namespace) -> int:
 
 def cmd_linearize(args: argparse.Namespace) -> int:
     """A linear model around a point of a run; with a break, the loop's margins."""
-    from .linearize import linearize, parse_break, parse_states, report, write
+    from .linearize import (check_out, linearize, parse_break, parse_count, parse_names, parse_number, parse_states,
+                            report, write)
     from .runner import parse_set
 
-    lin = linearize(args.target, at=args.at, inputs=_names(args.inputs), outputs=_names(args.outputs),
-                    breaks=parse_break(args.breaks) if args.breaks else None, discrete=args.discrete,
-                    method=args.method, steps=args.steps, order=args.order, pulse=args.pulse,
+    out = check_out(args.out if args.out is not None else Path("results") / f"linear-{Path(args.target).stem}")
+    lin = linearize(args.target, at=parse_number("--at", args.at), inputs=parse_names("--inputs", args.inputs),
+                    outputs=parse_names("--outputs", args.outputs),
+                    breaks=parse_break(args.breaks) if args.breaks is not None else None, discrete=args.discrete,
+                    method=args.method, steps=parse_count("--steps", args.steps),
+                    order=parse_count("--order", args.order), pulse=parse_number("--pulse", args.pulse),
                     states=parse_states(args.state), overrides=parse_set(args.set), limits=args.limits,
-                    phase_budget=args.phase_budget)
+                    phase_budget=parse_number("--phase-budget", args.phase_budget))
     for line in report(lin):
         print(line)
-    out = args.out if args.out is not None else Path("results") / f"linear-{Path(args.target).stem}"
     files = write(lin, out)
     print(f"results in {out} ({', '.join(f.name for f in files)})")
     return EXIT_OK
-
-
-def _names(items: list[str] | None) -> list[str]:
-    """Repeated or comma-separated names -> one list."""
-    return [n.strip() for item in items or [] for n in item.split(",") if n.strip()]
 
 
 def _dask_options(p: argparse.ArgumentParser) -> None:
@@ -827,8 +825,7 @@ def _add_linearize(sub: Any) -> None:
                                     "linear.npz, linear.mat, linear.json (docs/linearisation.md). Exit codes: 0 ok, "
                                     "1 the run failed, 2 bad input.")
     li.add_argument("target", type=scenario_path, help="scenario file (.toml) of one run, or one FMU (.fmu)")
-    li.add_argument("--at", type=float, default=None, metavar="T", help="the operating point's time [s] (default: "
-                                                                        "the start)")
+    li.add_argument("--at", default=None, metavar="T", help="the operating point's time [s] (default: the start)")
     li.add_argument("--inputs", action="append", metavar="INST.VAR,...",
                     help="inputs of the model (an FMU alone: default every Real input); an input a connection "
                          "drives gets the signal added to what it carries")
@@ -840,18 +837,19 @@ def _add_linearize(sub: Any) -> None:
                     help="a discrete-time model from pulse responses even where a continuous one can be taken")
     li.add_argument("--method", choices=("auto", "directional", "differences"), default="auto",
                     help="the Jacobian of Model Exchange FMUs (default: directional derivatives where provided)")
-    li.add_argument("--steps", type=int, default=None, help="length of the pulse responses [steps] (default 200)")
-    li.add_argument("--order", type=int, default=None, help="order of the realisation (default: from the Hankel "
-                                                             "singular values)")
-    li.add_argument("--pulse", type=float, default=None, help="the pulse, relative to max(|u|, nominal) (default 1e-4)")
+    li.add_argument("--steps", default=None, metavar="N", help="length of the pulse responses [steps] (default 200)")
+    li.add_argument("--order", default=None, metavar="N",
+                    help="order of the realisation, a positive whole number (default: from the Hankel singular values; "
+                         "a lower one truncates the realisation, which the output says)")
+    li.add_argument("--pulse", default=None, metavar="SIZE",
+                    help="the pulse, relative to max(|u|, nominal) (default 1e-4)")
     li.add_argument("--state", action="append", metavar="INST.STATE=VALUE",
                     help="set a continuous state at the point (Model Exchange)")
-    li.add_argument("--phase-budget", type=float, default=None, metavar="DEG",
+    li.add_argument("--phase-budget", default=None, metavar="DEG",
                     help="with --break on a continuous loop: the phase margin [deg] the co-simulation's coupling may "
                          "cost; the largest step within it is reported (default 5)")
     li.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
-    li.add_argument("--out", type=Path, default=None, metavar="DIR",
-                    help="results folder (default results/linear-<target>)")
+    li.add_argument("--out", default=None, metavar="DIR", help="results folder (default results/linear-<target>)")
     li.set_defaults(func=cmd_linearize, subparser=li)
 
 
@@ -885,9 +883,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wmr-cosim: error: {error_message(exc)}", file=sys.stderr)
         return for_error(exc)
     except ImportError as exc:
-        if exc.name and exc.name.split(".")[0] == "control":
-            print(f"wmr-cosim: error: {args.command} needs python-control: pip install 'wmr-cosim[linear]'",
-                  file=sys.stderr)
+        missing = exc.name.split(".")[0] if exc.name else ""
+        if missing == "control" or (missing == "scipy" and args.command == "linearize"):
+            print(f"wmr-cosim: error: {args.command} needs {'python-control' if missing == 'control' else missing} "
+                  "(the linear extra): pip install 'wmr-cosim[linear]'", file=sys.stderr)
             return for_error(exc)
         if exc.name and exc.name.split(".")[0] in ("dask", "distributed", "pandas", "pyarrow"):
             print(f"wmr-cosim: error: {args.command} needs {exc.name}: pip install 'wmr-cosim[sweep]'", file=sys.stderr)

@@ -294,21 +294,44 @@ class Instance(FmuInstance):
 
     def accessor(self, fmi_type: str, op: str) -> tuple[Any, Any]:
         ctype, tname = ACCESS[2][fmi_type]
-        fn, c = raw(self.fmu.dll, f"fmi2{op}{tname}"), ctypes.c_void_p(self.c)
-        return (lambda vrs, n, buf, nv: fn(c, vrs, n, buf)), ctype
+        what = f"fmi2{op}{tname}"
+        fn, c = raw(self.fmu.dll, what), ctypes.c_void_p(self.c)
+
+        def call(vrs: Any, n: Any, buf: Any, nv: Any) -> int:
+            try:
+                return fn(c, vrs, n, buf)
+            except Exception as exc:
+                return self.raised_in(what, exc)
+        return call, ctype
+
+    def raised_in(self, what: str, exc: BaseException) -> int:
+        """fmi2Error for a raw call that left a Python exception behind (a pythonfmu FMU whose own code
+        failed after the call had begun, e.g. an Integer too large for C: the values it gave are not valid),
+        the exception logged as the FMU's error message."""
+        self._logger(3, b"exception", f"{what}: {type(exc).__name__}: {exc} (raised in the FMU's code)".encode("utf-8"))
+        return 3
 
     # ------------------------------------------------------------------ state (FMPy names both versions' alike)
     def _state_call(self, op: str) -> str:
         return f"fmi{self.fmi_version}{op}FMU{'state' if self.fmi_version == 2 else 'State'}"
 
     def get_state(self) -> Any:
+        self._not_freed(self._state_call("Get"))
         return self.call(self._state_call("Get"), self.fmu.getFMUState)
 
     def set_state(self, state: Any) -> None:
+        self._not_freed(self._state_call("Set"))
         self.call(self._state_call("Set"), self.fmu.setFMUState, state)
 
     def free_state(self, state: Any) -> None:
+        self._not_freed(self._state_call("Free"))
         self.call(self._state_call("Free"), self.fmu.freeFMUState, state)
+
+    def _not_freed(self, what: str) -> None:
+        """RunError for a call on an instance freed already (FMPy unloads the FMU's library with it: the
+        call would jump into unmapped memory); its saved states went with it."""
+        if self.freed:
+            raise RunError(f"{self.name}: {what} after the instance was freed (its states went with it)", self.name)
 
     def shutdown(self) -> None:
         """Terminate (if initialised) and free, exactly once; nothing at all after a Fatal."""
@@ -405,8 +428,15 @@ class Instance3(Instance):
 
     def accessor(self, fmi_type: str, op: str) -> tuple[Any, Any]:
         ctype, tname = ACCESS[3][fmi_type]
-        fn, c = raw(self.fmu.dll, f"fmi3{op}{tname}"), ctypes.c_void_p(self.c)
-        return (lambda vrs, n, buf, nv: fn(c, vrs, n, buf, nv)), ctype
+        what = f"fmi3{op}{tname}"
+        fn, c = raw(self.fmu.dll, what), ctypes.c_void_p(self.c)
+
+        def call(vrs: Any, n: Any, buf: Any, nv: Any) -> int:
+            try:
+                return fn(c, vrs, n, buf, nv)
+            except Exception as exc:
+                return self.raised_in(what, exc)
+        return call, ctype
 
 
 def raw(dll: Any, name: str) -> Any:

@@ -37,7 +37,7 @@ from .interconnection import Link, close
 from .jacobian import Signal, central_column, jacobian, linear_model, states_of
 from .loop import LoopAnalysis, analyse
 from .model import LinearModel
-from .realisation import RELATIVE_PULSE, Injection, pulse_responses, realise
+from .realisation import RELATIVE_PULSE, Injection, max_order, order_note, pulse_responses, realise
 
 #: Sweeps of the exchange of connected values at the point before it is taken as not settling.
 EXCHANGE_SWEEPS = 100
@@ -50,11 +50,13 @@ class Request:
     """What to linearise: at ``at`` [s] of the run (None: its start), from ``inputs`` to ``outputs``
     ("instance.variable"); ``breaks`` a connection to cut ("src", "dst"); ``discrete``: a realisation from
     pulse responses even where a continuous model could be taken; ``method`` of the Jacobian ("auto",
-    "directional", "differences"); ``steps`` of the responses and their realised ``order`` (None: from the
-    singular values), ``pulse`` their size relative to the input; ``states``: state values to set at the
-    point ("instance.state": value, Model Exchange only); ``phase_budget`` [deg]: the phase margin the
-    coupling may cost a continuous loop broken at ``breaks``, which bounds the largest step reported (None:
-    :data:`.cosimulated.PHASE_BUDGET`; given, it is refused where there is no such loop)."""
+    "directional", "differences"); ``steps`` of the responses (None: :data:`DEFAULT_STEPS`) and their
+    realised ``order`` (None: from the singular values), ``pulse`` their size relative to the input (None:
+    :data:`.realisation.RELATIVE_PULSE`), the three a realisation's only (refused for a continuous model);
+    ``states``: state values to set at the point ("instance.state": value, Model Exchange only);
+    ``phase_budget`` [deg]: the phase margin the coupling may cost a continuous loop broken at ``breaks``,
+    which bounds the largest step reported (None: :data:`.cosimulated.PHASE_BUDGET`; given, it is refused
+    where there is no such loop)."""
 
     at: float | None = None
     inputs: list[str] = field(default_factory=list)
@@ -62,9 +64,9 @@ class Request:
     breaks: tuple[str, str] | None = None
     discrete: bool = False
     method: str = "auto"
-    steps: int = DEFAULT_STEPS
+    steps: int | None = None           # None: DEFAULT_STEPS
     order: int | None = None
-    pulse: float = RELATIVE_PULSE
+    pulse: float | None = None         # None: RELATIVE_PULSE
     states: dict[str, float] = field(default_factory=dict)
     phase_budget: float | None = None   # [deg]; None: PHASE_BUDGET
 
@@ -92,6 +94,8 @@ class Linearizer:
         start, stop, step = plan.scenario.times()
         self.start, self.stop, self.step = start, stop, step
         self.link: ConnectionPlan | None = None
+        self.steps = DEFAULT_STEPS if request.steps is None else request.steps      # of the responses
+        self.pulse = RELATIVE_PULSE if request.pulse is None else request.pulse    # relative to the input
 
     # ------------------------------------------------------------------ the checks
     def check(self) -> None:
@@ -101,6 +105,9 @@ class Linearizer:
         if not (isinstance(at, (int, float)) and math.isfinite(at)) or at < self.start or at > self.stop:
             raise ScenarioError(self.file, "--at", f"t = {at} s is outside the run ({self.start:g} s to "
                                                    f"{self.stop:g} s)")
+        if math.ceil((at - self.start) / self.step - 1e-9) >= self.plan.n_steps:   # (as Execution.step_to)
+            raise ScenarioError(self.file, "--at", f"t = {at:.10g} s: the run ends at its stop time {self.stop:g} s "
+                                                   "and frees its FMUs; take a point before its last step")
         for ref in req.inputs:
             self._var(ref, "--inputs", INPUTS, "input")
         for ref in req.outputs:
@@ -116,17 +123,30 @@ class Linearizer:
             if self.link is None:
                 raise ScenarioError(self.file, "--break", f"no connection {src} -> {dst} in the system"
                                     + self._connections_hint())
-        if req.steps < 2:
-            raise ScenarioError(self.file, "--steps", f"{req.steps}: the responses need at least 2 steps")
-        if not (req.pulse > 0 and math.isfinite(req.pulse)):
-            raise ScenarioError(self.file, "--pulse", f"{req.pulse}: a positive size")
+        if isinstance(self.steps, bool) or not isinstance(self.steps, int) or self.steps < 2:
+            raise ScenarioError(self.file, "--steps", f"{self.steps}: the responses need a whole number of at "
+                                                      "least 2 steps")
+        if not (self.pulse > 0 and math.isfinite(self.pulse)):
+            raise ScenarioError(self.file, "--pulse", f"{self.pulse}: a positive size")
         if req.phase_budget is not None:
             self._check_budget(req.phase_budget)
         if self.discrete():
             if not req.inputs and req.breaks is None:
                 raise ScenarioError(self.file, "--inputs", "a model from pulse responses needs the inputs to "
                                                            "inject them at (or a --break)")
+            if req.method != "auto":
+                raise ScenarioError(self.file, "--method", f"{req.method}: the method of a Jacobian, which a model "
+                                                           "realised from pulse responses does not take")
+            self._check_order()
             self._check_rollback()
+        else:
+            given = [(o, v) for o, v in (("--steps", req.steps), ("--order", req.order), ("--pulse", req.pulse))
+                     if v is not None]
+            if given:
+                raise ScenarioError(self.file, given[0][0], f"{given[0][1]}: a realisation from pulse responses "
+                                                            "takes it; this model is continuous-time, of the FMUs' "
+                                                            "own states (--discrete realises one)")
+            self._check_method()
         for ref in req.states:
             self._state_index(ref)
 
@@ -150,6 +170,34 @@ class Linearizer:
             return f"{', '.join(rates)} step at their own rates"
         name = self.plan.scenario.algorithm
         return None if algorithms.row(name).one_pass else f"the algorithm is {name}"
+
+    def _check_order(self) -> None:
+        """An order asked for: positive, and at most what the responses can realise."""
+        order = self.req.order
+        if order is None:
+            return
+        if isinstance(order, bool) or not isinstance(order, int) or order < 1:
+            raise ScenarioError(self.file, "--order", f"{order}: a realisation's order is a positive whole number")
+        p = len(set(self.req.outputs) | ({self.req.breaks[0]} if self.req.breaks else set()))
+        m = len(set(self.req.inputs) | ({self.req.breaks[1]} if self.req.breaks else set()))
+        if self.req.breaks is None:
+            most = max_order(self.steps, p, m)
+        else:   # (the loop's model, of one injection and one return, is realised at the order too)
+            most = min(max_order(self.steps, p, m), max_order(self.steps, 1, 1))
+        if order > most:
+            raise ScenarioError(self.file, "--order", f"{order} is more than responses of {self.steps} steps "
+                                                      f"can realise (at most {most}): take more --steps")
+
+    def _check_method(self) -> None:
+        """--method directional: every Model Exchange instance declares directional derivatives."""
+        if self.req.method != "directional":
+            return
+        for name, ip in self.plan.instances.items():
+            if ip.interface == MODEL_EXCHANGE and not getattr(ip.model.md.modelExchange,
+                                                              "providesDirectionalDerivative", False):
+                raise ScenarioError(self.file, "--method", f"directional: {name} ({ip.model.path.name}) declares no "
+                                                           "directional derivatives (providesDirectionalDerivative): "
+                                                           "take --method differences or auto")
 
     def _state_index(self, ref: str) -> int:
         """The place of a continuous state ("instance.state") in its instance's state vector, or ScenarioError."""
@@ -200,15 +248,16 @@ class Linearizer:
             raise ScenarioError(self.file, "events", "condition events: the responses go back to the point, "
                                                      "which such events do not follow")
         at = self.start if self.req.at is None else float(self.req.at)
-        end = at + self.req.steps * self.step
+        end = at + self.steps * self.step
         for ev in self.plan.events:
             if ev.time is not None and at <= ev.time < end:
                 raise ScenarioError(self.file, "--at", f"an event acts at t = {ev.time:g} s, within the "
-                                    f"{self.req.steps} steps of the responses from {at:g} s: choose a point "
+                                    f"{self.steps} steps of the responses from {at:g} s: choose a point "
                                     "whose responses it does not cross")
-        if end > self.stop + 1e-9 * max(1.0, abs(self.stop)):
-            raise ScenarioError(self.file, "--steps", f"{self.req.steps} steps from t = {at:g} s go beyond "
-                                                      f"the run's stop time {self.stop:g} s")
+        if end > self.stop - 1e-9 * max(1.0, abs(self.stop)):   # (the run ends at its stop time: no going back)
+            raise ScenarioError(self.file, "--steps", f"{self.steps} steps from t = {at:g} s reach "
+                                                      f"the run's stop time {self.stop:g} s, where the run ends: "
+                                                      "take fewer steps or an earlier --at")
 
     # ------------------------------------------------------------------ the run
     def run(self) -> Linearisation:
@@ -221,8 +270,9 @@ class Linearizer:
             at = self.start if self.req.at is None else float(self.req.at)
             ex.step_to(at)
             if ex.ended:
-                raise RunError(f"the run ended at t = {ex.time:g} s, before the point t = {at:g} s: "
-                               f"{ex.result.message if ex.result else ''}")
+                why = ex.result.message if ex.result is not None and ex.result.message else ""
+                raise RunError(f"the run ended at t = {ex.time:g} s, before the point t = {at:g} s"
+                               + (f": {why}" if why else ""))
             return self._discrete(ex) if self.discrete() else self._continuous_model(ex)
         finally:
             ex.close()
@@ -236,7 +286,11 @@ class Linearizer:
         for ref in refs:
             inst, var = self._var(ref, "--inputs", INPUTS, "input")
             u = float(ex.get(ref))
-            delta = req.pulse * max(abs(u), _nominal(self.plan.instances[inst].model.md, var))
+            scale = max(abs(u), _nominal(self.plan.instances[inst].model.md, var))
+            delta = self.pulse * scale
+            if not all(math.isfinite(x) for x in (u + delta, u - delta, 2.0 * delta)):
+                raise ScenarioError(self.file, "--pulse", f"{self.pulse:g} times {scale:g} at {ref} (u = {u:g} at "
+                                                          f"t = {t:g} s) is beyond the range of floating point numbers")
             wired = any(self._ref(c.dst, c.dst_var) == ref for c in self.plan.connections) or \
                 any(self._ref(ip.instance, ip.var) == ref for ip in self.plan.inputs)
             injections.append(Injection(ref, (u + delta) - u, wired))
@@ -249,18 +303,28 @@ class Linearizer:
         cut = self._ref(link.dst, link.dst_var) if link is not None else None
         point_u = [float(ex.get(ref)) for ref in refs]
         point_y = [float(ex.get(ref)) for ref in outputs]
-        H = pulse_responses(ex, injections, outputs, req.steps, cut)
+        H = pulse_responses(ex, injections, outputs, self.steps, cut)
         model = realise(H, self.step, refs, outputs, order=req.order, t=t, input_units=units_in,
                         output_units=units_out)
         model.u, model.y = np.array(point_u), np.array(point_y)   # (x: the realisation's coordinates, nan)
         out = Linearisation(model)
+        if req.order is not None and model.singular_values is not None:
+            note = order_note(model.singular_values, req.order)
+            out.notes += [note] if note else []
         if link is not None:
             j, i = refs.index(self._ref(link.dst, link.dst_var)), outputs.index(self._ref(link.src, link.src_var))
             gain = realise(H[i:i + 1, j:j + 1, :] * link.factor, self.step, [refs[j]], [outputs[i]],
                            order=req.order, t=t)
+            if not gain.states:   # (L = 0: no margins, and nothing to call the closed loop stable)
+                raise ScenarioError(self.file, "--break", f"the return {outputs[i]} does not respond to the injection "
+                                                          f"at {refs[j]} over {self.steps} steps from t = {t:g} s "
+                                                          "(every Hankel singular value 0): no loop to analyse there")
+            if req.order is not None and gain.singular_values is not None and len(refs) + len(outputs) > 2:
+                note = order_note(gain.singular_values, req.order)
+                out.notes += [f"the loop's model: {note}"] if note else []
             out.loop = analyse(gain, outputs[i], refs[j])
             # the system as a whole: the same point of injection, the loop closed, realised at the loop's order
-            closed = pulse_responses(ex, [injections[j]], [outputs[i]], req.steps)
+            closed = pulse_responses(ex, [injections[j]], [outputs[i]], self.steps)
             out.whole_eigenvalues = realise(closed, self.step, [refs[j]], [outputs[i]], order=len(gain.states),
                                             t=t).eigenvalues()
         return out
@@ -307,8 +371,11 @@ class Linearizer:
         if ip.interface == MODEL_EXCHANGE:
             states, ders = states_of(ip.model.md, name, lambda n: _unit(ip, ip.model.variables.get(n)))
             J, how = jacobian(inst, states, ders, sig_in, sig_out, self.req.method)
+            self._finite(J, name, [s.name for s in states], [u.name for u in sig_in], [y.name for y in sig_out],
+                         ex.time)
             return linear_model(J, states, sig_in, sig_out, ex.time, f"{name}: {how}")
         D = _memoryless_gain(inst, md, ins, outs)
+        self._finite(D, name, [], [u.name for u in sig_in], [y.name for y in sig_out], ex.time)
         return linear_model(D, [], sig_in, sig_out, ex.time, f"{name}: central differences (memoryless)")
 
     def _coupling(self, out: Linearisation, blocks: list[LinearModel], links: list[Link],
@@ -343,6 +410,21 @@ class Linearizer:
         model.x = np.array([x.get(n, math.nan) for n in model.states])
         model.u = np.array([value(r, "--inputs") for r in model.inputs])
         model.y = np.array([value(r, "--outputs") for r in model.outputs])
+
+    def _finite(self, J: np.ndarray, name: str, states: list[str], inputs: list[str], outputs: list[str],
+                t: float) -> None:
+        """RunError naming the entries of a block's [[A, B], [C, D]] that are not finite (and the states set
+        by --state, where they are the cause)."""
+        bad = np.argwhere(~np.isfinite(J))
+        if not bad.size:
+            return
+        rows = [f"der({x})" for x in states] + outputs
+        cols = states + inputs
+        shown = ", ".join(f"d {rows[i]}/d {cols[j]} = {J[i, j]}" for i, j in bad[:3])
+        more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
+        given = [f"{r}={v:g}" for r, v in self.req.states.items() if r.split(".", 1)[0] == name]
+        at = f" with --state {', '.join(given)}" if given else ""
+        raise RunError(f"{name}: its linearisation at t = {t:g} s{at} is not finite: {shown}{more}", name, t)
 
     def _set_state(self, ex: Execution, ref: str, value: float) -> None:
         inst = ex.instances[ref.split(".", 1)[0]]

@@ -28,7 +28,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..messages.errors import CosimError
+from ..messages.errors import CosimError, RunError
 from .model import LinearModel
 
 #: The default pulse, relative to max(|u|, nominal) of the input at the point.
@@ -54,17 +54,40 @@ def pulse_responses(ex: Any, injections: Sequence[Injection], outputs: Sequence[
     the run is left at the point."""
     if n < 2:
         raise CosimError(f"the responses need at least 2 steps, not {n}")
+    t0 = float(ex.time)
     point = ex.save_point()
     try:
-        nominal = _nominal_inputs(ex, point, cut, n) if cut is not None else None
+        try:
+            nominal = _nominal_inputs(ex, point, cut, n) if cut is not None else None
+        except RunError as exc:
+            raise RunError(f"the run from t = {t0:g} s with the loop closed failed: {exc}", exc.instance,
+                           exc.time) from None
         H = np.zeros((len(outputs), len(injections), n + 1))
         for j, inj in enumerate(injections):
-            runs = [_response(ex, point, inj, sign, cut, nominal, outputs, n) for sign in (1.0, -1.0)]
+            runs = [_checked_response(ex, point, inj, sign, cut, nominal, outputs, n, t0) for sign in (1.0, -1.0)]
             H[:, j, 1:] = (runs[0] - runs[1]) / (2.0 * inj.delta)
         ex.restore_point(point)
     finally:
         ex.free_point(point)
     return H
+
+
+def _checked_response(ex: Any, point: Any, inj: Injection, sign: float, cut: str | None,
+                      nominal: list[float] | None, outputs: Sequence[str], n: int, t0: float) -> np.ndarray:
+    """:func:`_response`; RunError naming the pulse where the run fails or an output is not finite."""
+    what = f"the response to a pulse of {sign * inj.delta:+g} at {inj.ref} from t = {t0:g} s"
+    try:
+        y = _response(ex, point, inj, sign, cut, nominal, outputs, n)
+    except RunError as exc:
+        raise RunError(f"{what} failed (is the pulse too large for the model? --pulse): {exc}", exc.instance,
+                       exc.time) from None
+    bad = np.argwhere(~np.isfinite(y))
+    if bad.size:
+        i, k = bad[0]
+        raise RunError(f"{what} is not finite: {outputs[i]} = {y[i, k]} at t = {t0 + (k + 1) * ex.clock.step:g} s "
+                       "(is the pulse too large for the model? --pulse)", outputs[i].split(".", 1)[0],
+                       t0 + (k + 1) * ex.clock.step)
+    return y
 
 
 def _nominal_inputs(ex: Any, point: Any, ref: str, n: int) -> list[float]:
@@ -116,8 +139,10 @@ def realise(H: np.ndarray, dt: float, inputs: Sequence[str], outputs: Sequence[s
         raise CosimError("too few response samples for a realisation")
     sv = _hankel_singular_values(H, rows)
     if order is None:
-        order = int(np.sum(sv > rtol * sv[0])) if sv.size and sv[0] > 0 else 0
-    if order > min(rows * p, rows * m):
+        order = significant(sv, rtol)
+    if order < 0 or (order == 0 and sv.size and sv[0] > 0):
+        raise CosimError(f"order {order}: a realisation has a positive order")
+    if order > max_order(n1 - 1, p, m):
         raise CosimError(f"order {order} is more than {rows} samples of the responses can realise: take more steps")
     if order == 0:
         A, B, C = np.zeros((0, 0)), np.zeros((0, m)), np.zeros((p, 0))
@@ -128,6 +153,33 @@ def realise(H: np.ndarray, dt: float, inputs: Sequence[str], outputs: Sequence[s
                        ["1"] * order, list(input_units), list(output_units), dt, t,
                        f"eigensystem realisation of order {order} from pulse responses of {n1 - 1} steps",
                        sv)
+
+
+def significant(sv: np.ndarray, rtol: float = ORDER_RTOL) -> int:
+    """The count of Hankel singular values above ``rtol`` times the largest: the order realised when none is
+    given."""
+    return int(np.sum(sv > rtol * sv[0])) if sv.size and sv[0] > 0 else 0
+
+
+def max_order(n: int, p: int, m: int) -> int:
+    """The largest order responses of ``n`` steps from ``m`` inputs to ``p`` outputs can realise (the rank
+    of their block Hankel matrix of n // 2 block rows and columns)."""
+    return (n // 2) * min(p, m)
+
+
+def order_note(sv: np.ndarray, order: int, rtol: float = ORDER_RTOL) -> str | None:
+    """What an order asked for does against the singular values: a truncation where it discards singular
+    values above ``rtol`` times the largest, states of the noise where it takes ones below; None where it is
+    the count above."""
+    k = significant(sv, rtol)
+    if order < k:
+        dropped = ", ".join(f"{s:.3g}" for s in sv[order:k])
+        return (f"order {order} as asked: a truncation; it discards Hankel singular values above {rtol:g} times "
+                f"the largest ({dropped}), which realise order {k}")
+    if order > k:
+        return (f"order {order} as asked: above the {k} Hankel singular values above {rtol:g} times the largest; "
+                f"the {order - k} more states realise singular values down to {sv[order - 1]:.3g}")
+    return None
 
 
 def _hankel_singular_values(H: np.ndarray, rows: int) -> np.ndarray:

@@ -131,6 +131,7 @@ class Execution:
         self._stop_requested = False
         self._in_step = False
         self._started = False                      # initialize() was called
+        self._points: list[SavedPoint] = []        # saved points not freed yet (save_point)
         self._ready = False                        # ... and the run can step
         self._observed, self._manipulated = ObservedRun(self), ManipulatedRun(self)   # what the parts see
         layout = self._layout = RowLayout.of(plan)
@@ -438,13 +439,22 @@ class Execution:
         for inst in self.instances.values():
             inst.allow_rollback()
         self.algorithm.inputs_changed()   # (its loop made again: the steps' noSetFMUStatePriorToCurrentPoint false)
-        states = {name: inst.get_state() for name, inst in self.instances.items()}
-        return SavedPoint(self.k_done, bytes(self._layout.buf), states, dict(self._wiring.overrides),
-                          len(self._actuator.log))
+        point = SavedPoint(self.k_done, bytes(self._layout.buf), {}, dict(self._wiring.overrides),
+                           len(self._actuator.log))
+        self._points.append(point)
+        try:
+            for name, inst in self.instances.items():
+                point.states[name] = inst.get_state()
+        except BaseException:
+            self._free_saved(point)
+            raise
+        return point
 
     def restore_point(self, point: "SavedPoint") -> None:
         """Back to a point :meth:`save_point` saved (it stays saved: restore it again, then free it)."""
         self._alive()
+        if not any(p is point for p in self._points):
+            raise CosimError("this point was freed (free_point): save another")
         for name, st in point.states.items():
             self.instances[name].set_state(st)
         ctypes.memmove(self._layout.buf, point.row, len(point.row))
@@ -455,11 +465,25 @@ class Execution:
         self._copies_changed()
 
     def free_point(self, point: "SavedPoint") -> None:
-        """Free the instances' saved states of a point."""
-        for name, st in point.states.items():
-            if not self.instances[name].fatal:
-                self.instances[name].free_state(st)
+        """Free the instances' saved states of a point.  The end of the run frees every point still saved
+        before it frees the instances (their states belong to them: fmi2FreeFMUstate after fmi2FreeInstance
+        calls into a library FMPy has unloaded); a point freed then, or before, is freed already."""
+        self._free_saved(point)
+
+    def _free_saved(self, point: "SavedPoint") -> None:
+        """Every state of ``point`` freed (the first failure raised after); the point no longer saved."""
+        self._points = [p for p in self._points if p is not point]
+        states = dict(point.states)
         point.states.clear()
+        failed: list[CosimError] = []
+        for name, st in states.items():
+            if not self.instances[name].fatal:   # (the Fatal rule: no call at all)
+                try:
+                    self.instances[name].free_state(st)
+                except CosimError as exc:
+                    failed.append(exc)
+        if failed:
+            raise failed[0]
 
     @property
     def events(self) -> list[dict[str, Any]]:
@@ -556,6 +580,7 @@ class Execution:
             self._instance_events = [e for n, inst in self.instances.items()
                                      for e in instance_entries(n, inst.handled_events())] + self._instance_events
             self.algorithm.finish()   # (its threads end before the instances they step)
+            self._free_points()
             for inst in self.instances.values():
                 inst.shutdown()
             self._recorder.close()
@@ -564,6 +589,15 @@ class Execution:
         finally:
             if self.folder is not None:
                 self.folder.release()
+
+    def _free_points(self) -> None:
+        """The saved points not freed yet, freed while their instances live (a state that cannot be freed
+        goes with its instance, freed next)."""
+        while self._points:
+            try:
+                self._free_saved(self._points[-1])
+            except CosimError:
+                pass
 
     def _result(self) -> RunResult:
         final = self._recorder.final()
