@@ -456,11 +456,11 @@ def test_a_continuous_loop_is_shown_beside_the_co_simulated_one(fmus, tmp_path, 
     assert f"the largest step that keeps the cost within 3 deg: {c['largest_step_s']:.4g} s" in printed
 
 
-@pytest.mark.parametrize("budget", ["0", "-1", "nan", "inf"])
+@pytest.mark.parametrize("budget", ["0", "-1", "nan", "inf", "abc"])
 def test_a_phase_budget_that_is_not_a_positive_finite_angle_is_refused(fmus, tmp_path, capsys, budget):
     out = tmp_path / "o"
     _one_line(capsys, main(["linearize", str(_loop_scenario(tmp_path, fmus)), "--break", "ctrl.y->lag.u",
-                            f"--phase-budget={budget}", "--out", str(out)]), "--phase-budget", "positive, finite")
+                            f"--phase-budget={budget}", "--out", str(out)]), "--phase-budget", "finite")
     assert not out.exists()
 
 
