@@ -16,7 +16,7 @@ from .components import paper
 from .components.controller import ControllerParams
 from .components.direct_loop import run_direct
 from .cosim import (CosimError, count, describe_coupling, describe_settings, did_you_mean, file_kind, FileKind,
-                    named_kind, OtherFileError, parse_value, RunStatus)
+                    MissingVariableError, named_kind, OtherFileError, parse_value, RunStatus)
 from .components.metrics import run_metrics
 from .components.plant import PlantParams
 from .components.sensor import SensorParams
@@ -311,14 +311,21 @@ def cmd_check(args: argparse.Namespace) -> int:
         _report_check(args, fmu_plan(args.scenario, overrides, args.input, force=f, isolate=iso, limits=lim,
                                      fields=fields))
     else:
-        _report_check(args, load_plan(args.scenario, overrides, f, iso, parsed=parsed))
+        try:
+            plan = load_plan(args.scenario, overrides, f, iso, parsed=parsed)
+        except MissingVariableError:
+            if parsed.scenario.runs:   # every variable missing, run by run (the runs set parameters too)
+                _check_runs(args, parsed, overrides)
+            raise
+        _report_check(args, plan, parsed.inherited)
         _check_runs(args, parsed, overrides)
     return EXIT_OK
 
 
-def _report_check(args: argparse.Namespace, plan: Any) -> None:
-    """What ``check`` prints of a checked plan: its verdict and sizes, how each instance runs (its
-    interface; for model exchange, the integrator), then its notes."""
+def _report_check(args: argparse.Namespace, plan: Any, inherited: Any = ()) -> None:
+    """What ``check`` prints of a checked plan: its verdict and sizes, what the file takes from its base
+    (``inherited``: a line per base file), how each instance runs (its interface; for model exchange, the
+    integrator), the inputs nothing drives, then its notes."""
     sc = plan.scenario
     print(f"{args.scenario}: ok: {count(len(plan.instances), 'instance')} ({', '.join(plan.order)}), "
           f"{count(len(plan.connections), 'connection')}, {count(len(plan.record), 'recorded variable')}, "
@@ -327,6 +334,8 @@ def _report_check(args: argparse.Namespace, plan: Any) -> None:
           f"{'' if plan.last_step is None else f' (the last {plan.last_step:.6g} s, to the stop time)'} "
           f"({sc.algorithm}); signals.npy about "
           f"{_size(plan.output_bytes)}{' (and signals.csv about ' + _size(3 * plan.output_bytes) + ')' if sc.csv else ''}")
+    for i, report in enumerate(inherited):
+        print(f"  {report.describe(top=i == 0)}")
     for name, ip in plan.instances.items():
         print(f"  {name}: {ip.describe()}")
     settings = describe_settings(sc.algorithm, sc.iteration, sc.adaptive, sc.step)
@@ -334,6 +343,12 @@ def _report_check(args: argparse.Namespace, plan: Any) -> None:
         print(f"  {sc.algorithm}: {settings}")
     for line in describe_coupling(plan.coupling, sc.algorithm):
         print(f"  {line}")
+    loose = plan.unconnected_inputs()
+    if loose:
+        print(f"  {count(len(loose), 'input')} not connected (nor in an input table), held at "
+              f"{'its start value' if len(loose) == 1 else 'their start values'}: "
+              + ", ".join(f"{ref} = {_value(v)}" + (f" (and {', '.join(f'events[{i}]' for i in ev)})" if ev else "")
+                          for ref, v, ev in loose))
     if plan.not_recorded:
         print(f"note: String outputs are not recorded: {', '.join(plan.not_recorded)}")
     for r in plan.requirements:
@@ -360,6 +375,19 @@ def _check_runs(args: argparse.Namespace, parsed: Any, overrides: dict[str, Any]
     for name, plan in plans.items():
         print(f"  run {name}: ok: {count(plan.n_steps, 'step')}, {count(len(plan.record), 'recorded variable')}"
               + (f", {count(carries[name], 'carried value')}" if carries[name] else ""))
+
+
+def _value(v: Any) -> str:
+    """A start value as check prints it: a number as %g, a string quoted, an array in brackets, none as "-"."""
+    if v is None:
+        return "-"
+    if isinstance(v, bool):
+        return str(v).lower()
+    if isinstance(v, (int, float)):
+        return f"{v:g}"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_value(x) for x in v) + "]"
+    return repr(str(v))
 
 
 def _size(n: float) -> str:

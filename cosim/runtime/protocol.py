@@ -21,11 +21,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from ..messages.errors import CosimError, ScenarioError
+from ..messages.errors import CosimError, MissingVariableError, ScenarioError
 from ..model.archive import LimitOverrides
 from ..plan import resolution as system
 from ..scenario import document as scenario
-from ..scenario.document import RunSpec, Scenario
+from ..scenario.document import Inheritance, RunSpec, Scenario
 from . import execution
 
 Resolver = Callable[[str], "Path | None"]
@@ -44,6 +44,7 @@ class Protocol:
     scenario: Scenario
     resolver: Resolver | None = None
     limits: LimitOverrides | None = None
+    inherited: tuple[Inheritance, ...] = ()   # what each file of its base chain takes from its base
 
     @property
     def runs(self) -> list[RunSpec]:
@@ -61,11 +62,14 @@ class Protocol:
 
     @classmethod
     def from_document(cls, file: str, document: dict[str, Any], resolver: Resolver | None = None,
-                      limits: LimitOverrides | None = None) -> "Protocol":
+                      limits: LimitOverrides | None = None,
+                      inherited: tuple[Inheritance, ...] = ()) -> "Protocol":
         """The protocol of a document already read (:func:`~.scenario.read_document`: its bases merged,
         its paths absolute), parsed for the file ``file`` names in messages; ``limits``: the caller's
-        archive limits.  The document is not changed."""
-        return cls(file, document, scenario.parse(copy.deepcopy(document), file, resolver, limits), resolver, limits)
+        archive limits; ``inherited``: what read_document reported of its base chain.  The document is not
+        changed."""
+        return cls(file, document, scenario.parse(copy.deepcopy(document), file, resolver, limits), resolver, limits,
+                   tuple(inherited))
 
     def with_parameters(self, overrides: dict[str, Any] | None) -> Scenario:
         """The scenario with ``overrides`` ({'inst.param': value}) applied to a copy of the document."""
@@ -80,8 +84,9 @@ def read_protocol(path: str | os.PathLike, resolver: Resolver | None = None, lim
     """Read and parse a scenario file once (:class:`Protocol`); ``limits``: the caller's archive limits;
     ``shipped``: the caller's folder of scenario files a ``base`` may name
     (:func:`~.scenario.read_document`)."""
-    return Protocol.from_document(str(Path(path)), scenario.read_document(Path(path), shipped=shipped), resolver,
-                                  limits)
+    inherited: list[Inheritance] = []
+    document = scenario.read_document(Path(path), shipped=shipped, inherited=inherited)
+    return Protocol.from_document(str(Path(path)), document, resolver, limits, tuple(inherited))
 
 
 def _protocol(source: str | os.PathLike | Protocol, resolver: Resolver | None,
