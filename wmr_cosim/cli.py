@@ -196,7 +196,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise UsageError("--input applies to a single FMU (.fmu); a scenario file says it in [inputs]")
     res = run_scenario(args.scenario, out, overrides, progress=False if args.quiet else None, inputs=args.input,
                        force=args.force, isolate=args.isolate, real_time=args.real_time, limits=args.limits,
-                       parsed=parsed, fields=fields, on_plan=lambda plan: _print_notes(plan.scenario.notes))
+                       parsed=parsed, fields=fields,
+                       on_plan=lambda plan: _print_notes([*plan.scenario.notes, *plan.run_notes]))
     _report_run(args, res, out)
     return for_runs([res.status], res.requirements)
 
@@ -234,7 +235,9 @@ def _run_protocol(args: argparse.Namespace, parsed: Any, out: Path, overrides: d
 
     _print_notes(parsed.with_parameters(overrides).notes)
     results = run_protocol(parsed, out, variant=args.variant, overrides=overrides,
-                           progress=False if args.quiet else None, force=args.force, isolate=args.isolate)
+                           progress=False if args.quiet else None, force=args.force, isolate=args.isolate,
+                           on_check=lambda plans: _print_notes(list(dict.fromkeys(
+                               n for plan in plans.values() for n in plan.run_notes))))
     for name, r in results.items():
         if r.status == RunStatus.OK:
             print(f"{args.scenario} [{name}]: ok, {count(r.steps, 'step')} in {r.wall_s:.2f} s; "

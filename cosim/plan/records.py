@@ -143,6 +143,7 @@ class Plan:
     coupling: Coupling = field(default_factory=Coupling)   # its coupling loops and algebraic loops
     last_step: float | None = None   # [s] a short last step, where the step does not divide the run
     requirements: list[RequirementPlan] = field(default_factory=list)   # monitored at every communication point
+    run_notes: list[str] = field(default_factory=list)   # what run says too before it starts (workers left idle)
 
     @property
     def watched(self) -> list[tuple[str, Variable]]:
