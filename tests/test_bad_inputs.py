@@ -169,6 +169,8 @@ def test_bad_scenario_file(case, sandbox, capsys):
     (["run", str(FT), "--set", "Feedthrough.Float64_fixed_parameter=x"], ["type mismatch"]),
     (["gamma-search", "{good}"], ["gamma-search needs a protocol"]),
     (["run", "{flat}", "--set", "a.k=1"], ["instances.a", "must be a table"]),
+    (["run", "{good}", "--algorithm", "jacobi"], ["--algorithm", "--set experiment.algorithm=jacobi"]),
+    (["check", "--tolerance", "1e-4", "{good}"], ["--tolerance", "--set experiment.tolerance=1e-4"]),
 ])
 def test_bad_command_line(argv, words, sandbox, capsys):
     work, _ = sandbox

@@ -899,9 +899,63 @@ def error_message(exc: BaseException) -> str:
     return f"{exc}: {hint}" if hint else str(exc)
 
 
+#: The commands whose --set sets a field of [experiment] or [record] (``--set experiment.algorithm=jacobi``).
+SET_FIELD_COMMANDS = ("run", "check")
+
+
+#: The fields of [experiment] and [record] whose value is an array (--set gives it in JSON).
+LIST_FIELDS = ("order", "variables")
+
+
+def _option_value(option: str, argv: list[str], array: bool) -> str:
+    """The value an unknown option was given: the word after it on the command line (argparse may have
+    taken it for the scenario), for an array every word up to the next option or the scenario, in JSON and
+    quoted for the shell; "VALUE" where none follows."""
+    at = argv.index(option) + 1 if option in argv else len(argv)
+    words = []
+    while at < len(argv) and not argv[at].startswith("-") and named_kind(argv[at]) is None:
+        words.append(argv[at])
+        at += 1
+        if not array:
+            break
+    if not words:
+        return "VALUE"
+    return "'" + json.dumps(words) + "'" if array else words[0]
+
+
+def field_option_hint(command: str, unknown: list[str], argv: list[str]) -> str | None:
+    """For an unknown option of run or check that names a field of [experiment] or [record] (or of a table
+    inside [experiment]): the one line that says to set it with --set (``--algorithm jacobi``: "--set
+    experiment.algorithm=jacobi"); None for any other."""
+    from .cosim import settable_table
+
+    if command not in SET_FIELD_COMMANDS:
+        return None
+    for i, token in enumerate(unknown):
+        if not token.startswith("--"):
+            continue
+        option, eq, value = token.partition("=")
+        key = option[2:].replace("-", "_")
+        where = settable_table(key)
+        if where is None:
+            continue
+        setting = f"{where}.{key}={value if eq else _option_value(token, argv, key in LIST_FIELDS)}"
+        hint = " (or --record VAR ...)" if key == "variables" else ""
+        return (f"{command} {option}: not an option; {where}.{key} is set with --set {setting}{hint} "
+                f"(docs/scenarios.md)")
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = build_parser()
-    args = ap.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args, unknown = ap.parse_known_args(argv)
+    if unknown:
+        hint = field_option_hint(args.command, unknown, argv)
+        if hint is not None:
+            print(f"wmr-cosim: error: {hint}", file=sys.stderr)
+            return for_error(UsageError(hint))
+        ap.error(f"unrecognized arguments: {' '.join(unknown)}")
     _scenario_after_record(ap, args)
     try:
         args.limits = archive_limits(args)
