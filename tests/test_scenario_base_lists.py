@@ -138,12 +138,21 @@ def test_a_plain_array_still_replaces_and_tables_still_merge(base, tmp_path):
     assert sc.record == ["d.x"] and (sc.stop, sc.step) == (0.5, 0.1)
 
 
-def test_a_chain_of_bases_extends_at_each_file(base, tmp_path):
-    _file(tmp_path, '[[connections]]\nfrom = "a.Int32_output"\nto = "b.Int32_input"\n', "middle.toml")
+def test_a_chain_of_bases_extends_at_each_file(base, tmp_path, capsys):
+    middle = _file(tmp_path, '[[connections]]\nfrom = "a.Int32_output"\nto = "b.Int32_input"\n', "middle.toml")
     top = tmp_path / "top.toml"
-    top.write_text('base = "middle.toml"\n[[connections]]\nfrom = "a.Boolean_output"\nto = "b.Boolean_input"\n')
-    assert [c.dst for c in _load(top).connections] == ["a.Float64_continuous_input", "b.Float64_continuous_input",
-                                                       "b.Int32_input", "b.Boolean_input"]
+    top.write_text('base = "middle.toml"\nreplace = ["events"]\n'
+                   '[[connections]]\nfrom = "a.Boolean_output"\nto = "b.Boolean_input"\n')
+    sc = _load(top)
+    assert [c.dst for c in sc.connections] == ["a.Float64_continuous_input", "b.Float64_continuous_input",
+                                               "b.Int32_input", "b.Boolean_input"]
+    assert sc.events == [] and [r.name for r in sc.runs] == ["first", "second"]
+    assert main(["check", str(top)]) == 0, capsys.readouterr().err
+    out = capsys.readouterr().out.splitlines()
+    assert out[1:3] == ["  base middle.toml: 3 connections, 1 requirement, 2 runs inherited; this file adds 1 "
+                        "connection, drops the base's 1 event (replace)",
+                        f"  base base.toml (of {middle}): 2 connections, 1 requirement, 2 runs, 1 event inherited; "
+                        f"{middle} adds 1 connection"]
 
 
 @pytest.mark.parametrize("text, reason", [

@@ -254,11 +254,13 @@ def merge(base: dict[str, Any], over: dict[str, Any], report: Inheritance,
     whole), every other value replaced; what the document takes from its base goes into ``report``."""
     out = _merge_tables(base, over, "", report)
     for key in EXTENDED:
-        if key in whole:
-            old = base.get(key)
-            report.dropped[key] = len(old) if isinstance(old, list) else 0
+        old = base.get(key)
+        if key in whole and isinstance(old, list) and old:
+            report.dropped[key] = len(old)
             out[key] = copy.deepcopy(over.get(key, []))
             report.added[key] = len(out[key]) if isinstance(out[key], list) else 0
+        elif key in whole and key not in over:
+            out.pop(key, None)   # (the base has none to drop)
         elif key in over:
             out[key] = _extend(report, key, base.get(key), over[key])
         elif isinstance(base.get(key), list):
