@@ -24,8 +24,8 @@ import lazy_loader
 if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
     from .instances import SOLVERS, SolverSpec
     from .linearisation import LinearModel, Linearisation, Linearizer, LoopAnalysis, Request, plot_loop
-    from .messages import (CosimError, FmuLoadError, OtherFileError, OutputError, RunError, ScenarioError,
-                           close_names, count, did_you_mean)
+    from .messages import (CosimError, FmuLoadError, MissingVariableError, OtherFileError, OutputError, RunError,
+                           ScenarioError, close_names, count, did_you_mean)
     from .model import (CO_SIMULATION, DEFAULT_LIMITS, MODEL_EXCHANGE, ArchiveLimits, FileKind, FmuModel,
                         LimitOverrides, Variable, check_archive, file_kind, fmi_version, limit_overrides,
                         load_model, named_kind)
@@ -33,15 +33,16 @@ if TYPE_CHECKING:   # (for the type checker; at run time each name is imported w
     from .results import MatLayout, OutputLock, RunResult, RunStatus, layout, make_folder, write_json, write_mat
     from .runtime import (Execution, Manipulator, Observer, Protocol, check_protocol, plan_runs, read_protocol, run,
                           run_protocol)
-    from .scenario import Scenario, apply_overrides, is_path, load, parse, parse_set, parse_value, read_document
+    from .scenario import (Scenario, apply_overrides, is_path, load, parse, parse_set, parse_value, read_document,
+                           settable_table)
     from .stepping import (Adaptive, AdaptiveSpec, Algorithm, GaussSeidel, Iterated, IterationSpec, Jacobi,
                            MultiRate, ParallelJacobi, describe_settings)
 
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "instances": ["SOLVERS", "SolverSpec"],
     "linearisation": ["LinearModel", "Linearisation", "Linearizer", "LoopAnalysis", "Request", "plot_loop"],
-    "messages": ["CosimError", "FmuLoadError", "OtherFileError", "OutputError", "RunError", "ScenarioError",
-                 "close_names", "count", "did_you_mean"],
+    "messages": ["CosimError", "FmuLoadError", "MissingVariableError", "OtherFileError", "OutputError", "RunError",
+                 "ScenarioError", "close_names", "count", "did_you_mean"],
     "model": ["CO_SIMULATION", "DEFAULT_LIMITS", "MODEL_EXCHANGE", "ArchiveLimits", "FileKind", "FmuModel",
               "LimitOverrides", "Variable", "check_archive", "file_kind", "fmi_version", "limit_overrides",
               "load_model", "named_kind"],
@@ -51,7 +52,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "runtime": ["Execution", "Manipulator", "Observer", "Protocol", "check_protocol", "plan_runs", "read_protocol",
                 "run", "run_protocol"],
     "scenario": ["Scenario", "apply_overrides", "is_path", "load", "parse", "parse_set", "parse_value",
-                 "read_document"],
+                 "read_document", "settable_table"],
     "stepping": ["Adaptive", "AdaptiveSpec", "Algorithm", "GaussSeidel", "Iterated", "IterationSpec", "Jacobi",
                  "MultiRate", "ParallelJacobi", "describe_settings"],
 })

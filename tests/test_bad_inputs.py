@@ -28,6 +28,12 @@ SCENARIOS: dict[str, tuple[str | bytes, list[str]]] = {
     "a paper manifest": ('[tasks]\nG1 = "paper/g1.toml"\n', ["paper manifest", "wmr-cosim paper"]),
     "base missing": ('base = "nowhere.toml"\n' + HEAD, ["base", "nowhere.toml", "file not found"]),
     "base a folder": ('base = "."\n' + HEAD, ["base", "a folder"]),
+    "replace without a base": ('replace = ["connections"]\n' + HEAD, ["replace", "this file has no base"]),
+    "replace not an array": ('base = "g1_learn.toml"\nreplace = "connections"\n', ["replace", "must be an array"]),
+    "replace of an unknown list": ('base = "g1_learn.toml"\nreplace = ["conections"]\n',
+                                   ["replace", "did you mean 'connections'?"]),
+    "an empty list over a base": ('base = "g1_learn.toml"\nconnections = []\n',
+                                  ["connections", "adds nothing to the base's 11 connections", "replace = "]),
     "step negative": (HEAD.replace("step = 0.01", "step = -0.01"), ["experiment.step", "must be > 0"]),
     "step denormal": (HEAD.replace("step = 0.01", "step = 1e-320"), ["experiment.step", "not a finite number"]),
     "too many steps": (HEAD.replace("step = 0.01", "step = 1e-9"), ["experiment.step", "max_steps", "--force"]),
@@ -163,6 +169,8 @@ def test_bad_scenario_file(case, sandbox, capsys):
     (["run", str(FT), "--set", "Feedthrough.Float64_fixed_parameter=x"], ["type mismatch"]),
     (["gamma-search", "{good}"], ["gamma-search needs a protocol"]),
     (["run", "{flat}", "--set", "a.k=1"], ["instances.a", "must be a table"]),
+    (["run", "{good}", "--algorithm", "jacobi"], ["--algorithm", "--set experiment.algorithm=jacobi"]),
+    (["check", "--tolerance", "1e-4", "{good}"], ["--tolerance", "--set experiment.tolerance=1e-4"]),
 ])
 def test_bad_command_line(argv, words, sandbox, capsys):
     work, _ = sandbox

@@ -16,6 +16,7 @@ from wmr_cosim.falsify import falsify, load_falsification, population
 
 SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "g1_requirements.toml"
 SHORT = f'''base = "{SCENARIO}"
+replace = ["requirements"]
 [experiment]
 stop = 11.0
 [[requirements]]

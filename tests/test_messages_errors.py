@@ -8,15 +8,17 @@ from concurrent.futures import ProcessPoolExecutor
 
 import pytest
 
-from wmr_cosim.cosim.messages.errors import CosimError, FmuLoadError, OtherFileError, OutputError, RunError, ScenarioError
+from wmr_cosim.cosim.messages.errors import (CosimError, FmuLoadError, MissingVariableError, OtherFileError, OutputError,
+                                             RunError, ScenarioError)
 from wmr_cosim.cosim.instances.failure import InstanceLost
 
 ERRORS = [CosimError("one line"), ScenarioError("s.toml", "instances.a.fmu", "file not found"),
           ScenarioError("s.toml", "", "not TOML"), OtherFileError("g.toml", "a sweep file"),
+          MissingVariableError("s.toml", "connections[0].to", "plant (P.fmu) has no variable 'u'", "plant.u"),
           FmuLoadError("x.fmu: not an FMU"), OutputError("out: locked"),
           RunError("plant: fmi2DoStep returned Error at t = 1 s", "plant", 1.0),
           InstanceLost("plant: the FMU's process was killed by SIGSEGV", "plant", 0.25)]
-FIELDS = ("file", "field", "reason", "kind", "instance", "time")
+FIELDS = ("file", "field", "reason", "kind", "instance", "time", "ref")
 
 
 def _same(a: BaseException, b: BaseException) -> None:

@@ -350,3 +350,65 @@ def test_the_paper_job_builds_through_build_fmus_before_its_workers(tmp_path, mo
     with pytest.raises(Built) as exc:
         paper_job.run_paper(tmp_path / "paper", fmi=3, progress=False)
     assert exc.value.args == (3, False)
+
+
+# ------------------------------------------------------------------ an experiment field given as an option
+@pytest.mark.parametrize("argv, words", [
+    (["run", "--algorithm", "jacobi", "ring.toml"],
+     "run --algorithm: not an option; experiment.algorithm is set with --set experiment.algorithm=jacobi"),
+    (["run", "ring.toml", "--algorithm=jacobi", "--out", "o"],
+     "run --algorithm: not an option; experiment.algorithm is set with --set experiment.algorithm=jacobi"),
+    (["check", "ring.toml", "--tolerance", "1e-6"],
+     "check --tolerance: not an option; experiment.tolerance is set with --set experiment.tolerance=1e-6"),
+    (["check", "--order", "B", "A", "ring.toml"],
+     "check --order: not an option; experiment.order is set with --set experiment.order='[\"B\", \"A\"]'"),
+    (["check", "ring.toml", "--max-steps", "5"],
+     "check --max-steps: not an option; experiment.max_steps is set with --set experiment.max_steps=5"),
+    (["check", "ring.toml", "--max-iterations"],
+     "check --max-iterations: not an option; experiment.iteration.max_iterations is set with --set "
+     "experiment.iteration.max_iterations=VALUE"),
+    (["run", "ring.toml", "--decimation", "2"],
+     "run --decimation: not an option; record.decimation is set with --set record.decimation=2"),
+])
+def test_an_experiment_field_given_as_an_option_gets_the_set_that_sets_it(work, capsys, argv, words):
+    _ring(work)
+    code, out, err = _run(capsys, *argv)
+    assert code == 2 and _one_line(err) == f"wmr-cosim: error: {words} (docs/scenarios.md)", err
+    assert not (work / "o").exists()
+
+
+def test_any_other_unknown_option_keeps_argparses_usage(work, capsys):
+    _ring(work)
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "ring.toml", "--frobnicate", "1"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.startswith("usage: wmr-cosim")
+    assert "unrecognized arguments: --frobnicate 1" in err
+
+
+# ------------------------------------------------------------------ run --workers where nothing steps at once
+def test_run_with_workers_says_when_nothing_steps_in_parallel(work, capsys):
+    """Model Exchange instances (the master's integrator in Python) step one at a time: run says so on
+    stderr (a note; the run as without workers); C FMUs under Jacobi step at once: no such note; Gauss-
+    Seidel's levels of one instance each: said too."""
+    me = _ring(work, "jacobi", table="")
+    text = me.read_text().replace(f'fmu = "{FT}"\n', f'fmu = "{FT}"\n', 1)
+    Path("me.toml").write_text(text.replace('[instances.A]\n', '[instances.A]\nsolver = "euler"\n')
+                               .replace('[instances.B]\n', '[instances.B]\nsolver = "euler"\n'))
+    code, _, err = _run(capsys, "run", "me.toml", "--workers", "2", "--out", "me", "--quiet")
+    assert code == 0 and _one_line(err) == (
+        "wmr-cosim: note: workers = 2, but nothing steps in parallel: A, B on the master's thread alone (a Model "
+        "Exchange instance: its integrator runs in Python, which holds the GIL (isolate = true steps it in a "
+        "process of its own))"), err
+    code, _, err = _run(capsys, "run", "me.toml", "--out", "me1", "--quiet")
+    assert code == 0 and err == ""
+    assert np.array_equal(np.load(work / "me" / "signals.npy"), np.load(work / "me1" / "signals.npy"))
+    code, _, err = _run(capsys, "run", "ring.toml", "--workers", "2", "--out", "c", "--quiet")
+    assert code == 0 and "nothing steps in parallel" not in err, err
+    Path("chain.toml").write_text(me.read_text().replace('algorithm = "jacobi"', 'algorithm = "gauss-seidel"')
+                                  .split("[[connections]]")[0] + f'[[connections]]\nfrom = "A.{OUT}"\nto = "B.{IN}"\n'
+                                  f'[record]\nvariables = ["B.{OUT}"]\n')
+    code, _, err = _run(capsys, "run", "chain.toml", "--workers", "2", "--out", "g", "--quiet")
+    assert code == 0 and _one_line(err) == (
+        "wmr-cosim: note: workers = 2, but nothing steps in parallel: under Gauss-Seidel the instances of a level "
+        "step at once, and no level has two that can: A | B"), err

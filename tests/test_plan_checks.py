@@ -91,7 +91,8 @@ def test_bad_scenario_is_refused_with_file_field_and_reason(case, built_fmus, tm
         path = g1_with_paths(tmp_path, built_fmus, head=extra[5:])
     else:
         skip = ("sensor",) if extra.startswith("[instances.sensor]") else ()
-        path = g1_with_paths(tmp_path, built_fmus, "\n" + extra, skip=skip)
+        whole = 'replace = ["connections"]\n' if "[[connections]]" in extra else ""   # (the case's, not G1's)
+        path = g1_with_paths(tmp_path, built_fmus, "\n" + extra, skip=skip, head=whole)
     with pytest.raises(ScenarioError) as exc:
         _resolve(path)
     msg = str(exc.value)

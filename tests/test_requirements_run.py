@@ -75,7 +75,8 @@ def test_a_requirement_that_stops_the_run_ends_it_at_its_violation(tmp_path: Pat
     """on_violation = "stop": status violated, the run ended at the point the violation was known (10 s),
     the recording up to it kept and equal to the full run's; exit code 3, the reason in run's line."""
     sc = tmp_path / "stop.toml"
-    sc.write_text(f'base = "{SCENARIO}"\n[[requirements]]\nname = "tracking"\non_violation = "stop"\n'
+    sc.write_text(f'base = "{SCENARIO}"\nreplace = ["requirements"]\n'   # (this one requirement)
+                  '[[requirements]]\nname = "tracking"\non_violation = "stop"\n'
                   'formula = "always[10,30] (abs(controller.e1) < 0.05 rad and abs(controller.e2) < 0.05 rad)"\n')
     code = main(["run", str(sc), "--out", str(tmp_path / "out"), "--quiet"])
     out = capsys.readouterr().out
@@ -119,7 +120,8 @@ def test_check_lists_the_requirements(capsys) -> None:
 ])
 def test_a_bad_requirement_is_one_line_and_exit_2(tmp_path: Path, capsys, formula: str, message: str) -> None:
     sc = tmp_path / "bad.toml"
-    sc.write_text(f'base = "{SCENARIO}"\n[[requirements]]\nname = "r"\nformula = "{formula}"\n')
+    sc.write_text(f'base = "{SCENARIO}"\nreplace = ["requirements"]\n'   # (this one requirement)
+                  f'[[requirements]]\nname = "r"\nformula = "{formula}"\n')
     assert main(["check", str(sc)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0], err
@@ -167,7 +169,8 @@ def test_the_paper_scenarios_state_their_signal_claims_as_requirements_of_the_le
 
 def test_a_requirements_runs_must_be_the_protocols(tmp_path: Path, capsys) -> None:
     sc = tmp_path / "bad.toml"
-    sc.write_text(f'base = "{SCENARIO}"\n[[requirements]]\nname = "r"\nruns = ["foam"]\nformula = "t > 0"\n')
+    sc.write_text(f'base = "{SCENARIO}"\nreplace = ["requirements"]\n'   # (this one requirement)
+                  '[[requirements]]\nname = "r"\nruns = ["foam"]\nformula = "t > 0"\n')
     assert main(["check", str(sc)]) == 2
     assert "requirements[0].runs: 'foam' is not a run of this file (run)" in capsys.readouterr().err
 

@@ -23,7 +23,8 @@ def failer(tmp_path_factory):
 
 
 def _scenario(tmp_path: Path, built_fmus, failer: Path, mode: str, t_fail: float = 0.5) -> Path:
-    """The G1 loop plus a failing FMU fed by the plant (so it is stepped every step)."""
+    """The G1 loop (its connections, from the base) plus a failing FMU fed by the plant (so it is stepped
+    every step)."""
     return g1_with_paths(tmp_path, built_fmus, f"""
 [experiment]
 stop = 2.0
@@ -46,21 +47,9 @@ def _cli(*args: str, env: dict | None = None, timeout: float = 120) -> subproces
                           env=env, timeout=timeout)
 
 
-def _connections_keep(path: Path) -> None:
-    # the [[connections]] of the extra replace the base's array: put the G1 connections back
-    from cosim_support import G1
-    import tomllib
-    base = tomllib.loads(G1.read_text())
-    text = path.read_text()
-    for c in base["connections"]:
-        text += f'[[connections]]\nfrom = "{c["from"]}"\nto = "{c["to"]}"\n'
-    path.write_text(text)
-
-
 @pytest.mark.parametrize("mode, status", [("discard", "Discard"), ("fatal", "Fatal")])
 def test_fmu_failing_mid_run(mode, status, built_fmus, failer, tmp_path):
     path = _scenario(tmp_path, built_fmus, failer, mode)
-    _connections_keep(path)
     out = tmp_path / "out"
     p = _cli("run", str(path), "--out", str(out), "--quiet")
     assert p.returncode == 1, (p.returncode, p.stderr)   # not a crash (a negative code would be a signal)
@@ -81,7 +70,6 @@ def test_fmu_failing_mid_run(mode, status, built_fmus, failer, tmp_path):
 
 def test_nan_output_stops_the_run(built_fmus, failer, tmp_path):
     path = _scenario(tmp_path, built_fmus, failer, "nan")
-    _connections_keep(path)
     out = tmp_path / "out"
     p = _cli("run", str(path), "--out", str(out), "--quiet")
     assert p.returncode == 1 and "Traceback" not in p.stderr
@@ -167,7 +155,6 @@ def test_every_instance_terminated_and_freed_exactly_once(mode, built_fmus, fail
     monkeypatch.setattr(FMU2Slave, "terminate", term)
     monkeypatch.setattr(FMU2Slave, "freeInstance", free)
     path = _scenario(tmp_path, built_fmus, failer, mode)
-    _connections_keep(path)
     res = cosim.run(cosim.resolve(cosim.load(path)), tmp_path / "out", progress=False)
     assert res.status == ("ok" if mode == "ok" else "failed")
     survivors = ["plant", "sensor", "controller"] + ([] if mode == "fatal" else ["failer"])

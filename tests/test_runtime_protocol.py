@@ -226,3 +226,37 @@ def test_a_change_to_a_plan_leaves_its_scenario_as_it_is(tmp_path):
     plan = cosim.resolve(sc)
     plan.instances["d"].spec.isolate = True
     assert not sc.instances["d"].isolate and not cosim.resolve(sc).instances["d"].spec.isolate
+
+
+def test_every_variable_the_runs_name_and_the_fmu_lacks_is_listed_in_one_line(tmp_path, capsys):
+    """check stops at no first missing variable: every one of them, run by run (a variable only some runs
+    name says which), in one line, exit 2; one missing variable alone keeps its own message."""
+    from wmr_cosim.cli import main
+
+    path = _protocol(tmp_path, RUNS.replace('name = "b"', 'name = "b"\nparameters = { "d.kk" = 1.0 }')
+                     + 'parameters = { "d.kk" = 3.0, "d.zz" = 1.0 }\n'
+                     + '[[requirements]]\nname = "r"\nformula = "always d.y < 2"\n[[events]]\ntime = 0.05\n'
+                       'variable = "d.u"\nvalue = 1.0\n')
+    path.write_text(path.read_text().replace('variables = ["d.x", "d.k"]', 'variables = ["d.x", "d.xx", "d.k"]'))
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert err == (f"wmr-cosim: error: {path}: 5 variables missing from their FMUs: "
+                   "d.xx (record.variables[1]; did you mean 'x'?), d.u (events[0].variable), "
+                   "d.y (requirements[0].formula), d.kk (runs.b.parameters and 1 more; runs b, c; did you mean 'k'?), "
+                   "d.zz (runs.c.parameters)"), err
+    path.write_text(_protocol(tmp_path, RUNS + 'parameters = { "d.kk" = 3.0 }\n', name="one").read_text())
+    assert main(["check", str(path)]) == 2
+    assert "runs.c: instances.d.parameters.kk: d (Dahlquist.fmu) has no variable 'kk' (did you mean 'k'?)" \
+        in capsys.readouterr().err
+
+
+def test_a_single_run_lists_every_missing_variable_too(tmp_path):
+    from wmr_cosim import cosim
+
+    path = _protocol(tmp_path, extra="", runs='[[connections]]\nfrom = "d.x"\nto = "d.in"\n')
+    path.write_text(path.read_text().replace('variables = ["d.x", "d.k"]', 'variables = ["d.x", "d.kk"]'))
+    with pytest.raises(ScenarioError) as exc:
+        cosim.resolve(cosim.load(path))
+    assert str(exc.value) == (f"{path}: 2 variables missing from their FMUs: d.in (connections[0].to), "
+                              "d.kk (record.variables[1]; did you mean 'k'?)")

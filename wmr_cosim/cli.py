@@ -16,7 +16,7 @@ from .components import paper
 from .components.controller import ControllerParams
 from .components.direct_loop import run_direct
 from .cosim import (CosimError, count, describe_coupling, describe_settings, did_you_mean, file_kind, FileKind,
-                    named_kind, OtherFileError, parse_value, RunStatus)
+                    MissingVariableError, named_kind, OtherFileError, parse_value, RunStatus)
 from .components.metrics import run_metrics
 from .components.plant import PlantParams
 from .components.sensor import SensorParams
@@ -196,7 +196,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise UsageError("--input applies to a single FMU (.fmu); a scenario file says it in [inputs]")
     res = run_scenario(args.scenario, out, overrides, progress=False if args.quiet else None, inputs=args.input,
                        force=args.force, isolate=args.isolate, real_time=args.real_time, limits=args.limits,
-                       parsed=parsed, fields=fields, on_plan=lambda plan: _print_notes(plan.scenario.notes))
+                       parsed=parsed, fields=fields,
+                       on_plan=lambda plan: _print_notes([*plan.scenario.notes, *plan.run_notes]))
     _report_run(args, res, out)
     return for_runs([res.status], res.requirements)
 
@@ -234,7 +235,9 @@ def _run_protocol(args: argparse.Namespace, parsed: Any, out: Path, overrides: d
 
     _print_notes(parsed.with_parameters(overrides).notes)
     results = run_protocol(parsed, out, variant=args.variant, overrides=overrides,
-                           progress=False if args.quiet else None, force=args.force, isolate=args.isolate)
+                           progress=False if args.quiet else None, force=args.force, isolate=args.isolate,
+                           on_check=lambda plans: _print_notes(list(dict.fromkeys(
+                               n for plan in plans.values() for n in plan.run_notes))))
     for name, r in results.items():
         if r.status == RunStatus.OK:
             print(f"{args.scenario} [{name}]: ok, {count(r.steps, 'step')} in {r.wall_s:.2f} s; "
@@ -313,14 +316,21 @@ def cmd_check(args: argparse.Namespace) -> int:
         _report_check(args, fmu_plan(args.scenario, overrides, args.input, force=f, isolate=iso, limits=lim,
                                      fields=fields))
     else:
-        _report_check(args, load_plan(args.scenario, overrides, f, iso, parsed=parsed))
+        try:
+            plan = load_plan(args.scenario, overrides, f, iso, parsed=parsed)
+        except MissingVariableError:
+            if parsed.scenario.runs:   # every variable missing, run by run (the runs set parameters too)
+                _check_runs(args, parsed, overrides)
+            raise
+        _report_check(args, plan, parsed.inherited)
         _check_runs(args, parsed, overrides)
     return EXIT_OK
 
 
-def _report_check(args: argparse.Namespace, plan: Any) -> None:
-    """What ``check`` prints of a checked plan: its verdict and sizes, how each instance runs (its
-    interface; for model exchange, the integrator), then its notes."""
+def _report_check(args: argparse.Namespace, plan: Any, inherited: Any = ()) -> None:
+    """What ``check`` prints of a checked plan: its verdict and sizes, what the file takes from its base
+    (``inherited``: a line per base file), how each instance runs (its interface; for model exchange, the
+    integrator), the inputs nothing drives, then its notes."""
     sc = plan.scenario
     print(f"{args.scenario}: ok: {count(len(plan.instances), 'instance')} ({', '.join(plan.order)}), "
           f"{count(len(plan.connections), 'connection')}, {count(len(plan.record), 'recorded variable')}, "
@@ -329,6 +339,8 @@ def _report_check(args: argparse.Namespace, plan: Any) -> None:
           f"{'' if plan.last_step is None else f' (the last {plan.last_step:.6g} s, to the stop time)'} "
           f"({sc.algorithm}); signals.npy about "
           f"{_size(plan.output_bytes)}{' (and signals.csv about ' + _size(3 * plan.output_bytes) + ')' if sc.csv else ''}")
+    for i, report in enumerate(inherited):
+        print(f"  {report.describe(top=i == 0)}")
     for name, ip in plan.instances.items():
         print(f"  {name}: {ip.describe()}")
     settings = describe_settings(sc.algorithm, sc.iteration, sc.adaptive, sc.step)
@@ -336,6 +348,12 @@ def _report_check(args: argparse.Namespace, plan: Any) -> None:
         print(f"  {sc.algorithm}: {settings}")
     for line in describe_coupling(plan.coupling, sc.algorithm):
         print(f"  {line}")
+    loose = plan.unconnected_inputs()
+    if loose:
+        print(f"  {count(len(loose), 'input')} not connected (nor in an input table), held at "
+              f"{'its start value' if len(loose) == 1 else 'their start values'}: "
+              + ", ".join(f"{ref} = {_value(v)}" + (f" (and {', '.join(f'events[{i}]' for i in ev)})" if ev else "")
+                          for ref, v, ev in loose))
     if plan.not_recorded:
         print(f"note: String outputs are not recorded: {', '.join(plan.not_recorded)}")
     for r in plan.requirements:
@@ -362,6 +380,19 @@ def _check_runs(args: argparse.Namespace, parsed: Any, overrides: dict[str, Any]
     for name, plan in plans.items():
         print(f"  run {name}: ok: {count(plan.n_steps, 'step')}, {count(len(plan.record), 'recorded variable')}"
               + (f", {count(carries[name], 'carried value')}" if carries[name] else ""))
+
+
+def _value(v: Any) -> str:
+    """A start value as check prints it: a number as %g, a string quoted, an array in brackets, none as "-"."""
+    if v is None:
+        return "-"
+    if isinstance(v, bool):
+        return str(v).lower()
+    if isinstance(v, (int, float)):
+        return f"{v:g}"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_value(x) for x in v) + "]"
+    return repr(str(v))
 
 
 def _size(n: float) -> str:
@@ -872,9 +903,63 @@ def error_message(exc: BaseException) -> str:
     return f"{exc}: {hint}" if hint else str(exc)
 
 
+#: The commands whose --set sets a field of [experiment] or [record] (``--set experiment.algorithm=jacobi``).
+SET_FIELD_COMMANDS = ("run", "check")
+
+
+#: The fields of [experiment] and [record] whose value is an array (--set gives it in JSON).
+LIST_FIELDS = ("order", "variables")
+
+
+def _option_value(option: str, argv: list[str], array: bool) -> str:
+    """The value an unknown option was given: the word after it on the command line (argparse may have
+    taken it for the scenario), for an array every word up to the next option or the scenario, in JSON and
+    quoted for the shell; "VALUE" where none follows."""
+    at = argv.index(option) + 1 if option in argv else len(argv)
+    words = []
+    while at < len(argv) and not argv[at].startswith("-") and named_kind(argv[at]) is None:
+        words.append(argv[at])
+        at += 1
+        if not array:
+            break
+    if not words:
+        return "VALUE"
+    return "'" + json.dumps(words) + "'" if array else words[0]
+
+
+def field_option_hint(command: str, unknown: list[str], argv: list[str]) -> str | None:
+    """For an unknown option of run or check that names a field of [experiment] or [record] (or of a table
+    inside [experiment]): the one line that says to set it with --set (``--algorithm jacobi``: "--set
+    experiment.algorithm=jacobi"); None for any other."""
+    from .cosim import settable_table
+
+    if command not in SET_FIELD_COMMANDS:
+        return None
+    for i, token in enumerate(unknown):
+        if not token.startswith("--"):
+            continue
+        option, eq, value = token.partition("=")
+        key = option[2:].replace("-", "_")
+        where = settable_table(key)
+        if where is None:
+            continue
+        setting = f"{where}.{key}={value if eq else _option_value(token, argv, key in LIST_FIELDS)}"
+        hint = " (or --record VAR ...)" if key == "variables" else ""
+        return (f"{command} {option}: not an option; {where}.{key} is set with --set {setting}{hint} "
+                f"(docs/scenarios.md)")
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = build_parser()
-    args = ap.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args, unknown = ap.parse_known_args(argv)
+    if unknown:
+        hint = field_option_hint(args.command, unknown, argv)
+        if hint is not None:
+            print(f"wmr-cosim: error: {hint}", file=sys.stderr)
+            return for_error(UsageError(hint))
+        ap.error(f"unrecognized arguments: {' '.join(unknown)}")
     _scenario_after_record(ap, args)
     try:
         args.limits = archive_limits(args)

@@ -6,12 +6,14 @@ from typing import TYPE_CHECKING
 import lazy_loader
 
 if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
-    from .errors import CosimError, FmuLoadError, OtherFileError, OutputError, RunError, ScenarioError
+    from .errors import (CosimError, FmuLoadError, MissingVariableError, OtherFileError, OutputError, RunError,
+                         ScenarioError)
     from .suggest import close_names, did_you_mean
     from .words import count
 
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
-    "errors": ["CosimError", "FmuLoadError", "OtherFileError", "OutputError", "RunError", "ScenarioError"],
+    "errors": ["CosimError", "FmuLoadError", "MissingVariableError", "OtherFileError", "OutputError", "RunError",
+               "ScenarioError"],
     "suggest": ["close_names", "did_you_mean"],
     "words": ["count"],
 })

@@ -20,6 +20,18 @@ class ScenarioError(CosimError):
         return type(self), (self.file, self.field, self.reason)
 
 
+class MissingVariableError(ScenarioError):
+    """A scenario names a variable its instance's FMU does not have (``ref``: "instance.variable", the
+    scenario's name); the resolution then looks for every other such name, to list them in one message."""
+
+    def __init__(self, file: str, field: str, reason: str, ref: str) -> None:
+        self.ref = ref
+        super().__init__(file, field, reason)
+
+    def __reduce__(self) -> tuple[object, ...]:
+        return type(self), (self.file, self.field, self.reason, self.ref)
+
+
 class OtherFileError(ScenarioError):
     """A file given as a scenario is another kind of file (``kind``: "a paper manifest", "a sweep file")."""
 

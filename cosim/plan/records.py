@@ -143,6 +143,7 @@ class Plan:
     coupling: Coupling = field(default_factory=Coupling)   # its coupling loops and algebraic loops
     last_step: float | None = None   # [s] a short last step, where the step does not divide the run
     requirements: list[RequirementPlan] = field(default_factory=list)   # monitored at every communication point
+    run_notes: list[str] = field(default_factory=list)   # what run says too before it starts (workers left idle)
 
     @property
     def watched(self) -> list[tuple[str, Variable]]:
@@ -164,6 +165,23 @@ class Plan:
     @property
     def order(self) -> list[str]:
         return self.scenario.order
+
+    def unconnected_inputs(self) -> list[tuple[str, Any, list[int]]]:
+        """The inputs of the system that neither a connection nor the input table drives, each as
+        ("instance.variable" in the scenario's names, the value it keeps: the start value the scenario sets,
+        else the model description's; the indices of the [[events]] that act on it), in the order of the
+        instances and their variables."""
+        driven = {(c.dst, c.dst_var.name) for c in self.connections}
+        driven |= {(ip.instance, ip.var.name) for ip in self.inputs}
+        out: list[tuple[str, Any, list[int]]] = []
+        for name, ip in self.instances.items():
+            set_here = {var.name: value for var, value in ip.parameters}
+            for var in ip.model.variables.values():
+                if var.causality == "input" and (name, var.name) not in driven:
+                    events = sorted(ev.index for ev in [*self.events, *self.conditions]
+                                    if ev.instance == name and ev.var is not None and ev.var.name == var.name)
+                    out.append((f"{name}.{ip.our_name(var)}", set_here.get(var.name, var.start), events))
+        return out
 
     def columns(self) -> dict[str, dict[str, Any]]:
         """What each recorded column holds: its unit (as the model description declares it, or the

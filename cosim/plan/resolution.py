@@ -24,9 +24,9 @@ from typing import Any, Callable, cast
 import numpy as np
 
 from ..instances.integrators import DEFAULT_EVENT_TOLERANCE, DEFAULT_RTOL, ME_ALONE, SolverSpec
-from ..messages.errors import CosimError, FmuLoadError, ScenarioError
+from ..messages.errors import CosimError, FmuLoadError, MissingVariableError, ScenarioError
 from ..messages.suggest import did_you_mean
-from ..messages.words import count
+from ..messages.words import count, plural
 from ..model.binary import PYTHON_FMU, runs_python
 from ..model.description import CO_SIMULATION, INTERFACE_NAMES, MODEL_EXCHANGE, PY_TYPES, FmuModel, Variable, load_model
 from ..model.kinds import FileKind, file_kind
@@ -102,8 +102,8 @@ def variable(file: str, fld: str, inst: InstancePlan, name: str,
     if var is None:
         mapped = f" (mapped to {theirs!r})" if theirs != name else ""
         known = (inst.our_name(v) for v in inst.model.variables.values() if fits is None or fits(v))
-        raise ScenarioError(file, fld, f"{inst.name} ({inst.model.path.name}) has no variable {name!r}{mapped}"
-                                       f"{did_you_mean(name, known)}")
+        raise MissingVariableError(file, fld, f"{inst.name} ({inst.model.path.name}) has no variable {name!r}{mapped}"
+                                              f"{did_you_mean(name, known)}", f"{inst.name}.{name}")
     return var
 
 
@@ -443,8 +443,8 @@ def _requirements(sc: Scenario, insts: dict[str, InstancePlan], notes: list[str]
             where = f"requirement {r.name!r}: at character {pos}"
             try:
                 var = variable(file, fld, insts[inst], vname)
-            except ScenarioError as exc:
-                raise ScenarioError(file, fld, f"{where}: {exc.reason}") from None
+            except MissingVariableError as exc:
+                raise MissingVariableError(file, fld, f"{where}: {exc.reason}", exc.ref) from None
             if var.shape:
                 raise ScenarioError(file, fld, f"{where}: {ref} is an array: a formula reads scalars")
             if var.causality == "independent":
@@ -472,6 +472,14 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
     ``sc`` is left as it is: the plan holds a copy of it with the times the FMUs' default experiments
     give filled in (``plan.scenario``)."""
     sc = _planned_copy(sc, force, isolate_all)
+    try:
+        return _resolve(sc)
+    except MissingVariableError as exc:
+        raise every_missing(sc.file, exc, missing_variables(sc)) from None
+
+
+def _resolve(sc: Scenario) -> Plan:
+    """:func:`resolve` of the plan's copy of the scenario."""
     insts, notes = _instance_plans(sc)
     _experiment(sc, {n: ip.model for n, ip in insts.items()}, notes)
     _tolerances(sc, insts, notes)
@@ -479,7 +487,7 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
     internal = _internal_steps(sc, insts)
     conns, driven = _connection_plans(sc, insts)
     _rates(sc, insts, conns)
-    _workers(sc, insts, conns, notes)
+    idle = _workers(sc, insts, conns, notes)
     coupled = coupling(sc.order, insts, conns)
     _check_stepping(sc, insts)
     check_iteration(sc, insts, coupled)
@@ -492,17 +500,110 @@ def resolve(sc: Scenario, force: bool | None = None, isolate_all: bool = False) 
     events = sorted((ev for ev in checked if ev.condition is None), key=lambda ev: ev.step)  # stable within a step
     conditions = [ev for ev in checked if ev.condition is not None]
     plan = Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs, not_recorded,
-                conditions, notes, internal, sc.archive_limits, coupled, last_step, requirements)
+                conditions, notes, internal, sc.archive_limits, coupled, last_step, requirements,
+                [idle] if idle else [])
     _check_recording_size(plan)
     return plan
 
 
-def _workers(sc: Scenario, insts: dict[str, InstancePlan], conns: list[ConnectionPlan], notes: list[str]) -> None:
+@dataclasses.dataclass
+class Missing:
+    """A variable a scenario names that its FMU lacks: the fields that name it, the suggestion of a near name
+    (" (did you mean 'x'?)" or ""), and, in a protocol, the runs that name it."""
+
+    fields: list[str]
+    hint: str = ""
+    runs: list[str] = dataclasses.field(default_factory=list)
+
+
+def missing_variables(sc: Scenario, more: dict[str, str] | None = None) -> dict[str, Missing]:
+    """Every variable the scenario names that its instance's FMU lacks, {"instance.variable": Missing}, in
+    the order of the checks (name maps, parameters, connections, record, events, requirements; then ``more``:
+    {field: "instance.variable"}): what :func:`resolve` lists when it finds one (then it looks for them
+    all).  An instance whose FMU cannot be loaded is left out (its own error says why); a name map's key is
+    the FMU's own name."""
+    from ..requirements.formula import variables as formula_variables
+    from ..scenario.condition import variables as condition_variables
+
+    found: dict[str, Missing] = {}
+    insts: dict[str, InstancePlan] = {}
+    for name, spec in sc.instances.items():
+        try:
+            model = load_model(spec.fmu_path, sc.archive_limits) if spec.fmu_path is not None else None
+        except FmuLoadError:
+            model = None
+        if model is None:
+            continue
+        insts[name] = InstancePlan(name, spec, model, {o: t for t, o in spec.names.items()}, dict(spec.names))
+        for their in spec.names:
+            if their not in model.variables:
+                found.setdefault(f"{name}.{their}", Missing([], did_you_mean(their, model.variables))).fields.append(
+                    f"instances.{name}.names.{their}")
+
+    def look(fld: str, ref: str) -> None:
+        inst, _, var = ref.partition(".")
+        if inst not in insts:
+            return
+        try:
+            _element(sc.file, fld, insts[inst], var)
+        except MissingVariableError as exc:
+            hint = exc.reason[exc.reason.find(" (did you mean"):] if " (did you mean" in exc.reason else ""
+            found.setdefault(ref, Missing([], hint)).fields.append(fld)
+        except ScenarioError:
+            pass   # (another fault of an existing variable: its own check reports it)
+
+    for name, spec in sc.instances.items():
+        for pname in spec.parameters:
+            look(f"instances.{name}.parameters.{pname}", f"{name}.{pname}")
+    for c in sc.connections:
+        look(f"connections[{c.index}].from", c.src)
+        look(f"connections[{c.index}].to", c.dst)
+    for i, pat in enumerate(sc.record):
+        if "*" not in pat and "?" not in pat:
+            look(f"record.variables[{i}]", pat)
+    for e in sc.events:
+        if e.variable is not None:
+            look(f"events[{e.index}].variable", e.variable)
+        for ref in condition_variables(e.condition) if e.condition is not None else ():
+            look(f"events[{e.index}].when", ref)
+    for r in sc.requirements:
+        for ref in formula_variables(r.node):
+            look(f"requirements[{r.index}].formula", ref)
+    for fld, ref in (more or {}).items():
+        look(fld, ref)
+    return found
+
+
+def every_missing(file: str, first: MissingVariableError, found: dict[str, Missing],
+                  runs: list[str] | None = None) -> MissingVariableError:
+    """The one error that lists every missing variable ``found`` (``first``, the one the checks met, among
+    them): "FILE: 3 variables missing from their FMUs: plant.a (connections[0].from), plant.b
+    (runs.foam.parameters...; runs foam), ..."; ``first`` itself when it is the only one.  ``runs``: a
+    protocol's runs (a variable that only some of them name says which)."""
+    if first.ref not in found:
+        found = {first.ref: Missing([first.field]), **found}
+    if len(found) == 1:
+        return first
+    items = []
+    for ref, m in found.items():
+        where = m.fields[0] + (f" and {len(m.fields) - 1} more" if len(m.fields) > 1 else "")
+        named_by_run = len(m.runs) == 1 and m.fields[0].startswith(f"runs.{m.runs[0]}.")
+        if runs and m.runs and len(m.runs) < len(runs) and not named_by_run:
+            where += f"; {plural(len(m.runs), 'run')} {', '.join(m.runs)}"
+        if m.hint:
+            where += f"; {m.hint.strip()[1:-1]}"    # (" (did you mean 'x'?)" -> "did you mean 'x'?")
+        items.append(f"{ref} ({where})")
+    return MissingVariableError(file, "", f"{len(found)} variables missing from their FMUs: {', '.join(items)}",
+                                first.ref)
+
+
+def _workers(sc: Scenario, insts: dict[str, InstancePlan], conns: list[ConnectionPlan], notes: list[str]) -> str:
     """Stepping instances at once: Jacobi's every instance, Gauss-Seidel's each level (the instances that
     do not feed each other, from the connections), at one rate; a note says which step at once, how, and
-    when there are more workers than instances that can step at once."""
+    when there are more workers than instances that can step at once.  Returns why nothing steps at once
+    ("" where something does, or workers = 1): what ``run`` says too."""
     if sc.workers == 1:
-        return
+        return ""
     if not algorithms.row(sc.algorithm).workers:
         able = " or ".join(algorithms.quoted(n) for n in algorithms.names_where("workers"))
         raise ScenarioError(sc.file, "experiment.workers", f"{sc.workers}: stepping instances at once is "
@@ -520,18 +621,60 @@ def _workers(sc: Scenario, insts: dict[str, InstancePlan], conns: list[Connectio
             if c.src in index and c.dst in index:
                 fed_by[index[c.dst]].add(index[c.src])
         by_levels = [[order[i] for i in lv] for lv in levels(len(order), fed_by)]
-    notes.append(workers_note(sc.workers, [(n, insts[n]) for n in order], by_levels))
+    ordered = [(n, insts[n]) for n in order]
+    notes.append(workers_note(sc.workers, ordered, by_levels))
+    return workers_idle(sc.workers, ordered, by_levels)
+
+
+@dataclasses.dataclass
+class _AtOnce:
+    """How the instances can step at once: the isolated ones (in their processes), why each other one
+    steps alone on the master's thread ("" where it can step in a thread), the groups that step at once
+    (Gauss-Seidel's levels, or Jacobi's one), and the most instances of one group that can step at once."""
+
+    apart: list[str]
+    alone: dict[str, str]
+    groups: list[list[str]]
+    able: int
+
+    @property
+    def threaded(self) -> list[str]:
+        return [n for n, why in self.alone.items() if not why]
+
+
+def _at_once(insts: list[tuple[str, InstancePlan]], levels_: list[list[str]] | None) -> _AtOnce:
+    apart = [n for n, ip in insts if ip.spec.isolate]
+    alone = {n: alone_because(ip) for n, ip in insts if not ip.spec.isolate}
+    groups = levels_ if levels_ is not None else [[n for n, _ in insts]]
+    able = max(sum(n in apart or (n in alone and not alone[n]) for n in g) for g in groups)
+    return _AtOnce(apart, alone, groups, able)
+
+
+def workers_idle(workers: int, insts: list[tuple[str, InstancePlan]], levels_: list[list[str]] | None = None) -> str:
+    """Why ``workers`` > 1 step nothing at once, in one line ("" where two instances or more can step at
+    once): the instances that step alone on the master's thread and why, or Gauss-Seidel's levels of one
+    instance that could (``levels_``: as for :func:`workers_note`)."""
+    at = _at_once(insts, levels_)
+    if workers == 1 or at.able > 1:
+        return ""
+    whys: dict[str, list[str]] = {}
+    for n, why in at.alone.items():
+        if why:
+            whys.setdefault(why, []).append(n)
+    parts = [f"{', '.join(names)} on the master's thread alone ({why})" for why, names in whys.items()]
+    if levels_ is not None and (at.apart or at.threaded):
+        parts.append("under Gauss-Seidel the instances of a level step at once, and no level has two that can: "
+                     + " | ".join(", ".join(g) for g in levels_))
+    return f"workers = {workers}, but nothing steps in parallel: " + "; ".join(parts)
 
 
 def workers_note(workers: int, insts: list[tuple[str, InstancePlan]], levels_: list[list[str]] | None = None) -> str:
     """Which instances step at once, and how (as :mod:`~..stepping.parallel` steps them): the isolated ones
     in their processes, the C FMUs in this process in lanes of threads, and the others on the master's
     thread alone, each with why; ``levels_``: Gauss-Seidel's levels (None: Jacobi, one group)."""
-    apart = [n for n, ip in insts if ip.spec.isolate]
-    alone = {n: alone_because(ip) for n, ip in insts if not ip.spec.isolate}
-    threaded = [n for n, why in alone.items() if not why]
-    groups = levels_ if levels_ is not None else [[n for n, _ in insts]]
-    lanes = max(min(workers, sum(n in threaded for n in g)) for g in groups)
+    at = _at_once(insts, levels_)
+    apart, alone, threaded = at.apart, at.alone, at.threaded
+    lanes = max(min(workers, sum(n in threaded for n in g)) for g in at.groups)
     parts = []
     if levels_ is not None:
         parts.append("Gauss-Seidel by levels, the instances of a level (they do not feed each other) at once: "
@@ -544,10 +687,9 @@ def workers_note(workers: int, insts: list[tuple[str, InstancePlan]], levels_: l
     elif threaded:
         parts.append(f"{', '.join(threaded)} (in this process) on the master's thread")
     parts += [f"{n} on the master's thread alone ({why})" for n, why in alone.items() if why]
-    able = max(sum(n in apart or n in threaded for n in g) for g in groups)
-    if workers > max(able, 1):
-        parts.append(f"more workers than instances that can step at once ({able}): {count(max(able, 1), 'worker')} "
-                     "will be busy at most")
+    if workers > max(at.able, 1):
+        parts.append(f"more workers than instances that can step at once ({at.able}): "
+                     f"{count(max(at.able, 1), 'worker')} will be busy at most")
     return f"workers = {workers}: " + "; ".join(parts)
 
 
@@ -663,8 +805,8 @@ def _instance_plan(sc: Scenario, name: str, spec: InstanceSpec, notes: list[str]
                       interface=_interface(file, name, spec, model))
     for their, ours in spec.names.items():
         if their not in model.variables:
-            raise ScenarioError(file, f"instances.{name}.names.{their}",
-                                f"{model.path.name} has no variable {their!r}")
+            raise MissingVariableError(file, f"instances.{name}.names.{their}",
+                                       f"{model.path.name} has no variable {their!r}", f"{name}.{their}")
         if ours != their and ours in model.variables and ours not in spec.names:
             raise ScenarioError(file, f"instances.{name}.names.{their}",
                                 f"{ours!r} is already the name of another variable of {model.path.name}")

@@ -21,11 +21,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from ..messages.errors import CosimError, ScenarioError
+from ..messages.errors import CosimError, MissingVariableError, ScenarioError
 from ..model.archive import LimitOverrides
 from ..plan import resolution as system
 from ..scenario import document as scenario
-from ..scenario.document import RunSpec, Scenario
+from ..scenario.document import Inheritance, RunSpec, Scenario
 from . import execution
 
 Resolver = Callable[[str], "Path | None"]
@@ -44,6 +44,7 @@ class Protocol:
     scenario: Scenario
     resolver: Resolver | None = None
     limits: LimitOverrides | None = None
+    inherited: tuple[Inheritance, ...] = ()   # what each file of its base chain takes from its base
 
     @property
     def runs(self) -> list[RunSpec]:
@@ -61,11 +62,14 @@ class Protocol:
 
     @classmethod
     def from_document(cls, file: str, document: dict[str, Any], resolver: Resolver | None = None,
-                      limits: LimitOverrides | None = None) -> "Protocol":
+                      limits: LimitOverrides | None = None,
+                      inherited: tuple[Inheritance, ...] = ()) -> "Protocol":
         """The protocol of a document already read (:func:`~.scenario.read_document`: its bases merged,
         its paths absolute), parsed for the file ``file`` names in messages; ``limits``: the caller's
-        archive limits.  The document is not changed."""
-        return cls(file, document, scenario.parse(copy.deepcopy(document), file, resolver, limits), resolver, limits)
+        archive limits; ``inherited``: what read_document reported of its base chain.  The document is not
+        changed."""
+        return cls(file, document, scenario.parse(copy.deepcopy(document), file, resolver, limits), resolver, limits,
+                   tuple(inherited))
 
     def with_parameters(self, overrides: dict[str, Any] | None) -> Scenario:
         """The scenario with ``overrides`` ({'inst.param': value}) applied to a copy of the document."""
@@ -80,8 +84,9 @@ def read_protocol(path: str | os.PathLike, resolver: Resolver | None = None, lim
     """Read and parse a scenario file once (:class:`Protocol`); ``limits``: the caller's archive limits;
     ``shipped``: the caller's folder of scenario files a ``base`` may name
     (:func:`~.scenario.read_document`)."""
-    return Protocol.from_document(str(Path(path)), scenario.read_document(Path(path), shipped=shipped), resolver,
-                                  limits)
+    inherited: list[Inheritance] = []
+    document = scenario.read_document(Path(path), shipped=shipped, inherited=inherited)
+    return Protocol.from_document(str(Path(path)), document, resolver, limits, tuple(inherited))
 
 
 def _protocol(source: str | os.PathLike | Protocol, resolver: Resolver | None,
@@ -101,16 +106,45 @@ def plan_runs(path: str | os.PathLike | Protocol, resolver: Resolver | None = No
 _STAND_IN: dict[str, Any] = {"Real": 0.0, "Integer": 0, "Enumeration": 0, "Boolean": False, "String": ""}
 
 
-def _resolve_run(proto: Protocol, run: str, params: dict[str, Any], force: bool, isolate: bool) -> system.Plan:
-    """The checked plan of one run; a failure names the run."""
+def _run_scenario(proto: Protocol, run: str, params: dict[str, Any]) -> Scenario:
+    """The scenario of one run: the document with ``params`` set, and the requirements of this run."""
     sc = proto.with_parameters(params)
     if any(r.runs is not None for r in sc.requirements):   # the requirements of this run (a copy: not shared)
         sc = dataclasses.replace(sc, requirements=[r for r in sc.requirements if r.runs is None or run in r.runs])
+    return sc
+
+
+def _resolve_run(proto: Protocol, run: str, params: dict[str, Any], force: bool, isolate: bool) -> system.Plan:
+    """The checked plan of one run; a failure names the run."""
+    sc = _run_scenario(proto, run, params)
     try:
         return system.resolve(sc, force, isolate_all=isolate)
+    except MissingVariableError as exc:
+        raise MissingVariableError(exc.file, f"runs.{run}: {exc.field}" if exc.field else f"runs.{run}",
+                                   exc.reason, exc.ref) from None
     except ScenarioError as exc:
         where = f"runs.{run}: {exc.field}" if exc.field else f"runs.{run}"
         raise ScenarioError(exc.file, where, exc.reason) from None
+
+
+def _every_missing(proto: Protocol, runs: list[RunSpec], params: dict[str, dict[str, Any]],
+                   first: MissingVariableError) -> MissingVariableError:
+    """The one error that lists every variable the runs name and their FMUs lack, run by run
+    (:func:`~..plan.resolution.every_missing`): what a run sets in its parameters, what it carries (target and
+    source), what its requirements, record, connections and events name; ``params``: each run's parameters."""
+    found: dict[str, system.Missing] = {}
+    for run in runs:
+        sc = _run_scenario(proto, run.name, params[run.name])
+        carries = {f"runs.{run.name}.carry.{ref}": ref for ref in run.carry}
+        carries.update({f"runs.{run.name}.carry.{ref} (its source)": src.split(".", 1)[1]
+                        for ref, src in run.carry.items() if src.count(".") >= 2})
+        for ref, m in system.missing_variables(sc, carries).items():
+            fields = [f"runs.{run.name}.parameters" if f.startswith("instances.") and ".parameters." in f
+                      and ref in run.parameters else f for f in m.fields]
+            known = found.setdefault(ref, system.Missing([], m.hint))
+            known.fields += [f for f in fields if f not in known.fields]
+            known.runs.append(run.name)
+    return system.every_missing(proto.file, first, found, [r.name for r in runs])
 
 
 def _carried(file: str, run: RunSpec, finals: dict[str, dict[str, Any]], carry: Carry | None
@@ -154,9 +188,14 @@ def check_protocol(path: str | os.PathLike | Protocol, resolver: Resolver | None
         if only is not None and run.name not in only:
             continue
         carried = {ref: v for ref, v in _carried(proto.file, run, finals, carry).items() if ref not in overrides}
-        plan = _resolve_run(proto, run.name, {**vparams, **run.parameters, **overrides}, force, isolate)
-        for ref, value in carried.items():
-            system.check_carried(proto.file, f"runs.{run.name}.carry.{ref}", plan, ref, value)
+        try:
+            plan = _resolve_run(proto, run.name, {**vparams, **run.parameters, **overrides}, force, isolate)
+            for ref, value in carried.items():
+                system.check_carried(proto.file, f"runs.{run.name}.carry.{ref}", plan, ref, value)
+        except MissingVariableError as exc:
+            runs = [r for r in proto.runs if only is None or r.name in only]
+            raise _every_missing(proto, runs, {r.name: {**vparams, **r.parameters, **overrides} for r in runs},
+                                 exc) from None
         plans[run.name] = plan
         finals[run.name] = {rp.column: _STAND_IN.get(rp.var.type, 0.0) for rp in plan.record}
     return plans
@@ -167,7 +206,8 @@ def run_protocol(path: str | os.PathLike | Protocol, out_dir: str | os.PathLike,
                  progress: bool | None = None, only: list[str] | None = None,
                  on_run: Callable[[str, execution.RunResult], None] | None = None,
                  force: bool = False, isolate: bool = False, carry: Carry | None = None,
-                 limits: LimitOverrides | None = None) -> dict[str, execution.RunResult]:
+                 limits: LimitOverrides | None = None,
+                 on_check: Callable[[dict[str, system.Plan]], None] | None = None) -> dict[str, execution.RunResult]:
     """Run every run of the file in order into ``out_dir/<run>``; returns {run name: result}.
 
     Every run is checked first (:func:`check_protocol`), so a run that cannot work stops the protocol
@@ -176,10 +216,13 @@ def run_protocol(path: str | os.PathLike | Protocol, out_dir: str | os.PathLike,
     the run's own parameters and carried values.  ``carry`` replaces the plain lookup of carried values
     (a resolver to other FMUs may need the names translated).  ``isolate`` hosts every instance of every
     run in a child process of its own; ``limits``: the caller's archive limits.  ``path`` may be a file
-    already read (:func:`read_protocol`).
+    already read (:func:`read_protocol`).  ``on_check``: called with every run's checked plan before the
+    first run starts (the command line prints their notes).
     """
     proto = _protocol(path, resolver, limits)
-    check_protocol(proto, variant=variant, overrides=overrides, only=only, force=force, carry=carry)
+    plans = check_protocol(proto, variant=variant, overrides=overrides, only=only, force=force, carry=carry)
+    if on_check is not None:
+        on_check(plans)
     vparams = proto.variant_parameters(variant)
     out = Path(out_dir)
     results: dict[str, execution.RunResult] = {}

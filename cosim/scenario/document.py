@@ -17,6 +17,7 @@ from typing import Any
 from ..instances.integrators import SOLVERS
 from ..messages.errors import OtherFileError, ScenarioError
 from ..messages.suggest import did_you_mean
+from ..messages.words import count, plural
 from ..model.archive import DEFAULT_LIMITS, ArchiveLimits, LimitOverrides, parse_limits
 from ..model.description import CO_SIMULATION, MODEL_EXCHANGE
 from ..model.kinds import FileKind, file_kind
@@ -31,7 +32,7 @@ INTERFACES = (CO_SIMULATION, MODEL_EXCHANGE)
 #: The instance fields that set a Model Exchange instance's integrator (any of them asks for model exchange).
 SOLVER_KEYS = ("solver", "max_step", "event_tolerance")
 
-_TOP_KEYS = {"base", "description", "experiment", "instances", "connections", "record", "events", "runs",
+_TOP_KEYS = {"base", "replace", "description", "experiment", "instances", "connections", "record", "events", "runs",
              "variants", "inputs", "limits", "requirements"}
 _INPUTS_KEYS = {"file", "interpolation"}
 _EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps", "max_internal_steps",
@@ -176,13 +177,142 @@ class Scenario:
         return self.start, self.stop, self.step
 
 
-def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+#: The arrays of tables a document EXTENDS from its base, each with the key by which one of its entries
+#: replaces the base's entry of the same key in place (None: its entries are appended): a connection by the
+#: input it drives (``to``: an input is driven once), a requirement and a run by their ``name``.  The
+#: document's top-level ``replace = [...]`` names those it gives whole instead.  Every other array is a
+#: field's value (``record.variables``, ``experiment.order``) and replaces the base's; tables merge key by key.
+EXTENDED: dict[str, str | None] = {"connections": "to", "requirements": "name", "runs": "name", "events": None}
+#: The noun of one entry of each extended list (what ``check`` counts).
+_ENTRY = {"connections": "connection", "requirements": "requirement", "runs": "run", "events": "event"}
+
+
+@dataclass
+class Inheritance:
+    """What one file takes from its base: per extended list (:data:`EXTENDED`), the base's entries kept,
+    the keys of those the file replaces in place, the entries it adds, the base's entries it drops by
+    ``replace``; and the fields whose arrays replace the base's (``record.variables``).  ``check`` prints
+    :meth:`describe`."""
+
+    file: str                 # the file that names the base
+    base: str                 # the base as that file names it
+    kept: dict[str, int] = field(default_factory=dict)
+    replaced: dict[str, list[str]] = field(default_factory=dict)
+    added: dict[str, int] = field(default_factory=dict)
+    dropped: dict[str, int] = field(default_factory=dict)
+    values: list[str] = field(default_factory=list)
+
+    def describe(self, top: bool = True) -> str:
+        """One line: "base g1_learn.toml: 11 connections inherited; this file adds 1 connection, replaces
+        the connection to plant.u1, replaces record.variables" (``top``: the file is the one checked, else
+        it is named)."""
+        def listed(counts: dict[str, int]) -> str:
+            return ", ".join(count(n, _ENTRY[k]) for k, n in counts.items() if n and k not in self.dropped)
+
+        kept = listed(self.kept)
+        what = [f"adds {listed(self.added)}"] if listed(self.added) else []
+        for key, keys in self.replaced.items():
+            if keys:
+                by = "to" if EXTENDED[key] == "to" else "named"
+                what.append(f"replaces the {plural(len(keys), _ENTRY[key])} {by} {', '.join(keys)}")
+        for key, n in self.dropped.items():
+            given = self.added.get(key, 0)
+            what.append(f"{'gives ' + count(given, _ENTRY[key]) + ' in place of' if given else 'drops'} the base's "
+                        f"{count(n, _ENTRY[key])} (replace)")
+        what += [f"replaces {fld}" for fld in self.values]
+        who = "this file" if top else self.file
+        head = f"base {self.base}" + ("" if top else f" (of {self.file})")
+        return (f"{head}: {kept + ' inherited' if kept else 'no entries inherited'}"
+                + (f"; {who} {', '.join(what)}" if what else ""))
+
+
+def replaced_lists(file: str, value: Any) -> list[str]:
+    """A document's ``replace``: the extended lists (:data:`EXTENDED`) it gives whole; ScenarioError for
+    anything else (not an array of those names; with the nearest name)."""
+    if value is None:
+        return []
+    allowed = ", ".join(EXTENDED)
+    if isinstance(value, str):
+        raise ScenarioError(file, "replace", f"{value!r}: must be an array of the lists this file gives whole "
+                                             f"(replace = [{json.dumps(value)}]; allowed: {allowed})")
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise ScenarioError(file, "replace", f"{value!r}: must be an array of the lists this file gives whole "
+                                             f"(allowed: {allowed})")
+    for v in value:
+        if v not in EXTENDED:
+            table = v in _TOP_KEYS or v.split(".")[0] in _TOP_KEYS
+            what = (" is not a list of tables (tables merge key by key, and arrays of values replace the base's "
+                    "by themselves)" if table else " is not a list a base gives")
+            raise ScenarioError(file, "replace", f"{v!r}{what}: allowed: {allowed}{did_you_mean(v, EXTENDED)}")
+    return list(dict.fromkeys(value))
+
+
+def merge(base: dict[str, Any], over: dict[str, Any], report: Inheritance,
+          whole: tuple[str, ...] | list[str] = ()) -> dict[str, Any]:
+    """``over`` (a document, its ``base`` and ``replace`` taken out) merged over ``base``: tables key by key,
+    the lists of :data:`EXTENDED` extended (keyed entries replaced in place; those in ``whole`` given
+    whole), every other value replaced; what the document takes from its base goes into ``report``."""
+    out = _merge_tables(base, over, "", report)
+    for key in EXTENDED:
+        old = base.get(key)
+        if key in whole and isinstance(old, list) and old:
+            report.dropped[key] = len(old)
+            out[key] = copy.deepcopy(over.get(key, []))
+            report.added[key] = len(out[key]) if isinstance(out[key], list) else 0
+        elif key in whole and key not in over:
+            out.pop(key, None)   # (the base has none to drop)
+        elif key in over:
+            out[key] = _extend(report, key, base.get(key), over[key])
+        elif isinstance(base.get(key), list):
+            report.kept[key] = len(base[key])
+    return out
+
+
+def _merge_tables(base: dict[str, Any], over: dict[str, Any], where: str, report: Inheritance) -> dict[str, Any]:
     out = copy.deepcopy(base)
     for k, v in over.items():
+        if not where and k in EXTENDED:
+            continue   # (extended by :func:`merge`)
+        fld = f"{where}.{k}" if where else str(k)
         if isinstance(v, dict) and isinstance(out.get(k), dict):
-            out[k] = _merge(out[k], v)
+            out[k] = _merge_tables(out[k], v, fld, report)
         else:
+            if isinstance(v, list) and isinstance(out.get(k), list) and out[k] != v:
+                report.values.append(fld)
             out[k] = copy.deepcopy(v)
+    return out
+
+
+def _extend(report: Inheritance, key: str, old: Any, new: Any) -> Any:
+    """The base's list ``old`` extended by the document's ``new``: an entry with the key of a base's entry
+    replaces it in place (once; a second such entry is appended, for the checks to refuse), the others
+    appended.  Where either is not a list, ``new`` as given (the checks judge it)."""
+    old = [] if old is None else old
+    if not isinstance(old, list) or not isinstance(new, list):
+        return copy.deepcopy(new)
+    if not new and old:
+        raise ScenarioError(report.file, key, f"an empty array adds nothing to the base's "
+                                              f"{count(len(old), _ENTRY[key])} (a base's lists are extended): to "
+                                              f"drop them, write replace = [{json.dumps(key)}]")
+    name = EXTENDED[key]
+    out = copy.deepcopy(old)
+    at: dict[str, int] = {}
+    if name is not None:
+        for i, entry in enumerate(old):
+            k = entry.get(name) if isinstance(entry, dict) else None
+            if isinstance(k, str):
+                at.setdefault(k, i)
+    replaced: list[str] = []
+    for entry in new:
+        k = entry.get(name) if name is not None and isinstance(entry, dict) else None
+        if isinstance(k, str) and k in at and k not in replaced:
+            out[at[k]] = copy.deepcopy(entry)
+            replaced.append(k)
+        else:
+            out.append(copy.deepcopy(entry))
+    report.kept[key] = len(old) - len(replaced)
+    report.replaced[key] = replaced
+    report.added[key] = len(new) - len(replaced)
     return out
 
 
@@ -195,10 +325,12 @@ MAX_NAME = 100
 
 
 def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, str] | None = None,
-                  shipped: Path | None = None) -> dict[str, Any]:
+                  shipped: Path | None = None, inherited: list[Inheritance] | None = None) -> dict[str, Any]:
     """Read one scenario file, absolutise its FMU and input paths, and merge it over its ``base`` (the
-    document :func:`parse` checks).  ``shipped``: the application's folder of scenario files, where a
-    ``base`` found neither beside the file nor by an absolute path is looked up (see :func:`base_path`)."""
+    document :func:`parse` checks; see :func:`merge`).  ``shipped``: the application's folder of scenario
+    files, where a ``base`` found neither beside the file nor by an absolute path is looked up (see
+    :func:`base_path`).  ``inherited``: where given, gets what each file of the chain takes from its base
+    (:class:`Inheritance`), the file's own first."""
     name = str(path)
     if not path.is_file():
         if asked_by is not None:
@@ -231,11 +363,19 @@ def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, 
     inputs = doc.get("inputs")
     if isinstance(inputs, dict) and isinstance(inputs.get("file"), str):
         inputs["file"] = str((path.parent / inputs["file"]).resolve())
+    whole = replaced_lists(name, doc.pop("replace", None))
+    if "base" not in doc and whole:
+        raise ScenarioError(name, "replace", "this file has no base: replace names the lists of its base it gives "
+                                             "whole")
     if "base" in doc:
         b = doc.pop("base")
         if not isinstance(b, str):
             raise ScenarioError(name, "base", "must be a file name")
-        doc = _merge(read_document(base_path(path, b, shipped), seen + (path.resolve(),), (name, b), shipped), doc)
+        report = Inheritance(name, b)
+        doc = merge(read_document(base_path(path, b, shipped), seen + (path.resolve(),), (name, b), shipped,
+                                  inherited), doc, report, whole)
+        if inherited is not None:
+            inherited.insert(0, report)
     return doc
 
 
@@ -745,6 +885,15 @@ SET_TABLES = {"experiment": _EXPERIMENT_KEYS, "record": _RECORD_KEYS}
 #: keys; the table is made when the document has none.
 SET_SUBTABLES = {("experiment", algorithms.ITERATION_TABLE): ITERATION_KEYS,
                  ("experiment", algorithms.ADAPTIVE_TABLE): ADAPTIVE_KEYS}
+
+
+def settable_table(key: str) -> str | None:
+    """The table whose field ``key`` is, as ``--set TABLE.KEY=VALUE`` sets it ("experiment" for "algorithm",
+    "record" for "decimation", "experiment.iteration" for "max_iterations"); None for a key of none."""
+    for table, keys in SET_TABLES.items():
+        if key in keys:
+            return table
+    return next((".".join(path) for path, keys in SET_SUBTABLES.items() if key in keys), None)
 
 
 def _subtable(doc: dict[str, Any], file: str, path: tuple[str, ...]) -> dict[str, Any]:
