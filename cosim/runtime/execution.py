@@ -37,6 +37,7 @@ from typing import Any, Callable
 from ..instances.contract import FmuInstance
 from ..instances.failure import Call, Failure, FmiStatus, InstanceLost
 from ..instances.handoff import Handoff
+from ..instances.model_exchange import ModelExchange
 from ..messages.errors import CosimError, RunError, ScenarioError
 from ..model.description import Variable
 from ..plan.records import Plan
@@ -218,7 +219,9 @@ class Execution:
         self._recorder.record_at(self.clock.start)
         if plan.scenario.event_rows:   # (resolve allows it for one in-process model-exchange instance only)
             (io,) = self.ios
-            self.instances[io.name].on_event = self._event_row(io)
+            inst = self.instances[io.name]
+            assert isinstance(inst, ModelExchange), inst
+            inst.on_event = self._event_row(io)
 
     def _event_row(self, io: InstanceIO) -> Callable[[float], None]:
         """The recording's row at an event of the lone model-exchange instance (``[record] event_rows``):
