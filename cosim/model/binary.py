@@ -1,6 +1,6 @@
 """What an FMU's binary is, read from its bytes without loading it: a shared library of this platform
-(ELF: 64-bit, little-endian, a shared object for x86-64; PE: a DLL for x64) that exports the FMI
-functions an interface needs.  ``check`` refuses a binary the loader would refuse, before any instance
+(ELF: 64-bit, little-endian, a shared object for x86-64 that is not a position-independent executable;
+PE: a DLL for x64) that exports the FMI functions an interface needs.  ``check`` refuses a binary the loader would refuse, before any instance
 is made, without running the library's code (loading it would run its constructors)."""
 from __future__ import annotations
 
