@@ -652,6 +652,41 @@ def bench_archive(repeats: int) -> dict[str, float]:
     return figures
 
 
+def bench_binary(repeats: int) -> dict[str, float]:
+    """The reading of an FMU's binary (cosim/model/binary.py, what ``check`` and ``info`` do with a
+    stranger's archive) on ELF files of 10,000 and 100,000 exported symbols: named ones (the FMI functions
+    among them), and ones whose names all begin in the first 1 MB of a string table with no terminator
+    before the FMI functions' names at its end (what made the reader that read each name quadratic:
+    minutes at 100,000).  Median of ``repeats`` [ms]: each takes about 10 times as long for 10 times the
+    symbols (linear)."""
+    import time
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from elf_files import elf_file
+    from wmr_cosim.cosim.model.binary import library_problem
+
+    def timed(data: bytes) -> float:
+        ts = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            library_problem(data, 2, "co-simulation", "linux")
+            ts.append(time.perf_counter() - t0)
+        return round(1e3 * statistics.median(ts), 3)
+
+    figures: dict[str, float] = {}
+    for n in (10_000, 100_000):
+        names = b"\0" + b"".join(b"sym_%d\0" % i for i in range(n)) + b"fmi2Instantiate\0fmi2DoStep\0"
+        starts = [1 + i for i, c in enumerate(names[1:]) if names[i] == 0][:n + 2]
+        named = elf_file(names, [(at, 5) for at in starts])
+        assert library_problem(named, 2, "co-simulation", "linux") is None
+        figures[f"named_{n}_ms"] = timed(named)
+        long = b"x" * 1_000_000 + b"\0fmi2Instantiate\0fmi2DoStep\0"
+        figures[f"unterminated_{n}_ms"] = timed(elf_file(long, [(i * 10, 5) for i in range(n)] +
+                                                         [(1_000_001, 5), (1_000_017, 5)]))
+    return figures
+
+
 def _isolation_walls(repeats: int) -> tuple[dict[str, float], dict[str, dict], dict[str, dict[str, int]]]:
     """G1 in process, plant isolated, all isolated, interleaved: the median wall [s] of each, its final
     values, and how the isolated runs' hand-off waited (steps spun and blocked, summed over the runs)."""
@@ -1125,7 +1160,8 @@ def bench_parallel(repeats: int) -> dict[str, Any]:
 
 
 BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "fmi3": bench_fmi3, "paper": bench_paper,
-           "sweep": bench_sweep, "interop": bench_interop, "archive": bench_archive, "loader": bench_loader,
+           "sweep": bench_sweep, "interop": bench_interop, "archive": bench_archive, "binary": bench_binary,
+           "loader": bench_loader,
            "isolation": bench_isolation, "scripting": bench_scripting, "mutation": bench_mutation,
            "requirements": bench_requirements,
            "bugs": bench_bugs, "exit": bench_exit, "me": bench_me,

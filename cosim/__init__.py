@@ -30,7 +30,8 @@ if TYPE_CHECKING:   # (for the type checker; at run time each name is imported w
                         LimitOverrides, Variable, check_archive, file_kind, fmi_version, limit_overrides,
                         load_model, named_kind)
     from .plan import Plan, describe_coupling, export_remarks, export_ssp, is_ssp, load_ssp, resolve
-    from .results import MatLayout, OutputLock, RunResult, RunStatus, layout, make_folder, write_json, write_mat
+    from .results import (MatLayout, OutputLock, ResultsError, RunResult, RunStatus, layout, make_folder, read_json,
+                          read_signals, write_json, write_mat)
     from .runtime import (Execution, Manipulator, Observer, Protocol, check_protocol, plan_runs, read_protocol, run,
                           run_protocol)
     from .scenario import (Scenario, apply_overrides, is_path, load, parse, parse_set, parse_value, read_document,
@@ -47,8 +48,8 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
               "LimitOverrides", "Variable", "check_archive", "file_kind", "fmi_version", "limit_overrides",
               "load_model", "named_kind"],
     "plan": ["Plan", "describe_coupling", "export_remarks", "export_ssp", "is_ssp", "load_ssp", "resolve"],
-    "results": ["MatLayout", "OutputLock", "RunResult", "RunStatus", "layout", "make_folder", "write_json",
-                "write_mat"],
+    "results": ["MatLayout", "OutputLock", "ResultsError", "RunResult", "RunStatus", "layout", "make_folder",
+                "read_json", "read_signals", "write_json", "write_mat"],
     "runtime": ["Execution", "Manipulator", "Observer", "Protocol", "check_protocol", "plan_runs", "read_protocol",
                 "run", "run_protocol"],
     "scenario": ["Scenario", "apply_overrides", "is_path", "load", "parse", "parse_set", "parse_value",

@@ -494,3 +494,58 @@ def test_an_fmu_call_failing_inside_the_integration_ends_the_run_with_one_line_n
     assert 0.4 <= t_fail < 0.5      # the step in which an evaluation reached 0.5 s (CVODE looks ahead)
     assert res.status == "failed"
     assert np.load(tmp_path / "out" / "signals.npy")["time"][-1] == pytest.approx(t_fail)
+
+
+# --- rows at the events: [record] event_rows, as FMPy's record_events ------------------------------------------
+
+def _ball_scenario(tmp_path: Path, version: str, extra: str = "", record: str = "event_rows = true\n") -> Path:
+    path = tmp_path / f"ball_{version}.toml"
+    path.write_text(f'[experiment]\nstop = 3.0\nstep = 0.01\n[instances.ball]\nfmu = "{REF / version / "BouncingBall.fmu"}"\n'
+                    f'interface = "model-exchange"\n{extra}[record]\nvariables = ["ball.h", "ball.v"]\n{record}')
+    return path
+
+
+@pytest.mark.parametrize("version", ["fmi2", "fmi3"])
+def test_event_rows_are_fmpys_record_events_rows(tmp_path, capsys, version):
+    """BouncingBall through model exchange with ``event_rows``: a row before and one after each bounce at the
+    bounce's time, as FMPy's simulate_fmu(record_events=True) gives them (the same CVODE settings: times and
+    values to the solver's tolerance); the rows of the grid are those of the run without event rows, bit for
+    bit."""
+    from wmr_cosim.cli import main
+    with_rows, without = tmp_path / "with", tmp_path / "without"
+    assert main(["run", str(_ball_scenario(tmp_path, version)), "--out", str(with_rows), "--quiet"]) == 0
+    assert main(["run", str(_ball_scenario(tmp_path, version, record="")), "--out", str(without), "--quiet"]) == 0
+    ours, grid = np.load(with_rows / "signals.npy"), np.load(without / "signals.npy")
+    ref = simulate_fmu(str(REF / version / "BouncingBall.fmu"), fmi_type="ModelExchange", stop_time=3.0,
+                       output_interval=0.01, record_events=True, output=["h", "v"])
+    at = np.flatnonzero(np.diff(ours["time"]) == 0)          # each event: the row before, then the one after
+    ref_at = np.flatnonzero(np.diff(ref["time"]) == 0)
+    assert len(at) == len(ref_at) >= 8                      # the ball bounces, ever faster, up to 3 s
+    np.testing.assert_allclose(ours["time"][at], ref["time"][ref_at], rtol=1e-6)
+    for shift in (0, 1):                                      # before and after
+        np.testing.assert_allclose(ours["ball.v"][at + shift], ref["v"][ref_at + shift], rtol=1e-4, atol=1e-6)
+        np.testing.assert_allclose(ours["ball.h"][at + shift], ref["h"][ref_at + shift], atol=1e-6)
+    assert np.all(ours["ball.v"][at] < 0) and np.all(ours["ball.v"][at + 1] >= 0)   # falling, then rising (or at rest)
+    events = set(at) | set(at + 1)
+    on_grid = ours[[i for i in range(len(ours)) if i not in events]]
+    assert np.array_equal(on_grid, grid)
+
+
+@pytest.mark.parametrize("case, words", [
+    ("co-simulation", "instance ball runs through co-simulation"),
+    ("isolated", "instance ball is isolated"),
+    ("two instances", "the run has 2 instances"),
+    ("not a bool", "'yes': must be true or false"),
+])
+def test_event_rows_are_refused_where_they_cannot_be_honoured(tmp_path, capsys, case, words):
+    from wmr_cosim.cli import main
+    extra = {"co-simulation": "", "isolated": "isolate = true\n",
+             "two instances": f'[instances.other]\nfmu = "{REF / "fmi2" / "Dahlquist.fmu"}"\n',
+             "not a bool": ""}[case]
+    path = _ball_scenario(tmp_path, "fmi2", extra, record='event_rows = "yes"\n' if case == "not a bool"
+                          else "event_rows = true\n")
+    if case == "co-simulation":
+        path.write_text(path.read_text().replace('interface = "model-exchange"\n', ""))
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"{path}: record.event_rows: " in err and words in err, err

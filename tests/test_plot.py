@@ -158,3 +158,84 @@ def test_show_without_a_display_writes_the_file_and_says_so(folder, monkeypatch,
     assert cli.main(["plot", str(folder), "plant.x_A", "--show"]) == 0
     assert _err(capsys) == "wmr-cosim: note: no display: --show opens no window; the figure is only written"
     assert _png_size(folder / "plot.png")[0] == 900
+
+
+# --- a results folder a killed run, a cut copy or a stranger left: one line, or the rows that are there -----------
+
+def _cut(path, size: int) -> None:
+    path.write_bytes(path.read_bytes()[:size])
+
+
+def _header_end(path) -> int:
+    raw = path.read_bytes()
+    assert raw[6] == 1
+    return 10 + int.from_bytes(raw[8:10], "little")
+
+
+@pytest.mark.parametrize("case, words", [
+    ("0 bytes", "signals.npy: empty (0 bytes): the run wrote nothing"),
+    ("magic only", "signals.npy: cut inside its header"),
+    ("header cut", "signals.npy: cut inside its header"),
+    ("garbage", "signals.npy: not a .npy file (it begins b'time,pla')"),
+    ("no rows", "{folder}: signals.npy has no rows: nothing to draw"),
+    ("no time", "signals.npy: not a recording (no time column)"),
+    ("summary empty", "summary.json: empty"),
+    ("summary not JSON", "summary.json: not valid JSON (line 1 column 12: "),
+    ("summary a list", "summary.json: not a JSON object (an array)"),
+    ("summary columns", "summary.json: columns: an object expected, not a number"),
+    ("summary events", "summary.json: events: an array expected, not a string"),
+    ("scenario not UTF-8", "scenario.json: not UTF-8 (byte 0)"),
+    ("requirements.npy", "requirements.npy: empty (0 bytes)"),
+])
+def test_a_broken_file_of_the_folder_is_one_line_naming_it(case, words, folder, capsys):
+    npy = folder / "signals.npy"
+    if case == "0 bytes":
+        npy.write_bytes(b"")
+    elif case == "magic only":
+        _cut(npy, 9)
+    elif case == "header cut":
+        _cut(npy, _header_end(npy) - 20)
+    elif case == "garbage":
+        npy.write_text("time,plant.x_A\n0,1\n")
+    elif case == "no rows":
+        raw, shape = npy.read_bytes()[:_header_end(npy)], b"'shape': (%d,)" % len(np.load(npy))
+        npy.write_bytes(raw.replace(shape, b"'shape': (0,)".ljust(len(shape))))   # the header of a run killed at once
+    elif case == "no time":
+        np.save(npy, np.zeros(3, dtype=[("t", "<f8")]))
+    elif case.startswith("summary"):
+        summary = json.loads((folder / "summary.json").read_text())
+        (folder / "summary.json").write_text({"summary empty": "  \n", "summary not JSON": '{"status": ok}',
+                                              "summary a list": "[1, 2]",
+                                              "summary columns": json.dumps({**summary, "columns": 5}),
+                                              "summary events": json.dumps({**summary, "events": "none"})}[case])
+    elif case == "scenario not UTF-8":
+        (folder / "summary.json").unlink()
+        (folder / "scenario.json").write_bytes(b"\xff\xfe{}")
+    elif case == "requirements.npy":
+        (folder / "requirements.npy").write_bytes(b"")
+    assert cli.main(["plot", str(folder), "plant.x_A"]) == 2
+    err = _err(capsys)
+    lead = f"wmr-cosim: error: {folder}/" if not words.startswith("{folder}") else "wmr-cosim: error: "
+    assert err.startswith(lead + words.format(folder=folder)), err
+    assert not (folder / "plot.png").exists()
+
+
+def test_a_recording_cut_short_is_drawn_up_to_its_last_whole_row(folder, monkeypatch, capsys):
+    """A run killed between writing rows and rewriting the header, or a copy cut mid-row: the header
+    promises more rows than the file holds; the whole rows are data and are drawn, and a note says how many
+    of how many."""
+    npy = folder / "signals.npy"
+    full = np.load(npy)
+    keep = len(full) // 2
+    _cut(npy, _header_end(npy) + keep * full.dtype.itemsize + full.dtype.itemsize // 2)
+    figures = []
+    draw = plot.draw
+    monkeypatch.setattr(plot, "draw", lambda *a, **k: figures.append(draw(*a, **k)) or figures[-1])
+    assert cli.main(["plot", str(folder), "plant.x_A"]) == 0
+    assert _err(capsys) == (f"wmr-cosim: note: {npy}: {keep} of the {len(full)} rows its header gives are in the "
+                            f"file (it was cut short): the {keep} are read")
+    line = figures[0].axes[0].get_lines()[0]
+    assert np.array_equal(line.get_xdata(), full["time"][:keep])
+    assert np.array_equal(line.get_ydata(), full["plant.x_A"][:keep])
+    from wmr_cosim.analysis import load_signals
+    assert np.array_equal(load_signals(folder)["plant.x_A"], full["plant.x_A"][:keep])

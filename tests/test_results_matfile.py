@@ -173,3 +173,27 @@ def test_the_writer_refuses_what_it_cannot_write_and_leaves_nothing(tmp_path):
     with pytest.raises(ValueError):      # fails while writing the data: the partial file is removed
         write_mat(tmp_path / "x.mat", text)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_docs_snippets_read_a_real_signals_mat(tmp_path, monkeypatch, capsys):
+    """The snippets of docs/scenarios.md ("Reading signals.mat"), run as written against the run they name
+    (BouncingBall, --format mat): each gives the recorded time and height, bit for bit."""
+    import re
+    from pathlib import Path
+
+    from reference_fmus import REF
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "scenarios.md").read_text(encoding="utf-8")
+    section = doc[doc.index("**Reading `signals.mat`.**"):]
+    command = re.search(r"`(wmr-cosim run [^`]+)`", section).group(1).split()
+    blocks = re.findall(r"^```python\n(.*?)^```", section, flags=re.MULTILINE | re.DOTALL)[:2]
+    assert command[2] == "BouncingBall.fmu" and "loadmat" in blocks[0] and "DyMat" in blocks[1]
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["run", str(REF / "fmi2" / "BouncingBall.fmu"), *command[3:], "--quiet"]) == 0, \
+        capsys.readouterr().err
+    sig = np.load(tmp_path / "results" / "ball" / "signals.npy")
+    assert len(sig) > 100 and sig["BouncingBall.h"].min() < 0.1   # the ball has bounced
+    for code in blocks:
+        scope: dict = {}
+        exec(compile(code, "docs/scenarios.md", "exec"), scope)
+        assert np.array_equal(scope["t"], sig["time"]) and np.array_equal(scope["h"], sig["BouncingBall.h"]), code

@@ -266,7 +266,7 @@ def test_a_scenario_file_that_cannot_be_read_is_named(tmp_path, monkeypatch, err
     ({"limits": 3}, "limits: must be a table (archive_size, archive_ratio)"),
     ({"instances": {"a": {"fmu": str(FT), "isolate": "yes"}}}, "instances.a.isolate: 'yes': must be true or false"),
     ({"record": {"variables": ["a.y"], "colour": 1}},
-     "record.colour: unknown key (allowed: csv, decimation, mat, max_bytes, variables)")])
+     "record.colour: unknown key (allowed: csv, decimation, event_rows, mat, max_bytes, variables)")])
 def test_a_malformed_table_is_named_by_its_field(extra, message):
     assert str(_refused(_doc(**extra))) == f"s.toml: {message}"
 

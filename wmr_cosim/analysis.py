@@ -44,11 +44,14 @@ def requirement_verdicts(folder: str | Path) -> dict[str, dict[str, Any]]:
 
 
 def load_signals(folder: str | Path) -> Signals | None:
-    """The signals of one run folder (None if it recorded nothing)."""
+    """The signals of one run folder (None if it recorded nothing; its whole rows when it was cut short);
+    ResultsError (one line) when its signals.npy cannot be read."""
+    from .cosim import read_signals
+
     f = Path(folder) / "signals.npy"
     if not f.is_file():
         return None
-    data = np.load(f)
+    data = read_signals(f).signals
     if not len(data):
         return None
     sig = {name: np.asarray(data[name]) for name in data.dtype.names}

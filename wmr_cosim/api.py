@@ -167,9 +167,11 @@ class Simulation:
         return self
 
     def record(self, *variables: str, decimation: int | None = None, csv: bool | None = None,
-               mat: bool | None = None) -> "Simulation":
+               mat: bool | None = None, event_rows: bool | None = None) -> "Simulation":
         """Record these variables (names or patterns such as ``"controller.W*"``; added to the list);
-        ``csv``, ``mat``: whether the results folder gets signals.csv, signals.mat (``[record]`` csv, mat)."""
+        ``csv``, ``mat``: whether the results folder gets signals.csv, signals.mat (``[record]`` csv, mat);
+        ``event_rows``: rows before and after each event of a lone model-exchange instance
+        (``[record] event_rows``)."""
         rec = self.document.setdefault("record", {})
         rec["variables"] = list(rec.get("variables", [])) + list(variables)
         if decimation is not None:
@@ -178,6 +180,8 @@ class Simulation:
             rec["csv"] = csv
         if mat is not None:
             rec["mat"] = mat
+        if event_rows is not None:
+            rec["event_rows"] = event_rows
         return self
 
     def event(self, **fields: Any) -> "Simulation":

@@ -11,7 +11,6 @@ run still going or killed is drawn too); the events from summary.json's ``events
 from __future__ import annotations
 
 import fnmatch
-import json
 import os
 import sys
 from dataclasses import dataclass, field
@@ -45,6 +44,7 @@ class Results:
     events: list[dict[str, Any]] = field(default_factory=list)
     requirements: dict[str, dict[str, Any]] = field(default_factory=dict)   # summary.json's, by name
     robustness: np.ndarray | None = None   # requirements.npy: time and each requirement's robustness
+    note: str | None = None   # signals.npy cut short: how many of the rows its header gives were read
 
     @property
     def columns(self) -> list[str]:
@@ -64,43 +64,32 @@ class Plotted:
 
 
 def read_results(folder: str | Path) -> Results:
-    """The recording, units and events of a results folder; PlotError (one line naming the folder) when
-    it does not exist, has no signals.npy, or a file of it cannot be read."""
+    """The recording, units and events of a results folder; PlotError (one line naming the folder or the
+    file) when it does not exist, has no signals.npy, or a file of it cannot be read
+    (:func:`.cosim.read_signals`: a recording cut short is read up to its last whole row, and a note
+    says so)."""
+    from .cosim import ResultsError, read_json, read_signals
+
     folder = Path(folder)
     if not folder.is_dir():
         raise PlotError(f"{folder}: {'not a folder' if folder.exists() else 'no such folder'}")
     npy = folder / "signals.npy"
     if not npy.is_file():
         raise PlotError(f"{folder}: no signals.npy (not a results folder of `wmr-cosim run`)")
+    shapes = {"columns": dict, "events": list, "requirements": list}
     try:
-        signals = np.load(npy)
-    except (OSError, ValueError) as exc:
-        raise PlotError(f"{npy}: cannot be read ({' '.join(str(exc).split())})") from None
-    if signals.dtype.names is None or "time" not in signals.dtype.names:
-        raise PlotError(f"{npy}: not a recording (no time column)")
-    summary = _json(folder / "summary.json")
-    columns = summary.get("columns") or _json(folder / "scenario.json").get("columns") or {}
+        recording = read_signals(npy)
+        summary = read_json(folder / "summary.json", shapes)
+        columns = summary.get("columns") or read_json(folder / "scenario.json", shapes).get("columns") or {}
+        robustness = None
+        if (folder / "requirements.npy").is_file():
+            robustness = read_signals(folder / "requirements.npy").signals
+    except ResultsError as exc:
+        raise PlotError(str(exc)) from None
     units = {n: (c.get("unit") if isinstance(c, dict) else None) for n, c in columns.items()}
     events = [e for e in summary.get("events") or [] if isinstance(e, dict) and _number(e.get("time"))]
     reqs = {r["name"]: r for r in summary.get("requirements") or [] if isinstance(r, dict) and "name" in r}
-    robustness = None
-    if (folder / "requirements.npy").is_file():
-        try:
-            robustness = np.load(folder / "requirements.npy")
-        except (OSError, ValueError) as exc:
-            raise PlotError(f"{folder / 'requirements.npy'}: cannot be read ({' '.join(str(exc).split())})") from None
-    return Results(folder, signals, units, events, reqs, robustness)
-
-
-def _json(path: Path) -> dict[str, Any]:
-    """A JSON file of the folder ({} when absent); PlotError when it cannot be read."""
-    if not path.is_file():
-        return {}
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise PlotError(f"{path}: cannot be read ({' '.join(str(exc).split())})") from None
-    return doc if isinstance(doc, dict) else {}
+    return Results(folder, recording.signals, units, events, reqs, robustness, recording.note)
 
 
 def _number(x: Any) -> bool:
@@ -290,7 +279,9 @@ def plot_results(folder: str | Path, variables: list[str] | None = None, out: st
     if plt is not None:
         plt.show()
         plt.close(fig)
-    note = "no display: --show opens no window; the figure is only written" if show and not window else None
+    notes = [res.note, "no display: --show opens no window; the figure is only written" if show and not window
+             else None]
+    note = "; ".join(n for n in notes if n) or None
     return Plotted(path, chosen + [f"robustness of {r}" for r in reqs], fig, note)
 
 

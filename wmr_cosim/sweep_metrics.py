@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from .cosim import ScenarioError
+from .cosim import ScenarioError, read_signals
 
 #: What a metric measures -> the keys it needs beside ``of``, ``variable`` and ``run``, and its unit given
 #: the variable's ("{u}": the variable's own).
@@ -247,7 +247,7 @@ class SweepMeasure:
             run = m.run if m.run is not None else self.runs[0]
             if run not in data:
                 f = work / run / "signals.npy"
-                data[run] = np.load(f) if f.is_file() else None
+                data[run] = read_signals(f).signals if f.is_file() else None
             row[m.name] = _measured(m, data[run])
 
 

@@ -79,6 +79,10 @@ class ModelExchange:
         self.inputs: list[float] | None = None
         self.dirty = False                    # the inputs changed since the integrator last started
         self.events: list[tuple[float, str]] = []   # (time [s], "time" | "state" | "step" | "input" | "set")
+        #: called at each event of the FMU (time, state, step, input; not the event mode entered to set
+        #: values) with its time [s], once before the event mode and once after the event iteration:
+        #: the recording's rows at the event (``[record] event_rows``)
+        self.on_event: Callable[[float], None] | None = None
         self.n_saved = 0
         self.failed_call = ""
         self._terminated = ctypes.c_bool(False)
@@ -273,7 +277,10 @@ class ModelExchange:
     def _event_at(self, t: float, kind: str) -> None:
         """Event mode (unless in it), the event iteration, continuous-time mode, the integrator restarted."""
         assert self.integrator is not None
+        row = self.on_event if kind != "set" else None
         if self.mode != "event":
+            if row is not None:
+                row(t)                  # the values before the event
             self.call(f"fmi{self.fmi_version}EnterEventMode", self.fmu.enterEventMode, t=t)
             self.mode = "event"
         if kind != "set":
@@ -284,6 +291,8 @@ class ModelExchange:
         self.dirty = False
         self.integrator.reset(t)
         self.z = self._indicators()
+        if row is not None:
+            row(t)                      # the values after it
 
     def _event_iteration(self, t: float, kind: str) -> bool:
         """Update the discrete states until no new ones are needed, then continuous-time mode; True if the

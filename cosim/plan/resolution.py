@@ -493,6 +493,7 @@ def _resolve(sc: Scenario) -> Plan:
     check_iteration(sc, insts, coupled)
     requirements = _requirements(sc, insts, notes)
     record, not_recorded = _record(sc, insts)
+    _event_rows(sc, insts)
     inputs = _inputs(sc, insts, driven)
     start, stop, step = sc.times()
     n_steps, last_step = steps_of(start, stop, step)
@@ -595,6 +596,27 @@ def every_missing(file: str, first: MissingVariableError, found: dict[str, Missi
         items.append(f"{ref} ({where})")
     return MissingVariableError(file, "", f"{len(found)} variables missing from their FMUs: {', '.join(items)}",
                                 first.ref)
+
+
+def _event_rows(sc: Scenario, insts: dict[str, InstancePlan]) -> None:
+    """``[record] event_rows`` (rows at the instants of the FMU's events, before and after each, as FMPy's
+    ``record_events``) is honoured for a run of one instance through model exchange in this process only:
+    in a system, the recording is the communication grid of all the instances, and an isolated instance's
+    events happen in another process.  ScenarioError where it cannot be honoured."""
+    if not sc.event_rows:
+        return
+    why = None
+    if len(insts) != 1:
+        why = f"the run has {len(insts)} instances (the recording of a system is its communication grid)"
+    else:
+        name, ip = next(iter(insts.items()))
+        if ip.interface != MODEL_EXCHANGE:
+            why = f"instance {name} runs through {ip.interface} (its events are the FMU's own, inside its steps)"
+        elif ip.spec.isolate:
+            why = f"instance {name} is isolated (its events happen in a process of its own)"
+    if why is not None:
+        raise ScenarioError(sc.file, "record.event_rows", "rows at the events are recorded for a run of one "
+                            f"instance through model exchange in this process only: {why}")
 
 
 def _workers(sc: Scenario, insts: dict[str, InstancePlan], conns: list[ConnectionPlan], notes: list[str]) -> str:

@@ -37,6 +37,7 @@ from typing import Any, Callable
 from ..instances.contract import FmuInstance
 from ..instances.failure import Call, Failure, FmiStatus, InstanceLost
 from ..instances.handoff import Handoff
+from ..instances.model_exchange import ModelExchange
 from ..messages.errors import CosimError, RunError, ScenarioError
 from ..model.description import Variable
 from ..plan.records import Plan
@@ -53,8 +54,8 @@ from .manipulators import Actuator, ConditionEvents, EventStop, Manipulator, Scr
 from .monitoring import RequirementMonitors
 from .observers import Observer, Pacing, ProgressBar, Recorder, StepCallback
 from .pacing import Pacer
-from .startup import (exchange_initial, handoff_for, instance_io, load_instances, read_outputs, recorded_getters, recorded_types,
-                      set_up)
+from .startup import (check, exchange_initial, handoff_for, instance_io, load_instances, read_outputs, recorded_getters,
+                      recorded_types, set_up)
 from .views import ManipulatedRun, ObservedRun
 
 __all__ = ["Execution", "RunResult", "run"]
@@ -149,7 +150,8 @@ class Execution:
         self._work = Path(tempfile.mkdtemp(prefix="wmr-cosim-fmus-"))
         self._recorder = Recorder(self.folder.signals if self.folder is not None else None, self.columns,
                                   recorded_types(plan),
-                                  [0] + [layout.slot(r) for r in plan.record], layout, layout.n_int, self.clock)
+                                  [0] + [layout.slot(r) for r in plan.record], layout, layout.n_int, self.clock,
+                                  native=not plan.scenario.event_rows)
         self._requirements = RequirementMonitors(plan.requirements) if plan.requirements else None
         self._add_builtin_parts(progress)
 
@@ -216,6 +218,26 @@ class Execution:
         read_outputs(self.ios, self.instances, self.clock.start)
         self._recorder.open(recorded_getters(plan, self.instances, layout))
         self._recorder.record_at(self.clock.start)
+        if plan.scenario.event_rows:   # (resolve allows it for one in-process model-exchange instance only)
+            (io,) = self.ios
+            inst = self.instances[io.name]
+            assert isinstance(inst, ModelExchange), inst
+            inst.on_event = self._event_row(io)
+
+    def _event_row(self, io: InstanceIO) -> Callable[[float], None]:
+        """The recording's row at an event of the lone model-exchange instance (``[record] event_rows``):
+        its outputs read at the event's time t [s] into the row and recorded, the row then as it was (the
+        step's own row is read after the step)."""
+        layout, inst, recorder = self._layout, self.instances[io.name], self._recorder
+
+        def row_at(t: float) -> None:
+            saved = bytes(layout.buf)
+            try:
+                check(inst, "get outputs", io.get_outputs(), t)
+                recorder.record_at(t)
+            finally:
+                ctypes.memmove(layout.buf, saved, len(saved))
+        return row_at
 
     def _logs(self) -> Path:
         """The folder of the instances' logs: the results folder's, else one in the work folder (removed)."""

@@ -89,8 +89,11 @@ class Recorder(Observer):
     values.  :meth:`take` is what the algorithm calls after every step (``stepping.algorithm.StepDone``)."""
 
     def __init__(self, path: Path | None, columns: list[str], types: list[str], slots: list[int], row: Row,
-                 n_int: int, clock: Clock) -> None:
-        """``path``: signals.npy (None: the rows kept in memory)."""
+                 n_int: int, clock: Clock, native: bool = True) -> None:
+        """``path``: signals.npy (None: the rows kept in memory); ``native``: a native loop may copy the rows
+        itself (False where rows are also taken inside the steps, :meth:`record_at`, so that every row is
+        appended in the order of its time)."""
+        self.native = native
         self.path, self.columns, self.types, self.slots = path, columns, types, slots
         self.row, self.n_int, self.clock = row, n_int, clock
         self.block = FLUSH_ROWS * clock.decimation
@@ -153,8 +156,9 @@ class Recorder(Observer):
                     return fail
             append(bytes(buf))
             return None
-        take.native = NativeRecording(buf, ctypes.sizeof(buf), dec, n, stop, t0, h,   # type: ignore[attr-defined]
-                                      read_others if getters else None, self.rows.extend)
+        if self.native:
+            take.native = NativeRecording(buf, ctypes.sizeof(buf), dec, n, stop, t0, h,   # type: ignore[attr-defined]
+                                          read_others if getters else None, self.rows.extend)
         return take
 
     def record_at(self, t: float) -> None:

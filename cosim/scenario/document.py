@@ -40,7 +40,7 @@ _EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", 
 _INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "override_declared_units", "description", "logging", "isolate",
                   "step_timeout", "tolerance", "interface", "step", *SOLVER_KEYS}
 _CONNECTION_KEYS = {"from", "to", "factor", "offset", "convert", "threshold"}
-_RECORD_KEYS = {"variables", "decimation", "csv", "mat", "max_bytes"}
+_RECORD_KEYS = {"variables", "decimation", "csv", "mat", "max_bytes", "event_rows"}
 _RUN_KEYS = {"name", "description", "parameters", "carry"}
 _VARIANT_KEYS = {"description", "parameters"}
 _EVENT_KEYS = {"time", "when", "trigger", "delay", "variable", "action", "value"}
@@ -160,6 +160,7 @@ class Scenario:
     events: list[EventSpec] = field(default_factory=list)
     csv: bool = True
     mat: bool = False               # also signals.mat, Dymola's result layout (cosim.results.matfile)
+    event_rows: bool = False        # rows before and after each event of a lone model-exchange instance
     runs: list[RunSpec] = field(default_factory=list)
     variants: dict[str, dict[str, Any]] = field(default_factory=dict)
     inputs_file: Path | None = None                      # a CSV table of input signals
@@ -683,6 +684,10 @@ def _parse_record(sc: Scenario, doc: dict[str, Any]) -> None:
     if not isinstance(mat, bool):
         raise ScenarioError(file, "record.mat", f"{mat!r}: must be true or false")
     sc.mat = mat
+    event_rows = rec.get("event_rows", False)
+    if not isinstance(event_rows, bool):
+        raise ScenarioError(file, "record.event_rows", f"{event_rows!r}: must be true or false")
+    sc.event_rows = event_rows
     if "max_bytes" in rec:
         sc.max_bytes = _count(file, "record.max_bytes", rec["max_bytes"])
 
