@@ -36,9 +36,21 @@ def dask_security(ca_file: str | None = None, cert: str | None = None, key: str 
                     require_encryption=True)
 
 
+def check_worker_count(workers: Any) -> None:
+    """``--workers``: None (one local worker process per core) or a whole number >= 1; CosimError naming the
+    option otherwise (0 is no worker, not a default)."""
+    if workers is None:
+        return
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise CosimError(f"--workers {workers}: must be a whole number >= 1 (the local worker processes; "
+                         "leave it out for one per core)")
+
+
 def cluster_options(args: Any) -> dict[str, Any]:
     """The Dask keyword arguments of ``sweep.run_sweep`` and ``gamma_search.gamma_search`` from the command line's options
-    (``--workers``, ``--scheduler``, ``--dashboard``, ``--tls-ca-file``, ``--tls-cert``, ``--tls-key``)."""
+    (``--workers``, ``--scheduler``, ``--dashboard``, ``--tls-ca-file``, ``--tls-cert``, ``--tls-key``),
+    checked before anything runs."""
+    check_worker_count(args.workers)
     sec = dask_security(getattr(args, "tls_ca_file", None), getattr(args, "tls_cert", None),
                         getattr(args, "tls_key", None))
     if sec is not None and not (args.scheduler or "").startswith("tls://"):
@@ -80,6 +92,7 @@ class Cluster:
 
         from distributed import Client, LocalCluster
 
+        check_worker_count(workers)
         t0 = time.perf_counter()
         self.cluster = None
         self.scratch: Path | None = None
