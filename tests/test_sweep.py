@@ -9,6 +9,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
@@ -120,9 +121,10 @@ def test_same_results_with_one_or_two_workers_and_after_a_restart(tmp_path, clus
     assert (df1["status"] == "ok").all()
     pd.testing.assert_frame_equal(_table(df1), _table(df2))
     assert df1["learn.rmse_e1"].nunique() == 4      # the points differ
-    # every column is the point's own, a parameter or the robot's (what a metric's name may not be)
-    assert set(df1.columns) <= {"point", "status", "reason", "wall_s", "plant.foam_da1", "plant.foam_da2",
-                                "controller.goal_x", *robot_measures.columns(["learn"])}
+    # every column is the point's own, a parameter, a requirement's or the robot's (what a metric's name may
+    # not be: sweep._columns)
+    plans = {"learn": SimpleNamespace(requirements=[SimpleNamespace(name=r) for r in ("goal", "static")])}
+    assert set(df1.columns) <= set(sweep._columns(sweep_file.load_sweep(f), plans))
     # interrupted: two points lost; started again: only those run, the table is the same
     pts = tmp_path / "two" / "points"
     stamps = {p.name: p.stat().st_mtime_ns for p in pts.iterdir()}
@@ -224,15 +226,22 @@ def _cli_in_process(*args: str) -> int:
 
 
 def test_the_command_lines_archive_limits_reach_the_sweeps_workers(tmp_path, capsys):
-    """`wmr-cosim --max-archive-size 1KiB sweep` is not refused up front: each point is submitted with the
-    limit and its worker extracts with it, so the point fails with the refusal as its reason."""
+    """`wmr-cosim --max-archive-size 1KiB sweep` refuses at once: the parent reads the base's FMUs (to check
+    the parameters and metrics) with the limit, before any point.  And each point is submitted with the
+    limit, its worker extracting with it: a point run with it fails with the refusal as its reason."""
+    from wmr_cosim.cosim import limit_overrides
+
     f = _sweep_file(tmp_path, 'runs = ["learn"]\n[grid]\n"plant.foam_da1" = [0.4]\n')
     out = tmp_path / "out"
     code = _cli_in_process("--max-archive-size", "1KiB", "sweep", f, "--out", out, "--workers", "1", "--quiet")
-    assert code == 0, capsys.readouterr().err
-    df = pd.read_csv(out / "results.csv")
-    assert list(df["status"]) == ["failed"]
-    assert "refused: its entries unpack to" in df["reason"][0] and "more than the limit of 1 KiB" in df["reason"][0]
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "more than the limit of 1 KiB" in err[0] and not out.exists()
+    with cluster.Cluster(workers=1) as cl:
+        rows = sweep.run_points([{"id": 0, "params": {"plant.foam_da1": 0.4}}], str(DATA / "short_protocol.toml"),
+                                None, ["learn"], out, cl, progress=False, archive_limits=limit_overrides("1KiB", None),
+                                fmus=robot_measures.fmu_paths(), measure=None)
+    assert [r["status"] for r in rows] == ["failed"]
+    assert "refused: its entries unpack to" in rows[0]["reason"] and "more than the limit of 1 KiB" in rows[0]["reason"]
 
 
 def test_the_command_lines_archive_limits_reach_the_gamma_searchs_workers(tmp_path, capsys):
