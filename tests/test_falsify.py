@@ -187,6 +187,10 @@ def test_a_copied_falsification_file_finds_its_base_among_the_shipped_scenarios(
     copy = tmp_path / "mine.toml"
     copy.write_text((folder() / "falsify-foam.toml").read_text())
     assert Path(load_falsification(copy).base) == (folder() / "g1_requirements.toml").resolve()
+    # a scenario of one's own over a shipped one: its base found as `run` finds it
+    (tmp_path / "short.toml").write_text('base = "g1_requirements.toml"\n[experiment]\nstop = 11.0\n')
+    copy.write_text('base = "short.toml"\nrequirement = "tracking"\nbudget = 10\n' + SPACE)
+    assert load_falsification(copy).requirement == "tracking"
     copy.write_text('base = "nope.toml"\nrequirement = "tracking"\n' + SPACE)
     _refused(capsys, [copy], tmp_path / "out", "mine.toml: base: 'nope.toml': the base scenario is not found",
              "nor a shipped scenario")

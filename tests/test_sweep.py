@@ -519,6 +519,11 @@ def test_a_copied_sweep_file_finds_its_base_among_the_shipped_scenarios(tmp_path
     copy = tmp_path / "my-sweep.toml"
     copy.write_text((folder() / "sweep-foam.toml").read_text())
     assert Path(sweep_file.load_sweep(copy).base) == (folder() / "paper" / "g1.toml").resolve()
+    # a scenario of one's own over a shipped one, swept: its base found as `run` finds it, its FMUs read
+    (tmp_path / "mine.toml").write_text('base = "paper/g1.toml"\n[experiment]\nstop = 5.0\n')
+    copy.write_text('base = "mine.toml"\nruns = ["learn"]\n[grid]\n"plant.a5" = [1.0]\n')
+    spec = sweep_file.load_sweep(copy)
+    assert sweep._measure(spec, robot_measures.fmu_paths(), None)[0].runs == ("learn",)
     copy.write_text('base = "paper/nope.toml"\n[grid]\n"plant.a5" = [1.0]\n')
     _refused(capsys, tmp_path, [copy], "my-sweep.toml: base: 'paper/nope.toml': the base scenario is not found",
              "nor a shipped scenario")

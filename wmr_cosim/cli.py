@@ -803,7 +803,7 @@ def _add_falsify(sub: Any) -> None:
     """The ``falsify`` command."""
     fa = sub.add_parser("falsify", help="search a parameter space for the worst case of a requirement",
                         description="Differential evolution over the file's parameter space (every point a full "
-                                    "co-simulation on Dask, within the file's budget of runs) for the lowest "
+                                    "co-simulation on Dask, within the file's budget of runs or --budget) for the lowest "
                                     "robustness of one of the base scenario's requirements; reports the worst case "
                                     "found, its robustness against the nominal run's, and re-runs it "
                                     "(docs/requirements.md).")

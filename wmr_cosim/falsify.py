@@ -81,7 +81,7 @@ def load_falsification(path: str | os.PathLike, seed: int | None = None, budget:
     scenario): it parses, declares the requirement, and the run.  The space against the base's FMUs is
     :func:`check_space`'s."""
     from .cosim import plan_runs
-    from .sweep_file import base_file, parameter_refs
+    from .sweep_file import base_file, parameter_refs, read_base
 
     p = Path(path)
     f = str(p)
@@ -129,7 +129,7 @@ def load_falsification(path: str | os.PathLike, seed: int | None = None, budget:
         raise CosimError(f"--budget {reason}") if budget is not None else ScenarioError(f, "budget", reason)
     if "variant" in doc:
         spec.variant = str(doc["variant"])
-    sc, runs, _ = plan_runs(spec.base, lambda name: Path(name), spec.variant)
+    sc, runs, _ = plan_runs(read_base(spec.base, lambda name: Path(name)), variant=spec.variant)
     names = [r.name for r in runs]
     spec.run = str(doc.get("run", names[0] if len(names) == 1 else ""))
     if spec.run not in names:
@@ -155,13 +155,13 @@ def check_space(spec: FalsifySpec, archive_limits: LimitOverrides | None = None)
     names them), before any run: each parameter exists, can be set, is Real, and its declared range holds
     the box."""
     from .cosim import check_protocol
-    from .sweep_file import check_parameters
+    from .sweep_file import check_parameters, read_base
 
     def resolve(name: str) -> Path | None:
         fmus = robot_measures.fmu_paths()
         return Path(fmus[name]) if name in fmus else None
 
-    plans = check_protocol(spec.base, resolve, spec.variant, limits=archive_limits)
+    plans = check_protocol(read_base(spec.base, resolve, archive_limits), variant=spec.variant)
     check_parameters(spec.file, {f"space.{k}": k for k in spec.space}, plans,
                      ranges={f"space.{k}": box for k, box in spec.space.items()})
 
@@ -297,10 +297,11 @@ def _rerun(spec: FalsifySpec, worst: dict[str, Any], params: dict[str, Any], fol
            archive_limits: LimitOverrides | None) -> dict[str, Any]:
     """The worst point (its ``params``) run again here, as its command runs it: its robustness and whether
     it is the same."""
-    from .runner import run_protocol
+    from .runner import resolve_model, run_protocol
+    from .sweep_file import read_base
 
-    results = run_protocol(spec.base, folder, variant=spec.variant, overrides=params, progress=False,
-                           limits=archive_limits)
+    results = run_protocol(read_base(spec.base, resolve_model, archive_limits), folder, variant=spec.variant,
+                           overrides=params, progress=False)
     verdicts = {v["name"]: v for v in results[spec.run].requirements}
     v = verdicts.get(spec.requirement, {})
     rob = math.inf if v.get("robustness") is None else v["robustness"]

@@ -34,7 +34,7 @@ from .cluster import Cluster, check_worker_count
 from .cosim import CosimError, LimitOverrides, count
 from . import robot_measures
 from .shipment import Shipment, ShippingCost, pack, ship, unship, worker_cache
-from .sweep_file import SweepSpec, check_parameters, draw_points, load_sweep
+from .sweep_file import SweepSpec, check_parameters, draw_points, load_sweep, read_base
 from .sweep_metrics import SweepMeasure, check_metrics
 from .sweep_plots import plot_sweep
 
@@ -304,8 +304,8 @@ def _measure(spec: SweepSpec, fmus: dict[str, str], archive_limits: LimitOverrid
     and draws set, and its metrics (see :func:`sweep_metrics.check_metrics`)."""
     from .cosim import check_protocol
 
-    plans = check_protocol(spec.base, lambda name: Path(fmus[name]) if name in fmus else None, spec.variant,
-                           only=spec.runs, limits=archive_limits)
+    base = read_base(spec.base, lambda name: Path(fmus[name]) if name in fmus else None, archive_limits)
+    plans = check_protocol(base, variant=spec.variant, only=spec.runs)
     check_parameters(spec.file, {**{f"grid.{k}": k for k in spec.grid}, **{f"random.{k}": k for k in spec.random}},
                      plans)
     runs = {name: {col: c["unit"] for col, c in plan.columns().items()} for name, plan in plans.items()}

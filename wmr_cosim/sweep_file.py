@@ -182,7 +182,7 @@ def _check_base(f: str, spec: SweepSpec) -> None:
     """The base must parse (model names are not built here), and the variant and runs must exist."""
     from .cosim import plan_runs
 
-    _, runs, _ = plan_runs(spec.base, lambda name: Path(name), spec.variant)
+    _, runs, _ = plan_runs(read_base(spec.base, lambda name: Path(name)), variant=spec.variant)
     if spec.runs:
         names = [r.name for r in runs]
         for r in spec.runs:
@@ -215,6 +215,16 @@ def base_file(path: Path, base: Any) -> Path:
                                        f"{'a folder' if found.is_dir() else 'not found'} ({found}; nor a shipped "
                                        "scenario)")
     return found.resolve()
+
+
+def read_base(base: str, resolver: Any, limits: Any = None) -> Any:
+    """A study's base scenario read once (a :class:`~wmr_cosim.cosim.Protocol`) as ``run`` reads a scenario:
+    its own ``base`` found beside it, else among the shipped scenarios; ``resolver``: model name -> FMU;
+    ``limits``: the caller's archive limits."""
+    from .cosim import read_protocol
+    from .runner import shipped_folder
+
+    return read_protocol(base, resolver, limits, shipped_folder())
 
 
 def check_parameters(file: str, axes: dict[str, str], plans: dict[str, Any],
