@@ -493,6 +493,16 @@ def test_a_parameter_the_base_does_not_have_is_refused_before_any_point(tmp_path
     _refused(capsys, tmp_path, [f, "--workers", "1"], "s.toml:", *words)
 
 
+def test_the_local_workers_temporary_folder_is_the_clusters_own(cluster2):
+    """A worker killed mid-run cannot clean up its run's extracted FMUs: the local cluster's workers take
+    their temporary folder (TMPDIR) inside the cluster's scratch folder, removed when it closes."""
+    import tempfile
+
+    assert cluster2.scratch is not None
+    temps = cluster2.client.run(tempfile.gettempdir)
+    assert len(temps) == 2 and all(Path(t) == cluster2.scratch for t in temps.values()), temps
+
+
 @pytest.mark.parametrize("workers", ["0", "-1"])
 def test_workers_below_one_are_refused_before_anything_starts(tmp_path, capsys, workers):
     """--workers 0 took one worker per core without a word, -1 hung and left Dask's scratch behind: now

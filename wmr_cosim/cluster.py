@@ -117,7 +117,8 @@ class Cluster:
             # the scheduler's HTTP endpoint always runs: on the loopback address, at a free port, and it
             # serves the dashboard only when asked for (":0" would listen on every interface); the workers'
             # scratch folder is this cluster's own, removed on close (Dask leaves its default,
-            # dask-scratch-space in the temporary folder, behind)
+            # dask-scratch-space in the temporary folder, behind), and so is the workers' temporary folder
+            # (TMPDIR): what a worker killed mid-run leaves there (a run's extracted FMUs) goes with it
             self.scratch = Path(tempfile.mkdtemp(prefix="wmr-dask-"))
             try:
                 # a point whose worker dies is run once more, on another worker; a second death fails it
@@ -128,7 +129,7 @@ class Cluster:
                                             processes=True, host="127.0.0.1",
                                             dashboard_address="127.0.0.1:0" if dashboard else None,
                                             scheduler_kwargs=sched, local_directory=str(self.scratch),
-                                            silence_logs=logging.ERROR)
+                                            env={"TMPDIR": str(self.scratch)}, silence_logs=logging.ERROR)
                 self.client = Client(self.cluster)
             except BaseException:
                 if self.cluster is not None:
