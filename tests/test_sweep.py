@@ -9,6 +9,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
@@ -16,7 +17,7 @@ import pytest
 
 from dask_support import free_port, stop
 from wmr_cosim import cluster, robot_measures, shipment, sweep, sweep_file, sweep_metrics
-from wmr_cosim.cosim.messages.errors import ScenarioError
+from wmr_cosim.cosim.messages.errors import CosimError, ScenarioError
 
 DATA = Path(__file__).parent / "data"
 
@@ -77,6 +78,16 @@ def test_points_are_drawn_from_the_seed(tmp_path):
     ("[grid]\n\"a5\" = [1]\n", "grid.a5", "instance.param"),
     ("samples = 0\n", "samples", "integer >= 1"),
     ('runs = ["learn", "nope"]\n', "runs", "'nope' is not a run"),
+    # each parameter of a distribution a value the draw takes, refused before any folder is made
+    ('[random]\n"plant.a5" = { dist = "uniform", low = "a", high = 2.0 }\n', "random.plant.a5.low", "finite number"),
+    ('[random]\n"plant.a5" = { dist = "uniform", low = -inf, high = inf }\n', "random.plant.a5.low", "finite number"),
+    ('[random]\n"plant.a5" = { dist = "uniform", low = -1e308, high = 1e308 }\n', "random.plant.a5.high",
+     "high - low must be a finite number"),
+    ('[random]\n"plant.a5" = { dist = "normal", mean = nan, std = 1.0 }\n', "random.plant.a5.mean", "finite number"),
+    ('[random]\n"plant.a5" = { dist = "lognormal", mean = 0.0, sigma = -1 }\n', "random.plant.a5.sigma", "must be >= 0"),
+    ('[random]\n"plant.a5" = { dist = "normal", mean = 0.0, std = true }\n', "random.plant.a5.std", "finite number"),
+    ('[random]\n"plant.a5" = { dist = "choice", values = [] }\n', "random.plant.a5.values", "non-empty array"),
+    ('[random]\n"plant.a5" = { dist = "choice", values = 3 }\n', "random.plant.a5.values", "non-empty array"),
 ])
 def test_bad_sweep_files(tmp_path, body, field, reason):
     with pytest.raises(ScenarioError) as exc:
@@ -110,6 +121,10 @@ def test_same_results_with_one_or_two_workers_and_after_a_restart(tmp_path, clus
     assert (df1["status"] == "ok").all()
     pd.testing.assert_frame_equal(_table(df1), _table(df2))
     assert df1["learn.rmse_e1"].nunique() == 4      # the points differ
+    # every column is the point's own, a parameter, a requirement's or the robot's (what a metric's name may
+    # not be: sweep._columns)
+    plans = {"learn": SimpleNamespace(requirements=[SimpleNamespace(name=r) for r in ("goal", "static")])}
+    assert set(df1.columns) <= set(sweep._columns(sweep_file.load_sweep(f), plans))
     # interrupted: two points lost; started again: only those run, the table is the same
     pts = tmp_path / "two" / "points"
     stamps = {p.name: p.stat().st_mtime_ns for p in pts.iterdir()}
@@ -125,7 +140,6 @@ def test_same_results_with_one_or_two_workers_and_after_a_restart(tmp_path, clus
     assert any((tmp_path / "two" / "figures").glob("*.png"))
     # another sweep into the same folder is refused
     g = _sweep_file(tmp_path, SMALL.replace("seed = 5", "seed = 9"), "other.toml")
-    from wmr_cosim.cosim.messages.errors import CosimError
     with pytest.raises(CosimError, match="another sweep"):
         sweep.run_sweep(g, tmp_path / "two", cluster=cluster2, progress=False)
 
@@ -212,15 +226,22 @@ def _cli_in_process(*args: str) -> int:
 
 
 def test_the_command_lines_archive_limits_reach_the_sweeps_workers(tmp_path, capsys):
-    """`wmr-cosim --max-archive-size 1KiB sweep` is not refused up front: each point is submitted with the
-    limit and its worker extracts with it, so the point fails with the refusal as its reason."""
+    """`wmr-cosim --max-archive-size 1KiB sweep` refuses at once: the parent reads the base's FMUs (to check
+    the parameters and metrics) with the limit, before any point.  And each point is submitted with the
+    limit, its worker extracting with it: a point run with it fails with the refusal as its reason."""
+    from wmr_cosim.cosim import limit_overrides
+
     f = _sweep_file(tmp_path, 'runs = ["learn"]\n[grid]\n"plant.foam_da1" = [0.4]\n')
     out = tmp_path / "out"
     code = _cli_in_process("--max-archive-size", "1KiB", "sweep", f, "--out", out, "--workers", "1", "--quiet")
-    assert code == 0, capsys.readouterr().err
-    df = pd.read_csv(out / "results.csv")
-    assert list(df["status"]) == ["failed"]
-    assert "refused: its entries unpack to" in df["reason"][0] and "more than the limit of 1 KiB" in df["reason"][0]
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "more than the limit of 1 KiB" in err[0] and not out.exists()
+    with cluster.Cluster(workers=1) as cl:
+        rows = sweep.run_points([{"id": 0, "params": {"plant.foam_da1": 0.4}}], str(DATA / "short_protocol.toml"),
+                                None, ["learn"], out, cl, progress=False, archive_limits=limit_overrides("1KiB", None),
+                                fmus=robot_measures.fmu_paths(), measure=None)
+    assert [r["status"] for r in rows] == ["failed"]
+    assert "refused: its entries unpack to" in rows[0]["reason"] and "more than the limit of 1 KiB" in rows[0]["reason"]
 
 
 def test_the_command_lines_archive_limits_reach_the_gamma_searchs_workers(tmp_path, capsys):
@@ -397,3 +418,140 @@ def test_a_sweeps_table_has_each_requirements_robustness_and_verdict(tmp_path, c
         assert row["run.above.robustness"] == float(np.min(x - 0.3))
         assert row["run.above.robustness"] == pytest.approx((1 - 0.1 * row["dq.k"]) ** 10 - 0.3, abs=1e-12)
     assert list(df["run.above.verdict"]) == ["holds", "holds", "violated", "violated"]
+
+
+# ---------------------------------------------------------------------- refused before anything runs
+def _refused(capsys, tmp_path: Path, args: list, *words: str) -> str:
+    """`wmr-cosim sweep ARGS` in this process: exit code 2, one line on stderr holding ``words``, no results
+    folder (no cluster started: the checks come first)."""
+    from wmr_cosim.cli import main
+
+    out = tmp_path / "out"
+    code = main(["sweep", *map(str, args), "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1, err
+    assert all(w in err[0] for w in words), err[0]
+    assert not out.exists()
+    return err[0]
+
+
+def _metric_sweep(tmp: Path, metric: str, body: str = '[grid]\n"dq.k" = [1.0]\n') -> Path:
+    base = _dahlquist_base(tmp)
+    f = tmp / "s.toml"
+    f.write_text(f'base = "{base.name}"\n{body}{metric}')
+    return f
+
+
+@pytest.mark.parametrize("csv, words", [
+    ("time,x\n0,1\n0.5,nan\n1,0.37\n", ["ref.csv, line 3, column 'x'", "'nan' is not a finite number"]),
+    ("time,x\n0,1\n0.5,0.6\ninf,0.37\n", ["ref.csv, line 4, column 'time'", "'inf' is not a finite number"]),
+    ("time,x\n0,1\n0.5,\n1,0.37\n", ["ref.csv, line 3, column 'x'", "'' is not a finite number"]),
+    ("time,x\n0,1\n0.5,0.61\n", ["its times (0 to 0.5 s) do not cover run 'run' (0 to 1 s)"]),   # half the run
+    ("time,x\n0.2,1\n1,0.37\n", ["its times (0.2 to 1 s) do not cover run 'run' (0 to 1 s)"]),
+    (b"time,x\n0,1\n0.5,\xff\n1,0.37\n", ["ref.csv: not a text file"]),
+])
+def test_a_reference_that_is_not_finite_numbers_over_the_whole_run_is_refused(tmp_path, capsys, csv, words):
+    """The reference of an rmse is linear in its time, which must cover the run: a NaN, an infinite time,
+    an empty cell, half the run, bytes that are not UTF-8 are one line naming the file, the line and the
+    column, exit code 2, before the sweep starts (not an empty column or an RMSE against nonsense)."""
+    f = _metric_sweep(tmp_path, '[metric.e]\nof = "rmse"\nvariable = "dq.x"\nreference = "ref.csv"\ncolumn = "x"\n')
+    ref = tmp_path / "ref.csv"
+    ref.write_bytes(csv) if isinstance(csv, bytes) else ref.write_text(csv)
+    _refused(capsys, tmp_path, [f, "--workers", "1"], "s.toml: metric.e.reference", *words)
+
+
+@pytest.mark.parametrize("name, sets, what", [
+    ("status", "", "the point's own"), ("point", "", "the point's own"), ("reason", "", "the point's own"),
+    ("wall_s", "", "the point's own"), ('"dq.k"', "", "a parameter of the sweep"),
+    ('"run.above.verdict"', "", "a requirement's"), ('"run.above.robustness"', "", "a requirement's"),
+    ("gamma_star", 'sets = ["robot"]\n', "the robot's set of metrics"),
+    ('"run.rmse_e1"', 'sets = ["robot"]\n', "the robot's set of metrics"),
+])
+def test_a_metric_named_as_a_column_of_the_table_is_refused(tmp_path, capsys, name, sets, what):
+    """A metric is a column of the results table: one named as a column the table has already (the point's
+    status, a parameter, a requirement's verdict, the robot's metrics) would overwrite it."""
+    f = _metric_sweep(tmp_path, f'[metric.{name}]\nof = "final"\nvariable = "dq.x"\n',
+                      sets + '[grid]\n"dq.k" = [1.0]\n')
+    with open(tmp_path / "dahlquist.toml", "a") as fh:
+        fh.write('[[requirements]]\nname = "above"\nformula = "dq.x > 0.3"\n')
+    _refused(capsys, tmp_path, [f, "--workers", "1"], "already a column of the results table", what)
+
+
+@pytest.mark.parametrize("key, words", [
+    ('[grid]\n"dq.kk" = [1.0, 2.0]\n', ["grid.dq.kk", "has no variable 'kk' (did you mean 'k'?)"]),
+    ('[grid]\n"dq.k+dq.kk" = [1.0]\n', ["grid.dq.k+dq.kk", "has no variable 'kk'"]),
+    ('[grid]\n"dqq.k" = [1.0]\n', ["grid.dqq.k", "no instance 'dqq' (did you mean 'dq'?)"]),
+    ('[random]\n"dq.kk" = { dist = "normal", mean = 1.0, std = 0.1 }\n', ["random.dq.kk", "did you mean 'k'?"]),
+    ('[grid]\n"dq.der(x)" = [1.0]\n', ["grid.dq.der(x)", "can be set"]),
+])
+def test_a_parameter_the_base_does_not_have_is_refused_before_any_point(tmp_path, capsys, key, words):
+    """A grid or draw over a parameter the base's FMUs do not have (or cannot set) ran every point to
+    "failed" and exited 0: now one line naming the field with the nearest name, exit code 2."""
+    base = _dahlquist_base(tmp_path)
+    f = tmp_path / "s.toml"
+    f.write_text(f'base = "{base.name}"\nsets = []\n{key}')
+    _refused(capsys, tmp_path, [f, "--workers", "1"], "s.toml:", *words)
+
+
+def test_the_local_workers_temporary_folder_is_the_clusters_own(cluster2):
+    """A worker killed mid-run cannot clean up its run's extracted FMUs: the local cluster's workers take
+    their temporary folder (TMPDIR) inside the cluster's scratch folder, removed when it closes."""
+    import tempfile
+
+    assert cluster2.scratch is not None
+    temps = cluster2.client.run(tempfile.gettempdir)
+    assert len(temps) == 2 and all(Path(t) == cluster2.scratch for t in temps.values()), temps
+
+
+@pytest.mark.parametrize("workers", ["0", "-1"])
+def test_workers_below_one_are_refused_before_anything_starts(tmp_path, capsys, workers):
+    """--workers 0 took one worker per core without a word, -1 hung and left Dask's scratch behind: now
+    one line naming the option, exit code 2 (the session's temporary folder stays empty: tempdir_guard)."""
+    base = _dahlquist_base(tmp_path)
+    f = tmp_path / "s.toml"
+    f.write_text(f'base = "{base.name}"\nsets = []\n[grid]\n"dq.k" = [1.0]\n')
+    _refused(capsys, tmp_path, [f, "--workers", workers], f"--workers {workers}: must be a whole number >= 1")
+    with pytest.raises(CosimError, match="--workers 0"):
+        cluster.Cluster(workers=0)
+
+
+def test_a_sweep_file_that_is_not_utf8_is_one_line(tmp_path, capsys):
+    f = tmp_path / "s.toml"
+    f.write_bytes(b'base = "x.toml"\n# \xff\xfe\n')
+    _refused(capsys, tmp_path, [f], "s.toml: not a text file (TOML is UTF-8 text)")
+
+
+def test_a_copied_sweep_file_finds_its_base_among_the_shipped_scenarios(tmp_path, capsys):
+    """As `run` finds a copied scenario's base: the shipped sweep-foam.toml copied elsewhere sweeps the
+    shipped paper/g1.toml; a base found nowhere is one line that says it is the base."""
+    from wmr_cosim.scenario_files import folder
+
+    copy = tmp_path / "my-sweep.toml"
+    copy.write_text((folder() / "sweep-foam.toml").read_text())
+    assert Path(sweep_file.load_sweep(copy).base) == (folder() / "paper" / "g1.toml").resolve()
+    # a scenario of one's own over a shipped one, swept: its base found as `run` finds it, its FMUs read
+    (tmp_path / "mine.toml").write_text('base = "paper/g1.toml"\n[experiment]\nstop = 5.0\n')
+    copy.write_text('base = "mine.toml"\nruns = ["learn"]\n[grid]\n"plant.a5" = [1.0]\n')
+    spec = sweep_file.load_sweep(copy)
+    assert sweep._measure(spec, robot_measures.fmu_paths(), None)[0].runs == ("learn",)
+    copy.write_text('base = "paper/nope.toml"\n[grid]\n"plant.a5" = [1.0]\n')
+    _refused(capsys, tmp_path, [copy], "my-sweep.toml: base: 'paper/nope.toml': the base scenario is not found",
+             "nor a shipped scenario")
+
+
+def test_mean_and_rms_are_over_time_not_over_samples():
+    """mean and rms weigh each sample by the time it covers (the trapezoidal rule over the run's duration),
+    not each sample alike: on a grid dense at the start, with a short last step, y = sqrt(t) (y^2 = t,
+    linear: the trapezoidal rule is exact) has the time-RMS sqrt(T / 2) and y = t the time-mean T / 2,
+    while their sample averages are far off; the integral is T^2 / 2."""
+    t = np.concatenate([np.linspace(0.0, 0.1, 51), np.linspace(0.2, 1.9, 18), [1.95]])   # T = 1.95 s
+    T = t[-1] - t[0]
+    spec = lambda of: sweep_metrics.MetricSpec("m", of, "a.y")   # noqa: E731
+    assert sweep_metrics.value(spec("rms"), t, np.sqrt(t)) == pytest.approx(math.sqrt(T / 2), rel=1e-14)
+    assert sweep_metrics.value(spec("mean"), t, t) == pytest.approx(T / 2, rel=1e-14)
+    assert sweep_metrics.value(spec("integral"), t, t) == pytest.approx(T * T / 2, rel=1e-14)
+    assert abs(math.sqrt(np.mean(t)) - math.sqrt(T / 2)) > 0.1 and abs(np.mean(t) - T / 2) > 0.1   # (the samples')
+    # from a start other than 0: the duration, not the end time, divides
+    s = t + 3.0
+    assert sweep_metrics.value(spec("mean"), s, s - 3.0) == pytest.approx(T / 2, rel=1e-14)
+    assert sweep_metrics.value(spec("rms"), s, np.sqrt(t)) == pytest.approx(math.sqrt(T / 2), rel=1e-14)

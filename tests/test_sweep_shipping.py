@@ -49,7 +49,7 @@ def _dahlquist_system(folder: Path, stop: float = 1.0, step: float = 0.01, ks: l
     """Dahlquist (x' = -k x) driven through a Feedthrough, in ``folder``: the FMUs copied there, the scenario
     in two files (``system.toml`` over ``common.toml``, its base), an input table for the Feedthrough's
     Int32 input, a reference CSV; returns the sweep file (``ks``, else 20 values of k; final value and integral of
-    the Feedthrough's output, its RMSE against the reference, the input as recorded)."""
+    the Feedthrough's output, its RMSE against the reference (over the run), the input as recorded)."""
     from reference_fmus import fmu
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -63,7 +63,9 @@ def _dahlquist_system(folder: Path, stop: float = 1.0, step: float = 0.01, ks: l
         'base = "common.toml"\n[inputs]\nfile = "drive.csv"\n'
         '[record]\nvariables = ["ft.Float64_continuous_output", "ft.Int32_output"]\n')
     (folder / "drive.csv").write_text("time,ft.Int32_input\n0,1\n0.5,3\n")
-    (folder / "ref.csv").write_text("time,x\n" + "".join(f"{t / 10:g},{math.exp(-t / 10):.17g}\n" for t in range(11)))
+    # the reference covers the run (exp(-t) at eleven times from 0 to stop)
+    (folder / "ref.csv").write_text("time,x\n" + "".join(f"{t * stop / 10:g},{math.exp(-t * stop / 10):.17g}\n"
+                                                           for t in range(11)))
     grid = ", ".join(map(str, ks if ks is not None else [0.25 * (i + 1) for i in range(20)]))
     f = folder / "dq-sweep.toml"
     f.write_text(f'base = "system.toml"\n[grid]\n"dq.k" = [{grid}]\n'

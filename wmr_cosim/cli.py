@@ -508,8 +508,8 @@ def cmd_falsify(args: argparse.Namespace) -> int:
 
     out = args.out if args.out is not None else Path("results") / args.spec.stem
     say = None if args.quiet else (lambda line: print(line, file=sys.stderr))
-    r = falsify(args.spec, out, progress=not args.quiet, archive_limits=args.limits, say=say,
-                **cluster_options(args))
+    r = falsify(args.spec, out, progress=not args.quiet, archive_limits=args.limits, say=say, seed=args.seed,
+                budget=args.budget, **cluster_options(args))
     w, n = r["worst"], r["nominal"]
     print(f"nominal run: robustness {n['robustness']:.6g} ({n['verdict']})")
     print(f"worst case of {r['optimiser']['runs']} runs: robustness {w['robustness']:.6g} ({w['verdict']}) at "
@@ -544,7 +544,8 @@ def cmd_linearize(args: argparse.Namespace) -> int:
 
 def _dask_options(p: argparse.ArgumentParser) -> None:
     """--workers, --scheduler, --dashboard, --tls-*, --quiet: where the points of a sweep or gamma search run."""
-    p.add_argument("--workers", type=int, default=None, help="local worker processes (default: one per core)")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="local worker processes, at least 1 (default: one per core)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="an existing dask.distributed scheduler, e.g. tls://10.0.0.5:8786 (its workers need this "
                         "project's version installed, no shared files: the FMUs and scenario files are sent to "
@@ -834,12 +835,16 @@ def _add_falsify(sub: Any) -> None:
     """The ``falsify`` command."""
     fa = sub.add_parser("falsify", help="search a parameter space for the worst case of a requirement",
                         description="Differential evolution over the file's parameter space (every point a full "
-                                    "co-simulation on Dask, within the file's budget of runs) for the lowest "
+                                    "co-simulation on Dask, within the file's budget of runs or --budget) for the lowest "
                                     "robustness of one of the base scenario's requirements; reports the worst case "
                                     "found, its robustness against the nominal run's, and re-runs it "
                                     "(docs/requirements.md).")
     fa.add_argument("spec", type=scenario_path, help="falsification file (.toml), e.g. scenarios/falsify-foam.toml")
     fa.add_argument("--out", type=Path, default=None, metavar="DIR", help="results folder (default results/<file>)")
+    fa.add_argument("--budget", type=int, default=None, metavar="N",
+                    help="co-simulations of the search, over the file's budget (at least 10)")
+    fa.add_argument("--seed", type=int, default=None, metavar="N",
+                    help="the optimiser's seed, over the file's (0 to 2**32 - 1)")
     _dask_options(fa)
     fa.set_defaults(func=cmd_falsify, subparser=fa)
 

@@ -36,9 +36,21 @@ def dask_security(ca_file: str | None = None, cert: str | None = None, key: str 
                     require_encryption=True)
 
 
+def check_worker_count(workers: Any) -> None:
+    """``--workers``: None (one local worker process per core) or a whole number >= 1; CosimError naming the
+    option otherwise (0 is no worker, not a default)."""
+    if workers is None:
+        return
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise CosimError(f"--workers {workers}: must be a whole number >= 1 (the local worker processes; "
+                         "leave it out for one per core)")
+
+
 def cluster_options(args: Any) -> dict[str, Any]:
     """The Dask keyword arguments of ``sweep.run_sweep`` and ``gamma_search.gamma_search`` from the command line's options
-    (``--workers``, ``--scheduler``, ``--dashboard``, ``--tls-ca-file``, ``--tls-cert``, ``--tls-key``)."""
+    (``--workers``, ``--scheduler``, ``--dashboard``, ``--tls-ca-file``, ``--tls-cert``, ``--tls-key``),
+    checked before anything runs."""
+    check_worker_count(args.workers)
     sec = dask_security(getattr(args, "tls_ca_file", None), getattr(args, "tls_cert", None),
                         getattr(args, "tls_key", None))
     if sec is not None and not (args.scheduler or "").startswith("tls://"):
@@ -80,6 +92,7 @@ class Cluster:
 
         from distributed import Client, LocalCluster
 
+        check_worker_count(workers)
         t0 = time.perf_counter()
         self.cluster = None
         self.scratch: Path | None = None
@@ -104,7 +117,8 @@ class Cluster:
             # the scheduler's HTTP endpoint always runs: on the loopback address, at a free port, and it
             # serves the dashboard only when asked for (":0" would listen on every interface); the workers'
             # scratch folder is this cluster's own, removed on close (Dask leaves its default,
-            # dask-scratch-space in the temporary folder, behind)
+            # dask-scratch-space in the temporary folder, behind), and so is the workers' temporary folder
+            # (TMPDIR): what a worker killed mid-run leaves there (a run's extracted FMUs) goes with it
             self.scratch = Path(tempfile.mkdtemp(prefix="wmr-dask-"))
             try:
                 # a point whose worker dies is run once more, on another worker; a second death fails it
@@ -115,7 +129,7 @@ class Cluster:
                                             processes=True, host="127.0.0.1",
                                             dashboard_address="127.0.0.1:0" if dashboard else None,
                                             scheduler_kwargs=sched, local_directory=str(self.scratch),
-                                            silence_logs=logging.ERROR)
+                                            env={"TMPDIR": str(self.scratch)}, silence_logs=logging.ERROR)
                 self.client = Client(self.cluster)
             except BaseException:
                 if self.cluster is not None:

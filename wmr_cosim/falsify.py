@@ -68,11 +68,20 @@ class FalsifySpec:
         return f"{self.run}.{self.requirement}.robustness"
 
 
-def load_falsification(path: str | os.PathLike) -> FalsifySpec:
+#: The largest seed: the optimiser's generator (numpy's RandomState) takes seeds of 32 bits.
+MAX_SEED = 2**32 - 1
+#: The fewest co-simulations of a search: a population of 5, two generations.
+MIN_BUDGET = 10
+
+
+def load_falsification(path: str | os.PathLike, seed: int | None = None, budget: int | None = None) -> FalsifySpec:
     """Read and check a falsification file: its keys, the space (finite bounds, low < high, parameters
-    as "instance.param"), the budget, and the base: it parses, declares the requirement, and the run."""
+    as "instance.param"), the seed and the budget (``seed`` and ``budget``: a command line's, over the
+    file's, checked alike and named by their options), and the base (beside the file or a shipped
+    scenario): it parses, declares the requirement, and the run.  The space against the base's FMUs is
+    :func:`check_space`'s."""
     from .cosim import plan_runs
-    from .sweep_file import parameter_refs
+    from .sweep_file import base_file, parameter_refs, read_base
 
     p = Path(path)
     f = str(p)
@@ -88,15 +97,19 @@ def load_falsification(path: str | os.PathLike) -> FalsifySpec:
     for key in ("base", "requirement"):
         if not isinstance(doc.get(key), str):
             raise ScenarioError(f, key, "missing (a string)")
-    base = doc["base"]
-    base = str((p.parent / base).resolve()) if not os.path.isabs(base) else base
-    spec = FalsifySpec(f, base, doc["requirement"], description=str(doc.get("description", "")))
-    for key in ("seed", "budget"):
+    spec = FalsifySpec(f, str(base_file(p, doc["base"])), doc["requirement"],
+                       description=str(doc.get("description", "")))
+    for key, given in (("seed", seed), ("budget", budget)):
         if key in doc:
-            v = doc[key]
-            if not isinstance(v, int) or isinstance(v, bool) or v < 0:
-                raise ScenarioError(f, key, f"{v!r}: must be an integer >= 0")
-            setattr(spec, key, v)
+            reason = _whole(doc[key])
+            if reason:
+                raise ScenarioError(f, key, reason)
+            setattr(spec, key, doc[key])
+        if given is not None:   # the command line's, over the file's
+            reason = _whole(given)
+            if reason:
+                raise CosimError(f"--{key} {reason}")
+            setattr(spec, key, given)
     space = doc.get("space")
     if not isinstance(space, dict) or not space:
         raise ScenarioError(f, "space", "missing: a table \"instance.param\" = { low = ..., high = ... }")
@@ -111,12 +124,12 @@ def load_falsification(path: str | os.PathLike) -> FalsifySpec:
         if not lo < hi:
             raise ScenarioError(f, f"{fld}.high", "must be above low")
         spec.space[key] = (float(lo), float(hi))
-    if spec.budget < 5 * (1 + 1):
-        raise ScenarioError(f, "budget", f"{spec.budget}: at least 10 co-simulations (a population of 5, two "
-                                         "generations)")
+    if spec.budget < MIN_BUDGET:
+        reason = f"{spec.budget}: at least {MIN_BUDGET} co-simulations (a population of 5, two generations)"
+        raise CosimError(f"--budget {reason}") if budget is not None else ScenarioError(f, "budget", reason)
     if "variant" in doc:
         spec.variant = str(doc["variant"])
-    sc, runs, _ = plan_runs(spec.base, lambda name: Path(name), spec.variant)
+    sc, runs, _ = plan_runs(read_base(spec.base, lambda name: Path(name)), variant=spec.variant)
     names = [r.name for r in runs]
     spec.run = str(doc.get("run", names[0] if len(names) == 1 else ""))
     if spec.run not in names:
@@ -129,6 +142,30 @@ def load_falsification(path: str | os.PathLike) -> FalsifySpec:
     return spec
 
 
+def _whole(v: Any) -> str | None:
+    """Why ``v`` is not a seed or a budget (a whole number from 0 to :data:`MAX_SEED`: the optimiser's seeds
+    are of 32 bits, and a budget beyond is centuries of runs), or None."""
+    if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v <= MAX_SEED:
+        return f"{v!r}: must be a whole number from 0 to {MAX_SEED}"
+    return None
+
+
+def check_space(spec: FalsifySpec, archive_limits: LimitOverrides | None = None) -> None:
+    """The space against the base's runs (their FMUs resolved; our model names built only if the base
+    names them), before any run: each parameter exists, can be set, is Real, and its declared range holds
+    the box."""
+    from .cosim import check_protocol
+    from .sweep_file import check_parameters, read_base
+
+    def resolve(name: str) -> Path | None:
+        fmus = robot_measures.fmu_paths()
+        return Path(fmus[name]) if name in fmus else None
+
+    plans = check_protocol(read_base(spec.base, resolve, archive_limits), variant=spec.variant)
+    check_parameters(spec.file, {f"space.{k}": k for k in spec.space}, plans,
+                     ranges={f"space.{k}": box for k, box in spec.space.items()})
+
+
 def population(budget: int, axes: int) -> tuple[int, int]:
     """(members, generations after the initial one) for a budget of co-simulations over ``axes`` axes."""
     members = max(5, min(10 * axes, budget // 4))
@@ -138,13 +175,19 @@ def population(budget: int, axes: int) -> tuple[int, int]:
 def falsify(path: str | os.PathLike, out: str | os.PathLike | None = None, workers: int | None = None,
             scheduler: str | None = None, progress: bool | None = None, security: Any = None,
             dashboard: bool = False, archive_limits: LimitOverrides | None = None,
-            say: Callable[[str], None] | None = None) -> dict[str, Any]:
+            say: Callable[[str], None] | None = None, seed: int | None = None,
+            budget: int | None = None) -> dict[str, Any]:
     """Search the file's space for the lowest robustness of its requirement; write falsify.json,
     falsify.csv and falsify.png into ``out`` (default results/<file>) and the worst case's re-run into
-    ``out/worst``; return falsify.json's content.  ``say``: told a line after each generation."""
+    ``out/worst``; return falsify.json's content.  ``say``: told a line after each generation; ``seed``
+    and ``budget``: over the file's.  The file, the options and the space against the base's FMUs are
+    checked before the results folder is made."""
+    from .cluster import check_worker_count
     from .cosim import OutputLock, make_folder
 
-    spec = load_falsification(path)
+    check_worker_count(workers)
+    spec = load_falsification(path, seed, budget)
+    check_space(spec, archive_limits)
     out = make_folder(Path(out) if out is not None else Path("results") / Path(path).stem)
     with OutputLock(out):
         return _search(spec, out, workers, scheduler, progress, security, dashboard, archive_limits, say)
@@ -254,10 +297,11 @@ def _rerun(spec: FalsifySpec, worst: dict[str, Any], params: dict[str, Any], fol
            archive_limits: LimitOverrides | None) -> dict[str, Any]:
     """The worst point (its ``params``) run again here, as its command runs it: its robustness and whether
     it is the same."""
-    from .runner import run_protocol
+    from .runner import resolve_model, run_protocol
+    from .sweep_file import read_base
 
-    results = run_protocol(spec.base, folder, variant=spec.variant, overrides=params, progress=False,
-                           limits=archive_limits)
+    results = run_protocol(read_base(spec.base, resolve_model, archive_limits), folder, variant=spec.variant,
+                           overrides=params, progress=False)
     verdicts = {v["name"]: v for v in results[spec.run].requirements}
     v = verdicts.get(spec.requirement, {})
     rob = math.inf if v.get("robustness") is None else v["robustness"]

@@ -31,6 +31,17 @@ def measure(row: dict[str, Any], results: dict[str, Any], work: Path) -> None:
         row["edge_peak_u"] = d["edge_peak_u"] if d["edge_peak_u"] is not None else math.nan
 
 
+#: The columns :func:`measure` adds of each run (``<run>.<name>``) and of a frozen and a foam run together.
+RUN_COLUMNS = tuple(f"{m}{i}" for m in ("rmse_e", "rmse_edot", "rmse_e_true", "rmse_edot_true") for i in (1, 2)) + \
+    ("final_x", "final_y", "t_goal", "goal_distance", "diverged")
+ANALYSIS_COLUMNS = ("gamma_star", "gamma_true", "gain_incremental", "foam_rise1", "foam_rise2", "edge_peak_u")
+
+
+def columns(runs: list[str]) -> list[str]:
+    """Every column :func:`measure` may add to a point's row for these runs."""
+    return [f"{run}.{c}" for run in runs for c in RUN_COLUMNS] + list(ANALYSIS_COLUMNS)
+
+
 def _run_metrics(row: dict[str, Any], name: str, res: Any, run_dir: Path) -> dict[str, Any]:
     """The metrics of run ``name`` (recorded in ``run_dir``) into ``row`` as ``<name>.<metric>``; a run
     that diverged makes the point diverged.  Returns the run's signals."""

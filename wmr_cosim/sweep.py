@@ -30,11 +30,11 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .cluster import Cluster
+from .cluster import Cluster, check_worker_count
 from .cosim import CosimError, LimitOverrides, count
 from . import robot_measures
 from .shipment import Shipment, ShippingCost, pack, ship, unship, worker_cache
-from .sweep_file import SweepSpec, draw_points, load_sweep
+from .sweep_file import SweepSpec, check_parameters, draw_points, load_sweep, read_base
 from .sweep_metrics import SweepMeasure, check_metrics
 from .sweep_plots import plot_sweep
 
@@ -281,37 +281,58 @@ def run_sweep(path: str | os.PathLike, out: str | os.PathLike | None = None, wor
     """Run a sweep file; write results.parquet, results.csv, sweep.json and figures/ into ``out``.
     Returns the table (a pandas DataFrame, one row per point, ordered by point).  ``security`` and
     ``dashboard``: see :class:`Cluster`; ``archive_limits``: the caller's archive limits (a command line's
-    options), over each point's scenario's own, sent to the workers with every point."""
+    options), over each point's scenario's own, sent to the workers with every point.  The file is checked
+    whole (its parameters and metrics against the base's runs) before the results folder is made."""
     from .cosim import OutputLock, make_folder
 
+    if cluster is None:
+        check_worker_count(workers)
     spec = load_sweep(path)
+    points = draw_points(spec)
+    fmus = robot_measures.fmu_paths()
+    measure, units = _measure(spec, fmus, archive_limits)
     out = make_folder(Path(out) if out is not None else Path("results") / Path(path).stem)
     with OutputLock(out):  # a second sweep into the same folder is refused at once
-        return _run_sweep(spec, out, workers, scheduler, progress, cluster, security, dashboard, archive_limits)
+        return _run_sweep(spec, points, fmus, measure, units, out, workers, scheduler, progress, cluster, security,
+                          dashboard, archive_limits)
 
 
 def _measure(spec: SweepSpec, fmus: dict[str, str], archive_limits: LimitOverrides | None
              ) -> tuple[SweepMeasure, dict[str, str | None]]:
-    """What each point measures (the named sets, the file's metrics) and the metrics' units, the metrics
-    checked against what the base's runs record (their FMUs resolved): before any point runs."""
+    """What each point measures (the named sets, the file's metrics) and the metrics' units, the file
+    checked against the base's runs (their FMUs resolved) before any point runs: the parameters its grid
+    and draws set, and its metrics (see :func:`sweep_metrics.check_metrics`)."""
     from .cosim import check_protocol
 
-    runs: dict[str, dict[str, str | None]] = {}
-    if spec.measures:
-        plans = check_protocol(spec.base, lambda name: Path(fmus[name]) if name in fmus else None, spec.variant,
-                               only=spec.runs, limits=archive_limits)
-        runs = {name: {col: c["unit"] for col, c in plan.columns().items()} for name, plan in plans.items()}
-    units = check_metrics(spec.file, spec.measures, runs) if spec.measures else {}
+    base = read_base(spec.base, lambda name: Path(fmus[name]) if name in fmus else None, archive_limits)
+    plans = check_protocol(base, variant=spec.variant, only=spec.runs)
+    check_parameters(spec.file, {**{f"grid.{k}": k for k in spec.grid}, **{f"random.{k}": k for k in spec.random}},
+                     plans)
+    runs = {name: {col: c["unit"] for col, c in plan.columns().items()} for name, plan in plans.items()}
+    spans = {name: (plan.scenario.times()[0], plan.scenario.times()[1]) for name, plan in plans.items()}
+    units = check_metrics(spec.file, spec.measures, runs, spans, _columns(spec, plans))
     return SweepMeasure(tuple(spec.measures), tuple(spec.sets), tuple(runs)), units
 
 
-def _run_sweep(spec: "SweepSpec", out: Path, workers: int | None, scheduler: str | None, progress: bool | None,
-               cluster: "Cluster | None", security: Any, dashboard: bool, archive_limits: LimitOverrides | None):
+def _columns(spec: SweepSpec, plans: dict[str, Any]) -> dict[str, str]:
+    """The columns a point's row has besides the file's metrics -> what each holds (a metric of the same
+    name would overwrite it)."""
+    cols = {c: "the point's own" for c in ("point", "status", "reason", "wall_s")}
+    cols.update({ref: "a parameter of the sweep" for key in (*spec.grid, *spec.random) for ref in key.split("+")})
+    if "robot" in spec.sets:
+        cols.update({c: "the robot's set of metrics" for c in robot_measures.columns(list(plans))})
+    for run, plan in plans.items():
+        for r in plan.requirements:
+            cols.update({f"{run}.{r.name}.{c}": "a requirement's" for c in ("robustness", "verdict")})
+    return cols
+
+
+def _run_sweep(spec: SweepSpec, points: list[dict[str, Any]], fmus: dict[str, str], measure: SweepMeasure,
+               units: dict[str, str | None], out: Path, workers: int | None, scheduler: str | None,
+               progress: bool | None, cluster: "Cluster | None", security: Any, dashboard: bool,
+               archive_limits: LimitOverrides | None):
     import pandas as pd
 
-    points = draw_points(spec)
-    fmus = robot_measures.fmu_paths()
-    measure, units = _measure(spec, fmus, archive_limits)
     meta = {"spec": {**asdict(dataclasses.replace(spec, measures=[])),
                      "measures": {m.name: m.as_dict() for m in spec.measures}}, "units": units, "points": points}
     meta_file = out / "sweep.json"

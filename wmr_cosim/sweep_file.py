@@ -24,6 +24,7 @@ number of workers.
 from __future__ import annotations
 
 import itertools
+import math
 import os
 import tomllib
 from dataclasses import dataclass, field
@@ -63,10 +64,7 @@ def load_sweep(path: str | os.PathLike) -> SweepSpec:
     path = Path(path)
     f = str(path)
     doc = _read(path)
-    base = doc.get("base")
-    if not isinstance(base, str) or not (path.parent / base).is_file():
-        raise ScenarioError(f, "base", f"{base!r}: the scenario file to sweep is missing")
-    spec = SweepSpec(f, str((path.parent / base).resolve()), doc.get("variant"), doc.get("runs"),
+    spec = SweepSpec(f, str(base_file(path, doc.get("base"))), doc.get("variant"), doc.get("runs"),
                      description=str(doc.get("description", "")))
     _check_settings(f, doc, spec)
     _check_measures(f, doc, spec, path.parent)
@@ -82,9 +80,13 @@ def _read(path: Path) -> dict[str, Any]:
     if not path.is_file():
         raise ScenarioError(f, "", "file not found")
     try:
-        doc = tomllib.loads(path.read_text())
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f, "", f"not valid TOML ({exc})") from None
+        raise ScenarioError(f, "", f"not valid TOML ({' '.join(str(exc).split())})") from None
+    except UnicodeDecodeError:
+        raise ScenarioError(f, "", "not a text file (TOML is UTF-8 text)") from None
+    except OSError as exc:
+        raise ScenarioError(f, "", f"cannot be read ({exc.strerror or exc})") from None
     for k in doc:
         if k not in _KEYS:
             raise ScenarioError(f, k, f"unknown key (allowed: {', '.join(sorted(_KEYS))})")
@@ -147,7 +149,9 @@ def _check_random(f: str, doc: dict[str, Any], spec: SweepSpec) -> None:
 
 
 def _check_distribution(f: str, fld: str, d: Any) -> None:
-    """One distribution of [random]: a known ``dist`` with its parameters, and only those."""
+    """One distribution of [random]: a known ``dist`` with its parameters, and only those, each a value the
+    draw takes: finite numbers, low < high (a finite width), std and sigma >= 0, a non-empty array of
+    values."""
     if not isinstance(d, dict) or d.get("dist") not in DISTRIBUTIONS:
         raise ScenarioError(f, fld, f"needs dist = one of {', '.join(DISTRIBUTIONS)}")
     need = DISTRIBUTIONS[d["dist"]]
@@ -157,17 +161,28 @@ def _check_distribution(f: str, fld: str, d: Any) -> None:
     for k in need:
         if k not in d:
             raise ScenarioError(f, f"{fld}.{k}", f"missing (dist = {d['dist']!r} needs {', '.join(need)})")
+    if d["dist"] == "choice":
+        if not isinstance(d["values"], list) or not d["values"]:
+            raise ScenarioError(f, f"{fld}.values", "must be a non-empty array of values")
+        return
+    for k in need:
+        v = d[k]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ScenarioError(f, f"{fld}.{k}", f"{v!r}: must be a finite number")
     if d["dist"] == "uniform" and not d["low"] < d["high"]:
         raise ScenarioError(f, f"{fld}.high", "must be above low")
-    if d["dist"] in ("normal",) and not d["std"] >= 0:
-        raise ScenarioError(f, f"{fld}.std", "must be >= 0")
+    if d["dist"] == "uniform" and not math.isfinite(float(d["high"]) - float(d["low"])):
+        raise ScenarioError(f, f"{fld}.high", "high - low must be a finite number")
+    spread = {"normal": "std", "lognormal": "sigma"}.get(d["dist"])
+    if spread is not None and not d[spread] >= 0:
+        raise ScenarioError(f, f"{fld}.{spread}", f"{d[spread]!r}: must be >= 0")
 
 
 def _check_base(f: str, spec: SweepSpec) -> None:
     """The base must parse (model names are not built here), and the variant and runs must exist."""
     from .cosim import plan_runs
 
-    _, runs, _ = plan_runs(spec.base, lambda name: Path(name), spec.variant)
+    _, runs, _ = plan_runs(read_base(spec.base, lambda name: Path(name)), variant=spec.variant)
     if spec.runs:
         names = [r.name for r in runs]
         for r in spec.runs:
@@ -182,6 +197,70 @@ def parameter_refs(file: str, fld: str, key: str) -> list[str]:
         if r.count(".") < 1 or not all(r.split(".", 1)):
             raise ScenarioError(file, fld, f"{r!r} is not of the form \"instance.param\"")
     return refs
+
+
+def base_file(path: Path, base: Any) -> Path:
+    """The base scenario a study file (a sweep or falsification file at ``path``) names, by the rule of a
+    scenario's ``base``: beside the file, else among the shipped scenarios; ScenarioError naming the file's
+    ``base`` otherwise."""
+    from .cosim.scenario.document import base_path
+    from .runner import shipped_folder
+
+    f = str(path)
+    if not isinstance(base, str) or not base:
+        raise ScenarioError(f, "base", "missing: the base scenario (a file name)")
+    found = base_path(path, base, shipped_folder())
+    if not found.is_file():
+        raise ScenarioError(f, "base", f"{base!r}: the base scenario is "
+                                       f"{'a folder' if found.is_dir() else 'not found'} ({found}; nor a shipped "
+                                       "scenario)")
+    return found.resolve()
+
+
+def read_base(base: str, resolver: Any, limits: Any = None) -> Any:
+    """A study's base scenario read once (a :class:`~wmr_cosim.cosim.Protocol`) as ``run`` reads a scenario:
+    its own ``base`` found beside it, else among the shipped scenarios; ``resolver``: model name -> FMU;
+    ``limits``: the caller's archive limits."""
+    from .cosim import read_protocol
+    from .runner import shipped_folder
+
+    return read_protocol(base, resolver, limits, shipped_folder())
+
+
+def check_parameters(file: str, axes: dict[str, str], plans: dict[str, Any],
+                     ranges: dict[str, tuple[float, float]] | None = None) -> None:
+    """The parameters a study varies (``axes``: its field, e.g. "grid.a.x+b.y", -> the key), each against
+    the base's runs (``plans``: run -> its checked plan), by the rule a scenario's parameters follow: the
+    instance exists, it has the variable (else the nearest name), the variable can be set.  A reference to
+    ``experiment.FIELD`` or ``record.FIELD`` is the scenario's own to judge, at each point.  With ``ranges``
+    (field -> (low, high), a falsification's box), each is a Real whose declared range holds the box.
+    ScenarioError naming ``file`` and the field."""
+    from .cosim.plan.resolution import PARAMETERS, variable
+    from .cosim.scenario.document import SET_TABLES
+    from .cosim import did_you_mean
+
+    for fld, key in axes.items():
+        for ref in parameter_refs(file, fld, key):
+            inst, name = ref.split(".", 1)
+            for plan in plans.values():
+                if inst not in plan.instances:
+                    if inst in SET_TABLES:
+                        break
+                    raise ScenarioError(file, fld, f"{ref}: the base has no instance {inst!r}"
+                                                   f"{did_you_mean(inst, plan.instances)}")
+                var = variable(file, fld, plan.instances[inst], name, PARAMETERS)
+                reason = var.settable()
+                if reason:
+                    raise ScenarioError(file, fld, f"{ref}: {reason}")
+                if ranges is None:
+                    continue
+                if var.type != "Real" or var.shape:
+                    raise ScenarioError(file, fld, f"{ref} is {'an array' if var.shape else var.type}: a search "
+                                                   "varies Real parameters")
+                for v in ranges[fld]:
+                    reason = var.check_range(v)
+                    if reason:
+                        raise ScenarioError(file, fld, f"{ref}: {reason}")
 
 
 def draw_points(spec: SweepSpec) -> list[dict[str, Any]]:

@@ -129,36 +129,56 @@ def _metric(file: str, name: str, d: Any, folder: Path) -> MetricSpec:
 
 
 def _reference(file: str, fld: str, ref: Any, column: Any, folder: Path) -> tuple[np.ndarray, np.ndarray]:
-    """(time, values) of a reference CSV's column: time first, rising."""
+    """(time [s], values) of a reference CSV's column: UTF-8 text, a header, time first, rising, every value of
+    the two columns a finite number (a bad one named by its line and column)."""
     if not isinstance(ref, str):
         raise ScenarioError(file, f"{fld}.reference", f"{ref!r}: a CSV file beside the sweep file")
     path = folder / ref
     if not path.is_file():
         raise ScenarioError(file, f"{fld}.reference", f"{ref}: file not found")
-    with open(path, newline="") as fh:
-        rows = list(csv.reader(fh))
-    if not rows or len(rows) < 3:
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            reader = csv.reader(fh)
+            rows = [(reader.line_num, r) for r in reader]
+    except UnicodeDecodeError:
+        raise ScenarioError(file, f"{fld}.reference", f"{ref}: not a text file (a CSV file is UTF-8 text)") from None
+    except (OSError, csv.Error) as exc:
+        raise ScenarioError(file, f"{fld}.reference", f"{ref}: cannot be read ({' '.join(str(exc).split())})") from None
+    if len(rows) < 3:
         raise ScenarioError(file, f"{fld}.reference", f"{ref}: a header and at least two rows are needed")
-    head = [h.strip() for h in rows[0]]
+    head = [h.strip() for h in rows[0][1]]
     if column not in head[1:]:
         raise ScenarioError(file, f"{fld}.column", f"{ref} has no column {column!r} (it has: {', '.join(head[1:])})")
     j = head.index(column)
-    try:
-        t = np.array([float(r[0]) for r in rows[1:]])
-        v = np.array([float(r[j]) for r in rows[1:]])
-    except (ValueError, IndexError):
-        raise ScenarioError(file, f"{fld}.reference", f"{ref}: a value that is not a number") from None
+    t, v = np.empty(len(rows) - 1), np.empty(len(rows) - 1)
+    for i, (line, r) in enumerate(rows[1:]):
+        for k, out in ((0, t), (j, v)):
+            text = r[k].strip() if k < len(r) else ""
+            try:
+                out[i] = float(text)
+            except ValueError:
+                out[i] = math.nan
+            if not math.isfinite(out[i]):
+                raise ScenarioError(file, f"{fld}.reference", f"{ref}, line {line}, column {head[k]!r}: "
+                                                              f"{text!r} is not a finite number")
     if not np.all(np.diff(t) > 0):
         raise ScenarioError(file, f"{fld}.reference", f"{ref}: the times (first column) must rise")
     return t, v
 
 
-def check_metrics(file: str, metrics: list[MetricSpec], runs: dict[str, dict[str, str | None]]) -> dict[str, str | None]:
+def check_metrics(file: str, metrics: list[MetricSpec], runs: dict[str, dict[str, str | None]],
+                  spans: dict[str, tuple[float, float]] | None = None, taken: dict[str, str] | None = None
+                  ) -> dict[str, str | None]:
     """Each metric against what the base's runs record (``runs``: run -> {column: unit}): the run exists
-    (or the base has one run), its variables are recorded.  Returns each metric's unit."""
+    (or the base has one run), its variables are recorded, its reference covers the run's time (``spans``:
+    run -> (start, stop) [s]), its name is not a column the results table has already (``taken``: column
+    -> what it holds).  Returns each metric's unit."""
     units: dict[str, str | None] = {}
     for m in metrics:
         fld = f"metric.{m.name}"
+        if taken and m.name in taken:
+            raise ScenarioError(file, fld, f"{m.name!r} is already a column of the results table ({taken[m.name]}): "
+                                           "name the metric otherwise")
         if m.run is None and len(runs) != 1:
             raise ScenarioError(file, f"{fld}.run", f"missing: the base has {len(runs)} runs ({', '.join(runs)})")
         run = m.run if m.run is not None else next(iter(runs))
@@ -167,6 +187,12 @@ def check_metrics(file: str, metrics: list[MetricSpec], runs: dict[str, dict[str
         for key, var in (("variable", m.variable), ("against", m.against)):
             if var is not None and var not in runs[run]:
                 raise ScenarioError(file, f"{fld}.{key}", f"{var!r} is not recorded by run {run!r}")
+        if m.reference is not None and spans and run in spans:
+            (t0, t1), rt = spans[run], m.reference[0]
+            if rt[0] > t0 or rt[-1] < t1:
+                raise ScenarioError(file, f"{fld}.reference", f"{m.reference_file}: its times ({rt[0]:g} to "
+                                                              f"{rt[-1]:g} s) do not cover run {run!r} ({t0:g} to "
+                                                              f"{t1:g} s)")
         u, unit = runs[run][m.variable], KINDS[m.of][1]
         units[m.name] = unit if "{u}" not in unit else unit.format(u=u) if u is not None else None
     return units
