@@ -29,13 +29,14 @@ if TYPE_CHECKING:   # (for the type checker; at run time each name is imported w
     from .model import (CO_SIMULATION, DEFAULT_LIMITS, MODEL_EXCHANGE, ArchiveLimits, FileKind, FmuModel,
                         LimitOverrides, Variable, check_archive, file_kind, fmi_version, limit_overrides,
                         load_model, named_kind)
-    from .plan import Plan, describe_coupling, export_remarks, export_ssp, is_ssp, load_ssp, resolve
+    from .requirements import FormulaError, Outcome, formula_fold
+    from .plan import PARAMETERS, Plan, describe_coupling, export_remarks, export_ssp, is_ssp, load_ssp, resolve, variable
     from .results import (MatLayout, OutputLock, ResultsError, RunResult, RunStatus, layout, make_folder, read_json,
                           read_signals, write_json, write_mat)
     from .runtime import (Execution, Manipulator, Observer, Protocol, check_protocol, plan_runs, read_protocol, run,
                           run_protocol)
-    from .scenario import (Scenario, apply_overrides, is_path, load, parse, parse_set, parse_value, read_document,
-                           settable_table)
+    from .scenario import (SET_TABLES, Scenario, apply_overrides, base_path, is_path, load, parse, parse_set,
+                           parse_value, read_document, settable_table)
     from .stepping import (Adaptive, AdaptiveSpec, Algorithm, GaussSeidel, Iterated, IterationSpec, Jacobi,
                            MultiRate, ParallelJacobi, describe_settings)
 
@@ -47,13 +48,15 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "model": ["CO_SIMULATION", "DEFAULT_LIMITS", "MODEL_EXCHANGE", "ArchiveLimits", "FileKind", "FmuModel",
               "LimitOverrides", "Variable", "check_archive", "file_kind", "fmi_version", "limit_overrides",
               "load_model", "named_kind"],
-    "plan": ["Plan", "describe_coupling", "export_remarks", "export_ssp", "is_ssp", "load_ssp", "resolve"],
+    "requirements": ["FormulaError", "Outcome", "formula_fold"],
+    "plan": ["PARAMETERS", "Plan", "describe_coupling", "export_remarks", "export_ssp", "is_ssp", "load_ssp", "resolve",
+             "variable"],
     "results": ["MatLayout", "OutputLock", "ResultsError", "RunResult", "RunStatus", "layout", "make_folder",
                 "read_json", "read_signals", "write_json", "write_mat"],
     "runtime": ["Execution", "Manipulator", "Observer", "Protocol", "check_protocol", "plan_runs", "read_protocol",
                 "run", "run_protocol"],
-    "scenario": ["Scenario", "apply_overrides", "is_path", "load", "parse", "parse_set", "parse_value",
-                 "read_document", "settable_table"],
+    "scenario": ["SET_TABLES", "Scenario", "apply_overrides", "base_path", "is_path", "load", "parse", "parse_set",
+                 "parse_value", "read_document", "settable_table"],
     "stepping": ["Adaptive", "AdaptiveSpec", "Algorithm", "GaussSeidel", "Iterated", "IterationSpec", "Jacobi",
                  "MultiRate", "ParallelJacobi", "describe_settings"],
 })

@@ -215,11 +215,10 @@ def _shade(ax: Any, t: np.ndarray, r: np.ndarray, v: dict[str, Any]) -> None:
     >= 0, green: each one satisfies it, and red the window's values only when it is violated (none was
     >= 0; a negative value alone violates nothing); for another formula its value at the start, red
     when negative."""
-    from .cosim.requirements.formula import FormulaError, parse
-    from .cosim.requirements.monitor import fold_of
+    from .cosim import FormulaError, formula_fold
 
     try:
-        fold = fold_of(parse(str(v.get("formula", ""))))
+        fold = formula_fold(str(v.get("formula", "")))
     except FormulaError:   # (a summary.json not written by this version: shade as for an always)
         fold = "min"
     window = v.get("window")

@@ -203,7 +203,7 @@ def base_file(path: Path, base: Any) -> Path:
     """The base scenario a study file (a sweep or falsification file at ``path``) names, by the rule of a
     scenario's ``base``: beside the file, else among the shipped scenarios; ScenarioError naming the file's
     ``base`` otherwise."""
-    from .cosim.scenario.document import base_path
+    from .cosim import base_path
     from .runner import shipped_folder
 
     f = str(path)
@@ -235,9 +235,7 @@ def check_parameters(file: str, axes: dict[str, str], plans: dict[str, Any],
     ``experiment.FIELD`` or ``record.FIELD`` is the scenario's own to judge, at each point.  With ``ranges``
     (field -> (low, high), a falsification's box), each is a Real whose declared range holds the box.
     ScenarioError naming ``file`` and the field."""
-    from .cosim.plan.resolution import PARAMETERS, variable
-    from .cosim.scenario.document import SET_TABLES
-    from .cosim import did_you_mean
+    from .cosim import PARAMETERS, SET_TABLES, did_you_mean, variable
 
     for fld, key in axes.items():
         for ref in parameter_refs(file, fld, key):

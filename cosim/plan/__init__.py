@@ -9,14 +9,14 @@ import lazy_loader
 if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
     from .loops import describe_coupling
     from .records import ConnectionPlan, Coupling, EventPlan, InstancePlan, Plan, RecordPlan
-    from .resolution import resolve
+    from .resolution import PARAMETERS, resolve, variable
     from .ssp import export_remarks, export_ssp, is_ssp, load_ssp
     from .wiring import RowLayout, Wiring
 
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "loops": ["describe_coupling"],
     "records": ["ConnectionPlan", "Coupling", "EventPlan", "InstancePlan", "Plan", "RecordPlan"],
-    "resolution": ["resolve"],
+    "resolution": ["PARAMETERS", "resolve", "variable"],
     "ssp": ["export_remarks", "export_ssp", "is_ssp", "load_ssp"],
     "wiring": ["RowLayout", "Wiring"],
 })

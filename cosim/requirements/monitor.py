@@ -250,6 +250,14 @@ def fold_of(node: Node) -> str:
     return "single" if temporal(node) else "min"
 
 
+def formula_fold(formula: str) -> str:
+    """:func:`fold_of` the formula written ``formula`` (its text, not checked against any FMU);
+    FormulaError where it does not parse."""
+    from .formula import parse
+
+    return fold_of(parse(formula))
+
+
 @dataclass
 class Verdict:
     """What a requirement's run says: ``verdict`` (:class:`Outcome`); ``robustness`` (in the unit of its
