@@ -81,7 +81,7 @@ def load_falsification(path: str | os.PathLike, seed: int | None = None, budget:
     scenario): it parses, declares the requirement, and the run.  The space against the base's FMUs is
     :func:`check_space`'s."""
     from .cosim import plan_runs
-    from .sweep_file import base_file, parameter_refs, read_base
+    from .sweep_file import base_file, read_base
 
     p = Path(path)
     f = str(p)
@@ -110,20 +110,7 @@ def load_falsification(path: str | os.PathLike, seed: int | None = None, budget:
             if reason:
                 raise CosimError(f"--{key} {reason}")
             setattr(spec, key, given)
-    space = doc.get("space")
-    if not isinstance(space, dict) or not space:
-        raise ScenarioError(f, "space", "missing: a table \"instance.param\" = { low = ..., high = ... }")
-    for key, box in space.items():
-        fld = f"space.{key}"
-        parameter_refs(f, fld, key)
-        if not isinstance(box, dict) or set(box) != {"low", "high"}:
-            raise ScenarioError(f, fld, "must be { low = ..., high = ... }")
-        lo, hi = box["low"], box["high"]
-        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in (lo, hi)):
-            raise ScenarioError(f, fld, "low and high must be finite numbers")
-        if not lo < hi:
-            raise ScenarioError(f, f"{fld}.high", "must be above low")
-        spec.space[key] = (float(lo), float(hi))
+    spec.space = _read_space(f, doc.get("space"))
     if spec.budget < MIN_BUDGET:
         reason = f"{spec.budget}: at least {MIN_BUDGET} co-simulations (a population of 5, two generations)"
         raise CosimError(f"--budget {reason}") if budget is not None else ScenarioError(f, "budget", reason)
@@ -140,6 +127,28 @@ def load_falsification(path: str | os.PathLike, seed: int | None = None, budget:
         raise ScenarioError(f, "requirement", f"{spec.requirement!r}: the base declares "
                                               f"{', '.join(repr(k) for k in known) or 'no requirements'}")
     return spec
+
+
+def _read_space(f: str, space: Any) -> dict[str, tuple[float, float]]:
+    """A falsification file's ``space`` ("instance.param" -> (low, high)), each box finite with low < high;
+    ScenarioError naming the file ``f`` and the key."""
+    from .sweep_file import parameter_refs
+
+    if not isinstance(space, dict) or not space:
+        raise ScenarioError(f, "space", "missing: a table \"instance.param\" = { low = ..., high = ... }")
+    out: dict[str, tuple[float, float]] = {}
+    for key, box in space.items():
+        fld = f"space.{key}"
+        parameter_refs(f, fld, key)
+        if not isinstance(box, dict) or set(box) != {"low", "high"}:
+            raise ScenarioError(f, fld, "must be { low = ..., high = ... }")
+        lo, hi = box["low"], box["high"]
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in (lo, hi)):
+            raise ScenarioError(f, fld, "low and high must be finite numbers")
+        if not lo < hi:
+            raise ScenarioError(f, f"{fld}.high", "must be above low")
+        out[key] = (float(lo), float(hi))
+    return out
 
 
 def _whole(v: Any) -> str | None:
