@@ -43,6 +43,8 @@ SCENARIOS: dict[str, tuple[str | bytes, list[str]]] = {
     "tolerance negative": (HEAD.replace("step = 0.01", "step = 0.01\ntolerance = -1"), ["experiment.tolerance"]),
     "max_steps zero": (HEAD.replace("step = 0.01", "step = 0.01\nmax_steps = 0"), ["experiment.max_steps"]),
     "no instances": ("[experiment]\nstop = 1.0\n", ["instances", "no FMU instances"]),
+    "instances not a table": ('instances = "plant"\n', ["instances", "must be a table"]),
+    "instances an array": ('instances = [1, 2]\n', ["instances", "must be a table"]),
     "instance not a table": ("[experiment]\nstop = 1.0\n[instances]\na = 3\n", ["instances.a", "must be a table"]),
     "instance name with a dash": (f'[instances."a-b"]\nfmu = "{FT}"\n', ["must be an identifier"]),
     "instance name of 300 characters": (f'[instances.{"a" * 300}]\nfmu = "{FT}"\n', ["at most 100"]),

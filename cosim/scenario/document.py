@@ -225,7 +225,8 @@ def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, 
             raise OtherFileError(name, OTHER_FILES[key])
     if unknown:
         raise ScenarioError(name, sorted(unknown)[0], f"unknown key (allowed: {', '.join(sorted(_TOP_KEYS))})")
-    for inst in (doc.get("instances") or {}).values():
+    instances = doc.get("instances")
+    for inst in instances.values() if isinstance(instances, dict) else ():   # not a table: parse says so
         if isinstance(inst, dict) and isinstance(inst.get("fmu"), str) and is_path(inst["fmu"]):
             inst["fmu"] = str((path.parent / inst["fmu"]).resolve())
     inputs = doc.get("inputs")
