@@ -93,3 +93,47 @@ def test_check_refuses_it_in_one_line_with_exit_2(tmp_path, capsys, entry, why):
         assert code == 2 and len(lines) == 1, err
         assert f"{fmu}: refused: entry '{entry}' {why}" in lines[0], lines[0]
         assert _tree(tmp_path) == before
+
+
+def _corrupt_deflate(src: Path, out: Path, entry: str) -> Path:
+    """``src`` with the compressed data of ``entry`` overwritten by bytes no inflater accepts (0xff: an
+    invalid block type), its directory and sizes intact."""
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zout:
+        for info in zin.infolist():
+            zout.writestr(info.filename, zin.read(info))
+    data = bytearray(out.read_bytes())
+    with zipfile.ZipFile(out) as zf:
+        info = zf.getinfo(entry)
+    name_len, extra_len = int.from_bytes(data[info.header_offset + 26:info.header_offset + 28], "little"), \
+        int.from_bytes(data[info.header_offset + 28:info.header_offset + 30], "little")
+    start = info.header_offset + 30 + name_len + extra_len
+    data[start:start + min(16, info.compress_size)] = b"\xff" * min(16, info.compress_size)
+    out.write_bytes(bytes(data))
+    return out
+
+
+@pytest.mark.parametrize("entry", ["modelDescription.xml", "binaries/linux64/Dahlquist.so"])
+def test_an_entry_whose_compressed_data_is_corrupt_is_refused_in_one_line(tmp_path, capsys, entry):
+    bad = _corrupt_deflate(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "bad.fmu", entry)
+    with pytest.raises(FmuLoadError, match=f"entry '{entry}' cannot be read"):
+        check_archive(bad)
+    for cmd in ("info", "check"):
+        assert cli.main([cmd, str(bad)]) == 2
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and "bad.fmu" in lines[0] and "cannot be read" in lines[0], lines
+
+
+def test_a_model_description_in_an_unknown_encoding_is_refused_in_one_line(tmp_path, capsys):
+    src = REF / "fmi2" / "Dahlquist.fmu"
+    bad = tmp_path / "enc.fmu"
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(bad, "w", zipfile.ZIP_DEFLATED) as zout:
+        for info in zin.infolist():
+            data = zin.read(info)
+            if info.filename == "modelDescription.xml":
+                data = data.replace(b'encoding="UTF-8"', b'encoding="no-such-encoding"', 1)
+                assert b"no-such-encoding" in data
+            zout.writestr(info.filename, data)
+    for cmd in ("info", "check"):
+        assert cli.main([cmd, str(bad)]) == 2
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and "enc.fmu" in lines[0] and "no-such-encoding" in lines[0], lines

@@ -274,6 +274,8 @@ def fmi_version(path: Path) -> str:
         raise FmuLoadError(f"{path}: no modelDescription.xml: not an FMU") from None
     except expat.ExpatError as exc:
         raise FmuLoadError(f"{path}: modelDescription.xml is not well-formed XML ({exc})") from None
+    except LookupError as exc:   # the XML declaration names an encoding Python has no codec for
+        raise FmuLoadError(f"{path}: modelDescription.xml cannot be read ({exc})") from None
     return "?"
 
 
