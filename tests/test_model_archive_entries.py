@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim_support import write_scenario
+from cosim_support import edited_fmu, write_scenario
 from reference_fmus import REF
 from wmr_cosim import cli
 from wmr_cosim.cosim.model.archive import check_archive, check_entries, escapes, safe_extract
@@ -98,10 +98,7 @@ def test_check_refuses_it_in_one_line_with_exit_2(tmp_path, capsys, entry, why):
 def _corrupt_deflate(src: Path, out: Path, entry: str) -> Path:
     """``src`` with the compressed data of ``entry`` overwritten by bytes no inflater accepts (0xff: an
     invalid block type), its directory and sizes intact."""
-    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zout:
-        for info in zin.infolist():
-            zout.writestr(info.filename, zin.read(info))
-    data = bytearray(out.read_bytes())
+    data = bytearray(edited_fmu(src, out, lambda name, data: data).read_bytes())
     with zipfile.ZipFile(out) as zf:
         info = zf.getinfo(entry)
     name_len, extra_len = int.from_bytes(data[info.header_offset + 26:info.header_offset + 28], "little"), \
@@ -124,15 +121,12 @@ def test_an_entry_whose_compressed_data_is_corrupt_is_refused_in_one_line(tmp_pa
 
 
 def test_a_model_description_in_an_unknown_encoding_is_refused_in_one_line(tmp_path, capsys):
-    src = REF / "fmi2" / "Dahlquist.fmu"
-    bad = tmp_path / "enc.fmu"
-    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(bad, "w", zipfile.ZIP_DEFLATED) as zout:
-        for info in zin.infolist():
-            data = zin.read(info)
-            if info.filename == "modelDescription.xml":
-                data = data.replace(b'encoding="UTF-8"', b'encoding="no-such-encoding"', 1)
-                assert b"no-such-encoding" in data
-            zout.writestr(info.filename, data)
+    def edit(name: str, data: bytes) -> bytes:
+        if name == "modelDescription.xml":
+            data = data.replace(b'encoding="UTF-8"', b'encoding="no-such-encoding"', 1)
+            assert b"no-such-encoding" in data
+        return data
+    bad = edited_fmu(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "enc.fmu", edit)
     for cmd in ("info", "check"):
         assert cli.main([cmd, str(bad)]) == 2
         lines = capsys.readouterr().err.strip().splitlines()
