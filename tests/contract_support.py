@@ -189,6 +189,31 @@ def run_cli(argv: list[str], work: Path, timeout: float = 30.0) -> Outcome:
     return o
 
 
+def run_child(argv: list[str], work: Path, timeout: float = 60.0) -> Outcome:
+    """``wmr-cosim ARGV`` in a child process (``python -m wmr_cosim.cli``), in ``work`` with its own TMPDIR,
+    killed after ``timeout`` seconds: what the in-process run cannot see (a crash of the interpreter, a
+    hang in C code, output written at exit)."""
+    import subprocess
+
+    tmp = work / ".tmp"
+    tmp.mkdir(parents=True, exist_ok=True)
+    env = {**os.environ, "TMPDIR": str(tmp)}
+    o = Outcome(list(argv), None, "", "", 0.0)
+    t0 = time.perf_counter()
+    try:
+        p = subprocess.run([sys.executable, "-m", "wmr_cosim.cli", *argv], cwd=work, env=env, capture_output=True,
+                           text=True, errors="replace", timeout=timeout)
+        o.code, o.stdout, o.stderr = p.returncode, p.stdout, p.stderr
+        lines = p.stderr.strip().splitlines()
+        o.argparse = p.returncode == 2 and bool(lines) and lines[0].startswith("usage:")
+    except subprocess.TimeoutExpired:
+        o.hang = True
+    o.seconds = time.perf_counter() - t0
+    o.left_in_tmp = sorted(q.name for q in tmp.iterdir())
+    shutil.rmtree(tmp, ignore_errors=True)
+    return o
+
+
 def summaries_claiming_success(work: Path, given: dict[str, bytes] | None = None) -> list[str]:
     """summary.json files under ``work`` whose status says the run ended well (those of ``given``, the
     input files, left out while unchanged: a results folder given to ``plot`` is not a claim of its)."""

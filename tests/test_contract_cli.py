@@ -23,3 +23,29 @@ def test_every_generated_input_keeps_the_contract(name):
             fail_on(check(case, base, target.timeout))
 
         holds()
+
+
+#: The targets a few examples of which CI also runs in child processes (a crash of the interpreter, a
+#: hang in C code: what the in-process run cannot survive or interrupt).
+IN_CHILD = {"scenario-run-broken": 2, "model-description": 2, "elf-in-archive": 2}
+
+
+@pytest.mark.parametrize("name", list(IN_CHILD))
+def test_a_sample_keeps_the_contract_in_a_child_process(name):
+    from contract_support import fresh, run_child, violations, write_files
+    import shutil
+
+    target = TARGETS[name]
+    with Scratch() as base:
+        @settings(settings.get_profile("contract-ci"), max_examples=IN_CHILD[name])
+        @given(target.strategy())
+        def holds(case):
+            work = fresh(base)
+            try:
+                write_files(work, case.files)
+                o = run_child(case.argv, work, timeout=60.0)
+                fail_on(violations(o, case.expect, work, case.files))
+            finally:
+                shutil.rmtree(work, ignore_errors=True)
+
+        holds()
