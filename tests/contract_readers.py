@@ -275,3 +275,62 @@ def reader_violations(case: ReaderCase, timeout: float) -> list[Any]:
     if o.memory_mib > MEMORY_LIMIT_MIB:
         out.append(Violation(f"{case.reader} reader: memory grew by {o.memory_mib:.0f} MiB", shown))
     return out
+
+
+# --- SSP archives and input tables ----------------------------------------------------------------------
+@cache
+def ssp_seed() -> bytes:
+    """An SSP archive of Dahlquist -> Feedthrough written by ``export-ssp`` (made once, in memory)."""
+    import shutil
+    import tempfile
+
+    from contract_support import run_cli
+    from reference_fmus import fmi2
+
+    work = Path(tempfile.mkdtemp(prefix="contract-seed-"))
+    try:
+        (work / "e.toml").write_text(f'[experiment]\nstop = 0.05\nstep = 0.01\n[instances.d]\nfmu = "{fmi2("Dahlquist")}"\n'
+                                     f'[instances.a]\nfmu = "{fmi2("Feedthrough")}"\n[[connections]]\nfrom = "d.x"\n'
+                                     'to = "a.Float64_continuous_input"\n', encoding="utf-8")
+        o = run_cli(["export-ssp", "e.toml", "--out", "e.ssp"], work)
+        assert o.code == 0, o.stderr
+        return (work / "e.ssp").read_bytes()
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+@st.composite
+def ssp_cases(draw: Any) -> Case:
+    """An SSP archive with its SystemStructure.ssd mutated (or the archive's bytes), given to ``check``."""
+    files = members(ssp_seed())
+    if draw(st.integers(0, 3)):
+        files["SystemStructure.ssd"], how = draw(xml_mutations(files["SystemStructure.ssd"]))
+        data = rezip(files)
+    else:
+        data, how = draw(mutations(ssp_seed(), header=len(ssp_seed())))
+    return Case("ssp-archive", ["check", "m.ssp"], {"m.ssp": data}, None, how)
+
+
+INPUTS_SEED = b"time,Float64_continuous_input,Int32_input,Boolean_input\n0,1,2,0\n0.02,2,3,1\n0.04,-1,0,1\n"
+
+
+@st.composite
+def inputs_cases(draw: Any) -> Case:
+    """An input table (CSV) of the Feedthrough FMU mutated, checked or run with ``--input``."""
+    from reference_fmus import fmi2
+
+    if draw(st.booleans()):
+        data, how = draw(mutations(INPUTS_SEED, header=len(INPUTS_SEED)))
+    else:
+        cells = draw(st.sampled_from(["nan", "inf", "-inf", "1e999", "", "x", "9223372036854775808", "0x10", " 1",
+                                      "1,2", "\"1\"", "true"]))
+        row = draw(st.integers(1, 3))
+        lines = INPUTS_SEED.split(b"\n")
+        parts = lines[row].split(b",")
+        parts[draw(st.integers(0, len(parts) - 1))] = cells.encode()
+        lines[row] = b",".join(parts)
+        data, how = b"\n".join(lines), f"a cell {cells!r}"
+    cmd = draw(st.sampled_from(["check", "run"]))
+    argv = [cmd, str(fmi2("Feedthrough")), "--input", "in.csv", "--stop", "0.05", "--step", "0.01"]
+    argv += ["--out", "out", "--quiet"] if cmd == "run" else []
+    return Case("inputs-csv", argv, {"in.csv": data}, None, how)

@@ -35,8 +35,8 @@ def _value(v: Any) -> str:
         if math.isinf(v):
             return "inf" if v > 0 else "-inf"
         return repr(v)
-    if isinstance(v, str):
-        return json.dumps(v, ensure_ascii=False)
+    if isinstance(v, str):   # JSON's escapes are TOML's; TOML forbids DEL too
+        return json.dumps(v, ensure_ascii=False).replace("\x7f", "\\u007f")
     if isinstance(v, list):
         return "[" + ", ".join(_value(x) for x in v) + "]"
     if isinstance(v, dict):
@@ -398,7 +398,8 @@ def mutated(draw: Any, doc: dict[str, Any], kind: str = "scenario") -> tuple[byt
         key = draw(st.sampled_from(sorted(node)))
         typo = draw(typos(key).filter(lambda s: s not in allowed and s != key and s))
         node[typo] = node.pop(key)
-        expect = Expectation(True, (typo,), f"the misspelt key {typo!r} of {'.'.join(map(str, path)) or 'the top'}")
+        expect = Expectation(True, (typo,), f"a misspelt key of {table}", f"the misspelt key {typo!r} of "
+                                                                         f"{'.'.join(map(str, path)) or 'the top'}")
     elif how in ("wrong_type", "out_of_range", "not_finite", "huge_string", "empty_string", "deep_nesting"):
         leaves = [(p, n) for p, n in nodes if p]
         if how in ("out_of_range", "not_finite"):
@@ -413,7 +414,8 @@ def mutated(draw: Any, doc: dict[str, Any], kind: str = "scenario") -> tuple[byt
             new = draw(st.sampled_from([math.nan, math.inf, -math.inf]))
             k = _kind_at(path, kind)
             if k in NUMERIC:
-                expect = Expectation(True, (str(path[-1]),), f"a non-finite {'.'.join(map(str, path))}")
+                expect = Expectation(True, (str(path[-1]),), f"a non-finite {table_of(path[:-1], kind)}.{path[-1]}",
+                                     f"{'.'.join(map(str, path))} = {new}")
         elif how == "huge_string":
             new = draw(st.sampled_from(["x" * 200_000, "é" * 50_000, "\u202e" * 1000, "a\x00b" * 10]))
         elif how == "empty_string":

@@ -54,7 +54,8 @@ class Expectation:
 
     refused: bool = False
     words: tuple[str, ...] = ()
-    why: str = ""
+    why: str = ""        # what is wrong, in general (it names the defect: the same for every such input)
+    this: str = ""       # what is wrong with this input
 
 
 @dataclass
@@ -279,12 +280,13 @@ def violations(o: Outcome, expect: Expectation | None = None, work: Path | None 
     if expect is not None and expect.refused and not o.hang and o.error is None:
         if o.would_run or o.code != 2:
             what = "ran" if o.would_run or o.code in (0, 1, 3) else f"exit {o.code}"
-            v.append(Violation(f"{cmd}: {expect.why} not refused ({what})", shown))
+            v.append(Violation(f"{cmd}: {expect.why} not refused ({what})", f"{expect.this or expect.why}: {shown}"))
         else:
             line = o.stderr.strip().splitlines()[-1] if o.stderr.strip() else ""
             missing = [w for w in expect.words if w not in line]
             if missing:
-                v.append(Violation(f"{cmd}: {expect.why}: the line does not name {missing[0]!r}", shown))
+                v.append(Violation(f"{cmd}: {expect.why}: the line does not name it",
+                                   f"{expect.this or expect.why}: {missing[0]!r} not in {shown}"))
     return v
 
 

@@ -47,6 +47,8 @@ TARGETS: dict[str, Target] = {
     "model-description": Target(cr.model_description_cases, 40, timeout=20.0),
     "elf-in-archive": Target(cr.binary_in_archive_cases, 15, timeout=20.0),
     "results-plot": Target(cr.results_cases, 10, timeout=30.0),
+    "ssp-archive": Target(cr.ssp_cases, 15, timeout=20.0),
+    "inputs-csv": Target(cr.inputs_cases, 20, timeout=20.0),
     # ... and called directly (many more examples a second)
     "elf": Target(lambda: cr.reader_cases("elf"), 150, timeout=5.0),
     "pe": Target(lambda: cr.reader_cases("pe"), 150, timeout=5.0),
