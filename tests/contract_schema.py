@@ -116,6 +116,23 @@ def grammar() -> FormulaGrammar:
                           max_length=formula.MAX_LENGTH, max_depth=formula.MAX_DEPTH)
 
 
+@dataclass(frozen=True)
+class ConditionGrammar:
+    """The operators of the events' conditions (cosim/scenario/condition.py)."""
+
+    compare: tuple[str, ...]
+    keywords: tuple[str, ...]
+    max_length: int
+    max_depth: int
+
+
+def condition_grammar() -> ConditionGrammar:
+    from wmr_cosim.cosim.scenario import condition
+
+    return ConditionGrammar(tuple(condition.COMPARE), tuple(sorted(condition.KEYWORDS)), condition.MAX_LENGTH,
+                            condition.MAX_DEPTH)
+
+
 # --- the command lines ----------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Option:

@@ -70,11 +70,13 @@ class Case:
     files: dict[str, bytes] = field(default_factory=dict)
     expect: Expectation | None = None
     mutation: str = "valid"
+    then: list[str] | None = None     # run after argv when it exited 0 (check, then run)
 
     def __repr__(self) -> str:   # what Hypothesis prints of a falsifying example
         shown = {k: (v.decode("utf-8", "replace")[:3000] if len(v) < 20000 else f"<{len(v)} bytes>")
                  for k, v in self.files.items()}
-        return f"Case({self.target!r}, mutation={self.mutation!r}, argv={self.argv!r}, files={shown!r})"
+        then = f", then={self.then!r}" if self.then else ""
+        return f"Case({self.target!r}, mutation={self.mutation!r}, argv={self.argv!r}{then}, files={shown!r})"
 
 
 # --- values by kind -------------------------------------------------------------------------------------
@@ -217,6 +219,51 @@ def broken_formulas(draw: Any, sysm: System) -> tuple[str, str]:
     return draw(st.text(max_size=60)), "garbage"
 
 
+CG = schema.condition_grammar()
+
+
+@st.composite
+def conditions(draw: Any, sysm: System, depth: int = 2) -> str:
+    """An event's condition of the grammar over the system's outputs."""
+    outs = sysm.real(sysm.outputs)
+    if depth <= 0 or draw(st.integers(0, 2)) == 0:
+        lhs = draw(st.sampled_from(outs + ["t"] if outs else ["t"]))
+        return f"{lhs} {draw(st.sampled_from(CG.compare))} {draw(st.floats(-2, 2, allow_nan=False)):.4g}"
+    sub = conditions(sysm, depth - 1)
+    how = draw(st.sampled_from(["and", "or", "not", "paren"]))
+    if how == "not":
+        return f"not {draw(sub)}"
+    if how == "paren":
+        return f"({draw(sub)})"
+    return f"{draw(sub)} {how} {draw(sub)}"
+
+
+@st.composite
+def broken_conditions(draw: Any, sysm: System) -> tuple[str, str]:
+    c = draw(conditions(sysm))
+    outs = sysm.real(sysm.outputs) or ["x.y"]
+    how = draw(st.sampled_from(["deep_not", "deep_parens", "long_or", "too_long", "unknown", "typo", "garbage",
+                                "type", "empty"]))
+    if how == "deep_not":
+        return "not " * draw(st.integers(CG.max_depth - 2, 3 * CG.max_depth)) + c, how
+    if how == "deep_parens":
+        n = draw(st.integers(CG.max_depth - 2, 900))
+        return "(" * n + c + ")" * n, how
+    if how == "long_or":
+        return " or ".join([f"{outs[0]} > 0"] * draw(st.integers(2, 400)))[:CG.max_length], how
+    if how == "too_long":
+        return (f"{outs[0]} > 0 or " * 300)[:CG.max_length + 5] + "true", how
+    if how == "unknown":
+        return f"{outs[0]}_nope > 1", how
+    if how == "typo":
+        return c.replace(" and ", " adn ").replace(" or ", " ro ") if (" and " in c or " or " in c) else c + " an", how
+    if how == "type":
+        return draw(st.sampled_from([f"{outs[0]}", f"{outs[0]} == true", "1", "t", f"{outs[0]} > true"])), how
+    if how == "empty":
+        return draw(st.sampled_from(["", " ", "()", "not", "and"])), how
+    return draw(st.text(max_size=40)), "garbage"
+
+
 def typos(word: str) -> st.SearchStrategy[str]:
     """Misspellings of ``word``: a letter dropped, doubled, changed or two swapped."""
     @st.composite
@@ -300,8 +347,15 @@ def scenario_docs(draw: Any, sysm: System, requirements: bool = False) -> dict[s
     if draw(st.integers(0, 3)) == 0 and tunable and sysm.stop > sysm.step:
         ref = draw(st.sampled_from(tunable))
         inst, par = ref.split(".", 1)
-        doc["events"] = [{"time": sysm.step, "variable": ref, "action": "set",
-                          "value": draw(_in_range(models[sysm.instances[inst]], par))}]
+        ev: dict[str, Any] = {"variable": ref, "action": "set", "value": draw(_in_range(models[sysm.instances[inst]], par))}
+        if draw(st.booleans()):
+            ev["time"] = sysm.step
+        else:
+            ev["when"] = draw(conditions(sysm))
+            ev["trigger"] = draw(st.sampled_from(schema.keys("event")["trigger"][1]))
+        doc["events"] = [ev]
+    elif draw(st.integers(0, 5)) == 0 and sysm.stop > sysm.step:
+        doc["events"] = [{"when": draw(conditions(sysm)), "action": "stop"}]
     if requirements or draw(st.integers(0, 2)) == 0:
         names = draw(st.lists(IDENT, min_size=1, max_size=2, unique=True))
         reqs = []
@@ -447,6 +501,8 @@ def _base_argv(draw: Any, command: str, file: str) -> list[str]:
     argv = [command, file]
     if command == "run":
         argv += ["--out", "out", "--quiet"]
+    elif command == "export-ssp":
+        argv += ["--out", "s.ssp"]
     return argv
 
 
@@ -477,6 +533,26 @@ def requirement_cases(draw: Any, command: str = "check") -> Case:
                                             sorted(sysm.outputs)[0] if sysm.outputs else "q"]))
         how = f"requirement name {req['name'][:20]!r}"
     return Case(f"requirements-{command}", _base_argv(draw, command, "s.toml"), {"s.toml": dumps(doc).encode()},
+                None, how)
+
+
+@st.composite
+def check_then_run_cases(draw: Any) -> Case:
+    """A scenario, broken or not, checked and, where check accepts it, run: what check accepts, run must
+    not refuse as bad input."""
+    case = draw(scenario_cases(draw(st.booleans()), "check", requirements=draw(st.booleans())))
+    case.target, case.then = "check-then-run", ["run", "s.toml", "--out", "out", "--quiet"]
+    return case
+
+
+@st.composite
+def condition_cases(draw: Any, command: str = "check") -> Case:
+    """A scenario with an event whose condition is broken or at the grammar's limits."""
+    sysm = draw(systems())
+    doc = draw(scenario_docs(sysm))
+    when, how = draw(broken_conditions(sysm))
+    doc["events"] = [{"when": when, "action": "stop"}]
+    return Case(f"conditions-{command}", _base_argv(draw, command, "s.toml"), {"s.toml": dumps(doc).encode()},
                 None, how)
 
 

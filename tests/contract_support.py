@@ -303,14 +303,22 @@ def fresh(base: Path) -> Path:
 
 
 def check_case(files: dict[str, bytes], argv: list[str], expect: Expectation | None, base: Path,
-               timeout: float = 30.0) -> list[Violation]:
+               timeout: float = 30.0, then: list[str] | None = None) -> list[Violation]:
     """Write ``files`` into a fresh folder under ``base``, run ``argv`` there, and list the violations;
-    the folder is removed after."""
+    the folder is removed after.  ``then``: a second command run after a first that exited 0 (``check``
+    then ``run``): it must not refuse as bad input what the first accepted (refuse early, at ``check``)."""
     work = fresh(base)
     try:
         write_files(work, files)
         o = run_cli(argv, work, timeout)
-        return violations(o, expect, work, files)
+        found = violations(o, expect, work, files)
+        if then and o.code == 0 and not found:
+            o2 = run_cli(then, work, timeout)
+            found = violations(o2, None, work, files)
+            if o2.code == 2:
+                found.append(Violation(f"{command_of(then)}: refuses as bad input what {command_of(argv)} accepted",
+                                       f"{argv} exit 0, then {then}: {o2.stderr.strip()[-600:]!r}"))
+        return found
     finally:
         shutil.rmtree(work, ignore_errors=True)
 

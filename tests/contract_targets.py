@@ -34,6 +34,11 @@ TARGETS: dict[str, Target] = {
     "requirements-check-broken": Target(lambda: cs.requirement_cases("check"), 30),
     "requirements-run": Target(lambda: cs.scenario_cases(False, "run", requirements=True), 10),
     "requirements-run-broken": Target(lambda: cs.requirement_cases("run"), 10),
+    "check-then-run": Target(cs.check_then_run_cases, 15),
+    "conditions-check-broken": Target(lambda: cs.condition_cases("check"), 20),
+    "conditions-run-broken": Target(lambda: cs.condition_cases("run"), 5),
+    "export-ssp": Target(lambda: cs.scenario_cases(False, "export-ssp"), 5),
+    "export-ssp-broken": Target(lambda: cs.scenario_cases(True, "export-ssp"), 10),
     "cli-check": Target(lambda: cs.command_line_cases("check", True), 25),
     "cli-run": Target(lambda: cs.command_line_cases("run", True), 10),
     "cli-linearize": Target(lambda: cs.linearize_cases(False), 5, timeout=60.0),
@@ -68,7 +73,7 @@ def check(case: cs.Case | cr.ReaderCase, base: Path, timeout: float) -> list[Vio
     bytes given to a reader."""
     if isinstance(case, cr.ReaderCase):
         return cr.reader_violations(case, timeout)
-    return check_case(case.files, case.argv, case.expect, base, timeout)
+    return check_case(case.files, case.argv, case.expect, base, timeout, case.then)
 
 
 class Scratch:

@@ -161,3 +161,15 @@ def test_planted_reader_crash_is_found(monkeypatch):
     found = reader_violations(ReaderCase("elf", seed, "planted"), 5.0)
     assert [v.key for v in found] == ["elf reader: IndexError at binary.py:<lambda>"] or \
         any("IndexError" in v.key for v in found)
+
+
+def test_planted_refusal_at_run_of_what_check_accepted_is_found(base, monkeypatch):
+    from wmr_cosim import cli
+    from wmr_cosim.cosim import ScenarioError
+
+    def refuses(args):
+        raise ScenarioError("s.toml", "experiment.step", "planted: found only when running")
+    monkeypatch.setattr(cli, "cmd_run", refuses)
+    keys = _keys(check_case(_scenario(), ["check", "s.toml"], None, base,
+                            then=["run", "s.toml", "--out", "o", "--quiet"]))
+    assert keys == ["run: refuses as bad input what check accepted"]
