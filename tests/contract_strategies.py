@@ -519,6 +519,12 @@ def scenario_cases(draw: Any, broken: bool, command: str = "check", requirements
                 {"s.toml": text}, expect, how)
 
 
+def isolated(case: Case) -> Case:
+    """The case run with every instance in a child process (``--isolate``)."""
+    case.argv, case.target = case.argv + ["--isolate"], case.target + "-isolated"
+    return case
+
+
 @st.composite
 def requirement_cases(draw: Any, command: str = "check") -> Case:
     """A scenario whose one requirement has a broken formula, or a name at the edges (``time``, a column)."""
