@@ -104,6 +104,8 @@ SCENARIOS: dict[str, tuple[str | bytes, list[str]]] = {
     "inputs value not a number": (HEAD + '[inputs]\nfile = "bad_val.csv"\n', ["inputs.a.Int32_input", "not a valid"]),
     "inputs integer out of range": (HEAD + '[inputs]\nfile = "big.csv"\n', ["inputs.a.Int32_input", "does not fit"]),
     "run without a name": (HEAD + "[[runs]]\nparameters = {}\n", ["runs[0].name"]),
+    "run name of 300 characters": (HEAD + f'[[runs]]\nname = "a"\n[[runs]]\nname = "{"r" * 300}"\n',
+                                   ["runs[1].name", "at most 100"]),
     "two runs of one name": (HEAD + '[[runs]]\nname = "r"\n[[runs]]\nname = "r"\n', ["runs[1].name", "two runs"]),
     "carry from no run": (HEAD + '[[runs]]\nname = "r"\ncarry = { "d.k" = "q.d.x" }\n', ["runs[0].carry", "no earlier run"]),
 }

@@ -190,8 +190,16 @@ def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
 #: (:class:`~.errors.OtherFileError`: the application can add how to run it).
 OTHER_FILES = {"tasks": "a paper manifest", "grid": "a sweep file", "random": "a sweep file",
                "samples": "a sweep file"}
-#: The longest instance name (it names files: logs/<instance>.log).
+#: The longest instance or run name (it names files and folders: logs/<instance>.log, <out>/<run>/).
 MAX_NAME = 100
+
+
+def _not_too_long(file: str, fld: str, name: str, what: str, names: str) -> None:
+    """ScenarioError for a name of more than MAX_NAME characters (``what``: "an instance name"; ``names``:
+    the file or folder it names), before anything is written under it."""
+    if len(name) > MAX_NAME:
+        raise ScenarioError(file, fld if len(fld) <= 60 else fld[:60] + "...",
+                            f"{what} of {len(name)} characters: at most {MAX_NAME} (it names {names})")
 
 
 def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, str] | None = None,
@@ -431,9 +439,7 @@ def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:
         fld = f"instances.{iname}"
         if not isinstance(iname, str) or not iname.isidentifier():
             raise ScenarioError(file, fld, f"instance name {iname!r} must be an identifier")
-        if len(iname) > MAX_NAME:
-            raise ScenarioError(file, fld[:60] + "...", f"an instance name of {len(iname)} characters: at most "
-                                                        f"{MAX_NAME} (it names the instance's log file)")
+        _not_too_long(file, fld, iname, "an instance name", "the instance's log file")
         inst = _table(file, fld, inst)
         _keys(file, fld, inst, _INSTANCE_KEYS)
         fmu = inst.get("fmu")
@@ -556,6 +562,7 @@ def _parse_runs(sc: Scenario, doc: dict[str, Any]) -> None:
         name = r.get("name")
         if not isinstance(name, str) or not name.isidentifier():
             raise ScenarioError(file, f"{fld}.name", f"{name!r}: a run needs a name that is an identifier")
+        _not_too_long(file, f"{fld}.name", name, "a run name", "the run's results folder")
         if name in names:
             raise ScenarioError(file, f"{fld}.name", f"{name!r}: two runs with this name")
         params = _instance_refs(file, f"{fld}.parameters", r.get("parameters"), sc)
