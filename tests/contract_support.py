@@ -223,10 +223,7 @@ def summaries_claiming_success(work: Path, given: dict[str, bytes] | None = None
     from wmr_cosim.cosim import RunStatus
 
     out = []
-    for s in work.rglob("summary.json"):
-        rel = s.relative_to(work).as_posix()
-        if given and rel in given and s.read_bytes() == given[rel]:
-            continue
+    for s in _new_summaries(work, given):
         try:
             doc = json.loads(s.read_text(encoding="utf-8"))
             status = RunStatus(doc.get("status"))
@@ -235,6 +232,13 @@ def summaries_claiming_success(work: Path, given: dict[str, bytes] | None = None
         if status.ended_well:
             out.append(str(s.relative_to(work)))
     return out
+
+
+def _new_summaries(work: Path, given: dict[str, bytes] | None) -> list[Path]:
+    """summary.json files under ``work`` the command wrote (not among ``given``, or changed)."""
+    return [s for s in work.rglob("summary.json")
+            if not (given and s.relative_to(work).as_posix() in given
+                    and s.read_bytes() == given[s.relative_to(work).as_posix()])]
 
 
 def command_of(argv: list[str]) -> str:
@@ -273,6 +277,8 @@ def violations(o: Outcome, expect: Expectation | None = None, work: Path | None 
         v.append(Violation(f"{cmd}: left in TMPDIR", f"{shown}: {o.left_in_tmp[:5]}"))
     if work is not None and o.code not in (0, 3):
         claims = summaries_claiming_success(work, given)
+        if claims and o.code == 1 and len(claims) < len(_new_summaries(work, given)):
+            claims = []   # a protocol: the runs before the one that failed ended well, and say so
         if claims:
             v.append(Violation(f"{cmd}: a results folder claims success with exit {o.code}", f"{shown}: {claims}"))
     if o.memory_mib > MEMORY_LIMIT_MIB:
