@@ -245,6 +245,9 @@ class ReaderCase:
     data: bytes
     mutation: str
 
+    def _repr_pretty_(self, p: Any, cycle: bool) -> None:   # how Hypothesis prints an example: short
+        p.text(repr(self))
+
     def __repr__(self) -> str:
         return f"ReaderCase({self.reader!r}, mutation={self.mutation!r}, {len(self.data)} bytes, head={self.data[:64]!r})"
 

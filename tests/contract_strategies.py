@@ -72,6 +72,9 @@ class Case:
     mutation: str = "valid"
     then: list[str] | None = None     # run after argv when it exited 0 (check, then run)
 
+    def _repr_pretty_(self, p: Any, cycle: bool) -> None:   # how Hypothesis prints an example: short
+        p.text(repr(self))
+
     def __repr__(self) -> str:   # what Hypothesis prints of a falsifying example
         shown = {k: (v.decode("utf-8", "replace")[:3000] if len(v) < 20000 else f"<{len(v)} bytes>")
                  for k, v in self.files.items()}
