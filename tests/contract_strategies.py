@@ -202,12 +202,15 @@ def broken_formulas(draw: Any, sysm: System) -> tuple[str, str]:
     if how == "deep_parens":
         n = draw(st.integers(50, 1900))
         return "(" * n + f + ")" * n, how
-    if how == "long_or":
-        n = draw(st.integers(10, 990))
-        return " or ".join([f"{outs[0]} > 0"] * n)[:G.max_length], how
+    if how == "long_or":   # as many operators as the length allows: the shortest operands
+        op = draw(st.sampled_from(list(G.logic)))
+        atom = draw(st.sampled_from(["true", f"{outs[0]} > 0"]))
+        n = draw(st.integers(10, G.max_length // (len(atom) + len(op) + 2) + 1))
+        return f" {op} ".join([atom] * n)[:G.max_length], how
     if how == "long_sum":
-        n = draw(st.integers(10, 1990))
-        return (f"{outs[0]}" + " + 1" * n)[:G.max_length - 4] + " > 0", how
+        op = draw(st.sampled_from(["+", "-", "*", "/"]))
+        n = draw(st.integers(10, G.max_length // 2))
+        return ("1" + op * 0 + "".join(f"{op}1" for _ in range(n)))[:G.max_length - 4] + " > 0", how
     if how == "unknown_variable":
         return f.replace(outs[0], outs[0] + "_nope") if outs[0] in f else f"{outs[0]}_nope > 0", how
     if how == "bad_unit":

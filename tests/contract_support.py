@@ -142,16 +142,42 @@ def sandbox(work: Path) -> Iterator[Path]:
             os.environ["TMPDIR"] = old_env
 
 
+#: The frames a ``wmr-cosim`` process has below ``main`` (``python -m wmr_cosim.cli``: runpy, entry).
+_CLI_FRAMES = 8
+#: Python's default recursion limit, the one the command runs with.
+_DEFAULT_RECURSION_LIMIT = 1000
+
+
+def _depth() -> int:
+    f, n = sys._getframe(), 0
+    while f is not None:
+        f, n = f.f_back, n + 1
+    return n
+
+
+@contextlib.contextmanager
+def _command_recursion_limit() -> Iterator[None]:
+    """The recursion limit the command has in its own process, counted from here: Hypothesis raises the
+    limit while a test runs, which would hide a RecursionError the user meets."""
+    old = sys.getrecursionlimit()
+    sys.setrecursionlimit(_depth() + _DEFAULT_RECURSION_LIMIT - _CLI_FRAMES)
+    try:
+        yield
+    finally:
+        sys.setrecursionlimit(old)
+
+
 def call(fn: Callable[[], Any], timeout: float) -> tuple[Any, Outcome]:
-    """Run ``fn()`` (a reader) under the time limit with output captured: (its value or None, the outcome
-    with any exception that left it)."""
+    """Run ``fn()`` (a reader, a command) under the time limit and the command's own recursion limit, with
+    output captured: (its value or None, the outcome with any exception that left it)."""
     out, err = io.StringIO(), io.StringIO()
     o = Outcome([], None, "", "", 0.0)
     before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     t0 = time.perf_counter()
     value = None
     try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), _alarm(timeout):
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), _alarm(timeout), \
+                _command_recursion_limit():
             value = fn()
     except Hang:
         o.hang = True

@@ -173,3 +173,20 @@ def test_planted_refusal_at_run_of_what_check_accepted_is_found(base, monkeypatc
     keys = _keys(check_case(_scenario(), ["check", "s.toml"], None, base,
                             then=["run", "s.toml", "--out", "o", "--quiet"]))
     assert keys == ["run: refuses as bad input what check accepted"]
+
+
+def test_planted_deep_recursion_is_found_under_the_commands_own_limit(base, monkeypatch):
+    """Hypothesis raises the recursion limit while a test runs: the harness runs the command under the
+    limit it has in its own process, so that a RecursionError a user meets is met here too."""
+    from wmr_cosim import cli
+
+    def deep(n: int) -> int:
+        return 0 if n == 0 else deep(n - 1) + 1
+    monkeypatch.setattr(cli, "cmd_check", lambda args: deep(1200))
+    old = sys.getrecursionlimit()
+    sys.setrecursionlimit(old + 5000)   # as Hypothesis does
+    try:
+        keys = _keys(check_case(_scenario(), ["check", "s.toml"], None, base))
+    finally:
+        sys.setrecursionlimit(old)
+    assert any("RecursionError out of the command" in k for k in keys), keys
