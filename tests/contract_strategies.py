@@ -321,9 +321,12 @@ def scenario_docs(draw: Any, sysm: System, requirements: bool = False) -> dict[s
     models = schema.models()
     doc: dict[str, Any] = {}
     exp: dict[str, Any] = {"stop": sysm.stop, "step": sysm.step}
-    _optional(draw, "experiment", exp, sysm, skip=("order", "max_steps", "max_internal_steps", "algorithm", "start"))
+    _optional(draw, "experiment", exp, sysm, skip=("order", "max_steps", "max_internal_steps", "algorithm", "start",
+                                                   "workers"))
     if draw(st.booleans()):
         exp["algorithm"] = draw(st.sampled_from(["gauss-seidel", "jacobi"] + list(schema.keys("experiment")["algorithm"][1])))
+    if exp.get("algorithm", "gauss-seidel") in ("gauss-seidel", "jacobi") and draw(st.integers(0, 5)) == 0:
+        exp["workers"] = draw(st.integers(1, 4))   # (instances stepped at once: these two algorithms only)
     doc["experiment"] = exp
     doc["instances"] = {}
     for name, m in sysm.instances.items():
