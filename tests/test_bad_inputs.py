@@ -27,6 +27,7 @@ SCENARIOS: dict[str, tuple[str | bytes, list[str]]] = {
     "a sweep file": ('base = "x.toml"\nsamples = 3\n', ["a sweep file", "wmr-cosim sweep"]),
     "a paper manifest": ('[tasks]\nG1 = "paper/g1.toml"\n', ["paper manifest", "wmr-cosim paper"]),
     "base missing": ('base = "nowhere.toml"\n' + HEAD, ["base", "nowhere.toml", "file not found"]),
+    "base name too long for the system": ('base = "' + "b" * 5000 + '.toml"\n' + HEAD, ["base", "name too long"]),
     "base a folder": ('base = "."\n' + HEAD, ["base", "a folder"]),
     "step negative": (HEAD.replace("step = 0.01", "step = -0.01"), ["experiment.step", "must be > 0"]),
     "step denormal": (HEAD.replace("step = 0.01", "step = 1e-320"), ["experiment.step", "not a finite number"]),
@@ -155,6 +156,8 @@ def test_bad_scenario_file(case, sandbox, capsys):
 @pytest.mark.parametrize("argv, words", [
     (["run", "nowhere.toml"], ["nowhere.toml", "file not found"]),
     (["check", "."], ["a folder"]),
+    (["check", "s" * 5000 + ".toml"], ["name too long"]),
+    (["run", "s" * 5000 + ".toml"], ["name too long"]),
     (["run", "{good}", "--set", "d.k"], ["--set", "expected INSTANCE.PARAM=VALUE"]),
     (["run", "{good}", "--set", "q.k=1"], ["--set q.k", "unknown instance"]),
     (["run", "{good}", "--set", "d.kk=1"], ["no variable 'kk'"]),

@@ -208,6 +208,13 @@ def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, 
     document :func:`parse` checks).  ``shipped``: the application's folder of scenario files, where a
     ``base`` found neither beside the file nor by an absolute path is looked up (see :func:`base_path`)."""
     name = str(path)
+    try:
+        path.is_file()
+    except OSError as exc:   # a name the system cannot look up (too long, ...)
+        if asked_by is not None:
+            raise ScenarioError(asked_by[0], "base", f"{asked_by[1][:60]!r}...: cannot be read "
+                                                     f"({exc.strerror or exc})") from None
+        raise ScenarioError(name[:100] + "...", "", f"cannot be read ({exc.strerror or exc})") from None
     if not path.is_file():
         if asked_by is not None:
             raise ScenarioError(asked_by[0], "base", f"{asked_by[1]!r}: "
@@ -264,7 +271,11 @@ def base_path(path: Path, base: str, shipped: Path | None = None) -> Path:
     may start with that folder's own name), so that a copy of a shipped file still finds its base."""
     beside = path.parent / base
     b = Path(base)
-    if beside.exists() or b.is_absolute() or ".." in b.parts or shipped is None:
+    try:
+        exists = beside.exists()
+    except OSError:   # a name the system cannot look up (too long): read_document says so
+        return beside
+    if exists or b.is_absolute() or ".." in b.parts or shipped is None:
         return beside
     parts = b.parts[1:] if b.parts[:1] == (shipped.name,) else b.parts
     found = shipped.joinpath(*parts) if shipped is not None and parts else None
