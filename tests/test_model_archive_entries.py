@@ -5,6 +5,7 @@ one that climbs out of the folder ('resources/a/../../../x') is named as such, o
 ('resources/a/..', 'resources/a/../../x') is refused all the same."""
 from __future__ import annotations
 
+import re
 import zipfile
 from pathlib import Path
 
@@ -131,3 +132,23 @@ def test_a_model_description_in_an_unknown_encoding_is_refused_in_one_line(tmp_p
         assert cli.main([cmd, str(bad)]) == 2
         lines = capsys.readouterr().err.strip().splitlines()
         assert len(lines) == 1 and "enc.fmu" in lines[0] and "no-such-encoding" in lines[0], lines
+
+
+@pytest.mark.parametrize("attribute, value", [("startTime", ""), ("stopTime", "soon"), ("stepSize", "nan"),
+                                              ("tolerance", "1e999")])
+def test_a_default_experiment_that_is_not_a_finite_number_is_refused_in_one_line(tmp_path, capsys, attribute, value):
+    def edit(name: str, data: bytes) -> bytes:
+        if name == "modelDescription.xml":
+            text = data.decode("utf-8")
+            text = re.sub(r"<DefaultExperiment[^>]*/>", f'<DefaultExperiment {attribute}="{value}"/>', text)
+            assert f'{attribute}="{value}"' in text
+            data = text.encode("utf-8")
+        return data
+    bad = edited_fmu(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "de.fmu", edit)
+    for argv in (["check", str(bad)], ["run", str(bad), "--out", str(tmp_path / "out"), "--quiet"]):
+        assert cli.main(argv) == 2
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and "de.fmu" in lines[0] and f"DefaultExperiment {attribute}" in lines[0], lines
+    assert not (tmp_path / "out").exists()
+    assert cli.main(["info", str(bad)]) == 0   # info describes it as it is
+    assert "default experiment:" in capsys.readouterr().out
