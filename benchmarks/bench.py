@@ -107,6 +107,14 @@ NAME:
             and same_results_... (bit for bit); the same for Gauss-Seidel over two independent chains of two
             1 ms probes, stepped by levels in threads (threads_gauss_seidel_2_chains_1ms); cores.
 
+    contract  the contract harness (tests/contract_*.py; benchmarks/contract.py) for ``--budget`` seconds
+            (default 600) shared by its targets (``--target NAME`` for some): random examples of scenario,
+            requirement, sweep and falsification documents, command lines and hostile bytes for the
+            readers, each held to the contract; each new defect printed with its minimal example
+            (shrunk by Hypothesis) and its evidence: examples (per target), examples_total,
+            shrink_runs, defects (distinct), defects_by_target, defect_keys, seconds.  ``--repeats`` is
+            not used.
+
 ``--against REV`` runs NAME in this checkout and in a worktree of commit REV, interleaved, ``--rounds``
 fresh processes each of ``--repeats`` runs (benchmarks/against.py): each figure's median over the rounds for
 both and their ratio, this / that.
@@ -1159,13 +1167,24 @@ def bench_parallel(repeats: int) -> dict[str, Any]:
     return figures
 
 
+#: Options of the benchmarks that take more than --repeats (set by main).
+OPTIONS: dict[str, Any] = {}
+
+
+def bench_contract(repeats: int) -> dict[str, Any]:
+    """The contract harness's long run (benchmarks/contract.py): --budget seconds over its targets."""
+    import contract
+
+    return contract.run(OPTIONS.get("budget") or 600.0, OPTIONS.get("targets"))
+
+
 BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "fmi3": bench_fmi3, "paper": bench_paper,
            "sweep": bench_sweep, "interop": bench_interop, "archive": bench_archive, "binary": bench_binary,
            "loader": bench_loader,
            "isolation": bench_isolation, "scripting": bench_scripting, "mutation": bench_mutation,
            "requirements": bench_requirements,
            "bugs": bench_bugs, "exit": bench_exit, "me": bench_me,
-           "adaptive": bench_adaptive, "parallel": bench_parallel}
+           "adaptive": bench_adaptive, "parallel": bench_parallel, "contract": bench_contract}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -1175,7 +1194,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--against", metavar="REV", help="run NAME here and in a worktree of commit REV, "
                     "interleaved: --rounds processes each, of --repeats runs (benchmarks/against.py)")
     ap.add_argument("--rounds", type=int, default=5, help="with --against: processes per tree")
+    ap.add_argument("--budget", type=float, default=None, metavar="SECONDS",
+                    help="contract: the time budget shared by the targets (default 600)")
+    ap.add_argument("--target", dest="targets", action="append", default=None, metavar="NAME",
+                    help="contract: run only this target of tests/contract_targets.py (repeat it for several)")
     args = ap.parse_args(argv)
+    OPTIONS.update(budget=args.budget, targets=args.targets)
     try:
         if args.against:
             from against import against

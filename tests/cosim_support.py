@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 ROOT = Path(__file__).resolve().parents[1]
 G1 = ROOT / "scenarios" / "g1_learn.toml"
@@ -29,6 +30,14 @@ def write_document(path: Path, doc: dict[str, Any]) -> Path:
     """A scenario document written as a TOML file, each top-level table inline."""
     path.write_text("".join(f"{k} = {toml_value(v)}\n" for k, v in doc.items()))
     return path
+
+
+def edited_fmu(src: Path, out: Path, edit: Callable[[str, bytes], bytes]) -> Path:
+    """A copy of the FMU ``src`` at ``out`` with each entry's bytes through ``edit(name, data)``."""
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zout:
+        for info in zin.infolist():
+            zout.writestr(info, edit(info.filename, zin.read(info)))
+    return out
 
 
 def write_scenario(path: Path, text: str) -> Path:

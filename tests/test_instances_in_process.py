@@ -120,6 +120,24 @@ def test_fmi2_messages_reach_the_instance_log_file_and_counters_by_status(fake, 
     assert (tmp_path / "A.log").read_text(encoding="utf-8") == "".join(ln + "\n" for ln in expected)
 
 
+def test_what_an_fmu_logs_while_it_is_terminated_and_freed_reaches_the_log_file(fake, tmp_path, monkeypatch):
+    """An FMU in an error state logs again when it is terminated ("Illegal call sequence"): the message
+    goes to the log file like any other, not into a closed file (a traceback on stderr, the line lost)."""
+    unraisable = []
+    monkeypatch.setattr("sys.unraisablehook", unraisable.append)
+    inst, fmu = fake(log_path=tmp_path / "A.log")
+    inst.instantiate()
+    inst.setup_experiment(0.0, 1.0, None)
+    inst.enter_initialization()
+    inst.exit_initialization()
+    fmu.terminate = lambda: fmu.say2(ERROR, b"logStatusError", b"fmi2Terminate: Illegal call sequence.")
+    fmu.freeInstance = lambda: fmu.say2(ERROR, b"logStatusError", b"freed")
+    inst.shutdown()
+    assert not unraisable, [u.exc_value for u in unraisable]
+    assert (tmp_path / "A.log").read_text(encoding="utf-8") == (
+        "[Error] logStatusError: fmi2Terminate: Illegal call sequence.\n[Error] logStatusError: freed\n")
+
+
 def test_fmi2_level_all_keeps_ok_messages_and_names_unknown_statuses_by_number(fake):
     inst, fmu = fake(logging="all")
     inst.instantiate()

@@ -5,12 +5,13 @@ one that climbs out of the folder ('resources/a/../../../x') is named as such, o
 ('resources/a/..', 'resources/a/../../x') is refused all the same."""
 from __future__ import annotations
 
+import re
 import zipfile
 from pathlib import Path
 
 import pytest
 
-from cosim_support import write_scenario
+from cosim_support import edited_fmu, write_scenario
 from reference_fmus import REF
 from wmr_cosim import cli
 from wmr_cosim.cosim.model.archive import check_archive, check_entries, escapes, safe_extract
@@ -93,3 +94,61 @@ def test_check_refuses_it_in_one_line_with_exit_2(tmp_path, capsys, entry, why):
         assert code == 2 and len(lines) == 1, err
         assert f"{fmu}: refused: entry '{entry}' {why}" in lines[0], lines[0]
         assert _tree(tmp_path) == before
+
+
+def _corrupt_deflate(src: Path, out: Path, entry: str) -> Path:
+    """``src`` with the compressed data of ``entry`` overwritten by bytes no inflater accepts (0xff: an
+    invalid block type), its directory and sizes intact."""
+    data = bytearray(edited_fmu(src, out, lambda name, data: data).read_bytes())
+    with zipfile.ZipFile(out) as zf:
+        info = zf.getinfo(entry)
+    name_len, extra_len = int.from_bytes(data[info.header_offset + 26:info.header_offset + 28], "little"), \
+        int.from_bytes(data[info.header_offset + 28:info.header_offset + 30], "little")
+    start = info.header_offset + 30 + name_len + extra_len
+    data[start:start + min(16, info.compress_size)] = b"\xff" * min(16, info.compress_size)
+    out.write_bytes(bytes(data))
+    return out
+
+
+@pytest.mark.parametrize("entry", ["modelDescription.xml", "binaries/linux64/Dahlquist.so"])
+def test_an_entry_whose_compressed_data_is_corrupt_is_refused_in_one_line(tmp_path, capsys, entry):
+    bad = _corrupt_deflate(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "bad.fmu", entry)
+    with pytest.raises(FmuLoadError, match=f"entry '{entry}' cannot be read"):
+        check_archive(bad)
+    for cmd in ("info", "check"):
+        assert cli.main([cmd, str(bad)]) == 2
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and "bad.fmu" in lines[0] and "cannot be read" in lines[0], lines
+
+
+def test_a_model_description_in_an_unknown_encoding_is_refused_in_one_line(tmp_path, capsys):
+    def edit(name: str, data: bytes) -> bytes:
+        if name == "modelDescription.xml":
+            data = data.replace(b'encoding="UTF-8"', b'encoding="no-such-encoding"', 1)
+            assert b"no-such-encoding" in data
+        return data
+    bad = edited_fmu(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "enc.fmu", edit)
+    for cmd in ("info", "check"):
+        assert cli.main([cmd, str(bad)]) == 2
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and "enc.fmu" in lines[0] and "no-such-encoding" in lines[0], lines
+
+
+@pytest.mark.parametrize("attribute, value", [("startTime", ""), ("stopTime", "soon"), ("stepSize", "nan"),
+                                              ("tolerance", "1e999")])
+def test_a_default_experiment_that_is_not_a_finite_number_is_refused_in_one_line(tmp_path, capsys, attribute, value):
+    def edit(name: str, data: bytes) -> bytes:
+        if name == "modelDescription.xml":
+            text = data.decode("utf-8")
+            text = re.sub(r"<DefaultExperiment[^>]*/>", f'<DefaultExperiment {attribute}="{value}"/>', text)
+            assert f'{attribute}="{value}"' in text
+            data = text.encode("utf-8")
+        return data
+    bad = edited_fmu(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "de.fmu", edit)
+    for argv in (["check", str(bad)], ["run", str(bad), "--out", str(tmp_path / "out"), "--quiet"]):
+        assert cli.main(argv) == 2
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and "de.fmu" in lines[0] and f"DefaultExperiment {attribute}" in lines[0], lines
+    assert not (tmp_path / "out").exists()
+    assert cli.main(["info", str(bad)]) == 0   # info describes it as it is
+    assert "default experiment:" in capsys.readouterr().out

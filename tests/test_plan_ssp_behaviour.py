@@ -699,3 +699,26 @@ def test_the_document_an_ssp_becomes_names_its_archive_and_its_ssd(tmp_path):
     sc = _load(path)
     assert sc.data["ssp"] == str(path) and sc.data["name"] == "t"
 
+
+
+def test_a_component_source_whose_name_the_system_cannot_look_up_is_refused_in_one_line(tmp_path, capsys):
+    """A source of 5,000 characters (longer than a file name may be) is a resource missing from the archive,
+    said in one line (was an OSError traceback)."""
+    from cosim_support import edited_fmu
+    from wmr_cosim.cli import main
+
+    (tmp_path / "e.toml").write_text(f'[experiment]\nstop = 0.05\nstep = 0.01\n[instances.d]\n'
+                                     f'fmu = "{REF / "fmi2" / "Dahlquist.fmu"}"\n')
+    assert main(["export-ssp", str(tmp_path / "e.toml"), "--out", str(tmp_path / "e.ssp")]) == 0
+    capsys.readouterr()
+    long_name = "resources/" + "x" * 5000 + ".fmu"
+
+    def edit(name: str, data: bytes) -> bytes:
+        if name == "SystemStructure.ssd":
+            data = data.replace(b'source="resources/Dahlquist.fmu"', f'source="{long_name}"'.encode())
+            assert long_name.encode() in data
+        return data
+    bad = edited_fmu(tmp_path / "e.ssp", tmp_path / "bad.ssp", edit)
+    assert main(["check", str(bad)]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "bad.ssp" in lines[0] and "missing from the archive" in lines[0], lines

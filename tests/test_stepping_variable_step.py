@@ -6,11 +6,11 @@ instance, the step-size control over any such FMU (ours or a third party's)."""
 from __future__ import annotations
 
 import shutil
-import zipfile
 from pathlib import Path
 
 import pytest
 
+from cosim_support import edited_fmu
 from reference_fmus import REF
 from wmr_cosim.cli import main
 from wmr_cosim.cosim.model.description import load_model
@@ -47,18 +47,14 @@ def test_g1_under_a_fixed_step_algorithm_is_accepted(capsys):
 
 def _dahlquist_fixed_step(folder: Path) -> Path:
     """The Reference FMU Dahlquist with canHandleVariableCommunicationStepSize edited to false."""
-    src = REF / "fmi2" / "Dahlquist.fmu"
-    out = folder / "DahlquistFixed.fmu"
-    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zout:
-        for info in zin.infolist():
-            data = zin.read(info)
-            if info.filename == "modelDescription.xml":
-                text = data.decode("utf-8")
-                assert 'canHandleVariableCommunicationStepSize="true"' in text
-                data = text.replace('canHandleVariableCommunicationStepSize="true"',
-                                    'canHandleVariableCommunicationStepSize="false"').encode("utf-8")
-            zout.writestr(info, data)
-    return out
+    def edit(name: str, data: bytes) -> bytes:
+        if name != "modelDescription.xml":
+            return data
+        text = data.decode("utf-8")
+        assert 'canHandleVariableCommunicationStepSize="true"' in text
+        return text.replace('canHandleVariableCommunicationStepSize="true"',
+                            'canHandleVariableCommunicationStepSize="false"').encode("utf-8")
+    return edited_fmu(REF / "fmi2" / "Dahlquist.fmu", folder / "DahlquistFixed.fmu", edit)
 
 
 def _scenario(folder: Path, fmu: Path, algorithm: str) -> Path:

@@ -25,7 +25,11 @@ def scenario_path(text: str) -> Path:
     or, with the checkout's folder name, ``scenarios/g1_learn.toml``, the shipped copy; otherwise the
     path as given (the command then reports it missing)."""
     p = Path(text)
-    if p.exists() or p.is_absolute() or ".." in p.parts:
+    try:
+        exists = p.exists()
+    except OSError:   # a name the system cannot look up (too long): the command reports it, in one line
+        return p
+    if exists or p.is_absolute() or ".." in p.parts:
         return p
     parts = p.parts[1:] if p.parts[:1] == ("scenarios",) else p.parts
     if parts:

@@ -334,20 +334,24 @@ class Instance(FmuInstance):
             raise RunError(f"{self.name}: {what} after the instance was freed (its states went with it)", self.name)
 
     def shutdown(self) -> None:
-        """Terminate (if initialised) and free, exactly once; nothing at all after a Fatal."""
-        self.close_log()
-        if self.freed or self.fatal or self.c is None:
-            return
-        self.freed = True
+        """Terminate (if initialised) and free, exactly once; nothing at all after a Fatal.  The log file
+        is closed last: an FMU may log while it is terminated and freed (an FMU in an error state says
+        "Illegal call sequence" again)."""
         try:
-            if self.initialised:
-                self.fmu.terminate()
-        except Exception:
-            pass
-        try:
-            self.fmu.freeInstance()
-        except Exception:
-            pass
+            if self.freed or self.fatal or self.c is None:
+                return
+            self.freed = True
+            try:
+                if self.initialised:
+                    self.fmu.terminate()
+            except Exception:
+                pass
+            try:
+                self.fmu.freeInstance()
+            except Exception:
+                pass
+        finally:
+            self.close_log()
 
 
 _PYDLLS: dict[int, Any] = {}

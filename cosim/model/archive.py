@@ -250,7 +250,8 @@ def _copy_member(label: str, zf: zipfile.ZipFile, info: zipfile.ZipInfo, sink: I
                     sink.write(chunk)
         if crc != info.CRC:
             raise zipfile.BadZipFile("bad CRC-32")
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError, EOFError, OSError, ValueError) as exc:
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError, EOFError, OSError, ValueError,
+            zlib.error) as exc:   # zlib.error: compressed data no inflater accepts
         raise FmuLoadError(f"{label}: entry '{info.filename}' cannot be read "
                            f"({' '.join(str(exc).split()) or type(exc).__name__})") from None
     budget[0] -= n

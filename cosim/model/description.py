@@ -274,6 +274,8 @@ def fmi_version(path: Path) -> str:
         raise FmuLoadError(f"{path}: no modelDescription.xml: not an FMU") from None
     except expat.ExpatError as exc:
         raise FmuLoadError(f"{path}: modelDescription.xml is not well-formed XML ({exc})") from None
+    except LookupError as exc:   # the XML declaration names an encoding Python has no codec for
+        raise FmuLoadError(f"{path}: modelDescription.xml cannot be read ({exc})") from None
     return "?"
 
 
@@ -321,6 +323,22 @@ def _interfaces_checked(path: Path, md: Any) -> None:
         raise FmuLoadError(f"{path}: neither a co-simulation nor a model exchange FMU ({only})")
 
 
+def _default_experiment_checked(path: Path, md: Any) -> None:
+    """The default experiment's startTime, stopTime, stepSize and tolerance, where given, are finite numbers
+    (every reader of them takes them as such): FmuLoadError naming the attribute otherwise."""
+    de = md.defaultExperiment
+    for attr in ("startTime", "stopTime", "stepSize", "tolerance"):
+        v = getattr(de, attr, None) if de is not None else None
+        if v is None:
+            continue
+        try:
+            ok = math.isfinite(float(v))
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise FmuLoadError(f"{path}: modelDescription.xml: DefaultExperiment {attr} {v!r} is not a finite number")
+
+
 def load_model(path: str | os.PathLike, limits: ArchiveLimits | None = None) -> FmuModel:
     """Read and check an FMU: it exists, is a safe archive (within ``limits``; default: the default
     limits), and is FMI 2.0 or 3.0 with co-simulation or model exchange or both (not scheduled execution
@@ -337,6 +355,7 @@ def load_model(path: str | os.PathLike, limits: ArchiveLimits | None = None) -> 
         raise FmuLoadError(f"{path}: cannot read modelDescription.xml ({' '.join(str(exc).split())})") from None
     fmi = 3 if md.fmiVersion.startswith("3") else 2
     _interfaces_checked(path, md)
+    _default_experiment_checked(path, md)
     model = FmuModel(path, md, fmi=fmi)
     model.missing_binaries = _missing_binaries(path, model)
     defined = units_of(md)

@@ -802,8 +802,12 @@ def _components(system, path: Path, arch: Path, limits: ArchiveLimits
         if "://" in src or src.startswith("/") or ".." in PurePosixPath(src).parts or "#" in src:
             raise ScenarioError(where, f"{fld}.source", f"{src!r}: only FMUs inside the archive are supported")
         fmu = arch / src
-        if not src or not fmu.is_file():
-            raise ScenarioError(where, f"{fld}.source", f"resource {src!r} is missing from the archive")
+        try:
+            present = bool(src) and fmu.is_file()
+        except OSError:   # a name the system cannot look up (too long): no such entry was extracted
+            present = False
+        if not present:
+            raise ScenarioError(where, f"{fld}.source", f"resource {src[:100]!r} is missing from the archive")
         try:
             model = load_model(fmu, limits)
         except FmuLoadError as exc:

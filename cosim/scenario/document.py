@@ -321,8 +321,16 @@ def _extend(report: Inheritance, key: str, old: Any, new: Any) -> Any:
 #: (:class:`~.errors.OtherFileError`: the application can add how to run it).
 OTHER_FILES = {"tasks": "a paper manifest", "grid": "a sweep file", "random": "a sweep file",
                "samples": "a sweep file"}
-#: The longest instance name (it names files: logs/<instance>.log).
+#: The longest instance or run name (it names files and folders: logs/<instance>.log, <out>/<run>/).
 MAX_NAME = 100
+
+
+def _not_too_long(file: str, fld: str, name: str, what: str, names: str) -> None:
+    """ScenarioError for a name of more than MAX_NAME characters (``what``: "an instance name"; ``names``:
+    the file or folder it names), before anything is written under it."""
+    if len(name) > MAX_NAME:
+        raise ScenarioError(file, fld if len(fld) <= 60 else fld[:60] + "...",
+                            f"{what} of {len(name)} characters: at most {MAX_NAME} (it names {names})")
 
 
 def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, str] | None = None,
@@ -333,6 +341,13 @@ def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, 
     :func:`base_path`).  ``inherited``: where given, gets what each file of the chain takes from its base
     (:class:`Inheritance`), the file's own first."""
     name = str(path)
+    try:
+        path.is_file()
+    except OSError as exc:   # a name the system cannot look up (too long, ...)
+        if asked_by is not None:
+            raise ScenarioError(asked_by[0], "base", f"{asked_by[1][:60]!r}...: cannot be read "
+                                                     f"({exc.strerror or exc})") from None
+        raise ScenarioError(name[:100] + "...", "", f"cannot be read ({exc.strerror or exc})") from None
     if not path.is_file():
         if asked_by is not None:
             raise ScenarioError(asked_by[0], "base", f"{asked_by[1]!r}: "
@@ -358,7 +373,8 @@ def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, 
             raise OtherFileError(name, OTHER_FILES[key])
     if unknown:
         raise ScenarioError(name, sorted(unknown)[0], f"unknown key (allowed: {', '.join(sorted(_TOP_KEYS))})")
-    for inst in (doc.get("instances") or {}).values():
+    instances = doc.get("instances")
+    for inst in instances.values() if isinstance(instances, dict) else ():   # not a table: parse says so
         if isinstance(inst, dict) and isinstance(inst.get("fmu"), str) and is_path(inst["fmu"]):
             inst["fmu"] = str((path.parent / inst["fmu"]).resolve())
     inputs = doc.get("inputs")
@@ -396,7 +412,11 @@ def base_path(path: Path, base: str, shipped: Path | None = None) -> Path:
     may start with that folder's own name), so that a copy of a shipped file still finds its base."""
     beside = path.parent / base
     b = Path(base)
-    if beside.exists() or b.is_absolute() or ".." in b.parts or shipped is None:
+    try:
+        exists = beside.exists()
+    except OSError:   # a name the system cannot look up (too long): read_document says so
+        return beside
+    if exists or b.is_absolute() or ".." in b.parts or shipped is None:
         return beside
     parts = b.parts[1:] if b.parts[:1] == (shipped.name,) else b.parts
     found = shipped.joinpath(*parts) if shipped is not None and parts else None
@@ -571,9 +591,7 @@ def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:
         fld = f"instances.{iname}"
         if not isinstance(iname, str) or not iname.isidentifier():
             raise ScenarioError(file, fld, f"instance name {iname!r} must be an identifier")
-        if len(iname) > MAX_NAME:
-            raise ScenarioError(file, fld[:60] + "...", f"an instance name of {len(iname)} characters: at most "
-                                                        f"{MAX_NAME} (it names the instance's log file)")
+        _not_too_long(file, fld, iname, "an instance name", "the instance's log file")
         inst = _table(file, fld, inst)
         _keys(file, fld, inst, _INSTANCE_KEYS)
         fmu = inst.get("fmu")
@@ -700,6 +718,7 @@ def _parse_runs(sc: Scenario, doc: dict[str, Any]) -> None:
         name = r.get("name")
         if not isinstance(name, str) or not name.isidentifier():
             raise ScenarioError(file, f"{fld}.name", f"{name!r}: a run needs a name that is an identifier")
+        _not_too_long(file, f"{fld}.name", name, "a run name", "the run's results folder")
         if name in names:
             raise ScenarioError(file, f"{fld}.name", f"{name!r}: two runs with this name")
         params = _instance_refs(file, f"{fld}.parameters", r.get("parameters"), sc)
