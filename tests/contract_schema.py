@@ -31,11 +31,12 @@ from wmr_cosim.cosim.stepping import settings, table as algorithms
 # "time+": a duration or time [s] > 0; "time": a time [s] >= 0; "num": a finite number; "num+": > 0;
 # "count": an integer >= 1; "int": an integer >= 0; "bool"; "str": any text; "ident": an identifier;
 # "ref": "instance.variable"; "refs": an array of them; "formula"; "size": a byte size ("2GiB" or a count);
-# "table": a sub-table the strategies fill; ("enum", values): one of the values; "any": not known here.
+# "table": a sub-table the strategies fill; ("enum", values): one of the values; ("subset", values): an array
+# of some of them, each once; "any": not known here.
 
 #: The kind of value of every key of every table, by table: the one thing the code does not declare.
 VALUE_KINDS: dict[str, dict[str, Any]] = {
-    "top": {"base": "str", "description": "str", "experiment": "table", "instances": "table",
+    "top": {"base": "str", "replace": ("subset", tuple(document.EXTENDED)), "description": "str", "experiment": "table", "instances": "table",
             "connections": "table", "record": "table", "events": "table", "runs": "table",
             "variants": "table", "inputs": "table", "limits": "table", "requirements": "table"},
     "experiment": {"start": "time", "stop": "time+", "step": "time+", "algorithm": ("enum", algorithms.NAMES),
@@ -48,7 +49,8 @@ VALUE_KINDS: dict[str, dict[str, Any]] = {
                  "max_step": "time+", "event_tolerance": "time+"},
     "connection": {"from": "ref", "to": "ref", "factor": "num", "offset": "num", "convert": "bool",
                    "threshold": "num"},
-    "record": {"variables": "refs", "decimation": "count", "csv": "bool", "mat": "bool", "max_bytes": "count"},
+    "record": {"variables": "refs", "decimation": "count", "csv": "bool", "mat": "bool", "max_bytes": "count",
+               "event_rows": "bool"},
     "event": {"time": "time", "when": "formula", "trigger": ("enum", document.TRIGGERS), "delay": "time",
               "variable": "ref", "action": ("enum", document.ACTIONS), "value": "num"},
     "requirement": {"name": "ident", "formula": "formula", "on_violation": ("enum", document.ON_VIOLATION),

@@ -79,7 +79,7 @@ def test_planted_exception_is_found(base, monkeypatch):
 
     def broken(*a, **k):
         raise KeyError("planted")
-    monkeypatch.setattr(document, "_merge", broken)
+    monkeypatch.setattr(document, "merge", broken)
     doc = _scenario()
     doc["b.toml"] = doc["s.toml"]
     doc["s.toml"] = b'base = "b.toml"\n'
@@ -156,7 +156,7 @@ def test_planted_reader_crash_is_found(monkeypatch):
     from contract_readers import ReaderCase, reader_violations
     from wmr_cosim.cosim.model import binary
 
-    monkeypatch.setattr(binary, "_elf_exports", lambda data: data[10 ** 9])
+    monkeypatch.setattr(binary, "_elf_exports", lambda data, wanted: data[10 ** 9])
     seed = __import__("contract_readers").elf_seed()
     found = reader_violations(ReaderCase("elf", seed, "planted"), 5.0)
     assert [v.key for v in found] == ["elf reader: IndexError at binary.py:<lambda>"] or \
