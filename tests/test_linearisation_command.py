@@ -490,3 +490,24 @@ def test_g1_pulsed_beyond_its_encoder_fails_in_one_line(tmp_path):
     for words in ("the response to a pulse of +1e+10 at plant.u1 from t = 0.5 s failed", "sensor: fmi2Get",
                   "fmi2GetInteger: OverflowError"):
         assert words in p.stderr, p.stderr
+
+
+# ---------------------------------------------------------------- a Model Exchange FMU's discrete inputs
+def test_an_fmu_alone_is_linearised_from_its_continuous_inputs_only(tmp_path, capsys):
+    """The Reference FMU Feedthrough as Model Exchange: its discrete input is set at events only (FMI 2.0,
+    3.2.3), so the model's inputs are the continuous one; D = [1, 0] (the continuous output passes it through,
+    the discrete output does not see it between events). Named on its own, the discrete input is refused
+    before the run."""
+    from reference_fmus import REF
+
+    ft = REF / "fmi2" / "Feedthrough.fmu"
+    out = tmp_path / "lin"
+    assert main(["linearize", str(ft), "--out", str(out)]) == 0
+    capsys.readouterr()
+    m = LinearModel.load(out / "linear.npz")
+    assert m.inputs == ["Feedthrough.Float64_continuous_input"]
+    np.testing.assert_allclose(m.D, [[1.0], [0.0]], atol=1e-9)
+    out2 = tmp_path / "lin2"
+    _one_line(capsys, main(["linearize", str(ft), "--inputs", "Feedthrough.Float64_discrete_input", "--out",
+                            str(out2)]), "--inputs", "discrete input", "--discrete")
+    assert not out2.exists()

@@ -49,8 +49,10 @@ def linearize(target: str | Path, *, at: float | None = None, inputs: Sequence[s
         plan = fmu_plan(path, overrides, limits=limits, fields=fields)
         name = plan.order[0]
         ip = plan.instances[name]
-        if not req.inputs and breaks is None:
-            req.inputs = [f"{name}.{ip.our_name(v)}" for v in ip.model.variables.values() if _real(v, "input")]
+        if not req.inputs and breaks is None:   # (a Model Exchange FMU's discrete inputs change at events only)
+            continuous = ip.interface == MODEL_EXCHANGE
+            req.inputs = [f"{name}.{ip.our_name(v)}" for v in ip.model.variables.values()
+                          if _real(v, "input") and not (continuous and v.variability == "discrete")]
         if not req.outputs:
             req.outputs = [f"{name}.{ip.our_name(v)}" for v in ip.model.variables.values() if _real(v, "output")]
     else:

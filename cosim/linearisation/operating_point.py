@@ -109,7 +109,12 @@ class Linearizer:
             raise ScenarioError(self.file, "--at", f"t = {at:.10g} s: the run ends at its stop time {self.stop:g} s "
                                                    "and frees its FMUs; take a point before its last step")
         for ref in req.inputs:
-            self._var(ref, "--inputs", INPUTS, "input")
+            inst, var = self._var(ref, "--inputs", INPUTS, "input")
+            if var.variability == "discrete" and self.plan.instances[inst].interface == MODEL_EXCHANGE \
+                    and not self.discrete():
+                raise ScenarioError(self.file, "--inputs", f"{ref} is a discrete input of a Model Exchange FMU, set "
+                                                           "at events only: a continuous-time model cannot take it "
+                                                           "(--discrete realises one from pulse responses)")
         for ref in req.outputs:
             _, var = self._var(ref, "--outputs", None, "output")
             if var.causality != "output" and not self.discrete():
