@@ -333,13 +333,9 @@ def _not_too_long(file: str, fld: str, name: str, what: str, names: str) -> None
                             f"{what} of {len(name)} characters: at most {MAX_NAME} (it names {names})")
 
 
-def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, str] | None = None,
-                  shipped: Path | None = None, inherited: list[Inheritance] | None = None) -> dict[str, Any]:
-    """Read one scenario file, absolutise its FMU and input paths, and merge it over its ``base`` (the
-    document :func:`parse` checks; see :func:`merge`).  ``shipped``: the application's folder of scenario
-    files, where a ``base`` found neither beside the file nor by an absolute path is looked up (see
-    :func:`base_path`).  ``inherited``: where given, gets what each file of the chain takes from its base
-    (:class:`Inheritance`), the file's own first."""
+def _check_file(path: Path, asked_by: tuple[str, str] | None, shipped: Path | None) -> None:
+    """ScenarioError where ``path`` is not a file to read (named as the ``base`` of ``asked_by``: (file, the
+    base it names), where given)."""
     name = str(path)
     try:
         path.is_file()
@@ -354,11 +350,14 @@ def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, 
                                                      f"{'a folder' if path.is_dir() else 'file not found'} ({path}; "
                                                      f"nor a shipped scenario{_shipped_hint(asked_by[1], shipped)})")
         raise ScenarioError(name, "", "a folder, not a scenario file" if path.is_dir() else "file not found")
-    if path.resolve() in seen:
-        raise ScenarioError(name, "base", "circular base chain")
+
+
+def _read_toml(path: Path) -> dict[str, Any]:
+    """The TOML document of the file ``path``; ScenarioError where it is not one."""
+    name = str(path)
     try:
         with path.open("rb") as fh:
-            doc = tomllib.load(fh)
+            return tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(name, "", f"not valid TOML ({' '.join(str(exc).split())})") from None
     except UnicodeDecodeError:
@@ -367,6 +366,20 @@ def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, 
         raise ScenarioError(name, "", "not valid TOML (nested too deeply)") from None
     except OSError as exc:
         raise ScenarioError(name, "", f"cannot be read ({exc.strerror or exc})") from None
+
+
+def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, str] | None = None,
+                  shipped: Path | None = None, inherited: list[Inheritance] | None = None) -> dict[str, Any]:
+    """Read one scenario file, absolutise its FMU and input paths, and merge it over its ``base`` (the
+    document :func:`parse` checks; see :func:`merge`).  ``shipped``: the application's folder of scenario
+    files, where a ``base`` found neither beside the file nor by an absolute path is looked up (see
+    :func:`base_path`).  ``inherited``: where given, gets what each file of the chain takes from its base
+    (:class:`Inheritance`), the file's own first."""
+    name = str(path)
+    _check_file(path, asked_by, shipped)
+    if path.resolve() in seen:
+        raise ScenarioError(name, "base", "circular base chain")
+    doc = _read_toml(path)
     unknown = set(doc) - _TOP_KEYS
     for key in sorted(unknown):
         if key in OTHER_FILES:
