@@ -18,7 +18,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 #: what a wheel is built from: the build configuration, the README (the long description) and the
-#: folders mapped onto packages (pyproject.toml, [tool.setuptools] package-dir)
+#: folders that are packages through the links of wmr_cosim/ (pyproject.toml, [tool.setuptools.packages.find])
 WHEEL_SOURCES = ("pyproject.toml", "README.md", "wmr_cosim", "components", "fmus", "cosim", "scenarios")
 
 
@@ -70,6 +70,13 @@ def test_non_editable_install_works(tmp_path):
         assert (shipped / f.relative_to(ROOT / "scenarios")).read_bytes() == f.read_bytes(), f
     for f in (ROOT / "fmus" / "pyloader").iterdir():  # the loaders' sources and their header (the build needs them)
         assert (target / "wmr_cosim" / "fmus" / "pyloader" / f.name).read_bytes() == f.read_bytes(), f
+    # every package of the tree (a folder with __init__.py, through the links) is installed with its modules
+    tree = {Path(d).relative_to(ROOT) for d, _, files in os.walk(ROOT / "wmr_cosim", followlinks=True)
+            if "__init__.py" in files}
+    assert Path("wmr_cosim/cosim/linearisation") in tree
+    for folder in tree:
+        for f in (ROOT / folder).glob("*.py"):
+            assert (target / folder / f.name).read_bytes() == f.read_bytes(), f"{folder / f.name} is not installed"
 
 
 #: every third-party module the installed code imports -> the requirement that provides it, and where
