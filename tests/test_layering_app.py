@@ -13,7 +13,7 @@ MAX_LINES = 60
 
 #: Functions still over MAX_LINES, being split, as "folder/file.py:qualified name".  The list may only
 #: shrink: any other function over MAX_LINES fails, and an entry goes once its function is split
-#: (cosim/instances/isolation.py:_serve, cosim/plan/resolution.py:resolve and wmr_cosim/cli.py:build_parser have
+#: (cosim/instances/isolation.py:_serve, cosim/plan/resolution.py:resolve and the command line's build_parser have
 #: been).
 LONG_FUNCTIONS: set[str] = set()
 
@@ -23,15 +23,29 @@ def _app_modules() -> dict[str, Path]:
     return {p.stem: p for p in sorted(APP.glob("*.py"))}
 
 
-def _imports(path: Path, modules: set[str]) -> list[tuple[str, str, int]]:
+def _app_packages() -> dict[str, list[Path]]:
+    """{package of the application folder's own (cli/; not a linked subpackage): its modules' files}."""
+    return {p.name: sorted(p.rglob("*.py")) for p in sorted(APP.iterdir())
+            if not p.is_symlink() and (p / "__init__.py").is_file()}
+
+
+def _app_files() -> list[Path]:
+    """Every module file of the application: the folder's own modules and those of its own packages."""
+    return sorted(APP.glob("*.py")) + [f for files in _app_packages().values() for f in files]
+
+
+def _imports(path: Path, modules: set[str], package: tuple[str, ...] = ()) -> list[tuple[str, str, int]]:
     """(module of wmr_cosim/ imported, name imported from it or '', line) of every import in ``path``,
     at module level and inside functions alike.  ``from . import x`` is module x when x is one, else a
-    name of the package (``__init__``); imports of the sub-packages (cosim, components, fmus) are left out."""
+    name of the package (``__init__``); imports of the sub-packages (cosim, components, fmus) are left out.
+    ``package``: the folders below wmr_cosim/ that hold ``path`` (("cli",) for cli/run.py), against which its
+    relative imports are read (``from ..runner import x`` there is module runner, ``from . import options``
+    module cli)."""
     out = []
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
         if isinstance(node, ast.ImportFrom):
-            if node.level == 1:
-                parts = node.module.split(".") if node.module else []
+            if 1 <= node.level <= len(package) + 1:
+                parts = [*package[:len(package) - node.level + 1], *(node.module.split(".") if node.module else [])]
             elif node.level == 0 and node.module and node.module.split(".")[0] == "wmr_cosim":
                 parts = node.module.split(".")[1:]
             else:
@@ -51,9 +65,15 @@ def _imports(path: Path, modules: set[str]) -> list[tuple[str, str, int]]:
 
 
 def import_graph() -> dict[str, set[str]]:
-    """{module: the modules of wmr_cosim/ it imports}."""
-    mods = _app_modules()
-    return {m: {dep for dep, _, _ in _imports(p, set(mods)) if dep != m} for m, p in mods.items()}
+    """{module: the modules of wmr_cosim/ it imports}; a package of its own (cli/) is one module, whose
+    imports are those of all its files."""
+    mods, packages = _app_modules(), _app_packages()
+    names = set(mods) | set(packages)
+    graph = {m: {dep for dep, _, _ in _imports(p, names) if dep != m} for m, p in mods.items()}
+    for pkg, files in packages.items():
+        graph[pkg] = {dep for f in files for dep, _, _ in _imports(f, names, (pkg, *f.relative_to(APP / pkg).parent.parts))
+                      if dep != pkg}
+    return graph
 
 
 def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
@@ -97,7 +117,8 @@ def test_the_importer_sees_imports_inside_functions(tmp_path):
 
 def test_the_modules_of_wmr_cosim_import_each_other_without_a_cycle():
     graph = import_graph()
-    assert {"paper_job", "paper_report", "robustness", "sweep"} <= set(graph)   # the folder was read
+    assert {"paper_job", "paper_report", "robustness", "sweep", "cli"} <= set(graph)   # the folder was read
+    assert {"runner", "plot", "sweep"} <= graph["cli"]   # and its packages' modules
     cycle = find_cycle(graph)
     assert cycle is None, f"an import cycle among the modules of wmr_cosim/: {' -> '.join(cycle)}"
 
@@ -117,7 +138,7 @@ def package_modules() -> dict[str, Path]:
     package itself as ``wmr_cosim``, a subpackage as ``wmr_cosim.cosim`` or ``wmr_cosim.cosim.scenario``)."""
     out: dict[str, Path] = {}
     for pkg, folder in PACKAGE_FOLDERS.items():
-        files = folder.glob("*.py") if pkg == "wmr_cosim" else folder.rglob("*.py")
+        files = _app_files() if pkg == "wmr_cosim" else folder.rglob("*.py")
         for p in sorted(files):
             parts = [pkg, *p.relative_to(folder).with_suffix("").parts]
             out[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = p
@@ -248,7 +269,7 @@ def test_the_private_name_finder_sees_imports_and_attributes_of_imported_modules
 def test_no_module_of_the_package_takes_a_private_name_of_another():
     mods = package_modules()
     assert {"wmr_cosim.sweep", "wmr_cosim.cosim.scenario.document", "wmr_cosim.cosim.stepping",
-            "wmr_cosim.components.paper", "wmr_cosim.fmus.fmi_decl"} <= set(mods)   # every folder was read
+            "wmr_cosim.components.paper", "wmr_cosim.fmus.fmi_decl", "wmr_cosim.cli.run"} <= set(mods)   # every folder was read
     uses = {f"{p.relative_to(ROOT).as_posix()}: {name} of {dep}": line for m, p in mods.items()
             for dep, name, line in private_uses(p, m, set(mods))}
     bad = [f"{k.split(':')[0]}:{line}:{k.split(':', 1)[1]}" for k, line in sorted(uses.items())
@@ -278,7 +299,7 @@ def _functions(path: Path) -> dict[str, int]:
 def _long_functions() -> dict[str, int]:
     """{"folder/file.py:function": lines} of the functions over MAX_LINES in the application folder (its
     own modules: the subpackages it links to are read as cosim/ or not at all) and in cosim/."""
-    files = sorted(APP.glob("*.py")) + sorted((ROOT / "cosim").rglob("*.py"))
+    files = _app_files() + sorted((ROOT / "cosim").rglob("*.py"))
     return {f"{p.relative_to(ROOT).as_posix()}:{name}": n
             for p in files for name, n in _functions(p).items() if n > MAX_LINES}
 
