@@ -13,6 +13,8 @@ from .. import version
 from ..components.validation import ParameterError
 from ..cosim import CosimError, OtherFileError
 from ..exit_codes import for_error
+# the face: main, entry, build_parser, error_message, each command's function (cmd_<name>) and the helpers
+# scripts and tests import from wmr_cosim.cli
 from .build import cmd_build
 from .check import cmd_check
 from .commands import COMMANDS
@@ -28,13 +30,6 @@ from .paper import cmd_paper
 from .plot import cmd_plot
 from .run import cmd_run, format_overrides, requirement_lines, RESULT_FORMATS
 from .sweep import cmd_sweep
-
-__all__ = ["archive_limits", "build_parser", "cmd_build", "cmd_check", "cmd_direct", "cmd_export_ssp", "cmd_falsify",
-           "cmd_gamma_search", "cmd_info", "cmd_linearize", "cmd_paper", "cmd_plot", "cmd_run", "cmd_sweep",
-           "COMMANDS", "entry", "error_message", "experiment_overrides", "field_option_hint", "format_overrides",
-           "instance_fields", "main", "plain", "requirement_lines", "RESULT_FORMATS", "scenario_file", "SET_HELP",
-           "UsageError"]
-
 
 
 #: How to run each other kind of file that may be given as a scenario (cosim.messages.errors.OtherFileError).

@@ -9,7 +9,7 @@ from ..cosim import count, describe_coupling, describe_settings, file_kind, File
 from ..exit_codes import OK as EXIT_OK
 from ..scenario_files import scenario_path
 from . import options
-from .options import experiment_overrides, instance_fields, scenario_file, SET_HELP, UsageError
+from .options import experiment_overrides, instance_fields, scenario_file
 
 
 def add_parser(sub: Any, name: str) -> None:
@@ -19,7 +19,7 @@ def add_parser(sub: Any, name: str) -> None:
                                    "steps, ranges, keys) without stepping. Exit code 0 if it would run, 2 if not.")
     c.add_argument("scenario", type=scenario_path, nargs="?",
                    help="scenario file (.toml), SSP 1.0 archive (.ssp) or one FMU (.fmu)")
-    c.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
+    options.set_option(c)
     c.add_argument("--force", action="store_true", help="check as `run --force` would run")
     c.add_argument("--input", type=Path, default=None, metavar="FILE.csv",
                    help="one FMU only: input signals, checked as `run --input` reads them")
@@ -32,13 +32,12 @@ def add_parser(sub: Any, name: str) -> None:
 
 def cmd_check(args: argparse.Namespace) -> int:
     """Every check of a scenario against its FMUs, without stepping."""
-    from ..runner import fmu_plan, is_fmu, load_plan, ssp_plan
+    from ..runner import fmu_plan, load_plan, ssp_plan
 
     overrides = experiment_overrides(args)
     fields = instance_fields(args)
     f, lim, iso = args.force, args.limits, args.isolate
-    if args.input is not None and not is_fmu(args.scenario):
-        raise UsageError("--input applies to a single FMU (.fmu); a scenario file says it in [inputs]")
+    options.refuse_input_of_a_scenario(args)
     parsed = scenario_file(args)
     kind = file_kind(args.scenario)
     if kind is FileKind.SSP:

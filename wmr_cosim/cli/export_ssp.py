@@ -8,7 +8,8 @@ from typing import Any
 from ..cosim import file_kind, FileKind
 from ..exit_codes import OK as EXIT_OK
 from ..scenario_files import scenario_path
-from .options import SET_HELP, UsageError
+from . import options
+from .options import UsageError
 
 
 def add_parser(sub: Any, name: str) -> None:
@@ -26,7 +27,7 @@ def add_parser(sub: Any, name: str) -> None:
                                    "warning names each). Timed events cannot be expressed in SSP 1.0 and are refused.")
     e.add_argument("scenario", type=scenario_path, help="scenario file (.toml)")
     e.add_argument("--out", type=Path, required=True, metavar="FILE.ssp", help="the archive to write")
-    e.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
+    options.set_option(e)
     e.set_defaults(func=cmd_export_ssp, subparser=e)
 
 

@@ -7,7 +7,7 @@ from typing import Any
 
 from ..exit_codes import OK as EXIT_OK
 from ..scenario_files import scenario_path
-from .options import SET_HELP
+from . import options
 
 
 def add_parser(sub: Any, name: str) -> None:
@@ -45,7 +45,7 @@ def add_parser(sub: Any, name: str) -> None:
     li.add_argument("--phase-budget", default=None, metavar="DEG",
                     help="with --break on a continuous loop: the phase margin [deg] the co-simulation's coupling may "
                          "cost; the largest step within it is reported (default 5)")
-    li.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
+    options.set_option(li)
     li.add_argument("--out", default=None, metavar="DIR", help="results folder (default results/linear-<target>)")
     li.set_defaults(func=cmd_linearize, subparser=li)
 

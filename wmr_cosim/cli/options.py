@@ -21,6 +21,12 @@ SET_HELP = ("override a parameter or start value, one per --set (repeat it): INS
             "when there is one instance (a single FMU)")
 
 
+def set_option(p: argparse.ArgumentParser) -> None:
+    """--set INSTANCE.PARAM=VALUE of run, check, export-ssp and linearize (repeated: a list, read by
+    :func:`wmr_cosim.runner.parse_set`)."""
+    p.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
+
+
 def plain(text: str) -> str:
     """A docstring as --help shows it: reStructuredText's double backquotes (``name``) become plain text."""
     return text.replace("``", "")
@@ -89,6 +95,15 @@ def scenario_file(args: argparse.Namespace) -> Any:
     if args.real_time is not None and parsed.scenario.runs:
         raise UsageError("--real-time paces a single run, not a protocol's runs")
     return parsed
+
+
+def refuse_input_of_a_scenario(args: argparse.Namespace) -> None:
+    """UsageError for run's and check's --input given with anything but a single FMU (a scenario file says
+    its input signals in [inputs])."""
+    from ..runner import is_fmu
+
+    if args.input is not None and not is_fmu(args.scenario):
+        raise UsageError("--input applies to a single FMU (.fmu); a scenario file says it in [inputs]")
 
 
 def archive_limits(args: argparse.Namespace) -> Any:

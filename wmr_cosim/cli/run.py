@@ -10,7 +10,7 @@ from ..cosim import count, did_you_mean, RunStatus
 from ..exit_codes import for_runs
 from ..scenario_files import scenario_path
 from . import options
-from .options import experiment_overrides, instance_fields, scenario_file, SET_HELP, UsageError
+from .options import experiment_overrides, instance_fields, scenario_file, UsageError
 
 
 def add_parser(sub: Any, name: str) -> None:
@@ -25,7 +25,7 @@ def add_parser(sub: Any, name: str) -> None:
     r.add_argument("scenario", type=scenario_path, nargs="?",
                    help="scenario file (.toml), SSP 1.0 archive (.ssp) or one FMU (.fmu)")
     r.add_argument("--out", type=Path, default=None, metavar="DIR", help="results folder (default results/<scenario>)")
-    r.add_argument("--set", action="append", metavar="INSTANCE.PARAM=VALUE", help=SET_HELP)
+    options.set_option(r)
     r.add_argument("--variant", default=None, help="a variant the scenario declares ([variants.NAME])")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--input", type=Path, default=None, metavar="FILE.csv",
@@ -62,7 +62,7 @@ def format_overrides(args: argparse.Namespace) -> dict[str, Any]:
 
 def cmd_run(args: argparse.Namespace) -> int:
     """Run a scenario through the co-simulation master."""
-    from ..runner import default_out, is_fmu, run_scenario
+    from ..runner import default_out, run_scenario
 
     out = args.out if args.out is not None else default_out(args.scenario)
     overrides = {**experiment_overrides(args), **format_overrides(args)}
@@ -70,8 +70,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     parsed = scenario_file(args)
     if parsed is not None and parsed.scenario.runs:  # a protocol: every run, in order, into OUT/<run>
         return _run_protocol(args, parsed, out, overrides)
-    if args.input is not None and not is_fmu(args.scenario):
-        raise UsageError("--input applies to a single FMU (.fmu); a scenario file says it in [inputs]")
+    options.refuse_input_of_a_scenario(args)
     res = run_scenario(args.scenario, out, overrides, progress=False if args.quiet else None, inputs=args.input,
                        force=args.force, isolate=args.isolate, real_time=args.real_time, limits=args.limits,
                        parsed=parsed, fields=fields,
