@@ -25,6 +25,13 @@ def _found_type(key: str, cache: dict[str, type] = {}) -> type:
     return cache[key]
 
 
+def _leaves(exc: BaseException) -> list[BaseException]:
+    """The exceptions an exception stands for: itself, or every leaf of a (nested) ExceptionGroup."""
+    if isinstance(exc, BaseExceptionGroup):
+        return [leaf for e in exc.exceptions for leaf in _leaves(e)]
+    return [exc]
+
+
 def _short(detail: str) -> str:
     """The evidence's first line and, for a traceback, its last frames."""
     first, _, rest = detail.partition("\n")
@@ -75,9 +82,8 @@ def run(budget_s: float = 600.0, targets: list[str] | None = None, shrink_s: flo
                     holds()
                 except Flaky:
                     continue
-                except Exception as exc:   # one defect, or several (an ExceptionGroup)
-                    group = exc.exceptions if isinstance(exc, BaseExceptionGroup) else (exc,)
-                    for e in group:
+                except Exception as exc:   # one defect, or several (ExceptionGroups, nested)
+                    for e in _leaves(exc):
                         if not (e.__class__.__name__.startswith("Defect") and len(e.args) == 3):
                             raise
                         key, detail, minimal = e.args

@@ -36,7 +36,7 @@ if TYPE_CHECKING:   # (for the type checker; at run time each name is imported w
     from .runtime import (Execution, Manipulator, Observer, Protocol, check_protocol, plan_runs, read_protocol, run,
                           run_protocol)
     from .scenario import (SET_TABLES, Scenario, apply_overrides, base_path, is_path, load, parse, parse_set,
-                           parse_value, read_document, settable_table)
+                           parse_value, read_document, read_toml, settable_table)
     from .stepping import (Adaptive, AdaptiveSpec, Algorithm, GaussSeidel, Iterated, IterationSpec, Jacobi,
                            MultiRate, ParallelJacobi, describe_settings)
 
@@ -56,7 +56,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "runtime": ["Execution", "Manipulator", "Observer", "Protocol", "check_protocol", "plan_runs", "read_protocol",
                 "run", "run_protocol"],
     "scenario": ["SET_TABLES", "Scenario", "apply_overrides", "base_path", "is_path", "load", "parse", "parse_set",
-                 "parse_value", "read_document", "settable_table"],
+                 "parse_value", "read_document", "read_toml", "settable_table"],
     "stepping": ["Adaptive", "AdaptiveSpec", "Algorithm", "GaussSeidel", "Iterated", "IterationSpec", "Jacobi",
                  "MultiRate", "ParallelJacobi", "describe_settings"],
 })

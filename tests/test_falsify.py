@@ -85,6 +85,9 @@ def test_the_search_is_deterministic_for_its_seed(tmp_path: Path) -> None:
      "space.plant.foam_t_on.high: must be above low"),
     ('base = "short.toml"\nrequirement = "tracking"\nbudget = 4\n' + SPACE, "budget: 4: at least 10"),
     ('base = "short.toml"\nrequirement = "tracking"\nrun = "foam"\n' + SPACE, "run: 'foam': one of the base's runs (run)"),
+    pytest.param("x = " + "[" * 5000 + "]" * 5000 + "\n", "not valid TOML (nested too deeply)", id="nested too deeply"),
+    pytest.param('base = "' + "b" * 5000 + '.toml"\nrequirement = "tracking"\n' + SPACE, "base: 'bbbb",
+                 id="a base too long for the system"),
 ])
 def test_a_bad_file_is_one_line(tmp_path: Path, capsys, text: str, message: str) -> None:
     (tmp_path / "short.toml").write_text(SHORT)

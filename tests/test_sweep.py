@@ -88,11 +88,25 @@ def test_points_are_drawn_from_the_seed(tmp_path):
     ('[random]\n"plant.a5" = { dist = "normal", mean = 0.0, std = true }\n', "random.plant.a5.std", "finite number"),
     ('[random]\n"plant.a5" = { dist = "choice", values = [] }\n', "random.plant.a5.values", "non-empty array"),
     ('[random]\n"plant.a5" = { dist = "choice", values = 3 }\n', "random.plant.a5.values", "non-empty array"),
+    # the reading of the file and of its base (one TOML reader for every file kind)
+    pytest.param("x = " + "[" * 5000 + "]" * 5000 + "\n", "", "nested too deeply", id="nested too deeply"),
 ])
 def test_bad_sweep_files(tmp_path, body, field, reason):
     with pytest.raises(ScenarioError) as exc:
         sweep_file.load_sweep(_sweep_file(tmp_path, body))
     assert exc.value.field == field and reason in str(exc.value), str(exc.value)
+
+
+def test_a_base_whose_name_the_system_cannot_look_up_is_one_line(tmp_path, capsys):
+    """A base of 5,000 characters (beyond the system's name length): one line naming the file's base."""
+    from wmr_cosim.cli import main
+
+    f = tmp_path / "long.toml"
+    f.write_text('base = "' + "b" * 5000 + '.toml"\n[grid]\n"plant.a5" = [1.0]\n')
+    assert main(["sweep", str(f), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "base" in err[0] and "cannot be read" in err[0], err
+    assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.slow

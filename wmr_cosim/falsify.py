@@ -30,7 +30,6 @@ import json
 import math
 import os
 import shlex
-import tomllib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -81,16 +80,12 @@ def load_falsification(path: str | os.PathLike, seed: int | None = None, budget:
     scenario): it parses, declares the requirement, and the run.  The space against the base's FMUs is
     :func:`check_space`'s."""
     from .cosim import plan_runs
+    from .cosim import read_toml
     from .sweep_file import base_file, read_base
 
     p = Path(path)
     f = str(p)
-    try:
-        doc = tomllib.loads(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f, "", f"cannot read: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f, "", f"not valid TOML: {exc}") from None
+    doc = read_toml(p)
     unknown = sorted(set(doc) - _KEYS)
     if unknown:
         raise ScenarioError(f, unknown[0], f"unknown key (allowed: {', '.join(sorted(_KEYS))})")

@@ -4,7 +4,6 @@ which re-runs the same protocols."""
 from __future__ import annotations
 
 import os
-import tomllib
 from pathlib import Path
 
 from . import scenario_files
@@ -20,15 +19,10 @@ def manifest_path(manifest: str | os.PathLike | None = None) -> Path:
 
 def task_files(manifest: str | os.PathLike | None = None) -> dict[str, Path]:
     """{task: protocol file} of the tasks file ``manifest`` (default: the shipped one, see :func:`manifest_path`)."""
-    from .cosim import ScenarioError
+    from .cosim import ScenarioError, read_toml
 
     path = manifest_path(manifest)
-    if not path.is_file():
-        raise ScenarioError(str(path), "", "file not found")
-    try:
-        doc = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(str(path), "", f"not valid TOML ({exc})") from None
+    doc = read_toml(path)
     tasks = doc.get("tasks")
     if not isinstance(tasks, dict) or not tasks:
         raise ScenarioError(str(path), "tasks", "missing: a table task name -> protocol file")

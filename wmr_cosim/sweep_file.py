@@ -26,7 +26,6 @@ from __future__ import annotations
 import itertools
 import math
 import os
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -76,17 +75,10 @@ def load_sweep(path: str | os.PathLike) -> SweepSpec:
 
 def _read(path: Path) -> dict[str, Any]:
     """The sweep file's table: a file, valid TOML, no unknown key."""
+    from .cosim import read_toml
+
     f = str(path)
-    if not path.is_file():
-        raise ScenarioError(f, "", "file not found")
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f, "", f"not valid TOML ({' '.join(str(exc).split())})") from None
-    except UnicodeDecodeError:
-        raise ScenarioError(f, "", "not a text file (TOML is UTF-8 text)") from None
-    except OSError as exc:
-        raise ScenarioError(f, "", f"cannot be read ({exc.strerror or exc})") from None
+    doc = read_toml(path)
     for k in doc:
         if k not in _KEYS:
             raise ScenarioError(f, k, f"unknown key (allowed: {', '.join(sorted(_KEYS))})")
@@ -210,6 +202,10 @@ def base_file(path: Path, base: Any) -> Path:
     if not isinstance(base, str) or not base:
         raise ScenarioError(f, "base", "missing: the base scenario (a file name)")
     found = base_path(path, base, shipped_folder())
+    try:
+        found.is_file()
+    except OSError as exc:   # a name the system cannot look up (too long, ...)
+        raise ScenarioError(f, "base", f"{base[:60]!r}...: cannot be read ({exc.strerror or exc})") from None
     if not found.is_file():
         raise ScenarioError(f, "base", f"{base!r}: the base scenario is "
                                        f"{'a folder' if found.is_dir() else 'not found'} ({found}; nor a shipped "

@@ -352,9 +352,12 @@ def _check_file(path: Path, asked_by: tuple[str, str] | None, shipped: Path | No
         raise ScenarioError(name, "", "a folder, not a scenario file" if path.is_dir() else "file not found")
 
 
-def _read_toml(path: Path) -> dict[str, Any]:
-    """The TOML document of the file ``path``; ScenarioError where it is not one."""
+def read_toml(path: Path) -> dict[str, Any]:
+    """The TOML document of the file ``path`` (a scenario, a sweep, falsification or tasks file); ScenarioError
+    naming the file where it is no file, cannot be read, is not UTF-8 text or not TOML (nested too deeply
+    included)."""
     name = str(path)
+    _check_file(path, None, None)
     try:
         with path.open("rb") as fh:
             return tomllib.load(fh)
@@ -379,7 +382,7 @@ def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, 
     _check_file(path, asked_by, shipped)
     if path.resolve() in seen:
         raise ScenarioError(name, "base", "circular base chain")
-    doc = _read_toml(path)
+    doc = read_toml(path)
     unknown = set(doc) - _TOP_KEYS
     for key in sorted(unknown):
         if key in OTHER_FILES:
