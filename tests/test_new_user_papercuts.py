@@ -377,13 +377,19 @@ def test_an_experiment_field_given_as_an_option_gets_the_set_that_sets_it(work, 
     assert not (work / "o").exists()
 
 
-def test_any_other_unknown_option_keeps_argparses_usage(work, capsys):
+def test_any_other_unknown_option_is_refused_in_one_line(work, capsys):
+    """argparse's refusals (an unknown option, a value of the wrong type, a missing argument) are one line and
+    exit code 2 like every other refusal; the usage is what -h prints."""
     _ring(work)
-    with pytest.raises(SystemExit) as exc:
-        main(["run", "ring.toml", "--frobnicate", "1"])
-    err = capsys.readouterr().err
-    assert exc.value.code == 2 and err.startswith("usage: wmr-cosim")
-    assert "unrecognized arguments: --frobnicate 1" in err
+    for argv, words in ((["run", "ring.toml", "--frobnicate", "1"], "unrecognized arguments: --frobnicate 1"),
+                        (["run", "ring.toml", "--stop", "abc"], "argument --stop/--stop-time: invalid float value"),
+                        (["linearize"], "wmr-cosim linearize: error: the following arguments are required: target"),
+                        (["frobnicate"], "invalid choice: 'frobnicate'")):
+        with pytest.raises(SystemExit) as exc:
+            main(argv)
+        err = capsys.readouterr().err
+        assert exc.value.code == 2 and err.count("\n") == 1 and words in err, err
+        assert err.rstrip().endswith("-h lists the options)") and "usage:" not in err, err
 
 
 # ------------------------------------------------------------------ run --workers where nothing steps at once

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any, Callable
+from typing import Any, Callable, NoReturn
 
 from .. import version
 from ..components.validation import ParameterError
@@ -48,9 +48,18 @@ def error_message(exc: BaseException) -> str:
     return f"{exc}: {hint}" if hint else str(exc)
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse's parser whose refusal of a command line (an unknown option, a value of the wrong type, a
+    missing argument) is one line on stderr and exit code 2, as every other refusal of bad input; its usage is
+    what ``-h`` prints.  The parsers of the commands are of this class too (argparse makes them so)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} ({self.prog} -h lists the options)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="wmr-cosim", description=plain(__doc__),
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = OneLineParser(prog="wmr-cosim", description=plain(__doc__),
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--max-archive-size", metavar="SIZE", default=None,
                     help="refuse FMU/SSP archives that unpack to more than SIZE (default 2 GiB; e.g. 8GiB)")
     ap.add_argument("--max-archive-ratio", metavar="RATIO", default=None,
