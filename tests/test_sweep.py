@@ -73,6 +73,7 @@ def test_points_are_drawn_from_the_seed(tmp_path):
 @pytest.mark.parametrize("body, field, reason", [
     ("colour = 1\n", "colour", "unknown key"),
     ("[random]\n\"plant.a5\" = { dist = \"gauss\" }\n", "random.plant.a5", "needs dist"),
+    ("[random]\n\"plant.a5\" = { dist = [1, \"a\"] }\n", "random.plant.a5", "needs dist"),
     ("[random]\n\"plant.a5\" = { dist = \"uniform\", low = 1 }\n", "random.plant.a5.high", "missing"),
     ("[grid]\n\"plant.a5\" = []\n", "grid.plant.a5", "non-empty"),
     ("[grid]\n\"a5\" = [1]\n", "grid.a5", "instance.param"),
@@ -472,6 +473,13 @@ def test_a_reference_that_is_not_finite_numbers_over_the_whole_run_is_refused(tm
     ref = tmp_path / "ref.csv"
     ref.write_bytes(csv) if isinstance(csv, bytes) else ref.write_text(csv)
     _refused(capsys, tmp_path, [f, "--workers", "1"], "s.toml: metric.e.reference", *words)
+
+
+def test_a_reference_whose_name_the_system_cannot_look_up_is_one_line(tmp_path, capsys):
+    """A reference named by 5,000 characters (beyond the system's name length): one line, exit code 2."""
+    name = "r" * 5000 + ".csv"
+    f = _metric_sweep(tmp_path, f'[metric.e]\nof = "rmse"\nvariable = "dq.x"\nreference = "{name}"\ncolumn = "x"\n')
+    _refused(capsys, tmp_path, [f, "--workers", "1"], "s.toml: metric.e.reference", "cannot be read")
 
 
 @pytest.mark.parametrize("name, sets, what", [

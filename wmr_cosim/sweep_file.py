@@ -144,7 +144,7 @@ def _check_distribution(f: str, fld: str, d: Any) -> None:
     """One distribution of [random]: a known ``dist`` with its parameters, and only those, each a value the
     draw takes: finite numbers, low < high (a finite width), std and sigma >= 0, a non-empty array of
     values."""
-    if not isinstance(d, dict) or d.get("dist") not in DISTRIBUTIONS:
+    if not isinstance(d, dict) or not isinstance(d.get("dist"), str) or d["dist"] not in DISTRIBUTIONS:
         raise ScenarioError(f, fld, f"needs dist = one of {', '.join(DISTRIBUTIONS)}")
     need = DISTRIBUTIONS[d["dist"]]
     extra = set(d) - set(need) - {"dist"}

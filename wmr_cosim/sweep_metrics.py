@@ -134,16 +134,17 @@ def _reference(file: str, fld: str, ref: Any, column: Any, folder: Path) -> tupl
     if not isinstance(ref, str):
         raise ScenarioError(file, f"{fld}.reference", f"{ref!r}: a CSV file beside the sweep file")
     path = folder / ref
-    if not path.is_file():
-        raise ScenarioError(file, f"{fld}.reference", f"{ref}: file not found")
-    try:
+    try:   # (is_file raises for a name the system cannot look up: too long)
+        if not path.is_file():
+            raise ScenarioError(file, f"{fld}.reference", f"{ref}: file not found")
         with open(path, newline="", encoding="utf-8") as fh:
             reader = csv.reader(fh)
             rows = [(reader.line_num, r) for r in reader]
     except UnicodeDecodeError:
         raise ScenarioError(file, f"{fld}.reference", f"{ref}: not a text file (a CSV file is UTF-8 text)") from None
     except (OSError, csv.Error) as exc:
-        raise ScenarioError(file, f"{fld}.reference", f"{ref}: cannot be read ({' '.join(str(exc).split())})") from None
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else " ".join(str(exc).split())
+        raise ScenarioError(file, f"{fld}.reference", f"{ref[:60]}: cannot be read ({why})") from None
     if len(rows) < 3:
         raise ScenarioError(file, f"{fld}.reference", f"{ref}: a header and at least two rows are needed")
     head = [h.strip() for h in rows[0][1]]
