@@ -309,7 +309,7 @@ def _measure(spec: SweepSpec, fmus: dict[str, str], archive_limits: LimitOverrid
     check_parameters(spec.file, {**{f"grid.{k}": k for k in spec.grid}, **{f"random.{k}": k for k in spec.random}},
                      plans)
     runs = {name: {col: c["unit"] for col, c in plan.columns().items()} for name, plan in plans.items()}
-    spans = {name: (plan.scenario.times()[0], plan.scenario.times()[1]) for name, plan in plans.items()}
+    spans = {name: plan.scenario.times()[:2] for name, plan in plans.items()}
     units = check_metrics(spec.file, spec.measures, runs, spans, _columns(spec, plans))
     return SweepMeasure(tuple(spec.measures), tuple(spec.sets), tuple(runs)), units
 

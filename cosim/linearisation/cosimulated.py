@@ -39,7 +39,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from .interconnection import Link
-from .loop import LoopAnalysis, analyse
+from .loop import LoopAnalysis, analyse, plain_number
 from .model import LinearModel
 
 #: The default budget of the phase margin the coupling may cost [deg] (``--phase-budget``).
@@ -119,8 +119,7 @@ class CouplingCost:
     loop_at: Callable[[float], LoopAnalysis] | None = field(default=None, repr=False, compare=False)
 
     def summary(self) -> dict[str, Any]:
-        def num(x: float) -> float | str:
-            return float(x) if math.isfinite(x) else str(x)
+        num = plain_number
         both = {}
         for name, a in (("continuous", self.continuous), ("cosimulated", self.cosimulated)):
             s = a.summary()

@@ -109,14 +109,15 @@ class LoopAnalysis:
 
     def summary(self) -> dict[str, Any]:
         """The figures as plain numbers (linear.json, the command's printout)."""
-        return {"break": f"{self.src}->{self.dst}", "gain_margin": _num(self.gain_margin),
+        n = plain_number
+        return {"break": f"{self.src}->{self.dst}", "gain_margin": n(self.gain_margin),
                 "gain_margin_db": _db(self.gain_margin),
-                "phase_margin_deg": _num(self.phase_margin), "phase_crossover_rad_s": _num(self.phase_crossover),
-                "gain_crossover_rad_s": _num(self.gain_crossover), "stability_margin": _num(self.stability_margin),
-                "upper_gain_margin": _num(self.upper_gain_margin), "lower_gain_margin": _num(self.lower_gain_margin),
-                "phase_crossovers": [{"rad_s": _num(w), "gain_margin": _num(g), "gain_margin_db": _db(g),
+                "phase_margin_deg": n(self.phase_margin), "phase_crossover_rad_s": n(self.phase_crossover),
+                "gain_crossover_rad_s": n(self.gain_crossover), "stability_margin": n(self.stability_margin),
+                "upper_gain_margin": n(self.upper_gain_margin), "lower_gain_margin": n(self.lower_gain_margin),
+                "phase_crossovers": [{"rad_s": n(w), "gain_margin": n(g), "gain_margin_db": _db(g),
                                       "kind": "lower" if g < 1.0 else "upper"} for w, g in self.phase_crossovers],
-                "gain_crossovers": [{"rad_s": _num(w), "phase_margin_deg": _num(p)} for w, p in self.gain_crossovers],
+                "gain_crossovers": [{"rad_s": n(w), "phase_margin_deg": n(p)} for w, p in self.gain_crossovers],
                 "open_loop_poles_on_or_outside": [[float(z.real), float(z.imag)] for z in self.boundary_poles],
                 "pole_tolerance": self.pole_tolerance,
                 "closed_loop_stable": bool(self.closed_stable)}
@@ -133,13 +134,14 @@ class LoopAnalysis:
         return -self.gain.statespace()
 
 
-def _num(x: float) -> float | str:
+def plain_number(x: float) -> float | str:
+    """A figure for JSON: the number, or its name where it is not finite ("inf", "nan")."""
     x = float(x)
     return x if math.isfinite(x) else str(x)
 
 
 def _db(g: float) -> float | str:
-    return _num(20.0 * math.log10(g)) if g > 0 else "-inf" if g == 0 else "nan"
+    return plain_number(20.0 * math.log10(g)) if g > 0 else "-inf" if g == 0 else "nan"
 
 
 def margins(gain: LinearModel) -> tuple[list[tuple[float, float]], list[tuple[float, float]], tuple[float, ...]]:

@@ -107,17 +107,9 @@ def write_robustness(path: Path, signals: dict[str, np.ndarray], times: list[flo
     data["time"] = times
     for name, values in signals.items():
         data[name] = values[:rows]
-    latin1 = all(name.isascii() or _encodes(name, "latin1") for name in signals)
+    latin1 = all(ord(c) < 256 for name in signals for c in name)
     with open(path, "wb") as f:
         np.lib.format.write_array(f, data, version=None if latin1 else (3, 0), allow_pickle=False)
-
-
-def _encodes(text: str, codec: str) -> bool:
-    try:
-        text.encode(codec)
-    except UnicodeEncodeError:
-        return False
-    return True
 
 
 def write_results(folder: ResultsFolder, plan: Plan, res: RunResult) -> None:

@@ -338,13 +338,13 @@ def _check_file(path: Path, asked_by: tuple[str, str] | None, shipped: Path | No
     base it names), where given)."""
     name = str(path)
     try:
-        path.is_file()
+        is_file = path.is_file()
     except OSError as exc:   # a name the system cannot look up (too long, ...)
         if asked_by is not None:
             raise ScenarioError(asked_by[0], "base", f"{asked_by[1][:60]!r}...: cannot be read "
                                                      f"({exc.strerror or exc})") from None
         raise ScenarioError(name[:100] + "...", "", f"cannot be read ({exc.strerror or exc})") from None
-    if not path.is_file():
+    if not is_file:
         if asked_by is not None:
             raise ScenarioError(asked_by[0], "base", f"{asked_by[1]!r}: "
                                                      f"{'a folder' if path.is_dir() else 'file not found'} ({path}; "
@@ -710,18 +710,9 @@ def _parse_record(sc: Scenario, doc: dict[str, Any]) -> None:
     if isinstance(dec, bool) or not isinstance(dec, int) or dec < 1:
         raise ScenarioError(file, "record.decimation", f"{dec!r}: must be an integer >= 1")
     sc.decimation = dec
-    csv = rec.get("csv", True)
-    if not isinstance(csv, bool):
-        raise ScenarioError(file, "record.csv", f"{csv!r}: must be true or false")
-    sc.csv = csv
-    mat = rec.get("mat", False)
-    if not isinstance(mat, bool):
-        raise ScenarioError(file, "record.mat", f"{mat!r}: must be true or false")
-    sc.mat = mat
-    event_rows = rec.get("event_rows", False)
-    if not isinstance(event_rows, bool):
-        raise ScenarioError(file, "record.event_rows", f"{event_rows!r}: must be true or false")
-    sc.event_rows = event_rows
+    sc.csv = _flag(file, "record.csv", rec.get("csv", True))
+    sc.mat = _flag(file, "record.mat", rec.get("mat", False))
+    sc.event_rows = _flag(file, "record.event_rows", rec.get("event_rows", False))
     if "max_bytes" in rec:
         sc.max_bytes = _count(file, "record.max_bytes", rec["max_bytes"])
 
