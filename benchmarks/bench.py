@@ -35,7 +35,7 @@ NAME:
             ours_equals_c_floor (bit for bit).
     interop the G1 learning system (Jacobi, exported as SSP with the signals the comparison needs) under our
             master and third-party masters, each in a fresh process as its users run it, with its defaults
-            (wmr_cosim.interop): peers = wall seconds per master (median of up to 3 runs; creating the
+            (tests/interop.py): peers = wall seconds per master (median of up to 3 runs; creating the
             execution, initialisation and 25,000 steps, recording included; not importing the library):
             ours (load_ssp + resolve + cosim.run, signals.npy), libcosim (from_ssp_file, time-series
             observer), ecos (EcosSimulation, CSV writer, step(n)), fmpy_ssp (simulate_ssp), and ecos_pinned
@@ -319,7 +319,7 @@ def bench_paper(repeats: int) -> dict[str, float]:
     import tempfile
     import time
 
-    from wmr_cosim.paper_job import run_paper
+    from wmr_cosim.paper.job import run_paper
     from wmr_cosim.runner import resolve_model
 
     for m in ("WmrPlant", "WmrSensor", "WmrController"):  # FMUs built beforehand, as a user has them
@@ -342,8 +342,9 @@ def bench_sweep(repeats: int) -> dict[str, float]:
     import tempfile
     import time
 
-    from wmr_cosim.cluster import Cluster
-    from wmr_cosim.sweep import run_sweep
+    from wmr_cosim.studies.cluster import Cluster
+    from wmr_cosim.paper import robot_system
+    from wmr_cosim.studies import run_sweep
 
     root = __import__("pathlib").Path(__file__).resolve().parents[1]
     f = root / "scenarios" / "sweep-geometry.toml"
@@ -358,7 +359,7 @@ def bench_sweep(repeats: int) -> dict[str, float]:
                 startups.append(cl.startup_s)
                 cl.client.run(lambda: __import__("wmr_cosim.cosim.runtime.execution"))  # imports warm
                 t0 = time.perf_counter()
-                df = run_sweep(f, tmp, cluster=cl, progress=False)
+                df = run_sweep(f, tmp, cluster=cl, progress=False, system=robot_system())
                 times[n].append(time.perf_counter() - t0)
                 tables[n] = df.drop(columns=["wall_s"])
                 shipping.append(json.loads((__import__("pathlib").Path(tmp) / "sweep.json").read_text())["shipping"])
@@ -384,7 +385,8 @@ def bench_interop(repeats: int) -> dict[str, float]:
 
     from wmr_cosim import cosim
     from wmr_cosim.cosim.plan.ssp import export_ssp
-    from wmr_cosim.interop import SIGNALS, run_peer
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from interop import SIGNALS, run_peer
     from wmr_cosim.runner import resolve_model
 
     root = Path(__file__).resolve().parents[1]
@@ -558,7 +560,8 @@ def bench_generic(repeats: int) -> dict[str, Any]:
     from wmr_cosim import cosim
     from wmr_cosim.cosim.plan.ssp import export_ssp
     from wmr_cosim.cosim.stepping import native
-    from wmr_cosim.interop import run_peer
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from interop import run_peer
 
     n = max(1, min(repeats, 5))
     signals = ["d.x", "f1.Float64_continuous_output", "f2.Float64_continuous_output"]

@@ -1,8 +1,8 @@
 """Mutation testing of the core with mutmut: are there bugs the tests would let through?
 
 ``python benchmarks/bench.py mutation`` (or ``python benchmarks/mutation.py [--only GLOB ...]``) plants
-every mutant mutmut makes in ``components/``, ``cosim/`` and the analysis code (``wmr_cosim/analysis.py``,
-``wmr_cosim/claims.py``), one at a time, and runs against each the fast tests that cover the function it
+every mutant mutmut makes in ``components/``, ``cosim/`` and the analysis code (``wmr_cosim/paper/analysis.py``,
+``wmr_cosim/paper/claims.py``), one at a time, and runs against each the fast tests that cover the function it
 sits in (mutmut records which tests call which function in one instrumented run of the fast suite, then
 forks a worker per mutant).  The last line printed is one JSON object:
 ``{"mutants", "killed", "kill_rate", "survivors", ...}``, with the kill rate per area.
@@ -52,7 +52,7 @@ PACKAGE_DIRS = {"wmr_cosim": "wmr_cosim", "components": "wmr_cosim/components", 
 ALSO = ("tests", "scenarios", "examples", "docs")
 #: What is mutated (globs on the staged paths) and the area each belongs to.
 AREAS = {"components": "wmr_cosim/components/*.py", "cosim": "wmr_cosim/cosim/*.py",
-         "analysis": "wmr_cosim/analysis.py", "claims": "wmr_cosim/claims.py"}
+         "analysis": "wmr_cosim/paper/analysis.py", "claims": "wmr_cosim/paper/claims.py"}
 #: The tests the mutants run against: the fast suite, without the tests of the repository's own files
 #: (documentation, packaging, the FMU build from the source folders) and the ones that run other programs
 #: (C hosts, interop peers).

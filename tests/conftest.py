@@ -32,11 +32,11 @@ def built_fmus(tmp_path_factory):
 @pytest.fixture(scope="module")
 def studies_run_the_session_fmus(built_fmus):
     """For a module's tests of studies (``pytestmark = pytest.mark.usefixtures(...)``): their points run
-    the session's FMUs (robot_measures.fmu_paths, which the driver reads and ships to the workers)."""
-    from wmr_cosim import robot_measures
+    the session's FMUs (the robot system's model names, which the driver resolves and ships to the workers)."""
+    from wmr_cosim import runner
 
     mp = pytest.MonkeyPatch()
-    mp.setattr(robot_measures, "fmu_paths", lambda: {k: str(v) for k, v in built_fmus.items()})
+    mp.setattr(runner, "resolve_model", lambda name: built_fmus.get(name))
     yield
     mp.undo()
 

@@ -109,7 +109,7 @@ def _alarm(seconds: float) -> Iterator[None]:
 @contextlib.contextmanager
 def _no_cluster() -> Iterator[None]:
     """Sweeps and falsifications stop where they would start their Dask cluster (WouldRun)."""
-    from wmr_cosim import cluster
+    from wmr_cosim.studies import cluster
 
     def refuse(self: Any, *args: Any, **kwargs: Any) -> None:
         raise WouldRun()

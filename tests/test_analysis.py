@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from wmr_cosim import analysis
-from wmr_cosim.analysis import (cruise_mask, cumulative_integral, disturbance_analysis, fidelity, foam_onset,
+from wmr_cosim.paper import analysis
+from wmr_cosim.paper.analysis import (cruise_mask, cumulative_integral, disturbance_analysis, fidelity, foam_onset,
                                 load_signals, position_error, run_summary, t_move, true_errors)
 from wmr_cosim.components import paper
 
@@ -403,7 +403,7 @@ def test_fidelity_of_a_perfect_or_uniformly_smaller_reproduction():
 def test_divergence_is_one_line_naming_the_figure():
     """THE definition of 'diverged' (paper job, sweeps, `run` of a protocol): not ended 'ok', nothing
     recorded, a non-finite tracking error, or the larger |e_i| at the last sample above 1 rad."""
-    from wmr_cosim.analysis import divergence
+    from wmr_cosim.paper.analysis import divergence
 
     n = 5
     assert divergence(_run(n)) is None

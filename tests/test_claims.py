@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from wmr_cosim.claims import check_claims, claim_text, holds, make_claim, resolve
+from wmr_cosim.paper.claims import check_claims, claim_text, holds, make_claim, resolve
 
 METRICS = {"tasks": {"G1": {"foam": {"edge_peak_u": 8.4, "cruise_u": [4.1, 3.9], "diverged": False}}},
            "runs": ["a", "b", "c"], "gamma_star": {"G1": 13.6, "G2": None, "G3": math.nan}}

@@ -142,7 +142,7 @@ def test_planted_acceptance_of_an_unknown_key_is_found(base, monkeypatch):
 
 
 def test_planted_sweep_that_runs_before_refusing_is_found(base, monkeypatch):
-    from wmr_cosim import sweep_file
+    from wmr_cosim.studies import sweep_file
 
     monkeypatch.setattr(sweep_file, "_read", lambda path: __import__("tomllib").loads(path.read_text()))
     doc = _scenario()

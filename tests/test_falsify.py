@@ -1,4 +1,4 @@
-"""Falsification (wmr_cosim/falsify.py): differential evolution over a parameter space on the sweep
+"""Falsification (wmr_cosim/studies/falsification.py): differential evolution over a parameter space on the sweep
 machinery, minimising a requirement's robustness: G1 on foam shortened to 11 s (its tracking on the foam), and
 Dahlquist for what does not need the robot."""
 from __future__ import annotations
@@ -12,7 +12,8 @@ import pytest
 
 from wmr_cosim.cli import main
 from wmr_cosim.cosim import ScenarioError
-from wmr_cosim.falsify import falsify, load_falsification, population
+from wmr_cosim.studies.falsification import falsify, load_falsification, population
+from wmr_cosim.paper import robot_system
 
 SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "g1_requirements.toml"
 SHORT = f'''base = "{SCENARIO}"
@@ -48,7 +49,7 @@ def test_a_search_of_40_runs_finds_a_worse_case_than_the_nominal_run_and_its_rer
     nominal run's, the re-run of the worst case gives the same value bit for bit, every run is in the
     table."""
     spec = files(tmp_path, 40)
-    r = falsify(spec, tmp_path / "out", workers=2, progress=False)
+    r = falsify(spec, tmp_path / "out", workers=2, progress=False, system=robot_system())
     assert r["optimiser"]["runs"] == 40 and r["failed"] == 0
     assert r["worst"]["robustness"] < r["nominal"]["robustness"]
     assert r["rerun"]["same"] and r["rerun"]["robustness"] == r["worst"]["robustness"]
@@ -68,8 +69,8 @@ def test_the_search_is_deterministic_for_its_seed(tmp_path: Path) -> None:
     spec = tmp_path / "f.toml"
     spec.write_text('base = "dq.toml"\nrequirement = "above"\nseed = 5\nbudget = 10\n[space]\n'
                     '"dq.k" = { low = 0.5, high = 3.0 }\n"dq.x" = { low = 0.5, high = 2.0 }\n')
-    a = falsify(spec, tmp_path / "a", workers=2, progress=False)
-    b = falsify(spec, tmp_path / "b", workers=2, progress=False)
+    a = falsify(spec, tmp_path / "a", workers=2, progress=False, system=robot_system())
+    b = falsify(spec, tmp_path / "b", workers=2, progress=False, system=robot_system())
     ta, tb = (pd.read_csv(tmp_path / d / "falsify.csv") for d in ("a", "b"))
     assert len(ta) == 10 and ta.equals(tb)
     assert a["worst"] == {**b["worst"], "command": a["worst"]["command"]} and a["rerun"]["same"]
@@ -162,7 +163,7 @@ def test_seeds_budgets_and_workers_out_of_range_are_refused_up_front(tmp_path: P
 
 def test_budget_and_seed_on_the_command_line_win_over_the_files(tmp_path: Path, monkeypatch) -> None:
     """`falsify --budget 12 --seed 7`: the search runs with those (the file says 10 and 3)."""
-    from wmr_cosim import falsify as falsify_module
+    from wmr_cosim.studies import falsification as falsify_module
     from wmr_cosim.cosim import CosimError
 
     _reference_base(tmp_path)

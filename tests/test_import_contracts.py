@@ -18,7 +18,8 @@ CONFIG = ROOT / "pyproject.toml"
 #: the folders linked into wmr_cosim/ as its subpackages
 SUBPACKAGES = ("cosim", "components", "fmus", "scenarios")
 CONTRACTS = {"master": "the generic master (cosim/)", "components": "the components (components/)",
-             "master-layers": "the master's folders are layers", "master-face": "the application imports the master"}
+             "master-layers": "the master's folders are layers", "master-face": "the application imports the master",
+             "studies": "the studies (studies/) run any system", "cli-faces": "the command line reaches the studies"}
 
 
 def lint_imports(tree: Path) -> subprocess.CompletedProcess:
@@ -41,7 +42,7 @@ def test_the_subpackages_are_links_in_the_package_folder():
 def test_the_layering_contracts_hold():
     p = lint_imports(ROOT)
     assert p.returncode == 0, p.stdout + p.stderr
-    assert "Contracts: 4 kept, 0 broken." in p.stdout, p.stdout
+    assert "Contracts: 6 kept, 0 broken." in p.stdout, p.stdout
 
 
 def test_the_face_contract_names_every_module_of_the_application():
@@ -76,7 +77,7 @@ def test_a_forbidden_import_breaks_the_contracts(tmp_path):
         "def f():\n    import fmpy\n    from ..cosim.messages import errors\n    return fmpy, errors\n")
     p = lint_imports(tree)
     assert p.returncode == 1, p.stdout + p.stderr
-    assert "Contracts: 2 kept, 2 broken." in p.stdout, p.stdout
+    assert "Contracts: 4 kept, 2 broken." in p.stdout, p.stdout
     for line in ("wmr_cosim.cosim._forbidden -> wmr_cosim.components.paper (l.2)",
                  "wmr_cosim.components._forbidden -> fmpy (l.2)",
                  "wmr_cosim.components._forbidden -> wmr_cosim.cosim.messages.errors (l.3)"):
@@ -90,7 +91,7 @@ def test_an_application_module_imported_by_the_master_breaks_its_contract(tmp_pa
     (tree / "wmr_cosim" / "_new_module.py").write_text("X = 1\n")
     (tree / "cosim" / "_forbidden.py").write_text("from .. import _new_module\nimport wmr_cosim\n")
     p = lint_imports(tree)
-    assert p.returncode == 1 and "Contracts: 3 kept, 1 broken." in p.stdout, p.stdout + p.stderr
+    assert p.returncode == 1 and "Contracts: 5 kept, 1 broken." in p.stdout, p.stdout + p.stderr
     assert "wmr_cosim.cosim._forbidden -> wmr_cosim._new_module (l.1)" in p.stdout, p.stdout
     assert "wmr_cosim.cosim is not allowed to import wmr_cosim.api:" in p.stdout, p.stdout
 
@@ -101,7 +102,7 @@ def test_a_lower_folder_importing_a_higher_one_breaks_the_layers(tmp_path):
     (tree / "cosim" / "stepping" / "_forbidden.py").write_text(
         "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from ..plan.records import Plan\n")
     p = lint_imports(tree)
-    assert p.returncode == 1 and "Contracts: 3 kept, 1 broken." in p.stdout, p.stdout + p.stderr
+    assert p.returncode == 1 and "Contracts: 5 kept, 1 broken." in p.stdout, p.stdout + p.stderr
     assert "wmr_cosim.cosim.stepping._forbidden -> wmr_cosim.cosim.plan.records (l.3)" in p.stdout, p.stdout
 
 
@@ -111,5 +112,27 @@ def test_the_application_importing_a_folder_of_the_master_breaks_the_face_contra
     api.write_text(api.read_text() + "\n\ndef _f():\n    from .cosim.runtime.execution import Execution\n"
                    "    return Execution\n")
     p = lint_imports(tree)
-    assert p.returncode == 1 and "Contracts: 3 kept, 1 broken." in p.stdout, p.stdout + p.stderr
+    assert p.returncode == 1 and "Contracts: 5 kept, 1 broken." in p.stdout, p.stdout + p.stderr
     assert "wmr_cosim.api -> wmr_cosim.cosim.runtime.execution" in p.stdout, p.stdout
+
+
+def test_the_studies_reaching_the_robot_break_their_contract(tmp_path):
+    """Directly (the robot's measures, inside a function) or through a module that knows the robot (the
+    runner, which builds its FMUs): either breaks the studies' contract."""
+    tree = _tree_copy(tmp_path / "tree")
+    (tree / "wmr_cosim" / "studies" / "_forbidden.py").write_text(
+        "def f():\n    from ..paper import robot_measures\n    return robot_measures\n")
+    (tree / "wmr_cosim" / "studies" / "_indirect.py").write_text("from ..runner import resolve_model\n")
+    p = lint_imports(tree)
+    assert p.returncode == 1 and "Contracts: 5 kept, 1 broken." in p.stdout, p.stdout + p.stderr
+    assert "wmr_cosim.studies._forbidden -> wmr_cosim.paper.robot_measures (l.2)" in p.stdout, p.stdout
+    assert "wmr_cosim.studies._indirect -> wmr_cosim.runner (l.1)" in p.stdout, p.stdout
+
+
+def test_the_command_line_importing_a_module_behind_a_face_breaks_its_contract(tmp_path):
+    tree = _tree_copy(tmp_path / "tree")
+    sweep = tree / "wmr_cosim" / "cli" / "sweep.py"
+    sweep.write_text(sweep.read_text() + "\n\ndef _f():\n    from ..studies.shipment import pack\n    return pack\n")
+    p = lint_imports(tree)
+    assert p.returncode == 1 and "Contracts: 5 kept, 1 broken." in p.stdout, p.stdout + p.stderr
+    assert "wmr_cosim.cli.sweep -> wmr_cosim.studies.shipment" in p.stdout, p.stdout

@@ -18,6 +18,7 @@ from c_fmu_support import build_probe
 from cosim_support import write_scenario
 
 from reference_fmus import REF as _REF
+from wmr_cosim.paper import robot_system
 
 REF = _REF / "fmi2"
 
@@ -159,12 +160,12 @@ def test_the_python_api_steps_and_reads_an_isolated_instance(tmp_path):
 def test_a_sweep_point_whose_isolated_fmu_crashes_is_a_failed_row(tmp_path):
     """The crash ends that point's run, not the Dask worker: the other points run and the table has the
     failed row with its reason."""
-    from wmr_cosim.sweep import run_sweep
+    from wmr_cosim.studies.sweep import run_sweep
 
     fmu = build_probe(tmp_path / "fmu", SEGFAULT_AT=0.25)
     base = _scenario(tmp_path, fmu, True)
     sweep = tmp_path / "sweep.toml"
     sweep.write_text(f'base = "{base}"\nmetrics = []\n[grid]\n"probe.p" = [1.0, 2.0]\n')
-    df = run_sweep(sweep, tmp_path / "out", workers=1, progress=False)
+    df = run_sweep(sweep, tmp_path / "out", workers=1, progress=False, system=robot_system())
     assert len(df) == 2 and set(df["status"]) == {"failed"}, df[["status", "reason"]]
     assert all("killed by SIGSEGV" in r for r in df["reason"]), list(df["reason"])

@@ -1,7 +1,7 @@
 """Our FMUs and our exported system in third-party masters: the G1 learning system (Jacobi, identity
 connections) exported as SSP and run by libcosim (from the SSP and through its API), ecos (in process and
 through its command-line program, a non-Python host) and FMPy's simulate_ssp.  Each runs once per session
-in a child process of its own (wmr_cosim.interop); the tests share the results.
+in a child process of its own (tests/interop.py); the tests share the results.
 
 All of them are Jacobi masters (every input from the previous step's outputs).  How they differ from ours:
 - libcosim counts time in integer nanoseconds: 25,000 steps to exactly 50 s; it records no initial row.
@@ -25,7 +25,7 @@ from cosim_support import G1
 from wmr_cosim.components.metrics import run_metrics
 from wmr_cosim import cosim
 from wmr_cosim.cosim.plan.ssp import export_ssp
-from wmr_cosim.interop import SIGNALS, run_peer
+from interop import SIGNALS, run_peer
 
 pytestmark = pytest.mark.slow  # six third-party masters, 50 s of G1 each
 
@@ -116,7 +116,7 @@ def test_ecos_reproduces_ours_to_its_csv_precision(peer, peer_runs, jacobi_refer
 def test_the_ecos_command_line_runs_our_fmus_with_an_empty_environment(peer_runs):
     """A non-Python host with nothing set up: the ecos program ran the archive (the peer test above checks
     its results) with only libtbb's folder in its environment, no LD_PRELOAD, no PATH or PYTHONHOME."""
-    from wmr_cosim.interop import ecos_cli_env
+    from interop import ecos_cli_env
 
     cmd, env, tmp = ecos_cli_env()
     try:

@@ -117,8 +117,9 @@ def test_the_importer_sees_imports_inside_functions(tmp_path):
 
 def test_the_modules_of_wmr_cosim_import_each_other_without_a_cycle():
     graph = import_graph()
-    assert {"paper_job", "paper_report", "robustness", "sweep", "cli"} <= set(graph)   # the folder was read
-    assert {"runner", "plot", "sweep"} <= graph["cli"]   # and its packages' modules
+    assert {"api", "runner", "cli", "paper", "runs", "studies"} <= set(graph)   # the folder was read
+    assert {"runner", "paper", "runs", "studies"} <= graph["cli"]   # and its packages' modules
+    assert "paper" not in graph["studies"] and "runner" not in graph["studies"]
     cycle = find_cycle(graph)
     assert cycle is None, f"an import cycle among the modules of wmr_cosim/: {' -> '.join(cycle)}"
 
@@ -249,10 +250,10 @@ def private_uses(path: Path, module: str, modules: set[str]) -> list[tuple[str, 
 
 def test_the_private_name_finder_sees_imports_and_attributes_of_imported_modules(tmp_path):
     mods = {"wmr_cosim", "wmr_cosim.cosim", "wmr_cosim.cosim.scenario", "wmr_cosim.cosim.system",
-            "wmr_cosim.cosim.errors", "wmr_cosim.sweep"}
+            "wmr_cosim.cosim.errors", "wmr_cosim.studies.sweep"}
     f = tmp_path / "system.py"
     f.write_text("import ctypes\nimport wmr_cosim.cosim.errors\nfrom . import scenario\n"
-                 "from .errors import _one, CosimError\nfrom ..sweep import _two\n"
+                 "from .errors import _one, CosimError\nfrom ..studies.sweep import _two\n"
                  "from wmr_cosim.cosim.scenario import _three as three\nimport wmr_cosim.cosim.errors as errs\n"
                  "def _own(): pass\n"
                  "def f(dll, shm):\n    scenario._read()\n    dll._handle, shm._name, _own()\n"
@@ -263,12 +264,12 @@ def test_the_private_name_finder_sees_imports_and_attributes_of_imported_modules
     found = sorted(private_uses(f, "wmr_cosim.cosim.system", mods))
     assert found == [("wmr_cosim.cosim.errors", "_five", 13), ("wmr_cosim.cosim.errors", "_four", 12),
                      ("wmr_cosim.cosim.errors", "_one", 4), ("wmr_cosim.cosim.scenario", "_read", 10),
-                     ("wmr_cosim.cosim.scenario", "_three", 6), ("wmr_cosim.sweep", "_two", 5)]
+                     ("wmr_cosim.cosim.scenario", "_three", 6), ("wmr_cosim.studies.sweep", "_two", 5)]
 
 
 def test_no_module_of_the_package_takes_a_private_name_of_another():
     mods = package_modules()
-    assert {"wmr_cosim.sweep", "wmr_cosim.cosim.scenario.document", "wmr_cosim.cosim.stepping",
+    assert {"wmr_cosim.studies.sweep", "wmr_cosim.cosim.scenario.document", "wmr_cosim.cosim.stepping",
             "wmr_cosim.components.paper", "wmr_cosim.fmus.fmi_decl", "wmr_cosim.cli.run"} <= set(mods)   # every folder was read
     uses = {f"{p.relative_to(ROOT).as_posix()}: {name} of {dep}": line for m, p in mods.items()
             for dep, name, line in private_uses(p, m, set(mods))}
@@ -309,3 +310,31 @@ def test_no_function_of_wmr_cosim_or_cosim_is_over_60_lines():
     assert not new, (f"functions over {MAX_LINES} lines (split them into named helpers): "
                      + ", ".join(f"{k} ({n})" for k, n in sorted(new.items())))
 
+
+
+#: The most modules wmr_cosim/ holds beside its folders (its face, the Python API, the exit codes, the runner,
+#: the shipped scenario files): what is not one of these belongs in a folder that is a concept.
+MAX_TOP_MODULES = 6
+#: The most lines of one command's module of the command line.
+MAX_COMMAND_LINES = 250
+
+
+def test_the_package_folder_holds_few_modules_beside_its_folders():
+    assert len(_app_modules()) <= MAX_TOP_MODULES, sorted(_app_modules())
+    assert {"cli", "paper", "runs", "studies"} <= set(_app_packages())
+
+
+def test_the_command_line_is_one_module_per_command_none_long():
+    """Each command of the table is a module of cli/ of its name, holding its options and its run; no
+    module of cli/ is over MAX_COMMAND_LINES lines."""
+    from wmr_cosim.cli import build_parser
+    from wmr_cosim.cli.commands import COMMANDS
+
+    files = {p.stem: p for p in (APP / "cli").glob("*.py")}
+    for name, module in COMMANDS.items():
+        assert module.__name__ == f"wmr_cosim.cli.{name.replace('-', '_')}", (name, module.__name__)
+        assert name.replace("-", "_") in files
+    sub = next(a for a in build_parser()._actions if a.__class__.__name__ == "_SubParsersAction")
+    assert set(sub.choices) == set(COMMANDS)
+    long = {p.name: n for p in files.values() if (n := len(p.read_text().splitlines())) > MAX_COMMAND_LINES}
+    assert not long, long

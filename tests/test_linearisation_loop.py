@@ -232,7 +232,7 @@ def _integrator_chain(fmus, fields=ME) -> Simulation:
 def test_an_integrator_in_the_loop_is_a_pole_on_the_boundary_and_said(fmus, fields):
     """The continuous model has the integrator at s = -1e-9 (within 1e-6 of the largest pole, 2 /s, of the
     imaginary axis); the realisation from responses (co-simulation) at z = exp(-1e-11), within its 1e-3."""
-    from wmr_cosim.linearize import report, summary
+    from wmr_cosim.runs.linear_model import report, summary
 
     lin = Linearizer(_integrator_chain(fmus, fields).check(),
                      Request(at=0.5, breaks=("ctrl.y", "lag1.u"), steps=None if fields == ME else 150)).run()

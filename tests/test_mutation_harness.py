@@ -31,7 +31,7 @@ def test_summary_counts_each_kind(harness):
         "wmr_cosim.cosim.a.x_f__mutmut_3": "survived",      # equivalent entry gone stale
         "wmr_cosim.cosim.iso.x__serve__mutmut_1": "no tests",  # only a child process runs it
         "wmr_cosim.cosim.iso.x_other__mutmut_1": "no tests",   # no test: a survivor
-        "wmr_cosim.analysis.x_g__mutmut_1": "not checked",
+        "wmr_cosim.paper.analysis.x_g__mutmut_1": "not checked",
     }
     equivalents = {"wmr_cosim.cosim.a.x_f__mutmut_2": {"line": "x = g(1, )", "reason": "r"},
                    "wmr_cosim.cosim.a.x_f__mutmut_3": {"line": "x = g(2, )", "reason": "r"},

@@ -207,7 +207,7 @@ def test_a_run_that_fails_mid_run_says_where_its_rows_are(work, capsys):
 def _metrics(diverged: dict[str, str]) -> dict:
     """One variant's metrics (the parts exit_code reads): every run ok but those in ``diverged``
     ({"G1.frozen": status})."""
-    from wmr_cosim.analysis import RUNS
+    from wmr_cosim.paper.analysis import RUNS
 
     tasks = {t: {r: {"status": diverged.get(f"{t}.{r}", "ok"), "diverged": f"{t}.{r}" in diverged} for r in RUNS}
              for t in ("G1", "G2")}
@@ -223,7 +223,7 @@ def _metrics(diverged: dict[str, str]) -> dict:
     ({}, {"G1.learn": "interrupted"}, 1),
 ])
 def test_the_paper_job_exits_1_for_its_own_variant_and_for_errors_only(freeze, printed, code):
-    from wmr_cosim.paper_job import exit_code
+    from wmr_cosim.paper.job import exit_code
 
     variants = {"freeze": _metrics(freeze), "printed": _metrics(printed)}
     assert exit_code(variants, "freeze") == code
@@ -318,7 +318,7 @@ def test_grid_times_round_only_points_of_the_grid():
 
 # ------------------------------------------------------------------ the paper job says it builds
 def test_the_paper_job_says_when_it_builds_the_fmus(tmp_path, built_fmus, monkeypatch, capsys):
-    from wmr_cosim import paper_job
+    from wmr_cosim.paper import job as paper_job
     from wmr_cosim.fmus import build
 
     calls = []
@@ -338,7 +338,7 @@ def test_the_paper_job_says_when_it_builds_the_fmus(tmp_path, built_fmus, monkey
 
 
 def test_the_paper_job_builds_through_build_fmus_before_its_workers(tmp_path, monkeypatch):
-    from wmr_cosim import paper_job
+    from wmr_cosim.paper import job as paper_job
 
     class Built(Exception):
         pass

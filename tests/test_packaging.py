@@ -89,7 +89,7 @@ IMPORTS = {
     "pandas": ("pandas", "sweep"), "distributed": ("dask[distributed]", "sweep"),  # sweep, gamma-search
     "scipy": ("scipy", "sweep"),   # falsify (and linearize: in the linear extra too)
     "control": ("control", "linear"),   # linearize (python-control)
-    "libcosimpy": ("libcosimpy", "test"), "ecospy": ("ecospy", "test"),  # wmr_cosim.interop (other masters)
+    "libcosimpy": ("libcosimpy", "test"), "ecospy": ("ecospy", "test"),  # tests/interop.py (other masters)
 }
 
 
@@ -204,7 +204,7 @@ def test_wheel_in_a_fresh_environment_runs_the_commands_from_any_folder(venv, tm
 
 
 def test_a_scenario_name_that_is_not_a_file_here_is_the_shipped_one(tmp_path, monkeypatch):
-    from wmr_cosim.paper_tasks import DEFAULT_MANIFEST
+    from wmr_cosim.paper.tasks import DEFAULT_MANIFEST
     from wmr_cosim.scenario_files import folder, scenario_path
 
     shipped = folder()

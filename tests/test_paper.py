@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from wmr_cosim.analysis import cumulative_integral, disturbance_analysis, fidelity
+from wmr_cosim.paper.analysis import cumulative_integral, disturbance_analysis, fidelity
 from wmr_cosim.components import paper
 
 DATA = Path(__file__).parent / "data"
@@ -19,7 +19,8 @@ DATA = Path(__file__).parent / "data"
 @pytest.fixture(scope="module")
 def job(built_fmus, tmp_path_factory, monkeypatch_module):
     """The whole paper job once (both variants, 24 runs of 50 s), on the session's FMUs."""
-    from wmr_cosim import paper_job, runner
+    from wmr_cosim.paper import job as paper_job
+    from wmr_cosim import runner
 
     monkeypatch_module.setattr(runner, "resolve_model", lambda name: built_fmus.get(name))
     out = tmp_path_factory.mktemp("paper")
@@ -157,7 +158,7 @@ def test_gamma_star_of_the_paper_job_weighs_s_by_Q_and_u_by_R():
     """The paper job's and the sweep's (53) use Table 1's weights where they belong: with s = 1 and u = 2
     held, the cost rate is Q (1 + 1) + R (4 + 4) = 2 + 4 = 6 (Q = 1, R = 0.5); swapped it would be 9.
     A disturbance estimate of 0.3 on each wheel from t_F = 5 s gives gamma*(10 s) = sqrt(6 * 10 / (0.18 * 5))."""
-    from wmr_cosim.analysis import table1_disturbance_analysis
+    from wmr_cosim.paper.analysis import table1_disturbance_analysis
 
     t = np.arange(0, 10.0 + 1e-9, 0.002)
     one, zero = np.ones_like(t), np.zeros_like(t)
@@ -187,7 +188,7 @@ def test_fidelity_counts():
 
 def test_every_statement_of_the_report_agrees_with_its_number(job):
     """Each pass/fail line of the report is a claim re-read from metrics.json: value, verdict and wording."""
-    from wmr_cosim.claims import check_claims
+    from wmr_cosim.paper.claims import check_claims
 
     out = job["out"]
     m = json.loads((out / "metrics.json").read_text())
@@ -242,7 +243,7 @@ def test_foam_edge_peak_is_measured_on_the_foam_run(job):
 
 
 def test_claim_text_follows_the_number():
-    from wmr_cosim.claims import check_claims, make_claim
+    from wmr_cosim.paper.claims import check_claims, make_claim
 
     m = {"gamma_star": {"G1": 13.6}, "runs": [1, 2]}
     c = make_claim(m, "g", "gamma_star.G1", "gamma*", "<=", 11.0, "gamma", 2)
@@ -292,7 +293,7 @@ def test_run_of_a_protocol_exits_1_on_a_run_the_paper_job_calls_diverged(built_f
     printed reading of (51) on G1 cut to 12 s ends the frozen and foam runs 'ok' for the master with |e_i| far
     above 1 rad; the command exits 1 with one line per such run naming it and the figure."""
     from wmr_cosim import cli, runner
-    from wmr_cosim.analysis import divergence, load_signals, run_summary
+    from wmr_cosim.paper.analysis import divergence, load_signals, run_summary
 
     monkeypatch.setattr(runner, "resolve_model", lambda name: built_fmus.get(name))
     out = tmp_path / "run"
@@ -315,7 +316,8 @@ def test_run_of_a_protocol_exits_1_on_a_run_the_paper_job_calls_diverged(built_f
 @pytest.fixture(scope="module")
 def short_job(built_fmus, tmp_path_factory, monkeypatch_module):
     """The paper job on G1 cut to 12 s, one variant (3 runs of 12 s): a report whose claims partly fail."""
-    from wmr_cosim import paper_job, runner
+    from wmr_cosim.paper import job as paper_job
+    from wmr_cosim import runner
 
     monkeypatch_module.setattr(runner, "resolve_model", lambda name: built_fmus.get(name))
     folder = tmp_path_factory.mktemp("short_job")
@@ -333,7 +335,7 @@ def _section(md: str, title: str) -> str:
 def test_no_bound_of_a_claim_is_a_result_of_the_project():
     """Every claim's bound is a figure of the paper or argued: no 'project's target' (26 cells, 1.38), the
     final position against eps_G (the paper's stopping radius), not 5 mm."""
-    from wmr_cosim.paper_report import claims
+    from wmr_cosim.paper.report import claims
 
     t1 = paper.table1()
     cl = {c["id"]: c for c in claims({"fidelity": {"n_cells": 32}, "tasks": {t: {} for t in paper.TASKS}})}
@@ -344,7 +346,7 @@ def test_no_bound_of_a_claim_is_a_result_of_the_project():
 
 
 def test_the_summary_lists_every_failing_claim_with_its_figure(short_job):
-    from wmr_cosim.claims import check_claims
+    from wmr_cosim.paper.claims import check_claims
 
     m, md = short_job["metrics"], short_job["md"]
     summary = _section(md, "Summary")
@@ -380,7 +382,7 @@ def test_the_report_names_the_paper_the_tool_the_commit_and_the_date(short_job):
 def test_the_git_commit_is_unknown_outside_a_checkout(tmp_path, monkeypatch):
     import subprocess
 
-    from wmr_cosim.paper_report import git_commit
+    from wmr_cosim.paper.report import git_commit
 
     assert git_commit(tmp_path) == "unknown"                      # no project here
     (tmp_path / "pyproject.toml").write_text("")
@@ -413,7 +415,7 @@ def test_the_gamma_miss_is_under_what_is_not_reproduced_with_its_measured_cause(
 
 
 def test_the_gamma_miss_cites_the_edge_bump_of_the_robustness_study():
-    from wmr_cosim.paper_report import gamma_miss
+    from wmr_cosim.paper.report import gamma_miss
 
     m = {"claims": [{"id": "G2.gamma_paper", "holds": False, "bound": 6.0, "text": "gamma* of G2 = 15.40 > 6.00: no"}],
          "gamma_star": {"G2": 15.4}, "gamma_true": {"G2": 15.3}, "tasks": {"G2": {"foam": {"foam_da": [0.4, 0.4]}}}}
@@ -428,8 +430,8 @@ def test_the_gamma_miss_cites_the_edge_bump_of_the_robustness_study():
 def test_the_player_and_the_estimate_have_distinct_labels(short_job, monkeypatch):
     """dF_hat labels the maximising player (46) only (the controller's output); the estimate (52) is dF_est,
     in the figures (titles, axes, legends, captions) and in the report."""
-    from wmr_cosim import figures
-    from wmr_cosim.analysis import load_signals, table1_disturbance_analysis
+    from wmr_cosim.paper import figures
+    from wmr_cosim.paper.analysis import load_signals, table1_disturbance_analysis
 
     texts: dict[str, list[str]] = {}
     save = figures._save
@@ -466,7 +468,8 @@ def test_run_of_a_single_scenario_is_judged_as_a_protocol_run_is(built_fmus, tmp
     """`wmr-cosim run` of one scenario of the paper's controller judges it by analysis.divergence too (here
     with the bound lowered to 0 rad, so that a 0.5 s G1 run counts as diverged): exit 1, one line, and
     summary.json says so."""
-    from wmr_cosim import analysis, cli, runner
+    from wmr_cosim.paper import analysis
+    from wmr_cosim import cli, runner
 
     monkeypatch.setattr(runner, "resolve_model", lambda name: built_fmus.get(name))
     monkeypatch.setattr(analysis, "DIVERGED_E_RAD", 0.0)
@@ -484,7 +487,8 @@ def test_a_task_job_extracts_with_the_archive_limits_it_is_given(built_fmus, tmp
     limit below the FMUs' refuses them, in one line that still reads as the refusal once pickled."""
     import pickle
 
-    from wmr_cosim import paper_job, runner
+    from wmr_cosim.paper import job as paper_job
+    from wmr_cosim import runner
     from wmr_cosim.cosim.model.archive import LimitOverrides
     from wmr_cosim.cosim.messages.errors import CosimError
 

@@ -1,4 +1,4 @@
-"""``wmr-cosim plot RESULTS [VARIABLE ...]`` (wmr_cosim/plot.py): a PNG of the recorded signals of a
+"""``wmr-cosim plot RESULTS [VARIABLE ...]`` (wmr_cosim/runs/plot.py): a PNG of the recorded signals of a
 results folder against time, one subplot per unit with the unit in its y label, the run's events as
 vertical lines named by their kind and source where summary.json gives them; the default variables; bad
 input (no folder, no signals.npy, a variable not recorded, an output it cannot write) in one line, exit 2;
@@ -12,7 +12,8 @@ import struct
 import numpy as np
 import pytest
 
-from wmr_cosim import Simulation, cli, plot, runner
+from wmr_cosim import Simulation, cli, runner
+from wmr_cosim.runs import plot
 
 EVENT_T = 0.1   # [s]
 
@@ -237,5 +238,5 @@ def test_a_recording_cut_short_is_drawn_up_to_its_last_whole_row(folder, monkeyp
     line = figures[0].axes[0].get_lines()[0]
     assert np.array_equal(line.get_xdata(), full["time"][:keep])
     assert np.array_equal(line.get_ydata(), full["plant.x_A"][:keep])
-    from wmr_cosim.analysis import load_signals
+    from wmr_cosim.paper.analysis import load_signals
     assert np.array_equal(load_signals(folder)["plant.x_A"], full["plant.x_A"][:keep])

@@ -284,7 +284,7 @@ def test_plot_shades_what_decides_the_verdict(tmp_path: Path) -> None:
     from matplotlib.colors import to_rgba
 
     from reference_fmus import REF
-    from wmr_cosim.plot import plot_results
+    from wmr_cosim.runs.plot import plot_results
 
     sc = tmp_path / "s.toml"
     sc.write_text(f'[experiment]\nstop = 2.0\nstep = 0.1\n[instances.d]\nfmu = "{REF / "fmi2" / "Dahlquist.fmu"}"\n'

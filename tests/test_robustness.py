@@ -7,8 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from wmr_cosim import robustness as rb
-from wmr_cosim import robot_measures
+from wmr_cosim.paper import robustness as rb
 from wmr_cosim.components import paper
 
 DATA = Path(__file__).parent / "data"
@@ -72,8 +71,10 @@ def test_default_changes_only_for_a_reading_better_on_all_three():
 def test_reduced_study_runs_on_dask(built_fmus, tmp_path):
     """G1 cut to 12 s: nominal, 10 % mismatch, 30 deg heading, encoder noise, and one fixed freeze time;
     the points reach the FMUs (each perturbation changes the RMSE), and a second call resumes."""
+    from wmr_cosim import runner
+
     mp = pytest.MonkeyPatch()
-    mp.setattr(robot_measures, "fmu_paths", lambda: {k: str(v) for k, v in built_fmus.items()})
+    mp.setattr(runner, "resolve_model", lambda name: built_fmus.get(name))
     try:
         manifest = tmp_path / "tasks.toml"
         manifest.write_text(f'[tasks]\nG1 = "{DATA / "short_protocol.toml"}"\n')
@@ -112,7 +113,6 @@ def test_the_paper_command_runs_the_robustness_study(built_fmus, tmp_path, monke
     from wmr_cosim import cli, runner
 
     monkeypatch.setattr(runner, "resolve_model", lambda name: built_fmus.get(name))   # the job's workers fork
-    monkeypatch.setattr(robot_measures, "fmu_paths", lambda: {k: str(v) for k, v in built_fmus.items()})
     monkeypatch.setattr(rb, "StudyGrid", functools.partial(
         rb.StudyGrid, mismatch=(0.0, 0.1), heading_deg=(0.0,), noise_counts=(0.0, 1.0), bump_Nm=(0.0, 3.4),
         p0=(paper.table1()["P0"],), freeze_times=(), freeze_mismatch=0.1))

@@ -28,6 +28,7 @@ from wmr_cosim.cosim.model.archive import ArchiveLimits, check_archive, safe_ext
 from wmr_cosim.cosim.messages.errors import CosimError, FmuLoadError, ScenarioError
 from wmr_cosim.cosim.model.description import load_model
 from wmr_cosim.cosim.plan.ssp import export_ssp, load_ssp
+from wmr_cosim.paper import robot_system
 
 DATA = Path(__file__).parent / "data"
 BOMB = 24 * 1024**2          # bytes of zeros in a bomb: deflates about 1000:1, to some 24 KiB
@@ -194,9 +195,9 @@ def test_limits_from_the_scenario_and_the_command_line(built_fmus, tmp_path):
 
 
 @pytest.mark.parametrize("command, target", [
-    (("paper", "--quiet"), "wmr_cosim.paper_job.run_paper"),
-    (("sweep", "s.toml", "--quiet"), "wmr_cosim.sweep.run_sweep"),
-    (("gamma-search", "g.toml", "--quiet"), "wmr_cosim.gamma_search.gamma_search")])
+    (("paper", "--quiet"), "wmr_cosim.paper.job.run_paper"),
+    (("sweep", "s.toml", "--quiet"), "wmr_cosim.studies.sweep.run_sweep"),
+    (("gamma-search", "g.toml", "--quiet"), "wmr_cosim.paper.gamma.gamma_search")])
 def test_the_commands_of_worker_processes_take_the_command_lines_limits_along(monkeypatch, tmp_path, command, target):
     """paper, sweep and gamma-search are given --max-archive-size and --max-archive-ratio as an argument
     (their workers get them with each job: tests/test_paper.py and tests/test_sweep.py run them), never
@@ -371,10 +372,10 @@ def _listening(pids: list[int]) -> set[tuple[int, str, int]]:
 @pytest.fixture(scope="module")
 def sweep_fmus(built_fmus):
     """The points of an in-process sweep run on the session's FMUs."""
-    from wmr_cosim import robot_measures
+    from wmr_cosim import runner
 
     mp = pytest.MonkeyPatch()
-    mp.setattr(robot_measures, "fmu_paths", lambda: {k: str(v) for k, v in built_fmus.items()})
+    mp.setattr(runner, "resolve_model", lambda name: built_fmus.get(name))
     yield
     mp.undo()
 
@@ -390,10 +391,10 @@ def _sweep_file(tmp: Path) -> Path:
 
 @pytest.mark.parametrize("dashboard", [False, True])
 def test_a_local_cluster_listens_on_the_loopback_address_only(tmp_path, dashboard, sweep_fmus, capsys):
-    from wmr_cosim import cluster, sweep
+    from wmr_cosim.studies import cluster, sweep
 
     with cluster.Cluster(workers=1, dashboard=dashboard) as cl:
-        df = sweep.run_sweep(_sweep_file(tmp_path), tmp_path / "out", cluster=cl, progress=False)
+        df = sweep.run_sweep(_sweep_file(tmp_path), tmp_path / "out", cluster=cl, progress=False, system=robot_system())
         socks = _listening([os.getpid()])
         http_port = cl.cluster.scheduler.http_server.port
         assert (os.getpid(), "127.0.0.1", http_port) in socks          # the scheduler's HTTP endpoint
@@ -469,7 +470,7 @@ def _certificates(d: Path) -> dict[str, Path]:
 
 
 def test_a_clear_text_scheduler_beyond_this_machine_is_warned_about():
-    from wmr_cosim.cluster import cleartext_warning
+    from wmr_cosim.studies.cluster import cleartext_warning
 
     assert "neither encrypted nor authenticated" in cleartext_warning("tcp://10.0.0.5:8786")
     assert "use tls://" in cleartext_warning("tcp://[2001:db8::1]:8786")
@@ -480,7 +481,7 @@ def test_a_clear_text_scheduler_beyond_this_machine_is_warned_about():
 def test_a_sweep_on_a_tls_scheduler(tmp_path):
     from distributed import Client
 
-    from wmr_cosim.cluster import dask_security
+    from wmr_cosim.studies.cluster import dask_security
 
     certs = _certificates(tmp_path)
     tls = ["--tls-ca-file", str(certs["ca"]), "--tls-cert", str(certs["cert"]), "--tls-key", str(certs["key"])]

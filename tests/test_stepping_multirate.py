@@ -83,7 +83,7 @@ def test_multi_rate_jacobi_equals_libcosim_with_its_decimation_factor(mass_fmus,
     fixed-step algorithm gives it decimation factor 4: the body's outputs at every step and the coupler's
     at its own steps agree to 1e-12."""
     pytest.importorskip("libcosimpy")
-    from wmr_cosim import interop
+    import interop
 
     doc = two_mass_document(mass_fmus, TwoMass(), stop=1.0, step=0.001)
     doc["experiment"]["algorithm"] = "jacobi"

@@ -16,8 +16,10 @@ import pandas as pd
 import pytest
 
 from dask_support import free_port, stop
-from wmr_cosim import cluster, robot_measures, shipment, sweep, sweep_file, sweep_metrics
+from wmr_cosim.studies import cluster, shipment, sweep, sweep_file, metrics as sweep_metrics
+from wmr_cosim.paper import robot_measures
 from wmr_cosim.cosim.messages.errors import CosimError, ScenarioError
+from wmr_cosim.paper import robot_system
 
 DATA = Path(__file__).parent / "data"
 
@@ -50,7 +52,7 @@ def cluster2():
 
 def _study(tmp: Path, base: str, **kw) -> sweep.Study:
     """A study of ``base`` whose files lie in the cache ``tmp/cache`` (as a worker's, for run_point here)."""
-    ship, blobs = shipment.pack([base], robot_measures.fmu_paths())
+    ship, blobs = shipment.pack([base], robot_system().models)
     shipment.store(tmp / "cache", blobs, ship.names())
     return sweep.Study(ship, base, **kw)
 
@@ -114,7 +116,7 @@ def test_a_base_whose_name_the_system_cannot_look_up_is_one_line(tmp_path, capsy
 def test_a_point_that_changes_q_and_r_gets_gamma_star_with_its_own_weights(tmp_path):
     """(53) weighs s and u with the run's own Q and R: a point setting controller.Q = 3 and R = 0.2 gets
     gamma* computed from its signals with those weights, not with Table 1's."""
-    from wmr_cosim.analysis import disturbance_analysis, load_signals, table1_disturbance_analysis
+    from wmr_cosim.paper.analysis import disturbance_analysis, load_signals, table1_disturbance_analysis
 
     point = {"id": 0, "params": {"controller.Q": 3.0, "controller.R": 0.2}}
     study = _study(tmp_path, str(DATA / "short_protocol.toml"), keep_runs=True, measure=robot_measures.measure)
@@ -131,8 +133,8 @@ def test_a_point_that_changes_q_and_r_gets_gamma_star_with_its_own_weights(tmp_p
 def test_same_results_with_one_or_two_workers_and_after_a_restart(tmp_path, cluster2):
     f = _sweep_file(tmp_path, SMALL)
     with cluster.Cluster(workers=1) as one:
-        df1 = sweep.run_sweep(f, tmp_path / "one", cluster=one, progress=False)
-    df2 = sweep.run_sweep(f, tmp_path / "two", cluster=cluster2, progress=False)
+        df1 = sweep.run_sweep(f, tmp_path / "one", cluster=one, progress=False, system=robot_system())
+    df2 = sweep.run_sweep(f, tmp_path / "two", cluster=cluster2, progress=False, system=robot_system())
     assert (df1["status"] == "ok").all()
     pd.testing.assert_frame_equal(_table(df1), _table(df2))
     assert df1["learn.rmse_e1"].nunique() == 4      # the points differ
@@ -145,7 +147,7 @@ def test_same_results_with_one_or_two_workers_and_after_a_restart(tmp_path, clus
     stamps = {p.name: p.stat().st_mtime_ns for p in pts.iterdir()}
     (pts / "00001.json").unlink()
     (pts / "00003.json").unlink()
-    df3 = sweep.run_sweep(f, tmp_path / "two", cluster=cluster2, progress=False)
+    df3 = sweep.run_sweep(f, tmp_path / "two", cluster=cluster2, progress=False, system=robot_system())
     pd.testing.assert_frame_equal(_table(df3), _table(df2))
     for name in ("00000.json", "00002.json"):
         assert (pts / name).stat().st_mtime_ns == stamps[name]
@@ -156,23 +158,23 @@ def test_same_results_with_one_or_two_workers_and_after_a_restart(tmp_path, clus
     # another sweep into the same folder is refused
     g = _sweep_file(tmp_path, SMALL.replace("seed = 5", "seed = 9"), "other.toml")
     with pytest.raises(CosimError, match="another sweep"):
-        sweep.run_sweep(g, tmp_path / "two", cluster=cluster2, progress=False)
+        sweep.run_sweep(g, tmp_path / "two", cluster=cluster2, progress=False, system=robot_system())
 
 
 @pytest.mark.slow
 def test_a_failing_point_is_recorded_and_the_sweep_goes_on(tmp_path, cluster2):
     f = _sweep_file(tmp_path, 'runs = ["learn"]\n[grid]\n"sensor.phase2" = [0.5, 1.5]\n')
-    df = sweep.run_sweep(f, tmp_path / "out", cluster=cluster2, progress=False)
+    df = sweep.run_sweep(f, tmp_path / "out", cluster=cluster2, progress=False, system=robot_system())
     assert list(df["status"]) == ["ok", "failed"]
     assert "phase2" in df["reason"][1] and "maximum" in df["reason"][1]
     f = _sweep_file(tmp_path, 'runs = ["learn"]\n[grid]\n"controller.gamma" = [11.0, 0.25]\n', "div.toml")
-    df = sweep.run_sweep(f, tmp_path / "div", cluster=cluster2, progress=False)
+    df = sweep.run_sweep(f, tmp_path / "div", cluster=cluster2, progress=False, system=robot_system())
     assert df["status"][0] == "ok" and df["status"][1] in ("diverged", "failed") and df["reason"][1]
 
 
 @pytest.mark.slow
 def test_gamma_search_finds_the_crossing(tmp_path):
-    from wmr_cosim.gamma_search import gamma_search
+    from wmr_cosim.paper.gamma import gamma_search
 
     r = gamma_search(DATA / "short_protocol.toml", tmp_path / "gs", grid=[4.0, 40.0], workers=2, progress=False)
     curve = r["curve"]
@@ -210,7 +212,7 @@ def test_sweep_on_an_existing_scheduler_with_two_workers(tmp_path):
             assert len(c.scheduler_info()["workers"]) == 2
         f = _sweep_file(tmp_path, SMALL)
         with cluster.Cluster(address=addr) as cl:
-            df = sweep.run_sweep(f, tmp_path / "out", cluster=cl, progress=False)
+            df = sweep.run_sweep(f, tmp_path / "out", cluster=cl, progress=False, system=robot_system())
             workers_used = {w for w in cl.client.run(lambda: os.getpid()).values()}
         assert (df["status"] == "ok").all() and len(df) == 4
         assert len(workers_used) == 2
@@ -254,7 +256,7 @@ def test_the_command_lines_archive_limits_reach_the_sweeps_workers(tmp_path, cap
     with cluster.Cluster(workers=1) as cl:
         rows = sweep.run_points([{"id": 0, "params": {"plant.foam_da1": 0.4}}], str(DATA / "short_protocol.toml"),
                                 None, ["learn"], out, cl, progress=False, archive_limits=limit_overrides("1KiB", None),
-                                fmus=robot_measures.fmu_paths(), measure=None)
+                                system=robot_system(), measure=None)
     assert [r["status"] for r in rows] == ["failed"]
     assert "refused: its entries unpack to" in rows[0]["reason"] and "more than the limit of 1 KiB" in rows[0]["reason"]
 
@@ -370,7 +372,7 @@ def test_a_sweep_of_a_reference_fmu_measures_what_its_file_names(tmp_path, clust
     ks = [0.25 * (i + 1) for i in range(20)]
     f = tmp_path / "dq-sweep.toml"
     f.write_text(f'base = "{base.name}"\nkeep_runs = true\n' + DAHLQUIST_METRICS.format(ks=", ".join(map(str, ks))))
-    df = sweep.run_sweep(f, tmp_path / "out", cluster=cluster2, progress=False)
+    df = sweep.run_sweep(f, tmp_path / "out", cluster=cluster2, progress=False, system=robot_system())
     assert list(df["status"]) == ["ok"] * 20 and list(df["dq.k"]) == ks
     assert "foam.rmse_e1" not in df.columns and "gamma_star" not in df.columns
     for i, row in df.iterrows():
@@ -426,7 +428,7 @@ def test_a_sweeps_table_has_each_requirements_robustness_and_verdict(tmp_path, c
     ks = [0.5, 1.0, 1.5, 2.0]
     sw = tmp_path / "req-sweep.toml"
     sw.write_text(f'base = "{base.name}"\nkeep_runs = true\nsets = []\n[grid]\n"dq.k" = [{", ".join(map(str, ks))}]\n')
-    df = sweep.run_sweep(sw, tmp_path / "out", cluster=cluster2, progress=False)
+    df = sweep.run_sweep(sw, tmp_path / "out", cluster=cluster2, progress=False, system=robot_system())
     assert list(df["status"]) == ["ok"] * 4
     for i, row in df.iterrows():
         x = np.load(tmp_path / "out" / "runs" / f"{i:05d}" / "run" / "signals.npy")["dq.x"]
@@ -555,7 +557,7 @@ def test_a_copied_sweep_file_finds_its_base_among_the_shipped_scenarios(tmp_path
     (tmp_path / "mine.toml").write_text('base = "paper/g1.toml"\n[experiment]\nstop = 5.0\n')
     copy.write_text('base = "mine.toml"\nruns = ["learn"]\n[grid]\n"plant.a5" = [1.0]\n')
     spec = sweep_file.load_sweep(copy)
-    assert sweep._measure(spec, robot_measures.fmu_paths(), None)[0].runs == ("learn",)
+    assert sweep._measure(spec, robot_system(), None)[0].runs == ("learn",)
     copy.write_text('base = "paper/nope.toml"\n[grid]\n"plant.a5" = [1.0]\n')
     _refused(capsys, tmp_path, [copy], "my-sweep.toml: base: 'paper/nope.toml': the base scenario is not found",
              "nor a shipped scenario")

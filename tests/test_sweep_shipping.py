@@ -29,7 +29,8 @@ import pandas as pd
 import pytest
 
 from dask_support import free_port, stop
-from wmr_cosim import cluster, shipment, sweep
+from wmr_cosim.paper import robot_system
+from wmr_cosim.studies import System, cluster, shipment, sweep
 from wmr_cosim.cosim.messages.errors import CosimError
 from wmr_cosim.scenario_files import folder as scenarios_folder
 
@@ -81,7 +82,7 @@ def _dahlquist_system(folder: Path, stop: float = 1.0, step: float = 0.01, ks: l
 def test_the_shipment_holds_the_merged_documents_and_the_files_by_content(tmp_path):
     f = _dahlquist_system(tmp_path / "d")
     base = str(tmp_path / "d" / "system.toml")
-    ship, blobs = shipment.pack([base, base], {"WmrPlant": "/nowhere/WmrPlant.fmu"})
+    ship, blobs = shipment.pack([base, base], {"WmrPlant": Path("/nowhere/WmrPlant.fmu")}.get)
     assert list(ship.documents) == [base]
     doc = ship.documents[base]
     assert doc["experiment"]["stop"] == 1.0 and "base" not in doc          # the base chain merged
@@ -96,7 +97,7 @@ def test_the_shipment_holds_the_merged_documents_and_the_files_by_content(tmp_pa
 def test_the_worker_reads_the_cache_and_the_reasons_name_the_drivers_files(tmp_path):
     _dahlquist_system(tmp_path / "d")
     base = str(tmp_path / "d" / "system.toml")
-    ship, blobs = shipment.pack([base], {})
+    ship, blobs = shipment.pack([base], System().models)
     cache = tmp_path / "cache"
     assert shipment.store(cache, blobs, ship.names()) == (sum(map(len, blobs.values())), 0)
     assert shipment.store(cache, blobs, ship.names()) == (0, sum(map(len, blobs.values())))  # once only
@@ -217,7 +218,7 @@ def test_a_sweep_of_reference_fmus_on_workers_that_cannot_see_its_files_equals_t
     hide = [tmp_path / "driver", Path(next(iter(built_fmus.values()))).parent, scenarios_folder(),
             ROOT / "build" / "reference-fmus"]
     with cluster.Cluster(workers=2) as local:
-        here = sweep.run_sweep(f, tmp_path / "driver" / "local", cluster=local, progress=False)
+        here = sweep.run_sweep(f, tmp_path / "driver" / "local", cluster=local, progress=False, system=robot_system())
     assert list(here["status"]) == ["ok"] * 20, here["reason"].tolist()
     assert list(here["drive"]) == [3] * 20                       # the input table was read
     with hidden_cluster(tmp_path, hide) as addr, cluster.Cluster(address=addr) as cl:
@@ -226,7 +227,7 @@ def test_a_sweep_of_reference_fmus_on_workers_that_cannot_see_its_files_equals_t
         assert all(os.path.exists(p) for p in probe)
         seen = [cl.client.run(os.path.exists, p) for p in probe]     # (a function every worker has)
         assert all(len(s) == 2 and not any(s.values()) for s in seen), seen
-        there = sweep.run_sweep(f, tmp_path / "driver" / "remote", cluster=cl, progress=False)
+        there = sweep.run_sweep(f, tmp_path / "driver" / "remote", cluster=cl, progress=False, system=robot_system())
     pd.testing.assert_frame_equal(_table(there), _table(here), check_exact=True)
     cost = json.loads((tmp_path / "driver" / "remote" / "sweep.json").read_text())["shipping"]
     sizes = sum((tmp_path / "driver" / n).stat().st_size for n in ("Dahlquist.fmu", "Feedthrough.fmu", "drive.csv"))
@@ -251,11 +252,11 @@ def test_the_foam_sweep_on_workers_that_cannot_see_its_files_equals_the_local_on
                  '[random]\n"plant.foam_t_on" = { dist = "uniform", low = 7.0, high = 9.0 }\n')
     hide = [d, Path(next(iter(built_fmus.values()))).parent, scenarios_folder()]
     with cluster.Cluster(workers=2) as local:
-        here = sweep.run_sweep(f, d / "local", cluster=local, progress=False)
+        here = sweep.run_sweep(f, d / "local", cluster=local, progress=False, system=robot_system())
     assert list(here["status"]) == ["ok", "ok"], here["reason"].tolist()
     assert here["gamma_star"].notna().all()
     with hidden_cluster(tmp_path, hide) as addr, cluster.Cluster(address=addr) as cl:
-        there = sweep.run_sweep(f, d / "remote", cluster=cl, progress=False)
+        there = sweep.run_sweep(f, d / "remote", cluster=cl, progress=False, system=robot_system())
     pd.testing.assert_frame_equal(_table(there), _table(here), check_exact=True)
 
 
@@ -280,12 +281,12 @@ def test_a_worker_killed_mid_sweep_costs_only_its_points(tmp_path):
     completes every point, and the table equals an undisturbed run's."""
     f = _dahlquist_system(tmp_path / "d", stop=40.0, step=1e-4, ks=[0.1, 0.2, 0.3, 0.4, 0.5, 0.6])  # 400,000 steps each
     with cluster.Cluster(workers=2) as cl:
-        calm = sweep.run_sweep(f, tmp_path / "calm", cluster=cl, progress=False)
+        calm = sweep.run_sweep(f, tmp_path / "calm", cluster=cl, progress=False, system=robot_system())
     killed: list[int] = []
     with cluster.Cluster(workers=2) as cl:
         t = threading.Thread(target=_kill_a_busy_worker, args=(cl, tmp_path / "hit" / "points", killed))
         t.start()
-        hit = sweep.run_sweep(f, tmp_path / "hit", cluster=cl, progress=False)
+        hit = sweep.run_sweep(f, tmp_path / "hit", cluster=cl, progress=False, system=robot_system())
         t.join()
     assert killed, "no worker was busy to kill"
     assert list(hit["status"]) == ["ok"] * 6, hit["reason"].tolist()
@@ -310,7 +311,7 @@ def test_a_point_that_kills_its_worker_each_time_is_a_failed_row(tmp_path):
     points = [{"id": i, "params": {"dq.k": k}} for i, k in enumerate((0.5, 1.0, 2.0))]
     tries = tmp_path / "tries"
     with cluster.Cluster(workers=2) as cl:
-        rows = sweep.run_points(points, base, None, None, tmp_path / "out", cl, progress=False, fmus={},
+        rows = sweep.run_points(points, base, None, None, tmp_path / "out", cl, progress=False, system=System(),
                                 measure=functools.partial(_die, str(tries)))
     assert [r["status"] for r in rows] == ["ok", "failed", "ok"]
     assert rows[1]["reason"] == "its worker died while running it, again when it was run on another"

@@ -107,7 +107,8 @@ class Simulation:
         """A scenario file (``.toml``, following its ``base`` chain; a name that is not a file is looked up
         among the shipped scenarios, as on the command line) or one FMU run alone (``.fmu``).
         ``parameters`` ({"instance.param": value}) are applied as ``--set`` applies them."""
-        from .runner import fmu_document, is_fmu, shipped_folder
+        from .runner import fmu_document, is_fmu
+        from .scenario_files import shipped_folder
         from .scenario_files import scenario_path
 
         p = scenario_path(str(path))

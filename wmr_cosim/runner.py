@@ -1,9 +1,8 @@
 """Glue between the generic master (wmr_cosim.cosim) and this project's FMUs: model names such as
-``WmrPlant`` resolve to FMUs built on demand; the ``run``, ``check`` and ``info`` commands."""
+``WmrPlant`` resolve to FMUs built on demand; the ``run`` and ``check`` commands."""
 from __future__ import annotations
 
 import contextlib
-import json
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -11,8 +10,9 @@ from typing import Any
 
 from .cosim import (apply_overrides, CosimError, export_remarks, export_ssp as write_ssp, file_kind, FileKind, is_ssp,
                     LimitOverrides, load as load_scenario, load_model, load_ssp, parse as parse_scenario,
-                    parse_set, Plan, Protocol, resolve, run as run_plan, RunResult, RunStatus, ScenarioError)
+                    parse_set, Plan, Protocol, resolve, run as run_plan, RunResult, ScenarioError)
 from .fmus.build import FMI_VERSION
+from .scenario_files import shipped_folder
 
 
 def resolve_model(name: str) -> Path | None:
@@ -93,40 +93,18 @@ def carry_fmi3(carry: dict[str, str], finals: dict[str, dict[str, float]]) -> di
     return out
 
 
-def judge_run(res: RunResult) -> RunResult:
-    """A finished run of the paper's controller judged by :func:`wmr_cosim.analysis.divergence`: a run that
-    ended 'ok' but diverged gets the status 'diverged' (exit code 1) and the reason as its message.  A run
-    that did not record the controller's tracking errors is left as it is."""
-    from .analysis import TRACKING_ERRORS, divergence, load_signals
-
-    if res.status != RunStatus.OK or res.out_dir is None:
-        return res
-    sig = load_signals(res.out_dir)
-    if sig is None or not all(name in sig for name in TRACKING_ERRORS):
-        return res
-    reason = divergence(sig)
-    if reason is not None:
-        res.status, res.message = RunStatus.DIVERGED, reason
-        summary = res.out_dir / "summary.json"     # the file on disk says what the command says
-        if summary.is_file():
-            from .cosim import write_json
-            doc = json.loads(summary.read_text(encoding="utf-8"))
-            doc["status"], doc["message"] = res.status, res.message
-            write_json(summary, doc)
-    return res
-
-
 def run_protocol(path: str | Path | Protocol, out_dir: str | Path,
                  resolver: Callable[[str], Path | None] | None = None,
-                 on_run: Callable[[str, RunResult], None] | None = None, **options: Any
-                 ) -> dict[str, RunResult]:
+                 on_run: Callable[[str, RunResult], None] | None = None,
+                 judge: Callable[[RunResult], RunResult] | None = None, **options: Any) -> dict[str, RunResult]:
     """:func:`wmr_cosim.cosim.runtime.protocol.run_protocol` (same ``options``; the resolver defaults to
-    :func:`resolve_model`; ``path`` may be a file already read) with every run judged by :func:`judge_run`
-    as it finishes, before ``on_run``."""
+    :func:`resolve_model`; ``path`` may be a file already read) with every run judged by ``judge`` (the
+    paper's controller: :func:`wmr_cosim.paper.judge_run`) as it finishes, before ``on_run``."""
     from .cosim import run_protocol as run_all
 
     def judged(name: str, res: RunResult) -> None:
-        judge_run(res)
+        if judge is not None:
+            judge(res)
         if on_run is not None:
             on_run(name, res)
 
@@ -180,17 +158,6 @@ def fmu_plan(fmu: str | Path, overrides: dict[str, Any] | None = None, inputs: s
         raise ScenarioError(str(fmu), "", str(exc).replace(f"{Path(fmu).resolve()}: ", "", 1)) from None
     doc = apply_overrides(doc, overrides, str(fmu))
     return resolve(parse_scenario(doc, str(fmu), limits=limits), force, isolate_all=isolate)
-
-
-def shipped_folder() -> Path | None:
-    """The folder of this project's shipped scenario files, which a ``base`` may name (None when they are
-    not files on disk)."""
-    from .scenario_files import folder
-
-    try:
-        return folder()
-    except (RuntimeError, ModuleNotFoundError):
-        return None
 
 
 def read_scenario(path: str | Path, limits: LimitOverrides | None = None) -> Protocol:
@@ -255,12 +222,14 @@ def run_scenario(path: str | Path, out: str | Path | None = None, overrides: dic
                  step: float | None = None, force: bool = False, isolate: bool = False,
                  real_time: float | None = None, limits: LimitOverrides | None = None,
                  parsed: Protocol | None = None, fields: dict[str, Any] | None = None,
-                 on_plan: Callable[[Plan], None] | None = None) -> RunResult:
+                 on_plan: Callable[[Plan], None] | None = None,
+                 judge: Callable[[RunResult], RunResult] | None = None) -> RunResult:
     """Run a scenario file (.toml), an SSP archive (.ssp) or one FMU alone (.fmu); ``isolate`` hosts every
     instance in a child process of its own; ``real_time=FACTOR`` paces the steps to the wall clock;
     ``limits``: the caller's archive limits; ``parsed``: a scenario file already read (see :func:`load_plan`);
     ``fields``: one FMU alone: more keys of its instance (``solver``, ``max_step``: see :func:`fmu_plan`);
-    ``on_plan``: called with the checked plan before the run starts (the command line prints its notes)."""
+    ``on_plan``: called with the checked plan before the run starts (the command line prints its notes);
+    ``judge``: what a finished run of a scenario file becomes (see :func:`run_protocol`)."""
     out = out if out is not None else default_out(path)
     seen = on_plan or (lambda plan: None)
 
@@ -273,16 +242,9 @@ def run_scenario(path: str | Path, out: str | Path | None = None, overrides: dic
     if is_ssp(path):
         with ssp_plan(path, overrides, force, isolate, limits) as plan:
             return run(plan)
-    return judge_run(run(load_plan(path, overrides, force, isolate, limits, parsed)))
-
-
-def describe_fmu(path: str | Path, limits: LimitOverrides | None = None) -> str:
-    """A readable summary of any FMU whose model description can be read (``wmr-cosim info``; see
-    :mod:`wmr_cosim.fmu_info`), with what would stop a run here; ``limits``: the caller's archive limits."""
-    from .fmu_info import describe
-
-    return describe(path, (limits or LimitOverrides()).over())
+    res = run(load_plan(path, overrides, force, isolate, limits, parsed))
+    return judge(res) if judge is not None else res
 
 
 __all__ = ["CosimError", "ScenarioError", "resolve_model", "parse_set", "load_plan", "ssp_plan", "export_ssp",
-           "run_scenario", "describe_fmu"]
+           "run_scenario"]

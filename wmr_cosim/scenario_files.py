@@ -19,6 +19,15 @@ def folder() -> Path:
     return f
 
 
+def shipped_folder() -> Path | None:
+    """The folder of the shipped scenario files, which a ``base`` may name; None when they are not files
+    on disk."""
+    try:
+        return folder()
+    except (RuntimeError, ModuleNotFoundError):
+        return None
+
+
 def scenario_path(text: str) -> Path:
     """A scenario argument of the command line: the file itself when it exists; otherwise, when the name
     (relative, without ``..``) is a shipped scenario file, such as ``example.toml``, ``paper/g1.toml``

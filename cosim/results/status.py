@@ -15,7 +15,7 @@ class RunStatus(StrEnum):
     - ``FAILED``: an FMU returned a non-OK status, a value became non-finite, or the master raised;
     - ``INTERRUPTED``: the user pressed Ctrl-C;
     - ``DIVERGED``: the run ended ok but an application's check of its results rejected it (the paper's
-      controller: its tracking error far above the paper's, as ``wmr_cosim.analysis.divergence`` judges).
+      controller: its tracking error far above the paper's, as ``wmr_cosim.paper.analysis.divergence`` judges).
     """
 
     OK = "ok"

@@ -31,13 +31,13 @@ def add_parser(sub: Any, name: str) -> None:
 
 def cmd_falsify(args: argparse.Namespace) -> int:
     """A global search of a parameter space for the lowest robustness of a requirement."""
-    from ..cluster import cluster_options
-    from ..falsify import falsify
+    from ..paper import robot_system
+    from ..studies import cluster_options, falsify
 
     out = args.out if args.out is not None else Path("results") / args.spec.stem
     say = None if args.quiet else (lambda line: print(line, file=sys.stderr))
     r = falsify(args.spec, out, progress=not args.quiet, archive_limits=args.limits, say=say, seed=args.seed,
-                budget=args.budget, **cluster_options(args))
+                budget=args.budget, system=robot_system(), **cluster_options(args))
     w, n = r["worst"], r["nominal"]
     print(f"nominal run: robustness {n['robustness']:.6g} ({n['verdict']})")
     print(f"worst case of {r['optimiser']['runs']} runs: robustness {w['robustness']:.6g} ({w['verdict']}) at "

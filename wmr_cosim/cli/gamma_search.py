@@ -28,8 +28,8 @@ def add_parser(sub: Any, name: str) -> None:
 
 def cmd_gamma_search(args: argparse.Namespace) -> int:
     """gamma* against gamma on a grid, then bisection: the smallest gamma for which the condition holds."""
-    from ..cluster import cluster_options
-    from ..gamma_search import gamma_search
+    from ..paper import gamma_search
+    from ..studies import cluster_options
 
     out = args.out if args.out is not None else Path("results") / f"gamma-search-{args.scenario.stem}"
     r = gamma_search(args.scenario, out, grid=args.grid, variant=args.variant,

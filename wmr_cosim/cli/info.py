@@ -23,8 +23,9 @@ def add_parser(sub: Any, name: str) -> None:
 def cmd_info(args: argparse.Namespace) -> int:
     """Describe an FMU (any it can read): model, kinds, platforms, default experiment, what would stop a
     run here, variables with variability, units and ranges."""
-    from ..runner import describe_fmu
+    from ..cosim import LimitOverrides
+    from ..runs import describe
 
-    print(describe_fmu(args.fmu, args.limits))
+    print(describe(args.fmu, (args.limits or LimitOverrides()).over()))
     return EXIT_OK
 

@@ -2,8 +2,12 @@
 from __future__ import annotations
 
 import argparse
+import math
+import os
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
+
+from ..cosim import CosimError, OutputError
 
 from ..exit_codes import OK as EXIT_OK
 from ..scenario_files import scenario_path
@@ -52,8 +56,7 @@ def add_parser(sub: Any, name: str) -> None:
 
 def cmd_linearize(args: argparse.Namespace) -> int:
     """A linear model around a point of a run; with a break, the loop's margins."""
-    from ..linearize import (check_out, linearize, parse_break, parse_count, parse_names, parse_number, parse_states,
-                            report, write)
+    from ..runs import linearize, report, write
     from ..runner import parse_set
 
     out = check_out(args.out if args.out is not None else Path("results") / f"linear-{Path(args.target).stem}")
@@ -70,3 +73,83 @@ def cmd_linearize(args: argparse.Namespace) -> int:
     print(f"results in {out} ({', '.join(f.name for f in files)})")
     return EXIT_OK
 
+
+# ---------------------------------------------------------------------- its options
+def parse_break(text: str) -> tuple[str, str]:
+    """``"FROM->TO"`` -> (FROM, TO); CosimError for another form."""
+    parts = [p.strip() for p in text.split("->")]
+    if len(parts) != 2 or not all(parts):
+        raise CosimError(f"--break {text!r}: give one connection as FROM->TO, e.g. controller.u1->plant.u1")
+    return parts[0], parts[1]
+
+
+def parse_states(items: Sequence[str] | None) -> dict[str, float]:
+    """``--state NAME=VALUE`` items -> {name: value}; CosimError naming a bad one, or one given twice."""
+    out: dict[str, float] = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        try:
+            x = float(value)
+        except ValueError:
+            x = math.nan
+        if not sep or not name.strip() or not math.isfinite(x):
+            raise CosimError(f"--state {item!r}: give INSTANCE.STATE=VALUE with a finite number")
+        if name.strip() in out:
+            raise CosimError(f"--state {item!r}: {name.strip()} is given twice")
+        out[name.strip()] = x
+    return out
+
+
+def parse_names(option: str, items: Sequence[str] | None) -> list[str]:
+    """Repeated or comma-separated ``INST.VAR`` names -> one list; CosimError for an empty name or one
+    given twice."""
+    out: list[str] = []
+    for item in items or []:
+        for name in (n.strip() for n in item.split(",")):
+            if not name:
+                raise CosimError(f"{option} {item!r}: an empty name; give INSTANCE.VARIABLE names, comma-separated")
+            if name in out:
+                raise CosimError(f"{option} {item!r}: {name} is given twice")
+            out.append(name)
+    return out
+
+
+def parse_number(option: str, text: str | None) -> float | None:
+    """An option's number (None where not given); CosimError where it is not a finite one."""
+    if text is None:
+        return None
+    try:
+        x = float(text)
+    except ValueError:
+        x = math.nan
+    if not math.isfinite(x):
+        raise CosimError(f"{option} {text!r}: give a finite number")
+    return x
+
+
+def parse_count(option: str, text: str | None) -> int | None:
+    """An option's whole number (None where not given; ``1e3`` is 1000); CosimError for another value."""
+    x = parse_number(option, text)
+    if x is None:
+        return None
+    if x != int(x):
+        raise CosimError(f"{option} {text!r}: give a whole number")
+    return int(x)
+
+
+def check_out(out: str | Path) -> Path:
+    """The results folder ``out`` as :func:`write` will make it, checked before anything runs: OutputError
+    (one line) where it, or the nearest of its parents that exists, is not a folder or cannot be written.
+    Nothing is made here."""
+    if not str(out).strip():
+        raise OutputError(f"--out {str(out)!r}: give a folder")
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"--out {out}: exists and is not a folder")
+    parent = next((p for p in out.absolute().parents if p.exists()), None)
+    if parent is None or not parent.is_dir():
+        raise OutputError(f"--out {out}: {parent} is not a folder")
+    where = out if out.exists() else parent
+    if not os.access(where, os.W_OK | os.X_OK):
+        raise OutputError(f"--out {out}: cannot write in {where}")
+    return out

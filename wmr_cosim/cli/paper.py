@@ -36,7 +36,7 @@ def add_parser(sub: Any, name: str) -> None:
 
 def cmd_paper(args: argparse.Namespace) -> int:
     """Every experiment of section 5 through the FMU co-simulation, with analysis, figures and a report."""
-    from ..paper_job import exit_code, run_paper, unfinished_runs
+    from ..paper import exit_code, run_paper, unfinished_runs
 
     r = run_paper(args.out, variant=args.variant, compare=not args.no_compare, workers=args.workers,
                   manifest=args.manifest, progress=False if args.quiet else None, robustness=args.robustness,

@@ -33,7 +33,7 @@ def add_parser(sub: Any, name: str) -> None:
 
 def cmd_plot(args: argparse.Namespace) -> int:
     """Draw recorded signals of a results folder against time [s], the events as vertical lines."""
-    from ..plot import PlotError, plot_results
+    from ..runs import PlotError, plot_results
 
     try:
         done = plot_results(args.results, args.variables or None, out=args.out, show=args.show,

@@ -62,6 +62,7 @@ def format_overrides(args: argparse.Namespace) -> dict[str, Any]:
 
 def cmd_run(args: argparse.Namespace) -> int:
     """Run a scenario through the co-simulation master."""
+    from ..paper import judge_run
     from ..runner import default_out, run_scenario
 
     out = args.out if args.out is not None else default_out(args.scenario)
@@ -73,7 +74,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     options.refuse_input_of_a_scenario(args)
     res = run_scenario(args.scenario, out, overrides, progress=False if args.quiet else None, inputs=args.input,
                        force=args.force, isolate=args.isolate, real_time=args.real_time, limits=args.limits,
-                       parsed=parsed, fields=fields,
+                       parsed=parsed, fields=fields, judge=judge_run,
                        on_plan=lambda plan: _print_notes([*plan.scenario.notes, *plan.run_notes]))
     _report_run(args, res, out)
     return for_runs([res.status], res.requirements)
@@ -88,11 +89,12 @@ def _print_notes(notes: list[str]) -> None:
 def _run_protocol(args: argparse.Namespace, parsed: Any, out: Path, overrides: dict[str, Any]) -> int:
     """``run`` of a protocol (a file read once: ``parsed``): every run, in order, into OUT/<run>, each
     judged by analysis.divergence; one line per run."""
+    from ..paper import judge_run
     from ..runner import run_protocol
 
     _print_notes(parsed.with_parameters(overrides).notes)
     results = run_protocol(parsed, out, variant=args.variant, overrides=overrides,
-                           progress=False if args.quiet else None, force=args.force, isolate=args.isolate,
+                           progress=False if args.quiet else None, force=args.force, isolate=args.isolate, judge=judge_run,
                            on_check=lambda plans: _print_notes(list(dict.fromkeys(
                                n for plan in plans.values() for n in plan.run_notes))))
     for name, r in results.items():

@@ -27,12 +27,12 @@ def add_parser(sub: Any, name: str) -> None:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     """A sweep file on Dask: one full co-simulation per point, in worker processes."""
-    from ..cluster import cluster_options
-    from ..sweep import run_sweep
+    from ..paper import robot_system
+    from ..studies import cluster_options, run_sweep
 
     out = args.out if args.out is not None else Path("results") / args.sweep.stem
     df = run_sweep(args.sweep, out, progress=not args.quiet, archive_limits=args.limits,
-                   **cluster_options(args))
+                   system=robot_system(), **cluster_options(args))
     counts = df["status"].value_counts().to_dict()
     print(f"{args.sweep}: {count(len(df), 'point')} ({', '.join(f'{v} {k}' for k, v in sorted(counts.items()))}); "
           f"results in {out} (results.parquet, results.csv, figures/)")

@@ -6,8 +6,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from . import scenario_files
-from .components import paper
+from .. import scenario_files
+from ..components import paper
 
 DEFAULT_MANIFEST = "paper.toml"  # among the shipped scenario files (wmr_cosim.scenarios)
 
@@ -19,7 +19,7 @@ def manifest_path(manifest: str | os.PathLike | None = None) -> Path:
 
 def task_files(manifest: str | os.PathLike | None = None) -> dict[str, Path]:
     """{task: protocol file} of the tasks file ``manifest`` (default: the shipped one, see :func:`manifest_path`)."""
-    from .cosim import ScenarioError, read_toml
+    from ..cosim import ScenarioError, read_toml
 
     path = manifest_path(manifest)
     doc = read_toml(path)

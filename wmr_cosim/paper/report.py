@@ -1,5 +1,5 @@
 """The report of the paper job: every pass/fail statement is a claim computed from metrics.json
-(wmr_cosim/claims.py), every explanation names the run or sweep point that measured it.
+(wmr_cosim/paper/claims.py), every explanation names the run or sweep point that measured it.
 :func:`report_blocks` puts it together, one function per section."""
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from typing import Any
 
 from .analysis import DIVERGED_E_RAD, RUNS
 from .claims import make_claim
-from .components import paper
-from .report import fmt
+from ..components import paper
+from .document import fmt
 
 #: the paper this project reproduces: its title
 PAPER_TITLE = "Experimental verification of H-infinity control with examples of the movement of a wheeled robot"
@@ -91,7 +91,7 @@ def git_commit(folder: Path | None = None) -> str:
     'unknown' when it is not a checkout or git is not there.  Never raises."""
     import subprocess
 
-    root = Path(__file__).resolve().parent.parent if folder is None else Path(folder)
+    root = Path(__file__).resolve().parents[2] if folder is None else Path(folder)
 
     def git(*args: str) -> str | None:
         try:
@@ -115,7 +115,7 @@ def provenance() -> dict[str, str]:
     a checkout) and the date and time (UTC)."""
     from datetime import datetime, timezone
 
-    from . import version
+    from .. import version
 
     return {"paper": PAPER_TITLE, "tool": f"wmr-cosim {version()}", "git_commit": git_commit(),
             "date": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")}

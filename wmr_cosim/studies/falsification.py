@@ -36,10 +36,10 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ..cosim import CosimError, LimitOverrides, ScenarioError
 from .cluster import Cluster
-from .cosim import CosimError, LimitOverrides, ScenarioError
-from . import robot_measures
 from .sweep import run_points
+from .system import System
 
 _KEYS = {"description", "base", "requirement", "run", "variant", "seed", "budget", "space"}
 
@@ -79,8 +79,8 @@ def load_falsification(path: str | os.PathLike, seed: int | None = None, budget:
     file's, checked alike and named by their options), and the base (beside the file or a shipped
     scenario): it parses, declares the requirement, and the run.  The space against the base's FMUs is
     :func:`check_space`'s."""
-    from .cosim import plan_runs
-    from .cosim import read_toml
+    from ..cosim import plan_runs
+    from ..cosim import read_toml
     from .sweep_file import base_file, read_base
 
     p = Path(path)
@@ -154,18 +154,16 @@ def _whole(v: Any) -> str | None:
     return None
 
 
-def check_space(spec: FalsifySpec, archive_limits: LimitOverrides | None = None) -> None:
-    """The space against the base's runs (their FMUs resolved; our model names built only if the base
+def check_space(spec: FalsifySpec, archive_limits: LimitOverrides | None = None, system: System | None = None
+                ) -> None:
+    """The space against the base's runs (their FMUs resolved: the system's model names only if the base
     names them), before any run: each parameter exists, can be set, is Real, and its declared range holds
     the box."""
-    from .cosim import check_protocol
+    from ..cosim import check_protocol
     from .sweep_file import check_parameters, read_base
 
-    def resolve(name: str) -> Path | None:
-        fmus = robot_measures.fmu_paths()
-        return Path(fmus[name]) if name in fmus else None
-
-    plans = check_protocol(read_base(spec.base, resolve, archive_limits), variant=spec.variant)
+    models = (system or System()).models
+    plans = check_protocol(read_base(spec.base, models, archive_limits), variant=spec.variant)
     check_parameters(spec.file, {f"space.{k}": k for k in spec.space}, plans,
                      ranges={f"space.{k}": box for k, box in spec.space.items()})
 
@@ -180,21 +178,23 @@ def falsify(path: str | os.PathLike, out: str | os.PathLike | None = None, worke
             scheduler: str | None = None, progress: bool | None = None, security: Any = None,
             dashboard: bool = False, archive_limits: LimitOverrides | None = None,
             say: Callable[[str], None] | None = None, seed: int | None = None,
-            budget: int | None = None) -> dict[str, Any]:
+            budget: int | None = None, system: System | None = None) -> dict[str, Any]:
     """Search the file's space for the lowest robustness of its requirement; write falsify.json,
     falsify.csv and falsify.png into ``out`` (default results/<file>) and the worst case's re-run into
     ``out/worst``; return falsify.json's content.  ``say``: told a line after each generation; ``seed``
-    and ``budget``: over the file's.  The file, the options and the space against the base's FMUs are
+    and ``budget``: over the file's; ``system``: the system the points run (:class:`System`; none by
+    default, every FMU named by its path).  The file, the options and the space against the base's FMUs are
     checked before the results folder is made."""
     from .cluster import check_worker_count
-    from .cosim import OutputLock, make_folder
+    from ..cosim import OutputLock, make_folder
 
     check_worker_count(workers)
     spec = load_falsification(path, seed, budget)
-    check_space(spec, archive_limits)
+    system = system if system is not None else System()
+    check_space(spec, archive_limits, system)
     out = make_folder(Path(out) if out is not None else Path("results") / Path(path).stem)
     with OutputLock(out):
-        return _search(spec, out, workers, scheduler, progress, security, dashboard, archive_limits, say)
+        return _search(spec, out, workers, scheduler, progress, security, dashboard, archive_limits, say, system)
 
 
 def _params(spec: FalsifySpec, x: np.ndarray) -> dict[str, float]:
@@ -215,7 +215,7 @@ def _robustness(spec: FalsifySpec, row: dict[str, Any]) -> float:
 
 def _search(spec: FalsifySpec, out: Path, workers: int | None, scheduler: str | None, progress: bool | None,
             security: Any, dashboard: bool, archive_limits: LimitOverrides | None,
-            say: Callable[[str], None] | None) -> dict[str, Any]:
+            say: Callable[[str], None] | None, system: System) -> dict[str, Any]:
     meta = out / "falsify.json"
     if meta.is_file():
         old = json.loads(meta.read_text()).get("spec")
@@ -224,7 +224,7 @@ def _search(spec: FalsifySpec, out: Path, workers: int | None, scheduler: str | 
                              "use another --out")
     members, generations = population(spec.budget, len(spec.space))
     rows: list[dict[str, Any]] = []
-    study = {"archive_limits": archive_limits, "fmus": robot_measures.fmu_paths(), "measure": None}
+    study = {"archive_limits": archive_limits, "system": system, "measure": None}
     with Cluster(workers, scheduler, security, dashboard) as cl:
         # every run of the base (a later run may carry an earlier one's values)
         nominal = run_points([{"id": 0, "params": {}}], spec.base, spec.variant, None, out, cl,
@@ -234,7 +234,7 @@ def _search(spec: FalsifySpec, out: Path, workers: int | None, scheduler: str | 
             return run_points(pts, spec.base, spec.variant, None, out, cl, progress=progress, label=label, **study)
         _evolve(spec, members, generations, run, rows, out, say)
     worst = min(rows, key=lambda r: (_robustness(spec, r), r["point"]))
-    result = _result(spec, members, generations, rows, nominal, worst, out, archive_limits)
+    result = _result(spec, members, generations, rows, nominal, worst, out, archive_limits, system)
     meta.write_text(json.dumps(result, indent=1, default=str) + "\n")
     _table(spec, rows, out / "falsify.csv")
     _plot(spec, rows, result, out / "falsify.png")
@@ -276,7 +276,8 @@ def _evolve(spec: FalsifySpec, members: int, generations: int,
 
 
 def _result(spec: FalsifySpec, members: int, generations: int, rows: list[dict[str, Any]], nominal: dict[str, Any],
-            worst: dict[str, Any], out: Path, archive_limits: LimitOverrides | None) -> dict[str, Any]:
+            worst: dict[str, Any], out: Path, archive_limits: LimitOverrides | None, system: System
+            ) -> dict[str, Any]:
     """falsify.json: the spec, the optimiser, the nominal run, the worst case with the command that runs
     it, its re-run here (into ``out/worst``), the points that failed."""
     params = {k: worst[k] for k in spec.parameters}
@@ -292,20 +293,22 @@ def _result(spec: FalsifySpec, members: int, generations: int, rows: list[dict[s
         "nominal": {"robustness": _robustness(spec, nominal), "verdict": nominal.get(verdict), "status": nominal["status"]},
         "worst": {"point": worst["point"], "generation": worst["generation"], "params": params,
                   "robustness": _robustness(spec, worst), "verdict": worst.get(verdict), "command": command},
-        "rerun": _rerun(spec, worst, params, out / "worst", archive_limits),
+        "rerun": _rerun(spec, worst, params, out / "worst", archive_limits, system),
         "failed": sum(1 for r in rows if _robustness(spec, r) == math.inf),
     }
 
 
 def _rerun(spec: FalsifySpec, worst: dict[str, Any], params: dict[str, Any], folder: Path,
-           archive_limits: LimitOverrides | None) -> dict[str, Any]:
+           archive_limits: LimitOverrides | None, system: System) -> dict[str, Any]:
     """The worst point (its ``params``) run again here, as its command runs it: its robustness and whether
     it is the same."""
-    from .runner import resolve_model, run_protocol
+    from ..cosim import run_protocol
     from .sweep_file import read_base
 
-    results = run_protocol(read_base(spec.base, resolve_model, archive_limits), folder, variant=spec.variant,
-                           overrides=params, progress=False)
+    judge = system.judge
+    results = run_protocol(read_base(spec.base, system.models, archive_limits), folder, variant=spec.variant,
+                           overrides=params, progress=False,
+                           on_run=None if judge is None else lambda name, res: judge(res))
     verdicts = {v["name"]: v for v in results[spec.run].requirements}
     v = verdicts.get(spec.requirement, {})
     rob = math.inf if v.get("robustness") is None else v["robustness"]

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from .cosim import CosimError, LimitOverrides, Protocol, is_path, read_document
+from ..cosim import CosimError, LimitOverrides, Protocol, is_path, read_document
 
 try:
     from distributed.diagnostics.plugin import WorkerPlugin
@@ -49,9 +49,9 @@ def build() -> str:
     FMUs' sources), and FMPy's version.  Two processes whose builds differ may compute different results."""
     import fmpy
 
-    from . import version
+    from .. import version
 
-    root = Path(__file__).resolve().parent
+    root = Path(__file__).resolve().parents[1]   # the package (this module is in its studies/)
     h = hashlib.sha256()
     for f in sorted(p for p in root.rglob("*") if p.suffix in (".py", ".c", ".h") and "__pycache__" not in p.parts):
         h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
@@ -141,12 +141,12 @@ class Shipment:
         return Protocol.from_document(base, doc, models.get, limits), unlocalise
 
 
-def pack(bases: list[str], models: dict[str, str], shipped: Path | None = None
+def pack(bases: list[str], models: Callable[[str], Path | None], shipped: Path | None = None
          ) -> tuple[Shipment, dict[str, bytes]]:
     """Read the study's bases (scenario files; ``shipped``: the folder of scenario files a ``base`` may
-    name) and what they name: the shipment and the files' bytes by SHA-256.  ``models``: {model name:
-    FMU path} for the instances that name a model rather than a file; only those the documents name are
-    sent.  CosimError naming the file that cannot be read."""
+    name) and what they name: the shipment and the files' bytes by SHA-256.  ``models``: model name -> FMU
+    path (None: not a model name), for the instances that name a model rather than a file; only those the
+    documents name are resolved and sent.  CosimError naming the file that cannot be read."""
     documents: dict[str, dict[str, Any]] = {}
     files: dict[str, ShippedFile] = {}
     blobs: dict[str, bytes] = {}
@@ -172,9 +172,11 @@ def pack(bases: list[str], models: dict[str, str], shipped: Path | None = None
                 continue
             if is_path(fmu):
                 add(fmu, f"{base}: instances.{name}.fmu")
-            elif fmu in models:
-                used[fmu] = models[fmu]
-                add(models[fmu], f"{base}: instances.{name}.fmu ({fmu})")
+                continue
+            if fmu not in used and (found := models(fmu)) is not None:
+                used[fmu] = str(Path(found).resolve())
+            if fmu in used:
+                add(used[fmu], f"{base}: instances.{name}.fmu ({fmu})")
         inputs = doc.get("inputs")
         if isinstance(inputs, dict) and isinstance(inputs.get("file"), str):
             add(inputs["file"], f"{base}: inputs.file")

@@ -11,7 +11,7 @@ import math
 import operator
 from typing import Any
 
-from .report import fmt
+from .document import fmt
 
 _OPS = {"<=": operator.le, "<": operator.lt, ">=": operator.ge, ">": operator.gt, "==": operator.eq}
 #: the relation that holds when the claimed one does not

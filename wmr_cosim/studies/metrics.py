@@ -37,11 +37,11 @@ import csv
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
-from .cosim import ScenarioError, read_signals
+from ..cosim import ScenarioError, read_signals
 
 #: What a metric measures -> the keys it needs beside ``of``, ``variable`` and ``run``, and its unit given
 #: the variable's ("{u}": the variable's own).
@@ -51,8 +51,36 @@ KINDS: dict[str, tuple[tuple[str, ...], str]] = {
     "settling_time": (("target", "band"), "s"),
 }
 _KEYS = {"of", "variable", "run", "level", "reference", "column", "against", "target", "band"}
-#: The named sets of metrics a sweep file may ask for (``sets``): the robot's (robot_measures.py).
-SETS = ("robot",)
+
+
+@dataclass(frozen=True)
+class MetricSet:
+    """A named set of metrics an application registers for its system (:func:`register_set`), which a sweep
+    file asks for by name (``sets = ["NAME"]``): ``measure(row, results, work)`` puts its metrics of the
+    point's runs (their folders in ``work``) into the row and may set its status and reason (a module-level
+    function: it travels to the workers); ``columns(runs)`` every column it may add for these runs;
+    ``description`` what ``sweep.json``'s table of columns says they hold; ``default``: asked for by a sweep
+    file that names no metric."""
+
+    name: str
+    measure: Callable[[dict[str, Any], dict[str, Any], Path], None]
+    columns: Callable[[list[str]], list[str]]
+    description: str
+    default: bool = False
+
+
+#: The named sets of metrics a sweep file may ask for (``sets``), by name: those the applications registered.
+SETS: dict[str, MetricSet] = {}
+
+
+def register_set(metric_set: MetricSet) -> None:
+    """Make a named set of metrics known to sweep files (again: replaced)."""
+    SETS[metric_set.name] = metric_set
+
+
+def default_sets() -> list[str]:
+    """The sets a sweep file that names no metric measures."""
+    return [name for name, s in SETS.items() if s.default]
 
 
 @dataclass(frozen=True)
@@ -261,14 +289,12 @@ class SweepMeasure:
     from its run's recorded signals (``work/<run>/signals.npy``); picklable, it travels to the workers."""
 
     metrics: tuple[MetricSpec, ...] = ()
-    sets: tuple[str, ...] = ()
+    sets: tuple[MetricSet, ...] = ()
     runs: tuple[str, ...] = ()    # the base's runs, for the metrics that name none (a base of one run)
 
     def __call__(self, row: dict[str, Any], results: dict[str, Any], work: Path) -> None:
-        if "robot" in self.sets:
-            from .robot_measures import measure
-
-            measure(row, results, work)
+        for s in self.sets:
+            s.measure(row, results, work)
         data: dict[str, Any] = {}   # each run's signals, read once
         for m in self.metrics:
             run = m.run if m.run is not None else self.runs[0]

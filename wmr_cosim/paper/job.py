@@ -17,14 +17,14 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
-from .cosim import LimitOverrides, RunStatus
+from ..cosim import LimitOverrides, RunStatus
 
 from .analysis import (RUNS, fidelity, load_signals, position_error, requirement_verdicts, run_summary,
                        table1_disturbance_analysis)
-from .components import paper
-from .paper_report import claims, provenance, report_blocks
-from .paper_tasks import task_files
-from .report import to_html, to_markdown
+from ..components import paper
+from .report import claims, provenance, report_blocks
+from .tasks import task_files
+from .document import to_html, to_markdown
 
 VARIANTS = ("freeze", "printed")
 
@@ -42,8 +42,8 @@ def build_fmus(fmi: int = 2, out_dir: Path | None = None, progress: bool = True)
     out of date; {model: .fmu}.  When any has to be built (a first run, or its sources changed), one line
     on stderr says which and where first, unless ``progress`` is False: a build takes a while, and the job
     says nothing else until its first run ends.  CosimError (one line) when a build fails."""
-    from .cosim import CosimError
-    from .fmus.build import BuildError, build_all, default_out_dir, models_for, up_to_date
+    from ..cosim import CosimError
+    from ..fmus.build import BuildError, build_all, default_out_dir, models_for, up_to_date
 
     out = Path(out_dir) if out_dir is not None else default_out_dir()
     models = models_for(fmi)
@@ -65,7 +65,8 @@ def _task_job(task: str, file: str, folder: str, variant: str, fmi: int = 2, pro
     analysis.divergence as it finishes; with ``progress``, its line (:func:`run_line`) goes to stderr.
     ``archive_limits``: the caller's, over the protocol's own (they come with the job: nothing else
     reaches the worker)."""
-    from .runner import carry_fmi3, resolver, run_protocol
+    from ..runner import carry_fmi3, resolver, run_protocol
+    from .analysis import judge_run
 
     def report(run: str, res: Any) -> None:
         if progress:
@@ -73,7 +74,8 @@ def _task_job(task: str, file: str, folder: str, variant: str, fmi: int = 2, pro
 
     t0 = time.perf_counter()
     results = run_protocol(file, folder, resolver(fmi), variant=variant, progress=False,
-                           carry=carry_fmi3 if fmi == 3 else None, on_run=report, limits=archive_limits)
+                           carry=carry_fmi3 if fmi == 3 else None, on_run=report, judge=judge_run,
+                           limits=archive_limits)
     return {"task": task, "variant": variant, "wall_s": time.perf_counter() - t0,
             "runs": {n: {"status": r.status, "message": r.message, "wall_s": r.wall_s, "setup_s": r.setup_s,
                          "steps": r.steps} for n, r in results.items()}}
@@ -133,7 +135,7 @@ def exit_code(variants: dict[str, dict[str, Any]], variant: str) -> int:
     finish, or a run of a compared variant did not finish (an error is an error whichever variant it is
     of); else 0.  A compared variant's diverged runs are a result the report shows and the command prints,
     not a failure of the job (the printed reading diverges on six of its runs)."""
-    from .exit_codes import OK, RUN_FAILED
+    from ..exit_codes import OK, RUN_FAILED
 
     if variants[variant]["diverged_runs"] or any(unfinished_runs(m) for m in variants.values()):
         return RUN_FAILED
@@ -177,7 +179,7 @@ def run_paper(out: str | os.PathLike = "results/paper", variant: str = "freeze",
     (robustness.py; ``robustness_grid`` a StudyGrid, default the full one) into ``out/robustness``.
     ``archive_limits``: the caller's archive limits (a command line's options), over each protocol's own,
     passed to every worker process with its job.  A second job into the same ``out`` is refused at once (a lock naming the holder's process)."""
-    from .cosim import OutputLock, make_folder
+    from ..cosim import OutputLock, make_folder
 
     out = make_folder(Path(out))
     with OutputLock(out):

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .cosim import CosimError
+from ..cosim import CosimError
 
 #: How many times a point whose worker died is run again on the local cluster (an existing scheduler
 #: applies its own ``distributed.scheduler.allowed-failures``, Dask's default 3).

@@ -16,7 +16,7 @@ from typing import Any
 
 from fmpy import read_model_description
 
-from .cosim import (ArchiveLimits, check_archive, CO_SIMULATION, DEFAULT_LIMITS, fmi_version, FmuLoadError,
+from ..cosim import (ArchiveLimits, check_archive, CO_SIMULATION, DEFAULT_LIMITS, fmi_version, FmuLoadError,
                     FmuModel, load_model, MODEL_EXCHANGE)
 
 #: The largest double: a bound of this size (or infinite) is no bound, and is shown as nothing.

@@ -33,9 +33,9 @@ from pathlib import Path
 from typing import Any
 
 from .analysis import fidelity
-from .components import paper
-from .cosim import LimitOverrides
-from .paper_tasks import manifest_path, task_files
+from ..components import paper
+from ..cosim import LimitOverrides
+from .tasks import manifest_path, task_files
 
 RUNS = ("learn", "frozen", "foam")
 _A = paper.table1()["a"][4]          # nominal a5 = a6 [N.m]
@@ -116,7 +116,7 @@ def reading_label(kind: str, value: float) -> str:
 def plan(grid: StudyGrid) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """The distinct points of the study (a point: id, base protocol file, parameters) and, per axis
     value or reading, the point id of each task."""
-    from .cosim import ScenarioError
+    from ..cosim import ScenarioError
 
     files = task_files(grid.manifest)
     missing = [t for t in grid.tasks if t not in files]
@@ -267,9 +267,9 @@ def run_study(out: Path, grid: StudyGrid | None = None, workers: int | None = No
               progress: bool | None = None, archive_limits: LimitOverrides | None = None) -> dict[str, Any]:
     """Run the study's points on a local Dask cluster into ``out`` (resumable) and summarise them;
     ``archive_limits`` (the caller's, over each task's own) go with every point."""
-    from .cluster import Cluster
+    from ..studies import Cluster, run_points
     from . import robot_measures
-    from .sweep import run_points
+    from .robot_measures import robot_system
 
     grid = grid or StudyGrid()
     points, layout = plan(grid)
@@ -281,7 +281,7 @@ def run_study(out: Path, grid: StudyGrid | None = None, workers: int | None = No
     stamp.write_text(key)
     with Cluster(workers) as cl:
         rows_list = run_points(points, points[0]["base"], "freeze", None, out, cl, progress=progress, label="robustness",
-                               archive_limits=archive_limits, fmus=robot_measures.fmu_paths(),
+                               archive_limits=archive_limits, system=robot_system(),
                                measure=robot_measures.measure)
     rows = {r["point"]: r for r in rows_list}
     s = summarise(rows, layout, grid)

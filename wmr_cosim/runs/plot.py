@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from .cosim import close_names
+from ..cosim import close_names
 
 #: How many recorded columns are drawn when no variable is named.
 DEFAULT_COUNT = 4
@@ -68,7 +68,7 @@ def read_results(folder: str | Path) -> Results:
     file) when it does not exist, has no signals.npy, or a file of it cannot be read
     (:func:`.cosim.read_signals`: a recording cut short is read up to its last whole row, and a note
     says so)."""
-    from .cosim import ResultsError, read_json, read_signals
+    from ..cosim import ResultsError, read_json, read_signals
 
     folder = Path(folder)
     if not folder.is_dir():
@@ -215,7 +215,7 @@ def _shade(ax: Any, t: np.ndarray, r: np.ndarray, v: dict[str, Any]) -> None:
     >= 0, green: each one satisfies it, and red the window's values only when it is violated (none was
     >= 0; a negative value alone violates nothing); for another formula its value at the start, red
     when negative."""
-    from .cosim import FormulaError, formula_fold
+    from ..cosim import FormulaError, formula_fold
 
     try:
         fold = formula_fold(str(v.get("formula", "")))

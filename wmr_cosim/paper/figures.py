@@ -15,7 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .components import paper  # noqa: E402
+from ..components import paper  # noqa: E402
 
 Signals = dict[str, np.ndarray]
 WHEELS = (("1", "wheel 1", "C0"), ("2", "wheel 2", "C3"))

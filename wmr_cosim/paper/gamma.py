@@ -17,10 +17,10 @@ import os
 from pathlib import Path
 from typing import Any
 
-from .cluster import Cluster
-from .cosim import LimitOverrides
+from ..cosim import LimitOverrides
+from ..studies import Cluster, run_points
 from . import robot_measures
-from .sweep import run_points
+from .robot_measures import robot_system
 
 DEFAULT_GRID = (0.25, 0.5, 1.0, 2.0, 4.0, 6.0, 8.0, 10.0, 12.0, 14.0, 16.0, 20.0, 30.0)
 
@@ -42,8 +42,8 @@ def gamma_search(scenario: str | os.PathLike, out: str | os.PathLike, grid: list
     ``archive_limits``: the caller's archive limits (a command line's options), over the protocol's own,
     sent to the workers with every point."""
 
-    from .cosim import plan_runs
-    from .cosim import CosimError
+    from ..cosim import plan_runs
+    from ..cosim import CosimError
 
     scenario = str(Path(scenario).resolve())
     sc, runs, _ = plan_runs(scenario, lambda name: Path(name), None, archive_limits)
@@ -59,7 +59,7 @@ def gamma_search(scenario: str | os.PathLike, out: str | os.PathLike, grid: list
     grid = sorted(set(float(g) for g in (grid or DEFAULT_GRID)))
     if not grid or grid[0] <= 0:
         raise CosimError("gamma-search: the grid must hold values > 0")
-    from .cosim import OutputLock, make_folder
+    from ..cosim import OutputLock, make_folder
 
     out = make_folder(Path(out))
     with OutputLock(out):  # a second search into the same folder is refused at once
@@ -74,7 +74,7 @@ def _search(scenario: str, out: Path, runs: list, grid: list[float], variant: st
 
     friction = {k: v for r in runs if r.name == "foam" for k, v in r.parameters.items() if k.startswith("plant.foam")}
     rows: list[dict[str, Any]] = []
-    study = {"archive_limits": archive_limits, "fmus": robot_measures.fmu_paths(), "measure": robot_measures.measure}
+    study = {"archive_limits": archive_limits, "system": robot_system(), "measure": robot_measures.measure}
     with Cluster(workers, scheduler, security, dashboard) as cl:
         pts = [{"id": i, "params": {"controller.gamma": g}} for i, g in enumerate(grid)]
         rows = run_points(pts, scenario, variant, None, out, cl, progress=progress, label="gamma grid", **study)

@@ -8,7 +8,7 @@ A sweep file (``scenarios/sweep-*.toml``)::
     seed = 1                      # for the random draws
     samples = 8                   # random draws per grid point (default 1)
     metrics = ["foam.rmse_e1", "gamma_star"]   # the columns to plot (the table keeps every metric)
-    sets = ["robot"]              # named sets of metrics (default: the robot's, unless [metric] is given)
+    sets = ["robot"]              # named sets of metrics (default: those registered as such, unless [metric] is given)
     [metric.x_end]                # a metric over a recorded variable (sweep_metrics.py): any system
     of = "final"
     variable = "dq.x"
@@ -32,8 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from .cosim import ScenarioError
-from .sweep_metrics import SETS, MetricSpec, parse_metrics
+from ..cosim import ScenarioError
+from .metrics import SETS, MetricSpec, default_sets, parse_metrics
 
 DISTRIBUTIONS = {"uniform": ("low", "high"), "normal": ("mean", "std"), "lognormal": ("mean", "sigma"),
                  "choice": ("values",)}
@@ -75,7 +75,7 @@ def load_sweep(path: str | os.PathLike) -> SweepSpec:
 
 def _read(path: Path) -> dict[str, Any]:
     """The sweep file's table: a file, valid TOML, no unknown key."""
-    from .cosim import read_toml
+    from ..cosim import read_toml
 
     f = str(path)
     doc = read_toml(path)
@@ -108,9 +108,9 @@ def _check_settings(f: str, doc: dict[str, Any], spec: SweepSpec) -> None:
 
 
 def _check_measures(f: str, doc: dict[str, Any], spec: SweepSpec, folder: Path) -> None:
-    """[metric.NAME] and ``sets`` into ``spec`` (the robot's set by default where no metric is given)."""
+    """[metric.NAME] and ``sets`` into ``spec`` (the registered default sets where no metric is given)."""
     spec.measures = parse_metrics(f, doc["metric"], folder) if "metric" in doc else []
-    sets = doc.get("sets", [] if spec.measures else ["robot"])
+    sets = doc.get("sets", [] if spec.measures else default_sets())
     if not isinstance(sets, list) or not all(s in SETS for s in sets):
         raise ScenarioError(f, "sets", f"{sets!r}: an array of named sets of metrics ({', '.join(SETS)})")
     spec.sets = list(sets)
@@ -172,7 +172,7 @@ def _check_distribution(f: str, fld: str, d: Any) -> None:
 
 def _check_base(f: str, spec: SweepSpec) -> None:
     """The base must parse (model names are not built here), and the variant and runs must exist."""
-    from .cosim import plan_runs
+    from ..cosim import plan_runs
 
     _, runs, _ = plan_runs(read_base(spec.base, lambda name: Path(name)), variant=spec.variant)
     if spec.runs:
@@ -195,8 +195,8 @@ def base_file(path: Path, base: Any) -> Path:
     """The base scenario a study file (a sweep or falsification file at ``path``) names, by the rule of a
     scenario's ``base``: beside the file, else among the shipped scenarios; ScenarioError naming the file's
     ``base`` otherwise."""
-    from .cosim import base_path
-    from .runner import shipped_folder
+    from ..cosim import base_path
+    from ..scenario_files import shipped_folder
 
     f = str(path)
     if not isinstance(base, str) or not base:
@@ -217,8 +217,8 @@ def read_base(base: str, resolver: Any, limits: Any = None) -> Any:
     """A study's base scenario read once (a :class:`~wmr_cosim.cosim.Protocol`) as ``run`` reads a scenario:
     its own ``base`` found beside it, else among the shipped scenarios; ``resolver``: model name -> FMU;
     ``limits``: the caller's archive limits."""
-    from .cosim import read_protocol
-    from .runner import shipped_folder
+    from ..cosim import read_protocol
+    from ..scenario_files import shipped_folder
 
     return read_protocol(base, resolver, limits, shipped_folder())
 
@@ -231,7 +231,7 @@ def check_parameters(file: str, axes: dict[str, str], plans: dict[str, Any],
     ``experiment.FIELD`` or ``record.FIELD`` is the scenario's own to judge, at each point.  With ``ranges``
     (field -> (low, high), a falsification's box), each is a Real whose declared range holds the box.
     ScenarioError naming ``file`` and the field."""
-    from .cosim import PARAMETERS, SET_TABLES, did_you_mean, variable
+    from ..cosim import PARAMETERS, SET_TABLES, did_you_mean, variable
 
     for fld, key in axes.items():
         for ref in parameter_refs(file, fld, key):

@@ -7,14 +7,16 @@ Units: rad, rad/s, N.m, m, s.
 """
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .components import paper
-from .components.metrics import rmse, run_metrics
+from ..components import paper
+from ..components.metrics import rmse, run_metrics
+from ..cosim import RunResult, RunStatus
 
 Signals = dict[str, np.ndarray]
 RUNS = ("learn", "frozen", "foam")
@@ -28,6 +30,27 @@ EDGE_WINDOW_S = 2.0
 DIVERGED_E_RAD = 1.0
 #: the tracking errors the paper's controller records (e [rad], de/dt [rad/s], per wheel)
 TRACKING_ERRORS = ("controller.e1", "controller.e2", "controller.edot1", "controller.edot2")
+
+
+def judge_run(res: RunResult) -> RunResult:
+    """A finished run of the paper's controller judged by :func:`divergence`: a run that
+    ended 'ok' but diverged gets the status 'diverged' (exit code 1) and the reason as its message.  A run
+    that did not record the controller's tracking errors is left as it is."""
+    if res.status != RunStatus.OK or res.out_dir is None:
+        return res
+    sig = load_signals(res.out_dir)
+    if sig is None or not all(name in sig for name in TRACKING_ERRORS):
+        return res
+    reason = divergence(sig)
+    if reason is not None:
+        res.status, res.message = RunStatus.DIVERGED, reason
+        summary = res.out_dir / "summary.json"     # the file on disk says what the command says
+        if summary.is_file():
+            from ..cosim import write_json
+            doc = json.loads(summary.read_text(encoding="utf-8"))
+            doc["status"], doc["message"] = res.status, res.message
+            write_json(summary, doc)
+    return res
 
 
 def requirement_verdicts(folder: str | Path) -> dict[str, dict[str, Any]]:
@@ -46,7 +69,7 @@ def requirement_verdicts(folder: str | Path) -> dict[str, dict[str, Any]]:
 def load_signals(folder: str | Path) -> Signals | None:
     """The signals of one run folder (None if it recorded nothing; its whole rows when it was cut short);
     ResultsError (one line) when its signals.npy cannot be read."""
-    from .cosim import read_signals
+    from ..cosim import read_signals
 
     f = Path(folder) / "signals.npy"
     if not f.is_file():

@@ -1,7 +1,8 @@
 """Sweeps and Monte Carlo studies on Dask: many full co-simulations, each point in a worker process.
 
 The sweep file and its points are sweep_file.py's, the cluster cluster.py's, what travels to the workers
-shipment.py's, the figures sweep_plots.py's and what a point measures of our robot robot_measures.py's;
+shipment.py's, the metrics metrics.py's (and the named sets of metrics an application registers there),
+the figures plots.py's, the system the points run (its model names, how its runs are judged) system.py's;
 this module runs the points (:func:`run_point`, in a worker: the base's runs with the point's parameters,
 their files from the worker's cache, then the measure it is given) and the sweep (:func:`run_sweep`).
 
@@ -31,17 +32,17 @@ from typing import Any, Callable
 import numpy as np
 
 from .cluster import Cluster, check_worker_count
-from .cosim import CosimError, LimitOverrides, count
-from . import robot_measures
+from ..cosim import CosimError, LimitOverrides, count
 from .shipment import Shipment, ShippingCost, pack, ship, unship, worker_cache
 from .sweep_file import SweepSpec, check_parameters, draw_points, load_sweep, read_base
-from .sweep_metrics import SweepMeasure, check_metrics
-from .sweep_plots import plot_sweep
+from .metrics import SETS, SweepMeasure, check_metrics
+from .plots import plot_sweep
+from .system import System
 
 
 #: The reason of a point whose worker died each time it ran it (Dask's ``allowed-failures`` over).
 KILLED = "its worker died while running it, again when it was run on another"
-#: What a point measures of its runs: ``measure(row, results, folder)`` (robot_measures.measure for ours).
+#: What a point measures of its runs: ``measure(row, results, folder)`` (a named set's, the file's metrics).
 Measure = Callable[[dict[str, Any], dict[str, Any], Path], None]
 
 
@@ -52,7 +53,8 @@ class Study:
     once per worker, see shipment.py): the shipment (the bases' documents and what their files are), the
     variant and runs of the bases to run, whether to send each point's run folders back (``keep_runs``),
     the submitter's archive limits (a command line's options, over each scenario's own: they travel with
-    the point, since a worker may be another machine) and what a point measures."""
+    the point, since a worker may be another machine), what a point measures and how its runs are judged
+    (the system's judge)."""
 
     shipment: Shipment
     base: str
@@ -61,6 +63,7 @@ class Study:
     keep_runs: bool = False
     archive_limits: LimitOverrides | None = None
     measure: Measure | None = None
+    judge: Callable[[Any], Any] | None = None
 
 
 def run_point(point: dict[str, Any], study: Study, cache: Path | None = None) -> tuple[dict[str, Any], bytes | None]:
@@ -71,7 +74,7 @@ def run_point(point: dict[str, Any], study: Study, cache: Path | None = None) ->
     tables from ``cache`` (this Dask worker's cache of shipped files by default) and write into a folder
     beside it, removed after the point; every path of the cache in a reason is the driver's again, so a
     row does not depend on the worker.  Never raises: a failure is a row."""
-    from .runner import run_protocol
+    from ..cosim import run_protocol
 
     row = _row(point)
     cache = cache if cache is not None else worker_cache()
@@ -82,8 +85,10 @@ def run_point(point: dict[str, Any], study: Study, cache: Path | None = None) ->
     t0 = time.perf_counter()
     try:
         proto, unlocalise = study.shipment.protocol(point.get("base", study.base), study.archive_limits, cache)
+        judge = study.judge
         results = run_protocol(proto, work, proto.resolver, variant=study.variant, overrides=point["params"],
-                               progress=False, only=study.runs)
+                               progress=False, only=study.runs,
+                               on_run=None if judge is None else lambda name, res: judge(res))
         if study.measure is not None:
             study.measure(row, results, work)
         requirement_columns(row, results)
@@ -140,17 +145,17 @@ def _unpacked(data: bytes, dest: Path) -> None:
 # ---------------------------------------------------------------------- the sweep (in the parent)
 def run_points(points: list[dict[str, Any]], base: str, variant: str | None, runs: list[str] | None,
                out: Path, cluster: Cluster, keep_runs: bool = False, progress: bool | None = None,
-               label: str = "sweep", archive_limits: LimitOverrides | None = None, *, fmus: dict[str, str],
+               label: str = "sweep", archive_limits: LimitOverrides | None = None, *, system: System,
                measure: Measure | None, shipped: Callable[[ShippingCost], None] | None = None
                ) -> list[dict[str, Any]]:
     """Run the points not yet in ``out/points`` on the cluster; returns every point's row, by id.
 
     The bases (``base``, or a point's own ``base``) are read here, and every file they name (and the FMU of
-    each model name they use, from ``fmus``: model name -> FMU file) is sent to every worker once, by
-    content (shipment.py): no worker reads a file of this machine's.  ``shipped`` is told what that cost.
-    ``archive_limits`` (a caller's, over each scenario's own) and ``measure`` (see :func:`run_point`) go
-    with every point.  A point whose worker dies is run again on another (Dask's ``allowed-failures``: once
-    on our local cluster); one that kills its worker each time is a failed row.  ``progress``: a bar with
+    each model name they use, from ``system.models``) is sent to every worker once, by content
+    (shipment.py): no worker reads a file of this machine's.  ``shipped`` is told what that cost.
+    ``archive_limits`` (a caller's, over each scenario's own), ``measure`` (see :func:`run_point`) and the
+    system's judge go with every point.  A point whose worker dies is run again on another (Dask's
+    ``allowed-failures``: once on our local cluster); one that kills its worker each time is a failed row.  ``progress``: a bar with
     the time left on a terminal, a line every 5 % of the points (or minute) otherwise; None: on a terminal
     only."""
     from distributed import as_completed
@@ -161,13 +166,13 @@ def run_points(points: list[dict[str, Any]], base: str, variant: str | None, run
     todo = [p for p in points if p["id"] not in rows]
     if not todo:
         return [rows[p["id"]] for p in points]
-    from .runner import shipped_folder
+    from ..scenario_files import shipped_folder
 
-    shipment, blobs = pack([p.get("base", base) for p in todo], fmus, shipped_folder())
+    shipment, blobs = pack([p.get("base", base) for p in todo], system.models, shipped_folder())
     shipment, cost = ship(cluster.client, shipment, blobs)
     if shipped is not None:
         shipped(cost)
-    study = Study(shipment, base, variant, runs, keep_runs, archive_limits, measure)
+    study = Study(shipment, base, variant, runs, keep_runs, archive_limits, measure, system.judge)
     failed = sum(1 for r in rows.values() if r["status"] != "ok")
     bar = Progress(label, len(points), len(rows), progress)
     # a point may name its own base (a study over several tasks in one submission)
@@ -277,41 +282,44 @@ def _jsonable(x: Any) -> Any:
 
 def run_sweep(path: str | os.PathLike, out: str | os.PathLike | None = None, workers: int | None = None,
               scheduler: str | None = None, progress: bool | None = None, cluster: Cluster | None = None,
-              security: Any = None, dashboard: bool = False, archive_limits: LimitOverrides | None = None):
+              security: Any = None, dashboard: bool = False, archive_limits: LimitOverrides | None = None,
+              system: System | None = None):
     """Run a sweep file; write results.parquet, results.csv, sweep.json and figures/ into ``out``.
     Returns the table (a pandas DataFrame, one row per point, ordered by point).  ``security`` and
     ``dashboard``: see :class:`Cluster`; ``archive_limits``: the caller's archive limits (a command line's
-    options), over each point's scenario's own, sent to the workers with every point.  The file is checked
-    whole (its parameters and metrics against the base's runs) before the results folder is made."""
-    from .cosim import OutputLock, make_folder
+    options), over each point's scenario's own, sent to the workers with every point; ``system``: the
+    system the points run (its model names, its judge of a run: :class:`System`; none by default, every FMU
+    named by its path).  The file is checked whole (its parameters and metrics against the base's runs)
+    before the results folder is made."""
+    from ..cosim import OutputLock, make_folder
 
     if cluster is None:
         check_worker_count(workers)
     spec = load_sweep(path)
     points = draw_points(spec)
-    fmus = robot_measures.fmu_paths()
-    measure, units = _measure(spec, fmus, archive_limits)
+    system = system if system is not None else System()
+    measure, units = _measure(spec, system, archive_limits)
     out = make_folder(Path(out) if out is not None else Path("results") / Path(path).stem)
     with OutputLock(out):  # a second sweep into the same folder is refused at once
-        return _run_sweep(spec, points, fmus, measure, units, out, workers, scheduler, progress, cluster, security,
+        return _run_sweep(spec, points, system, measure, units, out, workers, scheduler, progress, cluster, security,
                           dashboard, archive_limits)
 
 
-def _measure(spec: SweepSpec, fmus: dict[str, str], archive_limits: LimitOverrides | None
+def _measure(spec: SweepSpec, system: System, archive_limits: LimitOverrides | None
              ) -> tuple[SweepMeasure, dict[str, str | None]]:
     """What each point measures (the named sets, the file's metrics) and the metrics' units, the file
     checked against the base's runs (their FMUs resolved) before any point runs: the parameters its grid
     and draws set, and its metrics (see :func:`sweep_metrics.check_metrics`)."""
-    from .cosim import check_protocol
+    from ..cosim import check_protocol
 
-    base = read_base(spec.base, lambda name: Path(fmus[name]) if name in fmus else None, archive_limits)
+    base = read_base(spec.base, system.models, archive_limits)
     plans = check_protocol(base, variant=spec.variant, only=spec.runs)
     check_parameters(spec.file, {**{f"grid.{k}": k for k in spec.grid}, **{f"random.{k}": k for k in spec.random}},
                      plans)
     runs = {name: {col: c["unit"] for col, c in plan.columns().items()} for name, plan in plans.items()}
     spans = {name: plan.scenario.times()[:2] for name, plan in plans.items()}
     units = check_metrics(spec.file, spec.measures, runs, spans, _columns(spec, plans))
-    return SweepMeasure(tuple(spec.measures), tuple(spec.sets), tuple(runs)), units
+    return SweepMeasure(tuple(spec.measures), tuple(SETS[s] for s in spec.sets), tuple(runs)), units
 
 
 def _columns(spec: SweepSpec, plans: dict[str, Any]) -> dict[str, str]:
@@ -319,15 +327,15 @@ def _columns(spec: SweepSpec, plans: dict[str, Any]) -> dict[str, str]:
     name would overwrite it)."""
     cols = {c: "the point's own" for c in ("point", "status", "reason", "wall_s")}
     cols.update({ref: "a parameter of the sweep" for key in (*spec.grid, *spec.random) for ref in key.split("+")})
-    if "robot" in spec.sets:
-        cols.update({c: "the robot's set of metrics" for c in robot_measures.columns(list(plans))})
+    for s in spec.sets:
+        cols.update({c: SETS[s].description for c in SETS[s].columns(list(plans))})
     for run, plan in plans.items():
         for r in plan.requirements:
             cols.update({f"{run}.{r.name}.{c}": "a requirement's" for c in ("robustness", "verdict")})
     return cols
 
 
-def _run_sweep(spec: SweepSpec, points: list[dict[str, Any]], fmus: dict[str, str], measure: SweepMeasure,
+def _run_sweep(spec: SweepSpec, points: list[dict[str, Any]], system: System, measure: SweepMeasure,
                units: dict[str, str | None], out: Path, workers: int | None, scheduler: str | None,
                progress: bool | None, cluster: "Cluster | None", security: Any, dashboard: bool,
                archive_limits: LimitOverrides | None):
@@ -351,7 +359,7 @@ def _run_sweep(spec: SweepSpec, points: list[dict[str, Any]], fmus: dict[str, st
 
     try:
         rows = run_points(points, spec.base, spec.variant, spec.runs, out, cl, spec.keep_runs, progress,
-                          archive_limits=archive_limits, fmus=fmus, measure=measure, shipped=shipped)
+                          archive_limits=archive_limits, system=system, measure=measure, shipped=shipped)
     finally:
         if own:
             cl.close()

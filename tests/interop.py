@@ -1,7 +1,7 @@
 """Run an SSP archive under third-party co-simulation masters, each as its users run it, for the interop
 tests and the ``interop`` benchmark.
 
-Peers (each in a child process of its own, ``python -m wmr_cosim.interop PEER FILE.ssp``, so that a crash
+Peers (each in a child process of its own, ``python tests/interop.py PEER FILE.ssp``, so that a crash
 of a foreign master cannot take the caller down, module caches are fresh, and CPU pinning stays local):
 
 - ``ours``: this master (``load_ssp`` + ``resolve`` + ``run_plan``; Jacobi unless the archive says);
@@ -33,7 +33,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .cosim import RunStatus
+from wmr_cosim.cosim import RunStatus
 
 import numpy as np
 
@@ -103,7 +103,7 @@ def _n_steps(start: float, stop: float, step: float) -> int:
 
 # ------------------------------------------------------------------------------------------ peers
 def _ours(ssp: Path, stop: float, step: float, signals, tmp: Path, algorithm: str | None = None) -> dict[str, Any]:
-    from .cosim import load_ssp, resolve, run as run_plan
+    from wmr_cosim.cosim import load_ssp, resolve, run as run_plan
 
     t0 = time.perf_counter()
     arch = load_ssp(ssp, step=step, stop=stop, algorithm=algorithm)
@@ -160,7 +160,7 @@ def _libcosim(ssp: Path, stop: float, step: float, signals, tmp: Path, api: bool
         ex = CosimExecution.from_ssp_file(str(ssp))
         idx = {s.name.decode(): s.index for s in ex.slave_infos()}
     else:
-        from .cosim import load_model, load_ssp
+        from wmr_cosim.cosim import load_model, load_ssp
         arch = load_ssp(ssp)
         keep.append(arch)
         ex = CosimExecution.from_step_size(ns(step))
@@ -276,7 +276,7 @@ def fmpy_parameter_set(ssp: Path):
     the text 'false'): a String parameter equal to the FMU's start value is left out, any other refused."""
     from fmpy.ssp.ssd import Parameter, ParameterSet
 
-    from .cosim import load_model, load_ssp
+    from wmr_cosim.cosim import load_model, load_ssp
 
     arch = load_ssp(ssp)
     try:
@@ -341,7 +341,7 @@ def run_peer(peer: str, ssp: str | os.PathLike, stop: float, step: float, signal
     """Run ``peer`` on the archive in a child process; returns {'wall_s', 'steps', 't_end', 'signals'}."""
     with tempfile.TemporaryDirectory(prefix="wmr-peer-") as tmp:
         out = Path(tmp) / "result.npz"
-        cmd = [sys.executable, "-m", "wmr_cosim.interop", peer, str(ssp), "--stop", repr(stop), "--step",
+        cmd = [sys.executable, str(Path(__file__).resolve()), peer, str(ssp), "--stop", repr(stop), "--step",
                repr(step), "--out", str(out), "--signals", ",".join(signals)]
         p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
         if p.returncode != 0 or not out.is_file():
@@ -356,7 +356,7 @@ def run_peer(peer: str, ssp: str | os.PathLike, stop: float, step: float, signal
 def main(argv: list[str] | None = None) -> int:
     import argparse
 
-    ap = argparse.ArgumentParser(prog="python -m wmr_cosim.interop", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python tests/interop.py", description=__doc__.splitlines()[0])
     ap.add_argument("peer", choices=PEERS)
     ap.add_argument("ssp", type=Path)
     ap.add_argument("--stop", type=float, required=True)
@@ -365,7 +365,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="write the signals and figures to this .npz")
     args = ap.parse_args(argv)
     signals = tuple(s for s in args.signals.split(",") if s)
-    from .exit_codes import OK, RUN_FAILED
+    from wmr_cosim.exit_codes import OK, RUN_FAILED
 
     try:
         r = run_here(args.peer, args.ssp, args.stop, args.step, signals)

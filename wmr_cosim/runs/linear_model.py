@@ -3,7 +3,7 @@ its eigenvalues and, with a break, the loop's margins, printed and written to a 
 linear.mat, linear.json, bode.png and nyquist.png).  The master's linearisation does the work
 (``cosim.linearisation``); this module loads what is named, words the result and writes the files.
 
-    from wmr_cosim.linearize import linearize
+    from wmr_cosim.runs.linear_model import linearize
     lin = linearize("g1_learn.toml", at=20.0, breaks=("controller.u1", "plant.u1"))
     lin.model.statespace()            # python-control StateSpace
     lin.loop.gain_margin, lin.loop.phase_margin
@@ -12,13 +12,12 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
-from .cosim import CosimError, MODEL_EXCHANGE, Linearisation, Linearizer, Request, ScenarioError, load_model, plot_loop
+from ..cosim import MODEL_EXCHANGE, Linearisation, Linearizer, Request, ScenarioError, load_model, plot_loop
 
 #: linear.json: the model's figures beside the matrices' files.
 SUMMARY_FILE = "linear.json"
@@ -34,8 +33,8 @@ def linearize(target: str | Path, *, at: float | None = None, inputs: Sequence[s
     An FMU alone runs as Model Exchange where it has that interface (unless ``discrete``), from every Real
     input to every Real output unless they are named.  ScenarioError for bad input; RunError when the run
     to the point fails."""
-    from .runner import fmu_plan, is_fmu, load_plan
-    from .scenario_files import scenario_path
+    from ..runner import fmu_plan, is_fmu, load_plan
+    from ..scenario_files import scenario_path
 
     import control  # noqa: F401  (python-control: where it is missing, refused before the run, not after it)
 
@@ -193,85 +192,3 @@ def _z(z: complex) -> str:
 
 def _num(x: Any) -> str:
     return f"{x:.4g}" if isinstance(x, float) and math.isfinite(x) else str(x)
-
-
-def parse_break(text: str) -> tuple[str, str]:
-    """``"FROM->TO"`` -> (FROM, TO); CosimError for another form."""
-    parts = [p.strip() for p in text.split("->")]
-    if len(parts) != 2 or not all(parts):
-        raise CosimError(f"--break {text!r}: give one connection as FROM->TO, e.g. controller.u1->plant.u1")
-    return parts[0], parts[1]
-
-
-def parse_states(items: Sequence[str] | None) -> dict[str, float]:
-    """``--state NAME=VALUE`` items -> {name: value}; CosimError naming a bad one, or one given twice."""
-    out: dict[str, float] = {}
-    for item in items or []:
-        name, sep, value = item.partition("=")
-        try:
-            x = float(value)
-        except ValueError:
-            x = math.nan
-        if not sep or not name.strip() or not math.isfinite(x):
-            raise CosimError(f"--state {item!r}: give INSTANCE.STATE=VALUE with a finite number")
-        if name.strip() in out:
-            raise CosimError(f"--state {item!r}: {name.strip()} is given twice")
-        out[name.strip()] = x
-    return out
-
-
-def parse_names(option: str, items: Sequence[str] | None) -> list[str]:
-    """Repeated or comma-separated ``INST.VAR`` names -> one list; CosimError for an empty name or one
-    given twice."""
-    out: list[str] = []
-    for item in items or []:
-        for name in (n.strip() for n in item.split(",")):
-            if not name:
-                raise CosimError(f"{option} {item!r}: an empty name; give INSTANCE.VARIABLE names, comma-separated")
-            if name in out:
-                raise CosimError(f"{option} {item!r}: {name} is given twice")
-            out.append(name)
-    return out
-
-
-def parse_number(option: str, text: str | None) -> float | None:
-    """An option's number (None where not given); CosimError where it is not a finite one."""
-    if text is None:
-        return None
-    try:
-        x = float(text)
-    except ValueError:
-        x = math.nan
-    if not math.isfinite(x):
-        raise CosimError(f"{option} {text!r}: give a finite number")
-    return x
-
-
-def parse_count(option: str, text: str | None) -> int | None:
-    """An option's whole number (None where not given; ``1e3`` is 1000); CosimError for another value."""
-    x = parse_number(option, text)
-    if x is None:
-        return None
-    if x != int(x):
-        raise CosimError(f"{option} {text!r}: give a whole number")
-    return int(x)
-
-
-def check_out(out: str | Path) -> Path:
-    """The results folder ``out`` as :func:`write` will make it, checked before anything runs: OutputError
-    (one line) where it, or the nearest of its parents that exists, is not a folder or cannot be written.
-    Nothing is made here."""
-    from .cosim import OutputError
-
-    if not str(out).strip():
-        raise OutputError(f"--out {str(out)!r}: give a folder")
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise OutputError(f"--out {out}: exists and is not a folder")
-    parent = next((p for p in out.absolute().parents if p.exists()), None)
-    if parent is None or not parent.is_dir():
-        raise OutputError(f"--out {out}: {parent} is not a folder")
-    where = out if out.exists() else parent
-    if not os.access(where, os.W_OK | os.X_OK):
-        raise OutputError(f"--out {out}: cannot write in {where}")
-    return out

@@ -2,13 +2,15 @@
 gamma search (the generic sweep, sweep.py, runs the points and takes the measure it is given): the
 controller's metrics of each run (the tracking errors' RMSE, the final position, the time to the goal,
 divergence), with a frozen and a foam run the disturbance analysis (gamma*, (53), with the run's own Q and
-R); and the three FMUs the points run."""
+R): the robot's set of metrics, registered with the studies (:data:`METRIC_SET`)."""
 from __future__ import annotations
 
 import json
 import math
 from pathlib import Path
 from typing import Any
+
+from ..studies import MetricSet, System, register_set
 
 
 def measure(row: dict[str, Any], results: dict[str, Any], work: Path) -> None:
@@ -85,7 +87,7 @@ def _goal(run_dir: Path) -> tuple[float, float] | None:
 def _weights(run_dir: Path) -> dict[str, float]:
     """Q and R of a run's controller, the weights of (53): the values its scenario set (``scenario.json``),
     the controller's defaults (Table 1) for the others."""
-    from .components.controller import ControllerParams
+    from ..components.controller import ControllerParams
 
     defaults = ControllerParams()
     w = {"Q": defaults.Q, "R": defaults.R}
@@ -93,9 +95,17 @@ def _weights(run_dir: Path) -> dict[str, float]:
     return {k: float(p.get(k, v)) for k, v in w.items()}
 
 
-def fmu_paths() -> dict[str, str]:
-    """Our three FMUs, built if needed, as absolute paths on this machine (a study sends them to its workers
-    by content: shipment.py)."""
-    from .runner import resolve_model
+def robot_system() -> System:
+    """Our robot as the system of a study: its model names resolve to its FMUs (the runner's
+    ``resolve_model``, each built when a base first names it), every run is judged by
+    :func:`~wmr_cosim.paper.analysis.judge_run`; its set of metrics is registered with this module."""
+    from .. import runner
+    from .analysis import judge_run
 
-    return {m: str(resolve_model(m).resolve()) for m in ("WmrPlant", "WmrSensor", "WmrController")}
+    return System(models=runner.resolve_model, judge=judge_run)
+
+
+#: The robot's set of metrics (a sweep file's ``sets = ["robot"]``; the default of one that names no metric),
+#: registered with the studies as this module is imported.
+METRIC_SET = MetricSet("robot", measure, columns, "the robot's set of metrics", default=True)
+register_set(METRIC_SET)
