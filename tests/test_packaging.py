@@ -89,7 +89,6 @@ IMPORTS = {
     "pandas": ("pandas", "sweep"), "distributed": ("dask[distributed]", "sweep"),  # sweep, gamma-search
     "scipy": ("scipy", "sweep"),   # falsify (and linearize: in the linear extra too)
     "control": ("control", "linear"),   # linearize (python-control)
-    "libcosimpy": ("libcosimpy", "test"), "ecospy": ("ecospy", "test"),  # tests/interop.py (other masters)
 }
 
 
@@ -123,10 +122,15 @@ def test_runtime_dependencies_are_what_the_code_imports():
     assert "scipy" not in runtime and "scipy" in _requirement_names(meta["optional-dependencies"]["test"])
 
 
+#: The extras the commands need beyond the run-time dependencies (sweep, gamma-search, falsify; linearize).
+EXTRAS = "sweep,linear"
+
+
 @pytest.fixture(scope="module")
 def venv(tmp_path_factory):
-    """The wheel (built from a clean copy of the sources) installed with its declared dependencies into a
-    fresh virtual environment without the system's site-packages; removed afterwards (about 300 MB)."""
+    """The wheel (built from a clean copy of the sources) installed with its declared dependencies and the
+    extras of the commands (sweep, linear) into a fresh virtual environment without the system's
+    site-packages; removed afterwards (about 500 MB)."""
     import pip
 
     base = tmp_path_factory.mktemp("wheel")
@@ -137,10 +141,11 @@ def venv(tmp_path_factory):
     env_dir = base / "venv"
     if tuple(int(x) for x in pip.__version__.split(".")[:2]) >= (22, 3):  # this pip installs into it
         subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(env_dir)], check=True)
-        _pip("--python", str(env_dir / "bin" / "python"), "install", "--quiet", str(wheels[0]))
+        _pip("--python", str(env_dir / "bin" / "python"), "install", "--quiet", f"{wheels[0]}[{EXTRAS}]")
     else:
         subprocess.run([sys.executable, "-m", "venv", str(env_dir)], check=True)
-        p = subprocess.run([str(env_dir / "bin" / "python"), "-m", "pip", "install", "--quiet", str(wheels[0])],
+        p = subprocess.run([str(env_dir / "bin" / "python"), "-m", "pip", "install", "--quiet",
+                            f"{wheels[0]}[{EXTRAS}]"],
                            capture_output=True, text=True)
         assert p.returncode == 0, p.stderr[-2000:]
     yield env_dir
@@ -217,3 +222,76 @@ def test_a_scenario_name_that_is_not_a_file_here_is_the_shipped_one(tmp_path, mo
         assert scenario_path(name) == Path(name), name  # the command then reports it missing
     (tmp_path / "example.toml").write_text("# mine\n")
     assert scenario_path("example.toml") == Path("example.toml")  # a file here comes first
+
+
+#: A sweep of one point over a shortened example, one metric of the generic kind.
+_SWEEP = """base = "short.toml"
+[grid]
+"plant.foam_da1" = [0.4]
+[metric.x_end]
+of = "final"
+variable = "plant.x_A"
+"""
+#: A falsification of the smallest budget over the G1 protocol cut to 11 s.
+_FALSIFY = """base = "g1_short.toml"
+requirement = "tracking"
+seed = 3
+budget = 10
+[space]
+"plant.foam_da1" = { low = 0.2, high = 1.2 }
+"""
+_G1_SHORT = """base = "g1_requirements.toml"
+replace = ["requirements"]
+[experiment]
+stop = 11.0
+[[requirements]]
+name = "tracking"
+formula = "always[9,11] (abs(controller.e1) < 0.5 rad and abs(controller.e2) < 0.5 rad)"
+"""
+
+
+@pytest.mark.slow
+def test_every_command_runs_its_smallest_case_from_the_installed_wheel(venv, tmp_path):
+    """Each command of the table, once, from the wheel installed with its extras (the studies, the
+    linearisation): what a package folder missing from the wheel, or an extra missing a module, breaks."""
+    from wmr_cosim.cli.commands import COMMANDS
+    from reference_fmus import REF
+
+    work = tmp_path / "work"
+    work.mkdir()
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    env.update(XDG_CACHE_HOME=str(tmp_path / "cache"), MPLCONFIGDIR=str(tmp_path / "mpl"), MPLBACKEND="Agg")
+    ran: set[str] = set()
+
+    def cli(*args: str) -> str:
+        p = subprocess.run([str(venv / "bin" / "wmr-cosim"), *args], capture_output=True, text=True, cwd=work,
+                           env=env, timeout=900)
+        assert p.returncode == 0, f"wmr-cosim {' '.join(args)}: exit {p.returncode}\n{p.stdout}\n{p.stderr}"
+        ran.add(args[0])
+        return p.stdout
+
+    (work / "short.toml").write_text('base = "example.toml"\n[experiment]\nstop = 2.0\n')
+    (work / "sweep.toml").write_text(_SWEEP)
+    (work / "g1_short.toml").write_text(_G1_SHORT)
+    (work / "falsify.toml").write_text(_FALSIFY)
+    shutil.copy(ROOT / "tests" / "data" / "short_protocol.toml", work / "protocol.toml")
+    (work / "protocol.toml").write_text((work / "protocol.toml").read_text().replace(
+        '"../../scenarios/paper/g1.toml"', '"paper/g1.toml"'))
+
+    assert "G1" in cli("direct", "G1", "--stop", "2")
+    assert "WmrPlant" in cli("build")
+    cli("run", "short.toml", "--out", "short", "--quiet")
+    assert "WmrPlant" in cli("check", "short.toml")
+    cli("plot", "short", "plant.x_A", "--out", "short.png")
+    cli("export-ssp", "short.toml", "--out", "short.ssp")
+    plant = next((tmp_path / "cache" / "wmr-cosim" / "fmus").glob("WmrPlant.fmu"))
+    assert "WmrPlant" in cli("info", str(plant))
+    cli("sweep", "sweep.toml", "--out", "sweep", "--workers", "1", "--quiet")
+    cli("gamma-search", "protocol.toml", "--grid", "11", "--out", "gamma", "--workers", "1", "--quiet")
+    cli("falsify", "falsify.toml", "--out", "falsify", "--workers", "1", "--quiet")
+    assert "eigenvalues" in cli("linearize", str(REF / "fmi2" / "VanDerPol.fmu"), "--at", "0", "--out", "lin")
+    cli("paper", "--help")   # (the paper job itself: the test above)
+    assert ran == set(COMMANDS)
+    assert (work / "short.png").is_file() and (work / "short.ssp").is_file()
+    assert (work / "sweep" / "results.csv").is_file() and (work / "falsify" / "falsify.json").is_file()
+    assert (work / "gamma" / "gamma_search.json").is_file() and (work / "lin" / "linear.npz").is_file()

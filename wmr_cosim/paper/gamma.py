@@ -42,11 +42,13 @@ def gamma_search(scenario: str | os.PathLike, out: str | os.PathLike, grid: list
     ``archive_limits``: the caller's archive limits (a command line's options), over the protocol's own,
     sent to the workers with every point."""
 
-    from ..cosim import plan_runs
-    from ..cosim import CosimError
+    from ..cosim import CosimError, plan_runs, read_protocol
+    from ..scenario_files import shipped_folder
 
     scenario = str(Path(scenario).resolve())
-    sc, runs, _ = plan_runs(scenario, lambda name: Path(name), None, archive_limits)
+    # its base may be a shipped scenario (paper/g1.toml), found as `run` finds it
+    proto = read_protocol(scenario, lambda name: Path(name), archive_limits, shipped_folder())
+    sc, runs, _ = plan_runs(proto, None, None, archive_limits)
     names = [r.name for r in runs]
     for need in ("frozen", "foam"):
         if need not in names:
@@ -55,7 +57,7 @@ def gamma_search(scenario: str | os.PathLike, out: str | os.PathLike, grid: list
     if variant is not None and variant not in sc.variants:
         raise CosimError(f"{scenario}: --variant {variant}: the protocol declares "
                          f"{', '.join(sc.variants) or 'no variants'}")
-    sc, runs, vparams = plan_runs(scenario, lambda name: Path(name), variant, archive_limits)
+    sc, runs, vparams = plan_runs(proto, None, variant, archive_limits)
     grid = sorted(set(float(g) for g in (grid or DEFAULT_GRID)))
     if not grid or grid[0] <= 0:
         raise CosimError("gamma-search: the grid must hold values > 0")
