@@ -1,5 +1,8 @@
-"""Requirements in signal temporal logic (STL): the formula language, its parser (a tokenizer and a
-recursive-descent parser of our own, never ``eval``) and its check against the variables' types and units.
+"""Requirements in signal temporal logic (STL): the expression language of the master, its parser (a
+tokenizer and a recursive-descent parser of our own, never ``eval``) and its check against the variables'
+types and units.  The events' conditions (cosim.scenario.condition) are its Boolean part, parsed by the
+same tokenizer and parser in the :data:`CONDITION` dialect; requirements' formulas take all of it
+(:data:`FORMULA`).
 
 Grammar (keywords are case-sensitive; precedence from loosest to tightest)::
 
@@ -17,7 +20,15 @@ Grammar (keywords are case-sensitive; precedence from loosest to tightest)::
     BOUND       := "[" NUMBER "," NUMBER "]"          (seconds, from now: future for always, eventually,
                                                         until; past for historically, once, since)
     COMPARE     := "<" | "<=" | ">" | ">=" | "==" | "!="
-    NAME        := instance "." variable
+    NAME        := instance "." variable   (the variable may contain dots and an index: "x[1]", "a.b")
+
+A condition is the part without ``implies``, the temporal operators, arithmetic, units, ``abs`` and
+``sqrt``, where an operand of a comparison is a NAME, a NUMBER, ``-`` NUMBER, ``t``, ``true`` or ``false``
+(never parenthesised)::
+
+    condition   := disjunction                 (of conjunctions of "not" ... of comparisons)
+    comparison  := "(" condition ")" | operand [COMPARE operand]
+    operand     := NUMBER | "-" NUMBER | "true" | "false" | "t" | NAME
 
 A chain of one operator (``or``, ``and``, ``+ -``, ``* /``) is one node of all its operands, parsed in a
 loop and evaluated left to right (the roundings of nested pairs), so that no walk of a long formula
@@ -38,7 +49,9 @@ when true and -inf when false; ``not`` negates, ``and``/``or`` take the minimum/
 maximum, ``historically`` and ``once`` the same over t_k-b..t_k-a (without a bound: from the start);
 ``p until[a,b] q`` at t_k is the maximum over t_j in t_k+a..t_k+b of min(q(t_j), p over t_k..t_j-h), and
 ``p since[a,b] q`` the maximum over t_j in t_k-b..t_k-a of min(q(t_j), p over t_j+h..t_k) (rtamt's
-discrete-time semantics).  A requirement holds when its robustness is >= 0.
+discrete-time semantics).  A requirement holds when its robustness is >= 0.  (A condition is true or
+false: its comparisons are Python's, :data:`COMPARE`; where no comparison is at a tie, the robustness of
+the same text is > 0 exactly where the condition is true.)
 
 A requirement is evaluated at t = 0; one without a temporal operator means "at every communication point"
 (it is read as ``always p``).  ``always`` without a bound is allowed as the outermost operator only (over
@@ -47,19 +60,36 @@ the whole run); every other future operator needs a bound (a verdict must be rea
 from __future__ import annotations
 
 import math
+import operator
 import re
 from dataclasses import dataclass, field
-from typing import Callable, Generic, Iterator, TypeVar
+from typing import Any, Callable, Iterator, NamedTuple
 
 from ..messages.errors import CosimError
 from ..messages.suggest import did_you_mean
 from ..model.units import KNOWN, Unit, conversion
 
-KEYWORDS = {"and", "or", "not", "implies", "always", "eventually", "historically", "once", "until", "since",
-            "true", "false", "t", "abs", "sqrt"}
 UNARY_TEMPORAL = {"always": "future", "eventually": "future", "historically": "past", "once": "past"}
 BINARY_TEMPORAL = {"until": "future", "since": "past"}
-COMPARE = ("<", "<=", ">", ">=", "==", "!=")
+#: The keywords of conditions (the Boolean part) and of formulas (all of the language).
+CONDITION_KEYWORDS = frozenset({"and", "or", "not", "true", "false", "t"})
+KEYWORDS = CONDITION_KEYWORDS | {"implies", "abs", "sqrt"} | UNARY_TEMPORAL.keys() | BINARY_TEMPORAL.keys()
+
+
+class Comparison(NamedTuple):
+    """A comparison operator: its truth (a condition's value) and the sign of its robustness (a
+    requirement's: ``sign * (a - b)`` for an order, ``sign * |a - b|`` for an equality)."""
+
+    truth: Callable[[Any, Any], bool]
+    sign: float
+    ordered: bool
+
+
+#: The comparisons of the language, one table for conditions and formulas.
+COMPARE: dict[str, Comparison] = {
+    "<": Comparison(operator.lt, -1.0, True), "<=": Comparison(operator.le, -1.0, True),
+    ">": Comparison(operator.gt, 1.0, True), ">=": Comparison(operator.ge, 1.0, True),
+    "==": Comparison(operator.eq, -1.0, False), "!=": Comparison(operator.ne, 1.0, False)}
 MAX_LENGTH = 4000   # characters of a formula
 MAX_DEPTH = 60      # nesting
 
@@ -72,14 +102,77 @@ _TOKEN = re.compile(r"""
 """, re.VERBOSE)
 #: A unit after a number: letters, digits and . / ^ * (``N.m``, ``m/s2``, ``rad/s^2``), starting with a letter.
 _UNIT = re.compile(r"[A-Za-z][A-Za-z0-9]*(?:[./^*][A-Za-z0-9]+)*")
+#: The characters of arithmetic and bounds: tokens of a formula, unexpected in a condition.
+_ARITHMETIC = frozenset({"+", "*", "/", "[", "]", ","})
 
 
-class FormulaError(ValueError):
-    """A formula that does not parse or check; ``pos`` is the 1-based character position (0: the whole)."""
+# ------------------------------------------------------------------------------------------- messages
+class ExpressionError(ValueError):
+    """A formula or a condition that does not parse or check: ``reason`` at the 1-based character ``pos``
+    (0: the whole) of ``text``; ``word``: the word it is about (a name that is no variable), ``found``: the
+    token found where the reason's ``expected ...`` was ("" the end).  The message is one line, written by
+    the subclass of the dialect (the same reason in both)."""
 
-    def __init__(self, reason: str, pos: int = 0) -> None:
-        self.reason, self.pos = reason, pos
-        super().__init__(f"at character {pos}: {reason}" if pos else reason)
+    def __init__(self, reason: str, pos: int = 0, text: str = "", *, word: str | None = None,
+                 found: str | None = None) -> None:
+        self.reason, self.pos, self.text, self.word, self.found = reason, pos, text, word, found
+        super().__init__(self.render())
+
+    def render(self) -> str:
+        raise NotImplementedError
+
+
+class FormulaError(ExpressionError):
+    """A formula that does not parse or check: "at character 9: unexpected '$'"."""
+
+    def render(self) -> str:
+        reason = self.reason if self.word is None else f"{self.word!r}: {self.reason}"
+        if self.found is not None:
+            reason += f", found {self.found!r}" if self.found else ", found the end"
+        return f"at character {self.pos}: {reason}" if self.pos else reason
+
+
+class ConditionError(ExpressionError):
+    """An event's condition that does not parse or check: "unexpected '$' at character 9 of 'a.x > 0 $'"."""
+
+    def render(self) -> str:
+        if self.word is not None:
+            return f"{self.word!r} at character {self.pos}: {self.reason}"
+        if self.found == "":
+            return f"{self.reason}, found at the end of {self.text!r}"
+        if self.found is not None:
+            return f"{self.reason}, found {self.found!r} at character {self.pos} of {self.text!r}"
+        return f"{self.reason} at character {self.pos} of {self.text!r}" if self.pos and self.text else self.reason
+
+
+def not_a_condition(what: str) -> str:
+    """The reason given for a number where a condition is expected (``what``: as written)."""
+    return f"{what} is a number, not a condition: compare it (e.g. {what} > 0)"
+
+
+@dataclass(frozen=True)
+class Dialect:
+    """What a use of the language takes of it: ``full`` (formulas) implies, the temporal operators,
+    arithmetic, units, abs and sqrt, operands in parentheses; without (conditions) comparisons of names,
+    numbers, t, true and false under and, or, not and parentheses.  The rest is how its messages read."""
+
+    noun: str                        # "formula" or "condition"
+    full: bool
+    keywords: frozenset[str]
+    max_length: int                  # characters
+    max_depth: int                   # levels of nesting
+    too_deep: str                    # the reason given beyond them ({n}: max_depth)
+    after: str                       # what may follow a complete expression
+    operand: str                     # what an operand may be
+    error: type[ExpressionError]
+
+
+FORMULA = Dialect("formula", True, frozenset(KEYWORDS), MAX_LENGTH, MAX_DEPTH,
+                  "nested too deeply (at most {n} levels of parentheses, prefix operators and implies)",
+                  "an operator or the end", "a variable, a number, t, true, false, abs(...), sqrt(...) or '('",
+                  FormulaError)
+CONDITION = Dialect("condition", False, CONDITION_KEYWORDS, 2000, 50, "nested more than {n} deep",
+                    "and, or or the end", "a variable, a number, true, false, t or '('", ConditionError)
 
 
 @dataclass(frozen=True)
@@ -89,34 +182,47 @@ class Token:
     pos: int       # 1-based
 
 
-def tokenize(text: str) -> list[Token]:
-    """The tokens of a formula, ending with an ``end`` token."""
+def _not_a_name(d: Dialect, word: str, pos: int, text: str) -> ExpressionError:
+    """The refusal of a word without a dot that is no keyword of the dialect (at character ``pos``)."""
+    if word in UNARY_TEMPORAL or word in BINARY_TEMPORAL:   # (only a condition gets here)
+        return d.error("a temporal operator: a condition is true or false at each communication point "
+                       "(temporal operators are for requirements)", pos, text, word=word)
+    if word in KEYWORDS:
+        return d.error("an operator of requirements, not of conditions (a condition compares variables, t and "
+                       "numbers under and, or, not)", pos, text, word=word)
+    hint = did_you_mean(word, d.keywords)   # a misspelt operator (eventualy, untl, adn)
+    if hint:
+        return d.error(f"not an operator, nor a variable (\"instance.variable\"){hint}", pos, text, word=word)
+    return d.error("a variable is \"instance.variable\" (or t for the time)", pos, text, word=word)
+
+
+def tokenize(text: str, dialect: Dialect = FORMULA) -> list[Token]:
+    """The tokens of a formula (or of a condition, ``dialect`` :data:`CONDITION`), ending with an ``end``
+    token; the dialect's error where a character or a word is none of its own."""
+    d = dialect
     if not isinstance(text, str):
-        raise FormulaError(f"a formula is a string, not {text!r}")
-    if len(text) > MAX_LENGTH:
-        raise FormulaError(f"a formula of {len(text)} characters: at most {MAX_LENGTH}")
+        raise d.error(f"must be a string, not {text!r}")
+    if len(text) > d.max_length:
+        raise d.error(f"a {d.noun} of {len(text)} characters: at most {d.max_length}")
     out: list[Token] = []
     pos = 0
     while pos < len(text):
         m = _TOKEN.match(text, pos)
-        if m is None:
-            raise FormulaError(f"unexpected {text[pos]!r}", pos + 1)
+        if m is None or (not d.full and m.group() in _ARITHMETIC):
+            raise d.error(f"unexpected {text[pos]!r}", pos + 1, text)
         kind = m.lastgroup
-        assert kind is not None
+        assert kind is not None   # every alternative of _TOKEN is a named group
         if kind != "space":
             word = m.group()
-            if kind == "name" and word in KEYWORDS:
+            if kind == "name" and word in d.keywords:
                 kind = "keyword"
             elif kind == "name" and "." not in word:
-                hint = did_you_mean(word, KEYWORDS)   # a misspelt operator (eventualy, untl)
-                if hint:
-                    raise FormulaError(f"{word!r}: not an operator, nor a variable (\"instance.variable\"){hint}",
-                                       pos + 1)
-                raise FormulaError(f"{word!r}: a variable is \"instance.variable\" (or t for the time)", pos + 1)
-            if kind == "number" and not math.isfinite(float(word)):
-                raise FormulaError(f"{word}: beyond the largest number (about 1.8e308)", pos + 1)
+                raise _not_a_name(d, word, pos + 1, text)
+            # (a condition's number beyond the largest is infinite, as it always was)
+            if kind == "number" and d.full and not math.isfinite(float(word)):
+                raise d.error(f"{word}: beyond the largest number (about 1.8e308)", pos + 1, text)
             out.append(Token(kind, word, pos + 1))
-            if kind == "number":   # a unit may follow
+            if kind == "number" and d.full:   # a unit may follow
                 j = m.end()
                 while j < len(text) and text[j] in " \t":
                     j += 1
@@ -124,7 +230,7 @@ def tokenize(text: str) -> list[Token]:
                 if u is not None and u.group() not in KEYWORDS:
                     hint = "" if u.group() in KNOWN else did_you_mean(u.group(), KEYWORDS)
                     if hint:   # a misspelt operator after a number (a.x > 0 untl ...), not a unit
-                        raise FormulaError(f"{u.group()!r}: not a unit, nor an operator{hint}", j + 1)
+                        raise d.error(f"not a unit, nor an operator{hint}", j + 1, text, word=u.group())
                     out.append(Token("unit", u.group(), j + 1))
                     pos = u.end()
                     continue
@@ -222,51 +328,41 @@ class Until(Node):
     b: Node
 
 
-_T = TypeVar("_T")
+class _Parser:
+    """A recursive-descent parser's place in the tokens of ``text`` (ending with an ``end`` token) and its
+    nesting, for a formula or a condition (``dialect``)."""
 
-
-class Cursor(Generic[_T]):
-    """A recursive-descent parser's place in its tokens (ending with an ``end`` token) and its nesting;
-    this language's parser and the events' conditions' (cosim.scenario.condition) build on it."""
-
-    def __init__(self, text: str, toks: list[_T]) -> None:
-        self.text = text
-        self.toks = toks
+    def __init__(self, text: str, dialect: Dialect) -> None:
+        self.text, self.d = text, dialect
+        self.toks = tokenize(text, dialect)
         self.i = 0
         self.depth = 0
 
-    def peek(self) -> _T:
+    def peek(self) -> Token:
         return self.toks[self.i]
 
-    def take(self) -> _T:
+    def take(self) -> Token:
         tok = self.toks[self.i]
         self.i += 1
         return tok
 
-
-class _Parser(Cursor[Token]):
-    def __init__(self, text: str) -> None:
-        super().__init__(text, tokenize(text))
-
     def is_kw(self, *words: str) -> bool:
         return self.peek().kind == "keyword" and self.peek().text in words
 
-    def fail(self, tok: Token, wanted: str) -> FormulaError:
-        found = "the end" if tok.kind == "end" else repr(tok.text)
-        return FormulaError(f"expected {wanted}, found {found}", tok.pos)
+    def fail(self, tok: Token, wanted: str) -> ExpressionError:
+        return self.d.error(f"expected {wanted}", tok.pos, self.text, found=tok.text)
 
     def deeper(self, tok: Token) -> None:
         self.depth += 1
-        if self.depth > MAX_DEPTH:
-            raise FormulaError(f"nested too deeply (at most {MAX_DEPTH} levels of parentheses, prefix operators "
-                               "and implies)", tok.pos)
+        if self.depth > self.d.max_depth:
+            raise self.d.error(self.d.too_deep.format(n=self.d.max_depth), tok.pos)
 
     def parse(self) -> Node:
         if self.peek().kind == "end":
-            raise FormulaError("an empty formula")
+            raise self.d.error(f"an empty {self.d.noun}")
         node = self.implication()
         if self.peek().kind != "end":
-            raise self.fail(self.peek(), "an operator or the end")
+            raise self.fail(self.peek(), self.d.after)
         return node
 
     def implication(self) -> Node:
@@ -345,11 +441,37 @@ class _Parser(Cursor[Token]):
         return self.comparison()
 
     def comparison(self) -> Node:
+        if not self.d.full:
+            return self.condition_comparison()
         node = self.sum()
         if self.peek().kind == "op" and self.peek().text in COMPARE:
             tok = self.take()
             node = Cmp(tok.pos, tok.text, node, self.sum())
         return node
+
+    def condition_comparison(self) -> Node:
+        """A condition's comparison: a condition in parentheses (never compared), or an operand alone or
+        compared with another."""
+        if self.peek().kind == "paren" and self.peek().text == "(":
+            return self.atom()
+        node = self.operand()
+        if self.peek().kind == "op" and self.peek().text in COMPARE:
+            tok = self.take()
+            node = Cmp(tok.pos, tok.text, node, self.operand())
+        return node
+
+    def operand(self) -> Node:
+        """A condition's operand: an atom that is no parenthesis, or a negative number."""
+        tok = self.peek()
+        if tok.kind == "op" and tok.text == "-":
+            self.take()
+            num = self.take()
+            if num.kind != "number":
+                raise self.fail(num, "a number after '-'")
+            return Num(tok.pos, -float(num.text))
+        if tok.kind == "paren":
+            raise self.fail(self.take(), self.d.operand)
+        return self.atom()
 
     def sum(self) -> Node:
         first, rest = self.product(), []
@@ -406,12 +528,13 @@ class _Parser(Cursor[Token]):
             if close.text != ")":
                 raise self.fail(close, "')'")
             return node
-        raise self.fail(tok, "a variable, a number, t, true, false, abs(...), sqrt(...) or '('")
+        raise self.fail(tok, self.d.operand)
 
 
-def parse(text: str) -> Node:
-    """The syntax tree of a formula (FormulaError with the position if it does not parse)."""
-    return _Parser(text).parse()
+def parse(text: str, dialect: Dialect = FORMULA) -> Node:
+    """The syntax tree of a formula (or of a condition, ``dialect`` :data:`CONDITION`); the dialect's error
+    with the position where it does not parse."""
+    return _Parser(text, dialect).parse()
 
 
 def children(node: Node) -> tuple[Node, ...]:
@@ -563,7 +686,7 @@ class _Checker:
             return
         if isinstance(n, Var):
             if self.var(n).type != "Boolean":
-                raise FormulaError(f"{n.name} is a number, not a condition: compare it (e.g. {n.name} > 0)", n.pos)
+                raise FormulaError(not_a_condition(n.name), n.pos)
             return
         if isinstance(n, Cmp):
             ua, ub = self.numeric(n.a), self.numeric(n.b)
@@ -706,8 +829,7 @@ def compile_atom(n: Node, checked: Checked, read: dict[str, Callable[[], float]]
     assert isinstance(n, Cmp)
     a, b = compile_numeric(n.a, checked, read), compile_numeric(n.b, checked, read)
     # the robustness a - b, b - a, -|a - b| or |a - b|; a comparison of NaN (r != r) is false: -inf
-    ordered = {">": 1.0, ">=": 1.0, "<": -1.0, "<=": -1.0}
-    sign = ordered.get(n.op, -1.0 if n.op == "==" else 1.0)
-    if n.op in ordered:
+    sign = COMPARE[n.op].sign
+    if COMPARE[n.op].ordered:
         return lambda t: r if (r := sign * (a(t) - b(t))) == r else -math.inf
     return lambda t: r if (r := sign * abs(a(t) - b(t))) == r else -math.inf

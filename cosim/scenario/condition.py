@@ -1,8 +1,10 @@
-"""Conditions of events (``when = "plant.x_A > 1.5 and t > 5"``): a tokenizer and a recursive-descent
-parser of a small grammar of our own (never ``eval``), the type check against the variables, and the
-compiled predicate the execution evaluates between steps.
+"""Conditions of events (``when = "plant.x_A > 1.5 and t > 5"``): the Boolean part of the requirements'
+language (cosim.requirements.formula), parsed by its tokenizer and parser in the condition dialect (never
+``eval``); the type check against the variables, and the compiled predicate the execution evaluates
+between steps.
 
-Grammar (keywords and names are case-sensitive)::
+Grammar (keywords and names are case-sensitive; the formula language without implies, temporal
+operators, arithmetic and units, refused with the requirements' messages)::
 
     condition  := disjunct ("or" disjunct)*
     disjunct   := negation ("and" negation)*
@@ -14,69 +16,28 @@ Grammar (keywords and names are case-sensitive)::
 
 ``t`` is the time [s] at the communication point.  A comparison takes two numbers (Real, Integer,
 Enumeration variables, constants, ``t``) or two booleans (``==``, ``!=`` only); an operand alone must be
-a Boolean variable or ``true``/``false``.
+a Boolean variable or ``true``/``false``.  A condition is true or false (Python's comparisons); a
+number beyond the largest is infinite.
 """
 from __future__ import annotations
 
-import operator
-import re
-from dataclasses import dataclass
 from typing import Any, Callable
 
-from ..requirements.formula import Cursor
+from ..requirements import formula
+from ..requirements.formula import COMPARE, CONDITION, ConditionError, Token, not_a_condition
 
-COMPARE = {"<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge, "==": operator.eq,
-           "!=": operator.ne}
-KEYWORDS = {"and", "or", "not", "true", "false", "t"}
-MAX_LENGTH = 2000   # characters of a condition
-MAX_DEPTH = 50      # nested parentheses and "not"s
+__all__ = ["COMPARE", "KEYWORDS", "MAX_DEPTH", "MAX_LENGTH", "ConditionError", "Token", "check_types",
+           "compile_condition", "parse", "tokenize", "variables"]
 
-_TOKEN = re.compile(r"""
-    (?P<space>\s+)
-  | (?P<number>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)
-  | (?P<op><=|>=|==|!=|<|>)
-  | (?P<paren>[()])
-  | (?P<minus>-)
-  | (?P<name>[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*(?:\[\d+(?:,\d+)*\])?)*)
-""", re.VERBOSE)
-
-
-class ConditionError(ValueError):
-    """A condition that does not parse or does not type-check; the message is one line."""
-
-
-@dataclass(frozen=True)
-class Token:
-    kind: str      # number, op, paren, minus, name, keyword, end
-    text: str
-    pos: int
+KEYWORDS = CONDITION.keywords
+MAX_LENGTH = CONDITION.max_length   # characters of a condition
+MAX_DEPTH = CONDITION.max_depth     # nested parentheses and "not"s
 
 
 def tokenize(text: str) -> list[Token]:
-    """The tokens of a condition, ending with an ``end`` token; refuses any character outside the grammar."""
-    if not isinstance(text, str):
-        raise ConditionError(f"must be a string, not {text!r}")
-    if len(text) > MAX_LENGTH:
-        raise ConditionError(f"a condition of {len(text)} characters: at most {MAX_LENGTH}")
-    out: list[Token] = []
-    pos = 0
-    while pos < len(text):
-        m = _TOKEN.match(text, pos)
-        if m is None:
-            raise ConditionError(f"unexpected {text[pos]!r} at character {pos + 1} of {text!r}")
-        kind = m.lastgroup
-        assert kind is not None   # every alternative of _TOKEN is a named group
-        if kind != "space":
-            word = m.group()
-            if kind == "name" and word in KEYWORDS:
-                kind = "keyword"
-            elif kind == "name" and "." not in word:
-                raise ConditionError(f"{word!r} at character {pos + 1}: a variable is \"instance.variable\" "
-                                     "(or t for the time)")
-            out.append(Token(kind, word, pos))
-        pos = m.end()
-    out.append(Token("end", "", len(text)))
-    return out
+    """The tokens of a condition (the language's tokenizer, positions 0-based), ending with an ``end``
+    token; refuses any character outside the condition's grammar."""
+    return [Token(tok.kind, tok.text, tok.pos - 1) for tok in formula.tokenize(text, CONDITION)]
 
 
 # The syntax tree: tuples, so that it is plain data.
@@ -85,88 +46,34 @@ def tokenize(text: str) -> list[Token]:
 Node = tuple
 
 
-class _Parser(Cursor[Token]):
-    def __init__(self, text: str) -> None:
-        super().__init__(text, tokenize(text))
-
-    def fail(self, tok: Token, wanted: str) -> ConditionError:
-        where = "at the end" if tok.kind == "end" else f"{tok.text!r} at character {tok.pos + 1}"
-        return ConditionError(f"expected {wanted}, found {where} of {self.text!r}")
-
-    def parse(self) -> Node:
-        if self.peek().kind == "end":
-            raise ConditionError("an empty condition")
-        node = self.condition()
-        if self.peek().kind != "end":
-            raise self.fail(self.peek(), "and, or or the end")
-        return node
-
-    def condition(self) -> Node:
-        node = self.disjunct()
-        while self.peek().text == "or" and self.peek().kind == "keyword":
-            self.take()
-            node = ("or", node, self.disjunct())
-        return node
-
-    def disjunct(self) -> Node:
-        node = self.negation()
-        while self.peek().text == "and" and self.peek().kind == "keyword":
-            self.take()
-            node = ("and", node, self.negation())
-        return node
-
-    def negation(self) -> Node:
-        if self.peek().kind == "keyword" and self.peek().text == "not":
-            self.take()
-            self._deeper()
-            node = ("not", self.negation())
-            self.depth -= 1
-            return node
-        return self.primary()
-
-    def _deeper(self) -> None:
-        self.depth += 1
-        if self.depth > MAX_DEPTH:
-            raise ConditionError(f"nested more than {MAX_DEPTH} deep")
-
-    def primary(self) -> Node:
-        tok = self.peek()
-        if tok.kind == "paren" and tok.text == "(":
-            self.take()
-            self._deeper()
-            node = self.condition()
-            self.depth -= 1
-            close = self.take()
-            if close.text != ")":
-                raise self.fail(close, "')'")
-            return node
-        left = self.operand()
-        if self.peek().kind == "op":
-            op = self.take().text
-            return ("cmp", op, left, self.operand())
-        return ("is", left)
-
-    def operand(self) -> Node:
-        tok = self.take()
-        if tok.kind == "number":
-            return ("num", float(tok.text))
-        if tok.kind == "minus":
-            num = self.take()
-            if num.kind != "number":
-                raise self.fail(num, "a number after '-'")
-            return ("num", -float(num.text))
-        if tok.kind == "keyword" and tok.text in ("true", "false"):
-            return ("bool", tok.text == "true")
-        if tok.kind == "keyword" and tok.text == "t":
-            return ("time",)
-        if tok.kind == "name":
-            return ("var", tok.text)
-        raise self.fail(tok, "a variable, a number, true, false, t or '('")
-
-
 def parse(text: str) -> Node:
     """The syntax tree of a condition (ConditionError if it does not parse)."""
-    return _Parser(text).parse()
+    return _tree(formula.parse(text, CONDITION))
+
+
+def _tree(n: formula.Node) -> Node:
+    """A condition's tree of the language's: a chain of and/or as nested pairs, left to right."""
+    if isinstance(n, formula.Logic):
+        node = _tree(n.args[0])
+        for a in n.args[1:]:
+            node = (n.op, node, _tree(a))
+        return node
+    if isinstance(n, formula.Not):
+        return ("not", _tree(n.a))
+    if isinstance(n, formula.Cmp):
+        return ("cmp", n.op, _leaf(n.a), _leaf(n.b))
+    return ("is", _leaf(n))
+
+
+def _leaf(n: formula.Node) -> Node:
+    if isinstance(n, formula.Num):
+        return ("num", n.value)
+    if isinstance(n, formula.Bool):
+        return ("bool", n.value)
+    if isinstance(n, formula.Time):
+        return ("time",)
+    assert isinstance(n, formula.Var), n   # (the condition dialect parses no other operand)
+    return ("var", n.name)
 
 
 def variables(node: Node) -> list[str]:
@@ -223,8 +130,7 @@ def check_types(node: Node, types: dict[str, str]) -> None:
         check_types(node[1], types)
     elif node[0] == "is":
         if _kind(node[1], types) != "boolean":
-            what = _show(node[1])
-            raise ConditionError(f"{what} is a number, not a condition: compare it (e.g. {what} > 0)")
+            raise ConditionError(not_a_condition(_show(node[1])))
     else:
         _, op, a, b = node
         ka, kb = _kind(a, types), _kind(b, types)
@@ -250,7 +156,7 @@ def compile_condition(node: Node, read: dict[str, Callable[[], Any]]) -> Callabl
     if kind == "is":
         v = _operand(node[1], read)
         return lambda t: bool(v(t))
-    op, left, right = COMPARE[node[1]], _operand(node[2], read), _operand(node[3], read)
+    op, left, right = COMPARE[node[1]].truth, _operand(node[2], read), _operand(node[3], read)
     return lambda t: bool(op(left(t), right(t)))
 
 
