@@ -270,7 +270,7 @@ def test_every_command_runs_its_smallest_case_from_the_installed_wheel(venv, tmp
         ran.add(args[0])
         return p.stdout
 
-    (work / "short.toml").write_text('base = "example.toml"\n[experiment]\nstop = 2.0\n')
+    (work / "short.toml").write_text('base = "example.toml"\n[experiment]\nstop = 13.0\n')  # (events at 12 s)
     (work / "sweep.toml").write_text(_SWEEP)
     (work / "g1_short.toml").write_text(_G1_SHORT)
     (work / "falsify.toml").write_text(_FALSIFY)
@@ -283,7 +283,7 @@ def test_every_command_runs_its_smallest_case_from_the_installed_wheel(venv, tmp
     cli("run", "short.toml", "--out", "short", "--quiet")
     assert "WmrPlant" in cli("check", "short.toml")
     cli("plot", "short", "plant.x_A", "--out", "short.png")
-    cli("export-ssp", "short.toml", "--out", "short.ssp")
+    cli("export-ssp", "g1_learn.toml", "--out", "short.ssp")   # (a scenario without events: SSP has none)
     plant = next((tmp_path / "cache" / "wmr-cosim" / "fmus").glob("WmrPlant.fmu"))
     assert "WmrPlant" in cli("info", str(plant))
     cli("sweep", "sweep.toml", "--out", "sweep", "--workers", "1", "--quiet")

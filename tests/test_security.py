@@ -195,13 +195,14 @@ def test_limits_from_the_scenario_and_the_command_line(built_fmus, tmp_path):
 
 
 @pytest.mark.parametrize("command, target", [
-    (("paper", "--quiet"), "wmr_cosim.paper.job.run_paper"),
-    (("sweep", "s.toml", "--quiet"), "wmr_cosim.studies.sweep.run_sweep"),
-    (("gamma-search", "g.toml", "--quiet"), "wmr_cosim.paper.gamma.gamma_search")])
+    (("paper", "--quiet"), "wmr_cosim.paper.run_paper"),
+    (("sweep", "s.toml", "--quiet"), "wmr_cosim.studies.run_sweep"),
+    (("gamma-search", "g.toml", "--quiet"), "wmr_cosim.paper.gamma_search")])
 def test_the_commands_of_worker_processes_take_the_command_lines_limits_along(monkeypatch, tmp_path, command, target):
     """paper, sweep and gamma-search are given --max-archive-size and --max-archive-ratio as an argument
     (their workers get them with each job: tests/test_paper.py and tests/test_sweep.py run them), never
-    refused up front; without the options, no limits."""
+    refused up front; without the options, no limits.  (Each is replaced on the face the command line
+    imports it from.)"""
     import importlib
 
     from wmr_cosim import cli

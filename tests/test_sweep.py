@@ -405,11 +405,11 @@ def test_a_point_whose_run_did_not_end_ok_is_failed_whatever_it_measures(tmp_pat
     stopped by an event) makes the point failed with that run's message, with the file's metrics too."""
     from types import SimpleNamespace
 
-    from wmr_cosim import runner
+    from wmr_cosim import cosim
 
     ends = {"first": SimpleNamespace(status="ok", message="", requirements=[]),
             "second": SimpleNamespace(status="stopped", message="stopped by events[0] at t = 0.5 s", requirements=[])}
-    monkeypatch.setattr(runner, "run_protocol", lambda *a, **kw: ends)
+    monkeypatch.setattr(cosim, "run_protocol", lambda *a, **kw: ends)
     monkeypatch.setattr(shipment.Shipment, "protocol", lambda *a: (SimpleNamespace(resolver=None), str))
     measure = sweep_metrics.SweepMeasure((sweep_metrics.MetricSpec("x_end", "final", "dq.x", run="first"),))
     study = sweep.Study(shipment.Shipment({"base.toml": {}}, {}, {}, shipment.build()), "base.toml", measure=measure)

@@ -133,8 +133,8 @@ def test_the_build_changes_with_the_sources(tmp_path, monkeypatch):
     assert ours.startswith(f"wmr-cosim {wmr_cosim.version()} (sources ") and "FMPy " in ours
     copy = tmp_path / "wmr_cosim"
     shutil.copytree(Path(wmr_cosim.__file__).parent, copy, ignore=shutil.ignore_patterns("__pycache__"))
-    (copy / "sweep.py").write_text((copy / "sweep.py").read_text() + "\n# changed\n")
-    p = subprocess.run([sys.executable, "-c", "from wmr_cosim import shipment; print(shipment.build())"],
+    (copy / "studies" / "sweep.py").write_text((copy / "studies" / "sweep.py").read_text() + "\n# changed\n")
+    p = subprocess.run([sys.executable, "-c", "from wmr_cosim.studies import shipment; print(shipment.build())"],
                        capture_output=True, text=True, timeout=120, cwd=tmp_path,
                        env={**os.environ, "PYTHONPATH": str(tmp_path)})
     assert p.returncode == 0, p.stderr

@@ -4,7 +4,7 @@ analysis, the figures and the report.
 The protocol is data: ``scenarios/paper.toml`` (shipped with the package) names one protocol file per task (``scenarios/paper/``),
 each declaring its runs (learn, frozen, foam) and the variants.  Tasks run in parallel worker processes;
 each task's runs run in order (the frozen and foam runs start from the learning run's final W and P).
-The tasks file is read by paper_tasks.py, the report written section by section by paper_report.py.
+The tasks file is read by tasks.py, the report written section by section by report.py.
 """
 from __future__ import annotations
 

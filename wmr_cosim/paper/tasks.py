@@ -1,5 +1,5 @@
 """The tasks file of the paper job (``scenarios/paper.toml`` by default): which protocol file runs each
-task of the paper.  Read by the paper job (paper_job.py) and by the robustness study (robustness.py),
+task of the paper.  Read by the paper job (job.py) and by the robustness study (robustness.py),
 which re-runs the same protocols."""
 from __future__ import annotations
 

@@ -309,7 +309,7 @@ def _measure(spec: SweepSpec, system: System, archive_limits: LimitOverrides | N
              ) -> tuple[SweepMeasure, dict[str, str | None]]:
     """What each point measures (the named sets, the file's metrics) and the metrics' units, the file
     checked against the base's runs (their FMUs resolved) before any point runs: the parameters its grid
-    and draws set, and its metrics (see :func:`sweep_metrics.check_metrics`)."""
+    and draws set, and its metrics (see :func:`metrics.check_metrics`)."""
     from ..cosim import check_protocol
 
     base = read_base(spec.base, system.models, archive_limits)

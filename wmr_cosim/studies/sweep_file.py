@@ -9,7 +9,7 @@ A sweep file (``scenarios/sweep-*.toml``)::
     samples = 8                   # random draws per grid point (default 1)
     metrics = ["foam.rmse_e1", "gamma_star"]   # the columns to plot (the table keeps every metric)
     sets = ["robot"]              # named sets of metrics (default: those registered as such, unless [metric] is given)
-    [metric.x_end]                # a metric over a recorded variable (sweep_metrics.py): any system
+    [metric.x_end]                # a metric over a recorded variable (metrics.py): any system
     of = "final"
     variable = "dq.x"
     [grid]                        # the cartesian product of these
