@@ -23,6 +23,7 @@ import re
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from ..model.types import NUMERIC_KINDS
 from ..requirements.formula import Cursor
 
 COMPARE = {"<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge, "==": operator.eq,
@@ -206,7 +207,7 @@ def _kind(operand: Node, types: dict[str, str]) -> str:
     if operand[0] == "bool":
         return "boolean"
     t = types[operand[1]]
-    if t in ("Real", "Integer", "Enumeration"):
+    if t in NUMERIC_KINDS:
         return "number"
     if t == "Boolean":
         return "boolean"
