@@ -29,8 +29,8 @@ from ..messages.suggest import did_you_mean
 from ..messages.words import count, plural
 from ..model.binary import PYTHON_FMU, runs_python
 from ..model.description import CO_SIMULATION, INTERFACE_NAMES, MODEL_EXCHANGE, FmuModel, Variable, load_model
-from ..model.types import PY_TYPES
 from ..model.kinds import FileKind, file_kind
+from ..model.types import PY_TYPES
 from ..model.units import conversion, lookup, same_unit, units_of
 from ..scenario.document import (SOLVER_KEYS, ConnectionSpec, InstanceSpec, Scenario, check_experiment, split_ref,
                                 steps_of)
