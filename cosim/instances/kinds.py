@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-from ..model.description import CO_SIMULATION, MODEL_EXCHANGE
+from ..model.description import CO_SIMULATION, MODEL_EXCHANGE, fmi_of
 from .contract import FmuInstance
 from .in_process import Instance, Instance3
 from .integrators import SolverSpec
@@ -44,3 +44,12 @@ def host(name: str, md: Any, fmi: int, unzipdir: str, log_path: Any, logging: st
     if solver is None:
         return make(name, md, unzipdir, log_path, logging)
     return make(name, md, unzipdir, log_path, logging, solver)
+
+
+def model_exchange(name: str, md: Any, unzipdir: str, log_path: Any = None, logging: str = "warning",
+                   solver: SolverSpec = SolverSpec()) -> ModelExchange2 | ModelExchange3:
+    """The Model Exchange instance of an FMU (FMI 2.0 or 3.0 by its model description), the class of its
+    kind."""
+    inst = host(name, md, fmi_of(md), unzipdir, log_path, logging, solver)
+    assert isinstance(inst, (ModelExchange2, ModelExchange3))
+    return inst

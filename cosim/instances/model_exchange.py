@@ -32,7 +32,7 @@ import math
 from typing import TYPE_CHECKING, Any, Callable
 
 from ..messages.errors import RunError
-from ..model.description import Variable, declares_state, fmi_of
+from ..model.description import Variable, declares_state
 from ..model.types import FLOAT64, FLOAT64_TYPES
 from .contract import FastPath
 from .failure import Call
@@ -512,14 +512,3 @@ class ModelExchange3(ModelExchange, Instance3):
 
     def _update_discrete_states(self) -> tuple[Any, ...]:
         return self.fmu.updateDiscreteStates()
-
-
-def model_exchange(name: str, md: Any, unzipdir: str, log_path: Any = None, logging: str = "warning",
-                   solver: SolverSpec = SolverSpec()) -> ModelExchange2 | ModelExchange3:
-    """The Model Exchange instance of an FMU (FMI 2.0 or 3.0 by its model description), the class of its
-    kind (:data:`.kinds.HOSTS`)."""
-    from .kinds import host
-
-    inst = host(name, md, fmi_of(md), unzipdir, log_path, logging, solver)
-    assert isinstance(inst, (ModelExchange2, ModelExchange3))
-    return inst
