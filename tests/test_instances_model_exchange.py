@@ -21,7 +21,7 @@ from wmr_cosim.cosim.scenario import document as scenario
 
 from wmr_cosim import cosim
 from wmr_cosim.cosim.instances.integrators import SolverSpec
-from wmr_cosim.cosim.instances.model_exchange import model_exchange
+from wmr_cosim.cosim.instances.kinds import model_exchange
 from wmr_cosim.cosim.model.description import load_model
 from wmr_cosim.runner import fmu_document
 

@@ -13,7 +13,8 @@ if TYPE_CHECKING:   # (for the type checker; at run time each name is imported w
     from .in_process import Instance, Instance3
     from .integrators import SOLVERS, SolverSpec
     from .isolation import IsolatedInstance
-    from .model_exchange import ModelExchange, model_exchange
+    from .kinds import HOSTS, host, model_exchange
+    from .model_exchange import ModelExchange
 
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "contract": ["FastPath", "FmuInstance"],
@@ -21,5 +22,6 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "in_process": ["Instance", "Instance3"],
     "integrators": ["SOLVERS", "SolverSpec"],
     "isolation": ["IsolatedInstance"],
-    "model_exchange": ["ModelExchange", "model_exchange"],
+    "kinds": ["HOSTS", "host", "model_exchange"],
+    "model_exchange": ["ModelExchange"],
 })

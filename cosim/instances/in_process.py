@@ -186,7 +186,7 @@ class Instance(FmuInstance):
             vr = [var.vr]
             if var.type == "Real":
                 self.call(f"fmi2SetReal({var.name})", self.fmu.setReal, vr, [float(value)])
-            elif var.type in ("Integer", "Enumeration"):
+            elif var.is_integer:
                 self.call(f"fmi2SetInteger({var.name})", self.fmu.setInteger, vr, [int(value)])
             elif var.type == "Boolean":
                 self.call(f"fmi2SetBoolean({var.name})", self.fmu.setBoolean, vr, [bool(value)])

@@ -39,7 +39,7 @@ from typing import Any
 
 from ..messages.errors import RunError
 from ..model.binary import load_failure
-from ..model.description import declares_state, fmi2_cs_declares
+from ..model.description import declares_state, fmi2_cs_declares, fmi_of
 from .contract import FastPath, FmuInstance
 from .failure import Call, InstanceLost
 from .handoff import Handoff
@@ -386,18 +386,10 @@ def _serve(argv: list[str]) -> int:
         pass
     from fmpy import read_model_description
 
-    from .in_process import Instance, Instance3
-    from .model_exchange import model_exchange
-
     md = read_model_description(os.path.join(fmu_dir, "modelDescription.xml"), validate=False)
     ctl_in = os.fdopen(c_r, "rb", buffering=0)
-    inst: FmuInstance
     try:
-        if len(argv) > 9 and argv[9]:   # a model exchange instance, with its integrator's settings
-            inst = model_exchange(name, md, fmu_dir, log_path or None, logging, SolverSpec(**json.loads(argv[9])))
-        else:
-            inst = (Instance3 if md.fmiVersion.startswith("3") else Instance)(name, md, fmu_dir, log_path or None,
-                                                                              logging)
+        inst = _hosted(name, md, fmu_dir, log_path, logging, argv[9] if len(argv) > 9 else "")
     except Exception as exc:   # the binary does not load: the first request gets the loader's reason
         if len(head := ctl_in.read(8)) == 8:
             ctl_in.read(struct.unpack("<q", head)[0])
@@ -406,6 +398,16 @@ def _serve(argv: list[str]) -> int:
         return 1
     server = _Server(shm, inst)
     return _loop(server, ctl_in, c_w, s_r, d_w)
+
+
+def _hosted(name: str, md: Any, fmu_dir: str, log_path: str, logging: str, solver: str) -> FmuInstance:
+    """The child's instance: the FMU extracted in ``fmu_dir`` (its model description ``md``, FMPy's) loaded
+    by the class of its kind (:data:`.kinds.HOSTS`, the table the start-up reads too); ``solver``: a model
+    exchange instance's integrator settings (JSON), "" for co-simulation; ``log_path`` "": no log file."""
+    from .kinds import host
+
+    spec = SolverSpec(**json.loads(solver)) if solver else None
+    return host(name, md, fmi_of(md), fmu_dir, log_path or None, logging, spec)
 
 
 def _loop(server: _Server, ctl_in: Any, c_w: int, s_r: int, d_w: int) -> int:
@@ -467,7 +469,7 @@ class IsolatedInstance(FmuInstance):
                  step_timeout: float | None, handoff: Handoff | int, solver: SolverSpec | None = None) -> None:
         """``solver``: host the FMU as model exchange with this integrator (None: co-simulation)."""
         self.name, self.md, self.logging, self.solver = name, md, logging, solver
-        self.fmi_version = 3 if md.fmiVersion.startswith("3") else 2
+        self.fmi_version = fmi_of(md)
         self.log: list[str] = []   # the child's last log lines (its instance keeps at most 200)
         self.log_lines = self.received = self.n_errors = 0
         self.fatal = self.freed = False

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from ..messages.errors import RunError
 from ..model.description import Variable, declares_state
+from ..model.types import FLOAT64, FLOAT64_TYPES
 from .contract import FastPath
 from .failure import Call
 from .in_process import Instance, Instance3, raw
@@ -204,7 +205,7 @@ class ModelExchange:
         """Whether any of these Float64 inputs is discrete (set in event mode only)."""
         wanted = set(in_vrs)
         return any(v.variability == "discrete" and v.causality == "input" and int(v.valueReference) in wanted
-                   and v.type in ("Real", "Float64") for v in self.md.modelVariables)
+                   and v.type in FLOAT64_TYPES for v in self.md.modelVariables)
 
     def call_name(self, call: Call) -> str:
         if call is Call.DO_STEP:
@@ -389,7 +390,7 @@ class ModelExchange:
 
     def get_reals(self, vrs: list[int]) -> list[float]:
         """The Float64 values of these value references now (scalars)."""
-        call, ctype = super().accessor("Real" if self.fmi_version == 2 else "Float64", "Get")   # type: ignore[misc]
+        call, ctype = super().accessor(FLOAT64[self.fmi_version], "Get")   # type: ignore[misc]
         n = len(vrs)
         buf = (ctype * max(1, n))()
         self._check_call(call((ctypes.c_uint * max(1, n))(*vrs), ctypes.c_size_t(n), buf, ctypes.c_size_t(n)),
@@ -399,7 +400,7 @@ class ModelExchange:
     def set_continuous_inputs(self, vrs: list[int], values: list[float]) -> None:
         """Set continuous Float64 inputs in continuous-time mode, where the standard allows it without an
         event (the integrator restarts at the next step)."""
-        call, ctype = super().accessor("Real" if self.fmi_version == 2 else "Float64", "Set")   # type: ignore[misc]
+        call, ctype = super().accessor(FLOAT64[self.fmi_version], "Set")   # type: ignore[misc]
         n = len(vrs)
         self._check_call(call((ctypes.c_uint * max(1, n))(*vrs), ctypes.c_size_t(n), (ctype * max(1, n))(*values),
                               ctypes.c_size_t(n)), "Set")
@@ -425,7 +426,7 @@ class ModelExchange:
 
     def _check_call(self, status: int, op: str) -> None:
         if status > 1:
-            what = f"fmi2{op}Real" if self.fmi_version == 2 else f"fmi3{op}Float64"
+            what = f"fmi{self.fmi_version}{op}{FLOAT64[self.fmi_version]}"
             raise self.fail_status(what, status, self.t)   # type: ignore[attr-defined]
 
     # ------------------------------------------------------------------ state (rollback)
@@ -511,10 +512,3 @@ class ModelExchange3(ModelExchange, Instance3):
 
     def _update_discrete_states(self) -> tuple[Any, ...]:
         return self.fmu.updateDiscreteStates()
-
-
-def model_exchange(name: str, md: Any, unzipdir: str, log_path: Any = None, logging: str = "warning",
-                   solver: SolverSpec = SolverSpec()) -> ModelExchange2 | ModelExchange3:
-    """The Model Exchange instance of an FMU (FMI 2.0 or 3.0 by its model description)."""
-    cls = ModelExchange3 if str(md.fmiVersion).startswith("3") else ModelExchange2
-    return cls(name, md, unzipdir, log_path, logging, solver)

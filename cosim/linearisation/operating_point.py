@@ -28,7 +28,6 @@ from ..messages.errors import CosimError, RunError, ScenarioError
 from ..model.description import MODEL_EXCHANGE, Variable
 from ..plan.records import ConnectionPlan, InstancePlan, Plan, unit_of
 from ..plan.resolution import INPUTS, variable
-from ..plan.wiring import is_f64
 from ..runtime.execution import Execution
 from ..scenario.document import split_ref
 from ..stepping import table as algorithms
@@ -227,7 +226,7 @@ class Linearizer:
         if inst not in self.plan.instances:
             raise ScenarioError(self.file, fld, f"{ref}: unknown instance {inst!r}")
         var = variable(self.file, fld, self.plan.instances[inst], name, fits)
-        if var.fmi_type not in ("Real", "Float64") or var.shape:
+        if not var.is_float64 or var.shape:
             raise ScenarioError(self.file, fld, f"{ref} is not a scalar real: only those are linearised")
         if kind == "input" and var.causality != "input":
             raise ScenarioError(self.file, fld, f"{ref} is {var.causality}, not an input")
@@ -339,7 +338,7 @@ class Linearizer:
         for ref, value in req.states.items():
             self._set_state(ex, ref, value)
         self._exchange(ex)
-        reals = [c for c in self.plan.connections if is_f64(c.src_var) and is_f64(c.dst_var)]
+        reals = [c for c in self.plan.connections if c.is_float64]
         links = [Link(self._ref(c.src, c.src_var), self._ref(c.dst, c.dst_var), c.factor) for c in reals]
         wanted_in = set(req.inputs) | {lk.dst for lk in links}
         wanted_out = set(req.outputs) | {lk.src for lk in links}
@@ -439,7 +438,7 @@ class Linearizer:
 
     def _exchange(self, ex: Execution) -> None:
         """Every connected Real input set to what its connection carries at the point, until they hold."""
-        conns = [c for c in self.plan.connections if is_f64(c.src_var) and is_f64(c.dst_var)]
+        conns = [c for c in self.plan.connections if c.is_float64]
         for _ in range(EXCHANGE_SWEEPS):
             changed = False
             for c in conns:

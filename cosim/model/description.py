@@ -15,6 +15,7 @@ from fmpy import read_model_description
 from ..messages.errors import FmuLoadError
 from .archive import ArchiveLimits, check_archive
 from .binary import library_problem
+from .types import FLOAT64_TYPES, INT_RANGES, INTEGER_KINDS, KINDS, NUMERIC_KINDS, TEXT_KINDS
 from .units import Unit, lookup, units_of
 
 #: The FMU interfaces an instance can use (``[instances.X] interface``).
@@ -23,19 +24,6 @@ CO_SIMULATION, MODEL_EXCHANGE = "co-simulation", "model-exchange"
 if TYPE_CHECKING:   # (FMPy has no type information: to mypy these are Any)
     from fmpy.model_description import ModelDescription, ScalarVariable
 
-#: The master's kind of a variable -> the Python types a scenario value of that variable may have.
-PY_TYPES: dict[str, tuple[type, ...]] = {"Real": (float, int), "Integer": (int,), "Enumeration": (int,),
-                                          "Boolean": (bool,), "String": (str,), "Binary": (str,)}
-#: FMI 3.0 types -> the master's kind (FMI 2.0 types are their own kind).
-KINDS: dict[str, str] = {"Float64": "Real", "Float32": "Real", "Int8": "Integer", "UInt8": "Integer",
-                         "Int16": "Integer", "UInt16": "Integer", "Int32": "Integer", "UInt32": "Integer",
-                         "Int64": "Integer", "UInt64": "Integer", "Enumeration": "Enumeration",
-                         "Boolean": "Boolean", "String": "String", "Binary": "Binary", "Clock": "Clock"}
-#: Ranges of the FMI integer types (FMI 2.0 Integer is 32 bits).
-INT_RANGES: dict[str, tuple[int, int]] = {
-    "Integer": (-2 ** 31, 2 ** 31 - 1), "Int8": (-2 ** 7, 2 ** 7 - 1), "UInt8": (0, 2 ** 8 - 1),
-    "Int16": (-2 ** 15, 2 ** 15 - 1), "UInt16": (0, 2 ** 16 - 1), "Int32": (-2 ** 31, 2 ** 31 - 1),
-    "UInt32": (0, 2 ** 32 - 1), "Int64": (-2 ** 63, 2 ** 63 - 1), "UInt64": (0, 2 ** 64 - 1)}
 #: The interfaces the master runs -> the model description's attribute (FMPy) that declares each.
 INTERFACES = {CO_SIMULATION: "coSimulation", MODEL_EXCHANGE: "modelExchange"}
 #: The platform folder of the binaries by FMI version.
@@ -63,6 +51,26 @@ class Variable:
     def __post_init__(self) -> None:
         if not self.fmi_type:          # (FMI 2.0, and a variable made by hand: the FMI type is the type)
             self.fmi_type = self.type
+
+    @property
+    def is_float64(self) -> bool:
+        """A 64-bit float: FMI 2.0 Real or FMI 3.0 Float64 (what the step's row of floats holds; not Float32)."""
+        return self.fmi_type in FLOAT64_TYPES
+
+    @property
+    def is_integer(self) -> bool:
+        """Of an integer kind: an FMI integer type or an enumeration."""
+        return self.type in INTEGER_KINDS
+
+    @property
+    def is_numeric(self) -> bool:
+        """Of a numeric kind: Real (any float type), an FMI integer type or an enumeration."""
+        return self.type in NUMERIC_KINDS
+
+    @property
+    def is_text(self) -> bool:
+        """Of a text kind: String or FMI 3.0 Binary."""
+        return self.type in TEXT_KINDS
 
     @property
     def size(self) -> int:
@@ -96,7 +104,7 @@ class Variable:
 
     def check_range(self, value: Any) -> str | None:
         """None if value is within [min, max] (and the range of its integer type), else the reason."""
-        if self.type not in ("Real", "Integer", "Enumeration") or isinstance(value, bool):
+        if not self.is_numeric or isinstance(value, bool):
             return None
         lo, hi = INT_RANGES.get(self.fmi_type, (None, None))
         if lo is not None and not lo <= value <= hi:
@@ -124,7 +132,7 @@ def fmi2_cs_declares(md: Any, flag: str) -> bool:
     capability ``flag`` (canInterpolateInputs, providesDirectionalDerivative: what the master uses of FMI
     2.0 only)."""
     cs = getattr(md, "coSimulation", None)
-    return str(md.fmiVersion).startswith("2") and cs is not None and bool(getattr(cs, flag, False))
+    return fmi_of(md) == 2 and cs is not None and bool(getattr(cs, flag, False))
 
 
 @dataclass
@@ -136,7 +144,7 @@ class FmuModel:
     path: Path
     md: ModelDescription   # FMPy's reading of modelDescription.xml
     variables: dict[str, Variable] = field(default_factory=dict)
-    fmi: int = 2
+    fmi: int = 2           # the FMI major version, 2 or 3 (decided at load by fmi_major)
     missing_binaries: dict[str, str] = field(default_factory=dict)
 
     @property
@@ -208,7 +216,7 @@ def _num(text: Any, typ: str) -> float | None:
     if text is None:
         return None
     try:
-        return int(text) if typ in ("Integer", "Enumeration") else float(text)
+        return int(text) if typ in INTEGER_KINDS else float(text)
     except (TypeError, ValueError):
         return None
 
@@ -217,7 +225,7 @@ def _start(v: ScalarVariable, kind: str, shape: tuple[int, ...]) -> Any:
     s = v.start
     if s is None:
         return None
-    if shape and isinstance(s, str) and kind not in ("String", "Binary"):
+    if shape and isinstance(s, str) and kind not in TEXT_KINDS:
         return [_scalar(x, kind) for x in s.split()]
     return _scalar(s, kind)
 
@@ -226,7 +234,7 @@ def _scalar(s: Any, kind: str) -> Any:
     try:
         if kind == "Real":
             return float(s)
-        if kind in ("Integer", "Enumeration"):
+        if kind in INTEGER_KINDS:
             return int(s)
     except (TypeError, ValueError):
         return None
@@ -246,6 +254,22 @@ def _initial(v: ScalarVariable) -> str | None:
     if v.causality in ("output", "local"):
         return "calculated" if v.start is None else "exact"
     return None
+
+
+def fmi_major(version: str) -> int | None:
+    """The FMI major version the master runs that a model description's ``fmiVersion`` attribute names: 2
+    for "2.0", 3 for "3.x"; None for any other (refused at load).  The one place that reads the attribute:
+    :attr:`FmuModel.fmi` is decided by it at load, once."""
+    if version == "2.0":
+        return 2
+    return 3 if version.startswith("3.") else None
+
+
+def fmi_of(md: Any) -> int:
+    """The FMI major version (2 or 3) of a model description FMPy read, of an FMU :func:`load_model`
+    accepted: for those that have the description only (an instance, the isolation child); the same as
+    :attr:`FmuModel.fmi`."""
+    return 3 if fmi_major(str(md.fmiVersion)) == 3 else 2
 
 
 def fmi_version(path: Path) -> str:
@@ -347,13 +371,13 @@ def load_model(path: str | os.PathLike, limits: ArchiveLimits | None = None) -> 
     path = Path(path)
     check_archive(path, limits)
     version = fmi_version(path)
-    if version not in ("2.0",) and not version.startswith("3."):
+    fmi = fmi_major(version)
+    if fmi is None:
         raise FmuLoadError(f"{path}: FMI version {version}: only FMI 2.0 and 3.0 are supported")
     try:
         md = read_model_description(str(path), validate=False)
     except Exception as exc:  # FMPy raises plain Exceptions for unreadable descriptions
         raise FmuLoadError(f"{path}: cannot read modelDescription.xml ({' '.join(str(exc).split())})") from None
-    fmi = 3 if md.fmiVersion.startswith("3") else 2
     _interfaces_checked(path, md)
     _default_experiment_checked(path, md)
     model = FmuModel(path, md, fmi=fmi)

@@ -43,7 +43,7 @@ def direct_inputs(model: "FmuModel") -> dict[str, set[str]]:
 
 
 def _float(c: ConnectionPlan) -> bool:
-    return c.src_var.fmi_type in ("Real", "Float64") and c.dst_var.fmi_type in ("Real", "Float64")
+    return c.is_float64
 
 
 def coupling(order: list[str], insts: dict[str, InstancePlan], conns: Iterable[ConnectionPlan]) -> Coupling:

@@ -81,6 +81,11 @@ class ConnectionPlan:
     spec: ConnectionSpec
     src_elem: int | None = None   # one element of an FMI 3.0 array output (row-major), None for all
 
+    @property
+    def is_float64(self) -> bool:
+        """Float64 -> Float64 (a copy in the generated loop; the others are copied by closures)."""
+        return self.src_var.is_float64 and self.dst_var.is_float64
+
 
 @dataclass
 class RecordPlan:

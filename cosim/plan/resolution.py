@@ -28,8 +28,9 @@ from ..messages.errors import CosimError, FmuLoadError, MissingVariableError, Sc
 from ..messages.suggest import did_you_mean
 from ..messages.words import count, plural
 from ..model.binary import PYTHON_FMU, runs_python
-from ..model.description import CO_SIMULATION, INTERFACE_NAMES, MODEL_EXCHANGE, PY_TYPES, FmuModel, Variable, load_model
+from ..model.description import CO_SIMULATION, INTERFACE_NAMES, MODEL_EXCHANGE, FmuModel, Variable, load_model
 from ..model.kinds import FileKind, file_kind
+from ..model.types import PY_TYPES
 from ..model.units import conversion, lookup, same_unit, units_of
 from ..scenario.document import (SOLVER_KEYS, ConnectionSpec, InstanceSpec, Scenario, check_experiment, split_ref,
                                 steps_of)
@@ -282,8 +283,8 @@ def _record(sc: Scenario, insts: dict[str, InstancePlan]) -> tuple[list[RecordPl
             rx = re.compile("".join(".*" if ch == "*" else "." if ch == "?" else re.escape(ch) for ch in pat),
                             re.DOTALL)
             hits = [(n, v) for n, v in candidates if rx.fullmatch(f"{n}.{insts[n].our_name(v)}")]
-            skipped += [f"{n}.{insts[n].our_name(v)}" for n, v in hits if v.type in ("String", "Binary")]
-            hits = [(n, v) for n, v in hits if v.type not in ("String", "Binary")]  # reported, not recorded
+            skipped += [f"{n}.{insts[n].our_name(v)}" for n, v in hits if v.is_text]
+            hits = [(n, v) for n, v in hits if not v.is_text]  # reported, not recorded
             if not hits:
                 raise ScenarioError(file, fld, f"{pat!r} matches no output")
         elif not hits:  # an explicit name may also be a non-output (a parameter, an input) or an element
@@ -903,7 +904,7 @@ def _connection_plan(file: str, c: ConnectionSpec, insts: dict[str, InstancePlan
     if dst_elem is not None:
         raise ScenarioError(file, f"{fld}.to", f"{c.dst}: an element of an input array cannot be a target "
                                                f"(connect the whole array {dvar.name})")
-    if src_elem is not None and (dvar.size != 1 or svar.fmi_type != "Float64"):
+    if src_elem is not None and (dvar.size != 1 or not svar.is_float64):
         raise ScenarioError(file, fld, f"{c.src} -> {c.dst}: an element of a Float64 array goes to a scalar")
     if src_elem is None and svar.size != dvar.size:
         raise ScenarioError(file, fld, f"{c.src} has {svar.size} values, {c.dst} {dvar.size}: arrays connect "

@@ -163,7 +163,7 @@ def _ssv_value(var, value) -> tuple[str, dict[str, str]]:
         return "Real", d
     if t == "Boolean":
         return "Boolean", {"value": "true" if value else "false"}
-    if t in ("Integer", "Enumeration"):
+    if var.is_integer:
         return "Integer", {"value": str(int(value))}
     return "String", {"value": str(value)}
 

@@ -27,11 +27,6 @@ from .records import ConnectionPlan, EventPlan, Plan, RecordPlan
 
 
 
-def is_f64(var: Variable) -> bool:
-    """A 64-bit real (FMI 2.0 Real, FMI 3.0 Float64): the values the generated loop copies directly."""
-    return var.fmi_type in ("Real", "Float64")
-
-
 @dataclass
 class RowLayout:
     """Where each value lives in the row buffer: doubles first (time, each instance's Float64 outputs that
@@ -55,7 +50,7 @@ class RowLayout:
         reals: dict[str, list[tuple[int, int]]] = {n: [] for n in plan.order}
 
         def add(inst: str, var: Variable) -> None:
-            if is_f64(var) and (var.vr, var.size) not in reals[inst]:
+            if var.is_float64 and (var.vr, var.size) not in reals[inst]:
                 reals[inst].append((var.vr, var.size))
         for c in plan.connections:
             add(c.src, c.src_var)
@@ -68,7 +63,7 @@ class RowLayout:
         for n in plan.order:
             offset[n] = pos
             pos += sum(size for _, size in reals[n])
-        lay = cls(reals, offset, pos, [r for r in plan.record if not is_f64(r.var)])
+        lay = cls(reals, offset, pos, [r for r in plan.record if not r.var.is_float64])
         floats = [r for r in lay.extra if r.var.type == "Real"]
         ints = [r for r in lay.extra if r.var.type != "Real"]
         lay.n_double, lay.n_int = pos + len(floats), len(ints)
@@ -93,7 +88,7 @@ class RowLayout:
 
     def slot(self, rec: RecordPlan) -> int:
         """The row slot of a recorded variable (RecordPlan)."""
-        if is_f64(rec.var):
+        if rec.var.is_float64:
             return self.offset[rec.instance] + self.index(rec.instance, rec.var.vr, rec.elem)
         return self.extra_slot[id(rec)]
 
@@ -115,7 +110,7 @@ class Wiring:
         self.base: dict[tuple[str, int], Copy] = {}
         self.feeds: dict[tuple[str, int], tuple[str, int]] = {}     # (inst, pos) -> output (inst, vr)
         for c in plan.connections:
-            if not is_real(c):
+            if not c.is_float64:
                 continue
             for e in range(c.dst_var.size):  # every element of an array (or the one element connected)
                 pos = self._pos(c.dst, c.dst_var.vr, e)
@@ -124,7 +119,7 @@ class Wiring:
                 self.feeds[(c.dst, pos)] = (c.src, c.src_var.vr)
         self.tables: dict[str, tuple[Doubles, np.ndarray]] = {}   # instance -> (array the copies read, values)
         for inst in plan.order:  # tabulated Real inputs: sources refreshed before each step
-            cols = [ip for ip in plan.inputs if ip.instance == inst and is_f64(ip.var)]
+            cols = [ip for ip in plan.inputs if ip.instance == inst and ip.var.is_float64]
             if cols:
                 arr = (ctypes.c_double * len(cols))()
                 for j, ip in enumerate(cols):
@@ -290,11 +285,6 @@ def table_feeder(inst: FmuInstance, table: tuple[Doubles, np.ndarray] | None, di
                 return s
         return 0
     return feed
-
-
-def is_real(c: ConnectionPlan) -> bool:
-    """A Float64 -> Float64 connection (a copy in the generated loop); the others are copied by closures."""
-    return is_f64(c.src_var) and is_f64(c.dst_var)
 
 
 def discrete_copier(instances: dict[str, FmuInstance], c: ConnectionPlan) -> Callable[[], int]:

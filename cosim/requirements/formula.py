@@ -67,6 +67,7 @@ from typing import Any, Callable, Iterator, NamedTuple
 
 from ..messages.errors import CosimError
 from ..messages.suggest import did_you_mean
+from ..model.types import NUMERIC_KINDS
 from ..model.units import KNOWN, Unit, conversion
 
 UNARY_TEMPORAL = {"always": "future", "eventually": "future", "historically": "past", "once": "past"}
@@ -626,7 +627,7 @@ class _Checker:
             return KNOWN["s"]
         if isinstance(n, Var):
             v = self.var(n)
-            if v.type not in ("Real", "Integer", "Enumeration"):
+            if v.type not in NUMERIC_KINDS:
                 raise FormulaError(f"{n.name} is {v.type}: arithmetic and comparisons take numbers", n.pos)
             return v.unit
         if isinstance(n, (Neg, Abs)):

@@ -10,7 +10,7 @@ from ..messages.errors import ScenarioError
 from ..model.description import Variable
 from ..plan.records import Plan
 from ..plan.resolution import checked_value, variable
-from ..plan.wiring import RowLayout, is_f64
+from ..plan.wiring import RowLayout
 from ..scenario.document import split_ref
 from .manipulators import ScriptChanges
 
@@ -39,7 +39,7 @@ class VariableAccess:
         """A function returning a variable's current value: from the row buffer for a Float64 output it
         holds (written by the loop at every step), else through an FMI get."""
         lay = self.layout
-        if is_f64(var) and var.causality == "output" and any(vr == var.vr for vr, _ in lay.reals[inst]):
+        if var.is_float64 and var.causality == "output" and any(vr == var.vr for vr, _ in lay.reals[inst]):
             row, slot = lay.row, lay.offset[inst] + lay.index(inst, var.vr)
             return lambda: row[slot]
         instance = self.instances[inst]

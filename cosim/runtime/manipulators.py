@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any, Callable
 from ..messages.errors import CosimError
 from ..model.description import Variable
 from ..plan.records import EventPlan, Plan
-from ..plan.wiring import Wiring, is_f64
+from ..plan.wiring import Wiring
 from ..results.event_log import scenario_entry
 from ..scenario.condition import compile_condition
 from .views import Manipulable
@@ -103,7 +103,7 @@ class Actuator:
                                  "a run")
             self.instances[inst].set_values([(var, value)])
             return False
-        if is_f64(var) and var.causality in ("input", "output") and self.wiring.is_wired(inst, var.vr,
+        if var.is_float64 and var.causality in ("input", "output") and self.wiring.is_wired(inst, var.vr,
                                                                                           var.causality):
             return self.wiring.act(inst, var.vr, var.causality, "override", value)
         if var.causality == "input":
@@ -121,7 +121,7 @@ class Actuator:
     def bias(self, inst: str, var: Variable, value: float) -> bool:
         """Add ``value`` to a connected Real input or an output feeding connections until :meth:`release`
         (on top of a bias or an override before); whether the copies changed."""
-        if not (is_f64(var) and var.causality in ("input", "output") and self.wiring.is_wired(inst, var.vr,
+        if not (var.is_float64 and var.causality in ("input", "output") and self.wiring.is_wired(inst, var.vr,
                                                                                               var.causality)):
             ref = f"{inst}.{self.plan.instances[inst].our_name(var)}"
             raise CosimError(f"{ref} is no Real input or output on a connection: only those take a bias")
@@ -130,7 +130,7 @@ class Actuator:
     def release(self, inst: str, var: Variable) -> bool:
         """End an override set by :meth:`set` or a :meth:`bias` (the value follows its source again); whether
         the copies changed."""
-        if is_f64(var) and self.wiring.is_wired(inst, var.vr, var.causality):
+        if var.is_float64 and self.wiring.is_wired(inst, var.vr, var.causality):
             return self.wiring.act(inst, var.vr, var.causality, "reset", None)
         return False
 

@@ -17,13 +17,13 @@ from typing import Any, Callable
 
 from ..instances.contract import FmuInstance
 from ..instances.handoff import Handoff
-from ..instances.in_process import Instance, Instance3, vr_array
-from ..instances.model_exchange import model_exchange
+from ..instances.in_process import vr_array
+from ..instances.kinds import host
 from ..messages.errors import CosimError, FmuLoadError
 from ..model.archive import safe_extract
 from ..model.binary import load_failure
 from ..plan.records import InstancePlan, Plan
-from ..plan.wiring import RowLayout, Wiring, discrete_copier, is_f64, is_real, table_feeder
+from ..plan.wiring import RowLayout, Wiring, discrete_copier, table_feeder
 from ..stepping.algorithm import InstanceIO
 from .observers import RecordedGetter
 
@@ -54,7 +54,9 @@ def load_instances(plan: Plan, work: Path, logs: Path, handoff: Handoff | None =
 
 
 def _host(name: str, ip: InstancePlan, unzipdir: str, log: Path, handoff: Handoff | None) -> FmuInstance:
-    """Instance ``name`` hosted: in a child process, as model exchange, or as co-simulation here.  A binary
+    """Instance ``name`` hosted: in a child process, or here by the class of its kind (co-simulation, or
+    model exchange where the plan gives it an integrator; FMI 2.0 or 3.0: :data:`.instances.kinds.HOSTS`,
+    the table the isolation child reads too).  A binary
     the loader refuses (``check`` reads its header and exports, not what it links against) ends the run
     with one line naming the instance, the FMU and the loader's reason; FMPy changes the working folder to
     the binary's for the load and leaves it there when the load fails: it is restored here."""
@@ -65,10 +67,7 @@ def _host(name: str, ip: InstancePlan, unzipdir: str, log: Path, handoff: Handof
             assert handoff is not None   # (handoff_for gives one where an instance is isolated)
             return IsolatedInstance(name, ip.model.md, unzipdir, log, ip.spec.logging,
                                     ip.spec.step_timeout or 60.0, handoff, ip.solver)
-        if ip.solver is not None:   # model exchange
-            return model_exchange(name, ip.model.md, unzipdir, log, ip.spec.logging, ip.solver)
-        cls = Instance3 if ip.model.fmi == 3 else Instance
-        return cls(name, ip.model.md, unzipdir, log, ip.spec.logging)
+        return host(name, ip.model.md, ip.model.fmi, unzipdir, log, ip.spec.logging, ip.solver)
     except CosimError:
         raise
     except Exception as exc:   # FMPy raises a plain Exception when the library does not load
@@ -101,7 +100,7 @@ def instance_io(plan: Plan, name: str, inst: FmuInstance, layout: RowLayout, wir
     vrs, nvals = wiring.vrs[name], len(wiring.values[name])
     out_vrs = [vr for vr, _ in layout.reals[name]]
     fast = inst.fast_path(vrs, nvals, out_vrs, sum(size for _, size in layout.reals[name]))
-    discrete = [c for c in plan.connections if c.dst == name and not is_real(c)]
+    discrete = [c for c in plan.connections if c.dst == name and not c.is_float64]
     if timing is not None:
         fast.set_real, fast.do_step, fast.get_real = (timed(f, timing) for f in (fast.set_real, fast.do_step,
                                                                                   fast.get_real))
@@ -110,7 +109,7 @@ def instance_io(plan: Plan, name: str, inst: FmuInstance, layout: RowLayout, wir
         out_val=layout.out_arr[name], n_out=ctypes.c_size_t(len(layout.reals[name])), copies=wiring.copies(name),
         other=[discrete_copier(instances, c) for c in discrete], reads=tuple(c.src for c in discrete),
         feed=table_feeder(inst, wiring.tables.get(name),
-                          [ip for ip in plan.inputs if ip.instance == name and not is_f64(ip.var)]),
+                          [ip for ip in plan.inputs if ip.instance == name and not ip.var.is_float64]),
         can_roll_back=inst.can_get_and_set_state, get_state=inst.get_state, set_state=inst.set_state, free_state=inst.free_state,
         allow_rollback=inst.allow_rollback, set_input_derivatives=inst.set_input_derivatives,
         directional_derivative=inst.directional_derivative, decimation=plan.instances[name].decimation)

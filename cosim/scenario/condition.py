@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
+from ..model.types import NUMERIC_KINDS
 from ..requirements import formula
 from ..requirements.formula import COMPARE, CONDITION, ConditionError, Token, not_a_condition
 
@@ -113,7 +114,7 @@ def _kind(operand: Node, types: dict[str, str]) -> str:
     if operand[0] == "bool":
         return "boolean"
     t = types[operand[1]]
-    if t in ("Real", "Integer", "Enumeration"):
+    if t in NUMERIC_KINDS:
         return "number"
     if t == "Boolean":
         return "boolean"

@@ -24,7 +24,8 @@ from typing import Callable
 import numpy as np
 
 from ..messages.errors import ScenarioError
-from ..model.description import INT_RANGES, Variable
+from ..model.description import Variable
+from ..model.types import INT_RANGES
 
 INTERPOLATIONS = ("linear", "hold")
 
@@ -49,7 +50,7 @@ def _convert(text: str, var: Variable, where: str, fld: str) -> float | int | bo
     try:
         if var.type == "Real":
             return float(t)
-        if var.type in ("Integer", "Enumeration"):
+        if var.is_integer:
             v = int(t)
             lo, hi = INT_RANGES.get(var.fmi_type, INT_RANGES["Integer"])
             if not lo <= v <= hi:
