@@ -113,7 +113,7 @@ class ControllerParams:
     R: float = param(_T1["R"], unit="1", check=positive, doc="control weight R (multiple of I2)")
     gamma: float = param(_T1["gamma"], unit="1", check=positive, tunable=True,
                          doc="disturbance attenuation gamma")
-    W_init: tuple[float, float, float] = param(tuple(_T1["W0"]), unit="1", check=vector(3, finite),  # type: ignore[assignment]
+    W_init: tuple[float, float, float] = param(tuple(_T1["W0"]), unit="1", check=vector(3, finite),
                                                doc="initial critic weights W of (45)")
     P_init: tuple[float, ...] = param((_T1["P_init"], 0.0, 0.0, _T1["P_init"], 0.0, _T1["P_init"]), unit="1",
                                       check=vector(6, finite, "p11 p12 p13 p22 p23 p33"),

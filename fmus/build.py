@@ -59,7 +59,7 @@ from pathlib import Path
 try:
     from .cplant_build import MINGW_CC, WIN64_LDFLAGS
 except ImportError:   # run as a script (python fmus/build.py): from the installed package
-    from wmr_cosim.fmus.cplant_build import MINGW_CC, WIN64_LDFLAGS  # type: ignore[no-redef]
+    from wmr_cosim.fmus.cplant_build import MINGW_CC, WIN64_LDFLAGS
 
 _HERE = Path(__file__).resolve().parent
 
@@ -213,7 +213,8 @@ def min_python() -> tuple[int, int]:
     Windows loader's choice among the registered Pythons follows."""
     from importlib.metadata import PackageNotFoundError, metadata
     try:
-        spec = metadata("wmr-cosim").get("Requires-Python") or ""
+        md = metadata("wmr-cosim")   # the protocol of Python 3.11's stubs has no get (3.12's has)
+        spec = md["Requires-Python"] if "Requires-Python" in md else ""
     except PackageNotFoundError:
         spec = ""
     m = re.fullmatch(r">=\s*3\.(\d+)", spec.strip())

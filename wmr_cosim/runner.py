@@ -84,12 +84,12 @@ def carry_fmi3(carry: dict[str, str], finals: dict[str, dict[str, float]]) -> di
             arrays[f"{r.group(1)}{r.group(2)}_init"].setdefault(idx[::-1], value)
     for ref, elems in arrays.items():
         shape = [max(i[d] for i in elems) + 1 for d in range(len(next(iter(elems))))]
-        idx = [(i,) for i in range(shape[0])] if len(shape) == 1 else \
+        cells: list[tuple[int, ...]] = [(i,) for i in range(shape[0])] if len(shape) == 1 else \
             [(i, j) for i in range(shape[0]) for j in range(shape[1])]
-        missing = [i for i in idx if i not in elems]
+        missing = [c for c in cells if c not in elems]
         if missing:
             raise CosimError(f"carry {ref}: elements {missing} (0-based) are not carried; carry every element")
-        out[ref] = [elems[i] for i in idx]
+        out[ref] = [elems[c] for c in cells]
     return out
 
 

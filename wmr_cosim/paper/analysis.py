@@ -77,8 +77,9 @@ def load_signals(folder: str | Path) -> Signals | None:
     data = read_signals(f).signals
     if not len(data):
         return None
-    sig = {name: np.asarray(data[name]) for name in data.dtype.names}
-    for name in data.dtype.names:  # FMI 3.0 array columns (W[1], P[1,2]) also under the FMI 2.0 names (W1, P12)
+    names = data.dtype.names or ()   # never None: read_signals returns a structured array
+    sig = {name: np.asarray(data[name]) for name in names}
+    for name in names:  # FMI 3.0 array columns (W[1], P[1,2]) also under the FMI 2.0 names (W1, P12)
         if name.endswith("]") and "[" in name:
             i = name.rindex("[")  # the element's own index (s[2].v[1] is s[2].v1)
             sig.setdefault(name[:i] + name[i + 1:-1].replace(",", ""), sig[name])

@@ -6,6 +6,7 @@ write one PNG each; they return the path.
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -267,29 +268,37 @@ def fig_robustness(rob: dict[str, Any], out: str | os.PathLike) -> Path | None:
     return _save(fig, out / "robustness.png")
 
 
-def render_all(runs: dict[str, dict[str, Signals]], dist: dict[str, dict[str, Any]], out: str | os.PathLike
-               ) -> list[Path]:
-    """Every figure for which the runs exist; returns the files written."""
+def render_all(runs: Mapping[str, Mapping[str, Signals | None]], dist: Mapping[str, dict[str, Any]],
+               out: str | os.PathLike) -> list[Path]:
+    """Every figure for which the runs exist (``runs``: task -> run -> its signals, None or absent for a
+    run that recorded nothing; ``dist``: task -> its (52)/(53) curves); returns the files written."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     gamma = paper.table1()["gamma"]
     files: list[Path] = []
-    g = lambda task, run: runs.get(task, {}).get(run)  # noqa: E731
-    if g("G1", "learn") is not None:
-        files.append(fig_learning(g("G1", "learn"), out, "G1", "5"))
-    learns = {t: g(t, "learn") for t in ("G1", "G2", "G3") if g(t, "learn") is not None}
-    if g("G1", "learn") is not None and learns:
-        files.append(fig_value_and_paths(g("G1", "learn"), learns, out))
-    if g("G1", "foam") is not None:
-        files.append(fig_foam(g("G1", "foam"), out, "G1", "7", dist.get("G1", {}).get("t_F", np.inf)))
+
+    def g(task: str, run: str) -> Signals | None:
+        return runs.get(task, {}).get(run)
+
+    g1_learn = g("G1", "learn")
+    if g1_learn is not None:
+        files.append(fig_learning(g1_learn, out, "G1", "5"))
+    learns = {t: s for t in ("G1", "G2", "G3") if (s := g(t, "learn")) is not None}
+    if g1_learn is not None and learns:
+        files.append(fig_value_and_paths(g1_learn, learns, out))
+    g1_foam = g("G1", "foam")
+    if g1_foam is not None:
+        files.append(fig_foam(g1_foam, out, "G1", "7", dist.get("G1", {}).get("t_F", np.inf)))
     if "G1" in dist:
         files.append(fig_gamma_g1(dist["G1"], out, gamma))
     if "G2" in dist and "G3" in dist:
         files.append(fig_gamma_g2_g3(dist["G2"], dist["G3"], out, gamma))
-    if g("LINE", "learn") is not None:
-        files.append(fig_line_learning(g("LINE", "learn"), out))
-    if g("LINE", "foam") is not None:
-        files.append(fig_foam(g("LINE", "foam"), out, "LINE", "12", dist.get("LINE", {}).get("t_F", np.inf)))
-    if "LINE" in dist and g("LINE", "frozen") is not None:
-        files.append(fig_line_control(g("LINE", "frozen"), g("LINE", "foam"), dist["LINE"], out, gamma))
+    line_learn, line_foam, line_frozen = g("LINE", "learn"), g("LINE", "foam"), g("LINE", "frozen")
+    if line_learn is not None:
+        files.append(fig_line_learning(line_learn, out))
+    if line_foam is not None:
+        files.append(fig_foam(line_foam, out, "LINE", "12", dist.get("LINE", {}).get("t_F", np.inf)))
+    # the (52)/(53) curves of a task (dist) are made of its frozen and its foam run: both are there
+    if "LINE" in dist and line_frozen is not None and line_foam is not None:
+        files.append(fig_line_control(line_frozen, line_foam, dist["LINE"], out, gamma))
     return files

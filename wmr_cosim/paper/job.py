@@ -19,7 +19,7 @@ from typing import Any
 
 from ..cosim import LimitOverrides, RunStatus
 
-from .analysis import (RUNS, fidelity, load_signals, position_error, requirement_verdicts, run_summary,
+from .analysis import (RUNS, Signals, fidelity, load_signals, position_error, requirement_verdicts, run_summary,
                        table1_disturbance_analysis)
 from ..components import paper
 from .report import claims, provenance, report_blocks
@@ -81,9 +81,10 @@ def _task_job(task: str, file: str, folder: str, variant: str, fmi: int = 2, pro
                          "steps": r.steps} for n, r in results.items()}}
 
 
-def analyse(folder: Path, statuses: dict[str, dict[str, dict[str, Any]]]) -> tuple[dict[str, Any], dict, dict]:
+def analyse(folder: Path, statuses: dict[str, dict[str, dict[str, Any]]]
+            ) -> tuple[dict[str, Any], dict[str, dict[str, Signals | None]], dict[str, dict[str, Any]]]:
     """metrics.json content of one variant from its run folders; also the signals and the (52)/(53) curves."""
-    signals: dict[str, dict[str, Any]] = {}
+    signals: dict[str, dict[str, Signals | None]] = {}
     tasks: dict[str, Any] = {}
     dist: dict[str, Any] = {}
     out: dict[str, Any] = {"tasks": tasks, "gamma_star": {}, "gamma_true": {}, "gain_incremental": {}}
@@ -212,7 +213,7 @@ def _run_paper(out: Path, variant: str, compare: bool, workers: int | None, mani
                           progress=None if progress else False, archive_limits=archive_limits)
     results: dict[str, Any] = {}
     made_by = provenance()
-    main_signals = main_dist = None
+    main: tuple[dict[str, dict[str, Signals | None]], dict[str, dict[str, Any]]] | None = None
     for v in variants:
         m, sig, dist = analyse(folders[v], statuses[v])
         m = _clean({"variant": v, "provenance": made_by, **m, **(study if study and v == variant else {})})
@@ -221,11 +222,11 @@ def _run_paper(out: Path, variant: str, compare: bool, workers: int | None, mani
         target = out if v == variant else out / "variants" / v
         (target / "metrics.json").write_text(json.dumps(m, indent=2) + "\n")
         if v == variant:
-            main_signals, main_dist = sig, dist
+            main = sig, dist
     files = []
-    if figures and main_signals is not None:
+    if figures and main is not None:
         from .figures import render_all
-        files = render_all(main_signals, main_dist, out / "figures")
+        files = render_all(*main, out / "figures")
         if study:
             from .figures import fig_robustness
             study_fig = fig_robustness(study["robustness"], out / "figures")

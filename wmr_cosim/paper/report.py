@@ -221,13 +221,13 @@ def outside_cells(m: dict[str, Any], study: dict[str, Any] | None) -> tuple[list
     if study and study.get("bump"):
         e0, e1 = study["bump"][0], study["bump"][-1]
         peaks = [v for v in (e1.get("edge_peak_u") or {}).values() if v is not None]
-        inside = lambda e: sum(1 for r in e["fidelity_cells"].values() if r is not None and 1 / 1.5 <= r <= 1.5)  # noqa: E731
+        within = lambda e: sum(1 for r in e["fidelity_cells"].values() if r is not None and 1 / 1.5 <= r <= 1.5)  # noqa: E731
         if peaks:
             notes.append(f"A bump of {e1['value']:g} N.m at the foam's edge (points "
                          f"{', '.join(str(p) for p in e1['points'].values())} of `robustness/points`) raises the "
                          f"foam runs' peak control at the edge to {min(peaks):.2f}-{max(peaks):.2f} N.m (the paper: "
-                         f"8.4 N.m) and leaves {inside(e1)} of {len(e1['fidelity_cells'])} cells within 1.5x "
-                         f"(without it: {inside(e0)}).")
+                         f"8.4 N.m) and leaves {within(e1)} of {len(e1['fidelity_cells'])} cells within 1.5x "
+                         f"(without it: {within(e0)}).")
     if unexplained:
         notes.append(f"No swept perturbation brings {', '.join(unexplained)} within 1.5x: the measurements here do "
                      f"not explain them.")

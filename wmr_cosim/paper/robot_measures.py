@@ -8,9 +8,12 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..studies import MetricSet, System, register_set
+
+if TYPE_CHECKING:
+    from .analysis import Signals
 
 
 def measure(row: dict[str, Any], results: dict[str, Any], work: Path) -> None:
@@ -18,15 +21,16 @@ def measure(row: dict[str, Any], results: dict[str, Any], work: Path) -> None:
     first run that failed or diverged; then, with a frozen and a foam run, the disturbance analysis."""
     from .analysis import disturbance_analysis
 
-    sigs = {}
+    sigs: dict[str, Signals | None] = {}
     for name, res in results.items():
         if res.status != "ok" and row["status"] == "ok":   # the first failed run's message is the reason
             row["status"], row["reason"] = "failed", f"{name}: {res.message}"
             if not (work / name / "signals.npy").is_file():
                 continue
         sigs[name] = _run_metrics(row, name, res, work / name)
-    if sigs.get("frozen") is not None and sigs.get("foam") is not None:
-        d = disturbance_analysis(sigs["frozen"], sigs["foam"], **_weights(work / "foam"))
+    frozen, foam = sigs.get("frozen"), sigs.get("foam")
+    if frozen is not None and foam is not None:
+        d = disturbance_analysis(frozen, foam, **_weights(work / "foam"))
         for k in ("gamma_star", "gamma_true", "gain_incremental"):
             row[k] = d[k] if d[k] is not None else math.nan
         row["foam_rise1"], row["foam_rise2"] = [math.nan if r is None else r for r in d["foam_rise"]]
@@ -44,9 +48,9 @@ def columns(runs: list[str]) -> list[str]:
     return [f"{run}.{c}" for run in runs for c in RUN_COLUMNS] + list(ANALYSIS_COLUMNS)
 
 
-def _run_metrics(row: dict[str, Any], name: str, res: Any, run_dir: Path) -> dict[str, Any]:
+def _run_metrics(row: dict[str, Any], name: str, res: Any, run_dir: Path) -> Signals | None:
     """The metrics of run ``name`` (recorded in ``run_dir``) into ``row`` as ``<name>.<metric>``; a run
-    that diverged makes the point diverged.  Returns the run's signals."""
+    that diverged makes the point diverged.  Returns the run's signals (None if it recorded nothing)."""
     from .analysis import divergence, load_signals, run_summary
 
     sig = load_signals(run_dir)

@@ -76,7 +76,7 @@ def read_results(folder: str | Path) -> Results:
     npy = folder / "signals.npy"
     if not npy.is_file():
         raise PlotError(f"{folder}: no signals.npy (not a results folder of `wmr-cosim run`)")
-    shapes = {"columns": dict, "events": list, "requirements": list}
+    shapes: dict[str, type | tuple[type, ...]] = {"columns": dict, "events": list, "requirements": list}
     try:
         recording = read_signals(npy)
         summary = read_json(folder / "summary.json", shapes)

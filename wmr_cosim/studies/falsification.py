@@ -224,14 +224,15 @@ def _search(spec: FalsifySpec, out: Path, workers: int | None, scheduler: str | 
                              "use another --out")
     members, generations = population(spec.budget, len(spec.space))
     rows: list[dict[str, Any]] = []
-    study = {"archive_limits": archive_limits, "system": system, "measure": None}
     with Cluster(workers, scheduler, security, dashboard) as cl:
         # every run of the base (a later run may carry an earlier one's values)
         nominal = run_points([{"id": 0, "params": {}}], spec.base, spec.variant, None, out, cl,
-                             progress=False, label="falsify nominal", **study)[0]
+                             progress=False, label="falsify nominal", archive_limits=archive_limits,
+                             system=system, measure=None)[0]
 
         def run(pts: list[dict[str, Any]], label: str) -> list[dict[str, Any]]:
-            return run_points(pts, spec.base, spec.variant, None, out, cl, progress=progress, label=label, **study)
+            return run_points(pts, spec.base, spec.variant, None, out, cl, progress=progress, label=label,
+                              archive_limits=archive_limits, system=system, measure=None)
         _evolve(spec, members, generations, run, rows, out, say)
     worst = min(rows, key=lambda r: (_robustness(spec, r), r["point"]))
     result = _result(spec, members, generations, rows, nominal, worst, out, archive_limits, system)
@@ -257,7 +258,8 @@ def _evolve(spec: FalsifySpec, members: int, generations: int,
     def batch(_func: Any, xs: Any) -> list[float]:
         """One generation: its points run on the cluster at once (scipy's ``workers`` map)."""
         generation = len(rows) // members
-        pts = [{"id": 1 + len(rows) + i, "params": _params(spec, np.asarray(x))} for i, x in enumerate(xs)]
+        pts: list[dict[str, Any]] = [{"id": 1 + len(rows) + i, "params": _params(spec, np.asarray(x))}
+                                     for i, x in enumerate(xs)]
         done = run(pts, f"falsify generation {generation}")
         for p, r in zip(pts, done):
             if {k: r.get(k) for k in p["params"]} != p["params"]:
@@ -302,13 +304,17 @@ def _rerun(spec: FalsifySpec, worst: dict[str, Any], params: dict[str, Any], fol
            archive_limits: LimitOverrides | None, system: System) -> dict[str, Any]:
     """The worst point (its ``params``) run again here, as its command runs it: its robustness and whether
     it is the same."""
-    from ..cosim import run_protocol
+    from ..cosim import RunResult, run_protocol
     from .sweep_file import read_base
 
     judge = system.judge
+
+    def judged(name: str, res: RunResult) -> None:
+        if judge is not None:
+            judge(res)
+
     results = run_protocol(read_base(spec.base, system.models, archive_limits), folder, variant=spec.variant,
-                           overrides=params, progress=False,
-                           on_run=None if judge is None else lambda name, res: judge(res))
+                           overrides=params, progress=False, on_run=None if judge is None else judged)
     verdicts = {v["name"]: v for v in results[spec.run].requirements}
     v = verdicts.get(spec.requirement, {})
     rob = math.inf if v.get("robustness") is None else v["robustness"]

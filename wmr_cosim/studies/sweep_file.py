@@ -262,7 +262,7 @@ def draw_points(spec: SweepSpec) -> list[dict[str, Any]]:
     rng = np.random.default_rng(spec.seed)
     grid_keys = list(spec.grid)
     combos = list(itertools.product(*(spec.grid[k] for k in grid_keys))) if grid_keys else [()]
-    out = []
+    out: list[dict[str, Any]] = []
     for combo in combos:
         for _ in range(spec.samples):
             params: dict[str, Any] = {}
