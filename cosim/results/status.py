@@ -31,3 +31,16 @@ class RunStatus(StrEnum):
         """Whether the run gave its results as asked (ok, or ended early by an FMU, a stop, or a requirement
         that stops it)."""
         return self in (RunStatus.OK, RunStatus.TERMINATED, RunStatus.STOPPED, RunStatus.VIOLATED)
+
+    @property
+    def measured(self) -> bool:
+        """Whether a study measures the run as its scenario ran it: to the stop time, or to the point where a
+        requirement that stops it was violated (the verdict is what the study asks).  Any other end makes
+        the study's point failed (diverged, when the application's judge rejected it)."""
+        return self in (RunStatus.OK, RunStatus.VIOLATED)
+
+    @property
+    def reached_stop(self) -> bool:
+        """Whether every step was taken: ok, or diverged (it ran to its end, and the application's check of
+        its results rejected it)."""
+        return self in (RunStatus.OK, RunStatus.DIVERGED)

@@ -119,15 +119,16 @@ def analyse(folder: Path, statuses: dict[str, dict[str, dict[str, Any]]]
     return out, signals, dist
 
 
-#: The statuses of a run that finished (``diverged``: it ran to its end, and analysis.divergence rejects it).
-FINISHED = (RunStatus.OK, RunStatus.DIVERGED)
-
-
 def unfinished_runs(m: dict[str, Any]) -> list[str]:
     """The runs ("G1.frozen") of one variant's metrics that did not run to their end: failed (an FMU error,
     a non-finite value), interrupted, or missing."""
     return [f"{t}.{r}" for t, runs in m["tasks"].items() for r in RUNS
-            if runs.get(r, {}).get("status", "missing") not in FINISHED]
+            if not _reached_stop(runs.get(r, {}).get("status", "missing"))]
+
+
+def _reached_stop(status: str) -> bool:
+    """A recorded status (or "missing") of a run that ran to its end (:attr:`RunStatus.reached_stop`)."""
+    return status in RunStatus.__members__.values() and RunStatus(status).reached_stop
 
 
 def exit_code(variants: dict[str, dict[str, Any]], variant: str) -> int:

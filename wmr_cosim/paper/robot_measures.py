@@ -17,16 +17,16 @@ if TYPE_CHECKING:
 
 
 def measure(row: dict[str, Any], results: dict[str, Any], work: Path) -> None:
-    """The metrics of the point's runs (in ``work``) into ``row``, and its status and reason: those of the
-    first run that failed or diverged; then, with a frozen and a foam run, the disturbance analysis."""
+    """The metrics of the point's runs (in ``work``) into ``row`` (the sweep judged its status from the
+    runs' own: :func:`wmr_cosim.studies.sweep.point_status`; a run whose analysis diverges makes an ok
+    point diverged); then, with a frozen and a foam run, the disturbance analysis."""
+    from ..cosim import RunStatus
     from .analysis import disturbance_analysis
 
     sigs: dict[str, Signals | None] = {}
     for name, res in results.items():
-        if res.status != "ok" and row["status"] == "ok":   # the first failed run's message is the reason
-            row["status"], row["reason"] = "failed", f"{name}: {res.message}"
-            if not (work / name / "signals.npy").is_file():
-                continue
+        if not RunStatus(res.status).measured and not (work / name / "signals.npy").is_file():
+            continue   # (a run that failed before recording: nothing to measure)
         sigs[name] = _run_metrics(row, name, res, work / name)
     frozen, foam = sigs.get("frozen"), sigs.get("foam")
     if frozen is not None and foam is not None:

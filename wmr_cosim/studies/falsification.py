@@ -36,7 +36,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..cosim import CosimError, LimitOverrides, ScenarioError
+from ..cosim import CosimError, LimitOverrides, RunStatus, ScenarioError
 from .cluster import Cluster
 from .sweep import run_points
 from .system import System
@@ -206,9 +206,10 @@ def _params(spec: FalsifySpec, x: np.ndarray) -> dict[str, float]:
 
 
 def _robustness(spec: FalsifySpec, row: dict[str, Any]) -> float:
-    """A point's robustness of the requirement; +inf for a point that failed (it gave no robustness)."""
+    """A point's robustness of the requirement; +inf for a point that failed (it gave no robustness: see
+    :func:`.sweep.point_status`)."""
     v = row.get(spec.column)
-    if row["status"] in ("ok", "violated", "diverged") and isinstance(v, (int, float)) and not math.isnan(v):
+    if row["status"] != RunStatus.FAILED and isinstance(v, (int, float)) and not math.isnan(v):
         return float(v)
     return math.inf
 

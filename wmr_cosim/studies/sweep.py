@@ -32,7 +32,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .cluster import Cluster, check_worker_count
-from ..cosim import CosimError, LimitOverrides, count
+from ..cosim import CosimError, LimitOverrides, RunStatus, count
 from .shipment import Shipment, ShippingCost, pack, ship, unship, worker_cache
 from .sweep_file import SweepSpec, check_parameters, draw_points, load_sweep, read_base
 from .metrics import SETS, SweepMeasure, check_metrics
@@ -89,12 +89,10 @@ def run_point(point: dict[str, Any], study: Study, cache: Path | None = None) ->
         results = run_protocol(proto, work, proto.resolver, variant=study.variant, overrides=point["params"],
                                progress=False, only=study.runs,
                                on_run=None if judge is None else lambda name, res: judge(res))
+        row["status"], row["reason"] = point_status(results)    # (whatever the measure adds)
         if study.measure is not None:
             study.measure(row, results, work)
         requirement_columns(row, results)
-        failed = next((name for name, res in results.items() if res.status not in ("ok", "violated")), None)
-        if failed is not None and row["status"] == "ok":   # (whatever the measure: the first run that failed)
-            row["status"], row["reason"] = "failed", f"{failed}: {results[failed].message}"
     except CosimError as exc:
         row["status"], row["reason"] = "failed", str(exc)
     except KeyError as exc:    # a failed run that did not record what the metrics need: keep its reason
@@ -109,6 +107,17 @@ def run_point(point: dict[str, Any], study: Study, cache: Path | None = None) ->
     row["reason"] = unlocalise(row["reason"])
     row["wall_s"] = time.perf_counter() - t0
     return row, runs
+
+
+def point_status(results: dict[str, Any]) -> tuple[str, str]:
+    """A point's status and reason from its runs, in order: the first run a study cannot measure
+    (:attr:`RunStatus.measured`) makes it diverged (the system's judge rejected the run) or failed, with
+    that run's message; otherwise ok."""
+    for name, res in results.items():
+        status = RunStatus(res.status)
+        if not status.measured:
+            return (RunStatus.DIVERGED if status is RunStatus.DIVERGED else RunStatus.FAILED), f"{name}: {res.message}"
+    return RunStatus.OK, ""
 
 
 def requirement_columns(row: dict[str, Any], results: dict[str, Any]) -> None:
