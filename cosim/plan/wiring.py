@@ -23,13 +23,9 @@ from ..messages.errors import RunError
 from ..model.description import Variable
 from ..scenario.inputs import InputPlan
 from ..stepping.algorithm import Copy, Doubles
+from ..stepping.graph import FeedGraph
+from .feeds import feed_graph, is_f64, is_real
 from .records import ConnectionPlan, EventPlan, Plan, RecordPlan
-
-
-
-def is_f64(var: Variable) -> bool:
-    """A 64-bit real (FMI 2.0 Real, FMI 3.0 Float64): the values the generated loop copies directly."""
-    return var.fmi_type in ("Real", "Float64")
 
 
 @dataclass
@@ -140,6 +136,15 @@ class Wiring:
                 self.base[key] = Copy(key[1], real_array([float(_start(plan, ev))]), 0, 1.0, 0.0)
         self.overrides: dict[tuple[str, int, str], tuple[str, float]] = {}
         self._held: dict[tuple[str, int, str], Doubles] = {}   # the array each override's copies read
+
+    def graph(self) -> FeedGraph:
+        """Who feeds whom now: the plan's graph (``plan.feeds``), less the copies whose input, or whose
+        source output, an override holds (they read the held value, not the connection)."""
+        held = {key for key, (action, _) in self.overrides.items() if action == "override"}
+        if not held:
+            return self.plan.feeds
+        return feed_graph(self.plan.order, self.plan.connections,
+                          lambda c: (c.dst, c.dst_var.vr, "input") in held or (c.src, c.src_var.vr, "output") in held)
 
     def is_wired(self, inst: str, vr: int, causality: str) -> bool:
         """Whether the copies can carry an override of this Real input (one the master sets) or output
@@ -290,11 +295,6 @@ def table_feeder(inst: FmuInstance, table: tuple[Doubles, np.ndarray] | None, di
                 return s
         return 0
     return feed
-
-
-def is_real(c: ConnectionPlan) -> bool:
-    """A Float64 -> Float64 connection (a copy in the generated loop); the others are copied by closures."""
-    return is_f64(c.src_var) and is_f64(c.dst_var)
 
 
 def discrete_copier(instances: dict[str, FmuInstance], c: ConnectionPlan) -> Callable[[], int]:
