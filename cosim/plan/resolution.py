@@ -623,9 +623,9 @@ def _event_rows(sc: Scenario, insts: dict[str, InstancePlan]) -> None:
 
 def _workers(sc: Scenario, insts: dict[str, InstancePlan], feeds: FeedGraph, notes: list[str]) -> str:
     """Stepping instances at once: Jacobi's every instance, Gauss-Seidel's each level (the instances that
-    do not feed each other: the plan's graph's :attr:`~..stepping.graph.FeedGraph.levels`), at one rate; a note says which step at once, how, and
-    when there are more workers than instances that can step at once.  Returns why nothing steps at once
-    ("" where something does, or workers = 1): what ``run`` says too."""
+    do not feed each other: the plan's graph's :attr:`~..stepping.graph.FeedGraph.levels`), at one rate; a
+    note says which step at once, how, and when there are more workers than instances that can step at once.
+    Returns why nothing steps at once ("" where something does, or workers = 1): what ``run`` says too."""
     if sc.workers == 1:
         return ""
     if not algorithms.row(sc.algorithm).workers:

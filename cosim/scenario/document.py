@@ -589,7 +589,8 @@ def _parse_stepping(sc: Scenario, exp: dict[str, Any]) -> None:
         """The step the step-size control takes, as its table names it (``coupling``; None: none named)."""
         for r in algorithms.ROWS:
             if r.varies_step and r.table is not None:
-                named = str(_table(file, f"experiment.{r.table.name}", exp.get(r.table.name)).get("coupling", "")).lower()
+                own = _table(file, f"experiment.{r.table.name}", exp.get(r.table.name))
+                named = str(own.get("coupling", "")).lower()
                 if named:
                     return named
         return None

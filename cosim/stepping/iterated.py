@@ -1,9 +1,9 @@
 """The iterated coupling: every coupling loop solved at every macro step (``algorithm = "iterated"``).
 
 The instances step in the plan's order, as under Gauss-Seidel; an instance outside any loop is set,
-stepped and read once.  A coupling loop (a strongly connected set of instances in the graph of Float64
-connections, the plan's: cosim.stepping.graph.FeedGraph.loops) is stepped as one: its coupling inputs u (the inputs its copies
-feed from its own outputs) are the unknowns of
+stepped and read once.  A coupling loop (a strongly connected set of instances in the plan's graph of
+Float64 connections, cosim.stepping.graph.FeedGraph.loops) is stepped as one: its coupling inputs u (the
+inputs its copies feed from its own outputs) are the unknowns of
 
     r(u) = G(y(t + h; u)) - u = 0,
 

@@ -3,9 +3,10 @@
 Jacobi sets every instance's inputs from the previous step's outputs, steps them, reads every output:
 every instance may step at once.  Gauss-Seidel steps the instances in the plan's order, each seeing its
 predecessors' outputs of this step; its pass is cut into levels (the plan's graph's
-:attr:`.graph.FeedGraph.levels`, which ``check`` prints: instances of one level do not feed each other) whose instances step at once, level after
-level: each level's inputs set, its steps, its outputs read.  What differs from the serial step is only
-when the steps run.  Three kinds of instance step at once, each its own way:
+:attr:`.graph.FeedGraph.levels`, which ``check`` prints: instances of one level do not feed each other)
+whose instances step at once, level after level: each level's inputs set, its steps, its outputs read.
+What differs from the serial step is only when the steps run.  Three kinds of instance step at once, each
+its own way:
 
 * an instance of a C FMU in this process steps in one of N lanes: the master's thread and N - 1 threads
   that live for the run (:class:`~.lanes.Lanes`), its step a foreign call that lets go of the GIL

@@ -6,8 +6,8 @@ the generated Gauss-Seidel or Jacobi step bit for bit.
 
 A :class:`Stepper` knows the instances (their :class:`~.algorithm.InstanceIO`), the row the outputs go to
 and who feeds whom (:class:`~.graph.FeedGraph`: the plan's graph, as the execution hands it to the
-algorithm, :attr:`~.algorithm.Algorithm.feeds`).  It saves and restores the whole system for a rollback (:meth:`Stepper.save`,
-:meth:`Stepper.restore`): the FMU states and the row of outputs the copies read.
+algorithm, :attr:`~.algorithm.Algorithm.feeds`).  It saves and restores the whole system for a rollback
+(:meth:`Stepper.save`, :meth:`Stepper.restore`): the FMU states and the row of outputs the copies read.
 """
 from __future__ import annotations
 
