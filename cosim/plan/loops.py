@@ -1,8 +1,9 @@
 """The coupling structure of a system, from its connections and its FMUs' model descriptions.
 
 * A **coupling loop** is a set of instances that feed each other through Float64 connections (a strongly
-  connected component of the graph "an output of a feeds an input of b" with more than one instance, or
-  one that feeds itself).  The iterated algorithms solve each as one; under one pass per step its
+  connected component of the plan's graph of copies, ``plan.feeds``, "an output of a feeds an input of b",
+  with more than one instance, or one that feeds itself: :attr:`~..stepping.graph.FeedGraph.loops`, which
+  the iterated algorithms step by).  The iterated algorithms solve each as one; under one pass per step its
   instances see each other's outputs of the previous step (Jacobi) or of this one (Gauss-Seidel) only.
 * An **algebraic loop** is a cycle of variables through the connections and the FMUs' direct
   dependencies: an output that depends on an input without delay (the model description's
@@ -20,7 +21,7 @@ from typing import TYPE_CHECKING, Iterable
 from ..messages.errors import ScenarioError
 from ..model.description import CO_SIMULATION, fmi2_cs_declares
 from ..stepping import table as algorithms
-from ..stepping.graph import strongly_connected
+from ..stepping.graph import FeedGraph, strongly_connected
 from .records import ConnectionPlan, Coupling, InstancePlan
 
 if TYPE_CHECKING:
@@ -42,21 +43,10 @@ def direct_inputs(model: "FmuModel") -> dict[str, set[str]]:
     return out
 
 
-def _float(c: ConnectionPlan) -> bool:
-    return c.is_float64
-
-
-def coupling(order: list[str], insts: dict[str, InstancePlan], conns: Iterable[ConnectionPlan]) -> Coupling:
-    """The coupling loops and the algebraic loops of the plan's instances and connections."""
-    conns = [c for c in conns if _float(c)]
-    pos = {n: i for i, n in enumerate(order)}
-    succ: list[list[int]] = [[] for _ in order]
-    for c in conns:
-        if pos[c.dst] not in succ[pos[c.src]]:
-            succ[pos[c.src]].append(pos[c.dst])
-    loops = [[order[i] for i in comp] for comp in strongly_connected(len(order), succ)
-             if len(comp) > 1 or comp[0] in succ[comp[0]]]
-    return Coupling(loops, _algebraic(order, insts, conns))
+def coupling(feeds: FeedGraph, insts: dict[str, InstancePlan], conns: Iterable[ConnectionPlan]) -> Coupling:
+    """The coupling loops (those of the plan's graph ``feeds``, :attr:`FeedGraph.loops`) and the algebraic
+    loops of the plan's instances and connections."""
+    return Coupling(feeds.named(feeds.loops), _algebraic(list(feeds.names), insts, [c for c in conns if c.is_float64]))
 
 
 def _algebraic(order: list[str], insts: dict[str, InstancePlan], conns: list[ConnectionPlan]) -> list[list[str]]:

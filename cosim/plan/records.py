@@ -11,6 +11,7 @@ from ..model.description import CO_SIMULATION, INTERFACE_NAMES, FmuModel, Variab
 from ..model.units import lookup, units_of
 from ..scenario.document import ConnectionSpec, InstanceSpec, Scenario
 from ..scenario.inputs import InputPlan
+from ..stepping.graph import FeedGraph
 
 
 @dataclass
@@ -149,6 +150,7 @@ class Plan:
     last_step: float | None = None   # [s] a short last step, where the step does not divide the run
     requirements: list[RequirementPlan] = field(default_factory=list)   # monitored at every communication point
     run_notes: list[str] = field(default_factory=list)   # what run says too before it starts (workers left idle)
+    feeds: FeedGraph = field(default_factory=FeedGraph)   # who feeds whom: the coupling loops', the levels', the run's
 
     @property
     def watched(self) -> list[tuple[str, Variable]]:

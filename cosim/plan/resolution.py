@@ -36,8 +36,9 @@ from ..scenario.document import (SOLVER_KEYS, ConnectionSpec, InstanceSpec, Scen
                                 steps_of)
 from ..scenario.inputs import InputPlan, read_inputs
 from ..stepping import table as algorithms
-from ..stepping.graph import levels
+from ..stepping.graph import FeedGraph
 from ..stepping.settings import SpecError, check_adaptive
+from .feeds import feed_graph
 from .loops import check_iteration, coupling
 from .records import ConnectionPlan, EventPlan, InstancePlan, Plan, RecordPlan, RequirementPlan, unit_of
 
@@ -488,8 +489,9 @@ def _resolve(sc: Scenario) -> Plan:
     internal = _internal_steps(sc, insts)
     conns, driven = _connection_plans(sc, insts)
     _rates(sc, insts, conns)
-    idle = _workers(sc, insts, conns, notes)
-    coupled = coupling(sc.order, insts, conns)
+    feeds = feed_graph(sc.order, conns)
+    idle = _workers(sc, insts, feeds, notes)
+    coupled = coupling(feeds, insts, conns)
     _check_stepping(sc, insts)
     check_iteration(sc, insts, coupled)
     requirements = _requirements(sc, insts, notes)
@@ -503,7 +505,7 @@ def _resolve(sc: Scenario) -> Plan:
     conditions = [ev for ev in checked if ev.condition is not None]
     plan = Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs, not_recorded,
                 conditions, notes, internal, sc.archive_limits, coupled, last_step, requirements,
-                [idle] if idle else [])
+                [idle] if idle else [], feeds)
     _check_recording_size(plan)
     return plan
 
@@ -620,11 +622,11 @@ def _event_rows(sc: Scenario, insts: dict[str, InstancePlan]) -> None:
                             f"instance through model exchange in this process only: {why}")
 
 
-def _workers(sc: Scenario, insts: dict[str, InstancePlan], conns: list[ConnectionPlan], notes: list[str]) -> str:
+def _workers(sc: Scenario, insts: dict[str, InstancePlan], feeds: FeedGraph, notes: list[str]) -> str:
     """Stepping instances at once: Jacobi's every instance, Gauss-Seidel's each level (the instances that
-    do not feed each other, from the connections), at one rate; a note says which step at once, how, and
-    when there are more workers than instances that can step at once.  Returns why nothing steps at once
-    ("" where something does, or workers = 1): what ``run`` says too."""
+    do not feed each other: the plan's graph's :attr:`~..stepping.graph.FeedGraph.levels`), at one rate; a
+    note says which step at once, how, and when there are more workers than instances that can step at once.
+    Returns why nothing steps at once ("" where something does, or workers = 1): what ``run`` says too."""
     if sc.workers == 1:
         return ""
     if not algorithms.row(sc.algorithm).workers:
@@ -638,12 +640,7 @@ def _workers(sc: Scenario, insts: dict[str, InstancePlan], conns: list[Connectio
     order = list(sc.order)
     by_levels = None
     if not algorithms.row(sc.algorithm).simultaneous:   # Gauss-Seidel: by levels
-        index = {n: i for i, n in enumerate(order)}
-        fed_by: list[set[int]] = [set() for _ in order]
-        for c in conns:
-            if c.src in index and c.dst in index:
-                fed_by[index[c.dst]].add(index[c.src])
-        by_levels = [[order[i] for i in lv] for lv in levels(len(order), fed_by)]
+        by_levels = feeds.named(feeds.levels)
     ordered = [(n, insts[n]) for n in order]
     notes.append(workers_note(sc.workers, ordered, by_levels))
     return workers_idle(sc.workers, ordered, by_levels)

@@ -379,9 +379,10 @@ def _default_experiment(sc: Scenario):
                         order=" ".join(sc.order))
     if sc.workers > 1:
         exp.set("workers", str(sc.workers))
-    for tag, spec in (("Iteration", sc.iteration), ("Adaptive", sc.adaptive)):
+    for t in algorithms.TABLES:
+        spec = sc.settings.get(t.name)
         if spec is not None:
-            ET.SubElement(exp, f"{{{OWN_NS}}}{tag}",
+            ET.SubElement(exp, f"{{{OWN_NS}}}{t.tag}",
                           {k: (_fmt(v) if isinstance(v, float) else str(v))
                            for k, v in spec.as_dict().items() if v is not None})
     de.annotations.add_annotation(osp)
@@ -591,17 +592,19 @@ def _with_version(root) -> bytes:
     return ET.tostring(root)
 
 
-#: The keys of this master's Iteration and Adaptive annotations that are integers (the others are numbers
-#: or words).
-_INTEGER_KEYS = {"max_iterations"}
-_WORD_KEYS = {"method", "inputs", "coupling", "jacobian"}
+#: The keys of this master's annotations of the algorithms' settings that are integers, and those that are
+#: words (the others are numbers).
+_INTEGER_KEYS = frozenset().union(*(t.integers for t in algorithms.TABLES))
+_WORD_KEYS = frozenset().union(*(t.words for t in algorithms.TABLES))
 
 
 def _stepping_tables(exp, where: str) -> dict[str, dict[str, Any]]:
-    """The ``experiment.iteration`` and ``experiment.adaptive`` tables of this master's annotation (its
-    Iteration and Adaptive elements), values typed as the scenario reader takes them."""
+    """The algorithms' tables of settings (``experiment.iteration``, ``experiment.adaptive``) of this
+    master's annotation (its Iteration and Adaptive elements), values typed as the scenario reader takes
+    them."""
     out: dict[str, dict[str, Any]] = {}
-    for tag, key in (("Iteration", algorithms.ITERATION_TABLE), ("Adaptive", algorithms.ADAPTIVE_TABLE)):
+    for t in algorithms.TABLES:
+        tag, key = t.tag, t.name
         el = exp.find(f"{{{OWN_NS}}}{tag}")
         if el is None:
             continue

@@ -23,6 +23,8 @@ from ..messages.errors import RunError
 from ..model.description import Variable
 from ..scenario.inputs import InputPlan
 from ..stepping.algorithm import Copy, Doubles
+from ..stepping.graph import FeedGraph
+from .feeds import feed_graph
 from .records import ConnectionPlan, EventPlan, Plan, RecordPlan
 
 
@@ -135,6 +137,15 @@ class Wiring:
                 self.base[key] = Copy(key[1], real_array([float(_start(plan, ev))]), 0, 1.0, 0.0)
         self.overrides: dict[tuple[str, int, str], tuple[str, float]] = {}
         self._held: dict[tuple[str, int, str], Doubles] = {}   # the array each override's copies read
+
+    def graph(self) -> FeedGraph:
+        """Who feeds whom now: the plan's graph (``plan.feeds``), less the copies whose input, or whose
+        source output, an override holds (they read the held value, not the connection)."""
+        held = {key for key, (action, _) in self.overrides.items() if action == "override"}
+        if not held:
+            return self.plan.feeds
+        return feed_graph(self.plan.order, self.plan.connections,
+                          lambda c: (c.dst, c.dst_var.vr, "input") in held or (c.src, c.src_var.vr, "output") in held)
 
     def is_wired(self, inst: str, vr: int, causality: str) -> bool:
         """Whether the copies can carry an override of this Real input (one the master sets) or output

@@ -136,9 +136,8 @@ def resolved(plan: Plan) -> dict[str, Any]:
     return {"file": sc.file, "experiment": {"start": sc.start, "stop": sc.stop, "step": sc.step,
                                             "algorithm": sc.algorithm, "order": sc.order, "workers": sc.workers,
                                             "tolerance": sc.tolerance,
-                                            **{k: spec.as_dict() for k, spec in ((algorithms.ITERATION_TABLE, sc.iteration),
-                                                                                 (algorithms.ADAPTIVE_TABLE, sc.adaptive))
-                                               if spec is not None}},
+                                            **{t.name: sc.settings[t.name].as_dict() for t in algorithms.TABLES
+                                               if t.name in sc.settings}},
             "instances": {n: {"fmu": str(ip.model.path), "model": ip.model.model_name,
                               "parameters": {v.name: val for v, val in ip.parameters},
                               "names": ip.spec.names, "units": ip.spec.units, "logging": ip.spec.logging,

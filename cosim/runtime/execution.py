@@ -212,6 +212,7 @@ class Execution:
         self.ios = [instance_io(plan, n, self.instances[n], layout, wiring, self.instances,
                                 self._fmi_acc if self.timing else None) for n in plan.order]
         exchange_initial(self.ios, self.instances, wiring, layout, self.clock.start, self.check_inputs)
+        self.algorithm.feeds = wiring.graph()   # who feeds whom: the plan's graph (what check prints)
         self.algorithm.initialize(self.ios, self.clock.start, self.check_inputs)
         for io in self.ios:
             self.instances[io.name].exit_initialization()
@@ -349,6 +350,7 @@ class Execution:
         """Every instance's copies taken again from the wiring, and the algorithm told."""
         for io in self.ios:
             io.copies = self._wiring.copies(io.name)
+        self.algorithm.feeds = self._wiring.graph()
         self.algorithm.inputs_changed()
 
     def _segment_end(self, k: int, k_target: int) -> int:

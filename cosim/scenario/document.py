@@ -22,7 +22,7 @@ from ..model.archive import DEFAULT_LIMITS, ArchiveLimits, LimitOverrides, parse
 from ..model.description import CO_SIMULATION, MODEL_EXCHANGE
 from ..model.kinds import FileKind, file_kind
 from ..stepping import table as algorithms
-from ..stepping.settings import ADAPTIVE_KEYS, ITERATION_KEYS, AdaptiveSpec, IterationSpec, SpecError, iteration_spec
+from ..stepping.settings import AdaptiveSpec, IterationSpec, SpecError
 
 ACTIONS = ("override", "bias", "reset", "set", "stop")
 TRIGGERS = ("once", "each")
@@ -36,7 +36,7 @@ _TOP_KEYS = {"base", "replace", "description", "experiment", "instances", "conne
              "variants", "inputs", "limits", "requirements"}
 _INPUTS_KEYS = {"file", "interpolation"}
 _EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps", "max_internal_steps",
-                    algorithms.ITERATION_TABLE, algorithms.ADAPTIVE_TABLE, "workers"}
+                    *(t.name for t in algorithms.TABLES), "workers"}
 _INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "override_declared_units", "description", "logging", "isolate",
                   "step_timeout", "tolerance", "interface", "step", *SOLVER_KEYS}
 _CONNECTION_KEYS = {"from", "to", "factor", "offset", "convert", "threshold"}
@@ -148,8 +148,7 @@ class Scenario:
     max_bytes: int = 4 * 2 ** 30    # a recording expected larger than this is refused (unless forced)
     force: bool = False             # lift max_steps and max_bytes (the command line's --force)
     algorithm: str = algorithms.DEFAULT
-    iteration: IterationSpec | None = None   # [experiment.iteration]: algorithm "iterated" (or adaptive over it)
-    adaptive: AdaptiveSpec | None = None     # [experiment.adaptive]: algorithm "adaptive"
+    settings: dict[str, Any] = field(default_factory=dict)   # table name -> the settings the algorithm reads
     workers: int = 1                         # instances stepped at once: isolated ones, C FMUs in threads
     order: list[str] = field(default_factory=list)
     instances: dict[str, InstanceSpec] = field(default_factory=dict)
@@ -169,6 +168,16 @@ class Scenario:
     archive_limits: ArchiveLimits = DEFAULT_LIMITS      # how far its FMU and SSP archives may unpack ([limits])
     notes: list[str] = field(default_factory=list)      # what check and run print of it (a table not read)
     tools_choice: set[str] = field(default_factory=set)  # fields given as 0, "the tool's choice" (TOOLS_CHOICE)
+
+    @property
+    def iteration(self) -> IterationSpec | None:
+        """[experiment.iteration], where the algorithm reads it: the iterated coupling's settings."""
+        return self.settings.get(algorithms.ITERATION_TABLE)
+
+    @property
+    def adaptive(self) -> AdaptiveSpec | None:
+        """[experiment.adaptive], where the algorithm reads it: the step-size control's settings."""
+        return self.settings.get(algorithms.ADAPTIVE_TABLE)
 
     def times(self) -> tuple[float, float, float]:
         """start, stop and step [s] once all three are known (given, or filled in by the resolution);
@@ -570,29 +579,34 @@ def _parse_experiment(sc: Scenario, doc: dict[str, Any]) -> None:
 
 
 def _parse_stepping(sc: Scenario, exp: dict[str, Any]) -> None:
-    """[experiment.iteration] and [experiment.adaptive]: the settings of the algorithm that uses them,
-    checked as given.  A table the algorithm does not read (the algorithm switched to "gauss-seidel" with
-    ``--set``, say) is checked too but left unused, and a note says so (``check`` and ``run`` print it)."""
+    """The tables of settings of the algorithms (the table's rows': [experiment.iteration],
+    [experiment.adaptive]), each checked as given and kept where the algorithm reads it (``sc.settings``).
+    A table the algorithm does not read (the algorithm switched to "gauss-seidel" with ``--set``, say) is
+    checked too but left unused, and a note says so (``check`` and ``run`` print it)."""
     file = sc.file
-    row = algorithms.row(sc.algorithm)
-    it_key, ad_key = algorithms.ITERATION_TABLE, algorithms.ADAPTIVE_TABLE
+
+    def step_taken() -> str | None:
+        """The step the step-size control takes, as its table names it (``coupling``; None: none named)."""
+        for r in algorithms.ROWS:
+            if r.varies_step and r.table is not None:
+                own = _table(file, f"experiment.{r.table.name}", exp.get(r.table.name))
+                named = str(own.get("coupling", "")).lower()
+                if named:
+                    return named
+        return None
+
     try:
-        if it_key in exp:
-            table = _table(file, f"experiment.{it_key}", exp[it_key])
-            coupling = str(_table(file, f"experiment.{ad_key}", exp.get(ad_key)).get("coupling", "")).lower()
-            spec = iteration_spec(table)
-            if algorithms.iterates(sc.algorithm, coupling or None):
-                sc.iteration = spec
+        for t in algorithms.TABLES:
+            if t.name not in exp:
+                continue
+            table = _table(file, f"experiment.{t.name}", exp[t.name])
+            read = algorithms.reads(sc.algorithm, t.name, step_taken())
+            spec = t.read(table, sc.step)
+            if read:
+                sc.settings[t.name] = spec
             else:
-                sc.notes.append(f"[experiment.{it_key}] is not read under algorithm = {sc.algorithm!r} (it is read "
-                                f"by {algorithms.readers(it_key)})")
-        if ad_key in exp:
-            spec_a = algorithms.adaptive_spec(_table(file, f"experiment.{ad_key}", exp[ad_key]), sc.step)
-            if ad_key in row.settings:
-                sc.adaptive = spec_a
-            else:
-                sc.notes.append(f"[experiment.{ad_key}] is not read under algorithm = {sc.algorithm!r} (it is read "
-                                f"by {algorithms.readers(ad_key)})")
+                sc.notes.append(f"[experiment.{t.name}] is not read under algorithm = {sc.algorithm!r} (it is read "
+                                f"by {algorithms.readers(t.name)})")
     except SpecError as exc:
         raise ScenarioError(file, exc.key, exc.reason) from None
 
@@ -914,8 +928,7 @@ TOOLS_CHOICE = ("step", "tolerance")
 SET_TABLES = {"experiment": _EXPERIMENT_KEYS, "record": _RECORD_KEYS}
 #: The tables inside those whose keys ``--set`` may set ("experiment.iteration.method=newton"), with their
 #: keys; the table is made when the document has none.
-SET_SUBTABLES = {("experiment", algorithms.ITERATION_TABLE): ITERATION_KEYS,
-                 ("experiment", algorithms.ADAPTIVE_TABLE): ADAPTIVE_KEYS}
+SET_SUBTABLES = {("experiment", t.name): t.keys for t in algorithms.TABLES}
 
 
 def settable_table(key: str) -> str | None:

@@ -60,6 +60,7 @@ class Adaptive(Algorithm):
         if self.iterates:
             from .iterated import Iterated
             it = Iterated(self.iteration)
+            it.feeds = self.feeds
             it.initialize(ios, t0, check_inputs)
             self.initial_iterations = it.initial_iterations
 
@@ -67,7 +68,7 @@ class Adaptive(Algorithm):
               check_inputs: bool = True) -> None:
         self.clock, self.layout = clock, layout
         self.spec = self.spec0.resolved(clock.step)
-        self.stepper = Stepper(ios, clock, layout, done, check_inputs)
+        self.stepper = Stepper(ios, clock, layout, done, check_inputs, self.feeds)
         self.stepper.allow_rollback()
         if self.iterates:
             self.iterated = IteratedStep(self.stepper, self.iteration)
@@ -79,7 +80,8 @@ class Adaptive(Algorithm):
         self.inputs_changed()
 
     def inputs_changed(self) -> None:
-        """The coupling variables of the copies as they are now."""
+        """The coupling variables of the copies as they are now, who feeds whom as the execution gives it."""
+        self.stepper.feeds = self.feeds
         ios = self.stepper.ios
         owner = {id(io.out_val): io.out_val for io in ios}
         seen: dict[tuple[int, int], tuple[Any, int]] = {}

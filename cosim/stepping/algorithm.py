@@ -20,7 +20,10 @@ An algorithm is an object behind :class:`Algorithm`.  Its contract, for an imple
    tabulated inputs of step k (``feed(k)``) and the other connections (``other``) are put in place with
    them; with ``check_inputs`` a non-finite value is a failure (``Call.NON_FINITE_INPUT``) before it is set.
 4. :meth:`~Algorithm.inputs_changed` is called whenever the copies of some instance changed between
-   two segments (events, the script): the algorithm takes the new ones from then on.
+   two segments (events, the script): the algorithm takes the new ones from then on.  Before
+   :meth:`~Algorithm.initialize`, and before each call of it, :attr:`~Algorithm.feeds` holds who feeds
+   whom (:class:`.graph.FeedGraph`, the instances in the order of ``ios``): the plan's graph, less the
+   copies an override holds.
 5. An instance whose fast path sets ``terminated`` in a step ends the segment after ``done(k + 1, True)``
    (``Call.TERMINATED``, the FMU's last successful time as the value).
 6. An algorithm makes no FMI call but through the instances' fast paths, accessors and closures given
@@ -39,6 +42,7 @@ from typing import Any, Callable, NamedTuple, Protocol
 
 from ..instances.contract import FastPath
 from ..instances.failure import Failure
+from .graph import FeedGraph
 
 
 #: ctypes arrays the loop reads and writes: doubles (values), unsigned ints (value references)
@@ -177,6 +181,7 @@ class Algorithm(ABC):
     """How a communication step is taken (see the module's contract)."""
 
     name = ""   # the table's name of it (stepping.table.make sets it)
+    feeds: FeedGraph | None = None   # who feeds whom now (the execution sets it: the contract, item 4)
 
     @abstractmethod
     def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,

@@ -1,9 +1,9 @@
 """The iterated coupling: every coupling loop solved at every macro step (``algorithm = "iterated"``).
 
 The instances step in the plan's order, as under Gauss-Seidel; an instance outside any loop is set,
-stepped and read once.  A coupling loop (a strongly connected set of instances in the graph of Float64
-connections, cosim.stepping.stepper.components) is stepped as one: its coupling inputs u (the inputs its copies
-feed from its own outputs) are the unknowns of
+stepped and read once.  A coupling loop (a strongly connected set of instances in the plan's graph of
+Float64 connections, cosim.stepping.graph.FeedGraph.loops) is stepped as one: its coupling inputs u (the
+inputs its copies feed from its own outputs) are the unknowns of
 
     r(u) = G(y(t + h; u)) - u = 0,
 
@@ -39,7 +39,8 @@ from ..messages.errors import RunError
 from ..messages.words import count
 from .algorithm import Clock, InstanceIO, Row, StepDone
 from .settings import IterationSpec
-from .stepper import Stepper, SteppedAlgorithm, components, feeders, is_loop
+from .graph import FeedGraph
+from .stepper import Stepper, SteppedAlgorithm
 
 
 
@@ -106,21 +107,18 @@ class NotConverged(Exception):
     """A loop's iteration failed: the message (without the step and time)."""
 
 
-def find_loops(ios: list[InstanceIO]) -> tuple[list[list[int]], list[Loop]]:
-    """The components in stepping order and the coupling loops among them, with their unknowns."""
-    fed_by = feeders(ios)
+def find_loops(ios: list[InstanceIO], feeds: FeedGraph) -> tuple[list[list[int]], list[Loop]]:
+    """The components of the graph ``feeds`` in stepping order and the coupling loops among them, with
+    their unknowns (the loop's copies that read its own outputs)."""
     owner = {id(io.out_val): i for i, io in enumerate(ios)}
-    comps = components(ios)
     loops = []
-    for comp in comps:
-        if not is_loop(comp, fed_by):
-            continue
+    for comp in feeds.loops:
         mine = set(comp)
         unknowns = [Unknown(i, c.pos, ios[i].in_vr[c.pos] if c.pos < len(ios[i].in_vr) else -1, c.src, c.slot,
                             c.factor, c.offset, owner[id(c.src)], ios[owner[id(c.src)]].out_vr[c.slot])
                     for i in comp for c in ios[i].copies if owner.get(id(c.src)) in mine]
         loops.append(Loop(comp, unknowns, [ios[i].name for i in comp]))
-    return comps, loops
+    return feeds.components, loops
 
 
 class LoopSolver:
@@ -203,7 +201,7 @@ class IteratedStep:
     def refresh(self) -> None:
         """The loops of the copies as they are now (after events changed them); a loop whose instances are
         the same keeps its counts (the history of its inputs is dropped: the copies changed)."""
-        comps, loops = find_loops(self.stepper.ios)
+        comps, loops = find_loops(self.stepper.ios, self.stepper.graph)
         self.comps = comps
         self.loops = {}
         for lp in loops:
@@ -368,7 +366,8 @@ class Iterated(SteppedAlgorithm):
         self.initial_iterations = 0
 
     def initialize(self, ios: list[InstanceIO], t0: float, check_inputs: bool = True) -> None:
-        st = Stepper(ios, Clock(t0, 1.0, 0), cast(Row, _NoLayout()), lambda k, ended: None, check_inputs)
+        st = Stepper(ios, Clock(t0, 1.0, 0), cast(Row, _NoLayout()), lambda k, ended: None, check_inputs,
+                     self.feeds)
         it = IteratedStep(st, self.spec)
         it.initialize(t0)
         self.initial_iterations = it.initial_iterations
@@ -379,6 +378,7 @@ class Iterated(SteppedAlgorithm):
         self.step = IteratedStep(self.stepper, self.spec)
 
     def inputs_changed(self) -> None:
+        super().inputs_changed()
         assert self.step is not None
         self.step.refresh()
 

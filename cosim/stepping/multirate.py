@@ -55,6 +55,7 @@ class MultiRate(SteppedAlgorithm):
         self.compiled: Any = None
 
     def inputs_changed(self) -> None:
+        super().inputs_changed()
         self.compiled = None
 
     def advance(self, k0: int, k1: int) -> Failure | None:

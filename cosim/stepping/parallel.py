@@ -2,10 +2,11 @@
 
 Jacobi sets every instance's inputs from the previous step's outputs, steps them, reads every output:
 every instance may step at once.  Gauss-Seidel steps the instances in the plan's order, each seeing its
-predecessors' outputs of this step; its pass is cut into levels (:func:`.graph.levels`, from the
-connections: instances of one level do not feed each other) whose instances step at once, level after
-level: each level's inputs set, its steps, its outputs read.  What differs from the serial step is only
-when the steps run.  Three kinds of instance step at once, each its own way:
+predecessors' outputs of this step; its pass is cut into levels (the plan's graph's
+:attr:`.graph.FeedGraph.levels`, which ``check`` prints: instances of one level do not feed each other)
+whose instances step at once, level after level: each level's inputs set, its steps, its outputs read.
+What differs from the serial step is only when the steps run.  Three kinds of instance step at once, each
+its own way:
 
 * an instance of a C FMU in this process steps in one of N lanes: the master's thread and N - 1 threads
   that live for the run (:class:`~.lanes.Lanes`), its step a foreign call that lets go of the GIL
@@ -33,9 +34,8 @@ from typing import Any, Callable
 from ..instances.failure import Call, Failure
 from ..instances.handoff import Measured
 from .algorithm import Clock, InstanceIO, Row, StepDone
-from .graph import levels
 from .lanes import Lanes
-from .stepper import SteppedAlgorithm, depends
+from .stepper import SteppedAlgorithm
 
 #: The ways a group's lanes step: in their threads, or one after another on the master's thread.
 THREADS, MASTER_ALONE = 0, 1
@@ -275,12 +275,14 @@ class ParallelGaussSeidel(ParallelStepping):
         super().setup(ios, clock, layout, done, check_inputs)
 
     def groups(self, ios: list[InstanceIO]) -> list[list[int]]:
-        self.fed_by = depends(ios)
-        return levels(len(ios), self.fed_by)
+        graph = self.stepper.graph
+        self.fed_by = graph.depends
+        return graph.levels
 
     def inputs_changed(self) -> None:
         """The copies changed (an event, the script): the levels again where who feeds whom changed."""
-        if depends(self.stepper.ios) != self.fed_by:
+        super().inputs_changed()
+        if self.stepper.graph.depends != self.fed_by:
             self._group(self.stepper.ios)
 
     def take(self, k: int, t: float, h: float) -> Failure | None:

@@ -5,9 +5,9 @@ function each (``generated.compile_instance``: one definition of a step's work),
 the generated Gauss-Seidel or Jacobi step bit for bit.
 
 A :class:`Stepper` knows the instances (their :class:`~.algorithm.InstanceIO`), the row the outputs go to
-and the coupling structure of the copies: which instance's outputs feed which instance's inputs
-(:func:`components`).  It saves and restores the whole system for a rollback (:meth:`Stepper.save`,
-:meth:`Stepper.restore`): the FMU states and the row of outputs the copies read.
+and who feeds whom (:class:`~.graph.FeedGraph`: the plan's graph, as the execution hands it to the
+algorithm, :attr:`~.algorithm.Algorithm.feeds`).  It saves and restores the whole system for a rollback
+(:meth:`Stepper.save`, :meth:`Stepper.restore`): the FMU states and the row of outputs the copies read.
 """
 from __future__ import annotations
 
@@ -19,49 +19,28 @@ from ..instances.failure import Call, Failure
 from ..messages.errors import RunError
 from .algorithm import Algorithm, Clock, InstanceIO, Row, StepDone
 from .generated import compile_instance
-from .graph import strongly_connected
-
-
-def feeders(ios: list[InstanceIO]) -> list[set[int]]:
-    """For each instance, the instances whose Float64 outputs its copies read now (overrides and tables
-    read no instance)."""
-    owner = {id(io.out_val): i for i, io in enumerate(ios)}
-    return [{owner[id(c.src)] for c in io.copies if id(c.src) in owner} for io in ios]
-
-
-def depends(ios: list[InstanceIO]) -> list[set[int]]:
-    """For each instance, the instances whose outputs its inputs take now: through its copies (Float64,
-    :func:`feeders`) and through its other connections (read with the FMI get calls)."""
-    index = {io.name: i for i, io in enumerate(ios)}
-    return [srcs | {index[n] for n in io.reads if n in index} for srcs, io in zip(feeders(ios), ios)]
-
-
-def components(ios: list[InstanceIO]) -> list[list[int]]:
-    """The strongly connected components of the graph "outputs of a feed inputs of b", each in the plan's
-    order, the components in the order of their first instance (the order in which the instances step).
-    A component of more than one instance, or of one that feeds itself, is a coupling loop."""
-    fed_by = feeders(ios)
-    succ: list[list[int]] = [[] for _ in ios]
-    for b, srcs in enumerate(fed_by):
-        for a in sorted(srcs):
-            succ[a].append(b)
-    return strongly_connected(len(ios), succ)
-
-
-def is_loop(comp: list[int], fed_by: list[set[int]]) -> bool:
-    return len(comp) > 1 or comp[0] in fed_by[comp[0]]
+from .graph import FeedGraph
 
 
 class Stepper:
     """Steps over the instances one at a time (see the module's docstring)."""
 
     def __init__(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,
-                 check_inputs: bool = True) -> None:
+                 check_inputs: bool = True, feeds: FeedGraph | None = None) -> None:
         self.ios, self.clock, self.layout, self.done, self.check_inputs = ios, clock, layout, done, check_inputs
+        self.feeds = feeds
         self.T, self.H = ctypes.c_double(0.0), ctypes.c_double(0.0)
         self.n_do_steps = 0
         # each instance's functions and the copies they were made for
         self._made: list[tuple[Any, tuple[Callable[..., Failure | None], ...]]] = [(None, ())] * len(ios)
+
+    @property
+    def graph(self) -> FeedGraph:
+        """Who feeds whom now (:attr:`.algorithm.Algorithm.feeds`, which the execution sets)."""
+        if self.feeds is None or self.feeds.names != tuple(io.name for io in self.ios):
+            raise RuntimeError("the algorithm was not given the graph of its instances (Algorithm.feeds: the "
+                               "execution sets it)")
+        return self.feeds
 
     # ------------------------------------------------------------------ one instance
     def _parts(self, i: int) -> tuple[Callable[..., Failure | None], ...]:
@@ -182,10 +161,12 @@ class SteppedAlgorithm(Algorithm):
     def setup(self, ios: list[InstanceIO], clock: Clock, layout: Row, done: StepDone,
               check_inputs: bool = True) -> None:
         self.clock = clock
-        self.stepper = Stepper(ios, clock, layout, done, check_inputs)
+        self.stepper = Stepper(ios, clock, layout, done, check_inputs, self.feeds)
 
     def inputs_changed(self) -> None:
-        """Nothing to redo where every step reads the copies as they are."""
+        """Who feeds whom as the execution gives it now; nothing else to redo where every step reads the
+        copies as they are (a subclass that keeps more redoes it, after this)."""
+        self.stepper.feeds = self.feeds
 
     def advance(self, k0: int, k1: int) -> Failure | None:
         c = self.clock

@@ -12,15 +12,18 @@ A row says (each a fact the checks and the execution act on):
 * ``workers``: instances that do not feed each other in a step may step at once (``[experiment] workers``,
   :mod:`.parallel`): every instance under Jacobi, each level's under Gauss-Seidel;
 * ``solves_loops``: solves every coupling loop at every step (and the algebraic loops through it), rolling
-  back the loop's instances: they must get and set their state, and ``[experiment.iteration]`` is read;
+  back the loop's instances: they must get and set their state;
 * ``varies_step``: varies every instance's communication step and rolls every instance back when it
-  rejects one: ``[experiment.adaptive]`` is read, and each instance must accept steps of any length and
-  get and set its state.
+  rejects one: each instance must accept steps of any length and get and set its state;
+* ``table``: the table of settings it reads, ``[experiment.NAME]`` (:class:`SettingsTable`: its name, its
+  keys, how it is read, where the SSP export keeps it): the scenario reader, ``--set``, the SSP export and
+  import and scenario.json loop over the rows' tables; the step-size control also reads the table of the
+  step it takes (``[experiment.iteration]`` under ``coupling = "iterated"``).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 from .adaptive import Adaptive
 from .algorithm import Algorithm
@@ -28,11 +31,28 @@ from .generated import GaussSeidel, Jacobi
 from .iterated import Iterated
 from .multirate import MultiRate
 from .parallel import ParallelGaussSeidel, ParallelJacobi
-from .settings import ADAPTIVE_KEYS, AdaptiveSpec, IterationSpec, SpecError, check_adaptive, positive
+from .settings import (ADAPTIVE_KEYS, ITERATION_KEYS, AdaptiveSpec, IterationSpec, SpecError, check_adaptive,
+                       iteration_spec, positive)
 
 GAUSS_SEIDEL, JACOBI, ITERATED, ADAPTIVE = "gauss-seidel", "jacobi", "iterated", "adaptive"
-#: The tables of settings (``[experiment.iteration]``, ``[experiment.adaptive]``) and who reads them.
+#: The names of the tables of settings (``[experiment.iteration]``, ``[experiment.adaptive]``).
 ITERATION_TABLE, ADAPTIVE_TABLE = "iteration", ADAPTIVE
+
+
+@dataclass(frozen=True)
+class SettingsTable:
+    """A table of settings an algorithm reads, ``[experiment.NAME]``: its ``name``, its ``keys`` (all
+    optional), ``read(table, interval)``: the settings (a spec with ``as_dict()``) from a table of them,
+    checked (SpecError naming a bad key; ``interval``: the output interval [s] where known); ``tag``: its
+    element in this master's SSP annotation, whose attributes are words (``words``), integers
+    (``integers``) or numbers (the other keys)."""
+
+    name: str
+    keys: frozenset[str]
+    read: Callable[[dict[str, Any], float | None], Any]
+    tag: str
+    words: frozenset[str] = frozenset()
+    integers: frozenset[str] = frozenset()
 
 
 @dataclass(frozen=True)
@@ -47,11 +67,12 @@ class AlgorithmRow:
     workers: bool = False
     solves_loops: bool = False
     varies_step: bool = False
+    table: SettingsTable | None = None   # the table of settings it reads itself
 
     @property
     def settings(self) -> tuple[str, ...]:
-        """The tables of settings it reads itself."""
-        return ((ITERATION_TABLE,) if self.solves_loops else ()) + ((ADAPTIVE_TABLE,) if self.varies_step else ())
+        """The names of the tables of settings it reads itself."""
+        return (self.table.name,) if self.table is not None else ()
 
     @property
     def rolls_back(self) -> str | None:
@@ -59,16 +80,23 @@ class AlgorithmRow:
         return "every" if self.varies_step else "loops" if self.solves_loops else None
 
 
+ITERATION = SettingsTable(ITERATION_TABLE, ITERATION_KEYS, lambda table, interval: iteration_spec(table), "Iteration",
+                          words=frozenset({"method", "inputs", "jacobian"}), integers=frozenset({"max_iterations"}))
+ADAPTIVE_SETTINGS = SettingsTable(ADAPTIVE_TABLE, ADAPTIVE_KEYS, lambda table, interval: adaptive_spec(table, interval),
+                                  "Adaptive", words=frozenset({"coupling"}))
+
 ROWS: tuple[AlgorithmRow, ...] = (
     AlgorithmRow(GAUSS_SEIDEL, GaussSeidel, "one pass per step in the plan's order, each instance seeing its "
                  "predecessors' outputs of this step", one_pass=True, workers=True),
     AlgorithmRow(JACOBI, Jacobi, "one pass per step, every instance seeing the outputs of the previous step",
                  one_pass=True, simultaneous=True, workers=True),
     AlgorithmRow(ITERATED, Iterated, "every coupling loop iterated to its tolerance at every step (fixed point "
-                 "or Newton, the loop rolled back per iteration)", solves_loops=True),
+                 "or Newton, the loop rolled back per iteration)", solves_loops=True, table=ITERATION),
     AlgorithmRow(ADAPTIVE, Adaptive, "the step size controlled by step doubling, a rejected step rolled back "
-                 "(over one pass or the iterated step)", varies_step=True),
+                 "(over one pass or the iterated step)", varies_step=True, table=ADAPTIVE_SETTINGS),
 )
+#: The tables of settings, in the order of the rows that read them.
+TABLES: tuple[SettingsTable, ...] = tuple(r.table for r in ROWS if r.table is not None)
 #: The algorithm a scenario that names none runs, and the step-size control's settings where it gives none.
 DEFAULT = GAUSS_SEIDEL
 DEFAULT_ADAPTIVE = AdaptiveSpec(coupling=DEFAULT)
@@ -104,12 +132,20 @@ def iterates(name: str, coupling: str | None) -> bool:
     return r.solves_loops or (r.varies_step and inner is not None and inner.solves_loops)
 
 
+def reads(name: str, table: str, coupling: str | None) -> bool:
+    """Whether the algorithm ``name`` reads the table of settings ``table``: its own, or (the step-size
+    control) that of the step it takes (``coupling``, the name ``[experiment.adaptive]`` gives; None: the
+    default)."""
+    r = row(name)
+    inner = _BY_NAME.get(coupling or DEFAULT) if r.varies_step else None
+    return table in r.settings or (inner is not None and table in inner.settings)
+
+
 def readers(table: str) -> str:
     """Who reads a table of settings, in words: '"iterated", and by "adaptive" with coupling = "iterated"'."""
     own = [quoted(r.name) for r in ROWS if table in r.settings]
-    if table == ITERATION_TABLE:
-        own += [f"{quoted(r.name)} with coupling = {quoted(c)}" for r in ROWS if r.varies_step
-                for c in adaptive_couplings() if row(c).solves_loops]
+    own += [f"{quoted(r.name)} with coupling = {quoted(c)}" for r in ROWS if r.varies_step
+            for c in adaptive_couplings() if table in row(c).settings]
     return ", and by ".join(own)
 
 
