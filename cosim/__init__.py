@@ -31,8 +31,9 @@ if TYPE_CHECKING:   # (for the type checker; at run time each name is imported w
                         load_model, named_kind)
     from .requirements import FormulaError, Outcome, formula_fold
     from .plan import PARAMETERS, Plan, describe_coupling, export_remarks, export_ssp, is_ssp, load_ssp, resolve, variable
-    from .results import (MatLayout, OutputLock, ResultsError, RunResult, RunStatus, layout, make_folder, read_json,
-                          read_signals, write_json, write_mat)
+    from .results import (RECORDING, RESULT_FORMATS, MatLayout, OutputLock, ResultFormat, ResultsError, RunResult,
+                          RunStatus, format_flags, format_help, layout, make_folder, read_json, read_signals,
+                          write_json, write_mat)
     from .runtime import (Execution, Manipulator, Observer, Protocol, check_protocol, plan_runs, read_protocol, run,
                           run_protocol)
     from .scenario import (SET_TABLES, Scenario, apply_overrides, base_path, is_path, load, parse, parse_set,
@@ -51,8 +52,9 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "requirements": ["FormulaError", "Outcome", "formula_fold"],
     "plan": ["PARAMETERS", "Plan", "describe_coupling", "export_remarks", "export_ssp", "is_ssp", "load_ssp", "resolve",
              "variable"],
-    "results": ["MatLayout", "OutputLock", "ResultsError", "RunResult", "RunStatus", "layout", "make_folder",
-                "read_json", "read_signals", "write_json", "write_mat"],
+    "results": ["RECORDING", "RESULT_FORMATS", "MatLayout", "OutputLock", "ResultFormat", "ResultsError", "RunResult",
+                "RunStatus", "format_flags", "format_help", "layout", "make_folder", "read_json", "read_signals",
+                "write_json", "write_mat"],
     "runtime": ["Execution", "Manipulator", "Observer", "Protocol", "check_protocol", "plan_runs", "read_protocol",
                 "run", "run_protocol"],
     "scenario": ["SET_TABLES", "Scenario", "apply_overrides", "base_path", "is_path", "load", "parse", "parse_set",

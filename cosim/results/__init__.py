@@ -1,5 +1,5 @@
-"""A run's results: the recording written as the run goes, the results folder and its files (CSV, MAT,
-summary.json), the event table, how a run ended."""
+"""A run's results: the recording written as the run goes, the results folder and its files (the one
+table of result formats, CSV, MAT, summary.json), the event table, how a run ended."""
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
@@ -8,6 +8,7 @@ import lazy_loader
 
 if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
     from .folder import ResultsFolder, RunResult
+    from .formats import RECORDING, RESULT_FORMATS, ResultFormat, format_flags, format_help
     from .matfile import MatLayout, layout, write_mat
     from .reading import Recording, ResultsError, read_json, read_signals
     from .recording import OutputLock, atomic_write, make_folder, write_csv, write_json
@@ -15,6 +16,7 @@ if TYPE_CHECKING:   # (for the type checker; at run time each name is imported w
 
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "folder": ["ResultsFolder", "RunResult"],
+    "formats": ["RECORDING", "RESULT_FORMATS", "ResultFormat", "format_flags", "format_help"],
     "matfile": ["MatLayout", "layout", "write_mat"],
     "reading": ["Recording", "ResultsError", "read_json", "read_signals"],
     "recording": ["OutputLock", "atomic_write", "make_folder", "write_csv", "write_json"],

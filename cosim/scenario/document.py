@@ -158,6 +158,7 @@ class Scenario:
     requirements: list[RequirementSpec] = field(default_factory=list)
     decimation: int = 1
     events: list[EventSpec] = field(default_factory=list)
+    # the flags of the result formats (the table cosim.results.formats names them, a layer above)
     csv: bool = True
     mat: bool = False               # also signals.mat, Dymola's result layout (cosim.results.matfile)
     event_rows: bool = False        # rows before and after each event of a lone model-exchange instance
