@@ -25,7 +25,7 @@ if TYPE_CHECKING:   # (for the type checker; at run time each name is imported w
     from .instances import SOLVERS, SolverSpec
     from .linearisation import LinearModel, Linearisation, Linearizer, LoopAnalysis, Request, plot_loop
     from .messages import (CosimError, FmuLoadError, MissingVariableError, OtherFileError, OutputError, RunError,
-                           ScenarioError, close_names, count, did_you_mean)
+                           ScenarioError, close_names, count, did_you_mean, unknown_key)
     from .model import (CO_SIMULATION, DEFAULT_LIMITS, MODEL_EXCHANGE, ArchiveLimits, FileKind, FmuModel,
                         LimitOverrides, Variable, check_archive, file_kind, fmi_version, limit_overrides,
                         load_model, named_kind)
@@ -45,7 +45,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "instances": ["SOLVERS", "SolverSpec"],
     "linearisation": ["LinearModel", "Linearisation", "Linearizer", "LoopAnalysis", "Request", "plot_loop"],
     "messages": ["CosimError", "FmuLoadError", "MissingVariableError", "OtherFileError", "OutputError", "RunError",
-                 "ScenarioError", "close_names", "count", "did_you_mean"],
+                 "ScenarioError", "close_names", "count", "did_you_mean", "unknown_key"],
     "model": ["CO_SIMULATION", "DEFAULT_LIMITS", "MODEL_EXCHANGE", "ArchiveLimits", "FileKind", "FmuModel",
               "LimitOverrides", "Variable", "check_archive", "file_kind", "fmi_version", "limit_overrides",
               "load_model", "named_kind"],
