@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import lazy_loader
+from ..messages.faces import attach
 
-if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
+if TYPE_CHECKING:   # the face's exports, listed once: at run time each is imported where first used
     from .folder import ResultsFolder, RunResult
     from .formats import RECORDING, RESULT_FORMATS, ResultFormat, format_flags, format_help
     from .matfile import MatLayout, layout, write_mat
@@ -14,11 +14,4 @@ if TYPE_CHECKING:   # (for the type checker; at run time each name is imported w
     from .recording import OutputLock, atomic_write, make_folder, write_csv, write_json
     from .status import RunStatus
 
-__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
-    "folder": ["ResultsFolder", "RunResult"],
-    "formats": ["RECORDING", "RESULT_FORMATS", "ResultFormat", "format_flags", "format_help"],
-    "matfile": ["MatLayout", "layout", "write_mat"],
-    "reading": ["Recording", "ResultsError", "read_json", "read_signals"],
-    "recording": ["OutputLock", "atomic_write", "make_folder", "write_csv", "write_json"],
-    "status": ["RunStatus"],
-})
+__getattr__, __dir__ = attach(__name__, __file__)   # the names imported above; __all__ too
