@@ -23,7 +23,7 @@ from .messages.faces import attach
 
 if TYPE_CHECKING:   # the face's exports, listed once: at run time each is imported where first used
     from .instances import SOLVERS, SolverSpec
-    from .linearisation import LinearModel, Linearisation, Linearizer, LoopAnalysis, Request, plot_loop
+    from .linearisation import LinearModel, Linearisation, Linearizer, LoopAnalysis, Request
     from .messages import (CosimError, FmuLoadError, MissingVariableError, OtherFileError, OutputError, RunError,
                            ScenarioError, close_names, count, did_you_mean, unknown_key)
     from .model import (CO_SIMULATION, DEFAULT_LIMITS, MODEL_EXCHANGE, ArchiveLimits, FileKind, FmuModel,

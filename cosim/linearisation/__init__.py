@@ -14,7 +14,7 @@ if TYPE_CHECKING:   # the face's exports, listed once: at run time each is impor
     from .cosimulated import CouplingCost, cosimulated_loop, coupling_cost
     from .interconnection import Link, close
     from .jacobian import CUBE_ROOT_EPS, Signal, fd_step, jacobian
-    from .loop import LoopAnalysis, analyse, loop_figures, plot_loop
+    from .loop import LoopAnalysis, analyse
     from .model import MAT_FILE, NPZ_FILE, LinearModel, control_name
     from .operating_point import DEFAULT_STEPS, Linearisation, Linearizer, Request, memoryless
     from .realisation import Injection, pulse_responses, realise
