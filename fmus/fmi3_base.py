@@ -27,7 +27,6 @@ every exception into fmi3Fatal), after the one-line cause is logged.
 """
 from __future__ import annotations
 
-import math
 from operator import itemgetter
 from typing import Any
 from xml.etree.ElementTree import Element, SubElement
@@ -129,34 +128,23 @@ class WmrSlave(SlaveCore, Fmi3Slave):
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=50.0, step_size=0.002)
 
     _DISCARD = Fmi3Status.discard   # the status of a refused or failed step (see SlaveCore)
+    _FATAL = Fmi3Status.fatal
+    _ACCESS = ("get_float64", "get_int32", "get_boolean", "get_string")
+    _SETS = ("set_float64", "set_int32", "set_boolean", "set_string")
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self.author = "wmr-cosim"
         self.default_experiment = type(self).default_experiment
         self.description = getattr(type(self), "description", None)  # (pythonfmu3's __init__ set None)
-        self._vals: list[Any] = []
-        self._decl: list[Var] = []
-        self._by_name: dict[str, Var] = {}
-        self._comp: Any = None
-        self._mode = "instantiated"
-        self._failed = ""
-        self._dirty = False
-        self._stale = False
-        self._h = math.nan
-        self._t0 = 0.0
+        self._init_state()
 
     # ------------------------------------------------------------------ declaration
     def declare(self, variables: list[Var]) -> None:
         """Register the variables: position in ``_vals`` = declaration order (as in FMI 2.0); the FMI 3.0
         value references are 0 for time, then one per variable or array."""
         for var in variables:
-            if var.name in self._by_name:
-                raise ValueError(f"duplicate variable {var.name}")
-            var.vr = len(self._vals)
-            self._vals.append(var.start)
-            self._decl.append(var)
-            self._by_name[var.name] = var
+            self._add(var)
         self._tslot = len(self._vals)
         self._vals.append(self._t0)        # the value of the independent variable time [s]
         time = Var("time", "Real", "input", "simulation time", unit="s")
@@ -167,18 +155,7 @@ class WmrSlave(SlaveCore, Fmi3Slave):
         self._index()
 
     def _index(self) -> None:
-        decl = self._decl
-        self._params = [v for v in decl if v.causality == "parameter"]
-        self._inputs = [v for v in decl if v.causality == "input"]
-        self._outputs = [v for v in decl if v.causality == "output"]
-        for group in (self._inputs, self._outputs):
-            vrs = [v.vr for v in group]
-            if vrs and vrs != list(range(vrs[0], vrs[0] + len(vrs))):
-                raise ValueError(f"{type(self).__name__}: declare the inputs, and the outputs, consecutively")
-        self._in0 = self._inputs[0].vr if self._inputs else 0
-        self._in1 = self._in0 + len(self._inputs)
-        self._out0 = self._outputs[0].vr if self._outputs else 0
-        self._out1 = self._out0 + len(self._outputs)
+        self._group_declarations()
         v3 = self._v3
         self._types = {t: frozenset(v.vr for v in v3 if v.type == t) for t in _CONV}
         params = {v.vr for v in v3 if v.causality == "parameter" and v.name != "time"}
@@ -200,33 +177,15 @@ class WmrSlave(SlaveCore, Fmi3Slave):
         self._set_key: list[int] = [-1]
         self._set_a = self._set_b = 0
 
-    def parameter_values(self) -> dict[str, Any]:
-        """The current parameter values by name (scalar names, the types of the declaration)."""
-        vals = self._vals
-        conv = {"Real": float, "Integer": int, "Boolean": bool, "String": str}
-        return {v.name: conv[v.kind](vals[v.vr]) for v in self._params}
-
     def vr(self, name: str) -> int:
         """FMI 3.0 value reference of a variable or array."""
         return self._v3_by_name[name].vr
 
-    # ------------------------------------------------------------------ to be implemented
-    def _build(self) -> None:
-        raise NotImplementedError
-
-    def _step(self, t: float, h: float) -> None:
-        raise NotImplementedError
-
-    def _retune(self) -> None:
-        """Apply tunable parameters set since the last step (default: none are declared)."""
-
     # ------------------------------------------------------------------ model description
     def to_xml(self, model_options: dict[str, str] = dict()) -> Element:  # noqa: B006 (pythonfmu3's signature)
         root = super().to_xml(model_options)
-        pkg = __name__.rpartition(".")[0]
-        root.set("version", "development" if pkg.startswith("wmr_cosim") else pkg.rpartition("_")[2])
         cs = root.find("CoSimulation")
-        cs.set("canHandleVariableCommunicationStepSize", "true" if self.variable_step else "false")
+        self._describe(root, cs)
         cs.set("canGetAndSetFMUState", "true")
         cs.set("canSerializeFMUState", "true")
         for tag in ("UnitDefinitions", "ModelVariables", "ModelStructure"):
@@ -441,58 +400,9 @@ class WmrSlave(SlaveCore, Fmi3Slave):
         self._t0 = float(start_time)
         self._vals[self._tslot] = self._t0
 
-    def enter_initialization_mode(self) -> None:
-        self._mode = "init"
-        self._stale = True
-        self._install_init_paths()
-
-    def exit_initialization_mode(self) -> None:
-        self._remove_init_paths()
-        self._build_logged()
-        self._mode = "run"
-        self._settable = self._settable_running
-        self._watch = self._tunable
-        self._dirty = False
-
-    def _build_logged(self) -> None:
-        """:meth:`_build`, logging the one-line cause of a failure before re-raising it (-> fmi3Fatal)."""
-        try:
-            self._build()
-        except Exception as exc:
-            self.log(f"{self.modelName} instance {self.instance_name}: initialisation failed: "
-                     f"{exception_cause(exc)}", Fmi3Status.fatal)
-            raise
-        self._stale = False
-
-    _ACCESS = ("get_float64", "get_int32", "get_boolean", "get_string")
-    _SETS = ("set_float64", "set_int32", "set_boolean", "set_string")
-
-    def _install_init_paths(self) -> None:
-        cls = type(self)
-        out = set(range(self._out0, self._out1))
-        for name in self._ACCESS:
-            fast = getattr(cls, name).__get__(self)
-            setattr(self, name, self._init_getter(fast, out))
-        for name in self._SETS:
-            fast = getattr(cls, name).__get__(self)
-            setattr(self, name, self._init_setter(fast))
-
-    def _remove_init_paths(self) -> None:
-        for name in self._ACCESS + self._SETS:
-            self.__dict__.pop(name, None)
-
-    def _init_getter(self, fast: Any, out: set[int]) -> Any:
-        def get(vrs: list[int]) -> list[Any]:
-            if self._stale and any(s in out for i in vrs if 0 <= i < len(self._v3) for s in self._v3[i].slots):
-                self._build_logged()
-            return fast(vrs)
-        return get
-
-    def _init_setter(self, fast: Any) -> Any:
-        def set_(vrs: list[int], values: list[Any]) -> None:
-            fast(vrs, values)
-            self._stale = True
-        return set_
+    def _reads_output(self, vrs: list[int]) -> bool:
+        v3, out0, out1 = self._v3, self._out0, self._out1
+        return any(out0 <= s < out1 for i in vrs if 0 <= i < len(v3) for s in v3[i].slots)
 
     def do_step(self, current_time: float, step_size: float) -> Fmi3StepResult:
         h = step_size

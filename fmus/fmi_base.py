@@ -37,7 +37,6 @@ Design (each point answers a measured behaviour of pythonfmu 0.7 under FMPy):
 """
 from __future__ import annotations
 
-import math
 import sys
 from operator import itemgetter
 from typing import Any
@@ -117,6 +116,9 @@ class WmrSlave(SlaveCore, Fmi2Slave):
     author = "wmr-cosim"
 
     _DISCARD = Fmi2Status.discard   # the status of a refused or failed step (see SlaveCore)
+    _FATAL = Fmi2Status.fatal
+    _ACCESS = ("get_real", "get_integer", "get_boolean", "get_string")
+    _SETS = ("set_real", "set_integer", "set_boolean", "set_string")
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -127,22 +129,12 @@ class WmrSlave(SlaveCore, Fmi2Slave):
     # ------------------------------------------------------------------ declaration
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
-        self._vals: list[Any] = []
-        self._decl: list[Var] = []
-        self._by_name: dict[str, Var] = {}
-        self._comp: Any = None          # the component object (Plant, Sensor, Controller)
-        self._mode = "instantiated"     # -> "init" -> "run"
-        self._failed = ""               # cause of the failed step; steps are refused after one
-        self._dirty = False             # a tunable parameter was set since the last step
-        self._stale = False             # initialization mode: outputs not recomputed since a set
-        self._h = math.nan              # the step size in use
-        self._t0 = 0.0                  # start time (setup_experiment)
+        self._init_state()
 
     def declare(self, variables: list[Var]) -> None:
         """Register the variables (value reference = position) and prepare the fast paths."""
         for var in variables:
-            if var.name in self._by_name:
-                raise ValueError(f"duplicate variable {var.name}")
+            vr = self._add(var)
             lo, hi = var.range
             common = dict(causality=_CAUSALITY[var.causality], description=var.description,
                           variability=_VARIABILITY[var.variability])
@@ -154,37 +146,22 @@ class WmrSlave(SlaveCore, Fmi2Slave):
                 sv = IntegerR(var.name, min=lo, max=hi, **common)
             else:
                 sv = _KINDS[var.kind](var.name, **common)
-            vr = len(self._vals)
             sv.getter = (lambda i=vr: self._vals[i])
             sv.setter = (lambda x, i=vr: self._vals.__setitem__(i, x))
             self.register_variable(sv)
             assert sv.value_reference == vr
-            var.vr = vr
-            self._vals.append(var.start)
-            self._decl.append(var)
-            self._by_name[var.name] = var
         self._index()
 
     def _index(self) -> None:
         decl = self._decl
         kinds = {k: frozenset(v.vr for v in decl if v.kind == k) for k in _KINDS}
         self._kind_vrs = kinds
-        self._params = [v for v in decl if v.causality == "parameter"]
-        self._inputs = [v for v in decl if v.causality == "input"]
-        self._outputs = [v for v in decl if v.causality == "output"]
-        for group in (self._inputs, self._outputs):  # contiguous, so that slices read and write them
-            vrs = [v.vr for v in group]
-            if vrs and vrs != list(range(vrs[0], vrs[0] + len(vrs))):
-                raise ValueError(f"{type(self).__name__}: declare the inputs, and the outputs, consecutively")
-        self._in0 = self._inputs[0].vr if self._inputs else 0
-        self._in1 = self._in0 + len(self._inputs)
+        self._group_declarations()
         self._in_list = [v.vr for v in self._inputs if v.kind == "Real"]
         if self._in_list != list(range(self._in0, self._in1)):
             self._in_list = [-1]  # the fast path of set_real needs all inputs Real and contiguous
         self._get_key: list[int] = [-1]
         self._get_items: Any = None
-        self._out0 = self._outputs[0].vr if self._outputs else 0
-        self._out1 = self._out0 + len(self._outputs)
         param_vrs = {v.vr for v in self._params}
         input_vrs = {v.vr for v in self._inputs}
         tunable = {v.vr for v in self._params if v.variability == "tunable"}
@@ -194,52 +171,21 @@ class WmrSlave(SlaveCore, Fmi2Slave):
         self._settable = self._settable_before
         self._watch: frozenset[int] = frozenset()
 
-    def parameter_values(self) -> dict[str, Any]:
-        """The current parameter values by name (the types of the declaration)."""
-        vals = self._vals
-        out: dict[str, Any] = {}
-        for v in self._params:
-            x = vals[v.vr]
-            if v.kind == "Real":
-                x = float(x)
-            elif v.kind == "Integer":
-                x = int(x)
-            elif v.kind == "Boolean":
-                x = bool(x)
-            else:
-                x = str(x)
-            out[v.name] = x
-        return out
-
     def vr(self, name: str) -> int:
         """Value reference of a variable."""
         return self._by_name[name].vr
 
-    # ------------------------------------------------------------------ to be implemented
-    def _build(self) -> None:
-        """Build the component from the current parameter and input values; write the initial outputs."""
-        raise NotImplementedError
-
-    def _step(self, t: float, h: float) -> None:
-        """One communication step from t to t + h [s]: read inputs, write outputs in ``self._vals``."""
-        raise NotImplementedError
-
-    def _retune(self) -> None:
-        """Apply tunable parameters set since the last step (default: none are declared)."""
-
     # ------------------------------------------------------------------ model description
     def to_xml(self, model_options: dict[str, str] = dict()) -> Element:  # noqa: B006 (pythonfmu's signature)
         root = super().to_xml(model_options)
-        pkg = __name__.rpartition(".")[0]
-        root.set("version", "development" if pkg.startswith("wmr_cosim") else pkg.rpartition("_")[2])
+        cosim = root.find("CoSimulation")
+        self._describe(root, cosim)
         # UnitDefinitions right after <CoSimulation> (schema order), only the units in use
         used = sorted({v.unit for v in self._decl if v.unit is not None})
         units = Element("UnitDefinitions")
         for name in used:
             SubElement(SubElement(units, "Unit", {"name": name}), "BaseUnit",
                        {k: str(e) for k, e in UNITS[name].items()})
-        cosim = root.find("CoSimulation")
-        cosim.set("canHandleVariableCommunicationStepSize", "true" if self.variable_step else "false")
         root.insert(list(root).index(cosim) + 1, units)
         # ModelStructure: Outputs and InitialUnknowns with their true dependencies (1-based indices)
         structure = root.find("ModelStructure")
@@ -355,57 +301,8 @@ class WmrSlave(SlaveCore, Fmi2Slave):
                          tolerance: float | None = None) -> None:
         self._t0 = float(start_time)
 
-    def enter_initialization_mode(self) -> None:
-        self._mode = "init"
-        self._stale = True
-        self._install_init_paths()
-
-    def exit_initialization_mode(self) -> None:
-        self._remove_init_paths()
-        self._build_logged()
-        self._mode = "run"
-        self._settable = self._settable_running
-        self._watch = self._tunable
-        self._dirty = False
-
-    def _build_logged(self) -> None:
-        """:meth:`_build`, logging the one-line cause of a failure before re-raising it (-> fmi2Fatal)."""
-        try:
-            self._build()
-        except Exception as exc:
-            self.log(f"{self.modelName} instance {self.instance_name}: initialisation failed: "
-                     f"{exception_cause(exc)}", Fmi2Status.fatal)
-            raise
-        self._stale = False
-
-    # In initialization mode the outputs follow the current parameters and inputs: the get/set methods
-    # are replaced by instance attributes (no cost to the stepping paths, which never see them).
-    def _install_init_paths(self) -> None:
-        cls = type(self)
-        for name in ("get_real", "get_integer", "get_boolean", "get_string"):
-            fast = getattr(cls, name).__get__(self)
-            setattr(self, name, self._init_getter(fast))
-        for name in ("set_real", "set_integer", "set_boolean", "set_string"):
-            fast = getattr(cls, name).__get__(self)
-            setattr(self, name, self._init_setter(fast))
-
-    def _remove_init_paths(self) -> None:
-        for name in ("get_real", "get_integer", "get_boolean", "get_string",
-                     "set_real", "set_integer", "set_boolean", "set_string"):
-            self.__dict__.pop(name, None)
-
-    def _init_getter(self, fast: Any) -> Any:
-        def get(vrs: list[int]) -> list[Any]:
-            if self._stale and any(self._out0 <= i < self._out1 for i in vrs):
-                self._build_logged()
-            return fast(vrs)
-        return get
-
-    def _init_setter(self, fast: Any) -> Any:
-        def set_(vrs: list[int], values: list[Any]) -> None:
-            fast(vrs, values)
-            self._stale = True
-        return set_
+    def _reads_output(self, vrs: list[int]) -> bool:
+        return any(self._out0 <= i < self._out1 for i in vrs)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         h = step_size

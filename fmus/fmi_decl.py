@@ -61,6 +61,8 @@ FIXED_STEP_RTOL = 1e-6
 
 
 _KINDS = ("Real", "Integer", "Boolean", "String")
+#: A declaration's kind -> the Python type of its values.
+_PYTHON_TYPE: dict[str, Any] = {"Real": float, "Integer": int, "Boolean": bool, "String": str}
 _CAUSALITIES = ("parameter", "input", "output")
 
 
@@ -165,17 +167,145 @@ def exception_cause(exc: BaseException) -> str:
 
 class SlaveCore:
     """What the FMI 2.0 and FMI 3.0 slave bases (fmi_base.WmrSlave, fmi3_base.WmrSlave) do alike, free of
-    pythonfmu: refusing a step after a failed one, snapping or adopting the step size, applying tunable
+    pythonfmu: the slave's state and its declarations (the values by declaration position, the parameters,
+    the inputs and outputs as slices), the parameter values, the model description's version, the life
+    cycle through initialization mode (outputs recomputed from the current parameters and inputs when read
+    there), refusing a step after a failed one, snapping or adopting the step size, applying tunable
     parameters, and saving and restoring the FMU state with every internal state.  A base sets
-    ``_DISCARD`` to its pythonfmu's Discard status and may extend :meth:`_after_restore`."""
+    ``_DISCARD`` and ``_FATAL`` to its pythonfmu's Discard and Fatal statuses, ``_ACCESS`` and ``_SETS`` to
+    the names of its get and set methods, implements :meth:`_reads_output`, and may extend
+    :meth:`_after_restore`."""
 
     _DISCARD: Any = None
+    _FATAL: Any = None
+    #: The names of the base's get and set methods: in initialization mode they are replaced by instance
+    #: attributes that keep the outputs current (no cost to the stepping paths, which never see them).
+    _ACCESS: tuple[str, ...] = ()
+    _SETS: tuple[str, ...] = ()
     #: Whether it takes communication steps of any length (canHandleVariableCommunicationStepSize).  A
     #: sampled-data block (the sensor chain, the controller) samples at the end of every step: its sample
     #: period is the step, so a step of another length changes what it computes.  Such a slave declares
     #: false and refuses (Discard) a step whose length differs from its first one.
     variable_step: bool = True
 
+    # ------------------------------------------------------------------ state and declarations
+    def _init_state(self) -> None:
+        """The state of a slave before its variables are declared (the base's ``__init__`` calls it)."""
+        self._vals: list[Any] = []
+        self._decl: list[Var] = []
+        self._by_name: dict[str, Var] = {}
+        self._comp: Any = None          # the component object (Plant, Sensor, Controller)
+        self._mode = "instantiated"     # -> "init" -> "run"
+        self._failed = ""               # cause of the failed step; steps are refused after one
+        self._dirty = False             # a tunable parameter was set since the last step
+        self._stale = False             # initialization mode: outputs not recomputed since a set
+        self._h = math.nan              # the step size in use [s]
+        self._t0 = 0.0                  # start time [s] (setup_experiment)
+
+    def _add(self, var: Var) -> int:
+        """Declare ``var``: its position in ``_vals`` (``var.vr``, returned) holds its start value."""
+        if var.name in self._by_name:
+            raise ValueError(f"duplicate variable {var.name}")
+        var.vr = len(self._vals)
+        self._vals.append(var.start)
+        self._decl.append(var)
+        self._by_name[var.name] = var
+        return var.vr
+
+    def _group_declarations(self) -> None:
+        """The parameters, inputs and outputs of the declarations; the inputs and the outputs each a slice
+        of ``_vals`` (``_in0:_in1``, ``_out0:_out1``)."""
+        decl = self._decl
+        self._params = [v for v in decl if v.causality == "parameter"]
+        self._inputs = [v for v in decl if v.causality == "input"]
+        self._outputs = [v for v in decl if v.causality == "output"]
+        for group in (self._inputs, self._outputs):  # contiguous, so that slices read and write them
+            vrs = [v.vr for v in group]
+            if vrs and vrs != list(range(vrs[0], vrs[0] + len(vrs))):
+                raise ValueError(f"{type(self).__name__}: declare the inputs, and the outputs, consecutively")
+        self._in0 = self._inputs[0].vr if self._inputs else 0
+        self._in1 = self._in0 + len(self._inputs)
+        self._out0 = self._outputs[0].vr if self._outputs else 0
+        self._out1 = self._out0 + len(self._outputs)
+
+    def parameter_values(self) -> dict[str, Any]:
+        """The current parameter values by name (scalar names, the types of the declaration)."""
+        vals = self._vals
+        return {v.name: _PYTHON_TYPE[v.kind](vals[v.vr]) for v in self._params}
+
+    # ------------------------------------------------------------------ to be implemented by a slave
+    def _build(self) -> None:
+        """Build the component from the current parameter and input values; write the initial outputs."""
+        raise NotImplementedError
+
+    def _step(self, t: float, h: float) -> None:
+        """One communication step from t to t + h [s]: read inputs, write outputs in ``self._vals``."""
+        raise NotImplementedError
+
+    def _retune(self) -> None:
+        """Apply tunable parameters set since the last step (default: none are declared)."""
+
+    # ------------------------------------------------------------------ model description
+    def _describe(self, root: Any, co_simulation: Any) -> None:
+        """What both versions' model descriptions say alike: the version (the source version the FMU's
+        package name ends with, "development" from the tree) and whether the step length may vary."""
+        pkg = __name__.rpartition(".")[0]
+        root.set("version", "development" if pkg.startswith("wmr_cosim") else pkg.rpartition("_")[2])
+        co_simulation.set("canHandleVariableCommunicationStepSize", "true" if self.variable_step else "false")
+
+    # ------------------------------------------------------------------ life cycle
+    def enter_initialization_mode(self) -> None:
+        self._mode = "init"
+        self._stale = True
+        self._install_init_paths()
+
+    def exit_initialization_mode(self) -> None:
+        self._remove_init_paths()
+        self._build_logged()
+        self._mode = "run"
+        self._settable = self._settable_running
+        self._watch = self._tunable
+        self._dirty = False
+
+    def _build_logged(self) -> None:
+        """:meth:`_build`, logging the one-line cause of a failure before re-raising it (-> Fatal)."""
+        try:
+            self._build()
+        except Exception as exc:
+            self.log(f"{self.modelName} instance {self.instance_name}: initialisation failed: "
+                     f"{exception_cause(exc)}", self._FATAL)
+            raise
+        self._stale = False
+
+    def _install_init_paths(self) -> None:
+        cls = type(self)
+        for name in self._ACCESS:
+            setattr(self, name, self._init_getter(getattr(cls, name).__get__(self)))
+        for name in self._SETS:
+            setattr(self, name, self._init_setter(getattr(cls, name).__get__(self)))
+
+    def _remove_init_paths(self) -> None:
+        for name in self._ACCESS + self._SETS:
+            self.__dict__.pop(name, None)
+
+    def _reads_output(self, vrs: list[int]) -> bool:
+        """Whether the value references ``vrs`` (of the base's FMI version) name an output."""
+        raise NotImplementedError
+
+    def _init_getter(self, fast: Any) -> Any:
+        def get(vrs: list[int]) -> list[Any]:
+            if self._stale and self._reads_output(vrs):
+                self._build_logged()
+            return fast(vrs)
+        return get
+
+    def _init_setter(self, fast: Any) -> Any:
+        def set_(vrs: list[int], values: list[Any]) -> None:
+            fast(vrs, values)
+            self._stale = True
+        return set_
+
+    # ------------------------------------------------------------------ stepping
     def _before_step(self, current_time: float, h: float) -> float | None:
         """Refuse a step after a failed one; snap or adopt a new step size; apply tunable parameters."""
         if self._failed:

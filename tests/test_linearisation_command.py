@@ -407,8 +407,8 @@ def test_the_plots_are_titled_by_the_loop_without_choosing_a_backend(fmus, tmp_p
     import matplotlib
     from PIL import Image
 
-    from wmr_cosim.cosim.linearisation.loop import loop_figures
     from wmr_cosim.runs.linear_model import linearize
+    from wmr_cosim.runs.loop_plot import loop_figures
 
     lin = linearize(_loop_scenario(tmp_path, fmus), at=0.25, breaks=("ctrl.y", "lag.u"))
     bode, nyquist = loop_figures(lin.loop)

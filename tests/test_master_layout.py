@@ -128,3 +128,15 @@ def test_every_algorithm_of_the_table_runs_as_its_row_says():
     assert isinstance(parallel, ParallelJacobi) and table.name_of(parallel) == table.JACOBI
     assert table.iterates(table.ADAPTIVE, table.ITERATED) and not table.iterates(table.ADAPTIVE, None)
     assert table.readers(table.ITERATION_TABLE) == '"iterated", and by "adaptive" with coupling = "iterated"'
+
+
+def test_the_master_draws_nothing():
+    """Plots are the application's (a loop's: wmr_cosim/runs/loop_plot.py): no module of cosim/ imports
+    matplotlib, so none chooses a backend for the process."""
+    found = []
+    for p in sorted(COSIM.rglob("*.py")):
+        for node in ast.walk(ast.parse(p.read_text(), str(p))):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            found += [f"{p.relative_to(ROOT)}:{node.lineno}" for n in names if n.split(".")[0] == "matplotlib"]
+    assert not found, found

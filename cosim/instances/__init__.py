@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import lazy_loader
+from ..messages.faces import attach
 
-if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
+if TYPE_CHECKING:   # the face's exports, listed once: at run time each is imported where first used
     from .contract import FastPath, FmuInstance
     from .failure import Call, Failure, FmiStatus, InstanceLost
     from .in_process import Instance, Instance3
@@ -16,12 +16,4 @@ if TYPE_CHECKING:   # (for the type checker; at run time each name is imported w
     from .kinds import HOSTS, host, model_exchange
     from .model_exchange import ModelExchange
 
-__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
-    "contract": ["FastPath", "FmuInstance"],
-    "failure": ["Call", "Failure", "FmiStatus", "InstanceLost"],
-    "in_process": ["Instance", "Instance3"],
-    "integrators": ["SOLVERS", "SolverSpec"],
-    "isolation": ["IsolatedInstance"],
-    "kinds": ["HOSTS", "host", "model_exchange"],
-    "model_exchange": ["ModelExchange"],
-})
+__getattr__, __dir__ = attach(__name__, __file__)   # the names imported above; __all__ too

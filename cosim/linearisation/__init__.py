@@ -8,23 +8,15 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import lazy_loader
+from ..messages.faces import attach
 
-if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
+if TYPE_CHECKING:   # the face's exports, listed once: at run time each is imported where first used
     from .cosimulated import CouplingCost, cosimulated_loop, coupling_cost
     from .interconnection import Link, close
     from .jacobian import CUBE_ROOT_EPS, Signal, fd_step, jacobian
-    from .loop import LoopAnalysis, analyse, loop_figures, plot_loop
+    from .loop import LoopAnalysis, analyse
     from .model import MAT_FILE, NPZ_FILE, LinearModel, control_name
     from .operating_point import DEFAULT_STEPS, Linearisation, Linearizer, Request, memoryless
     from .realisation import Injection, pulse_responses, realise
 
-__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
-    "cosimulated": ["CouplingCost", "cosimulated_loop", "coupling_cost"],
-    "interconnection": ["Link", "close"],
-    "jacobian": ["CUBE_ROOT_EPS", "Signal", "fd_step", "jacobian"],
-    "loop": ["LoopAnalysis", "analyse", "loop_figures", "plot_loop"],
-    "model": ["MAT_FILE", "NPZ_FILE", "LinearModel", "control_name"],
-    "operating_point": ["DEFAULT_STEPS", "Linearisation", "Linearizer", "Request", "memoryless"],
-    "realisation": ["Injection", "pulse_responses", "realise"],
-})
+__getattr__, __dir__ = attach(__name__, __file__)   # the names imported above; __all__ too

@@ -1,4 +1,6 @@
-"""A loop broken at one connection: its frequency response, gain and phase margins, Bode and Nyquist plots.
+"""A loop broken at one connection: its frequency response, gain and phase margins, and what its Bode and
+Nyquist plots are drawn from (the loop gain, a frequency grid, the margins and a title; the application
+draws them).
 
 The connection ``src -> dst`` is cut; a signal w is injected at ``dst`` and the return r = factor * src (what
 the connection would carry, in the unit of ``dst``) is read, everything else connected as in the run.  G is
@@ -21,7 +23,6 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -133,6 +134,10 @@ class LoopAnalysis:
         """L = -G as a python-control ``StateSpace``."""
         return -self.gain.statespace()
 
+    def frequencies(self, n: int = 400) -> np.ndarray:
+        """The frequency grid [rad/s] its plots are drawn over (:func:`frequencies` of ``gain``)."""
+        return frequencies(self.gain, n)
+
 
 def plain_number(x: float) -> float | str:
     """A figure for JSON: the number, or its name where it is not finite ("inf", "nan")."""
@@ -206,37 +211,3 @@ def frequencies(gain: LinearModel, n: int = 400) -> np.ndarray:
     if not gain.continuous:
         hi = min(hi, math.pi / gain.dt)
     return np.logspace(math.log10(lo), math.log10(max(hi, lo * 10)), n)
-
-
-def loop_figures(analysis: LoopAnalysis) -> tuple[Any, Any]:
-    """The Bode and Nyquist plots of L (python-control's, margins marked) as matplotlib ``Figure`` objects
-    on their own Agg canvases, titled by the loop (:attr:`LoopAnalysis.title`): no pyplot, no backend
-    chosen for the process."""
-    import control
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    L = analysis.loop_gain()
-    w = frequencies(analysis.gain)
-    bode = Figure(figsize=(7, 6))
-    FigureCanvasAgg(bode)
-    axes = np.asarray(bode.subplots(2, 1, sharex=True)).reshape(2, 1)
-    control.bode_plot(L, w, ax=axes, display_margins=True)
-    axes[0, 0].set_title(analysis.margins_text(), fontsize=8)   # (every crossover, not python-control's one)
-    bode.suptitle(f"{analysis.title}: L = -G")
-    nyquist = Figure(figsize=(6, 6))
-    FigureCanvasAgg(nyquist)
-    control.nyquist_plot(L, w, ax=nyquist.add_subplot())
-    nyquist.suptitle(f"{analysis.title}: Nyquist of L = -G")
-    return bode, nyquist
-
-
-def plot_loop(analysis: LoopAnalysis, folder: str | Path) -> list[Path]:
-    """``bode.png`` and ``nyquist.png`` of L in ``folder`` (:func:`loop_figures`; each PNG's ``Title``
-    holds its title)."""
-    folder = Path(folder)
-    out = []
-    for fig, name in zip(loop_figures(analysis), ("bode.png", "nyquist.png")):
-        out.append(folder / name)
-        fig.savefig(out[-1], dpi=110, metadata={"Title": fig.get_suptitle()})
-    return out

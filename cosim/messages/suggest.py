@@ -19,3 +19,12 @@ def did_you_mean(name: str, known: Iterable[str]) -> str:
     appended to an error message as it is."""
     best = close_names(name, known)
     return f" (did you mean {best[0]!r}?)" if best else ""
+
+
+def unknown_key(key: str, allowed: Iterable[str], what: str = "key", also: str = "") -> str:
+    """The one refusal of a key that a table does not take: ``"unknown key (allowed: a, b)"``, the allowed
+    names sorted, ``also`` after them (the keys of another form, e.g. ``", iteration.KEY"``), and the
+    allowed name closest to ``key`` when one is close (:func:`did_you_mean`).  ``what`` names the key when
+    the message's field does not (``"experiment field 'stpo'"``)."""
+    names = sorted(allowed)
+    return f"unknown {what} (allowed: {', '.join(names)}{also}){did_you_mean(key, names)}"

@@ -36,6 +36,7 @@ from pathlib import Path, PurePosixPath
 from typing import IO, Any
 
 from ..messages.errors import CosimError, FmuLoadError, ScenarioError
+from ..messages.suggest import unknown_key
 
 KiB, MiB, GiB, TiB = 1024, 1024**2, 1024**3, 1024**4
 #: Default limit on the sum of an archive's unpacked entry sizes [bytes].
@@ -131,7 +132,7 @@ def parse_limits(file: str, table: Any, over: LimitOverrides | None = None) -> A
             elif k == "archive_ratio":
                 given["max_ratio"] = parse_ratio(v)
             else:
-                raise ScenarioError(file, f"limits.{k}", "unknown key (allowed: archive_ratio, archive_size)")
+                raise ScenarioError(file, f"limits.{k}", unknown_key(k, ("archive_ratio", "archive_size")))
         except ValueError as exc:
             raise ScenarioError(file, f"limits.{k}", str(exc)) from None
     own = ArchiveLimits(**given)

@@ -4,19 +4,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import lazy_loader
+from ..messages.faces import attach
 
-if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
+if TYPE_CHECKING:   # the face's exports, listed once: at run time each is imported where first used
     from .loops import describe_coupling
     from .records import ConnectionPlan, Coupling, EventPlan, InstancePlan, Plan, RecordPlan
     from .resolution import PARAMETERS, resolve, variable
     from .ssp import export_remarks, export_ssp, is_ssp, load_ssp
     from .wiring import RowLayout, Wiring
 
-__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
-    "loops": ["describe_coupling"],
-    "records": ["ConnectionPlan", "Coupling", "EventPlan", "InstancePlan", "Plan", "RecordPlan"],
-    "resolution": ["PARAMETERS", "resolve", "variable"],
-    "ssp": ["export_remarks", "export_ssp", "is_ssp", "load_ssp"],
-    "wiring": ["RowLayout", "Wiring"],
-})
+__getattr__, __dir__ = attach(__name__, __file__)   # the names imported above; __all__ too

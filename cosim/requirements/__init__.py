@@ -4,13 +4,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import lazy_loader
+from ..messages.faces import attach
 
-if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
+if TYPE_CHECKING:   # the face's exports, listed once: at run time each is imported where first used
     from .formula import Checked, FormulaError, VarInfo, check, parse
     from .monitor import Monitor, Outcome, Verdict, evaluate, fold_of, formula_fold
 
-__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
-    "formula": ["Checked", "FormulaError", "VarInfo", "check", "parse"],
-    "monitor": ["Monitor", "Outcome", "Verdict", "evaluate", "fold_of", "formula_fold"],
-})
+__getattr__, __dir__ = attach(__name__, __file__)   # the names imported above; __all__ too

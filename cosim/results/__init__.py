@@ -1,22 +1,17 @@
-"""A run's results: the recording written as the run goes, the results folder and its files (CSV, MAT,
-summary.json), the event table, how a run ended."""
+"""A run's results: the recording written as the run goes, the results folder and its files (the one
+table of result formats, CSV, MAT, summary.json), the event table, how a run ended."""
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import lazy_loader
+from ..messages.faces import attach
 
-if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
+if TYPE_CHECKING:   # the face's exports, listed once: at run time each is imported where first used
     from .folder import ResultsFolder, RunResult
+    from .formats import RECORDING, RESULT_FORMATS, ResultFormat, format_flags, format_help
     from .matfile import MatLayout, layout, write_mat
     from .reading import Recording, ResultsError, read_json, read_signals
     from .recording import OutputLock, atomic_write, make_folder, write_csv, write_json
     from .status import RunStatus
 
-__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
-    "folder": ["ResultsFolder", "RunResult"],
-    "matfile": ["MatLayout", "layout", "write_mat"],
-    "reading": ["Recording", "ResultsError", "read_json", "read_signals"],
-    "recording": ["OutputLock", "atomic_write", "make_folder", "write_csv", "write_json"],
-    "status": ["RunStatus"],
-})
+__getattr__, __dir__ = attach(__name__, __file__)   # the names imported above; __all__ too

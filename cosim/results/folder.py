@@ -13,8 +13,8 @@ import numpy as np
 
 from ..plan.records import Plan
 from ..stepping import table as algorithms
-from .matfile import layout, write_mat
-from .recording import OutputLock, make_folder, write_csv, write_json
+from .formats import RECORDING, RESULT_FORMATS
+from .recording import OutputLock, make_folder, write_json
 from .status import RunStatus
 
 
@@ -55,7 +55,7 @@ class ResultsFolder:
         """logs/ made, stale signals, summary and logs removed, scenario.json written."""
         out = self.path
         (out / "logs").mkdir(exist_ok=True)
-        for stale in ("signals.npy", "signals.csv", "signals.mat", "summary.json", "requirements.npy"):
+        for stale in (*(f.file for f in RESULT_FORMATS.values()), "summary.json", "requirements.npy"):
             (out / stale).unlink(missing_ok=True)
         for old in (out / "logs").glob("*.log"):
             old.unlink()
@@ -67,7 +67,7 @@ class ResultsFolder:
 
     @property
     def signals(self) -> Path:
-        return self.path / "signals.npy"
+        return self.path / RESULT_FORMATS[RECORDING].file
 
     def release(self) -> None:
         self.lock.release()
@@ -113,13 +113,11 @@ def write_robustness(path: Path, signals: dict[str, np.ndarray], times: list[flo
 
 
 def write_results(folder: ResultsFolder, plan: Plan, res: RunResult) -> None:
-    """signals.csv and signals.mat (each when the scenario asks for it and something was recorded) and
-    summary.json (``res.summary``)."""
-    if res.final and plan.scenario.csv:
-        write_csv(folder.signals, folder.path / "signals.csv", start=plan.scenario.start or 0.0,
-                  step=plan.scenario.step)
-    if res.final and plan.scenario.mat:
-        write_mat(folder.path / "signals.mat", np.load(folder.signals, mmap_mode="r"), layout(plan))
+    """The result formats beside the recording (signals.csv, signals.mat: each when the scenario's flag
+    asks for it and something was recorded) and summary.json (``res.summary``)."""
+    for f in RESULT_FORMATS.values():
+        if res.final and f.writer is not None and f.flag is not None and getattr(plan.scenario, f.flag):
+            f.writer(folder.signals, folder.path / f.file, plan)
     write_json(folder.path / "summary.json", res.summary)
 
 

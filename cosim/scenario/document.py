@@ -16,7 +16,7 @@ from typing import Any
 
 from ..instances.integrators import SOLVERS
 from ..messages.errors import OtherFileError, ScenarioError
-from ..messages.suggest import did_you_mean
+from ..messages.suggest import did_you_mean, unknown_key
 from ..messages.words import count, plural
 from ..model.archive import DEFAULT_LIMITS, ArchiveLimits, LimitOverrides, parse_limits
 from ..model.description import CO_SIMULATION, MODEL_EXCHANGE
@@ -157,6 +157,7 @@ class Scenario:
     requirements: list[RequirementSpec] = field(default_factory=list)
     decimation: int = 1
     events: list[EventSpec] = field(default_factory=list)
+    # the flags of the result formats (the table cosim.results.formats names them, a layer above)
     csv: bool = True
     mat: bool = False               # also signals.mat, Dymola's result layout (cosim.results.matfile)
     event_rows: bool = False        # rows before and after each event of a lone model-exchange instance
@@ -397,7 +398,8 @@ def read_document(path: Path, seen: tuple[Path, ...] = (), asked_by: tuple[str, 
         if key in OTHER_FILES:
             raise OtherFileError(name, OTHER_FILES[key])
     if unknown:
-        raise ScenarioError(name, sorted(unknown)[0], f"unknown key (allowed: {', '.join(sorted(_TOP_KEYS))})")
+        first = sorted(unknown)[0]
+        raise ScenarioError(name, first, unknown_key(first, _TOP_KEYS))
     instances = doc.get("instances")
     for inst in instances.values() if isinstance(instances, dict) else ():   # not a table: parse says so
         if isinstance(inst, dict) and isinstance(inst.get("fmu"), str) and is_path(inst["fmu"]):
@@ -506,8 +508,7 @@ def _tables(file: str, doc: dict[str, Any], key: str, allowed: set[str]) -> list
 def _keys(file: str, fld: str, d: dict[str, Any], allowed: set[str]) -> None:
     for k in d:
         if k not in allowed:
-            raise ScenarioError(file, f"{fld}.{k}" if fld else k,
-                                f"unknown key (allowed: {', '.join(sorted(allowed))})")
+            raise ScenarioError(file, f"{fld}.{k}" if fld else k, unknown_key(k, allowed))
 
 
 def split_ref(file: str, fld: str, ref: Any) -> tuple[str, str]:
@@ -959,14 +960,12 @@ def _set_table_field(doc: dict[str, Any], file: str, fld: str, inst: str, var: s
     if dot and (inst, head) in SET_SUBTABLES:
         known = SET_SUBTABLES[(inst, head)]
         if key not in known:
-            raise ScenarioError(file, fld, f"unknown {inst}.{head} field {key!r} (allowed: "
-                                           f"{', '.join(sorted(known))}){did_you_mean(key, known)}")
+            raise ScenarioError(file, fld, unknown_key(key, known, f"{inst}.{head} field {key!r}"))
         _subtable(doc, file, (inst, head))[key] = value
         return
     if var not in SET_TABLES[inst]:
         nested = "".join(f", {t}.KEY" for s, t in SET_SUBTABLES if s == inst)
-        raise ScenarioError(file, fld, f"unknown {inst} field {var!r} (allowed: {', '.join(sorted(SET_TABLES[inst]))}"
-                                       f"{nested}){did_you_mean(var, SET_TABLES[inst])}")
+        raise ScenarioError(file, fld, unknown_key(var, SET_TABLES[inst], f"{inst} field {var!r}", nested))
     insts = doc["instances"]
     if (inst, var) == ("record", "variables"):   # one name alone; with one instance, its variables
         value = [value] if isinstance(value, str) else value

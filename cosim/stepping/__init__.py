@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import lazy_loader
+from ..messages.faces import attach
 
-if TYPE_CHECKING:   # (for the type checker; at run time each name is imported where it is first used)
+if TYPE_CHECKING:   # the face's exports, listed once: at run time each is imported where first used
     from .adaptive import Adaptive
     from .algorithm import Algorithm, Clock, Copy, InstanceIO, Row
     from .generated import GaussSeidel, Jacobi
@@ -18,14 +18,4 @@ if TYPE_CHECKING:   # (for the type checker; at run time each name is imported w
     from .stepper import Stepper
     from .table import NAMES, ROWS, AlgorithmRow, adaptive_spec, describe_settings, make, row
 
-__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
-    "adaptive": ["Adaptive"],
-    "algorithm": ["Algorithm", "Clock", "Copy", "InstanceIO", "Row"],
-    "generated": ["GaussSeidel", "Jacobi"],
-    "iterated": ["Iterated"],
-    "multirate": ["MultiRate"],
-    "parallel": ["ParallelJacobi"],
-    "settings": ["AdaptiveSpec", "IterationSpec", "SpecError", "iteration_spec"],
-    "stepper": ["Stepper"],
-    "table": ["NAMES", "ROWS", "AlgorithmRow", "adaptive_spec", "describe_settings", "make", "row"],
-})
+__getattr__, __dir__ = attach(__name__, __file__)   # the names imported above; __all__ too

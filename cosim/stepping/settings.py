@@ -12,6 +12,7 @@ import math
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
+from ..messages.suggest import unknown_key
 from ..messages.words import count
 
 #: How a loop's coupling inputs are iterated: fixed point with relaxation, or Newton's method with a
@@ -107,7 +108,7 @@ def iteration_spec(table: dict[str, Any], where: str = "experiment.iteration") -
     """An :class:`IterationSpec` from a table of its keys (all optional); ValueError naming a bad key."""
     for k in table:
         if k not in ITERATION_KEYS:
-            raise SpecError(f"{where}.{k}", f"unknown key (known: {', '.join(sorted(ITERATION_KEYS))})")
+            raise SpecError(f"{where}.{k}", unknown_key(k, ITERATION_KEYS))
     d = IterationSpec()
     method = str(table.get("method", d.method)).lower()
     if method not in ITERATION_METHODS:

@@ -25,6 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from ..messages.suggest import unknown_key
 from .adaptive import Adaptive
 from .algorithm import Algorithm
 from .generated import GaussSeidel, Jacobi
@@ -156,7 +157,7 @@ def adaptive_spec(table: dict[str, Any], interval: float | None = None,
     bad key."""
     for k in table:
         if k not in ADAPTIVE_KEYS:
-            raise SpecError(f"{where}.{k}", f"unknown key (known: {', '.join(sorted(ADAPTIVE_KEYS))})")
+            raise SpecError(f"{where}.{k}", unknown_key(k, ADAPTIVE_KEYS))
     d = DEFAULT_ADAPTIVE
     vals = {k: (positive(f"{where}.{k}", table[k]) if k in table else getattr(d, k))
             for k in ("rtol", "atol", "min_step", "max_step", "initial_step")}

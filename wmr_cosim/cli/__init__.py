@@ -28,7 +28,7 @@ from .options import (archive_limits, experiment_overrides, field_option_hint, i
                       scenario_after_record, scenario_file, SET_HELP, UsageError)
 from .paper import cmd_paper
 from .plot import cmd_plot
-from .run import cmd_run, format_overrides, requirement_lines, RESULT_FORMATS
+from .run import cmd_run, format_overrides, requirement_lines
 from .sweep import cmd_sweep
 
 

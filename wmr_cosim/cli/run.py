@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ..cosim import count, did_you_mean, RunStatus
+from ..cosim import RECORDING, RESULT_FORMATS, count, did_you_mean, format_flags, format_help, RunStatus
 from ..exit_codes import for_runs
 from ..scenario_files import scenario_path
 from . import options
@@ -35,16 +35,12 @@ def add_parser(sub: Any, name: str) -> None:
     r.add_argument("--force", action="store_true",
                    help="run even beyond the limits of steps (experiment.max_steps) and recording size (record.max_bytes)")
     options.run_options(r)
+    asked = {name: f.flag for name, f in RESULT_FORMATS.items() if f.flag is not None}   # name -> [record] flag
     r.add_argument("--format", action="append", default=None, metavar="FORMAT",
-                   help="what the results folder gets beside signals.npy (always written): csv (signals.csv), mat "
-                        "(signals.mat, Dymola's result layout, MAT v4) or npy (nothing more); repeat it or separate "
-                        "by commas for several (--format csv,mat); default: as the scenario's [record] csv and mat "
-                        "say (signals.csv)")
+                   help=f"what the results folder gets beside {RESULT_FORMATS[RECORDING].file} (always written): "
+                        f"{format_help()}; repeat it or separate by commas for several (--format {','.join(asked)}); "
+                        f"default: as the scenario's [record] {' and '.join(asked.values())} say (signals.csv)")
     r.set_defaults(func=cmd_run, subparser=r)
-
-
-#: The values of run --format: what the results folder gets beside signals.npy (always written).
-RESULT_FORMATS = ("csv", "npy", "mat")
 
 
 def format_overrides(args: argparse.Namespace) -> dict[str, Any]:
@@ -57,7 +53,7 @@ def format_overrides(args: argparse.Namespace) -> dict[str, Any]:
         if f not in RESULT_FORMATS:
             raise UsageError(f"--format {f!r}: must be one of {', '.join(RESULT_FORMATS)}"
                              f"{did_you_mean(f, RESULT_FORMATS)}")
-    return {"record.csv": "csv" in chosen, "record.mat": "mat" in chosen}
+    return format_flags(chosen)
 
 
 def cmd_run(args: argparse.Namespace) -> int:

@@ -10,13 +10,10 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure   # (no pyplot: the process's backend is left as it is)
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from ..components import paper  # noqa: E402
+from ..components import paper
 
 Signals = dict[str, np.ndarray]
 WHEELS = (("1", "wheel 1", "C0"), ("2", "wheel 2", "C3"))
@@ -53,14 +50,14 @@ def _weights(ax, sig: Signals, title: str) -> None:
 def _save(fig, path: Path) -> Path:
     fig.tight_layout()
     fig.savefig(path, dpi=DPI)
-    plt.close(fig)
     return path
 
 
 def fig_learning(sig: Signals, out: Path, task: str, number: str) -> Path:
     """Fig. 5 (G1) / Fig. 11 (LINE): tracking errors, control and disturbance players, kinematic control and
     velocity profile, weight adaptation of the learning run."""
-    fig, axs = plt.subplots(3, 2, figsize=(10, 9))
+    fig = Figure(figsize=(10, 9))
+    axs = fig.subplots(3, 2)
     _wheels(axs[0, 0], sig, "e", "e [rad]", f"(a) angle tracking error e, {task} learning")
     _wheels(axs[0, 1], sig, "edot", "de/dt [rad/s]", "(b) velocity tracking error")
     _wheels(axs[1, 0], sig, "u", "u [N.m]", "(c) control u (minimising player)")
@@ -87,7 +84,8 @@ def fig_learning(sig: Signals, out: Path, task: str, number: str) -> Path:
 def fig_value_and_paths(g1: Signals, learns: dict[str, Signals], out: Path) -> Path:
     """Fig. 6: the value function of G1 (a) and the paths of point A to G1-G3 (b)."""
     # (b) gets the width its tall, equal-aspect path plot needs
-    fig, axs = plt.subplots(1, 2, figsize=(10, 5.2), gridspec_kw={"width_ratios": [1.5, 1.0]})
+    fig = Figure(figsize=(10, 5.2))
+    axs = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.5, 1.0]})
     ax = axs[0]
     ax.plot(g1["time"], g1["controller.V_hat"], lw=1.0)
     ax.set_xlabel("t [s]")
@@ -112,7 +110,8 @@ def fig_value_and_paths(g1: Signals, learns: dict[str, Signals], out: Path) -> P
 
 def fig_foam(sig: Signals, out: Path, task: str, number: str, t_F: float) -> Path:
     """Fig. 7 (G1) / Fig. 12 (LINE): errors, control and disturbance players on the foam."""
-    fig, axs = plt.subplots(2, 2, figsize=(10, 6.5))
+    fig = Figure(figsize=(10, 6.5))
+    axs = fig.subplots(2, 2)
     _wheels(axs[0, 0], sig, "e", "e [rad]", f"(a) angle tracking error, {task} on foam")
     _wheels(axs[0, 1], sig, "edot", "de/dt [rad/s]", "(b) velocity tracking error")
     _wheels(axs[1, 0], sig, "u", "u [N.m]", "(c) control u")
@@ -152,7 +151,8 @@ def _dF(ax, d: dict[str, Any], title: str) -> None:
 
 def fig_gamma_g1(d: dict[str, Any], out: Path, gamma: float) -> Path:
     """Fig. 8: the disturbance estimate (52) (a) and the gain curve (53) (b), G1."""
-    fig, axs = plt.subplots(1, 2, figsize=(10, 4.2))
+    fig = Figure(figsize=(10, 4.2))
+    axs = fig.subplots(1, 2)
     _dF(axs[0], d, f"(a) disturbance estimate {ESTIMATE}, G1")
     _gamma(axs[1], d, "(b) gamma* gain (53), G1", gamma)
     fig.suptitle("Fig. 8 redrawn", fontsize=10)
@@ -161,7 +161,8 @@ def fig_gamma_g1(d: dict[str, Any], out: Path, gamma: float) -> Path:
 
 def fig_gamma_g2_g3(d2: dict[str, Any], d3: dict[str, Any], out: Path, gamma: float) -> Path:
     """Fig. 9: gamma* for G2 (a) and G3 (b)."""
-    fig, axs = plt.subplots(1, 2, figsize=(10, 4.2))
+    fig = Figure(figsize=(10, 4.2))
+    axs = fig.subplots(1, 2)
     _gamma(axs[0], d2, "(a) gamma* gain (53), G2", gamma)
     _gamma(axs[1], d3, "(b) gamma* gain (53), G3", gamma)
     fig.suptitle("Fig. 9 redrawn", fontsize=10)
@@ -170,7 +171,8 @@ def fig_gamma_g2_g3(d2: dict[str, Any], d3: dict[str, Any], out: Path, gamma: fl
 
 def fig_line_control(frozen: Signals, foam: Signals, d: dict[str, Any], out: Path, gamma: float) -> Path:
     """Fig. 13: the control without (a) and with (b) the foam, the estimate (52) (c), gamma and gamma* (d)."""
-    fig, axs = plt.subplots(2, 2, figsize=(10, 6.5))
+    fig = Figure(figsize=(10, 6.5))
+    axs = fig.subplots(2, 2)
     _wheels(axs[0, 0], frozen, "u", "u [N.m]", "(a) control, reference floor")
     _wheels(axs[0, 1], foam, "u", "u [N.m]", "(b) control, foam")
     _dF(axs[1, 0], d, f"(c) disturbance estimate {ESTIMATE}")
@@ -182,7 +184,8 @@ def fig_line_control(frozen: Signals, foam: Signals, d: dict[str, Any], out: Pat
 def fig_line_learning(sig: Signals, out: Path) -> Path:
     """Fig. 11: LINE learning run: errors, control with 30 x the player dF_hat (46) (as the paper scales it),
     weights."""
-    fig, axs = plt.subplots(2, 2, figsize=(10, 6.5))
+    fig = Figure(figsize=(10, 6.5))
+    axs = fig.subplots(2, 2)
     _wheels(axs[0, 0], sig, "e", "e [rad]", "(a) angle tracking error, LINE learning")
     _wheels(axs[0, 1], sig, "edot", "de/dt [rad/s]", "(b) velocity tracking error")
     _wheels(axs[1, 0], sig, "u", f"u, 30 x {PLAYER} [N.m]", f"(c) control u and 30 x {PLAYER}", label="u ")
@@ -237,7 +240,8 @@ def fig_robustness(rob: dict[str, Any], out: str | os.PathLike) -> Path | None:
         return None
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    fig, axs = plt.subplots(1, len(axes), figsize=(3.4 * len(axes), 3.6), squeeze=False)
+    fig = Figure(figsize=(3.4 * len(axes), 3.6))
+    axs = fig.subplots(1, len(axes), squeeze=False)
     finite = [y for a, _ in axes for e in rob[a] for t in rob["tasks"]
               if not any(r.startswith(t + ".") for r in e["diverged_runs"])
               for y in [e["rmse_e_max"].get(t, {}).get("foam")] if y is not None and np.isfinite(y)]

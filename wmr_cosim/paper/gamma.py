@@ -119,14 +119,12 @@ def _search(scenario: str, out: Path, runs: list, grid: list[float], variant: st
 
 
 def _plot(result: dict[str, Any], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure   # (no pyplot: the process's backend is left as it is)
 
     c = result["curve"]
     g = [p["gamma"] for p in c]
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig = Figure(figsize=(6, 4))
+    ax = fig.subplots()
     ax.plot(g, [p["gamma_star"] if p["gamma_star"] is not None else math.nan for p in c], "o-", ms=4,
             label="gamma* (53)")
     ax.plot(g, g, "k--", lw=0.8, label="gamma* = gamma")
@@ -142,4 +140,3 @@ def _plot(result: dict[str, Any], path: Path) -> None:
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)

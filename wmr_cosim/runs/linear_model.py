@@ -17,7 +17,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..cosim import MODEL_EXCHANGE, Linearisation, Linearizer, Request, ScenarioError, load_model, plot_loop
+from ..cosim import MODEL_EXCHANGE, Linearisation, Linearizer, Request, ScenarioError, load_model
+from .loop_plot import plot_loop
 
 #: linear.json: the model's figures beside the matrices' files.
 SUMMARY_FILE = "linear.json"

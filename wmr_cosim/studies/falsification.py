@@ -36,7 +36,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..cosim import CosimError, LimitOverrides, RunStatus, ScenarioError
+from ..cosim import CosimError, LimitOverrides, RunStatus, ScenarioError, unknown_key
 from .cluster import Cluster
 from .sweep import run_points
 from .system import System
@@ -88,7 +88,7 @@ def load_falsification(path: str | os.PathLike, seed: int | None = None, budget:
     doc = read_toml(p)
     unknown = sorted(set(doc) - _KEYS)
     if unknown:
-        raise ScenarioError(f, unknown[0], f"unknown key (allowed: {', '.join(sorted(_KEYS))})")
+        raise ScenarioError(f, unknown[0], unknown_key(unknown[0], _KEYS))
     for key in ("base", "requirement"):
         if not isinstance(doc.get(key), str):
             raise ScenarioError(f, key, "missing (a string)")
@@ -333,15 +333,13 @@ def _table(spec: FalsifySpec, rows: list[dict[str, Any]], path: Path) -> None:
 
 
 def _plot(spec: FalsifySpec, rows: list[dict[str, Any]], result: dict[str, Any], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure   # (no pyplot: the process's backend is left as it is)
 
     rob = np.array([_robustness(spec, r) for r in rows])
     shown = np.where(np.isfinite(rob), rob, np.nan)
     axes = [k.split("+")[0] for k in spec.space]
-    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
+    fig = Figure(figsize=(10, 4))
+    a, b = fig.subplots(1, 2)
     a.plot(np.arange(1, len(rob) + 1), shown, "o", ms=4, label="a point")
     a.plot(np.arange(1, len(rob) + 1), np.fmin.accumulate(shown), "-", color="C3", label="lowest so far")
     a.axhline(result["nominal"]["robustness"], color="k", ls="--", lw=0.8, label="nominal run")
@@ -362,4 +360,3 @@ def _plot(spec: FalsifySpec, rows: list[dict[str, Any]], result: dict[str, Any],
     b.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)

@@ -41,7 +41,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..cosim import ScenarioError, read_signals
+from ..cosim import ScenarioError, read_signals, unknown_key
 
 #: What a metric measures -> the keys it needs beside ``of``, ``variable`` and ``run``, and its unit given
 #: the variable's ("{u}": the variable's own).
@@ -119,7 +119,7 @@ def _metric(file: str, name: str, d: Any, folder: Path) -> MetricSpec:
         raise ScenarioError(file, fld, "must be a table (of, variable, ...)")
     for k in d:
         if k not in _KEYS:
-            raise ScenarioError(file, f"{fld}.{k}", f"unknown key (allowed: {', '.join(sorted(_KEYS))})")
+            raise ScenarioError(file, f"{fld}.{k}", unknown_key(k, _KEYS))
     of = d.get("of")
     if of not in KINDS:
         raise ScenarioError(file, f"{fld}.of", f"{of!r}: unknown metric (known: {', '.join(KINDS)})")

@@ -10,10 +10,7 @@ def plot_sweep(df, spec: SweepSpec, out: Path, units: dict[str, str | None] | No
     """Each chosen metric against each swept parameter (failed points marked); ``units``: the sweep file's
     metrics' units (the robot's are known here)."""
     units = units or {}
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure   # (no pyplot: the process's backend is left as it is)
 
     out.mkdir(parents=True, exist_ok=True)
     params = []
@@ -26,7 +23,8 @@ def plot_sweep(df, spec: SweepSpec, out: Path, units: dict[str, str | None] | No
         if m not in df.columns:
             continue
         for p in params:
-            fig, ax = plt.subplots(figsize=(5.5, 3.8))
+            fig = Figure(figsize=(5.5, 3.8))
+            ax = fig.subplots()
             ok = df["status"] == "ok"
             ax.plot(df.loc[ok, p], df.loc[ok, m], "o", ms=4, label="ok")
             if (~ok).any():
@@ -38,7 +36,6 @@ def plot_sweep(df, spec: SweepSpec, out: Path, units: dict[str, str | None] | No
             fig.tight_layout()
             f = out / f"{m}_vs_{p}.png".replace("/", "_")
             fig.savefig(f, dpi=100)
-            plt.close(fig)
             files.append(f)
     return files
 

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from ..cosim import ScenarioError
+from ..cosim import ScenarioError, unknown_key
 from .metrics import SETS, MetricSpec, default_sets, parse_metrics
 
 DISTRIBUTIONS = {"uniform": ("low", "high"), "normal": ("mean", "std"), "lognormal": ("mean", "sigma"),
@@ -81,7 +81,7 @@ def _read(path: Path) -> dict[str, Any]:
     doc = read_toml(path)
     for k in doc:
         if k not in _KEYS:
-            raise ScenarioError(f, k, f"unknown key (allowed: {', '.join(sorted(_KEYS))})")
+            raise ScenarioError(f, k, unknown_key(k, _KEYS))
     return doc
 
 
