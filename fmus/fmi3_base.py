@@ -28,7 +28,7 @@ every exception into fmi3Fatal), after the one-line cause is logged.
 from __future__ import annotations
 
 from operator import itemgetter
-from typing import Any
+from typing import Any, NoReturn
 from xml.etree.ElementTree import Element, SubElement
 
 from pythonfmu3 import DefaultExperiment, Fmi3Slave
@@ -59,15 +59,12 @@ class Var3:
                  sym: bool, description: str) -> None:
         self.name, self.type, self.vr, self.decl, self.slots = name, type_, vr, decl, slots
         self.shape, self.sym, self.description = shape, sym, description
-        first = decl[0]
-        if first.deps is None:
-            self.deps = None
-        else:
-            self.deps = tuple(dict.fromkeys(d for v in decl for d in v.deps))
-        self.init_deps = None if first.init_deps is None else tuple(dict.fromkeys(d for v in decl for d in v.init_deps))
-        los = [v.range[0] for v in decl]
-        his = [v.range[1] for v in decl]
-        self.range = (None if None in los else min(los), None if None in his else max(his))
+        self.deps = _union([v.deps for v in decl])
+        self.init_deps = _union([v.init_deps for v in decl])
+        # the widest range of the elements; an end that one element leaves open (None) stays open
+        los = [v.range[0] for v in decl if v.range[0] is not None]
+        his = [v.range[1] for v in decl if v.range[1] is not None]
+        self.range = (min(los) if len(los) == len(decl) else None, max(his) if len(his) == len(decl) else None)
 
     @property
     def causality(self) -> str:
@@ -80,6 +77,19 @@ class Var3:
     @property
     def unit(self) -> str | None:
         return self.decl[0].unit
+
+
+def _union(groups: list[tuple[str, ...] | None]) -> tuple[str, ...] | None:
+    """The names in ``groups`` (dependencies of an array's elements), each once in order of first appearance;
+    None (every input) if the first element's are None."""
+    if groups[0] is None:
+        return None
+    out: dict[str, None] = {}
+    for names in groups:
+        # the elements of an array are declared alike (slave_controller.py): all with dependencies, or none
+        assert names is not None
+        out.update(dict.fromkeys(names))
+    return tuple(out)
 
 
 def _group(decl: list[Var], first_vr: int) -> list[Var3]:
@@ -95,13 +105,17 @@ def _group(decl: list[Var], first_vr: int) -> list[Var3]:
             continue
         name, _, doc = v.array
         members = []
-        while i < len(decl) and decl[i].array is not None and decl[i].array[0] == name:
+        index: dict[tuple[int, ...], Var] = {}   # element index -> its declaration
+        while i < len(decl):
+            hint = decl[i].array
+            if hint is None or hint[0] != name:
+                break
             members.append(decl[i])
+            index[hint[1]] = decl[i]
             i += 1
         if any(m.kind != "Real" or (m.causality, m.variability, m.unit) != (v.causality, v.variability, v.unit)
                for m in members):
             raise ValueError(f"array {name}: elements must be Real of one causality, variability and unit")
-        index = {m.array[1]: m for m in members}
         ndim = len(v.array[1])
         shape = tuple(max(k[d] for k in index) + 1 for d in range(ndim))
         sym = ndim == 2 and shape[0] == shape[1] and all(a <= b for a, b in index) and len(index) < shape[0] * shape[1]
@@ -167,7 +181,7 @@ class WmrSlave(SlaveCore, Fmi3Slave):
         self._settable = self._settable_before
         self._watch: frozenset[int] = frozenset()
         self._input_vrs = frozenset(inputs)
-        self._gets: dict[tuple[int, ...], Any] = {}
+        self._gets: dict[tuple[str | int, ...], Any] = {}   # (type, *value references) -> getter
         self._get_key: list[int] = [-1]
         self._get_items: Any = None
         self._int_key: list[int] = [-1]
@@ -266,7 +280,7 @@ class WmrSlave(SlaveCore, Fmi3Slave):
         return out
 
     def _getter(self, vrs: list[int], type_: str) -> Any:
-        key = (type_, *vrs)
+        key: tuple[str | int, ...] = (type_, *vrs)
         g = self._gets.get(key)
         if g is None:
             slots = self._slots_of(vrs, type_)
@@ -368,18 +382,18 @@ class WmrSlave(SlaveCore, Fmi3Slave):
     def _name_of(self, vr: int) -> str:
         return self._v3[vr].name if 0 <= vr < len(self._v3) else f"<unknown value reference {vr}>"
 
-    def _fatal(self, what: str) -> None:
+    def _fatal(self, what: str) -> NoReturn:
         msg = f"{self.modelName} instance {self.instance_name}: {what}"
         self.log(msg, Fmi3Status.fatal)
         raise ValueError(msg)
 
-    def _wrong_type(self, vrs: list[int], type_: str) -> None:
+    def _wrong_type(self, vrs: list[int], type_: str) -> NoReturn:
         bad = [self._name_of(i) for i in vrs if i not in self._types.get(type_, ())]
         msg = f"{self.modelName} instance {self.instance_name}: get/set{type_} on variables that are not {type_}: {', '.join(bad)}"
         self.log(msg, Fmi3Status.fatal)
         raise TypeError(msg)
 
-    def _refuse_set(self, vrs: list[int], type_: str) -> None:
+    def _refuse_set(self, vrs: list[int], type_: str) -> NoReturn:
         bad = []
         for i in vrs:
             if i not in self._settable[type_]:
@@ -405,10 +419,10 @@ class WmrSlave(SlaveCore, Fmi3Slave):
         return any(out0 <= s < out1 for i in vrs if 0 <= i < len(v3) for s in v3[i].slots)
 
     def do_step(self, current_time: float, step_size: float) -> Fmi3StepResult:
-        h = step_size
+        h: float | None = step_size   # None: the step refused (_before_step)
         try:
             if h != self._h or self._dirty or self._failed:  # the rare cases, out of the hot path
-                h = self._before_step(current_time, h)
+                h = self._before_step(current_time, step_size)
                 if h is None:
                     return _DISCARD
             t = current_time

@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import sys
 from operator import itemgetter
-from typing import Any
+from typing import Any, NoReturn
 from xml.etree.ElementTree import Element, SubElement
 
 from pythonfmu import Boolean, DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
@@ -80,9 +80,9 @@ class RealU(Real):
 
 
 class IntegerR(Integer):
-    """pythonfmu's Integer with min and max."""
+    """pythonfmu's Integer with min and max (written as integers: a declared range may hold floats)."""
 
-    def __init__(self, name: str, min: int | None = None, max: int | None = None, **kwargs: Any) -> None:
+    def __init__(self, name: str, min: float | None = None, max: float | None = None, **kwargs: Any) -> None:
         super().__init__(name, **kwargs)
         self.min, self.max = min, max
 
@@ -274,13 +274,13 @@ class WmrSlave(SlaveCore, Fmi2Slave):
     def _name_of(self, vr: int) -> str:
         return self._decl[vr].name if 0 <= vr < len(self._decl) else f"<unknown value reference {vr}>"
 
-    def _wrong_type(self, vrs: list[int], kind: str) -> None:
+    def _wrong_type(self, vrs: list[int], kind: str) -> NoReturn:
         bad = [self._name_of(i) for i in vrs if i not in self._kind_vrs[kind]]
         msg = f"{self.modelName} instance {self.instance_name}: get{kind} on variables that are not {kind}: {', '.join(bad)}"
         self.log(msg, Fmi2Status.fatal)
         raise TypeError(msg)
 
-    def _refuse_set(self, vrs: list[int], kind: str) -> None:
+    def _refuse_set(self, vrs: list[int], kind: str) -> NoReturn:
         bad = []
         for i in vrs:
             if i not in self._settable[kind]:
@@ -305,10 +305,10 @@ class WmrSlave(SlaveCore, Fmi2Slave):
         return any(self._out0 <= i < self._out1 for i in vrs)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
-        h = step_size
+        h: float | None = step_size   # None: the step refused (_before_step)
         try:
             if h != self._h or self._dirty or self._failed:  # the rare cases, out of the hot path
-                h = self._before_step(current_time, h)
+                h = self._before_step(current_time, step_size)
                 if h is None:
                     return False
             # a time within STEP_RTOL of a whole multiple of h is that multiple (see STEP_RTOL)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import sys
+from collections.abc import Callable
 from typing import Any
 
 DBL_MAX = sys.float_info.max
@@ -187,6 +188,17 @@ class SlaveCore:
     #: period is the step, so a step of another length changes what it computes.  Such a slave declares
     #: false and refuses (Discard) a step whose length differs from its first one.
     variable_step: bool = True
+
+    # Annotations for the type checker only (no class attributes): what the pythonfmu slave class
+    # (Fmi2Slave, Fmi3Slave) provides, and what the base's ``_index`` sets (kind or type -> value references).
+    modelName: str
+    instance_name: str
+    log: Callable[..., None]                        # log(message, status)
+    _settable_before: dict[str, frozenset[int]]     # settable before initialization mode ends
+    _settable_running: dict[str, frozenset[int]]    # settable after it (tunable parameters, inputs)
+    _settable: dict[str, frozenset[int]]            # the one of the two in force
+    _tunable: frozenset[int]                        # the tunable parameters
+    _watch: frozenset[int]                          # what, when set, marks the tunable parameters dirty
 
     # ------------------------------------------------------------------ state and declarations
     def _init_state(self) -> None:
