@@ -240,22 +240,15 @@ budget = 10
 [space]
 "plant.foam_da1" = { low = 0.2, high = 1.2 }
 """
-_G1_SHORT = """base = "g1_requirements.toml"
-replace = ["requirements"]
-[experiment]
-stop = 11.0
-[[requirements]]
-name = "tracking"
-formula = "always[9,11] (abs(controller.e1) < 0.5 rad and abs(controller.e2) < 0.5 rad)"
-"""
 
 
 @pytest.mark.slow
 def test_every_command_runs_its_smallest_case_from_the_installed_wheel(venv, tmp_path):
     """Each command of the table, once, from the wheel installed with its extras (the studies, the
     linearisation): what a package folder missing from the wheel, or an extra missing a module, breaks."""
-    from wmr_cosim.cli.commands import COMMANDS
+    import test_falsify as falsify_tests
     from reference_fmus import REF
+    from wmr_cosim.cli.commands import COMMANDS
 
     work = tmp_path / "work"
     work.mkdir()
@@ -272,7 +265,9 @@ def test_every_command_runs_its_smallest_case_from_the_installed_wheel(venv, tmp
 
     (work / "short.toml").write_text('base = "example.toml"\n[experiment]\nstop = 13.0\n')  # (events at 12 s)
     (work / "sweep.toml").write_text(_SWEEP)
-    (work / "g1_short.toml").write_text(_G1_SHORT)
+    # the falsification tests' base, on the shipped scenario by its name
+    short = falsify_tests.SHORT.replace(f'"{falsify_tests.SCENARIO}"', '"g1_requirements.toml"')
+    (work / "g1_short.toml").write_text(short)
     (work / "falsify.toml").write_text(_FALSIFY)
     shutil.copy(ROOT / "tests" / "data" / "short_protocol.toml", work / "protocol.toml")
     (work / "protocol.toml").write_text((work / "protocol.toml").read_text().replace(
