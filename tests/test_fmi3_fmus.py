@@ -339,3 +339,6 @@ def test_carry_fmi3_gathers_elements_into_arrays():
     del carry["controller.W2_init"]
     with pytest.raises(CosimError, match="W_init: elements"):
         carry_fmi3(carry, finals)
+    # one index beside two: one line, not an IndexError
+    with pytest.raises(CosimError, match="P_init: elements of one index and of two"):
+        carry_fmi3({"controller.P1_init": "learn.controller.P11", "controller.P12_init": "learn.controller.P12"}, finals)

@@ -83,6 +83,9 @@ def carry_fmi3(carry: dict[str, str], finals: dict[str, dict[str, float]]) -> di
         if len(idx) == 2:
             arrays[f"{r.group(1)}{r.group(2)}_init"].setdefault(idx[::-1], value)
     for ref, elems in arrays.items():
+        if len({len(i) for i in elems}) > 1:   # P1_init beside P12_init: no one shape holds both
+            raise CosimError(f"carry {ref}: elements of one index and of two ({', '.join(map(str, sorted(elems)))}, "
+                             "0-based); carry each element with the indices of its array")
         shape = [max(i[d] for i in elems) + 1 for d in range(len(next(iter(elems))))]
         cells: list[tuple[int, ...]] = [(i,) for i in range(shape[0])] if len(shape) == 1 else \
             [(i, j) for i in range(shape[0]) for j in range(shape[1])]
