@@ -25,16 +25,17 @@ import tempfile
 import zipfile
 from pathlib import Path
 
+try:
+    from .toolchain import MINGW_CC, MINGW_CXX, WIN64_LDFLAGS
+except ImportError:   # run as a script (python fmus/cplant_build.py): from the installed package
+    from wmr_cosim.fmus.toolchain import MINGW_CC, MINGW_CXX, WIN64_LDFLAGS
+
 _HERE = Path(__file__).resolve().parent
 SRC = _HERE / "c_plant"
 MODEL = "WmrCPlant"
 C_FLAGS = "-O2 -ffp-contract=off -fno-fast-math"
 #: Libraries the FMU's binary declares (DT_NEEDED) besides libc.
 C_LIBS = "-lm"
-#: The MinGW-w64 cross compilers for win64 (the C one builds the DLL; FMPy's CMake project also asks for
-#: a C++ one), and the linker flags: libgcc kept out of the DLL's imports (KERNEL32 and msvcrt only), no symbols.
-MINGW_CC, MINGW_CXX = "x86_64-w64-mingw32-gcc", "x86_64-w64-mingw32-g++"
-WIN64_LDFLAGS = "-static-libgcc -s"
 
 
 class CBuildError(RuntimeError):

@@ -338,3 +338,24 @@ def test_the_command_line_is_one_module_per_command_none_long():
     assert set(sub.choices) == set(COMMANDS)
     long = {p.name: n for p in files.values() if (n := len(p.read_text().splitlines())) > MAX_COMMAND_LINES}
     assert not long, long
+
+
+def test_the_fmus_modules_import_each_other_without_a_cycle():
+    """fmus/ (the slaves and their builds): the builds share their toolchain in a module of its own, so that
+    the C plant's build may read the Python FMUs' (not the other way round too)."""
+    folder = ROOT / "fmus"
+    names = {p.stem for p in folder.glob("*.py")}
+    graph: dict[str, set[str]] = {}
+    for p in folder.glob("*.py"):
+        deps: set[str] = set()
+        for node in ast.walk(ast.parse(p.read_text(), str(p))):
+            if isinstance(node, ast.ImportFrom) and node.module:
+                parts = node.module.split(".")
+                if node.level == 1:
+                    deps.add(parts[0])
+                elif node.level == 0 and parts[:2] == ["wmr_cosim", "fmus"] and len(parts) > 2:
+                    deps.add(parts[2])
+        graph[p.stem] = {d for d in deps if d in names and d != p.stem}
+    assert "toolchain" in graph["build"] and "toolchain" in graph["cplant_build"]
+    cycle = find_cycle(graph)
+    assert cycle is None, f"an import cycle among the modules of fmus/: {' -> '.join(cycle)}"
