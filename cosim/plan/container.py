@@ -134,12 +134,13 @@ def variables(plan: Plan, layout: RowLayout) -> list[ContainerVar]:
     for v in out:
         if v.name in seen:
             raise ScenarioError(plan.scenario.file, "record", f"{v.name!r} would be the container's variable twice "
-                                                              f"(a recorded output and an {_KIND[v.kind]})")
+                                                              f"(a recorded output and {_A[v.kind]})")
         seen[v.name] = v
     return out
 
 
 _KIND = {"o": "output", "i": "input", "p": "parameter"}
+_A = {"o": "a recorded output", "i": "an open input", "p": "a parameter"}
 
 
 def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[ContainerVar],
@@ -225,9 +226,9 @@ def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None) -> P
     """Write the resolved ``plan`` as one FMI 2.0 co-simulation FMU ``out`` (see the module); returns its path.
     ``name``: its model name and identifier (default: the scenario file's stem, as a C name)."""
     out = Path(out)
-    name = name if name is not None else re.sub(r"\W", "_", Path(plan.scenario.file).stem) or "system"
-    if name[0].isdigit():
-        name = "_" + name
+    if name is None:
+        name = re.sub(r"\W", "_", Path(plan.scenario.file).stem) or "system"
+        name = "_" + name if name[0].isdigit() else name
     refuse(plan, out, name)
     layout = RowLayout.of(plan)
     wiring = Wiring(plan, layout)
