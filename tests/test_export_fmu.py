@@ -204,3 +204,14 @@ def test_bad_names_and_outputs_are_refused(args: list[str], mass: tuple[Path, Pa
     err = capsys.readouterr().err.strip()
     assert err.startswith("wmr-cosim: error: ") and "\n" not in err, err
     assert {p: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
+def test_our_c_plant_alone_in_the_container_equals_the_run(tmp_path: Path) -> None:
+    """WmrCPlant by its model name: its open inputs the container's, its recorded outputs equal to the run's."""
+    doc = {"instances": {"plant": {"fmu": "WmrCPlant"}}, "experiment": {"stop": 0.5, "step": STEP}}
+    fmu = export(doc, tmp_path)
+    ref = run(doc, tmp_path)
+    assert len(ref.dtype.names) > 2
+    import fmpy
+
+    assert_equal(fmpy.simulate_fmu(str(fmu), stop_time=0.5, output_interval=STEP), ref)
