@@ -30,7 +30,8 @@ if TYPE_CHECKING:   # the face's exports, listed once: at run time each is impor
                         LimitOverrides, Variable, check_archive, file_kind, fmi_version, limit_overrides,
                         load_model, named_kind)
     from .requirements import FormulaError, Outcome, formula_fold
-    from .plan import PARAMETERS, Plan, describe_coupling, export_remarks, export_ssp, is_ssp, load_ssp, resolve, variable
+    from .plan import (PARAMETERS, Plan, describe_coupling, export_fmu, export_remarks, export_ssp, is_ssp, load_ssp,
+                       resolve, variable)
     from .results import (RECORDING, RESULT_FORMATS, MatLayout, OutputLock, ResultFormat, ResultsError, RunResult,
                           RunStatus, format_flags, format_help, layout, make_folder, read_json, read_signals,
                           write_json, write_mat)

@@ -19,6 +19,7 @@ from .build import cmd_build
 from .check import cmd_check
 from .commands import COMMANDS
 from .direct import cmd_direct
+from .export_fmu import cmd_export_fmu
 from .export_ssp import cmd_export_ssp
 from .falsify import cmd_falsify
 from .gamma_search import cmd_gamma_search

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from types import ModuleType
 
-from . import (build, check, direct, export_ssp, falsify, gamma_search, info, linearize, paper, plot, run,
+from . import (build, check, direct, export_fmu, export_ssp, falsify, gamma_search, info, linearize, paper, plot, run,
                sweep)
 
 COMMANDS: dict[str, ModuleType] = {
@@ -16,6 +16,7 @@ COMMANDS: dict[str, ModuleType] = {
     "check": check,
     "plot": plot,
     "export-ssp": export_ssp,
+    "export-fmu": export_fmu,
     "info": info,
     "paper": paper,
     "sweep": sweep,

@@ -1,0 +1,270 @@
+"""The plan as one FMI 2.0 co-simulation FMU (a container): its FMUs unpacked under resources/, the system as
+data (resources/system.txt: the wiring the master's loop takes, parameters, start values, the container's
+variables), and a binary built from the master's own compiled loop (``stepping/container.c``, which includes
+``stepping/native_loop.c``) with the same compiler flags, so that a host running the container gets what
+``run`` of the plan gives, bit for bit.
+
+What this export takes (everything else is refused before anything is written, one line naming it): FMI 2.0
+co-simulation FMUs with a linux64 C binary (not pythonfmu), Gauss-Seidel or Jacobi at one rate, Real
+connections, recorded Real outputs, no events, input tables or requirements.  The container's variables:
+the recorded outputs (Real, named as their columns), the open Real inputs and the Real parameters of the
+inner FMUs (``instance.variable``, the scenario's value as start), in the plan's order.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import uuid
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+from xml.sax.saxutils import quoteattr
+
+from ..messages.errors import CosimError, ScenarioError
+from ..model.archive import safe_extract
+from ..model.description import CO_SIMULATION
+from ..stepping import native
+from ..stepping.table import GAUSS_SEIDEL, JACOBI
+from .records import InstancePlan, Plan
+from .wiring import RowLayout, Wiring
+
+SOURCE = native.SOURCE.with_name("container.c")
+FORMAT = "wmr-container 1"   # the first line of system.txt (container.c's VERSION_TAG)
+
+
+@dataclass
+class ContainerVar:
+    """One variable of the container: ``kind`` "o" (a recorded output: ``ref`` its row slot), "i" (an open
+    input) or "p" (a parameter; ``ref`` the inner FMU's value reference), ``inst`` its instance's index."""
+
+    name: str
+    kind: str
+    inst: int
+    ref: int
+    start: float
+    variability: str
+    unit: str | None
+    description: str
+
+
+def _hex(text: str) -> str:
+    return "x" + text.encode().hex()
+
+
+def _num(x: float) -> str:
+    return float(x).hex()
+
+
+def refuse(plan: Plan, out: Path, name: str) -> None:
+    """ScenarioError, one line, for what this container cannot hold (nothing is written before)."""
+    sc = plan.scenario
+
+    def no(field: str, reason: str) -> None:
+        raise ScenarioError(sc.file, field, f"{reason}: it cannot be exported as an FMU container yet")
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
+        raise ScenarioError(sc.file, "--name", f"{name!r}: a model identifier is a C name (letters, digits, _)")
+    if sys.platform != "linux":
+        raise CosimError("export-fmu builds the container's linux64 binary: run it on Linux")
+    if sc.algorithm not in (GAUSS_SEIDEL, JACOBI):
+        no("experiment.algorithm", f"{sc.algorithm!r} (only gauss-seidel and jacobi at one rate)")
+    for n, ip in plan.instances.items():
+        _refuse_instance(plan, n, ip, out, no)
+    if plan.events or plan.conditions:
+        no("events", "events (timed or on conditions)")
+    if plan.inputs:
+        no("inputs", "input tables")
+    if plan.requirements:
+        no("requirements", "requirements")
+    for c in plan.connections:
+        if not c.is_float64:
+            no("connections", f"{c.src}.{c.src_var.name} -> {c.dst}.{c.dst_var.name} is not Real to Real")
+    for r in plan.record:
+        if r.var.type != "Real":
+            no("record", f"{r.column} is {r.var.fmi_type} (only Real outputs)")
+
+
+def _refuse_instance(plan: Plan, n: str, ip: InstancePlan, out: Path, no: Any) -> None:
+    where = f"instances.{n}"
+    if ip.model.fmi != 2:
+        no(where, f"{ip.model.path.name} is an FMI {ip.model.fmi}.0 FMU (only FMI 2.0)")
+    if ip.interface != CO_SIMULATION:
+        no(where, f"{ip.model.path.name} runs as Model Exchange (only co-simulation)")
+    if (ip.model.md.generationTool or "").lower().startswith("pythonfmu"):
+        no(where, f"{ip.model.path.name} is a pythonfmu FMU (only FMUs with a C binary)")
+    if ip.decimation != 1:
+        no(where, "an instance at its own rate (only one rate)")
+    binary = f"binaries/linux64/{ip.model.identifier}.so"
+    with zipfile.ZipFile(ip.model.path) as zf:
+        if binary not in zf.namelist():
+            no(where, f"{ip.model.path.name} has no {binary}")
+    if out.resolve() == ip.model.path.resolve():
+        raise ScenarioError(plan.scenario.file, "--out", f"{out} is the FMU of instance {n}: write the container "
+                                                          "elsewhere")
+
+
+def variables(plan: Plan, layout: RowLayout) -> list[ContainerVar]:
+    """The container's variables: recorded outputs, then open inputs and Real parameters by instance (``inst``:
+    its index in the plan's order)."""
+    cols = plan.columns()
+    out = [ContainerVar(r.column, "o", -1, layout.slot(r), 0.0,
+                        "continuous" if r.var.variability == "continuous" else "discrete", cols[r.column]["unit"],
+                        f"{r.instance}.{plan.instances[r.instance].our_name(r.var)} of {cols[r.column]['fmu']}")
+           for r in plan.record]
+    driven = {(c.dst, c.dst_var.name) for c in plan.connections}
+    for i, n in enumerate(plan.order):
+        ip = plan.instances[n]
+        given = {var.name: value for var, value in ip.parameters}
+        for var in ip.model.variables.values():
+            open_input = var.causality == "input" and (n, var.name) not in driven
+            parameter = var.causality == "parameter" and var.variability in ("fixed", "tunable")
+            value = given.get(var.name, var.start)
+            if var.type != "Real" or not (open_input or parameter) or value is None:
+                continue
+            unit = var.unit.name if var.unit is not None else None
+            out.append(ContainerVar(f"{n}.{ip.our_name(var)}", "i" if open_input else "p", i, var.vr, float(value),
+                                    var.variability if parameter else "continuous", unit,
+                                    var.description or f"{var.name} of {ip.model.path.name}"))
+    seen: dict[str, ContainerVar] = {}
+    for v in out:
+        if v.name in seen:
+            raise ScenarioError(plan.scenario.file, "record", f"{v.name!r} would be the container's variable twice "
+                                                              f"(a recorded output and {_A[v.kind]})")
+        seen[v.name] = v
+    return out
+
+
+_KIND = {"o": "output", "i": "input", "p": "parameter"}
+_A = {"o": "a recorded output", "i": "an open input", "p": "a parameter"}
+
+
+def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[ContainerVar],
+                dirs: dict[str, str]) -> str:
+    """resources/system.txt (read by container.c)."""
+    index = {(v.inst, v.ref): j for j, v in enumerate(cvars) if v.kind != "o"}
+    lines = [FORMAT, f"system {len(plan.order)} {layout.n_double} {int(plan.scenario.algorithm == JACOBI)} 1 "
+                     f"{_num(plan.scenario.step or 0.0)} {len(cvars)}"]
+    for i, n in enumerate(plan.order):
+        ip = plan.instances[n]
+        copies = wiring.copies(n)
+        params = [(var, value) for var, value in ip.parameters]
+        lines.append(" ".join(["inst", _hex(n), _hex(dirs[n]), _hex(ip.model.identifier), _hex(ip.model.md.guid),
+                               str(int(ip.tolerance is not None)), _num(ip.tolerance or 0.0),
+                               str(len(wiring.vrs[n])), str(len(layout.reals[n])), str(layout.offset[n]),
+                               str(len(copies)), str(len(params))]))
+        lines.append(" ".join(str(vr) for vr in wiring.vrs[n]) or "")
+        lines.append(" ".join(str(vr) for vr, _ in layout.reals[n]) or "")
+        for c in copies:
+            src = next((m for m in plan.order if c.src is layout.out_arr[m]), None)
+            if src is None:   # (tables and events are refused: every copy reads the row)
+                raise CosimError(f"{n}: an input copy that does not read the row")
+            lines.append(f"copy {c.pos} {layout.offset[src] + c.slot} {_num(c.factor)} {_num(c.offset)}")
+        for var, value in params:
+            lines.append(f"param {_param(var, value)} {index.get((i, var.vr), -1)}")
+    for v in cvars:
+        lines.append(f"var {v.kind} {v.inst} {v.ref} {_num(v.start)} {int(v.variability == 'tunable' or v.kind == 'i')}")
+    lines.append("end")
+    return "\n".join(lines) + "\n"
+
+
+def _param(var: Any, value: Any) -> str:
+    if var.type == "Real":
+        return f"R {var.vr} {_num(float(value))}"
+    if var.type == "String":
+        return f"S {var.vr} {_hex(str(value))}"
+    if var.type == "Boolean":
+        return f"B {var.vr} {int(bool(value))}"
+    return f"I {var.vr} {int(value)}"
+
+
+def model_description(plan: Plan, name: str, guid: str, cvars: list[ContainerVar]) -> str:
+    """The container's modelDescription.xml (FMI 2.0 co-simulation)."""
+    sc = plan.scenario
+    units = sorted({v.unit for v in cvars if v.unit})
+    rows = []
+    for j, v in enumerate(cvars):
+        causality = _KIND[v.kind]
+        attrs = f'name={quoteattr(v.name)} valueReference="{j + 1}" causality="{causality}" ' \
+                f'variability="{v.variability}"' + (' initial="exact"' if v.kind == "p" else
+                                                    ' initial="calculated"' if v.kind == "o" else "")
+        real = (f' unit={quoteattr(v.unit)}' if v.unit else "") + ("" if v.kind == "o" else f' start="{v.start!r}"')
+        rows.append(f'    <ScalarVariable {attrs} description={quoteattr(v.description)}><Real{real}/>'
+                    "</ScalarVariable>")
+    outs = "".join(f'<Unknown index="{j + 1}"/>' for j, v in enumerate(cvars) if v.kind == "o")
+    unit_defs = ("  <UnitDefinitions>" + "".join(f"<Unit name={quoteattr(u)}/>" for u in units) +
+                 "</UnitDefinitions>\n") if units else ""
+    return (f'<?xml version="1.0" encoding="UTF-8"?>\n<fmiModelDescription fmiVersion="2.0" modelName={quoteattr(name)} '
+            f'guid="{guid}" generationTool="wmr-cosim export-fmu" variableNamingConvention="flat" '
+            f'numberOfEventIndicators="0"\n  description={quoteattr(f"the system of {Path(sc.file).name} as one FMU")}>\n'
+            f'  <CoSimulation modelIdentifier="{name}" canHandleVariableCommunicationStepSize="false" '
+            'canNotUseMemoryManagementFunctions="true"/>\n' + unit_defs +
+            '  <LogCategories><Category name="logEvents"/><Category name="logStatusError"/></LogCategories>\n'
+            f'  <DefaultExperiment startTime="{sc.start!r}" stopTime="{sc.stop!r}" stepSize="{sc.step!r}"/>\n'
+            "  <ModelVariables>\n" + "\n".join(rows) + "\n  </ModelVariables>\n"
+            f"  <ModelStructure><Outputs>{outs}</Outputs><InitialUnknowns>{outs}</InitialUnknowns></ModelStructure>\n"
+            "</fmiModelDescription>\n")
+
+
+def build_binary(guid: str, dest: Path) -> None:
+    """container.c (with native_loop.c) compiled with the compiled loop's flags into ``dest``."""
+    cc = os.environ.get("CC") or "cc"
+    path = shutil.which(cc)
+    if path is None:
+        raise CosimError(f"export-fmu needs a C compiler: no {cc} on PATH")
+    p = subprocess.run([path, *native.FLAGS, f'-DCONTAINER_GUID="{guid}"', str(SOURCE), "-o", str(dest), "-ldl",
+                        "-lm"], capture_output=True, text=True, timeout=300)
+    if p.returncode:
+        raise CosimError(f"the C compiler {path} failed on {SOURCE.name}: {p.stderr.strip()[:300]}")
+
+
+def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None) -> Path:
+    """Write the resolved ``plan`` as one FMI 2.0 co-simulation FMU ``out`` (see the module); returns its path.
+    ``name``: its model name and identifier (default: the scenario file's stem, as a C name)."""
+    out = Path(out)
+    if name is None:
+        name = re.sub(r"\W", "_", Path(plan.scenario.file).stem) or "system"
+        name = "_" + name if name[0].isdigit() else name
+    refuse(plan, out, name)
+    layout = RowLayout.of(plan)
+    wiring = Wiring(plan, layout)
+    cvars = variables(plan, layout)
+    tmp = Path(tempfile.mkdtemp(prefix="wmr-cosim-fmu-"))
+    try:
+        dirs = _unpack(plan, tmp / "resources")
+        text = system_text(plan, layout, wiring, cvars, dirs)
+        guid = "{" + str(uuid.UUID(hashlib.sha256((text + name).encode()).hexdigest()[:32])) + "}"
+        (tmp / "resources" / "system.txt").write_text(text)
+        (tmp / "modelDescription.xml").write_text(model_description(plan, name, guid, cvars))
+        (tmp / "binaries" / "linux64").mkdir(parents=True)
+        build_binary(guid, tmp / "binaries" / "linux64" / f"{name}.so")
+        (tmp / "sources").mkdir()
+        for src in (SOURCE, native.SOURCE):
+            shutil.copyfile(src, tmp / "sources" / src.name)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        part = out.with_name(out.name + ".part")
+        with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as zf:
+            for f in sorted(tmp.rglob("*")):
+                if f.is_file():
+                    zf.write(f, f.relative_to(tmp).as_posix())
+        part.replace(out)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return out
+
+
+def _unpack(plan: Plan, resources: Path) -> dict[str, str]:
+    """Each FMU unpacked once under ``resources/fmuN``; instance -> its folder's name."""
+    folders: dict[Path, str] = {}
+    dirs = {}
+    for n, ip in plan.instances.items():
+        p = ip.model.path.resolve()
+        if p not in folders:
+            folders[p] = f"fmu{len(folders)}"
+            safe_extract(p, resources / folders[p], plan.archive_limits)
+        dirs[n] = folders[p]
+    return dirs

@@ -1,0 +1,517 @@
+/* A system of FMUs as one FMI 2.0 co-simulation FMU (cosim/plan/container.py writes it): the runtime of the
+ * container, the master's own compiled loop (native_loop.c, included below, the same source the master
+ * runs) given the system as data.  The exporter writes that data into resources/system.txt: each inner
+ * FMU's folder (unpacked under resources/), its parameters and start values, the values it sets and reads
+ * each step, the copies with their factor and offset (the unit conversion folded in, as the master's
+ * wiring gives them), and the container's variables (recorded outputs read from the row, open inputs and
+ * parameters passed to their inner FMU).
+ *
+ * Life cycle, as the master's start-up: every inner FMU instantiated at fmi2Instantiate; at
+ * fmi2EnterInitializationMode, each one set up (fmi2SetupExperiment), given its parameters and start values
+ * (a value the host set replacing the scenario's), then each one in initialisation mode; at
+ * fmi2ExitInitializationMode, outputs copied to inputs in the plan's order pass after pass until nothing
+ * changes, each one out of initialisation mode, their outputs read; fmi2DoStep(t, n h) = wmr_loop over the
+ * n steps of the grid from k = (t - t0) / h (the time of step k is t0 + k h, as the master's).
+ * Numbers in system.txt are C99 hexadecimal floats (exact); strings are "x" followed by their bytes in hex. */
+#include "native_loop.c"
+
+#include <dlfcn.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+typedef void *fmi2Component;
+typedef void *fmi2ComponentEnvironment;
+typedef void *fmi2FMUstate;
+typedef unsigned int fmi2ValueReference;
+typedef double fmi2Real;
+typedef int fmi2Integer;
+typedef int fmi2Boolean;
+typedef char fmi2Char;
+typedef const fmi2Char *fmi2String;
+typedef char fmi2Byte;
+typedef enum { fmi2OK, fmi2Warning, fmi2Discard, fmi2Error, fmi2Fatal, fmi2Pending } fmi2Status;
+typedef enum { fmi2ModelExchange, fmi2CoSimulation } fmi2Type;
+typedef enum { fmi2DoStepStatus, fmi2PendingStatus, fmi2LastSuccessfulTime, fmi2Terminated } fmi2StatusKind;
+typedef struct {
+    void (*logger)(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String, ...);
+    void *(*allocateMemory)(size_t, size_t);
+    void (*freeMemory)(void *);
+    void (*stepFinished)(fmi2ComponentEnvironment, fmi2Status);
+    fmi2ComponentEnvironment componentEnvironment;
+} fmi2CallbackFunctions;
+
+typedef fmi2Component (*inst_t)(fmi2String, fmi2Type, fmi2String, fmi2String, const fmi2CallbackFunctions *,
+                                fmi2Boolean, fmi2Boolean);
+typedef void (*free_t)(fmi2Component);
+typedef fmi2Status (*setup_t)(fmi2Component, fmi2Boolean, fmi2Real, fmi2Real, fmi2Boolean, fmi2Real);
+typedef fmi2Status (*mode_t_)(fmi2Component);
+typedef fmi2Status (*seti_t)(fmi2Component, const fmi2ValueReference *, size_t, const fmi2Integer *);
+typedef fmi2Status (*sets_t)(fmi2Component, const fmi2ValueReference *, size_t, const fmi2String *);
+
+#define VERSION_TAG "wmr-container 1"
+
+typedef struct { char type; unsigned vr; double r; int i; char *s; int var; } Param;
+
+typedef struct {
+    char *name, *dir, *mi, *guid;
+    int tol_defined; double tol;
+    void *dll; fmi2Component c;
+    inst_t instantiate; free_t free_instance; setup_t setup; mode_t_ enter, exit_, terminate;
+    set2_t set_real; seti_t set_integer, set_boolean; sets_t set_string;
+    int n_params; Param *params;
+} Inner;
+
+typedef struct { char kind; int inst; unsigned ref; double value; int tunable; int set; } Var;
+
+typedef struct {
+    const fmi2CallbackFunctions *cb;
+    char *name;
+    int n; Inner *inner; Inst *insts; Loop L;
+    double *row; long n_row;
+    int n_vars; Var *vars;
+    double step; int mode;   /* 0 instantiated, 1 initialisation mode, 2 stepping, 3 terminated */
+    double t0; int stop_defined; double stop;
+} Container;
+
+static void say(Container *s, fmi2Status st, const char *fmt, ...) {
+    char msg[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    if (s && s->cb && s->cb->logger)
+        s->cb->logger(s->cb->componentEnvironment, s->name, st, st == fmi2OK ? "logEvents" : "logStatusError", "%s", msg);
+}
+
+/* ------------------------------------------------------------------ reading system.txt */
+typedef struct { char *text, *at; int bad; } Reader;
+
+static char *token(Reader *r) {
+    char *p = r->at, *t;
+    while (*p == ' ' || *p == '\n' || *p == '\t' || *p == '\r') p++;
+    if (!*p) { r->bad = 1; return ""; }
+    t = p;
+    while (*p && *p != ' ' && *p != '\n' && *p != '\t' && *p != '\r') p++;
+    if (*p) *p++ = 0;
+    r->at = p;
+    return t;
+}
+static long num(Reader *r) { char *e, *t = token(r); long v = strtol(t, &e, 10); if (*e) r->bad = 1; return v; }
+static double real(Reader *r) { char *e, *t = token(r); double v = strtod(t, &e); if (*e) r->bad = 1; return v; }
+static char *text(Reader *r) {
+    char *t = token(r), *out;
+    size_t n, j;
+    if (t[0] != 'x') { r->bad = 1; return NULL; }
+    n = (strlen(t) - 1) / 2;
+    out = calloc(n + 1, 1);
+    for (j = 0; out && j < n; j++) { unsigned v; sscanf(t + 1 + 2 * j, "%2x", &v); out[j] = (char)v; }
+    return out;
+}
+static void expect(Reader *r, const char *word) { if (strcmp(token(r), word)) r->bad = 1; }
+
+static int read_instance(Container *s, Reader *r, int i) {
+    Inner *q = &s->inner[i];
+    Inst *p = &s->insts[i];
+    long j, off, nc;
+    expect(r, "inst");
+    q->name = text(r); q->dir = text(r); q->mi = text(r); q->guid = text(r);
+    q->tol_defined = (int)num(r); q->tol = real(r);
+    p->abi = 2; p->raw_set = p->raw_step = p->raw_get = 1; p->no_set_prior = 1; p->dec = 1;
+    p->n_in = (size_t)num(r); p->n_out = (size_t)num(r); off = num(r); nc = num(r); q->n_params = (int)num(r);
+    if (r->bad || off < 0 || off + (long)p->n_out > s->n_row || nc < 0 || q->n_params < 0) return 0;
+    p->in_vr = calloc(p->n_in + 1, sizeof(unsigned)); p->in_val = calloc(p->n_in + 1, sizeof(double));
+    p->out_vr = calloc(p->n_out + 1, sizeof(unsigned)); p->out_val = s->row + off;
+    for (j = 0; j < (long)p->n_in; j++) p->in_vr[j] = (unsigned)num(r);
+    for (j = 0; j < (long)p->n_out; j++) p->out_vr[j] = (unsigned)num(r);
+    p->n_copies = (int)nc;
+    p->pos = calloc((size_t)nc + 1, sizeof(int)); p->src = calloc((size_t)nc + 1, sizeof(double *));
+    p->slot = calloc((size_t)nc + 1, sizeof(long)); p->factor = calloc((size_t)nc + 1, sizeof(double));
+    p->offset = calloc((size_t)nc + 1, sizeof(double)); p->plain = calloc((size_t)nc + 1, sizeof(int));
+    for (j = 0; j < nc; j++) {
+        expect(r, "copy");
+        p->pos[j] = (int)num(r); p->src[j] = s->row; p->slot[j] = num(r);
+        p->factor[j] = real(r); p->offset[j] = real(r);
+        p->plain[j] = p->factor[j] == 1.0 && p->offset[j] == 0.0;
+        if (p->pos[j] < 0 || (size_t)p->pos[j] >= p->n_in || p->slot[j] < 0 || p->slot[j] >= s->n_row) r->bad = 1;
+    }
+    q->params = calloc((size_t)q->n_params + 1, sizeof(Param));
+    for (j = 0; j < q->n_params; j++) {
+        Param *a = &q->params[j];
+        expect(r, "param");
+        a->type = token(r)[0]; a->vr = (unsigned)num(r);
+        if (a->type == 'R') a->r = real(r);
+        else if (a->type == 'S') a->s = text(r);
+        else a->i = (int)num(r);
+        a->var = (int)num(r);
+    }
+    return !r->bad;
+}
+
+static int read_system(Container *s, const char *path) {
+    FILE *f = fopen(path, "rb");
+    long size, i;
+    Reader r = {0};
+    int ok = 0;
+    if (!f) return 0;
+    fseek(f, 0, SEEK_END); size = ftell(f); fseek(f, 0, SEEK_SET);
+    r.text = r.at = calloc((size_t)size + 1, 1);
+    if (fread(r.text, 1, (size_t)size, f) != (size_t)size) r.bad = 1;
+    fclose(f);
+    if (strncmp(r.text, VERSION_TAG "\n", strlen(VERSION_TAG) + 1)) goto done;
+    r.at += strlen(VERSION_TAG) + 1;
+    expect(&r, "system");
+    s->n = (int)num(&r); s->n_row = num(&r); s->L.simultaneous = (int)num(&r); s->L.check_inputs = (int)num(&r);
+    s->step = real(&r); s->n_vars = (int)num(&r);
+    if (r.bad || s->n < 1 || s->n_row < 1 || s->n_vars < 0 || !(s->step > 0)) goto done;
+    s->row = calloc((size_t)s->n_row, sizeof(double));
+    s->inner = calloc((size_t)s->n, sizeof(Inner)); s->insts = calloc((size_t)s->n, sizeof(Inst));
+    s->vars = calloc((size_t)s->n_vars + 1, sizeof(Var));
+    for (i = 0; i < s->n; i++) if (!read_instance(s, &r, (int)i)) goto done;
+    for (i = 0; i < s->n_vars; i++) {
+        Var *v = &s->vars[i];
+        expect(&r, "var");
+        v->kind = token(&r)[0]; v->inst = (int)num(&r); v->ref = (unsigned)num(&r); v->value = real(&r);
+        v->tunable = (int)num(&r);
+        if (v->kind == 'o' ? v->ref >= (unsigned)s->n_row : (v->inst < 0 || v->inst >= s->n)) r.bad = 1;
+    }
+    expect(&r, "end");
+    ok = !r.bad;
+done:
+    free(r.text);
+    return ok;
+}
+
+/* ------------------------------------------------------------------ the inner FMUs */
+static char *decode_uri(const char *uri) {   /* file:///a%20b/ -> /a b/ */
+    const char *p = uri;
+    char *out = calloc(strlen(uri) + 1, 1), *o = out;
+    if (!strncmp(p, "file://localhost/", 17)) p += 16;
+    else if (!strncmp(p, "file:///", 8)) p += 7;
+    else if (!strncmp(p, "file:/", 6)) p += 5;
+    else { free(out); return NULL; }
+    for (; *p; p++) {
+        unsigned v;
+        if (*p == '%' && sscanf(p + 1, "%2x", &v) == 1) { *o++ = (char)v; p += 2; }
+        else *o++ = *p;
+    }
+    while (o > out && o[-1] == '/') *--o = 0;
+    return out;
+}
+
+static char *encode_uri(const char *path) {
+    char *out = calloc(strlen(path) * 3 + 16, 1), *o = out;
+    const char *p;
+    o += sprintf(o, "file://");
+    for (p = path; *p; p++) {
+        unsigned char ch = (unsigned char)*p;
+        if ((ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || strchr("/-._~", ch))
+            *o++ = (char)ch;
+        else o += sprintf(o, "%%%02X", ch);
+    }
+    return out;
+}
+
+#define SYM(q, field, sym) \
+    if (!((q)->field = (void *)dlsym(dll, sym))) { say(s, fmi2Error, "%s: %s not found", who, sym); return 0; }
+
+static int load_inner(Container *s, Inner *q, Inst *p, const char *res, fmi2Boolean visible, fmi2Boolean logging) {
+    char *lib = malloc(strlen(res) + strlen(q->dir) + strlen(q->mi) + 40), *where, *uri;
+    sprintf(lib, "%s/%s/binaries/linux64/%s.so", res, q->dir, q->mi);
+    void *dll = q->dll = dlopen(lib, RTLD_NOW | RTLD_LOCAL | RTLD_DEEPBIND);
+    const char *who = q->name;
+    if (!q->dll) { say(s, fmi2Error, "%s: %s", q->name, dlerror()); free(lib); return 0; }
+    free(lib);
+    SYM(q, instantiate, "fmi2Instantiate") SYM(q, free_instance, "fmi2FreeInstance")
+    SYM(q, setup, "fmi2SetupExperiment") SYM(q, enter, "fmi2EnterInitializationMode")
+    SYM(q, exit_, "fmi2ExitInitializationMode") SYM(q, terminate, "fmi2Terminate")
+    SYM(q, set_real, "fmi2SetReal") SYM(q, set_integer, "fmi2SetInteger") SYM(q, set_boolean, "fmi2SetBoolean")
+    SYM(q, set_string, "fmi2SetString")
+    SYM(p, step, "fmi2DoStep") SYM(p, get, "fmi2GetReal")
+    p->set = (void *)q->set_real;
+    where = malloc(strlen(res) + strlen(q->dir) + 16);
+    sprintf(where, "%s/%s/resources", res, q->dir);
+    uri = encode_uri(where);
+    q->c = q->instantiate(q->name, fmi2CoSimulation, q->guid, uri, s->cb, visible, logging);
+    free(where); free(uri);
+    if (!q->c) { say(s, fmi2Error, "%s: fmi2Instantiate failed", q->name); return 0; }
+    p->c = q->c;
+    return 1;
+}
+
+static void free_container(Container *s) {
+    int i;
+    if (!s) return;
+    for (i = 0; s->inner && i < s->n; i++) {
+        Inner *q = &s->inner[i];
+        Inst *p = &s->insts[i];
+        if (q->c && q->free_instance) q->free_instance(q->c);
+        if (q->dll) dlclose(q->dll);
+        free(q->name); free(q->dir); free(q->mi); free(q->guid);
+        for (int j = 0; q->params && j < q->n_params; j++) free(q->params[j].s);
+        free(q->params);
+        free(p->in_vr); free(p->in_val); free(p->out_vr);
+        free(p->pos); free(p->src); free(p->slot); free(p->factor); free(p->offset); free(p->plain);
+    }
+    free(s->inner); free(s->insts); free(s->vars); free(s->row); free(s->name);
+    free(s);
+}
+
+/* ------------------------------------------------------------------ the FMI 2.0 interface */
+const char *fmi2GetTypesPlatform(void) { return "default"; }
+const char *fmi2GetVersion(void) { return "2.0"; }
+fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cats[]) {
+    (void)c; (void)on; (void)n; (void)cats;
+    return fmi2OK;
+}
+
+fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String location,
+                              const fmi2CallbackFunctions *cb, fmi2Boolean visible, fmi2Boolean logging) {
+    Container *s = calloc(1, sizeof(Container));
+    char *res, *sys;
+    int i;
+    if (!s) return NULL;
+    s->cb = cb; s->name = strdup(name ? name : "container");
+    if (type != fmi2CoSimulation) { say(s, fmi2Error, "this FMU is co-simulation only"); free_container(s); return NULL; }
+    if (!guid || strcmp(guid, CONTAINER_GUID)) { say(s, fmi2Error, "wrong GUID %s", guid ? guid : "(none)"); free_container(s); return NULL; }
+    res = location ? decode_uri(location) : NULL;
+    if (!res) { say(s, fmi2Error, "the resource location %s is not a file URI", location ? location : "(none)"); free_container(s); return NULL; }
+    sys = malloc(strlen(res) + 16);
+    sprintf(sys, "%s/system.txt", res);
+    if (!read_system(s, sys)) { say(s, fmi2Error, "%s cannot be read", sys); free(sys); free(res); free_container(s); return NULL; }
+    free(sys);
+    for (i = 0; i < s->n; i++)
+        if (!load_inner(s, &s->inner[i], &s->insts[i], res, visible, logging)) { free(res); free_container(s); return NULL; }
+    free(res);
+    s->L.n = s->n; s->L.inst = s->insts; s->L.h = s->step; s->L.h_last = s->step; s->L.k_last = -1;
+    s->L.decimation = 1; s->L.n_steps = -1;
+    return s;
+}
+
+void fmi2FreeInstance(fmi2Component c) { free_container((Container *)c); }
+
+fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tol_defined, fmi2Real tol, fmi2Real start,
+                               fmi2Boolean stop_defined, fmi2Real stop) {
+    Container *s = c;
+    (void)tol_defined; (void)tol;
+    s->t0 = start; s->stop_defined = stop_defined; s->stop = stop;
+    return fmi2OK;
+}
+
+static int set_param(Container *s, Inner *q, Param *a) {
+    double r = a->var >= 0 ? s->vars[a->var].value : a->r;
+    if (a->type == 'R') return q->set_real(q->c, &a->vr, 1, &r);
+    if (a->type == 'S') { fmi2String v = a->s; return q->set_string(q->c, &a->vr, 1, &v); }
+    if (a->type == 'B') return q->set_boolean(q->c, &a->vr, 1, &a->i);
+    return q->set_integer(q->c, &a->vr, 1, &a->i);
+}
+
+fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
+    Container *s = c;
+    int i, j, st;
+    s->L.t0 = s->t0;
+    for (i = 0; i < s->n; i++) {
+        Inner *q = &s->inner[i];
+        /* the tolerance the master gives it (its instance's, else the experiment's; else none) */
+        if ((st = q->setup(q->c, q->tol_defined, q->tol, s->t0, s->stop_defined, s->stop)))
+            { say(s, fmi2Error, "%s: fmi2SetupExperiment returned %d", q->name, st); return fmi2Error; }
+        for (j = 0; j < q->n_params; j++)
+            if ((st = set_param(s, q, &q->params[j])))
+                { say(s, fmi2Error, "%s: setting value reference %u returned %d", q->name, q->params[j].vr, st); return fmi2Error; }
+        for (j = 0; j < s->n_vars; j++) {   /* what the host set that the scenario does not */
+            Var *v = &s->vars[j];
+            int k, listed = 0;
+            if (v->kind == 'o' || v->inst != i || !v->set) continue;
+            for (k = 0; k < q->n_params; k++) listed |= q->params[k].var == j;
+            if (!listed && (st = q->set_real(q->c, &v->ref, 1, &v->value)))
+                { say(s, fmi2Error, "%s: setting value reference %u returned %d", q->name, v->ref, st); return fmi2Error; }
+        }
+    }
+    for (i = 0; i < s->n; i++)
+        if ((st = s->inner[i].enter(s->inner[i].c)))
+            { say(s, fmi2Error, "%s: fmi2EnterInitializationMode returned %d", s->inner[i].name, st); return fmi2Error; }
+    s->mode = 1;
+    return fmi2OK;
+}
+
+static int read_all(Container *s) {
+    int i;
+    for (i = 0; i < s->n; i++) if (outputs(&s->L, i, 0)) return 0;
+    return 1;
+}
+
+/* the master's initial exchange (cosim/runtime/startup.py exchange_initial): outputs to inputs in the
+ * plan's order, pass after pass (at most n + 1), until no input changes */
+static int exchange(Container *s) {
+    long total = 0, m, i, j;
+    double *last, *now;
+    int have_last = 0, pass;
+    for (i = 0; i < s->n; i++) total += s->insts[i].n_copies;
+    last = calloc((size_t)total + 1, sizeof(double)); now = calloc((size_t)total + 1, sizeof(double));
+    if (!read_all(s)) goto failed;
+    for (pass = 0; pass <= s->n; pass++) {
+        m = 0;
+        for (i = 0; i < s->n; i++) {
+            Inst *p = &s->insts[i];
+            for (j = 0; j < p->n_copies; j++) {
+                double v = p->plain[j] ? p->src[j][p->slot[j]] : p->src[j][p->slot[j]] * p->factor[j] + p->offset[j];
+                p->in_val[p->pos[j]] = v;
+                now[m++] = v;
+            }
+            if (s->L.check_inputs)
+                for (j = 0; j < (long)p->n_in; j++)
+                    if (p->in_val[j] - p->in_val[j] != 0.0) {
+                        say(s, fmi2Error, "%s: a non-finite input at initialisation (value reference %u)",
+                            s->inner[i].name, p->in_vr[j]);
+                        goto failed;
+                    }
+            if (p->n_in && ((set2_t)p->set)(p->c, p->in_vr, p->n_in, p->in_val)) goto failed;
+            if (outputs(&s->L, (int)i, 0)) goto failed;
+        }
+        if (have_last) {   /* (as Python's list ==: value by value) */
+            for (j = 0; j < total && now[j] == last[j]; j++) {}
+            if (j == total) break;
+        }
+        memcpy(last, now, sizeof(double) * (size_t)total);
+        have_last = 1;
+    }
+    free(last); free(now);
+    return 1;
+failed:
+    free(last); free(now);
+    return 0;
+}
+
+fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
+    Container *s = c;
+    int i, st;
+    if (!exchange(s)) { say(s, fmi2Error, "the initial exchange of outputs to inputs failed"); return fmi2Error; }
+    for (i = 0; i < s->n; i++)
+        if ((st = s->inner[i].exit_(s->inner[i].c)))
+            { say(s, fmi2Error, "%s: fmi2ExitInitializationMode returned %d", s->inner[i].name, st); return fmi2Error; }
+    if (!read_all(s)) { say(s, fmi2Error, "reading the outputs after initialisation failed"); return fmi2Error; }
+    s->mode = 2;
+    return fmi2OK;
+}
+
+fmi2Status fmi2Terminate(fmi2Component c) {
+    Container *s = c;
+    int i;
+    fmi2Status worst = fmi2OK;
+    for (i = 0; i < s->n; i++) {
+        int st = s->inner[i].terminate(s->inner[i].c);
+        if (st > (int)worst) worst = (fmi2Status)st;
+    }
+    s->mode = 3;
+    return worst;
+}
+
+fmi2Status fmi2Reset(fmi2Component c) {
+    say(c, fmi2Error, "fmi2Reset is not supported");
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real value[]) {
+    Container *s = c;
+    size_t j;
+    for (j = 0; j < n; j++) {
+        if (vr[j] < 1 || vr[j] > (unsigned)s->n_vars) { say(s, fmi2Error, "no Real variable %u", vr[j]); return fmi2Error; }
+        Var *v = &s->vars[vr[j] - 1];
+        value[j] = v->kind == 'o' ? s->row[v->ref] : v->value;
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real value[]) {
+    Container *s = c;
+    size_t j;
+    for (j = 0; j < n; j++) {
+        Var *v;
+        if (vr[j] < 1 || vr[j] > (unsigned)s->n_vars || s->vars[vr[j] - 1].kind == 'o')
+            { say(s, fmi2Error, "variable %u cannot be set", vr[j]); return fmi2Error; }
+        v = &s->vars[vr[j] - 1];
+        if (s->mode == 2 && v->kind == 'p' && !v->tunable)
+            { say(s, fmi2Error, "variable %u is a fixed parameter: set it before initialisation", vr[j]); return fmi2Error; }
+        v->value = value[j]; v->set = 1;
+        if (s->mode >= 1) {
+            Inner *q = &s->inner[v->inst];
+            int st = q->set_real(q->c, &v->ref, 1, &v->value);
+            if (st) { say(s, fmi2Error, "%s: fmi2SetReal returned %d", q->name, st); return (fmi2Status)st; }
+        }
+    }
+    return fmi2OK;
+}
+
+static fmi2Status none(fmi2Component c, size_t n, const char *what) {
+    if (!n) return fmi2OK;
+    say(c, fmi2Error, "this container has no %s variables", what);
+    return fmi2Error;
+}
+fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[]) { (void)vr; (void)v; return none(c, n, "Integer"); }
+fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[]) { (void)vr; (void)v; return none(c, n, "Boolean"); }
+fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[]) { (void)vr; (void)v; return none(c, n, "String"); }
+fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer v[]) { (void)vr; (void)v; return none(c, n, "Integer"); }
+fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean v[]) { (void)vr; (void)v; return none(c, n, "Boolean"); }
+fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String v[]) { (void)vr; (void)v; return none(c, n, "String"); }
+
+static fmi2Status unsupported(fmi2Component c, const char *what) {
+    say(c, fmi2Error, "%s is not supported by this container", what);
+    return fmi2Error;
+}
+fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *st) { (void)st; return unsupported(c, "fmi2GetFMUstate"); }
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate st) { (void)st; return unsupported(c, "fmi2SetFMUstate"); }
+fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *st) { (void)st; return unsupported(c, "fmi2FreeFMUstate"); }
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate st, size_t *n) { (void)st; (void)n; return unsupported(c, "fmi2SerializedFMUstateSize"); }
+fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate st, fmi2Byte b[], size_t n) { (void)st; (void)b; (void)n; return unsupported(c, "fmi2SerializeFMUstate"); }
+fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n, fmi2FMUstate *st) { (void)st; (void)b; (void)n; return unsupported(c, "fmi2DeSerializeFMUstate"); }
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference u[], size_t nu, const fmi2ValueReference z[],
+                                        size_t nz, const fmi2Real dv[], fmi2Real dz[]) {
+    (void)u; (void)nu; (void)z; (void)nz; (void)dv; (void)dz;
+    return unsupported(c, "fmi2GetDirectionalDerivative");
+}
+fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer o[], const fmi2Real v[]) {
+    (void)vr; (void)n; (void)o; (void)v;
+    return unsupported(c, "fmi2SetRealInputDerivatives");
+}
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer o[], fmi2Real v[]) {
+    (void)vr; (void)n; (void)o; (void)v;
+    return unsupported(c, "fmi2GetRealOutputDerivatives");
+}
+fmi2Status fmi2CancelStep(fmi2Component c) { return unsupported(c, "fmi2CancelStep"); }
+
+static const char *CALL_NAMES[] = {"", "tabulated inputs", "a non-finite input", "fmi2SetReal", "a connection",
+                                   "fmi2DoStep", "fmi2GetReal", "a recorded output", "the end of the simulation"};
+
+/* one step of the host = the loop over the steps of the grid it spans */
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_prior) {
+    Container *s = c;
+    double n = h / s->step, k = (t - s->t0) / s->step;
+    long nk = lround(n), k0 = lround(k);
+    int st;
+    (void)no_set_prior;
+    if (s->mode != 2) { say(s, fmi2Error, "fmi2DoStep before fmi2ExitInitializationMode"); return fmi2Error; }
+    if (nk < 1 || fabs(n - (double)nk) > 1e-6 || k0 < 0 || fabs(k - (double)k0) > 1e-6) {
+        say(s, fmi2Error, "fmi2DoStep(%.17g, %.17g): the container steps on the grid of its step %.17g s from %.17g s: "
+            "take steps that are whole multiples of it", t, h, s->step, s->t0);
+        return fmi2Error;
+    }
+    st = wmr_loop(&s->L, k0, k0 + nk);
+    if (st == OK) return fmi2OK;
+    {
+        int call = s->L.f_call >= 0 && s->L.f_call <= C_TERMINATED ? s->L.f_call : 0;
+        say(s, fmi2Error, "%s: %s failed at step %ld (status or value %g)", s->inner[s->L.f_inst].name,
+            CALL_NAMES[call], s->L.f_step, s->L.f_value);
+    }
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind k, fmi2Status *v) { (void)k; (void)v; return unsupported(c, "fmi2GetStatus"); }
+fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind k, fmi2Real *v) { (void)k; (void)v; return unsupported(c, "fmi2GetRealStatus"); }
+fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind k, fmi2Integer *v) { (void)k; (void)v; return unsupported(c, "fmi2GetIntegerStatus"); }
+fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind k, fmi2String *v) { (void)k; (void)v; return unsupported(c, "fmi2GetStringStatus"); }
+fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind k, fmi2Boolean *v) {
+    (void)c;
+    if (k == fmi2Terminated) { *v = 0; return fmi2OK; }
+    return fmi2Discard;
+}

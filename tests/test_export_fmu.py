@@ -1,0 +1,217 @@
+"""``wmr-cosim export-fmu``: a scenario's system as one FMI 2.0 co-simulation FMU whose runtime is the
+master's compiled loop.  Run in FMPy (and in fmusim where it is beside the checkout), every output equals
+``wmr-cosim run`` of the same scenario bit for bit, Gauss-Seidel and Jacobi; a value the host sets reaches
+the inner FMU; what the container cannot hold is refused in one line, exit 2, nothing written."""
+from __future__ import annotations
+
+import csv
+import shutil
+import subprocess
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from wmr_cosim.cli import main
+
+from cosim_support import write_document
+from coupling_fmus import TwoMass, build_mass, two_mass_document
+from host_tools import FMUSIM, tool
+from reference_fmus import REF
+
+STOP, STEP = 1.0, 0.01
+
+
+@pytest.fixture(scope="module")
+def mass(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    return build_mass(tmp_path_factory.mktemp("mass"))
+
+
+def two_mass(fmus: tuple[Path, Path], algorithm: str) -> dict[str, Any]:
+    """The two-mass system of C FMUs, the coupling force through a factor and an offset."""
+    doc = two_mass_document(fmus, TwoMass(), stop=STOP, step=STEP)
+    doc["experiment"]["algorithm"] = algorithm
+    doc["connections"][2].update(factor=0.5, offset=0.25)
+    return doc
+
+
+def export(doc: dict[str, Any], folder: Path, *extra: str) -> Path:
+    sc = write_document(folder / "system.toml", doc)
+    out = folder / "System.fmu"
+    assert main(["export-fmu", str(sc), "--out", str(out), *extra]) == 0
+    return out
+
+
+def run(doc: dict[str, Any], folder: Path, *extra: str) -> np.ndarray:
+    sc = write_document(folder / "system.toml", doc)
+    assert main(["run", str(sc), "--out", str(folder / "run"), "--quiet", *extra]) == 0
+    return np.load(folder / "run" / "signals.npy")
+
+
+def in_fmpy(fmu: Path, **kw: Any) -> np.ndarray:
+    import fmpy
+
+    return fmpy.simulate_fmu(str(fmu), stop_time=STOP, output_interval=STEP, **kw)
+
+
+def assert_equal(got: np.ndarray, ref: np.ndarray) -> None:
+    """Every column of the run in the container, bit for bit."""
+    assert got.dtype.names == ref.dtype.names
+    for name in ref.dtype.names:
+        assert np.array_equal(got[name], ref[name]), (name, np.max(np.abs(got[name] - ref[name])))
+
+
+@pytest.fixture(scope="module")
+def runs(mass: tuple[Path, Path], tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, np.ndarray]]:
+    out = {}
+    for alg in ("gauss-seidel", "jacobi"):
+        d = tmp_path_factory.mktemp(alg)
+        doc = two_mass(mass, alg)
+        out[alg] = export(doc, d), run(doc, d)
+    return out
+
+
+@pytest.mark.parametrize("algorithm", ["gauss-seidel", "jacobi"])
+def test_the_container_in_fmpy_equals_the_run_bit_for_bit(algorithm: str, runs: Any) -> None:
+    fmu, ref = runs[algorithm]
+    assert len(ref) == round(STOP / STEP) + 1
+    assert_equal(in_fmpy(fmu), ref)
+
+
+def test_gauss_seidel_and_jacobi_differ(runs: Any) -> None:
+    """(So the equality above tells the two algorithms apart.)"""
+    assert not np.array_equal(runs["gauss-seidel"][1]["coupler.F"], runs["jacobi"][1]["coupler.F"])
+
+
+def test_a_start_value_the_host_sets_reaches_the_inner_fmu(mass: tuple[Path, Path], runs: Any,
+                                                           tmp_path: Path) -> None:
+    fmu, ref = runs["gauss-seidel"]
+    got = in_fmpy(fmu, start_values={"body.m1": 2.0, "coupler.kc": 50.0})
+    want = run(two_mass(mass, "gauss-seidel"), tmp_path, "--set", "body.m1=2.0", "--set", "coupler.kc=50.0")
+    assert not np.array_equal(want["body.x"], ref["body.x"])
+    assert_equal(got, want)
+
+
+def test_the_container_is_a_valid_fmu(runs: Any) -> None:
+    from fmpy import read_model_description
+    from fmpy.validation import validate_fmu
+
+    fmu = runs["jacobi"][0]
+    assert validate_fmu(str(fmu)) == []
+    md = read_model_description(str(fmu))
+    outputs = [v.name for v in md.modelVariables if v.causality == "output"]
+    assert outputs == ["body.x", "body.v", "coupler.x", "coupler.v", "coupler.F"]
+    assert [u.variable.name for u in md.outputs] == outputs
+    params = {v.name: v for v in md.modelVariables if v.causality == "parameter"}
+    assert params["body.m1"].start == "1.0" and params["coupler.kc"].unit == "N/m"
+    names = zipfile.ZipFile(fmu).namelist()
+    assert "resources/system.txt" in names and "binaries/linux64/system.so" in names
+    assert "resources/fmu0/binaries/linux64/MassForce.so" in names
+
+
+def test_open_inputs_are_the_containers_and_the_host_drives_them(tmp_path: Path) -> None:
+    """Feedthrough -> Feedthrough with a factor and offset: the first one's open input is the container's
+    (its start value the scenario's), and an input signal of the host goes through both."""
+    ft = str(REF / "fmi2" / "Feedthrough.fmu")
+    doc = {"experiment": {"start": 0.0, "stop": STOP, "step": STEP},
+           "instances": {"a": {"fmu": ft, "parameters": {"Float64_continuous_input": 3.0}}, "b": {"fmu": ft}},
+           "connections": [{"from": "a.Float64_continuous_output", "to": "b.Float64_continuous_input",
+                            "factor": 2.0, "offset": 1.0}],
+           "record": {"variables": ["a.Float64_continuous_output", "b.Float64_continuous_output"]}}
+    fmu = export(doc, tmp_path, "--name", "Twice")
+    ref = run(doc, tmp_path)
+    got = in_fmpy(fmu)
+    assert_equal(got, ref)
+    assert np.all(got["b.Float64_continuous_output"] == 7.0)
+    signal = np.array([(0.0, 5.0), (STOP, 5.0)], dtype=[("time", float), ("a.Float64_continuous_input", float)])
+    driven = in_fmpy(fmu, input=signal)
+    assert np.all(driven["b.Float64_continuous_output"][1:] == 11.0)
+
+
+def test_the_container_in_fmusim_equals_the_run(runs: Any, tmp_path: Path) -> None:
+    """fmusim (a C host), to the 16 digits it writes."""
+    fmusim = tool(FMUSIM)
+    fmu, ref = runs["gauss-seidel"]
+    out = tmp_path / "fmusim.csv"
+    p = subprocess.run([str(fmusim), "--interface-type", "cs", "--stop-time", repr(STOP), "--output-interval",
+                        repr(STEP), "--output-file", str(out), str(fmu)], capture_output=True, text=True,
+                       cwd=tmp_path, timeout=600)
+    assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
+    with out.open() as f:
+        rows = list(csv.reader(f))
+    assert rows[0] == list(ref.dtype.names)
+    got = np.array([[float(x) for x in r] for r in rows[1:]])
+    assert len(got) == len(ref)
+    for j, name in enumerate(ref.dtype.names[1:], start=1):
+        printed = np.array([float(f"{x:.16g}") for x in ref[name]])
+        assert np.array_equal(got[:, j], printed), name
+
+
+# ------------------------------------------------------------------ what the container cannot hold yet
+def _no_binary(mass: tuple[Path, Path], d: Path) -> Path:
+    out = d / "NoBinary.fmu"
+    with zipfile.ZipFile(mass[0]) as src, zipfile.ZipFile(out, "w") as dst:
+        for item in src.infolist():
+            if not item.filename.startswith("binaries/"):
+                dst.writestr(item, src.read(item))
+    return out
+
+
+REFUSALS: dict[str, Any] = {
+    "iterated": lambda doc, m, d: doc["experiment"].update(algorithm="iterated"),
+    "multi-rate": lambda doc, m, d: doc["instances"]["coupler"].update(step=2 * STEP),
+    "events": lambda doc, m, d: doc.update(events=[{"time": 0.5, "variable": "body.F", "action": "override",
+                                                   "value": 1.0}]),
+    "requirements": lambda doc, m, d: doc.update(requirements=[{"name": "r", "formula": "always body.x < 10"}]),
+    "fmi3": lambda doc, m, d: doc["instances"].update(ref={"fmu": str(REF / "fmi3" / "Dahlquist.fmu")}),
+    "model exchange": lambda doc, m, d: doc["instances"].update(
+        ref={"fmu": str(REF / "fmi2" / "Dahlquist.fmu"), "interface": "model-exchange"}),
+    "pythonfmu": lambda doc, m, d: doc["instances"].update(sensor={"fmu": "WmrSensor"}),
+    "no linux64 binary": lambda doc, m, d: doc["instances"]["body"].update(fmu=str(_no_binary(m, d))),
+    "a non-Real output": lambda doc, m, d: (
+        doc["instances"].update(ft={"fmu": str(REF / "fmi2" / "Feedthrough.fmu")}),
+        doc["record"]["variables"].append("ft.Int32_output")),
+    "an output name twice": lambda doc, m, d: doc["record"]["variables"].append("body.m1"),
+}
+
+
+@pytest.mark.parametrize("case", list(REFUSALS))
+def test_what_the_container_cannot_hold_is_refused_in_one_line(case: str, mass: tuple[Path, Path], tmp_path: Path,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    doc = two_mass(mass, "gauss-seidel")
+    REFUSALS[case](doc, mass, tmp_path)
+    sc = write_document(tmp_path / "system.toml", doc)
+    before = sorted(tmp_path.iterdir())
+    assert main(["export-fmu", str(sc), "--out", str(tmp_path / "System.fmu")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("wmr-cosim: error: ") and "\n" not in err, err
+    assert sorted(tmp_path.iterdir()) == before
+
+
+@pytest.mark.parametrize("args", [["--name", "1-bad"], ["--out-is-inner"], ["--out-not-fmu"]])
+def test_bad_names_and_outputs_are_refused(args: list[str], mass: tuple[Path, Path], tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    body = shutil.copy(mass[0], tmp_path / "MassForce.fmu")
+    doc = two_mass((Path(body), mass[1]), "jacobi")
+    sc = write_document(tmp_path / "system.toml", doc)
+    out = {"--out-is-inner": str(body), "--out-not-fmu": str(tmp_path / "System.zip")}.get(args[0],
+                                                                                         str(tmp_path / "S.fmu"))
+    before = {p: p.read_bytes() for p in tmp_path.iterdir()}
+    extra = args if args[0] == "--name" else []
+    assert main(["export-fmu", str(sc), "--out", out, *extra]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("wmr-cosim: error: ") and "\n" not in err, err
+    assert {p: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
+def test_our_c_plant_alone_in_the_container_equals_the_run(tmp_path: Path) -> None:
+    """WmrCPlant by its model name: its open inputs the container's, its recorded outputs equal to the run's."""
+    doc = {"instances": {"plant": {"fmu": "WmrCPlant"}}, "experiment": {"stop": 0.5, "step": STEP}}
+    fmu = export(doc, tmp_path)
+    ref = run(doc, tmp_path)
+    assert len(ref.dtype.names) > 2
+    import fmpy
+
+    assert_equal(fmpy.simulate_fmu(str(fmu), stop_time=0.5, output_interval=STEP), ref)

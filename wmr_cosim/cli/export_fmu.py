@@ -1,0 +1,48 @@
+"""``wmr-cosim export-fmu``: a scenario's system as one FMI 2.0 co-simulation FMU (a container)."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from ..cosim import file_kind, FileKind
+from ..exit_codes import OK as EXIT_OK
+from ..scenario_files import scenario_path
+from . import options
+from .options import UsageError
+
+
+def add_parser(sub: Any, name: str) -> None:
+    """The command ``export-fmu`` (``name``) and its options."""
+    e = sub.add_parser(name, help="write a scenario's system as one FMI 2.0 co-simulation FMU",
+                       description="Write a scenario's system as one FMI 2.0 co-simulation FMU (linux64) that any FMI "
+                                   "host runs: the scenario's FMUs under its resources, their connections with the "
+                                   "unit conversions, factors and offsets, the parameters and start values, and the "
+                                   "master's own compiled loop (Gauss-Seidel or Jacobi at the scenario's step) as its "
+                                   "runtime, so that its outputs equal `wmr-cosim run` of the scenario bit for bit. "
+                                   "Its variables: the recorded outputs (Real), the open Real inputs and the inner "
+                                   "FMUs' Real parameters, named instance.variable. What it cannot hold yet (FMI 3.0, "
+                                   "Model Exchange, pythonfmu FMUs, other algorithms or rates, events, input tables, "
+                                   "requirements, non-Real recorded outputs or connections) is refused, nothing "
+                                   "written (docs/export-fmu.md).")
+    e.add_argument("scenario", type=scenario_path, help="scenario file (.toml)")
+    e.add_argument("--out", type=Path, required=True, metavar="FILE.fmu", help="the FMU to write")
+    e.add_argument("--name", default=None, metavar="NAME",
+                   help="its model name and identifier, a C name (default: the scenario file's name)")
+    options.set_option(e)
+    e.set_defaults(func=cmd_export_fmu, subparser=e)
+
+
+def cmd_export_fmu(args: argparse.Namespace) -> int:
+    """Write a scenario's system as one FMI 2.0 co-simulation FMU."""
+    from ..cosim import export_fmu
+    from ..runner import load_plan, parse_set
+
+    if file_kind(args.out) is not FileKind.FMU:
+        raise UsageError(f"--out {str(args.out)!r}: an FMU's name ends in .fmu")
+    if file_kind(args.scenario) is not FileKind.SCENARIO:
+        raise UsageError(f"{args.scenario}: export-fmu takes a scenario file (.toml)")
+    plan = load_plan(args.scenario, parse_set(args.set), limits=args.limits)
+    out = export_fmu(plan, args.out, args.name)
+    print(f"{args.scenario}: written {out}")
+    return EXIT_OK
