@@ -174,7 +174,16 @@ REFUSALS: dict[str, Any] = {
         doc["instances"].update(ft={"fmu": str(REF / "fmi2" / "Feedthrough.fmu")}),
         doc["record"]["variables"].append("ft.Int32_output")),
     "an output name twice": lambda doc, m, d: doc["record"]["variables"].append("body.m1"),
+    "a stop off the step's grid": lambda doc, m, d: doc["experiment"].update(stop=doc["experiment"]["stop"] + STEP / 2),
 }
+
+
+#: The field each refusal names.
+REFUSED_AT = {"iterated": "experiment.algorithm", "multi-rate": "instances.coupler", "events": "events",
+              "requirements": "requirements", "fmi3": "instances.ref", "model exchange": "instances.ref",
+              "pythonfmu": "instances.sensor", "no linux64 binary": "instances.body.fmu",
+              "a non-Real output": "record", "an output name twice": "record",
+              "a stop off the step's grid": "experiment.stop"}
 
 
 @pytest.mark.parametrize("case", list(REFUSALS))
@@ -187,6 +196,7 @@ def test_what_the_container_cannot_hold_is_refused_in_one_line(case: str, mass: 
     assert main(["export-fmu", str(sc), "--out", str(tmp_path / "System.fmu")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("wmr-cosim: error: ") and "\n" not in err, err
+    assert f"system.toml: {REFUSED_AT[case]}: " in err, err   # the field that holds what cannot go
     assert sorted(tmp_path.iterdir()) == before
 
 

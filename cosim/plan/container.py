@@ -75,6 +75,9 @@ def refuse(plan: Plan, out: Path, name: str) -> None:
         no("experiment.algorithm", f"{sc.algorithm!r} (only gauss-seidel and jacobi at one rate)")
     for n, ip in plan.instances.items():
         _refuse_instance(plan, n, ip, out, no)
+    if plan.last_step is not None:   # a host steps the container by whole steps of the scenario's
+        no("experiment.stop", f"stop = {sc.stop!r} s is not on the grid of step = {sc.step!r} s (the run's last step "
+                              f"is {plan.last_step!r} s; the container takes whole steps)")
     if plan.events or plan.conditions:
         no("events", "events (timed or on conditions)")
     if plan.inputs:
