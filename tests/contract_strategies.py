@@ -515,6 +515,8 @@ def _base_argv(draw: Any, command: str, file: str) -> list[str]:
         argv += ["--out", "out", "--quiet"]
     elif command == "export-ssp":
         argv += ["--out", "s.ssp"]
+    elif command == "export-fmu":
+        argv += ["--out", "s.fmu"]
     return argv
 
 

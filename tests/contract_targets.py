@@ -41,6 +41,8 @@ TARGETS: dict[str, Target] = {
     "conditions-run-broken": Target(lambda: cs.condition_cases("run"), 5),
     "export-ssp": Target(lambda: cs.scenario_cases(False, "export-ssp"), 5),
     "export-ssp-broken": Target(lambda: cs.scenario_cases(True, "export-ssp"), 10),
+    "export-fmu": Target(lambda: cs.scenario_cases(False, "export-fmu"), 5, timeout=60.0),
+    "export-fmu-broken": Target(lambda: cs.scenario_cases(True, "export-fmu"), 10, timeout=60.0),
     "cli-check": Target(lambda: cs.command_line_cases("check", True), 25),
     "cli-run": Target(lambda: cs.command_line_cases("run", True), 10),
     "cli-linearize": Target(lambda: cs.linearize_cases(False), 5, timeout=60.0),
