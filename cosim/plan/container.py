@@ -35,13 +35,20 @@ from .records import InstancePlan, Plan
 from .wiring import RowLayout, Wiring
 
 SOURCE = native.SOURCE.with_name("container.c")
-FORMAT = "wmr-container 1"   # the first line of system.txt (container.c's VERSION_TAG)
+FORMAT = "wmr-container 2"   # the first line of system.txt (container.c's VERSION_TAG)
+
+
+#: The FMI 2.0 types of the container's variables, and their letters in system.txt.
+TYPES = {"Real": "R", "Integer": "I", "Boolean": "B"}
 
 
 @dataclass
 class ContainerVar:
-    """One variable of the container: ``kind`` "o" (a recorded output: ``ref`` its row slot), "i" (an open
-    input) or "p" (a parameter; ``ref`` the inner FMU's value reference), ``inst`` its instance's index."""
+    """One variable of the container: ``kind`` "o" (a recorded output: ``ref`` its row slot for a Real, the
+    inner FMU's value reference for an Integer or a Boolean, read from it when the host asks), "i" (an open
+    input) or "p" (a parameter; ``ref`` the inner FMU's value reference), ``inst`` its instance's index,
+    ``type`` its FMI 2.0 type (a key of :data:`TYPES`), ``start`` its value as a float (an Integer's or a
+    Boolean's exactly: 0.0 or 1.0 for false or true)."""
 
     name: str
     kind: str
@@ -51,6 +58,7 @@ class ContainerVar:
     variability: str
     unit: str | None
     description: str
+    type: str = "Real"
 
 
 def _hex(text: str) -> str:
@@ -88,8 +96,8 @@ def refuse(plan: Plan, out: Path, name: str) -> None:
         if not c.is_float64:
             no("connections", f"{c.src}.{c.src_var.name} -> {c.dst}.{c.dst_var.name} is not Real to Real")
     for r in plan.record:
-        if r.var.type != "Real":
-            no("record", f"{r.column} is {r.var.fmi_type} (only Real outputs)")
+        if r.var.type not in TYPES:
+            no("record", f"{r.column} is {r.var.fmi_type} (only Real, Integer and Boolean outputs)")
 
 
 def _refuse_instance(plan: Plan, n: str, ip: InstancePlan, out: Path, no: Any) -> None:
@@ -98,8 +106,6 @@ def _refuse_instance(plan: Plan, n: str, ip: InstancePlan, out: Path, no: Any) -
         no(where, f"{ip.model.path.name} is an FMI {ip.model.fmi}.0 FMU (only FMI 2.0)")
     if ip.interface != CO_SIMULATION:
         no(where, f"{ip.model.path.name} runs as Model Exchange (only co-simulation)")
-    if (ip.model.md.generationTool or "").lower().startswith("pythonfmu"):
-        no(where, f"{ip.model.path.name} is a pythonfmu FMU (only FMUs with a C binary)")
     if ip.decimation != 1:
         no(where, "an instance at its own rate (only one rate)")
     binary = f"binaries/linux64/{ip.model.identifier}.so"
@@ -112,12 +118,15 @@ def _refuse_instance(plan: Plan, n: str, ip: InstancePlan, out: Path, no: Any) -
 
 
 def variables(plan: Plan, layout: RowLayout) -> list[ContainerVar]:
-    """The container's variables: recorded outputs, then open inputs and Real parameters by instance (``inst``:
-    its index in the plan's order)."""
+    """The container's variables: recorded outputs, then open inputs and parameters (Real, Integer, Boolean) by
+    instance (``inst``: its index in the plan's order)."""
     cols = plan.columns()
-    out = [ContainerVar(r.column, "o", -1, layout.slot(r), 0.0,
+    index = {n: i for i, n in enumerate(plan.order)}
+    out = [ContainerVar(r.column, "o", -1 if r.var.type == "Real" else index[r.instance],
+                        layout.slot(r) if r.var.type == "Real" else r.var.vr, 0.0,
                         "continuous" if r.var.variability == "continuous" else "discrete", cols[r.column]["unit"],
-                        f"{r.instance}.{plan.instances[r.instance].our_name(r.var)} of {cols[r.column]['fmu']}")
+                        f"{r.instance}.{plan.instances[r.instance].our_name(r.var)} of {cols[r.column]['fmu']}",
+                        r.var.type)
            for r in plan.record]
     driven = {(c.dst, c.dst_var.name) for c in plan.connections}
     for i, n in enumerate(plan.order):
@@ -127,12 +136,13 @@ def variables(plan: Plan, layout: RowLayout) -> list[ContainerVar]:
             open_input = var.causality == "input" and (n, var.name) not in driven
             parameter = var.causality == "parameter" and var.variability in ("fixed", "tunable")
             value = given.get(var.name, var.start)
-            if var.type != "Real" or not (open_input or parameter) or value is None:
+            if var.type not in TYPES or not (open_input or parameter) or value is None:
                 continue
-            unit = var.unit.name if var.unit is not None else None
-            out.append(ContainerVar(f"{n}.{ip.our_name(var)}", "i" if open_input else "p", i, var.vr, float(value),
-                                    var.variability if parameter else "continuous", unit,
-                                    var.description or f"{var.name} of {ip.model.path.name}"))
+            unit = var.unit.name if var.type == "Real" and var.unit is not None else None
+            variability = var.variability if parameter else "continuous" if var.type == "Real" else "discrete"
+            out.append(ContainerVar(f"{n}.{ip.our_name(var)}", "i" if open_input else "p", i, var.vr,
+                                    float(value) if var.type == "Real" else float(int(value)), variability, unit,
+                                    var.description or f"{var.name} of {ip.model.path.name}", var.type))
     seen: dict[str, ContainerVar] = {}
     for v in out:
         if v.name in seen:
@@ -149,7 +159,7 @@ _A = {"o": "a recorded output", "i": "an open input", "p": "a parameter"}
 def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[ContainerVar],
                 dirs: dict[str, str]) -> str:
     """resources/system.txt (read by container.c)."""
-    index = {(v.inst, v.ref): j for j, v in enumerate(cvars) if v.kind != "o"}
+    index = {(v.inst, v.type, v.ref): j for j, v in enumerate(cvars) if v.kind != "o"}
     lines = [FORMAT, f"system {len(plan.order)} {layout.n_double} {int(plan.scenario.algorithm == JACOBI)} 1 "
                      f"{_num(plan.scenario.step or 0.0)} {len(cvars)}"]
     for i, n in enumerate(plan.order):
@@ -168,9 +178,10 @@ def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[Conta
                 raise CosimError(f"{n}: an input copy that does not read the row")
             lines.append(f"copy {c.pos} {layout.offset[src] + c.slot} {_num(c.factor)} {_num(c.offset)}")
         for var, value in params:
-            lines.append(f"param {_param(var, value)} {index.get((i, var.vr), -1)}")
+            lines.append(f"param {_param(var, value)} {index.get((i, var.type, var.vr), -1)}")
     for v in cvars:
-        lines.append(f"var {v.kind} {v.inst} {v.ref} {_num(v.start)} {int(v.variability == 'tunable' or v.kind == 'i')}")
+        lines.append(f"var {v.kind} {TYPES[v.type]} {v.inst} {v.ref} {_num(v.start)} "
+                     f"{int(v.variability == 'tunable' or v.kind == 'i')}")
     lines.append("end")
     return "\n".join(lines) + "\n"
 
@@ -185,18 +196,27 @@ def _param(var: Any, value: Any) -> str:
     return f"I {var.vr} {int(value)}"
 
 
+def _typed(v: ContainerVar) -> str:
+    """The attributes of a variable's type element: a Real's unit, the start value of an input or parameter."""
+    unit = f' unit={quoteattr(v.unit)}' if v.unit and v.type == "Real" else ""
+    if v.kind == "o":
+        return unit
+    start = repr(v.start) if v.type == "Real" else str(int(v.start)) if v.type == "Integer" else \
+        ("true" if v.start else "false")
+    return f'{unit} start="{start}"'
+
+
 def model_description(plan: Plan, name: str, guid: str, cvars: list[ContainerVar]) -> str:
     """The container's modelDescription.xml (FMI 2.0 co-simulation)."""
     sc = plan.scenario
-    units = sorted({v.unit for v in cvars if v.unit})
+    units = sorted({v.unit for v in cvars if v.unit and v.type == "Real"})
     rows = []
     for j, v in enumerate(cvars):
         causality = _KIND[v.kind]
         attrs = f'name={quoteattr(v.name)} valueReference="{j + 1}" causality="{causality}" ' \
                 f'variability="{v.variability}"' + (' initial="exact"' if v.kind == "p" else
                                                     ' initial="calculated"' if v.kind == "o" else "")
-        real = (f' unit={quoteattr(v.unit)}' if v.unit else "") + ("" if v.kind == "o" else f' start="{v.start!r}"')
-        rows.append(f'    <ScalarVariable {attrs} description={quoteattr(v.description)}><Real{real}/>'
+        rows.append(f'    <ScalarVariable {attrs} description={quoteattr(v.description)}><{v.type}{_typed(v)}/>'
                     "</ScalarVariable>")
     outs = "".join(f'<Unknown index="{j + 1}"/>' for j, v in enumerate(cvars) if v.kind == "o")
     unit_defs = ("  <UnitDefinitions>" + "".join(f"<Unit name={quoteattr(u)}/>" for u in units) +

@@ -48,9 +48,10 @@ typedef void (*free_t)(fmi2Component);
 typedef fmi2Status (*setup_t)(fmi2Component, fmi2Boolean, fmi2Real, fmi2Real, fmi2Boolean, fmi2Real);
 typedef fmi2Status (*mode_t_)(fmi2Component);
 typedef fmi2Status (*seti_t)(fmi2Component, const fmi2ValueReference *, size_t, const fmi2Integer *);
+typedef fmi2Status (*geti_t)(fmi2Component, const fmi2ValueReference *, size_t, fmi2Integer *);
 typedef fmi2Status (*sets_t)(fmi2Component, const fmi2ValueReference *, size_t, const fmi2String *);
 
-#define VERSION_TAG "wmr-container 1"
+#define VERSION_TAG "wmr-container 2"
 
 typedef struct { char type; unsigned vr; double r; int i; char *s; int var; } Param;
 
@@ -59,11 +60,13 @@ typedef struct {
     int tol_defined; double tol;
     void *dll; fmi2Component c;
     inst_t instantiate; free_t free_instance; setup_t setup; mode_t_ enter, exit_, terminate;
-    set2_t set_real; seti_t set_integer, set_boolean; sets_t set_string;
+    set2_t set_real; seti_t set_integer, set_boolean; sets_t set_string; geti_t get_integer, get_boolean;
     int n_params; Param *params;
 } Inner;
 
-typedef struct { char kind; int inst; unsigned ref; double value; int tunable; int set; } Var;
+/* a variable of the container: kind 'o' (a recorded output), 'i' (an open input) or 'p' (a parameter); type
+ * 'R', 'I' or 'B' (Real, Integer, Boolean); an Integer's or a Boolean's value held exactly as a double */
+typedef struct { char kind, type; int inst; unsigned ref; double value; int tunable; int set; } Var;
 
 typedef struct {
     const fmi2CallbackFunctions *cb;
@@ -172,9 +175,12 @@ static int read_system(Container *s, const char *path) {
     for (i = 0; i < s->n_vars; i++) {
         Var *v = &s->vars[i];
         expect(&r, "var");
-        v->kind = token(&r)[0]; v->inst = (int)num(&r); v->ref = (unsigned)num(&r); v->value = real(&r);
-        v->tunable = (int)num(&r);
-        if (v->kind == 'o' ? v->ref >= (unsigned)s->n_row : (v->inst < 0 || v->inst >= s->n)) r.bad = 1;
+        v->kind = token(&r)[0]; v->type = token(&r)[0]; v->inst = (int)num(&r); v->ref = (unsigned)num(&r);
+        v->value = real(&r); v->tunable = (int)num(&r);
+        if (!strchr("oip", v->kind) || !strchr("RIB", v->type)) r.bad = 1;
+        /* a Real output is a slot of the row; the others are read from their instance */
+        if (v->kind == 'o' && v->type == 'R' ? v->ref >= (unsigned)s->n_row : (v->inst < 0 || v->inst >= s->n))
+            r.bad = 1;
     }
     expect(&r, "end");
     ok = !r.bad;
@@ -227,7 +233,7 @@ static int load_inner(Container *s, Inner *q, Inst *p, const char *res, fmi2Bool
     SYM(q, setup, "fmi2SetupExperiment") SYM(q, enter, "fmi2EnterInitializationMode")
     SYM(q, exit_, "fmi2ExitInitializationMode") SYM(q, terminate, "fmi2Terminate")
     SYM(q, set_real, "fmi2SetReal") SYM(q, set_integer, "fmi2SetInteger") SYM(q, set_boolean, "fmi2SetBoolean")
-    SYM(q, set_string, "fmi2SetString")
+    SYM(q, set_string, "fmi2SetString") SYM(q, get_integer, "fmi2GetInteger") SYM(q, get_boolean, "fmi2GetBoolean")
     SYM(p, step, "fmi2DoStep") SYM(p, get, "fmi2GetReal")
     p->set = (void *)q->set_real;
     where = malloc(strlen(res) + strlen(q->dir) + 16);
@@ -299,12 +305,19 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tol_defined, fmi2Rea
     return fmi2OK;
 }
 
+/* a value of type 'R', 'I' or 'B' (held as a double) to value reference vr of the inner FMU q */
+static int set_value(Inner *q, char type, unsigned vr, double value) {
+    fmi2Integer i = (fmi2Integer)value;
+    if (type == 'R') return q->set_real(q->c, &vr, 1, &value);
+    if (type == 'B') return q->set_boolean(q->c, &vr, 1, &i);
+    return q->set_integer(q->c, &vr, 1, &i);
+}
+
+/* a parameter or start value the scenario sets (the host's value where it set that variable) */
 static int set_param(Container *s, Inner *q, Param *a) {
-    double r = a->var >= 0 ? s->vars[a->var].value : a->r;
-    if (a->type == 'R') return q->set_real(q->c, &a->vr, 1, &r);
     if (a->type == 'S') { fmi2String v = a->s; return q->set_string(q->c, &a->vr, 1, &v); }
-    if (a->type == 'B') return q->set_boolean(q->c, &a->vr, 1, &a->i);
-    return q->set_integer(q->c, &a->vr, 1, &a->i);
+    if (a->var >= 0 && s->vars[a->var].set) return set_value(q, a->type, a->vr, s->vars[a->var].value);
+    return set_value(q, a->type, a->vr, a->type == 'R' ? a->r : (double)a->i);
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
@@ -324,7 +337,7 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
             int k, listed = 0;
             if (v->kind == 'o' || v->inst != i || !v->set) continue;
             for (k = 0; k < q->n_params; k++) listed |= q->params[k].var == j;
-            if (!listed && (st = q->set_real(q->c, &v->ref, 1, &v->value)))
+            if (!listed && (st = set_value(q, v->type, v->ref, v->value)))
                 { say(s, fmi2Error, "%s: setting value reference %u returned %d", q->name, v->ref, st); return fmi2Error; }
         }
     }
@@ -412,35 +425,81 @@ fmi2Status fmi2Reset(fmi2Component c) {
     return fmi2Error;
 }
 
+/* the container's variable vr of the type the host asks for (NULL, said, where it has none) */
+static Var *variable(Container *s, fmi2ValueReference vr, char type) {
+    static const char *names[] = {"Real", "Integer", "Boolean"};
+    if (vr < 1 || vr > (unsigned)s->n_vars || s->vars[vr - 1].type != type) {
+        say(s, fmi2Error, "no %s variable %u", names[type == 'R' ? 0 : type == 'I' ? 1 : 2], vr);
+        return NULL;
+    }
+    return &s->vars[vr - 1];
+}
+
+/* an Integer or Boolean output, read from its instance when the host asks (as the master's recording reads
+ * them after the step) */
+static fmi2Status get_from_inner(Container *s, Var *v, fmi2Integer *out) {
+    Inner *q = &s->inner[v->inst];
+    int st = (v->type == 'I' ? q->get_integer : q->get_boolean)(q->c, &v->ref, 1, out);
+    if (st) say(s, fmi2Error, "%s: fmi2Get%s of value reference %u returned %d", q->name,
+                v->type == 'I' ? "Integer" : "Boolean", v->ref, st);
+    return (fmi2Status)st;
+}
+
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real value[]) {
     Container *s = c;
     size_t j;
     for (j = 0; j < n; j++) {
-        if (vr[j] < 1 || vr[j] > (unsigned)s->n_vars) { say(s, fmi2Error, "no Real variable %u", vr[j]); return fmi2Error; }
-        Var *v = &s->vars[vr[j] - 1];
+        Var *v = variable(s, vr[j], 'R');
+        if (!v) return fmi2Error;
         value[j] = v->kind == 'o' ? s->row[v->ref] : v->value;
     }
     return fmi2OK;
 }
 
-fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real value[]) {
-    Container *s = c;
+static fmi2Status get_ints(Container *s, const fmi2ValueReference vr[], size_t n, fmi2Integer value[], char type) {
     size_t j;
     for (j = 0; j < n; j++) {
-        Var *v;
-        if (vr[j] < 1 || vr[j] > (unsigned)s->n_vars || s->vars[vr[j] - 1].kind == 'o')
-            { say(s, fmi2Error, "variable %u cannot be set", vr[j]); return fmi2Error; }
-        v = &s->vars[vr[j] - 1];
+        Var *v = variable(s, vr[j], type);
+        fmi2Status st;
+        if (!v) return fmi2Error;
+        if (v->kind != 'o') value[j] = (fmi2Integer)v->value;
+        else if ((st = get_from_inner(s, v, &value[j]))) return st;
+    }
+    return fmi2OK;
+}
+
+/* n values of a type to the container's variables: kept for the set-up, passed at once to the inner FMU
+ * once it is in initialisation mode or after */
+static fmi2Status set_values(Container *s, const fmi2ValueReference vr[], size_t n, const double value[], char type) {
+    size_t j;
+    for (j = 0; j < n; j++) {
+        Var *v = variable(s, vr[j], type);
+        if (!v) return fmi2Error;
+        if (v->kind == 'o') { say(s, fmi2Error, "variable %u is an output: it cannot be set", vr[j]); return fmi2Error; }
         if (s->mode == 2 && v->kind == 'p' && !v->tunable)
             { say(s, fmi2Error, "variable %u is a fixed parameter: set it before initialisation", vr[j]); return fmi2Error; }
         v->value = value[j]; v->set = 1;
         if (s->mode >= 1) {
             Inner *q = &s->inner[v->inst];
-            int st = q->set_real(q->c, &v->ref, 1, &v->value);
-            if (st) { say(s, fmi2Error, "%s: fmi2SetReal returned %d", q->name, st); return (fmi2Status)st; }
+            int st = set_value(q, v->type, v->ref, v->value);
+            if (st) { say(s, fmi2Error, "%s: setting value reference %u returned %d", q->name, v->ref, st); return (fmi2Status)st; }
         }
     }
     return fmi2OK;
+}
+
+fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real value[]) {
+    return set_values(c, vr, n, value, 'R');
+}
+
+static fmi2Status set_ints(Container *s, const fmi2ValueReference vr[], size_t n, const fmi2Integer value[], char type) {
+    size_t j;
+    fmi2Status st = fmi2OK;
+    for (j = 0; j < n && st == fmi2OK; j++) {
+        double x = type == 'B' ? (double)(value[j] != 0) : (double)value[j];
+        st = set_values(s, &vr[j], 1, &x, type);
+    }
+    return st;
 }
 
 static fmi2Status none(fmi2Component c, size_t n, const char *what) {
@@ -448,11 +507,11 @@ static fmi2Status none(fmi2Component c, size_t n, const char *what) {
     say(c, fmi2Error, "this container has no %s variables", what);
     return fmi2Error;
 }
-fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[]) { (void)vr; (void)v; return none(c, n, "Integer"); }
-fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[]) { (void)vr; (void)v; return none(c, n, "Boolean"); }
+fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[]) { return get_ints(c, vr, n, v, 'I'); }
+fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[]) { return get_ints(c, vr, n, v, 'B'); }
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[]) { (void)vr; (void)v; return none(c, n, "String"); }
-fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer v[]) { (void)vr; (void)v; return none(c, n, "Integer"); }
-fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean v[]) { (void)vr; (void)v; return none(c, n, "Boolean"); }
+fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer v[]) { return set_ints(c, vr, n, v, 'I'); }
+fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean v[]) { return set_ints(c, vr, n, v, 'B'); }
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String v[]) { (void)vr; (void)v; return none(c, n, "String"); }
 
 static fmi2Status unsupported(fmi2Component c, const char *what) {
