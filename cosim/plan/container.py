@@ -5,10 +5,11 @@ variables), and a binary built from the master's own compiled loop (``stepping/c
 ``run`` of the plan gives, bit for bit.
 
 What this export takes (everything else is refused before anything is written, one line naming it): FMI 2.0
-co-simulation FMUs with a linux64 C binary (not pythonfmu), Gauss-Seidel or Jacobi at one rate, Real
-connections, recorded Real outputs, no events, input tables or requirements.  The container's variables:
-the recorded outputs (Real, named as their columns), the open Real inputs and the Real parameters of the
-inner FMUs (``instance.variable``, the scenario's value as start), in the plan's order.
+co-simulation FMUs with a linux64 binary (C, or pythonfmu's behind our loader, which finds its Python as
+when a host loads the FMU alone), Gauss-Seidel or Jacobi at one rate, Real connections, recorded Real,
+Integer and Boolean outputs, no events, input tables or requirements.  The container's variables: the
+recorded outputs (named as their columns), the open inputs and the parameters of the inner FMUs of type
+Real, Integer or Boolean (``instance.variable``, the scenario's value as start), in the plan's order.
 """
 from __future__ import annotations
 

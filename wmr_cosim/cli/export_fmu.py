@@ -20,11 +20,11 @@ def add_parser(sub: Any, name: str) -> None:
                                    "unit conversions, factors and offsets, the parameters and start values, and the "
                                    "master's own compiled loop (Gauss-Seidel or Jacobi at the scenario's step) as its "
                                    "runtime, so that its outputs equal `wmr-cosim run` of the scenario bit for bit. "
-                                   "Its variables: the recorded outputs (Real), the open Real inputs and the inner "
-                                   "FMUs' Real parameters, named instance.variable. What it cannot hold yet (FMI 3.0, "
-                                   "Model Exchange, pythonfmu FMUs, other algorithms or rates, events, input tables, "
-                                   "requirements, non-Real recorded outputs or connections) is refused, nothing "
-                                   "written (docs/export-fmu.md).")
+                                   "Its variables: the recorded outputs, the open inputs and the inner FMUs' "
+                                   "parameters (Real, Integer, Boolean), named instance.variable. What it cannot hold "
+                                   "yet (FMI 3.0, Model Exchange, other algorithms or rates, events, input tables, "
+                                   "requirements, non-Real connections, Enumeration or String outputs) is refused, "
+                                   "nothing written (docs/export-fmu.md).")
     e.add_argument("scenario", type=scenario_path, help="scenario file (.toml)")
     e.add_argument("--out", type=Path, required=True, metavar="FILE.fmu", help="the FMU to write")
     e.add_argument("--name", default=None, metavar="NAME",
