@@ -33,6 +33,14 @@ NAME:
             c_floor (benchmarks/floor_loop.c: the chain stepped by hand in C, the FMUs' own cost: the
             floor), floor_ratio (ours_loop / c_floor), ours_equals_fmpy_loop, ours_equals_python_loop,
             ours_equals_c_floor (bit for bit).
+    container  a chain of Reference C FMUs (Dahlquist -> Feedthrough -> Feedthrough, 1,000,000 steps of 0.1 ms)
+            exported as one FMU three ways, each run in FMPy's simulate_fmu (unpacked beforehand, 1,000 host
+            steps): ours (export-fmu, Gauss-Seidel and Jacobi), FMPy's container_fmu (patched around its bugs:
+            bench_container says how) and fmu-manipulation-toolbox's fmucontainer (sequential and parallel):
+            wall_s (median of --repeats interleaved runs), ours_to_* (our wall time over theirs, the same
+            algorithm; target <= 1), max_abs_diff (from `wmr-cosim run` of the scenario of the algorithm; ours
+            0.0), max_abs_diff_from_the_other_algorithm (what tells the algorithms apart), build_s,
+            validation_problems (fmpy.validation), ours_equal.
     interop the G1 learning system (Jacobi, exported as SSP with the signals the comparison needs) under our
             master and third-party masters, each in a fresh process as its users run it, with its defaults
             (tests/interop.py): peers = wall seconds per master (median of up to 3 runs; creating the
@@ -598,6 +606,230 @@ def bench_generic(repeats: int) -> dict[str, Any]:
             "ours_equals_fmpy_loop": bool(same), "ours_equals_python_loop": bool(same_python),
             "ours_equals_c_floor": bool(same_floor),
             "libcosim_steps": results["libcosim"]["steps"], "ecos_steps": results["ecos"]["steps"]}
+
+
+CONTAINER_STEPS = 1_000_000
+CONTAINER_H = 1e-4
+CONTAINER_EVERY = 1000     # the scenario's steps per step of the host
+#: The chain's recorded outputs and what fmucontainer names them (it exposes every linked output as a local
+#: variable named instance.variable, so an output of that name would be a second variable of one name).
+CONTAINER_OUTPUTS = {"d.x": "d_x", "f1.Float64_continuous_output": "f1_y", "f2.Float64_continuous_output": "f2_y"}
+
+
+def _container_scenario(tmp: str, algorithm: str) -> Any:
+    """Dahlquist (k = 0.5) -> Feedthrough -> Feedthrough (Reference FMUs, C, FMI 2.0), connections without a
+    factor or an offset (which neither of the other containers applies), CONTAINER_STEPS steps."""
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from reference_fmus import REF
+
+    ref = REF / "fmi2"
+    path = Path(tmp) / f"chain_{algorithm.replace('-', '_')}.toml"
+    path.write_text(f"""
+[experiment]
+stop = {CONTAINER_STEPS * CONTAINER_H!r}
+step = {CONTAINER_H!r}
+algorithm = "{algorithm}"
+[instances.d]
+fmu = "{ref / 'Dahlquist.fmu'}"
+parameters = {{ k = 0.5 }}
+[instances.f1]
+fmu = "{ref / 'Feedthrough.fmu'}"
+[instances.f2]
+fmu = "{ref / 'Feedthrough.fmu'}"
+[[connections]]
+from = "d.x"
+to = "f1.Float64_continuous_input"
+[[connections]]
+from = "f1.Float64_continuous_output"
+to = "f2.Float64_continuous_input"
+[record]
+variables = {list(CONTAINER_OUTPUTS)!r}
+csv = false
+""".replace("'", '"'))
+    return path
+
+
+def _fmpy_container(plan: Any, out: Any) -> Any:
+    """The chain through FMPy's ``fmpy.container_fmu``, serial (``parallelDoStep`` false, the components in the
+    plan's order; on this chain its results equal our Gauss-Seidel run's, measured), the FMI 2.0 container it
+    builds, patched around its bugs: its work folder made
+    before ``create_container_fmu`` deletes it (it deletes it unconditionally); the FMI 2 type name ``Real``
+    that it writes for connections (which its own runtime refuses: ``Float64`` expected) replaced in
+    resources/container.json and the FMU zipped again; ``ModelStructure`` filled (it writes none
+    otherwise); a variable ``time`` first, as its runtime reads value reference 0 as the time (value
+    reference k as the k-th variable of its configuration: without it every variable reads the one
+    before)."""
+    import json
+    import shutil
+    import uuid
+    from pathlib import Path
+
+    from fmpy import read_model_description
+    from fmpy.container_fmu import Configuration
+    from fmpy.container_fmu.cli import create_container_fmu
+    from fmpy.container_fmu.config import Component, Connection
+    from fmpy.model_description import CoSimulation, DefaultExperiment, ModelDescription, ModelVariable, Unknown
+
+    comps = {n: Component(name=n, filename=ip.model.path, modelDescription=read_model_description(str(ip.model.path)))
+             for n, ip in plan.instances.items()}
+
+    def var(inst: str, name: str) -> Any:
+        return next(v for v in comps[inst].modelDescription.modelVariables if v.name == name)
+
+    md = ModelDescription(fmiVersion="2.0", modelName="FmpyChain", instantiationToken="{" + str(uuid.uuid4()) + "}")
+    md.coSimulation = CoSimulation(modelIdentifier="container_fmu", fixedInternalStepSize=plan.scenario.step)
+    md.defaultExperiment = DefaultExperiment(startTime="0.0", stopTime=repr(plan.scenario.stop),
+                                             stepSize=repr(plan.scenario.step))
+    mappings: dict[Any, Any] = {}
+    params = []
+    for n, ip in plan.instances.items():
+        for v, value in ip.parameters:
+            p = ModelVariable(name=f"{n}.{v.name}", type="Real", causality="parameter", variability="fixed",
+                              initial="exact", start=repr(float(value)))
+            mappings[p] = [(comps[n], var(n, v.name))]
+            params.append(p)
+    outs = []
+    for column in CONTAINER_OUTPUTS:
+        inst, name = column.split(".", 1)
+        o = ModelVariable(name=column, type="Real", causality="output", variability="continuous", initial="calculated")
+        mappings[o] = [(comps[inst], var(inst, name))]
+        outs.append(o)
+    time = ModelVariable(name="time", type="Real", causality="independent", variability="continuous")
+    md.modelVariables = [time, *params, *outs]     # (patch: its runtime reads value reference 0 as the time)
+    md.outputs = [Unknown(index=len(params) + i + 2, variable=o, dependencies=[]) for i, o in enumerate(outs)]
+    md.initialUnknowns = list(md.outputs)
+    conns = [Connection(comps[c.src], [var(c.src, c.src_var.name)], comps[c.dst], [var(c.dst, c.dst_var.name)])
+             for c in plan.connections]
+    config = Configuration(parallelDoStep=False, modelDescription=md, components=list(comps.values()),
+                           connections=conns, variableMappings=mappings)
+    work = Path(out).with_suffix(".d")
+    work.mkdir()                              # (patch: it deletes the folder first)
+    create_container_fmu(config, work, Path(out))
+    cfg = work / "resources" / "container.json"
+    data = json.loads(cfg.read_text())
+    for c in data["connections"]:           # (patch: the FMI 3 type names its runtime reads)
+        c["variableType"] = {"Real": "Float64", "Integer": "Int32"}.get(c["variableType"], c["variableType"])
+    cfg.write_text(json.dumps(data, indent=4))
+    Path(out).unlink()
+    shutil.make_archive(str(work), "zip", work)
+    shutil.rmtree(work)
+    Path(str(work) + ".zip").replace(out)
+    return Path(out)
+
+
+def _fmucontainer(plan: Any, folder: Any, sequential: bool) -> Any:
+    """The chain through fmu-manipulation-toolbox's ``fmucontainer`` (its Python API, as its JSON input
+    describes a container): the FMUs in the plan's order (``sequential``: each stepped after the one before,
+    Gauss-Seidel; else on the outputs of the step before, Jacobi, in one thread), the parameters as start
+    values, the recorded outputs exposed under CONTAINER_OUTPUTS' names."""
+    import logging
+    import shutil
+    from pathlib import Path
+
+    from fmu_manipulation_toolbox.assembly import AssemblyNode
+
+    folder = Path(folder)
+    name = f"Fmt{'Sequential' if sequential else 'Parallel'}.fmu"
+    node = AssemblyNode(name, step_size=plan.scenario.step, sequential=sequential, auto_link=False, auto_input=False,
+                        auto_output=False, auto_parameter=False)
+    for n, ip in plan.instances.items():        # one file per instance: the instance takes the file's name
+        if not (folder / f"{n}.fmu").is_file():
+            shutil.copyfile(ip.model.path, folder / f"{n}.fmu")
+        node.add_fmu(f"{n}.fmu")
+        for v, value in ip.parameters:
+            node.add_start_value(f"{n}.fmu", v.name, repr(float(value)))
+    for c in plan.connections:
+        node.add_link(f"{c.src}.fmu", c.src_var.name, f"{c.dst}.fmu", c.dst_var.name)
+    for column, exposed in CONTAINER_OUTPUTS.items():
+        inst, var = column.split(".", 1)
+        node.add_output(f"{inst}.fmu", var, exposed)
+    logging.disable(logging.WARNING)            # (one line per unconnected port of the Reference FMUs)
+    try:
+        node.make_fmu(folder)
+    finally:
+        logging.disable(logging.NOTSET)
+    return folder / name
+
+
+def bench_container(repeats: int) -> dict[str, Any]:
+    """The chain of Reference C FMUs (Dahlquist -> Feedthrough -> Feedthrough, 1,000,000 steps of 0.1 ms)
+    exported as one FMU three ways and run in one host, FMPy's ``simulate_fmu`` (each FMU unpacked once
+    beforehand; its output interval 1,000 steps of the scenario's): ours (``export-fmu``; Gauss-Seidel and
+    Jacobi), FMPy's ``container_fmu`` (serial: Gauss-Seidel here; patched, see _fmpy_container) and
+    fmu-manipulation-toolbox's ``fmucontainer`` (sequential: Gauss-Seidel; parallel in one thread:
+    Jacobi).  wall_s: the median of interleaved runs of each (instantiation, initialisation, stepping and
+    the host's recording); max_abs_diff: each one's largest difference from ``wmr-cosim run`` of the scenario
+    of its algorithm, over every output at every host step (ours must be 0.0); ours_to_*: our wall time
+    over theirs, for the same algorithm (target <= 1)."""
+    import importlib.metadata
+    import tempfile
+    import time
+    from pathlib import Path
+
+    import numpy as np
+    from fmpy import extract, simulate_fmu
+    from fmpy.validation import validate_fmu
+
+    from wmr_cosim import cosim
+    from wmr_cosim.cli import main as cli
+
+    n = max(1, repeats)
+    algorithms = {"ours_gauss_seidel": "gauss-seidel", "ours_jacobi": "jacobi", "fmpy_container_fmu": "gauss-seidel",
+                  "fmucontainer_sequential": "gauss-seidel", "fmucontainer_parallel": "jacobi"}
+    with tempfile.TemporaryDirectory(prefix="wmr-bench-") as tmp:
+        work = Path(tmp)
+        refs, fmus, build_s = {}, {}, {}
+        for alg in ("gauss-seidel", "jacobi"):
+            sc = _container_scenario(tmp, alg)
+            with contextlib.redirect_stdout(sys.stderr):   # (the last line of stdout is the figures)
+                assert cli(["run", str(sc), "--out", str(work / f"run-{alg}"), "--quiet"]) == 0
+            refs[alg] = np.load(work / f"run-{alg}" / "signals.npy")[::CONTAINER_EVERY]
+            key = "ours_" + alg.replace("-", "_")
+            t0 = time.perf_counter()
+            with contextlib.redirect_stdout(sys.stderr):
+                assert cli(["export-fmu", str(sc), "--out", str(work / f"Ours_{key}.fmu")]) == 0
+            build_s[key] = time.perf_counter() - t0
+            fmus[key] = work / f"Ours_{key}.fmu"
+        plan = cosim.resolve(cosim.load(_container_scenario(tmp, "jacobi")))
+        t0 = time.perf_counter()
+        fmus["fmpy_container_fmu"] = _fmpy_container(plan, work / "FmpyChain.fmu")
+        build_s["fmpy_container_fmu"] = time.perf_counter() - t0
+        (work / "fmt").mkdir()
+        for seq in (True, False):
+            key = "fmucontainer_sequential" if seq else "fmucontainer_parallel"
+            t0 = time.perf_counter()
+            fmus[key] = _fmucontainer(plan, work / "fmt", seq)
+            build_s[key] = time.perf_counter() - t0
+        problems = {k: len(validate_fmu(str(f))) for k, f in fmus.items()}
+        dirs = {k: extract(str(f), unzipdir=str(work / f"x-{k}")) for k, f in fmus.items()}
+        walls: dict[str, list[float]] = {k: [] for k in fmus}
+        diffs: dict[str, float] = {}
+        stop, interval = CONTAINER_STEPS * CONTAINER_H, CONTAINER_EVERY * CONTAINER_H
+        for _ in range(n):   # interleaved, so that a slow phase of the machine hits every container alike
+            for key, d in dirs.items():
+                t0 = time.perf_counter()
+                res = simulate_fmu(d, stop_time=stop, output_interval=interval)
+                walls[key].append(time.perf_counter() - t0)
+                for alg, ref in refs.items():
+                    assert len(res) == len(ref), (key, len(res), len(ref))
+                    diffs.setdefault(alg, {})[key] = max(float(np.max(np.abs(
+                        res[col if key.startswith(("ours", "fmpy")) else CONTAINER_OUTPUTS[col]] - ref[col])))
+                        for col in CONTAINER_OUTPUTS)
+    wall = {k: round(statistics.median(v), 4) for k, v in walls.items()}
+    ratios = {"ours_to_fmpy_container_fmu": wall["ours_gauss_seidel"] / wall["fmpy_container_fmu"],
+              "ours_to_fmucontainer_sequential": wall["ours_gauss_seidel"] / wall["fmucontainer_sequential"],
+              "ours_to_fmucontainer_parallel": wall["ours_jacobi"] / wall["fmucontainer_parallel"]}
+    other = {"gauss-seidel": "jacobi", "jacobi": "gauss-seidel"}
+    return {"steps": CONTAINER_STEPS, "host_steps": CONTAINER_STEPS // CONTAINER_EVERY, "repeats": n,
+            "wall_s": wall, **{k: round(v, 3) for k, v in ratios.items()},
+            "max_abs_diff": {k: diffs[alg][k] for k, alg in algorithms.items()},
+            "max_abs_diff_from_the_other_algorithm": {k: diffs[other[alg]][k] for k, alg in algorithms.items()},
+            "algorithm": algorithms, "build_s": {k: round(v, 3) for k, v in build_s.items()},
+            "validation_problems": problems,
+            "ours_equal": diffs["gauss-seidel"]["ours_gauss_seidel"] == 0.0 and diffs["jacobi"]["ours_jacobi"] == 0.0,
+            "versions": {d: importlib.metadata.version(d) for d in ("fmpy", "fmu-manipulation-toolbox")}}
 
 
 def bench_archive(repeats: int) -> dict[str, float]:
@@ -1181,7 +1413,7 @@ def bench_contract(repeats: int) -> dict[str, Any]:
     return contract.run(OPTIONS.get("budget") or 600.0, OPTIONS.get("targets"))
 
 
-BENCHES = {"generic": bench_generic, "loop": bench_loop_all, "fmi3": bench_fmi3, "paper": bench_paper,
+BENCHES = {"generic": bench_generic, "container": bench_container, "loop": bench_loop_all, "fmi3": bench_fmi3, "paper": bench_paper,
            "sweep": bench_sweep, "interop": bench_interop, "archive": bench_archive, "binary": bench_binary,
            "loader": bench_loader,
            "isolation": bench_isolation, "scripting": bench_scripting, "mutation": bench_mutation,

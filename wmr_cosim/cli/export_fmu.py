@@ -25,10 +25,10 @@ def add_parser(sub: Any, name: str) -> None:
                                    "yet (FMI 3.0, Model Exchange, other algorithms or rates, events, input tables, "
                                    "requirements, non-Real connections, Enumeration or String outputs) is refused, "
                                    "nothing written (docs/export-fmu.md).")
-    e.add_argument("scenario", type=scenario_path, help="scenario file (.toml)")
+    e.add_argument("scenario", type=scenario_path, help="scenario file (.toml) or SSP archive (.ssp)")
     e.add_argument("--out", type=Path, required=True, metavar="FILE.fmu", help="the FMU to write")
     e.add_argument("--name", default=None, metavar="NAME",
-                   help="its model name and identifier, a C name (default: the scenario file's name)")
+                   help="its model name and identifier, a C name (default: the scenario's or archive's file name)")
     options.set_option(e)
     e.set_defaults(func=cmd_export_fmu, subparser=e)
 
@@ -36,13 +36,17 @@ def add_parser(sub: Any, name: str) -> None:
 def cmd_export_fmu(args: argparse.Namespace) -> int:
     """Write a scenario's system as one FMI 2.0 co-simulation FMU."""
     from ..cosim import export_fmu
-    from ..runner import load_plan, parse_set
+    from ..runner import load_plan, parse_set, ssp_plan
 
     if file_kind(args.out) is not FileKind.FMU:
         raise UsageError(f"--out {str(args.out)!r}: an FMU's name ends in .fmu")
-    if file_kind(args.scenario) is not FileKind.SCENARIO:
-        raise UsageError(f"{args.scenario}: export-fmu takes a scenario file (.toml)")
-    plan = load_plan(args.scenario, parse_set(args.set), limits=args.limits)
-    out = export_fmu(plan, args.out, args.name)
+    kind = file_kind(args.scenario)
+    if kind is FileKind.SSP:   # (its FMUs extracted for the time of the export)
+        with ssp_plan(args.scenario, parse_set(args.set), limits=args.limits) as plan:
+            out = export_fmu(plan, args.out, args.name)
+    elif kind is FileKind.SCENARIO:
+        out = export_fmu(load_plan(args.scenario, parse_set(args.set), limits=args.limits), args.out, args.name)
+    else:
+        raise UsageError(f"{args.scenario}: export-fmu takes a scenario file (.toml) or an SSP archive (.ssp)")
     print(f"{args.scenario}: written {out}")
     return EXIT_OK
