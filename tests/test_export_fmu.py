@@ -53,7 +53,7 @@ def run(doc: dict[str, Any], folder: Path, *extra: str) -> np.ndarray:
 def in_fmpy(fmu: Path, **kw: Any) -> np.ndarray:
     import fmpy
 
-    return fmpy.simulate_fmu(str(fmu), stop_time=STOP, output_interval=STEP, **kw)
+    return fmpy.simulate_fmu(str(fmu), **{"stop_time": STOP, "output_interval": STEP, **kw})
 
 
 def assert_equal(got: np.ndarray, ref: np.ndarray) -> None:
@@ -78,6 +78,29 @@ def test_the_container_in_fmpy_equals_the_run_bit_for_bit(algorithm: str, runs: 
     fmu, ref = runs[algorithm]
     assert len(ref) == round(STOP / STEP) + 1
     assert_equal(in_fmpy(fmu), ref)
+
+
+@pytest.fixture(scope="module")
+def rated(mass: tuple[Path, Path], tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, np.ndarray]]:
+    """The coupler at 4 times the base step (the master's multi-rate passes), each algorithm: FMU and run."""
+    out = {}
+    for alg in ("gauss-seidel", "jacobi"):
+        d = tmp_path_factory.mktemp(f"rated-{alg}")
+        doc = two_mass(mass, alg)
+        doc["instances"]["coupler"]["step"] = 4 * STEP
+        out[alg] = export(doc, d), run(doc, d)
+    return out
+
+
+@pytest.mark.parametrize("algorithm", ["gauss-seidel", "jacobi"])
+def test_an_instance_at_its_own_rate_in_fmpy_equals_the_run_bit_for_bit(algorithm: str, rated: Any,
+                                                                        runs: Any) -> None:
+    fmu, ref = rated[algorithm]
+    assert not np.array_equal(ref["coupler.F"], runs[algorithm][1]["coupler.F"])   # (the rate tells)
+    assert_equal(in_fmpy(fmu), ref)
+    # the host's steps spanning the slow instance's (and ending between its points)
+    assert_equal(in_fmpy(fmu, output_interval=4 * STEP), ref[::4])
+    assert_equal(in_fmpy(fmu, output_interval=2 * STEP), ref[::2])
 
 
 def test_gauss_seidel_and_jacobi_differ(runs: Any) -> None:
@@ -130,10 +153,11 @@ def test_open_inputs_are_the_containers_and_the_host_drives_them(tmp_path: Path)
     assert np.all(driven["b.Float64_continuous_output"][1:] == 11.0)
 
 
-def test_the_container_in_fmusim_equals_the_run(runs: Any, tmp_path: Path) -> None:
-    """fmusim (a C host), to the 16 digits it writes."""
+@pytest.mark.parametrize("rates", ["one rate", "own rates"])
+def test_the_container_in_fmusim_equals_the_run(rates: str, runs: Any, rated: Any, tmp_path: Path) -> None:
+    """fmusim (a C host), to the 16 digits it writes; the coupler at its own rate too."""
     fmusim = tool(FMUSIM)
-    fmu, ref = runs["gauss-seidel"]
+    fmu, ref = (runs if rates == "one rate" else rated)["gauss-seidel"]
     out = tmp_path / "fmusim.csv"
     p = subprocess.run([str(fmusim), "--interface-type", "cs", "--stop-time", repr(STOP), "--output-interval",
                         repr(STEP), "--output-file", str(out), str(fmu)], capture_output=True, text=True,
@@ -161,7 +185,6 @@ def _no_binary(mass: tuple[Path, Path], d: Path) -> Path:
 
 REFUSALS: dict[str, Any] = {
     "iterated": lambda doc, m, d: doc["experiment"].update(algorithm="iterated"),
-    "multi-rate": lambda doc, m, d: doc["instances"]["coupler"].update(step=2 * STEP),
     "events": lambda doc, m, d: doc.update(events=[{"time": 0.5, "variable": "body.F", "action": "override",
                                                    "value": 1.0}]),
     "requirements": lambda doc, m, d: doc.update(requirements=[{"name": "r", "formula": "always body.x < 10"}]),
@@ -178,7 +201,7 @@ REFUSALS: dict[str, Any] = {
 
 
 #: The field each refusal names.
-REFUSED_AT = {"iterated": "experiment.algorithm", "multi-rate": "instances.coupler", "events": "events",
+REFUSED_AT = {"iterated": "experiment.algorithm", "events": "events",
               "requirements": "requirements", "fmi3": "instances.ref", "model exchange": "instances.ref",
               "no linux64 binary": "instances.body.fmu",
               "a non-Real output": "record", "an output name twice": "record",

@@ -6,7 +6,7 @@ variables), and a binary built from the master's own compiled loop (``stepping/c
 
 What this export takes (everything else is refused before anything is written, one line naming it): FMI 2.0
 co-simulation FMUs with a linux64 binary (C, or pythonfmu's behind our loader, which finds its Python as
-when a host loads the FMU alone), Gauss-Seidel or Jacobi at one rate, Real connections, recorded Real,
+when a host loads the FMU alone), Gauss-Seidel or Jacobi (instances at their own rates too, as the master's multi-rate passes), Real connections, recorded Real,
 Integer and Boolean outputs, no events, input tables or requirements.  The container's variables: the
 recorded outputs (named as their columns), the open inputs and the parameters of the inner FMUs of type
 Real, Integer or Boolean (``instance.variable``, the scenario's value as start), in the plan's order.
@@ -36,7 +36,7 @@ from .records import InstancePlan, Plan
 from .wiring import RowLayout, Wiring
 
 SOURCE = native.SOURCE.with_name("container.c")
-FORMAT = "wmr-container 2"   # the first line of system.txt (container.c's VERSION_TAG)
+FORMAT = "wmr-container 3"   # the first line of system.txt (container.c's VERSION_TAG)
 
 
 #: The FMI 2.0 types of the container's variables, and their letters in system.txt.
@@ -81,7 +81,7 @@ def refuse(plan: Plan, out: Path, name: str) -> None:
     if sys.platform != "linux":
         raise CosimError("export-fmu builds the container's linux64 binary: run it on Linux")
     if sc.algorithm not in (GAUSS_SEIDEL, JACOBI):
-        no("experiment.algorithm", f"{sc.algorithm!r} (only gauss-seidel and jacobi at one rate)")
+        no("experiment.algorithm", f"{sc.algorithm!r} (only gauss-seidel and jacobi)")
     for n, ip in plan.instances.items():
         _refuse_instance(plan, n, ip, out, no)
     if plan.last_step is not None:   # a host steps the container by whole steps of the scenario's
@@ -107,8 +107,6 @@ def _refuse_instance(plan: Plan, n: str, ip: InstancePlan, out: Path, no: Any) -
         no(where, f"{ip.model.path.name} is an FMI {ip.model.fmi}.0 FMU (only FMI 2.0)")
     if ip.interface != CO_SIMULATION:
         no(where, f"{ip.model.path.name} runs as Model Exchange (only co-simulation)")
-    if ip.decimation != 1:
-        no(where, "an instance at its own rate (only one rate)")
     binary = f"binaries/linux64/{ip.model.identifier}.so"
     with zipfile.ZipFile(ip.model.path) as zf:
         if binary not in zf.namelist():
@@ -161,8 +159,9 @@ def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[Conta
                 dirs: dict[str, str]) -> str:
     """resources/system.txt (read by container.c)."""
     index = {(v.inst, v.type, v.ref): j for j, v in enumerate(cvars) if v.kind != "o"}
+    own_rates = any(plan.instances[n].decimation > 1 for n in plan.order)   # (the master's MultiRate)
     lines = [FORMAT, f"system {len(plan.order)} {layout.n_double} {int(plan.scenario.algorithm == JACOBI)} 1 "
-                     f"{_num(plan.scenario.step or 0.0)} {len(cvars)}"]
+                     f"{_num(plan.scenario.step or 0.0)} {len(cvars)} {int(own_rates)}"]
     for i, n in enumerate(plan.order):
         ip = plan.instances[n]
         copies = wiring.copies(n)
@@ -170,7 +169,7 @@ def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[Conta
         lines.append(" ".join(["inst", _hex(n), _hex(dirs[n]), _hex(ip.model.identifier), _hex(ip.model.md.guid),
                                str(int(ip.tolerance is not None)), _num(ip.tolerance or 0.0),
                                str(len(wiring.vrs[n])), str(len(layout.reals[n])), str(layout.offset[n]),
-                               str(len(copies)), str(len(params))]))
+                               str(len(copies)), str(len(params)), str(ip.decimation)]))
         lines.append(" ".join(str(vr) for vr in wiring.vrs[n]) or "")
         lines.append(" ".join(str(vr) for vr, _ in layout.reals[n]) or "")
         for c in copies:

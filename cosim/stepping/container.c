@@ -51,7 +51,7 @@ typedef fmi2Status (*seti_t)(fmi2Component, const fmi2ValueReference *, size_t, 
 typedef fmi2Status (*geti_t)(fmi2Component, const fmi2ValueReference *, size_t, fmi2Integer *);
 typedef fmi2Status (*sets_t)(fmi2Component, const fmi2ValueReference *, size_t, const fmi2String *);
 
-#define VERSION_TAG "wmr-container 2"
+#define VERSION_TAG "wmr-container 3"
 
 typedef struct { char type; unsigned vr; double r; int i; char *s; int var; } Param;
 
@@ -121,9 +121,10 @@ static int read_instance(Container *s, Reader *r, int i) {
     expect(r, "inst");
     q->name = text(r); q->dir = text(r); q->mi = text(r); q->guid = text(r);
     q->tol_defined = (int)num(r); q->tol = real(r);
-    p->abi = 2; p->raw_set = p->raw_step = p->raw_get = 1; p->no_set_prior = 1; p->dec = 1;
+    p->abi = 2; p->raw_set = p->raw_step = p->raw_get = 1; p->no_set_prior = 1;
     p->n_in = (size_t)num(r); p->n_out = (size_t)num(r); off = num(r); nc = num(r); q->n_params = (int)num(r);
-    if (r->bad || off < 0 || off + (long)p->n_out > s->n_row || nc < 0 || q->n_params < 0) return 0;
+    p->dec = num(r);   /* its decimation: it steps every dec base steps (Loop.multirate), as native.py sets it */
+    if (r->bad || p->dec < 1 || off < 0 || off + (long)p->n_out > s->n_row || nc < 0 || q->n_params < 0) return 0;
     p->in_vr = calloc(p->n_in + 1, sizeof(unsigned)); p->in_val = calloc(p->n_in + 1, sizeof(double));
     p->out_vr = calloc(p->n_out + 1, sizeof(unsigned)); p->out_val = s->row + off;
     for (j = 0; j < (long)p->n_in; j++) p->in_vr[j] = (unsigned)num(r);
@@ -167,6 +168,7 @@ static int read_system(Container *s, const char *path) {
     expect(&r, "system");
     s->n = (int)num(&r); s->n_row = num(&r); s->L.simultaneous = (int)num(&r); s->L.check_inputs = (int)num(&r);
     s->step = real(&r); s->n_vars = (int)num(&r);
+    s->L.multirate = (int)num(&r);   /* some instance at its own rate: the multi-rate passes, as native.py */
     if (r.bad || s->n < 1 || s->n_row < 1 || s->n_vars < 0 || !(s->step > 0)) goto done;
     s->row = calloc((size_t)s->n_row, sizeof(double));
     s->inner = calloc((size_t)s->n, sizeof(Inner)); s->insts = calloc((size_t)s->n, sizeof(Inst));
