@@ -4,6 +4,9 @@ variables), and a binary built from the master's own compiled loop (``stepping/c
 ``stepping/native_loop.c``) with the same compiler flags, so that a host running the container gets what
 ``run`` of the plan gives, bit for bit.
 
+Its binary is built for linux64, and for win64 (MinGW-w64, the same C: the inner FMUs' DLLs loaded with
+LoadLibrary) where the cross compiler is on PATH and every inner FMU has a win64 binary.
+
 What this export takes (everything else is refused before anything is written, one line naming it): FMI 2.0
 co-simulation FMUs with a linux64 binary (C, or pythonfmu's behind our loader, which finds its Python as
 when a host loads the FMU alone), Gauss-Seidel or Jacobi (instances at their own rates too, as the master's multi-rate passes), Real connections, recorded Real,
@@ -233,26 +236,73 @@ def model_description(plan: Plan, name: str, guid: str, cvars: list[ContainerVar
             "</fmiModelDescription>\n")
 
 
-def build_binary(guid: str, dest: Path) -> None:
-    """container.c (with native_loop.c) compiled with the compiled loop's flags into ``dest``."""
-    cc = os.environ.get("CC") or "cc"
+#: The platforms a container is built for: linux64 always, win64 where it can be (:func:`platforms`).
+PLATFORMS = ("linux64", "win64")
+#: win64: the MinGW-w64 cross compiler and the linker flags the project's other win64 binaries are built with
+#: (fmus/toolchain.py, which the master does not import: a DLL that imports KERNEL32 and msvcrt only).
+MINGW_CC = "x86_64-w64-mingw32-gcc"
+WIN64_LDFLAGS = ["-static-libgcc", "-s"]
+_LIB = {"linux64": "so", "win64": "dll"}
+
+
+def platforms(plan: Plan, asked: list[str] | None = None) -> tuple[list[str], str | None]:
+    """The platforms to build the container for, and a note saying why win64 is not among them (None where it
+    is, or where ``asked`` leaves it out).  ``asked`` None: linux64, and win64 where MinGW-w64 is on PATH and
+    every inner FMU has a win64 binary; else those named, refused (one line) where one cannot be built."""
+    want = list(PLATFORMS) if asked is None else asked
+    for p in want:
+        if p not in PLATFORMS:
+            raise ScenarioError(plan.scenario.file, "--platforms", f"{p!r}: the platforms are {', '.join(PLATFORMS)}")
+    if "linux64" not in want:
+        raise ScenarioError(plan.scenario.file, "--platforms", "linux64 is always built (the export runs on Linux)")
+    if "win64" not in want:
+        return ["linux64"], None
+    why = None
+    for n in plan.order:
+        ip = plan.instances[n]
+        binary = f"binaries/win64/{ip.model.identifier}.dll"
+        with zipfile.ZipFile(ip.model.path) as zf:
+            if binary not in zf.namelist():
+                why = f"instances.{n}: {ip.model.path.name} has no {binary}"
+                break
+    if why is None and shutil.which(MINGW_CC) is None:
+        why = f"no {MINGW_CC} on PATH (Debian: gcc-mingw-w64-x86-64)"
+    if why is None:
+        return ["linux64", "win64"], None
+    if asked is not None:
+        raise ScenarioError(plan.scenario.file, "--platforms", f"win64 cannot be built: {why}")
+    return ["linux64"], f"linux64 only, no win64 binary: {why}"
+
+
+def build_binary(guid: str, dest: Path, platform: str = "linux64") -> None:
+    """container.c (with native_loop.c) compiled with the compiled loop's flags into ``dest``: for linux64 by
+    the system's C compiler (``CC``, else cc), for win64 by MinGW-w64."""
+    cc = (os.environ.get("CC") or "cc") if platform == "linux64" else MINGW_CC
     path = shutil.which(cc)
     if path is None:
         raise CosimError(f"export-fmu needs a C compiler: no {cc} on PATH")
-    p = subprocess.run([path, *native.FLAGS, f'-DCONTAINER_GUID="{guid}"', str(SOURCE), "-o", str(dest), "-ldl",
-                        "-lm"], capture_output=True, text=True, timeout=300)
+    flags = native.FLAGS if platform == "linux64" else [f for f in native.FLAGS if f != "-fPIC"]
+    libs = ["-ldl", "-lm"] if platform == "linux64" else WIN64_LDFLAGS
+    p = subprocess.run([path, *flags, f'-DCONTAINER_GUID="{guid}"', str(SOURCE), "-o", str(dest), *libs],
+                       capture_output=True, text=True, timeout=300)
     if p.returncode:
         raise CosimError(f"the C compiler {path} failed on {SOURCE.name}: {p.stderr.strip()[:300]}")
 
 
-def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None) -> Path:
+def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None, *, platforms_asked: list[str] | None = None,
+               notes: list[str] | None = None) -> Path:
     """Write the resolved ``plan`` as one FMI 2.0 co-simulation FMU ``out`` (see the module); returns its path.
-    ``name``: its model name and identifier (default: the scenario file's stem, as a C name)."""
+    ``name``: its model name and identifier (default: the scenario file's stem, as a C name);
+    ``platforms_asked``: the platforms to build (default: each that can be, :func:`platforms`); ``notes``: a
+    list the note on a platform not built is appended to."""
     out = Path(out)
     if name is None:
         name = re.sub(r"\W", "_", Path(plan.scenario.file).stem) or "system"
         name = "_" + name if name[0].isdigit() else name
     refuse(plan, out, name)
+    built, note = platforms(plan, platforms_asked)
+    if note is not None and notes is not None:
+        notes.append(note)
     layout = RowLayout.of(plan)
     wiring = Wiring(plan, layout)
     cvars = variables(plan, layout)
@@ -263,8 +313,9 @@ def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None) -> P
         guid = "{" + str(uuid.UUID(hashlib.sha256((text + name).encode()).hexdigest()[:32])) + "}"
         (tmp / "resources" / "system.txt").write_text(text)
         (tmp / "modelDescription.xml").write_text(model_description(plan, name, guid, cvars))
-        (tmp / "binaries" / "linux64").mkdir(parents=True)
-        build_binary(guid, tmp / "binaries" / "linux64" / f"{name}.so")
+        for platform in built:
+            (tmp / "binaries" / platform).mkdir(parents=True)
+            build_binary(guid, tmp / "binaries" / platform / f"{name}.{_LIB[platform]}", platform)
         (tmp / "sources").mkdir()
         for src in (SOURCE, native.SOURCE):
             shutil.copyfile(src, tmp / "sources" / src.name)

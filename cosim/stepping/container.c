@@ -13,9 +13,28 @@
  * changes, each one out of initialisation mode, their outputs read; fmi2DoStep(t, n h) = wmr_loop over the
  * n steps of the grid from k = (t - t0) / h (the time of step k is t0 + k h, as the master's).
  * Numbers in system.txt are C99 hexadecimal floats (exact); strings are "x" followed by their bytes in hex. */
+#ifdef _WIN32
+/* win64 (MinGW-w64): the inner FMUs' DLLs by LoadLibrary; the loop's wall clock by the performance counter
+ * (native_loop.c's clock_gettime is in winpthreads, which a DLL of KERNEL32 and msvcrt alone does not have) */
+#include <windows.h>
+#include <time.h>
+static int wmr_clock_gettime(struct timespec *ts) {
+    LARGE_INTEGER n, f;
+    QueryPerformanceCounter(&n); QueryPerformanceFrequency(&f);
+    ts->tv_sec = (time_t)(n.QuadPart / f.QuadPart);
+    ts->tv_nsec = (long)((n.QuadPart % f.QuadPart) * 1000000000LL / f.QuadPart);
+    return 0;
+}
+#define clock_gettime(id, ts) wmr_clock_gettime(ts)
+#define PLATFORM "win64"
+#define LIB_EXT "dll"
+#else
+#include <dlfcn.h>
+#define PLATFORM "linux64"
+#define LIB_EXT "so"
+#endif
 #include "native_loop.c"
 
-#include <dlfcn.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -199,6 +218,9 @@ static char *decode_uri(const char *uri) {   /* file:///a%20b/ -> /a b/ */
     else if (!strncmp(p, "file:///", 8)) p += 7;
     else if (!strncmp(p, "file:/", 6)) p += 5;
     else { free(out); return NULL; }
+#ifdef _WIN32
+    if (p[0] == '/' && p[1] && p[2] == ':') p++;   /* file:///C:/a -> C:/a */
+#endif
     for (; *p; p++) {
         unsigned v;
         if (*p == '%' && sscanf(p + 1, "%2x", &v) == 1) { *o++ = (char)v; p += 2; }
@@ -211,9 +233,17 @@ static char *decode_uri(const char *uri) {   /* file:///a%20b/ -> /a b/ */
 static char *encode_uri(const char *path) {
     char *out = calloc(strlen(path) * 3 + 16, 1), *o = out;
     const char *p;
+#ifdef _WIN32
+    o += sprintf(o, "file:///");   /* file:///C:/a (a drive's colon kept, backslashes as slashes) */
+#else
     o += sprintf(o, "file://");
+#endif
     for (p = path; *p; p++) {
         unsigned char ch = (unsigned char)*p;
+#ifdef _WIN32
+        if (ch == '\\') ch = '/';
+        if (ch == ':' && p == path + 1) { *o++ = ':'; continue; }
+#endif
         if ((ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || strchr("/-._~", ch))
             *o++ = (char)ch;
         else o += sprintf(o, "%%%02X", ch);
@@ -221,15 +251,31 @@ static char *encode_uri(const char *path) {
     return out;
 }
 
+#ifdef _WIN32
+#define LOOKUP(dll, sym) GetProcAddress((HMODULE)(dll), sym)
+#define UNLOAD(dll) FreeLibrary((HMODULE)(dll))
+#else
+#define LOOKUP(dll, sym) dlsym(dll, sym)
+#define UNLOAD(dll) dlclose(dll)
+#endif
 #define SYM(q, field, sym) \
-    if (!((q)->field = (void *)dlsym(dll, sym))) { say(s, fmi2Error, "%s: %s not found", who, sym); return 0; }
+    if (!((q)->field = (void *)LOOKUP(dll, sym))) { say(s, fmi2Error, "%s: %s not found", who, sym); return 0; }
 
 static int load_inner(Container *s, Inner *q, Inst *p, const char *res, fmi2Boolean visible, fmi2Boolean logging) {
     char *lib = malloc(strlen(res) + strlen(q->dir) + strlen(q->mi) + 40), *where, *uri;
-    sprintf(lib, "%s/%s/binaries/linux64/%s.so", res, q->dir, q->mi);
+    sprintf(lib, "%s/%s/binaries/" PLATFORM "/%s." LIB_EXT, res, q->dir, q->mi);
+#ifdef _WIN32
+    /* (a full path with backslashes: the DLLs beside it are found first) */
+    for (where = lib; *where; where++) if (*where == '/') *where = '\\';
+    void *dll = q->dll = (void *)LoadLibraryExA(lib, NULL, LOAD_WITH_ALTERED_SEARCH_PATH);
+    const char *who = q->name;
+    if (!q->dll) { say(s, fmi2Error, "%s: LoadLibrary %s failed (error %lu)", q->name, lib, (unsigned long)GetLastError()); free(lib); return 0; }
+#else
+    /* (RTLD_DEEPBIND: FMUs exporting the same FMI names do not meet) */
     void *dll = q->dll = dlopen(lib, RTLD_NOW | RTLD_LOCAL | RTLD_DEEPBIND);
     const char *who = q->name;
     if (!q->dll) { say(s, fmi2Error, "%s: %s", q->name, dlerror()); free(lib); return 0; }
+#endif
     free(lib);
     SYM(q, instantiate, "fmi2Instantiate") SYM(q, free_instance, "fmi2FreeInstance")
     SYM(q, setup, "fmi2SetupExperiment") SYM(q, enter, "fmi2EnterInitializationMode")
@@ -255,7 +301,7 @@ static void free_container(Container *s) {
         Inner *q = &s->inner[i];
         Inst *p = &s->insts[i];
         if (q->c && q->free_instance) q->free_instance(q->c);
-        if (q->dll) dlclose(q->dll);
+        if (q->dll) UNLOAD(q->dll);
         free(q->name); free(q->dir); free(q->mi); free(q->guid);
         for (int j = 0; q->params && j < q->n_params; j++) free(q->params[j].s);
         free(q->params);

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -15,20 +16,25 @@ from .options import UsageError
 def add_parser(sub: Any, name: str) -> None:
     """The command ``export-fmu`` (``name``) and its options."""
     e = sub.add_parser(name, help="write a scenario's system as one FMI 2.0 co-simulation FMU",
-                       description="Write a scenario's system as one FMI 2.0 co-simulation FMU (linux64) that any FMI "
+                       description="Write a scenario's system as one FMI 2.0 co-simulation FMU (linux64, and win64 where "
+                                   "it can be built) that any FMI "
                                    "host runs: the scenario's FMUs under its resources, their connections with the "
                                    "unit conversions, factors and offsets, the parameters and start values, and the "
                                    "master's own compiled loop (Gauss-Seidel or Jacobi at the scenario's step) as its "
                                    "runtime, so that its outputs equal `wmr-cosim run` of the scenario bit for bit. "
                                    "Its variables: the recorded outputs, the open inputs and the inner FMUs' "
                                    "parameters (Real, Integer, Boolean), named instance.variable. What it cannot hold "
-                                   "yet (FMI 3.0, Model Exchange, other algorithms or rates, events, input tables, "
+                                   "yet (FMI 3.0, Model Exchange, other algorithms, events, input tables, "
                                    "requirements, non-Real connections, Enumeration or String outputs) is refused, "
                                    "nothing written (docs/export-fmu.md).")
     e.add_argument("scenario", type=scenario_path, help="scenario file (.toml) or SSP archive (.ssp)")
     e.add_argument("--out", type=Path, required=True, metavar="FILE.fmu", help="the FMU to write")
     e.add_argument("--name", default=None, metavar="NAME",
                    help="its model name and identifier, a C name (default: the scenario's or archive's file name)")
+    e.add_argument("--platforms", default=None, metavar="LIST",
+                   help="the container's binaries, comma-separated: linux64 (always) and win64 (MinGW-w64; every "
+                        "inner FMU needs a win64 binary). Default: linux64, and win64 where it can be built (a "
+                        "note says why not)")
     options.set_option(e)
     e.set_defaults(func=cmd_export_fmu, subparser=e)
 
@@ -41,12 +47,17 @@ def cmd_export_fmu(args: argparse.Namespace) -> int:
     if file_kind(args.out) is not FileKind.FMU:
         raise UsageError(f"--out {str(args.out)!r}: an FMU's name ends in .fmu")
     kind = file_kind(args.scenario)
+    asked = None if args.platforms is None else [p.strip() for p in args.platforms.split(",") if p.strip()]
+    notes: list[str] = []
     if kind is FileKind.SSP:   # (its FMUs extracted for the time of the export)
         with ssp_plan(args.scenario, parse_set(args.set), limits=args.limits) as plan:
-            out = export_fmu(plan, args.out, args.name)
+            out = export_fmu(plan, args.out, args.name, platforms_asked=asked, notes=notes)
     elif kind is FileKind.SCENARIO:
-        out = export_fmu(load_plan(args.scenario, parse_set(args.set), limits=args.limits), args.out, args.name)
+        out = export_fmu(load_plan(args.scenario, parse_set(args.set), limits=args.limits), args.out, args.name,
+                         platforms_asked=asked, notes=notes)
     else:
         raise UsageError(f"{args.scenario}: export-fmu takes a scenario file (.toml) or an SSP archive (.ssp)")
+    for note in notes:
+        print(f"wmr-cosim: note: {note}", file=sys.stderr)
     print(f"{args.scenario}: written {out}")
     return EXIT_OK
