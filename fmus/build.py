@@ -57,9 +57,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 try:
-    from .toolchain import MINGW_CC, WIN64_LDFLAGS
+    from ..cosim.stepping.native import MINGW_CC, WIN64_LDFLAGS
 except ImportError:   # run as a script (python fmus/build.py): from the installed package
-    from wmr_cosim.fmus.toolchain import MINGW_CC, WIN64_LDFLAGS
+    from wmr_cosim.cosim.stepping.native import MINGW_CC, WIN64_LDFLAGS
 
 _HERE = Path(__file__).resolve().parent
 

@@ -26,9 +26,9 @@ import zipfile
 from pathlib import Path
 
 try:
-    from .toolchain import MINGW_CC, MINGW_CXX, WIN64_LDFLAGS
+    from ..cosim.stepping.native import MINGW_CC, MINGW_CXX, WIN64_LDFLAGS
 except ImportError:   # run as a script (python fmus/cplant_build.py): from the installed package
-    from wmr_cosim.fmus.toolchain import MINGW_CC, MINGW_CXX, WIN64_LDFLAGS
+    from wmr_cosim.cosim.stepping.native import MINGW_CC, MINGW_CXX, WIN64_LDFLAGS
 
 _HERE = Path(__file__).resolve().parent
 SRC = _HERE / "c_plant"

@@ -238,10 +238,6 @@ def model_description(plan: Plan, name: str, guid: str, cvars: list[ContainerVar
 
 #: The platforms a container is built for: linux64 always, win64 where it can be (:func:`platforms`).
 PLATFORMS = ("linux64", "win64")
-#: win64: the MinGW-w64 cross compiler and the linker flags the project's other win64 binaries are built with
-#: (fmus/toolchain.py, which the master does not import: a DLL that imports KERNEL32 and msvcrt only).
-MINGW_CC = "x86_64-w64-mingw32-gcc"
-WIN64_LDFLAGS = ["-static-libgcc", "-s"]
 _LIB = {"linux64": "so", "win64": "dll"}
 
 
@@ -265,8 +261,8 @@ def platforms(plan: Plan, asked: list[str] | None = None) -> tuple[list[str], st
             if binary not in zf.namelist():
                 why = f"instances.{n}: {ip.model.path.name} has no {binary}"
                 break
-    if why is None and shutil.which(MINGW_CC) is None:
-        why = f"no {MINGW_CC} on PATH (Debian: gcc-mingw-w64-x86-64)"
+    if why is None and shutil.which(native.MINGW_CC) is None:
+        why = f"no {native.MINGW_CC} on PATH (Debian: gcc-mingw-w64-x86-64)"
     if why is None:
         return ["linux64", "win64"], None
     if asked is not None:
@@ -277,12 +273,12 @@ def platforms(plan: Plan, asked: list[str] | None = None) -> tuple[list[str], st
 def build_binary(guid: str, dest: Path, platform: str = "linux64") -> None:
     """container.c (with native_loop.c) compiled with the compiled loop's flags into ``dest``: for linux64 by
     the system's C compiler (``CC``, else cc), for win64 by MinGW-w64."""
-    cc = (os.environ.get("CC") or "cc") if platform == "linux64" else MINGW_CC
+    cc = (os.environ.get("CC") or "cc") if platform == "linux64" else native.MINGW_CC
     path = shutil.which(cc)
     if path is None:
         raise CosimError(f"export-fmu needs a C compiler: no {cc} on PATH")
     flags = native.FLAGS if platform == "linux64" else [f for f in native.FLAGS if f != "-fPIC"]
-    libs = ["-ldl", "-lm"] if platform == "linux64" else WIN64_LDFLAGS
+    libs = ["-ldl", "-lm"] if platform == "linux64" else native.WIN64_LDFLAGS.split()
     p = subprocess.run([path, *flags, f'-DCONTAINER_GUID="{guid}"', str(SOURCE), "-o", str(dest), *libs],
                        capture_output=True, text=True, timeout=300)
     if p.returncode:

@@ -32,6 +32,12 @@ from .algorithm import Clock, InstanceIO, NativeRecording, StepDone
 
 SOURCE = Path(__file__).with_name("native_loop.c")
 FLAGS = ["-O2", "-shared", "-fPIC", "-ffp-contract=off", "-fno-strict-aliasing"]
+#: The win64 toolchain every build of a Windows binary uses (the container's, plan/container.py; the FMUs',
+#: fmus/build.py and fmus/cplant_build.py): the MinGW-w64 cross compilers (the C one builds the DLLs; FMPy's
+#: CMake project also asks for a C++ one) and the linker flags (libgcc kept out of a DLL's imports: KERNEL32
+#: and msvcrt only; no symbols).
+MINGW_CC, MINGW_CXX = "x86_64-w64-mingw32-gcc", "x86_64-w64-mingw32-g++"
+WIN64_LDFLAGS = "-static-libgcc -s"
 #: What the loop names a run's stepping by (summary.json "stepping": "loop").
 NATIVE, PYTHON = "compiled (C)", "Python"
 _CALLS = {1: Call.TABLE_INPUTS, 2: Call.NON_FINITE_INPUT, 3: Call.SET_REAL, 4: Call.CONNECTION, 5: Call.DO_STEP,
