@@ -1,5 +1,5 @@
-"""The plan as one FMI 2.0 co-simulation FMU (a container): its FMUs unpacked under resources/, the system as
-data (resources/system.txt: the wiring the master's loop takes, parameters, start values, the container's
+"""The plan as one FMI 2.0 (or, ``fmi=3``, FMI 3.0) co-simulation FMU (a container): its FMUs unpacked under
+resources/, the system as data (resources/system.txt: the wiring the master's loop takes, parameters, start values, the container's
 variables), and a binary built from the master's own compiled loop (``stepping/container.c``, which includes
 ``stepping/native_loop.c``) with the same compiler flags, so that a host running the container gets what
 ``run`` of the plan gives, bit for bit.
@@ -10,6 +10,10 @@ when a host loads the FMU alone), Gauss-Seidel or Jacobi at one rate, Real conne
 Integer and Boolean outputs, no events, input tables or requirements.  The container's variables: the
 recorded outputs (named as their columns), the open inputs and the parameters of the inner FMUs of type
 Real, Integer or Boolean (``instance.variable``, the scenario's value as start), in the plan's order.
+
+The FMI 3.0 face (``stepping/container3.c`` around the same runtime, binaries/x86_64-linux): the same
+variables as Float64, Int32 and Boolean with the same value references, the GUID as instantiation token; the
+inner FMUs stay FMI 2.0.
 """
 from __future__ import annotations
 
@@ -36,11 +40,18 @@ from .records import InstancePlan, Plan
 from .wiring import RowLayout, Wiring
 
 SOURCE = native.SOURCE.with_name("container.c")
+SOURCE3 = native.SOURCE.with_name("container3.c")   # the FMI 3.0 face: includes container.c
+HEADERS3 = [native.SOURCE.parent / "fmi3" / h for h in ("fmi3Functions.h", "fmi3FunctionTypes.h",
+                                                           "fmi3PlatformTypes.h")]
 FORMAT = "wmr-container 2"   # the first line of system.txt (container.c's VERSION_TAG)
 
 
 #: The FMI 2.0 types of the container's variables, and their letters in system.txt.
 TYPES = {"Real": "R", "Integer": "I", "Boolean": "B"}
+#: Their FMI 3.0 types (the FMI 3.0 face of the container).
+TYPES3 = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
+#: The FMI versions the container can be written for, and its binary's folder in each.
+PLATFORM = {2: "linux64", 3: "x86_64-linux"}
 
 
 @dataclass
@@ -234,21 +245,56 @@ def model_description(plan: Plan, name: str, guid: str, cvars: list[ContainerVar
             "</fmiModelDescription>\n")
 
 
-def build_binary(guid: str, dest: Path) -> None:
-    """container.c (with native_loop.c) compiled with the compiled loop's flags into ``dest``."""
+def model_description3(plan: Plan, name: str, token: str, cvars: list[ContainerVar]) -> str:
+    """The container's modelDescription.xml as FMI 3.0 co-simulation (its variables Float64, Int32 and Boolean,
+    with the value references of the FMI 2.0 description, and time, the independent variable, at value
+    reference 0; ``token`` its instantiation token)."""
+    sc = plan.scenario
+    units = sorted({"s", *(v.unit for v in cvars if v.unit and v.type == "Real")})
+    rows = ['    <Float64 name="time" valueReference="0" causality="independent" variability="continuous" unit="s" '
+            'description="the time of the system"/>']
+    for j, v in enumerate(cvars):
+        attrs = f'name={quoteattr(v.name)} valueReference="{j + 1}" causality="{_KIND[v.kind]}" ' \
+                f'variability="{v.variability}"' + (' initial="exact"' if v.kind == "p" else
+                                                    ' initial="calculated"' if v.kind == "o" else "")
+        rows.append(f"    <{TYPES3[v.type]} {attrs} description={quoteattr(v.description)}{_typed(v)}/>")
+    outs = [j + 1 for j, v in enumerate(cvars) if v.kind == "o"]
+    structure = "".join(f'<Output valueReference="{r}"/>' for r in outs) + \
+        "".join(f'<InitialUnknown valueReference="{r}"/>' for r in outs)
+    unit_defs = ("  <UnitDefinitions>" + "".join(f"<Unit name={quoteattr(u)}/>" for u in units) +
+                 "</UnitDefinitions>\n") if units else ""
+    return (f'<?xml version="1.0" encoding="UTF-8"?>\n<fmiModelDescription fmiVersion="3.0" modelName={quoteattr(name)} '
+            f'instantiationToken="{token}" generationTool="wmr-cosim export-fmu" variableNamingConvention="flat"\n'
+            f'  description={quoteattr(f"the system of {Path(sc.file).name} as one FMU")}>\n'
+            f'  <CoSimulation modelIdentifier="{name}" canHandleVariableCommunicationStepSize="false" '
+            f'fixedInternalStepSize="{sc.step!r}"/>\n' + unit_defs +
+            '  <LogCategories><Category name="logEvents"/><Category name="logStatusError"/></LogCategories>\n'
+            f'  <DefaultExperiment startTime="{sc.start!r}" stopTime="{sc.stop!r}" stepSize="{sc.step!r}"/>\n'
+            "  <ModelVariables>\n" + "\n".join(rows) + "\n  </ModelVariables>\n"
+            f"  <ModelStructure>{structure}</ModelStructure>\n"
+            "</fmiModelDescription>\n")
+
+
+def build_binary(guid: str, dest: Path, fmi: int = 2) -> None:
+    """container.c (with native_loop.c; for ``fmi`` 3, container3.c around it) compiled with the compiled
+    loop's flags into ``dest``."""
     cc = os.environ.get("CC") or "cc"
     path = shutil.which(cc)
     if path is None:
         raise CosimError(f"export-fmu needs a C compiler: no {cc} on PATH")
-    p = subprocess.run([path, *native.FLAGS, f'-DCONTAINER_GUID="{guid}"', str(SOURCE), "-o", str(dest), "-ldl",
+    source = SOURCE3 if fmi == 3 else SOURCE
+    p = subprocess.run([path, *native.FLAGS, f'-DCONTAINER_GUID="{guid}"', str(source), "-o", str(dest), "-ldl",
                         "-lm"], capture_output=True, text=True, timeout=300)
     if p.returncode:
-        raise CosimError(f"the C compiler {path} failed on {SOURCE.name}: {p.stderr.strip()[:300]}")
+        raise CosimError(f"the C compiler {path} failed on {source.name}: {p.stderr.strip()[:300]}")
 
 
-def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None) -> Path:
-    """Write the resolved ``plan`` as one FMI 2.0 co-simulation FMU ``out`` (see the module); returns its path.
-    ``name``: its model name and identifier (default: the scenario file's stem, as a C name)."""
+def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None, fmi: int = 2) -> Path:
+    """Write the resolved ``plan`` as one co-simulation FMU ``out`` (see the module); returns its path.
+    ``name``: its model name and identifier (default: the scenario file's stem, as a C name); ``fmi``: the
+    FMI version of its interface, 2 or 3 (its inner FMUs stay FMI 2.0)."""
+    if fmi not in PLATFORM:
+        raise CosimError(f"export-fmu writes an FMI 2.0 or 3.0 FMU, not FMI {fmi!r}")
     out = Path(out)
     if name is None:
         name = re.sub(r"\W", "_", Path(plan.scenario.file).stem) or "system"
@@ -263,12 +309,14 @@ def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None) -> P
         text = system_text(plan, layout, wiring, cvars, dirs)
         guid = "{" + str(uuid.UUID(hashlib.sha256((text + name).encode()).hexdigest()[:32])) + "}"
         (tmp / "resources" / "system.txt").write_text(text)
-        (tmp / "modelDescription.xml").write_text(model_description(plan, name, guid, cvars))
-        (tmp / "binaries" / "linux64").mkdir(parents=True)
-        build_binary(guid, tmp / "binaries" / "linux64" / f"{name}.so")
-        (tmp / "sources").mkdir()
-        for src in (SOURCE, native.SOURCE):
-            shutil.copyfile(src, tmp / "sources" / src.name)
+        describe = model_description3 if fmi == 3 else model_description
+        (tmp / "modelDescription.xml").write_text(describe(plan, name, guid, cvars))
+        (tmp / "binaries" / PLATFORM[fmi]).mkdir(parents=True)
+        build_binary(guid, tmp / "binaries" / PLATFORM[fmi] / f"{name}.so", fmi)
+        (tmp / "sources" / "fmi3").mkdir(parents=True)   # (the FMI 3.0 headers, for fmi 3)
+        for src in (SOURCE, native.SOURCE, *((SOURCE3, *HEADERS3) if fmi == 3 else ())):
+            dest = tmp / "sources" / (f"fmi3/{src.name}" if src in HEADERS3 else src.name)
+            shutil.copyfile(src, dest)
         out.parent.mkdir(parents=True, exist_ok=True)
         part = out.with_name(out.name + ".part")
         with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as zf:

@@ -15,20 +15,23 @@ from .options import UsageError
 def add_parser(sub: Any, name: str) -> None:
     """The command ``export-fmu`` (``name``) and its options."""
     e = sub.add_parser(name, help="write a scenario's system as one FMI 2.0 co-simulation FMU",
-                       description="Write a scenario's system as one FMI 2.0 co-simulation FMU (linux64) that any FMI "
-                                   "host runs: the scenario's FMUs under its resources, their connections with the "
-                                   "unit conversions, factors and offsets, the parameters and start values, and the "
-                                   "master's own compiled loop (Gauss-Seidel or Jacobi at the scenario's step) as its "
-                                   "runtime, so that its outputs equal `wmr-cosim run` of the scenario bit for bit. "
-                                   "Its variables: the recorded outputs, the open inputs and the inner FMUs' "
-                                   "parameters (Real, Integer, Boolean), named instance.variable. What it cannot hold "
-                                   "yet (FMI 3.0, Model Exchange, other algorithms or rates, events, input tables, "
-                                   "requirements, non-Real connections, Enumeration or String outputs) is refused, "
-                                   "nothing written (docs/export-fmu.md).")
+                       description="Write a scenario's system as one FMI 2.0 (--fmi 3: FMI 3.0) co-simulation FMU "
+                                   "(Linux x86-64) that any FMI host runs: the scenario's FMUs under its resources, "
+                                   "their connections with the unit conversions, factors and offsets, the parameters "
+                                   "and start values, and the master's own compiled loop (Gauss-Seidel or Jacobi at "
+                                   "the scenario's step) as its runtime, so that its outputs equal `wmr-cosim run` of "
+                                   "the scenario bit for bit. Its variables: the recorded outputs, the open inputs and "
+                                   "the inner FMUs' parameters (Real, Integer, Boolean), named instance.variable. "
+                                   "What it cannot hold yet (inner FMI 3.0 FMUs, Model Exchange, other algorithms or "
+                                   "rates, events, input tables, requirements, non-Real connections, Enumeration or "
+                                   "String outputs) is refused, nothing written (docs/export-fmu.md).")
     e.add_argument("scenario", type=scenario_path, help="scenario file (.toml) or SSP archive (.ssp)")
     e.add_argument("--out", type=Path, required=True, metavar="FILE.fmu", help="the FMU to write")
     e.add_argument("--name", default=None, metavar="NAME",
                    help="its model name and identifier, a C name (default: the scenario's or archive's file name)")
+    e.add_argument("--fmi", type=int, choices=(2, 3), default=2,
+                   help="the FMI version of the container's interface: 2 (default) or 3 (an FMI 3.0 co-simulation "
+                        "FMU; the FMUs inside stay FMI 2.0)")
     options.set_option(e)
     e.set_defaults(func=cmd_export_fmu, subparser=e)
 
@@ -43,9 +46,10 @@ def cmd_export_fmu(args: argparse.Namespace) -> int:
     kind = file_kind(args.scenario)
     if kind is FileKind.SSP:   # (its FMUs extracted for the time of the export)
         with ssp_plan(args.scenario, parse_set(args.set), limits=args.limits) as plan:
-            out = export_fmu(plan, args.out, args.name)
+            out = export_fmu(plan, args.out, args.name, args.fmi)
     elif kind is FileKind.SCENARIO:
-        out = export_fmu(load_plan(args.scenario, parse_set(args.set), limits=args.limits), args.out, args.name)
+        out = export_fmu(load_plan(args.scenario, parse_set(args.set), limits=args.limits), args.out, args.name,
+                         args.fmi)
     else:
         raise UsageError(f"{args.scenario}: export-fmu takes a scenario file (.toml) or an SSP archive (.ssp)")
     print(f"{args.scenario}: written {out}")
