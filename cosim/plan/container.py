@@ -251,8 +251,8 @@ def model_description3(plan: Plan, name: str, token: str, cvars: list[ContainerV
     reference 0; ``token`` its instantiation token)."""
     sc = plan.scenario
     units = sorted({"s", *(v.unit for v in cvars if v.unit and v.type == "Real")})
-    rows = ['    <Float64 name="time" valueReference="0" causality="independent" variability="continuous" unit="s" '
-            'description="the time of the system"/>']
+    rows = [('    <Float64 name="time" valueReference="0" causality="independent" variability="continuous" unit="s" '
+             'description="the time of the system"/>')]
     for j, v in enumerate(cvars):
         attrs = f'name={quoteattr(v.name)} valueReference="{j + 1}" causality="{_KIND[v.kind]}" ' \
                 f'variability="{v.variability}"' + (' initial="exact"' if v.kind == "p" else
@@ -284,7 +284,7 @@ def build_binary(guid: str, dest: Path, fmi: int = 2) -> None:
         raise CosimError(f"export-fmu needs a C compiler: no {cc} on PATH")
     source = SOURCE3 if fmi == 3 else SOURCE
     p = subprocess.run([path, *native.FLAGS, f'-DCONTAINER_GUID="{guid}"', str(source), "-o", str(dest), "-ldl",
-                        "-lm"], capture_output=True, text=True, timeout=300)
+                        "-lm"], capture_output=True, text=True, timeout=300, check=False)
     if p.returncode:
         raise CosimError(f"the C compiler {path} failed on {source.name}: {p.stderr.strip()[:300]}")
 
