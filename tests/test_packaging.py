@@ -282,6 +282,7 @@ def test_every_command_runs_its_smallest_case_from_the_installed_wheel(venv, tmp
     (work / "vdp.toml").write_text(f'[instances.vdp]\nfmu = "{REF / "fmi2" / "VanDerPol.fmu"}"\n'
                                    '[experiment]\nstop = 1.0\nstep = 0.01\n[record]\nvariables = ["vdp.x0"]\n')
     cli("export-fmu", "vdp.toml", "--out", "vdp.fmu")   # (the container's C source shipped beside the loop's)
+    cli("export-fmu", "vdp.toml", "--out", "vdp3.fmu", "--fmi", "3")   # (its FMI 3.0 face and the headers)
     plant = next((tmp_path / "cache" / "wmr-cosim" / "fmus").glob("WmrPlant.fmu"))
     assert "WmrPlant" in cli("info", str(plant))
     cli("sweep", "sweep.toml", "--out", "sweep", "--workers", "1", "--quiet")
@@ -290,6 +291,6 @@ def test_every_command_runs_its_smallest_case_from_the_installed_wheel(venv, tmp
     assert "eigenvalues" in cli("linearize", str(REF / "fmi2" / "VanDerPol.fmu"), "--at", "0", "--out", "lin")
     cli("paper", "--help")   # (the paper job itself: the test above)
     assert ran == set(COMMANDS)
-    assert (work / "short.png").is_file() and (work / "short.ssp").is_file() and (work / "vdp.fmu").is_file()
+    assert (work / "short.png").is_file() and (work / "short.ssp").is_file() and (work / "vdp3.fmu").is_file()
     assert (work / "sweep" / "results.csv").is_file() and (work / "falsify" / "falsify.json").is_file()
     assert (work / "gamma" / "gamma_search.json").is_file() and (work / "lin" / "linear.npz").is_file()

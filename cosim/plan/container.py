@@ -1,5 +1,5 @@
-"""The plan as one FMI 2.0 co-simulation FMU (a container): its FMUs unpacked under resources/, the system as
-data (resources/system.txt: the wiring the master's loop takes, parameters, start values, the container's
+"""The plan as one FMI 2.0 (or, ``fmi=3``, FMI 3.0) co-simulation FMU (a container): its FMUs unpacked under
+resources/, the system as data (resources/system.txt: the wiring the master's loop takes, parameters, start values, the container's
 variables), and a binary built from the master's own compiled loop (``stepping/container.c``, which includes
 ``stepping/native_loop.c``) with the same compiler flags, so that a host running the container gets what
 ``run`` of the plan gives, bit for bit.
@@ -13,6 +13,10 @@ when a host loads the FMU alone), Gauss-Seidel or Jacobi (instances at their own
 Integer and Boolean outputs, no events, input tables or requirements.  The container's variables: the
 recorded outputs (named as their columns), the open inputs and the parameters of the inner FMUs of type
 Real, Integer or Boolean (``instance.variable``, the scenario's value as start), in the plan's order.
+
+The FMI 3.0 face (``stepping/container3.c`` around the same runtime, binaries/x86_64-linux): the same
+variables as Float64, Int32 and Boolean with the same value references, the GUID as instantiation token; the
+inner FMUs stay FMI 2.0.
 """
 from __future__ import annotations
 
@@ -39,11 +43,20 @@ from .records import InstancePlan, Plan
 from .wiring import RowLayout, Wiring
 
 SOURCE = native.SOURCE.with_name("container.c")
+SOURCE3 = native.SOURCE.with_name("container3.c")   # the FMI 3.0 face: includes container.c
+HEADERS3 = [native.SOURCE.parent / "fmi3" / h for h in ("fmi3Functions.h", "fmi3FunctionTypes.h",
+                                                           "fmi3PlatformTypes.h")]
 FORMAT = "wmr-container 3"   # the first line of system.txt (container.c's VERSION_TAG)
 
 
 #: The FMI 2.0 types of the container's variables, and their letters in system.txt.
 TYPES = {"Real": "R", "Integer": "I", "Boolean": "B"}
+#: Their FMI 3.0 types (the FMI 3.0 face of the container).
+TYPES3 = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
+#: The FMI versions the container can be written for, and its binary's folder in each.
+PLATFORM = {2: "linux64", 3: "x86_64-linux"}
+#: The binaries' folder of each platform, by the FMI version of the container's face.
+PLATFORM_FOLDERS = {2: {"linux64": "linux64", "win64": "win64"}, 3: {"linux64": "x86_64-linux", "win64": "x86_64-windows"}}
 
 
 @dataclass
@@ -241,10 +254,11 @@ PLATFORMS = ("linux64", "win64")
 _LIB = {"linux64": "so", "win64": "dll"}
 
 
-def platforms(plan: Plan, asked: list[str] | None = None) -> tuple[list[str], str | None]:
+def platforms(plan: Plan, asked: list[str] | None = None, fmi: int = 2) -> tuple[list[str], str | None]:
     """The platforms to build the container for, and a note saying why win64 is not among them (None where it
     is, or where ``asked`` leaves it out).  ``asked`` None: linux64, and win64 where MinGW-w64 is on PATH and
-    every inner FMU has a win64 binary; else those named, refused (one line) where one cannot be built."""
+    every inner FMU has a win64 binary; else those named, refused (one line) where one cannot be built.  The
+    FMI 3.0 face (``fmi`` 3) is built for Linux only, so far."""
     want = list(PLATFORMS) if asked is None else asked
     for p in want:
         if p not in PLATFORMS:
@@ -253,8 +267,8 @@ def platforms(plan: Plan, asked: list[str] | None = None) -> tuple[list[str], st
         raise ScenarioError(plan.scenario.file, "--platforms", "linux64 is always built (the export runs on Linux)")
     if "win64" not in want:
         return ["linux64"], None
-    why = None
-    for n in plan.order:
+    why = "the FMI 3.0 face is built for x86_64-linux only, so far" if fmi == 3 else None
+    for n in plan.order if why is None else ():
         ip = plan.instances[n]
         binary = f"binaries/win64/{ip.model.identifier}.dll"
         with zipfile.ZipFile(ip.model.path) as zf:
@@ -270,33 +284,68 @@ def platforms(plan: Plan, asked: list[str] | None = None) -> tuple[list[str], st
     return ["linux64"], f"linux64 only, no win64 binary: {why}"
 
 
-def build_binary(guid: str, dest: Path, platform: str = "linux64") -> None:
-    """container.c (with native_loop.c) compiled with the compiled loop's flags into ``dest``: for linux64 by
-    the system's C compiler (``CC``, else cc), for win64 by MinGW-w64."""
+def model_description3(plan: Plan, name: str, token: str, cvars: list[ContainerVar]) -> str:
+    """The container's modelDescription.xml as FMI 3.0 co-simulation (its variables Float64, Int32 and Boolean,
+    with the value references of the FMI 2.0 description, and time, the independent variable, at value
+    reference 0; ``token`` its instantiation token)."""
+    sc = plan.scenario
+    units = sorted({"s", *(v.unit for v in cvars if v.unit and v.type == "Real")})
+    rows = [('    <Float64 name="time" valueReference="0" causality="independent" variability="continuous" unit="s" '
+             'description="the time of the system"/>')]
+    for j, v in enumerate(cvars):
+        attrs = f'name={quoteattr(v.name)} valueReference="{j + 1}" causality="{_KIND[v.kind]}" ' \
+                f'variability="{v.variability}"' + (' initial="exact"' if v.kind == "p" else
+                                                    ' initial="calculated"' if v.kind == "o" else "")
+        rows.append(f"    <{TYPES3[v.type]} {attrs} description={quoteattr(v.description)}{_typed(v)}/>")
+    outs = [j + 1 for j, v in enumerate(cvars) if v.kind == "o"]
+    structure = "".join(f'<Output valueReference="{r}"/>' for r in outs) + \
+        "".join(f'<InitialUnknown valueReference="{r}"/>' for r in outs)
+    unit_defs = ("  <UnitDefinitions>" + "".join(f"<Unit name={quoteattr(u)}/>" for u in units) +
+                 "</UnitDefinitions>\n") if units else ""
+    return (f'<?xml version="1.0" encoding="UTF-8"?>\n<fmiModelDescription fmiVersion="3.0" modelName={quoteattr(name)} '
+            f'instantiationToken="{token}" generationTool="wmr-cosim export-fmu" variableNamingConvention="flat"\n'
+            f'  description={quoteattr(f"the system of {Path(sc.file).name} as one FMU")}>\n'
+            f'  <CoSimulation modelIdentifier="{name}" canHandleVariableCommunicationStepSize="false" '
+            f'fixedInternalStepSize="{sc.step!r}"/>\n' + unit_defs +
+            '  <LogCategories><Category name="logEvents"/><Category name="logStatusError"/></LogCategories>\n'
+            f'  <DefaultExperiment startTime="{sc.start!r}" stopTime="{sc.stop!r}" stepSize="{sc.step!r}"/>\n'
+            "  <ModelVariables>\n" + "\n".join(rows) + "\n  </ModelVariables>\n"
+            f"  <ModelStructure>{structure}</ModelStructure>\n"
+            "</fmiModelDescription>\n")
+
+
+def build_binary(guid: str, dest: Path, platform: str = "linux64", fmi: int = 2) -> None:
+    """container.c (with native_loop.c; for ``fmi`` 3, container3.c around it) compiled with the compiled
+    loop's flags into ``dest``: for linux64 by the system's C compiler (``CC``, else cc), for win64 by
+    MinGW-w64."""
     cc = (os.environ.get("CC") or "cc") if platform == "linux64" else native.MINGW_CC
     path = shutil.which(cc)
     if path is None:
         raise CosimError(f"export-fmu needs a C compiler: no {cc} on PATH")
+    source = SOURCE3 if fmi == 3 else SOURCE
     flags = native.FLAGS if platform == "linux64" else [f for f in native.FLAGS if f != "-fPIC"]
     libs = ["-ldl", "-lm"] if platform == "linux64" else native.WIN64_LDFLAGS.split()
-    p = subprocess.run([path, *flags, f'-DCONTAINER_GUID="{guid}"', str(SOURCE), "-o", str(dest), *libs],
-                       capture_output=True, text=True, timeout=300)
+    p = subprocess.run([path, *flags, f'-DCONTAINER_GUID="{guid}"', str(source), "-o", str(dest), *libs],
+                       capture_output=True, text=True, timeout=300, check=False)
     if p.returncode:
-        raise CosimError(f"the C compiler {path} failed on {SOURCE.name}: {p.stderr.strip()[:300]}")
+        raise CosimError(f"the C compiler {path} failed on {source.name}: {p.stderr.strip()[:300]}")
 
 
-def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None, *, platforms_asked: list[str] | None = None,
-               notes: list[str] | None = None) -> Path:
-    """Write the resolved ``plan`` as one FMI 2.0 co-simulation FMU ``out`` (see the module); returns its path.
-    ``name``: its model name and identifier (default: the scenario file's stem, as a C name);
-    ``platforms_asked``: the platforms to build (default: each that can be, :func:`platforms`); ``notes``: a
-    list the note on a platform not built is appended to."""
+def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None, fmi: int = 2, *,
+               platforms_asked: list[str] | None = None, notes: list[str] | None = None) -> Path:
+    """Write the resolved ``plan`` as one co-simulation FMU ``out`` (see the module); returns its path.
+    ``name``: its model name and identifier (default: the scenario file's stem, as a C name); ``fmi``: the
+    FMI version of its interface, 2 or 3 (its inner FMUs stay FMI 2.0); ``platforms_asked``: the platforms to
+    build (default: each that can be, :func:`platforms`); ``notes``: a list the note on a platform not built
+    is appended to."""
+    if fmi not in PLATFORM:
+        raise CosimError(f"export-fmu writes an FMI 2.0 or 3.0 FMU, not FMI {fmi!r}")
     out = Path(out)
     if name is None:
         name = re.sub(r"\W", "_", Path(plan.scenario.file).stem) or "system"
         name = "_" + name if name[0].isdigit() else name
     refuse(plan, out, name)
-    built, note = platforms(plan, platforms_asked)
+    built, note = platforms(plan, platforms_asked, fmi)
     if note is not None and notes is not None:
         notes.append(note)
     layout = RowLayout.of(plan)
@@ -308,13 +357,16 @@ def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None, *, p
         text = system_text(plan, layout, wiring, cvars, dirs)
         guid = "{" + str(uuid.UUID(hashlib.sha256((text + name).encode()).hexdigest()[:32])) + "}"
         (tmp / "resources" / "system.txt").write_text(text)
-        (tmp / "modelDescription.xml").write_text(model_description(plan, name, guid, cvars))
+        describe = model_description3 if fmi == 3 else model_description
+        (tmp / "modelDescription.xml").write_text(describe(plan, name, guid, cvars))
         for platform in built:
-            (tmp / "binaries" / platform).mkdir(parents=True)
-            build_binary(guid, tmp / "binaries" / platform / f"{name}.{_LIB[platform]}", platform)
-        (tmp / "sources").mkdir()
-        for src in (SOURCE, native.SOURCE):
-            shutil.copyfile(src, tmp / "sources" / src.name)
+            folder = tmp / "binaries" / PLATFORM_FOLDERS[fmi][platform]
+            folder.mkdir(parents=True)
+            build_binary(guid, folder / f"{name}.{_LIB[platform]}", platform, fmi)
+        (tmp / "sources" / "fmi3").mkdir(parents=True)   # (the FMI 3.0 headers, for fmi 3)
+        for src in (SOURCE, native.SOURCE, *((SOURCE3, *HEADERS3) if fmi == 3 else ())):
+            dest = tmp / "sources" / (f"fmi3/{src.name}" if src in HEADERS3 else src.name)
+            shutil.copyfile(src, dest)
         out.parent.mkdir(parents=True, exist_ok=True)
         part = out.with_name(out.name + ".part")
         with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as zf:

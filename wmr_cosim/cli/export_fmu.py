@@ -15,16 +15,16 @@ from .options import UsageError
 
 def add_parser(sub: Any, name: str) -> None:
     """The command ``export-fmu`` (``name``) and its options."""
-    e = sub.add_parser(name, help="write a scenario's system as one FMI 2.0 co-simulation FMU",
-                       description="Write a scenario's system as one FMI 2.0 co-simulation FMU (linux64, and win64 where "
-                                   "it can be built) that any FMI "
-                                   "host runs: the scenario's FMUs under its resources, their connections with the "
-                                   "unit conversions, factors and offsets, the parameters and start values, and the "
-                                   "master's own compiled loop (Gauss-Seidel or Jacobi at the scenario's step) as its "
-                                   "runtime, so that its outputs equal `wmr-cosim run` of the scenario bit for bit. "
-                                   "Its variables: the recorded outputs, the open inputs and the inner FMUs' "
+    e = sub.add_parser(name, help="write a scenario's system as one co-simulation FMU (FMI 2.0 or 3.0)",
+                       description="Write a scenario's system as one FMI 2.0 (--fmi 3: FMI 3.0) co-simulation FMU "
+                                   "(linux64, and win64 where it can be built for the FMI 2.0 face) that any FMI host "
+                                   "runs: the scenario's FMUs under its resources, their connections with the unit "
+                                   "conversions, factors and offsets, the parameters and start values, and the "
+                                   "master's own compiled loop (Gauss-Seidel or Jacobi, instances at their own rates) "
+                                   "as its runtime, so that its outputs equal `wmr-cosim run` of the scenario bit for "
+                                   "bit. Its variables: the recorded outputs, the open inputs and the inner FMUs' "
                                    "parameters (Real, Integer, Boolean), named instance.variable. What it cannot hold "
-                                   "yet (FMI 3.0, Model Exchange, other algorithms, events, input tables, "
+                                   "yet (inner FMI 3.0 FMUs, Model Exchange, other algorithms, events, input tables, "
                                    "requirements, non-Real connections, Enumeration or String outputs) is refused, "
                                    "nothing written (docs/export-fmu.md).")
     e.add_argument("scenario", type=scenario_path, help="scenario file (.toml) or SSP archive (.ssp)")
@@ -35,12 +35,15 @@ def add_parser(sub: Any, name: str) -> None:
                    help="the container's binaries, comma-separated: linux64 (always) and win64 (MinGW-w64; every "
                         "inner FMU needs a win64 binary). Default: linux64, and win64 where it can be built (a "
                         "note says why not)")
+    e.add_argument("--fmi", type=int, choices=(2, 3), default=2,
+                   help="the FMI version of the container's interface: 2 (default) or 3 (an FMI 3.0 co-simulation "
+                        "FMU; the FMUs inside stay FMI 2.0)")
     options.set_option(e)
     e.set_defaults(func=cmd_export_fmu, subparser=e)
 
 
 def cmd_export_fmu(args: argparse.Namespace) -> int:
-    """Write a scenario's system as one FMI 2.0 co-simulation FMU."""
+    """Write a scenario's system as one co-simulation FMU (FMI 2.0, or 3.0 with --fmi 3)."""
     from ..cosim import export_fmu
     from ..runner import load_plan, parse_set, ssp_plan
 
@@ -51,10 +54,10 @@ def cmd_export_fmu(args: argparse.Namespace) -> int:
     notes: list[str] = []
     if kind is FileKind.SSP:   # (its FMUs extracted for the time of the export)
         with ssp_plan(args.scenario, parse_set(args.set), limits=args.limits) as plan:
-            out = export_fmu(plan, args.out, args.name, platforms_asked=asked, notes=notes)
+            out = export_fmu(plan, args.out, args.name, args.fmi, platforms_asked=asked, notes=notes)
     elif kind is FileKind.SCENARIO:
         out = export_fmu(load_plan(args.scenario, parse_set(args.set), limits=args.limits), args.out, args.name,
-                         platforms_asked=asked, notes=notes)
+                         args.fmi, platforms_asked=asked, notes=notes)
     else:
         raise UsageError(f"{args.scenario}: export-fmu takes a scenario file (.toml) or an SSP archive (.ssp)")
     for note in notes:
