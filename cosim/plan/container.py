@@ -44,8 +44,7 @@ from .wiring import RowLayout, Wiring
 
 SOURCE = native.SOURCE.with_name("container.c")
 SOURCE3 = native.SOURCE.with_name("container3.c")   # the FMI 3.0 face: includes container.c
-HEADERS3 = [native.SOURCE.parent / "fmi3" / h for h in ("fmi3Functions.h", "fmi3FunctionTypes.h",
-                                                           "fmi3PlatformTypes.h")]
+HEADERS3 = [native.SOURCE.with_name(h) for h in ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")]
 FORMAT = "wmr-container 3"   # the first line of system.txt (container.c's VERSION_TAG)
 
 
@@ -363,10 +362,9 @@ def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None, fmi:
             folder = tmp / "binaries" / PLATFORM_FOLDERS[fmi][platform]
             folder.mkdir(parents=True)
             build_binary(guid, folder / f"{name}.{_LIB[platform]}", platform, fmi)
-        (tmp / "sources" / "fmi3").mkdir(parents=True)   # (the FMI 3.0 headers, for fmi 3)
+        (tmp / "sources").mkdir()   # (for fmi 3, the FMI 3.0 face and the standard's headers beside it)
         for src in (SOURCE, native.SOURCE, *((SOURCE3, *HEADERS3) if fmi == 3 else ())):
-            dest = tmp / "sources" / (f"fmi3/{src.name}" if src in HEADERS3 else src.name)
-            shutil.copyfile(src, dest)
+            shutil.copyfile(src, tmp / "sources" / src.name)
         out.parent.mkdir(parents=True, exist_ok=True)
         part = out.with_name(out.name + ".part")
         with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as zf:

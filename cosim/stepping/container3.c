@@ -5,12 +5,12 @@
  * The container's variables: Real as Float64, Integer as Int32, Boolean as Boolean, their value references
  * those of the FMI 2.0 description.  The instantiation token is the container's GUID.  What the container
  * does not do (Model Exchange, Scheduled Execution, event mode, clocks, states, derivatives, other types) is
- * an error, said through the logger.  The prototypes are the standard's (fmi3/fmi3Functions.h). */
+ * an error, said through the logger.  The prototypes are the standard's (fmi3Functions.h). */
 #include "container.c"
 
 #include <stdbool.h>
 #include <stdint.h>
-#include "fmi3/fmi3Functions.h"
+#include "fmi3Functions.h"
 
 typedef struct {
     Container *s;
