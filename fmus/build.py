@@ -57,9 +57,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 try:
-    from ..cosim.stepping.native import MINGW_CC, WIN64_LDFLAGS
+    from ..cosim.messages.errors import CosimError
+    from ..cosim.stepping.native import MINGW_CC, WIN64_LDFLAGS, fmi_headers
 except ImportError:   # run as a script (python fmus/build.py): from the installed package
-    from wmr_cosim.cosim.stepping.native import MINGW_CC, WIN64_LDFLAGS
+    from wmr_cosim.cosim.messages.errors import CosimError
+    from wmr_cosim.cosim.stepping.native import MINGW_CC, WIN64_LDFLAGS, fmi_headers
 
 _HERE = Path(__file__).resolve().parent
 
@@ -244,12 +246,11 @@ def _compiler_id(cc: str) -> str:
 
 
 def _fmi_headers(fmi: int = 2) -> Path:
-    """The FMI 2.0 or 3.0 headers FMPy ships (fmi2Functions.h / fmi3Functions.h and the files they include)."""
-    import fmpy
-    d = Path(fmpy.__file__).parent / "c-code"
-    if not (d / f"fmi{fmi}Functions.h").is_file():
-        raise BuildError(f"{d}: FMPy's FMI {fmi}.0 headers not found (fmpy >= 0.3.20 ships them)")
-    return d
+    """The FMI 2.0 or 3.0 headers FMPy ships (the master's :func:`fmi_headers`, as BuildError)."""
+    try:
+        return fmi_headers(fmi)
+    except CosimError as exc:   # (the headers are not where FMPy ships them)
+        raise BuildError(str(exc)) from None
 
 
 def _c_string(text: str) -> str:

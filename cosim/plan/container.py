@@ -44,7 +44,8 @@ from .wiring import RowLayout, Wiring
 
 SOURCE = native.SOURCE.with_name("container.c")
 SOURCE3 = native.SOURCE.with_name("container3.c")   # the FMI 3.0 face: includes container.c
-HEADERS3 = [native.SOURCE.with_name(h) for h in ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")]
+#: The FMI 3.0 standard's headers container3.c includes (FMPy's copy: :func:`native.fmi_headers`).
+HEADERS3 = ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")
 FORMAT = "wmr-container 3"   # the first line of system.txt (container.c's VERSION_TAG)
 
 
@@ -322,9 +323,10 @@ def build_binary(guid: str, dest: Path, platform: str = "linux64", fmi: int = 2)
     if path is None:
         raise CosimError(f"export-fmu needs a C compiler: no {cc} on PATH")
     source = SOURCE3 if fmi == 3 else SOURCE
+    includes = [f"-I{native.fmi_headers(3)}"] if fmi == 3 else []
     flags = native.FLAGS if platform == "linux64" else [f for f in native.FLAGS if f != "-fPIC"]
     libs = ["-ldl", "-lm"] if platform == "linux64" else native.WIN64_LDFLAGS.split()
-    p = subprocess.run([path, *flags, f'-DCONTAINER_GUID="{guid}"', str(source), "-o", str(dest), *libs],
+    p = subprocess.run([path, *flags, *includes, f'-DCONTAINER_GUID="{guid}"', str(source), "-o", str(dest), *libs],
                        capture_output=True, text=True, timeout=300, check=False)
     if p.returncode:
         raise CosimError(f"the C compiler {path} failed on {source.name}: {p.stderr.strip()[:300]}")
@@ -363,7 +365,7 @@ def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None, fmi:
             folder.mkdir(parents=True)
             build_binary(guid, folder / f"{name}.{_LIB[platform]}", platform, fmi)
         (tmp / "sources").mkdir()   # (for fmi 3, the FMI 3.0 face and the standard's headers beside it)
-        for src in (SOURCE, native.SOURCE, *((SOURCE3, *HEADERS3) if fmi == 3 else ())):
+        for src in (SOURCE, native.SOURCE, *((SOURCE3, *(native.fmi_headers(3) / h for h in HEADERS3)) if fmi == 3 else ())):
             shutil.copyfile(src, tmp / "sources" / src.name)
         out.parent.mkdir(parents=True, exist_ok=True)
         part = out.with_name(out.name + ".part")

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ..instances.failure import Call, Failure
+from ..messages.errors import CosimError
 from .algorithm import Clock, InstanceIO, NativeRecording, StepDone
 
 SOURCE = Path(__file__).with_name("native_loop.c")
@@ -38,6 +39,18 @@ FLAGS = ["-O2", "-shared", "-fPIC", "-ffp-contract=off", "-fno-strict-aliasing"]
 #: and msvcrt only; no symbols).
 MINGW_CC, MINGW_CXX = "x86_64-w64-mingw32-gcc", "x86_64-w64-mingw32-g++"
 WIN64_LDFLAGS = "-static-libgcc -s"
+
+
+def fmi_headers(fmi: int = 2) -> Path:
+    """The folder of the FMI 2.0 or 3.0 standard's headers FMPy ships (fmi2Functions.h / fmi3Functions.h and
+    the files they include), which every C build of ours compiles against (the container's FMI 3.0 face, the
+    FMUs' loaders)."""
+    import fmpy
+
+    folder = Path(fmpy.__file__).parent / "c-code"
+    if not (folder / f"fmi{fmi}Functions.h").is_file():
+        raise CosimError(f"{folder}: FMPy's FMI {fmi}.0 headers not found (fmpy >= 0.3.20 ships them)")
+    return folder
 #: What the loop names a run's stepping by (summary.json "stepping": "loop").
 NATIVE, PYTHON = "compiled (C)", "Python"
 _CALLS = {1: Call.TABLE_INPUTS, 2: Call.NON_FINITE_INPUT, 3: Call.SET_REAL, 4: Call.CONNECTION, 5: Call.DO_STEP,
