@@ -29,12 +29,13 @@ def chain(algorithm: str) -> Simulation:
             .record("d.x", "f1.Float64_continuous_output", "f2.Float64_continuous_output"))
 
 
-@pytest.mark.parametrize("algorithm", ["gauss-seidel", "jacobi"])
-def test_the_exported_fmu_in_fmpy_equals_the_run_bit_for_bit(algorithm: str, tmp_path: Path) -> None:
+@pytest.mark.parametrize("algorithm, fmi", [("gauss-seidel", 2), ("jacobi", 2), ("gauss-seidel", 3)])
+def test_the_exported_fmu_in_fmpy_equals_the_run_bit_for_bit(algorithm: str, fmi: int, tmp_path: Path) -> None:
     import fmpy
 
     sim = chain(algorithm).parameter("d.k", 0.75)     # (an override the export must carry too)
-    out = sim.export_fmu(tmp_path / "Chain.fmu")
+    out = sim.export_fmu(tmp_path / "Chain.fmu", fmi=fmi)
+    assert fmpy.read_model_description(str(out)).fmiVersion == f"{fmi}.0"
     assert out == tmp_path / "Chain.fmu" and out.is_file()
     ref = sim.run().signals
     got = fmpy.simulate_fmu(str(out), stop_time=STOP, output_interval=STEP)
@@ -59,17 +60,19 @@ def test_its_name_is_a_c_name_system_by_default_for_a_simulation_built_in_code(t
     assert "binaries/linux64/Chain3.so" in zipfile.ZipFile(tmp_path / "B.fmu").namelist()
 
 
-@pytest.mark.parametrize("case", ["events", "out", "name"])
+@pytest.mark.parametrize("case", ["events", "out", "name", "fmi"])
 def test_what_it_cannot_hold_is_the_commands_scenario_error_and_nothing_is_written(case: str, tmp_path: Path) -> None:
     sim = chain("gauss-seidel")
-    out, name = tmp_path / "S.fmu", None
+    out, name, fmi = tmp_path / "S.fmu", None, 2
     if case == "events":
         sim.event(time=0.5, variable="f1.Float64_continuous_input", action="override", value=1.0)
     elif case == "out":
         out = tmp_path / "S.zip"
-    else:
+    elif case == "name":
         name = "1-bad"
+    else:
+        fmi = 4
     with pytest.raises(ScenarioError) as err:
-        sim.export_fmu(out, name)
-    assert err.value.field == {"events": "events", "out": "out", "name": "--name"}[case]
+        sim.export_fmu(out, name, fmi)
+    assert err.value.field == {"events": "events", "out": "out", "name": "--name", "fmi": "fmi"}[case]
     assert list(tmp_path.iterdir()) == []

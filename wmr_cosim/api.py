@@ -231,19 +231,21 @@ class Simulation:
 
         return Linearizer(self.check(), Request(at=at, **request)).run()
 
-    def export_fmu(self, out: str | Path, name: str | None = None) -> Path:
-        """Write this scenario's system as one FMI 2.0 co-simulation FMU ``out`` (.fmu), whose outputs in any
-        FMI host equal :meth:`run`'s bit for bit (docs/export-fmu.md); checked as ``wmr-cosim export-fmu``
-        checks it: ScenarioError for what it cannot hold, nothing written.  ``name``: its model name and
-        identifier, a C name (default: the scenario file's name; ``system`` for one built in code).
-        Returns the FMU's path."""
+    def export_fmu(self, out: str | Path, name: str | None = None, fmi: int = 2) -> Path:
+        """Write this scenario's system as one co-simulation FMU ``out`` (.fmu), whose outputs in any FMI host
+        equal :meth:`run`'s bit for bit (docs/export-fmu.md); checked as ``wmr-cosim export-fmu`` checks it:
+        ScenarioError for what it cannot hold, nothing written.  ``name``: its model name and identifier, a C
+        name (default: the scenario file's name; ``system`` for one built in code); ``fmi``: the FMI version
+        of its interface, 2 or 3 (the FMUs inside stay FMI 2.0).  Returns the FMU's path."""
         from .cosim import export_fmu
 
         if file_kind(out) is not FileKind.FMU:
             raise ScenarioError(self.file, "out", f"{str(out)!r}: an FMU's name ends in .fmu")
+        if fmi not in (2, 3) or isinstance(fmi, bool):
+            raise ScenarioError(self.file, "fmi", f"{fmi!r}: the container's FMI version is 2 or 3")
         if name is None and not Path(self.file).suffix:
             name = "system"
-        return export_fmu(self.check(), out, name)
+        return export_fmu(self.check(), out, name, fmi)
 
     def start(self, out: str | Path | None = None, *, real_time: float | None = None,
               progress: bool | None = False, force: bool = False) -> "Run":
