@@ -430,21 +430,23 @@ GENERIC_STEPS = 100_000
 GENERIC_H = 1e-4
 
 
-def _generic_scenario(tmp: str) -> Any:
-    """Dahlquist -> Feedthrough -> Feedthrough (Reference FMUs, C, FMI 2.0, built from their sources by
-    tests/reference_fmus.py), Gauss-Seidel, 100,000 steps."""
+def _chain_scenario(tmp: str, name: str, steps: int, h: float, algorithm: str | None = None,
+                    factor: float | None = None) -> Any:
+    """Dahlquist (k = 0.5) -> Feedthrough -> Feedthrough (Reference FMUs, C, FMI 2.0, built from their sources
+    by tests/reference_fmus.py), ``steps`` steps of ``h`` [s], the three outputs recorded: the file
+    ``tmp/name``; ``algorithm`` (default Gauss-Seidel), ``factor`` of the second connection (default none)."""
     from pathlib import Path
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
     from reference_fmus import REF
 
     ref = REF / "fmi2"
-    path = Path(tmp) / "chain.toml"
+    path = Path(tmp) / name
     path.write_text(f"""
 [experiment]
-stop = {GENERIC_STEPS * GENERIC_H!r}
-step = {GENERIC_H!r}
-[instances.d]
+stop = {steps * h!r}
+step = {h!r}
+""" + (f'algorithm = "{algorithm}"\n' if algorithm is not None else "") + f"""[instances.d]
 fmu = "{ref / 'Dahlquist.fmu'}"
 parameters = {{ k = 0.5 }}
 [instances.f1]
@@ -457,12 +459,17 @@ to = "f1.Float64_continuous_input"
 [[connections]]
 from = "f1.Float64_continuous_output"
 to = "f2.Float64_continuous_input"
-factor = 2.0
-[record]
+""" + (f"factor = {factor!r}\n" if factor is not None else "") + """[record]
 variables = ["d.x", "f1.Float64_continuous_output", "f2.Float64_continuous_output"]
 csv = false
 """)
     return path
+
+
+def _generic_scenario(tmp: str) -> Any:
+    """The chain (:func:`_chain_scenario`), Gauss-Seidel, GENERIC_STEPS steps, a factor 2 on its second
+    connection."""
+    return _chain_scenario(tmp, "chain.toml", GENERIC_STEPS, GENERIC_H, factor=2.0)
 
 
 def _fmpy_loop(plan: Any) -> tuple[float, Any]:
@@ -617,38 +624,9 @@ CONTAINER_OUTPUTS = {"d.x": "d_x", "f1.Float64_continuous_output": "f1_y", "f2.F
 
 
 def _container_scenario(tmp: str, algorithm: str) -> Any:
-    """Dahlquist (k = 0.5) -> Feedthrough -> Feedthrough (Reference FMUs, C, FMI 2.0), connections without a
-    factor or an offset (which neither of the other containers applies), CONTAINER_STEPS steps."""
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-    from reference_fmus import REF
-
-    ref = REF / "fmi2"
-    path = Path(tmp) / f"chain_{algorithm.replace('-', '_')}.toml"
-    path.write_text(f"""
-[experiment]
-stop = {CONTAINER_STEPS * CONTAINER_H!r}
-step = {CONTAINER_H!r}
-algorithm = "{algorithm}"
-[instances.d]
-fmu = "{ref / 'Dahlquist.fmu'}"
-parameters = {{ k = 0.5 }}
-[instances.f1]
-fmu = "{ref / 'Feedthrough.fmu'}"
-[instances.f2]
-fmu = "{ref / 'Feedthrough.fmu'}"
-[[connections]]
-from = "d.x"
-to = "f1.Float64_continuous_input"
-[[connections]]
-from = "f1.Float64_continuous_output"
-to = "f2.Float64_continuous_input"
-[record]
-variables = {list(CONTAINER_OUTPUTS)!r}
-csv = false
-""".replace("'", '"'))
-    return path
+    """The chain (:func:`_chain_scenario`), its connections without a factor or an offset (which neither of
+    the other containers applies), CONTAINER_STEPS steps."""
+    return _chain_scenario(tmp, f"chain_{algorithm.replace('-', '_')}.toml", CONTAINER_STEPS, CONTAINER_H, algorithm)
 
 
 def _fmpy_container(plan: Any, out: Any) -> Any:

@@ -105,13 +105,7 @@ def run_protocol(path: str | Path | Protocol, out_dir: str | Path,
     paper's controller: :func:`wmr_cosim.paper.judge_run`) as it finishes, before ``on_run``."""
     from .cosim import run_protocol as run_all
 
-    def judged(name: str, res: RunResult) -> None:
-        if judge is not None:
-            judge(res)
-        if on_run is not None:
-            on_run(name, res)
-
-    return run_all(path, out_dir, resolver or resolve_model, on_run=judged, **options)
+    return run_all(path, out_dir, resolver or resolve_model, on_run=on_run, judge=judge, **options)
 
 
 def fmu_document(fmu: str | Path, inputs: str | Path | None = None, stop: float | None = None,

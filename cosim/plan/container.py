@@ -53,9 +53,7 @@ FORMAT = "wmr-container 3"   # the first line of system.txt (container.c's VERSI
 TYPES = {"Real": "R", "Integer": "I", "Boolean": "B"}
 #: Their FMI 3.0 types (the FMI 3.0 face of the container).
 TYPES3 = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
-#: The FMI versions the container can be written for, and its binary's folder in each.
-PLATFORM = {2: "linux64", 3: "x86_64-linux"}
-#: The binaries' folder of each platform, by the FMI version of the container's face.
+#: The FMI versions the container can be written for, and the binaries' folder of each platform in each.
 PLATFORM_FOLDERS = {2: {"linux64": "linux64", "win64": "win64"}, 3: {"linux64": "x86_64-linux", "win64": "x86_64-windows"}}
 
 
@@ -123,10 +121,7 @@ def _refuse_instance(plan: Plan, n: str, ip: InstancePlan, out: Path, no: Any) -
         no(where, f"{ip.model.path.name} is an FMI {ip.model.fmi}.0 FMU (only FMI 2.0)")
     if ip.interface != CO_SIMULATION:
         no(where, f"{ip.model.path.name} runs as Model Exchange (only co-simulation)")
-    binary = f"binaries/linux64/{ip.model.identifier}.so"
-    with zipfile.ZipFile(ip.model.path) as zf:
-        if binary not in zf.namelist():
-            no(where, f"{ip.model.path.name} has no {binary}")
+    # (an FMU without a binary for this platform, linux64, has no plan: the master's resolution refuses it)
     if out.resolve() == ip.model.path.resolve():
         raise ScenarioError(plan.scenario.file, "--out", f"{out} is the FMU of instance {n}: write the container "
                                                           "elsewhere")
@@ -181,11 +176,10 @@ def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[Conta
     for i, n in enumerate(plan.order):
         ip = plan.instances[n]
         copies = wiring.copies(n)
-        params = [(var, value) for var, value in ip.parameters]
         lines.append(" ".join(["inst", _hex(n), _hex(dirs[n]), _hex(ip.model.identifier), _hex(ip.model.md.guid),
                                str(int(ip.tolerance is not None)), _num(ip.tolerance or 0.0),
                                str(len(wiring.vrs[n])), str(len(layout.reals[n])), str(layout.offset[n]),
-                               str(len(copies)), str(len(params)), str(ip.decimation)]))
+                               str(len(copies)), str(len(ip.parameters)), str(ip.decimation)]))
         lines.append(" ".join(str(vr) for vr in wiring.vrs[n]) or "")
         lines.append(" ".join(str(vr) for vr, _ in layout.reals[n]) or "")
         for c in copies:
@@ -193,7 +187,7 @@ def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[Conta
             if src is None:   # (tables and events are refused: every copy reads the row)
                 raise CosimError(f"{n}: an input copy that does not read the row")
             lines.append(f"copy {c.pos} {layout.offset[src] + c.slot} {_num(c.factor)} {_num(c.offset)}")
-        for var, value in params:
+        for var, value in ip.parameters:
             lines.append(f"param {_param(var, value)} {index.get((i, var.type, var.vr), -1)}")
     for v in cvars:
         lines.append(f"var {v.kind} {TYPES[v.type]} {v.inst} {v.ref} {_num(v.start)} "
@@ -212,6 +206,14 @@ def _param(var: Any, value: Any) -> str:
     return f"I {var.vr} {int(value)}"
 
 
+def _attributes(j: int, v: ContainerVar) -> str:
+    """The attributes of the container's variable ``v`` (its value reference ``j + 1``) common to its FMI 2.0
+    and 3.0 descriptions: name, value reference, causality, variability, initial."""
+    initial = ' initial="exact"' if v.kind == "p" else ' initial="calculated"' if v.kind == "o" else ""
+    return (f'name={quoteattr(v.name)} valueReference="{j + 1}" causality="{_KIND[v.kind]}" '
+            f'variability="{v.variability}"{initial}')
+
+
 def _typed(v: ContainerVar) -> str:
     """The attributes of a variable's type element: a Real's unit, the start value of an input or parameter."""
     unit = f' unit={quoteattr(v.unit)}' if v.unit and v.type == "Real" else ""
@@ -228,11 +230,7 @@ def model_description(plan: Plan, name: str, guid: str, cvars: list[ContainerVar
     units = sorted({v.unit for v in cvars if v.unit and v.type == "Real"})
     rows = []
     for j, v in enumerate(cvars):
-        causality = _KIND[v.kind]
-        attrs = f'name={quoteattr(v.name)} valueReference="{j + 1}" causality="{causality}" ' \
-                f'variability="{v.variability}"' + (' initial="exact"' if v.kind == "p" else
-                                                    ' initial="calculated"' if v.kind == "o" else "")
-        rows.append(f'    <ScalarVariable {attrs} description={quoteattr(v.description)}><{v.type}{_typed(v)}/>'
+        rows.append(f'    <ScalarVariable {_attributes(j, v)} description={quoteattr(v.description)}><{v.type}{_typed(v)}/>'
                     "</ScalarVariable>")
     outs = "".join(f'<Unknown index="{j + 1}"/>' for j, v in enumerate(cvars) if v.kind == "o")
     unit_defs = ("  <UnitDefinitions>" + "".join(f"<Unit name={quoteattr(u)}/>" for u in units) +
@@ -293,10 +291,7 @@ def model_description3(plan: Plan, name: str, token: str, cvars: list[ContainerV
     rows = [('    <Float64 name="time" valueReference="0" causality="independent" variability="continuous" unit="s" '
              'description="the time of the system"/>')]
     for j, v in enumerate(cvars):
-        attrs = f'name={quoteattr(v.name)} valueReference="{j + 1}" causality="{_KIND[v.kind]}" ' \
-                f'variability="{v.variability}"' + (' initial="exact"' if v.kind == "p" else
-                                                    ' initial="calculated"' if v.kind == "o" else "")
-        rows.append(f"    <{TYPES3[v.type]} {attrs} description={quoteattr(v.description)}{_typed(v)}/>")
+        rows.append(f"    <{TYPES3[v.type]} {_attributes(j, v)} description={quoteattr(v.description)}{_typed(v)}/>")
     outs = [j + 1 for j, v in enumerate(cvars) if v.kind == "o"]
     structure = "".join(f'<Output valueReference="{r}"/>' for r in outs) + \
         "".join(f'<InitialUnknown valueReference="{r}"/>' for r in outs)
@@ -339,7 +334,7 @@ def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None, fmi:
     FMI version of its interface, 2 or 3 (its inner FMUs stay FMI 2.0); ``platforms_asked``: the platforms to
     build (default: each that can be, :func:`platforms`); ``notes``: a list the note on a platform not built
     is appended to."""
-    if fmi not in PLATFORM:
+    if fmi not in PLATFORM_FOLDERS:
         raise CosimError(f"export-fmu writes an FMI 2.0 or 3.0 FMU, not FMI {fmi!r}")
     out = Path(out)
     if name is None:

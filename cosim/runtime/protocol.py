@@ -205,6 +205,7 @@ def run_protocol(path: str | os.PathLike | Protocol, out_dir: str | os.PathLike,
                  variant: str | None = None, overrides: dict[str, Any] | None = None,
                  progress: bool | None = None, only: list[str] | None = None,
                  on_run: Callable[[str, execution.RunResult], None] | None = None,
+                 judge: Callable[[execution.RunResult], Any] | None = None,
                  force: bool = False, isolate: bool = False, carry: Carry | None = None,
                  limits: LimitOverrides | None = None,
                  on_check: Callable[[dict[str, system.Plan]], None] | None = None) -> dict[str, execution.RunResult]:
@@ -217,7 +218,8 @@ def run_protocol(path: str | os.PathLike | Protocol, out_dir: str | os.PathLike,
     (a resolver to other FMUs may need the names translated).  ``isolate`` hosts every instance of every
     run in a child process of its own; ``limits``: the caller's archive limits.  ``path`` may be a file
     already read (:func:`read_protocol`).  ``on_check``: called with every run's checked plan before the
-    first run starts (the command line prints their notes).
+    first run starts (the command line prints their notes).  ``judge``: the application's check of each run
+    as it finishes (it may set the result's status, e.g. to ``diverged``), before ``on_run``.
     """
     proto = _protocol(path, resolver, limits)
     plans = check_protocol(proto, variant=variant, overrides=overrides, only=only, force=force, carry=carry)
@@ -235,6 +237,8 @@ def run_protocol(path: str | os.PathLike | Protocol, out_dir: str | os.PathLike,
         plan = _resolve_run(proto, run.name, params, force, isolate)
         res = execution.run(plan, out / run.name, progress=progress)
         results[run.name] = res
+        if judge is not None:
+            judge(res)
         if on_run is not None:
             on_run(run.name, res)
     return results

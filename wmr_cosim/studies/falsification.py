@@ -305,17 +305,11 @@ def _rerun(spec: FalsifySpec, worst: dict[str, Any], params: dict[str, Any], fol
            archive_limits: LimitOverrides | None, system: System) -> dict[str, Any]:
     """The worst point (its ``params``) run again here, as its command runs it: its robustness and whether
     it is the same."""
-    from ..cosim import RunResult, run_protocol
+    from ..cosim import run_protocol
     from .sweep_file import read_base
 
-    judge = system.judge
-
-    def judged(name: str, res: RunResult) -> None:
-        if judge is not None:
-            judge(res)
-
     results = run_protocol(read_base(spec.base, system.models, archive_limits), folder, variant=spec.variant,
-                           overrides=params, progress=False, on_run=None if judge is None else judged)
+                           overrides=params, progress=False, judge=system.judge)
     verdicts = {v["name"]: v for v in results[spec.run].requirements}
     v = verdicts.get(spec.requirement, {})
     rob = math.inf if v.get("robustness") is None else v["robustness"]

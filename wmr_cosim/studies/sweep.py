@@ -85,10 +85,8 @@ def run_point(point: dict[str, Any], study: Study, cache: Path | None = None) ->
     t0 = time.perf_counter()
     try:
         proto, unlocalise = study.shipment.protocol(point.get("base", study.base), study.archive_limits, cache)
-        judge = study.judge
         results = run_protocol(proto, work, proto.resolver, variant=study.variant, overrides=point["params"],
-                               progress=False, only=study.runs,
-                               on_run=None if judge is None else lambda name, res: judge(res))
+                               progress=False, only=study.runs, judge=study.judge)
         row["status"], row["reason"] = point_status(results)    # (whatever the measure adds)
         if study.measure is not None:
             study.measure(row, results, work)
