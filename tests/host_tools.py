@@ -36,6 +36,13 @@ def problem(relative: str) -> str | None:
     return None
 
 
+def run_omsimulator(exe: Path, args: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    """OMSimulator in ``cwd`` (its temporary and working folder) with an empty environment but for the
+    session's TMPDIR (so that anything it left there would be seen): no PATH, LD_PRELOAD or PYTHONHOME."""
+    env = {"TMPDIR": os.environ["TMPDIR"]} if "TMPDIR" in os.environ else {}
+    return subprocess.run([str(exe), *args], capture_output=True, text=True, env=env, cwd=cwd, timeout=900)
+
+
 def tool(relative: str) -> Path:
     """The tool's executable, or a skip with the reason."""
     why = problem(relative)

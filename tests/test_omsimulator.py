@@ -9,7 +9,6 @@ FMI 2.0 FMUs find their Python themselves (docs/hosts.md).
 """
 from __future__ import annotations
 
-import os
 import re
 import subprocess
 import time
@@ -18,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from host_tools import OMSIMULATOR, tool
+from host_tools import OMSIMULATOR, run_omsimulator as _oms, tool
 from cosim_support import G1, g1_with_paths
 from wmr_cosim import cosim
 from wmr_cosim.cosim.plan.ssp import export_ssp, load_ssp
@@ -32,13 +31,6 @@ OMS_SOLVER_WC_MA = 6
 @pytest.fixture(scope="module")
 def omsimulator() -> Path:
     return tool(OMSIMULATOR)
-
-
-def _oms(exe: Path, args: list[str], cwd: Path) -> subprocess.CompletedProcess:
-    """OMSimulator in ``cwd`` (its temporary and working folder) with an empty environment but for the
-    session's TMPDIR (so that anything it left there would be seen): no PATH, LD_PRELOAD or PYTHONHOME."""
-    env = {"TMPDIR": os.environ["TMPDIR"]} if "TMPDIR" in os.environ else {}
-    return subprocess.run([str(exe), *args], capture_output=True, text=True, env=env, cwd=cwd, timeout=900)
 
 
 def _errors(p: subprocess.CompletedProcess) -> list[str]:
