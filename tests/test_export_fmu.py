@@ -421,3 +421,40 @@ def test_a_container_nests_in_a_container_and_an_ssp_archive(g1: Any, tmp_path: 
     before = fmu.read_bytes()
     assert main(["export-fmu", str(sc), "--out", str(fmu)]) == 2
     assert fmu.read_bytes() == before
+
+
+def test_outputs_that_feed_nothing_are_those_of_the_step_when_the_host_reads_them(tmp_path: Path) -> None:
+    """An instance whose outputs feed no connection has them read when the host asks (the container saves
+    the reads of the steps between): the host reads the outputs of the last step, also after it has set a
+    new input that the FMU passes straight through, as the master's row holds them."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    ft = str(REF / "fmi2" / "Feedthrough.fmu")
+    doc = {"experiment": {"start": 0.0, "stop": STOP, "step": STEP},
+           "instances": {"b": {"fmu": ft, "parameters": {"Float64_continuous_input": 3.0}}},
+           "record": {"variables": ["b.Float64_continuous_output"]}}
+    fmu = export(doc, tmp_path)
+    md = read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    d = extract(str(fmu), unzipdir=str(tmp_path / "x"))
+    s = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier,
+                  instanceName="c")
+    s.instantiate()
+    try:
+        s.setupExperiment(startTime=0.0)
+        s.enterInitializationMode()
+        s.exitInitializationMode()
+        out, inp = [vr["b.Float64_continuous_output"]], [vr["b.Float64_continuous_input"]]
+        s.doStep(0.0, STEP)
+        s.setReal(inp, [5.0])
+        assert s.getReal(out) == [3.0]
+        s.doStep(STEP, STEP)
+        assert s.getReal(out) == [5.0]
+        s.doStep(2 * STEP, STEP)
+        s.setReal(inp, [6.0])
+        s.doStep(3 * STEP, STEP)
+        assert s.getReal(out) == [6.0]
+        s.terminate()
+    finally:
+        s.freeInstance()

@@ -81,6 +81,8 @@ typedef struct {
     inst_t instantiate; free_t free_instance; setup_t setup; mode_t_ enter, exit_, terminate;
     set2_t set_real; seti_t set_integer, set_boolean; sets_t set_string; geti_t get_integer, get_boolean;
     int n_params; Param *params;
+    size_t n_out;   /* its Real outputs (Inst.n_out is 0 in the loop where they are read lazily) */
+    int lazy;       /* its outputs feed no copy: read when the host asks for them, not after every step */
 } Inner;
 
 /* a variable of the container: kind 'o' (a recorded output), 'i' (an open input) or 'p' (a parameter); type
@@ -95,6 +97,7 @@ typedef struct {
     int n_vars; Var *vars;
     double step; int mode;   /* 0 instantiated, 1 initialisation mode, 2 stepping, 3 terminated */
     double t0; int stop_defined; double stop;
+    int stale;      /* the lazy instances' outputs in the row are older than their last step */
 } Container;
 
 static void say(Container *s, fmi2Status st, const char *fmt, ...) {
@@ -172,6 +175,26 @@ static int read_instance(Container *s, Reader *r, int i) {
     return !r->bad;
 }
 
+/* An instance whose Real outputs feed no copy, at one rate (every instance steps every base step), has its
+ * outputs read when the host asks for them (or before a value the host sets reaches an inner FMU) rather than
+ * after each of its steps: the same values, since nothing is set or stepped in that instance between the
+ * end of its last step and that read, and a get does not change an FMU; the calls of the steps the host does
+ * not see are saved.  Multi-rate: every output is read as the master reads it (an instance's outputs hold
+ * between its points while its inputs change). */
+static void lazy_outputs(Container *s) {
+    int i, j, m;
+    for (i = 0; i < s->n; i++) {
+        Inst *p = &s->insts[i];
+        long lo = p->out_val - s->row, hi = lo + (long)p->n_out;
+        int fed = 0;
+        for (m = 0; m < s->n && !fed; m++)
+            for (j = 0; j < s->insts[m].n_copies; j++)
+                if (s->insts[m].slot[j] >= lo && s->insts[m].slot[j] < hi) { fed = 1; break; }
+        s->inner[i].n_out = p->n_out;
+        s->inner[i].lazy = !fed && !s->L.multirate && p->n_out > 0;
+    }
+}
+
 static int read_system(Container *s, const char *path) {
     FILE *f = fopen(path, "rb");
     long size, i;
@@ -205,6 +228,7 @@ static int read_system(Container *s, const char *path) {
     }
     expect(&r, "end");
     ok = !r.bad;
+    if (ok) lazy_outputs(s);
 done:
     free(r.text);
     return ok;
@@ -452,6 +476,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
         if ((st = s->inner[i].exit_(s->inner[i].c)))
             { say(s, fmi2Error, "%s: fmi2ExitInitializationMode returned %d", s->inner[i].name, st); return fmi2Error; }
     if (!read_all(s)) { say(s, fmi2Error, "reading the outputs after initialisation failed"); return fmi2Error; }
+    for (i = 0; i < s->n; i++) if (s->inner[i].lazy) s->insts[i].n_out = 0;   /* (read by fetch_lazy) */
     s->mode = 2;
     return fmi2OK;
 }
@@ -471,6 +496,23 @@ fmi2Status fmi2Terminate(fmi2Component c) {
 fmi2Status fmi2Reset(fmi2Component c) {
     say(c, fmi2Error, "fmi2Reset is not supported");
     return fmi2Error;
+}
+
+/* the lazy instances' outputs into the row, where a step has passed since they were read */
+static fmi2Status fetch_lazy(Container *s) {
+    int i, st;
+    if (!s->stale) return fmi2OK;
+    for (i = 0; i < s->n; i++) {
+        Inner *q = &s->inner[i];
+        Inst *p = &s->insts[i];
+        if (!q->lazy) continue;
+        if ((st = ((set2_t)p->get)(p->c, p->out_vr, q->n_out, p->out_val))) {
+            say(s, fmi2Error, "%s: fmi2GetReal returned %d", q->name, st);
+            return (fmi2Status)st;
+        }
+    }
+    s->stale = 0;
+    return fmi2OK;
 }
 
 /* the container's variable vr of the type the host asks for (NULL, said, where it has none) */
@@ -496,6 +538,8 @@ static fmi2Status get_from_inner(Container *s, Var *v, fmi2Integer *out) {
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real value[]) {
     Container *s = c;
     size_t j;
+    fmi2Status st = fetch_lazy(s);
+    if (st) return st;
     for (j = 0; j < n; j++) {
         Var *v = variable(s, vr[j], 'R');
         if (!v) return fmi2Error;
@@ -527,6 +571,7 @@ static fmi2Status set_values(Container *s, const fmi2ValueReference vr[], size_t
         if (s->mode == 2 && v->kind == 'p' && !v->tunable)
             { say(s, fmi2Error, "variable %u is a fixed parameter: set it before initialisation", vr[j]); return fmi2Error; }
         v->value = value[j]; v->set = 1;
+        if (s->mode == 2 && fetch_lazy(s)) return fmi2Error;   /* (the outputs of the step, before the value) */
         if (s->mode >= 1) {
             Inner *q = &s->inner[v->inst];
             int st = set_value(q, v->type, v->ref, v->value);
@@ -604,6 +649,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
         return fmi2Error;
     }
     st = wmr_loop(&s->L, k0, k0 + nk);
+    for (int i = 0; i < s->n; i++) s->stale |= s->inner[i].lazy;
     if (st == OK) return fmi2OK;
     {
         int call = s->L.f_call >= 0 && s->L.f_call <= C_TERMINATED ? s->L.f_call : 0;

@@ -99,13 +99,14 @@ static int inputs(Loop *L, int i, long k) {
         if (s) return fail(L, k, i, C_TABLE, s);
     }
     if (p->n_copies) {
-        double x = 0.0, v[p->n_copies];
+        /* (each value written where the set reads it; on a non-finite sum the segment ends before the set) */
+        double x = 0.0, v;
         for (j = 0; j < p->n_copies; j++) {
-            v[j] = p->plain[j] ? p->src[j][p->slot[j]] : p->src[j][p->slot[j]] * p->factor[j] + p->offset[j];
-            x = j ? x + v[j] : v[j];
+            v = p->plain[j] ? p->src[j][p->slot[j]] : p->src[j][p->slot[j]] * p->factor[j] + p->offset[j];
+            p->in_val[p->pos[j]] = v;
+            x = j ? x + v : v;
         }
         if (L->check_inputs && x - x != 0.0) return fail(L, k, i, C_NONFINITE, x);
-        for (j = 0; j < p->n_copies; j++) p->in_val[p->pos[j]] = v[j];
         if (!p->raw_set) s = ((cb_io_t)p->set)();
         else if (p->abi == 2) s = ((set2_t)p->set)(p->c, p->in_vr, p->n_in, p->in_val);
         else s = ((set3_t)p->set)(p->c, p->in_vr, p->n_in, p->in_val, p->n_in_values);
@@ -147,7 +148,7 @@ static int outputs(Loop *L, int i, long k) {
 
 /* the recording's take of the point k (the row copied when it is due) */
 static int take(Loop *L, long k, int ended) {
-    if (k % L->decimation && k != L->n_steps && !ended) return OK;
+    if (L->decimation != 1 && k % L->decimation && k != L->n_steps && !ended) return OK;
     if (L->row) L->row[0] = (k == L->n_steps && L->has_stop) ? L->stop : L->t0 + (double)k * L->h;
     if (L->getters && L->getters(k, ended)) return PYTHON;   /* (Python made the failure, or raised) */
     if (L->rec) {
