@@ -40,7 +40,9 @@ NAME:
             wall_s (median of --repeats interleaved runs), ours_to_* (our wall time over theirs, the same
             algorithm; target <= 1), max_abs_diff (from `wmr-cosim run` of the scenario of the algorithm; ours
             0.0), max_abs_diff_from_the_other_algorithm (what tells the algorithms apart), build_s,
-            validation_problems (fmpy.validation), ours_equal.
+            validation_problems (fmpy.validation), algorithm (the run each equals: FMPy's is Gauss-Seidel on
+            the chain, Jacobi on G1), ours_equal; the same figures under "g1" for G1 cut to 10 s (our three
+            pythonfmu FMUs, 56 outputs of three types, 100 host steps).
     interop the G1 learning system (Jacobi, exported as SSP with the signals the comparison needs) under our
             master and third-party masters, each in a fresh process as its users run it, with its defaults
             (tests/interop.py): peers = wall seconds per master (median of up to 3 runs; creating the
@@ -131,6 +133,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import io
 import os
 import json
 from typing import Any, Iterator
@@ -618,9 +621,16 @@ def bench_generic(repeats: int) -> dict[str, Any]:
 CONTAINER_STEPS = 1_000_000
 CONTAINER_H = 1e-4
 CONTAINER_EVERY = 1000     # the scenario's steps per step of the host
-#: The chain's recorded outputs and what fmucontainer names them (it exposes every linked output as a local
-#: variable named instance.variable, so an output of that name would be a second variable of one name).
-CONTAINER_OUTPUTS = {"d.x": "d_x", "f1.Float64_continuous_output": "f1_y", "f2.Float64_continuous_output": "f2_y"}
+CONTAINER_G1_STOP = 10.0   # G1 cut to 5,000 steps of 2 ms
+CONTAINER_G1_EVERY = 50
+#: The chain's recorded outputs.
+CONTAINER_OUTPUTS = ("d.x", "f1.Float64_continuous_output", "f2.Float64_continuous_output")
+
+
+def _fmt_name(column: str) -> str:
+    """What fmucontainer names an output (it exposes every linked output as a local variable named
+    instance.variable, so an output of that name would be a second variable of one name)."""
+    return column.replace(".", "_")
 
 
 def _container_scenario(tmp: str, algorithm: str) -> Any:
@@ -629,15 +639,35 @@ def _container_scenario(tmp: str, algorithm: str) -> Any:
     return _chain_scenario(tmp, f"chain_{algorithm.replace('-', '_')}.toml", CONTAINER_STEPS, CONTAINER_H, algorithm)
 
 
-def _fmpy_container(plan: Any, out: Any) -> Any:
-    """The chain through FMPy's ``fmpy.container_fmu``, serial (``parallelDoStep`` false, the components in the
-    plan's order; on this chain its results equal our Gauss-Seidel run's, measured), the FMI 2.0 container it
-    builds, patched around its bugs: its work folder made
-    before ``create_container_fmu`` deletes it (it deletes it unconditionally); the FMI 2 type name ``Real``
-    that it writes for connections (which its own runtime refuses: ``Float64`` expected) replaced in
-    resources/container.json and the FMU zipped again; ``ModelStructure`` filled (it writes none
-    otherwise); a variable ``time`` first, as its runtime reads value reference 0 as the time (value
-    reference k as the k-th variable of its configuration: without it every variable reads the one
+def _container_g1(tmp: str, algorithm: str) -> Any:
+    """G1 (scenarios/g1_learn.toml: our three pythonfmu FMUs, no factor, offset or unit conversion between
+    them, every output recorded: Real, Integer and Boolean) cut to CONTAINER_G1_STOP s."""
+    from pathlib import Path
+
+    path = Path(tmp) / f"g1_{algorithm.replace('-', '_')}.toml"
+    g1 = Path(__file__).resolve().parents[1] / "scenarios" / "g1_learn.toml"
+    path.write_text(f"base = {str(g1)!r}\n[experiment]\nstop = {CONTAINER_G1_STOP!r}\nalgorithm = {algorithm!r}\n")
+    return path
+
+
+def _start(var: Any, value: Any) -> str:
+    """A start value as a model description writes it for the variable's type."""
+    if var.type == "Boolean":
+        return "true" if value else "false"
+    if var.type == "Real":
+        return repr(float(value))
+    return str(int(value)) if var.type in ("Integer", "Enumeration") else str(value)
+
+
+def _fmpy_container(plan: Any, out: Any, columns: list[str]) -> Any:
+    """The system through FMPy's ``fmpy.container_fmu``, serial (``parallelDoStep`` false, the components in
+    the plan's order; its results equal our Gauss-Seidel run's, measured), its outputs the recorded
+    ``columns``, the FMI 2.0 container it builds, patched around its bugs: its work folder made
+    before ``create_container_fmu`` deletes it (it deletes it unconditionally); the FMI 2 type names ``Real``
+    and ``Integer`` that it writes for connections (which its own runtime refuses: ``Float64`` and ``Int32``
+    expected) replaced in resources/container.json and the FMU zipped again; ``ModelStructure`` filled (it
+    writes none otherwise); a variable ``time`` first, as its runtime reads value reference 0 as the time
+    (value reference k as the k-th variable of its configuration: without it every variable reads the one
     before)."""
     import json
     import shutil
@@ -656,7 +686,7 @@ def _fmpy_container(plan: Any, out: Any) -> Any:
     def var(inst: str, name: str) -> Any:
         return next(v for v in comps[inst].modelDescription.modelVariables if v.name == name)
 
-    md = ModelDescription(fmiVersion="2.0", modelName="FmpyChain", instantiationToken="{" + str(uuid.uuid4()) + "}")
+    md = ModelDescription(fmiVersion="2.0", modelName="FmpySystem", instantiationToken="{" + str(uuid.uuid4()) + "}")
     md.coSimulation = CoSimulation(modelIdentifier="container_fmu", fixedInternalStepSize=plan.scenario.step)
     md.defaultExperiment = DefaultExperiment(startTime="0.0", stopTime=repr(plan.scenario.stop),
                                              stepSize=repr(plan.scenario.step))
@@ -664,15 +694,18 @@ def _fmpy_container(plan: Any, out: Any) -> Any:
     params = []
     for n, ip in plan.instances.items():
         for v, value in ip.parameters:
-            p = ModelVariable(name=f"{n}.{v.name}", type="Real", causality="parameter", variability="fixed",
-                              initial="exact", start=repr(float(value)))
-            mappings[p] = [(comps[n], var(n, v.name))]
+            inner = var(n, v.name)
+            p = ModelVariable(name=f"{n}.{v.name}", type=inner.type, causality="parameter", variability="fixed",
+                              initial="exact", start=_start(inner, value))
+            mappings[p] = [(comps[n], inner)]
             params.append(p)
     outs = []
-    for column in CONTAINER_OUTPUTS:
+    for column in columns:
         inst, name = column.split(".", 1)
-        o = ModelVariable(name=column, type="Real", causality="output", variability="continuous", initial="calculated")
-        mappings[o] = [(comps[inst], var(inst, name))]
+        inner = var(inst, name)
+        o = ModelVariable(name=column, type=inner.type, causality="output",
+                          variability="continuous" if inner.type == "Real" else "discrete", initial="calculated")
+        mappings[o] = [(comps[inst], inner)]
         outs.append(o)
     time = ModelVariable(name="time", type="Real", causality="independent", variability="continuous")
     md.modelVariables = [time, *params, *outs]     # (patch: its runtime reads value reference 0 as the time)
@@ -697,15 +730,16 @@ def _fmpy_container(plan: Any, out: Any) -> Any:
     return Path(out)
 
 
-def _fmucontainer(plan: Any, folder: Any, sequential: bool) -> Any:
-    """The chain through fmu-manipulation-toolbox's ``fmucontainer`` (its Python API, as its JSON input
+def _fmucontainer(plan: Any, folder: Any, sequential: bool, columns: list[str]) -> Any:
+    """The system through fmu-manipulation-toolbox's ``fmucontainer`` (its Python API, as its JSON input
     describes a container): the FMUs in the plan's order (``sequential``: each stepped after the one before,
     Gauss-Seidel; else on the outputs of the step before, Jacobi, in one thread), the parameters as start
-    values, the recorded outputs exposed under CONTAINER_OUTPUTS' names."""
+    values, the recorded ``columns`` exposed under :func:`_fmt_name`'s names."""
     import logging
     import shutil
     from pathlib import Path
 
+    from fmpy import read_model_description
     from fmu_manipulation_toolbox.assembly import AssemblyNode
 
     folder = Path(folder)
@@ -716,13 +750,14 @@ def _fmucontainer(plan: Any, folder: Any, sequential: bool) -> Any:
         if not (folder / f"{n}.fmu").is_file():
             shutil.copyfile(ip.model.path, folder / f"{n}.fmu")
         node.add_fmu(f"{n}.fmu")
+        md = {v.name: v for v in read_model_description(str(ip.model.path)).modelVariables}
         for v, value in ip.parameters:
-            node.add_start_value(f"{n}.fmu", v.name, repr(float(value)))
+            node.add_start_value(f"{n}.fmu", v.name, _start(md[v.name], value))
     for c in plan.connections:
         node.add_link(f"{c.src}.fmu", c.src_var.name, f"{c.dst}.fmu", c.dst_var.name)
-    for column, exposed in CONTAINER_OUTPUTS.items():
+    for column in columns:
         inst, var = column.split(".", 1)
-        node.add_output(f"{inst}.fmu", var, exposed)
+        node.add_output(f"{inst}.fmu", var, _fmt_name(column))
     logging.disable(logging.WARNING)            # (one line per unconnected port of the Reference FMUs)
     try:
         node.make_fmu(folder)
@@ -731,20 +766,19 @@ def _fmucontainer(plan: Any, folder: Any, sequential: bool) -> Any:
     return folder / name
 
 
-def bench_container(repeats: int) -> dict[str, Any]:
-    """The chain of Reference C FMUs (Dahlquist -> Feedthrough -> Feedthrough, 1,000,000 steps of 0.1 ms)
-    exported as one FMU three ways and run in one host, FMPy's ``simulate_fmu`` (each FMU unpacked once
-    beforehand; its output interval 1,000 steps of the scenario's): ours (``export-fmu``; Gauss-Seidel and
-    Jacobi), FMPy's ``container_fmu`` (serial: Gauss-Seidel here; patched, see _fmpy_container) and
-    fmu-manipulation-toolbox's ``fmucontainer`` (sequential: Gauss-Seidel; parallel in one thread:
-    Jacobi).  wall_s: the median of interleaved runs of each (instantiation, initialisation, stepping and
-    the host's recording); max_abs_diff: each one's largest difference from ``wmr-cosim run`` of the scenario
-    of its algorithm, over every output at every host step (ours must be 0.0); ours_to_*: our wall time
-    over theirs, for the same algorithm (target <= 1)."""
-    import importlib.metadata
-    import tempfile
+#: Each container and the algorithm of the scenario whose run it must equal; FMPy's container_fmu (serial)
+#: steps every FMU, then passes the connections in order, each read after the one before was set: Jacobi on
+#: G1 (measured), Gauss-Seidel on the chain (whose Feedthrough FMUs pass an input set to their output at
+#: once): it is compared with the run it equals (None), the other figures with their own.
+CONTAINER_ALGORITHMS = {"ours_gauss_seidel": "gauss-seidel", "ours_jacobi": "jacobi", "fmpy_container_fmu": None,
+                        "fmucontainer_sequential": "gauss-seidel", "fmucontainer_parallel": "jacobi"}
+
+
+def _containers(n: int, work: Any, scenario: Any, every: int) -> dict[str, Any]:
+    """One system (``scenario(tmp, algorithm)`` its file) through the five containers of
+    CONTAINER_ALGORITHMS, run ``n`` times each, interleaved, in FMPy's simulate_fmu (its output interval
+    ``every`` steps of the scenario's): the figures of :func:`bench_container`."""
     import time
-    from pathlib import Path
 
     import numpy as np
     from fmpy import extract, simulate_fmu
@@ -752,61 +786,85 @@ def bench_container(repeats: int) -> dict[str, Any]:
 
     from wmr_cosim import cosim
     from wmr_cosim.cli import main as cli
+    from wmr_cosim.runner import resolve_model
 
-    n = max(1, repeats)
-    algorithms = {"ours_gauss_seidel": "gauss-seidel", "ours_jacobi": "jacobi", "fmpy_container_fmu": "gauss-seidel",
-                  "fmucontainer_sequential": "gauss-seidel", "fmucontainer_parallel": "jacobi"}
-    with tempfile.TemporaryDirectory(prefix="wmr-bench-") as tmp:
-        work = Path(tmp)
-        refs, fmus, build_s = {}, {}, {}
-        for alg in ("gauss-seidel", "jacobi"):
-            sc = _container_scenario(tmp, alg)
-            with contextlib.redirect_stdout(sys.stderr):   # (the last line of stdout is the figures)
-                assert cli(["run", str(sc), "--out", str(work / f"run-{alg}"), "--quiet"]) == 0
-            refs[alg] = np.load(work / f"run-{alg}" / "signals.npy")[::CONTAINER_EVERY]
-            key = "ours_" + alg.replace("-", "_")
-            t0 = time.perf_counter()
-            with contextlib.redirect_stdout(sys.stderr):
-                assert cli(["export-fmu", str(sc), "--out", str(work / f"Ours_{key}.fmu")]) == 0
-            build_s[key] = time.perf_counter() - t0
-            fmus[key] = work / f"Ours_{key}.fmu"
-        plan = cosim.resolve(cosim.load(_container_scenario(tmp, "jacobi")))
+    refs, fmus, build_s = {}, {}, {}
+    for alg in ("gauss-seidel", "jacobi"):
+        sc = scenario(str(work), alg)
+        with contextlib.redirect_stdout(sys.stderr):   # (the last line of stdout is the figures)
+            assert cli(["run", str(sc), "--out", str(work / f"run-{alg}"), "--quiet"]) == 0
+        refs[alg] = np.load(work / f"run-{alg}" / "signals.npy")[::every]
+        key = "ours_" + alg.replace("-", "_")
         t0 = time.perf_counter()
-        fmus["fmpy_container_fmu"] = _fmpy_container(plan, work / "FmpyChain.fmu")
-        build_s["fmpy_container_fmu"] = time.perf_counter() - t0
-        (work / "fmt").mkdir()
-        for seq in (True, False):
-            key = "fmucontainer_sequential" if seq else "fmucontainer_parallel"
+        with contextlib.redirect_stdout(sys.stderr), contextlib.redirect_stderr(io.StringIO()):   # (its note)
+            assert cli(["export-fmu", str(sc), "--out", str(work / f"Ours_{key}.fmu")]) == 0
+        build_s[key] = time.perf_counter() - t0
+        fmus[key] = work / f"Ours_{key}.fmu"
+    columns = list(refs["jacobi"].dtype.names[1:])
+    plan = cosim.resolve(cosim.load(scenario(str(work), "gauss-seidel"), resolve_model))
+    t0 = time.perf_counter()
+    fmus["fmpy_container_fmu"] = _fmpy_container(plan, work / "FmpySystem.fmu", columns)
+    build_s["fmpy_container_fmu"] = time.perf_counter() - t0
+    (work / "fmt").mkdir()
+    for seq in (True, False):
+        key = "fmucontainer_sequential" if seq else "fmucontainer_parallel"
+        t0 = time.perf_counter()
+        fmus[key] = _fmucontainer(plan, work / "fmt", seq, columns)
+        build_s[key] = time.perf_counter() - t0
+    problems = {k: len(validate_fmu(str(f))) for k, f in fmus.items()}
+    dirs = {k: extract(str(f), unzipdir=str(work / f"x-{k}")) for k, f in fmus.items()}
+    walls: dict[str, list[float]] = {k: [] for k in fmus}
+    diffs: dict[str, dict[str, float]] = {}
+    stop, interval = plan.scenario.stop, every * plan.scenario.step
+    for _ in range(n):   # interleaved, so that a slow phase of the machine hits every container alike
+        for key, d in dirs.items():
             t0 = time.perf_counter()
-            fmus[key] = _fmucontainer(plan, work / "fmt", seq)
-            build_s[key] = time.perf_counter() - t0
-        problems = {k: len(validate_fmu(str(f))) for k, f in fmus.items()}
-        dirs = {k: extract(str(f), unzipdir=str(work / f"x-{k}")) for k, f in fmus.items()}
-        walls: dict[str, list[float]] = {k: [] for k in fmus}
-        diffs: dict[str, float] = {}
-        stop, interval = CONTAINER_STEPS * CONTAINER_H, CONTAINER_EVERY * CONTAINER_H
-        for _ in range(n):   # interleaved, so that a slow phase of the machine hits every container alike
-            for key, d in dirs.items():
-                t0 = time.perf_counter()
-                res = simulate_fmu(d, stop_time=stop, output_interval=interval)
-                walls[key].append(time.perf_counter() - t0)
-                for alg, ref in refs.items():
-                    assert len(res) == len(ref), (key, len(res), len(ref))
-                    diffs.setdefault(alg, {})[key] = max(float(np.max(np.abs(
-                        res[col if key.startswith(("ours", "fmpy")) else CONTAINER_OUTPUTS[col]] - ref[col])))
-                        for col in CONTAINER_OUTPUTS)
+            res = simulate_fmu(d, stop_time=stop, output_interval=interval)
+            walls[key].append(time.perf_counter() - t0)
+            for alg, ref in refs.items():
+                assert len(res) == len(ref), (key, len(res), len(ref))
+                diffs.setdefault(alg, {})[key] = max(float(np.max(np.abs(
+                    res[col if key.startswith(("ours", "fmpy")) else _fmt_name(col)].astype(float)
+                    - ref[col].astype(float)))) for col in columns)
     wall = {k: round(statistics.median(v), 4) for k, v in walls.items()}
-    ratios = {"ours_to_fmpy_container_fmu": wall["ours_gauss_seidel"] / wall["fmpy_container_fmu"],
+    algorithms = {k: a or min(diffs, key=lambda alg: diffs[alg][k]) for k, a in CONTAINER_ALGORITHMS.items()}
+    ratios = {"ours_to_fmpy_container_fmu": wall["ours_" + algorithms["fmpy_container_fmu"].replace("-", "_")]
+              / wall["fmpy_container_fmu"],
               "ours_to_fmucontainer_sequential": wall["ours_gauss_seidel"] / wall["fmucontainer_sequential"],
               "ours_to_fmucontainer_parallel": wall["ours_jacobi"] / wall["fmucontainer_parallel"]}
     other = {"gauss-seidel": "jacobi", "jacobi": "gauss-seidel"}
-    return {"steps": CONTAINER_STEPS, "host_steps": CONTAINER_STEPS // CONTAINER_EVERY, "repeats": n,
+    return {"steps": plan.n_steps, "host_steps": plan.n_steps // every, "outputs": len(columns),
             "wall_s": wall, **{k: round(v, 3) for k, v in ratios.items()},
-            "max_abs_diff": {k: diffs[alg][k] for k, alg in algorithms.items()},
+            "algorithm": algorithms, "max_abs_diff": {k: diffs[alg][k] for k, alg in algorithms.items()},
             "max_abs_diff_from_the_other_algorithm": {k: diffs[other[alg]][k] for k, alg in algorithms.items()},
-            "algorithm": algorithms, "build_s": {k: round(v, 3) for k, v in build_s.items()},
-            "validation_problems": problems,
-            "ours_equal": diffs["gauss-seidel"]["ours_gauss_seidel"] == 0.0 and diffs["jacobi"]["ours_jacobi"] == 0.0,
+            "build_s": {k: round(v, 3) for k, v in build_s.items()}, "validation_problems": problems,
+            "ours_equal": diffs["gauss-seidel"]["ours_gauss_seidel"] == 0.0 and diffs["jacobi"]["ours_jacobi"] == 0.0}
+
+
+def bench_container(repeats: int) -> dict[str, Any]:
+    """Two systems, each exported as one FMU five ways and run in one host, FMPy's ``simulate_fmu`` (each FMU
+    unpacked once beforehand): the chain of Reference C FMUs (Dahlquist -> Feedthrough -> Feedthrough,
+    1,000,000 steps of 0.1 ms, output interval 1,000 steps; its figures at the top level) and ``g1`` (G1 cut
+    to 10 s: our three pythonfmu FMUs, 56 outputs of three types, output interval 50 steps).  The five: ours
+    (``export-fmu``; Gauss-Seidel and Jacobi), FMPy's ``container_fmu`` (serial: Gauss-Seidel here; patched,
+    see _fmpy_container) and fmu-manipulation-toolbox's ``fmucontainer`` (sequential: Gauss-Seidel; parallel
+    in one thread: Jacobi).  wall_s: the median of interleaved runs of each (instantiation, initialisation,
+    stepping and the host's recording); max_abs_diff: each one's largest difference from ``wmr-cosim run`` of
+    the scenario of its algorithm, over every output at every host step (ours must be 0.0); ours_to_*: our
+    wall time over theirs, for the same algorithm (target <= 1)."""
+    import importlib.metadata
+    import tempfile
+    from pathlib import Path
+
+    n = max(1, repeats)
+    out: dict[str, Any] = {}
+    for key, scenario, every in (("chain", _container_scenario, CONTAINER_EVERY),
+                                 ("g1", _container_g1, CONTAINER_G1_EVERY)):
+        with tempfile.TemporaryDirectory(prefix="wmr-bench-") as tmp:
+            out[key] = _containers(n, Path(tmp), scenario, every)
+    chain = out.pop("chain")
+    return {**chain, "repeats": n, "g1": out["g1"],
+            "ours_equal": chain["ours_equal"] and out["g1"]["ours_equal"],
             "versions": {d: importlib.metadata.version(d) for d in ("fmpy", "fmu-manipulation-toolbox")}}
 
 
