@@ -185,8 +185,11 @@ def _no_binary(mass: tuple[Path, Path], d: Path) -> Path:
 
 REFUSALS: dict[str, Any] = {
     "iterated": lambda doc, m, d: doc["experiment"].update(algorithm="iterated"),
-    "events": lambda doc, m, d: doc.update(events=[{"time": 0.5, "variable": "body.F", "action": "override",
-                                                   "value": 1.0}]),
+    "condition events": lambda doc, m, d: doc.update(events=[{"when": "body.x > 0.1", "variable": "body.F",
+                                                             "action": "override", "value": 1.0}]),
+    "tables and own rates": lambda doc, m, d: (
+        (d / "in.csv").write_text("time,body.F\n0.0,1.0\n1.0,2.0\n"), doc.update(inputs={"file": str(d / "in.csv")}),
+        doc["instances"]["coupler"].update(step=4 * STEP), doc["connections"].pop(2)),
     "requirements": lambda doc, m, d: doc.update(requirements=[{"name": "r", "formula": "always body.x < 10"}]),
     "fmi3": lambda doc, m, d: doc["instances"].update(ref={"fmu": str(REF / "fmi3" / "Dahlquist.fmu")}),
     "model exchange": lambda doc, m, d: doc["instances"].update(
@@ -201,7 +204,7 @@ REFUSALS: dict[str, Any] = {
 
 
 #: The field each refusal names.
-REFUSED_AT = {"iterated": "experiment.algorithm", "events": "events",
+REFUSED_AT = {"iterated": "experiment.algorithm", "condition events": "events", "tables and own rates": "inputs",
               "requirements": "requirements", "fmi3": "instances.ref", "model exchange": "instances.ref",
               "no linux64 binary": "instances.body.fmu",
               "a non-Real output": "record", "an output name twice": "record",

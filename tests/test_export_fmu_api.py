@@ -65,7 +65,8 @@ def test_what_it_cannot_hold_is_the_commands_scenario_error_and_nothing_is_writt
     sim = chain("gauss-seidel")
     out, name, fmi = tmp_path / "S.fmu", None, 2
     if case == "events":
-        sim.event(time=0.5, variable="f1.Float64_continuous_input", action="override", value=1.0)
+        sim.event(when="f1.Float64_continuous_output > 0.5", variable="f1.Float64_continuous_input",
+                  action="override", value=1.0)   # (an event on a condition)
     elif case == "out":
         out = tmp_path / "S.zip"
     elif case == "name":

@@ -34,19 +34,23 @@ from pathlib import Path
 from typing import Any
 from xml.sax.saxutils import quoteattr
 
+import numpy as np
+
 from ..messages.errors import CosimError, ScenarioError
 from ..model.archive import safe_extract
 from ..model.description import CO_SIMULATION
 from ..stepping import native
 from ..stepping.table import GAUSS_SEIDEL, JACOBI
 from .records import InstancePlan, Plan
-from .wiring import RowLayout, Wiring
+from .wiring import RowLayout, Wiring, discrete_event_value
 
 SOURCE = native.SOURCE.with_name("container.c")
 SOURCE3 = native.SOURCE.with_name("container3.c")   # the FMI 3.0 face: includes container.c
+#: The files container.c includes beside native_loop.c (shipped in the container's sources/ with it).
+INCLUDED = (native.SOURCE.with_name("container_actions.c"),)
 #: The FMI 3.0 standard's headers container3.c includes (FMPy's copy: :func:`native.fmi_headers`).
 HEADERS3 = ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")
-FORMAT = "wmr-container 3"   # the first line of system.txt (container.c's VERSION_TAG)
+FORMAT = "wmr-container 4"   # the first line of system.txt (container.c's VERSION_TAG)
 
 
 #: The FMI 2.0 types of the container's variables, and their letters in system.txt.
@@ -101,10 +105,10 @@ def refuse(plan: Plan, out: Path, name: str) -> None:
     if plan.last_step is not None:   # a host steps the container by whole steps of the scenario's
         no("experiment.stop", f"stop = {sc.stop!r} s is not on the grid of step = {sc.step!r} s (the run's last step "
                               f"is {plan.last_step!r} s; the container takes whole steps)")
-    if plan.events or plan.conditions:
-        no("events", "events (timed or on conditions)")
-    if plan.inputs:
-        no("inputs", "input tables")
+    if plan.conditions:
+        no("events", f"events[{plan.conditions[0].index}] acts on a condition (timed events only)")
+    if plan.inputs and any(plan.instances[n].decimation > 1 for n in plan.order):
+        no("inputs", "input tables with instances at their own rates")
     if plan.requirements:
         no("requirements", "requirements")
     for c in plan.connections:
@@ -138,7 +142,10 @@ def variables(plan: Plan, layout: RowLayout) -> list[ContainerVar]:
                         f"{r.instance}.{plan.instances[r.instance].our_name(r.var)} of {cols[r.column]['fmu']}",
                         r.var.type)
            for r in plan.record]
-    driven = {(c.dst, c.dst_var.name) for c in plan.connections}
+    # (an input a connection, a table or an event drives is not the host's)
+    driven = {(c.dst, c.dst_var.name) for c in plan.connections} | \
+        {(ip.instance, ip.var.name) for ip in plan.inputs} | \
+        {(ev.instance, ev.var.name) for ev in plan.events if ev.var is not None and ev.var.causality == "input"}
     for i, n in enumerate(plan.order):
         ip = plan.instances[n]
         given = {var.name: value for var, value in ip.parameters}
@@ -166,34 +173,144 @@ _KIND = {"o": "output", "i": "input", "p": "parameter"}
 _A = {"o": "a recorded output", "i": "an open input", "p": "a parameter"}
 
 
+class _Slots:
+    """Where each copy reads: an instance's outputs in the row (its offset), or an array of the master's wiring
+    that is not the row (an override's or an event-driven input's held value, a table's values of the step),
+    given slots after the row's, in the order first met."""
+
+    def __init__(self, plan: Plan, layout: RowLayout) -> None:
+        self.plan, self.layout = plan, layout
+        self.n = layout.n_double
+        self.extra: dict[int, tuple[int, Any]] = {}   # id(array) -> (its first slot, the array: kept alive)
+
+    def of(self, arr: Any, i: int) -> int:
+        for m in self.plan.order:
+            if arr is self.layout.out_arr[m]:
+                return self.layout.offset[m] + i
+        if id(arr) not in self.extra:
+            self.extra[id(arr)] = (self.n, arr)
+            self.n += len(arr)
+        return self.extra[id(arr)][0] + i
+
+    def held(self, tables: set[int]) -> list[str]:
+        """A ``put`` line of every held value now (the arrays that are not tables')."""
+        return [f"put {slot} {_num(arr[0])}" for key, (slot, arr) in self.extra.items() if key not in tables]
+
+
+def _copies(n: str, wiring: Wiring, slots: _Slots) -> list[str]:
+    """The ``copy`` lines of instance ``n`` as the master's wiring gives its copies now."""
+    return [f"copy {c.pos} {slots.of(c.src, c.slot)} {_num(c.factor)} {_num(c.offset)}" for c in wiring.copies(n)]
+
+
+def _tables(plan: Plan, wiring: Wiring, slots: _Slots) -> list[str]:
+    """Each instance's input table: the slots its Real columns are written to before each step (the copies
+    read them there, as the master's table array), its other columns by FMI type in the master's order (one
+    set per type), and one row per step."""
+    lines = []
+    for i, n in enumerate(plan.order):
+        table = wiring.tables.get(n)
+        discrete = [ip for ip in plan.inputs if ip.instance == n and not ip.var.is_float64]
+        if table is None and not discrete:
+            continue
+        reals = table[1] if table is not None else np.zeros((plan.n_steps, 0))
+        groups = [[ip for ip in discrete if ip.var.fmi_type == t] for t in sorted({ip.var.fmi_type for ip in discrete})]
+        lines.append(f"table {i} {plan.n_steps} {reals.shape[1]} {len(groups)}")
+        lines.append(" ".join(["tslots", *(str(slots.of(table[0], j)) for j in range(reals.shape[1]))]) if table else "tslots")
+        for g in groups:
+            lines.append(" ".join(["tgroup", _LETTER[g[0].var.type], str(len(g)), *(str(ip.var.vr) for ip in g)]))
+        for k in range(plan.n_steps):
+            row = [_num(x) for x in reals[k]]
+            for g in groups:
+                row += [_value(ip.var.type, ip.values[k]) for ip in g]
+            lines.append(" ".join(["trow", *row]))
+    return lines
+
+
+def _events(plan: Plan, wiring: Wiring, slots: _Slots, tables: set[int]) -> list[str]:
+    """The timed events as what they do before the step from their communication point, step by step, as
+    the master's actuator does it: the values set on an FMU (a tunable parameter, an input of another type
+    than Real, held as :func:`discrete_event_value` says), each instance's copies where the overrides and
+    biases in force change them, the held values, and a stop."""
+    index = {n: i for i, n in enumerate(plan.order)}
+    before = {n: _copies(n, wiring, slots) for n in plan.order}
+    held: dict[tuple[str, int], Any] = {}
+    lines = []
+    events = plan.events
+    j = 0
+    while j < len(events):
+        k = events[j].step
+        items: list[str] = []
+        while j < len(events) and events[j].step == k:
+            ev = events[j]
+            j += 1
+            if ev.action == "stop":
+                items.append(f"stop {ev.index}")
+                j = len(events)   # (the run ends: nothing after it acts)
+                break
+            assert ev.instance is not None and ev.var is not None
+            where = index[ev.instance]
+            if ev.action == "set":
+                items.append(f"set {where} {_param(ev.var, ev.value)}")
+            elif ev.var.type == "Real":
+                wiring.apply(ev)
+            else:
+                value = discrete_event_value(plan, held, ev)
+                if value is not None:
+                    items.append(f"set {where} {_param(ev.var, value)}")
+        for n in plan.order:
+            now = _copies(n, wiring, slots)
+            if now != before[n]:
+                items.append("\n".join([f"copies {index[n]} {len(now)}", *now]))   # (one item: its copies)
+                before[n] = now
+        items += slots.held(tables)
+        lines += [f"at {k} {len(items)}", *items]
+    return lines
+
+
+_LETTER = {"Real": "R", "Integer": "I", "Enumeration": "I", "Boolean": "B", "String": "S"}
+
+
+def _value(type_: str, value: Any) -> str:
+    """A value of the type in system.txt (a Real hexadecimal, an Integer's or Boolean's decimal, a String
+    hexadecimal bytes)."""
+    if type_ == "Real":
+        return _num(float(value))
+    if type_ == "String":
+        return _hex(str(value))
+    return str(int(bool(value))) if type_ == "Boolean" else str(int(value))
+
+
 def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[ContainerVar],
                 dirs: dict[str, str]) -> str:
     """resources/system.txt (read by container.c)."""
     index = {(v.inst, v.type, v.ref): j for j, v in enumerate(cvars) if v.kind != "o"}
     own_rates = any(plan.instances[n].decimation > 1 for n in plan.order)   # (the master's MultiRate)
-    lines = [FORMAT, f"system {len(plan.order)} {layout.n_double} {int(plan.scenario.algorithm == JACOBI)} 1 "
-                     f"{_num(plan.scenario.step or 0.0)} {len(cvars)} {int(own_rates)}"]
+    slots = _Slots(plan, layout)
+    body = []
     for i, n in enumerate(plan.order):
         ip = plan.instances[n]
-        copies = wiring.copies(n)
-        lines.append(" ".join(["inst", _hex(n), _hex(dirs[n]), _hex(ip.model.identifier), _hex(ip.model.md.guid),
-                               str(int(ip.tolerance is not None)), _num(ip.tolerance or 0.0),
-                               str(len(wiring.vrs[n])), str(len(layout.reals[n])), str(layout.offset[n]),
-                               str(len(copies)), str(len(ip.parameters)), str(ip.decimation)]))
-        lines.append(" ".join(str(vr) for vr in wiring.vrs[n]) or "")
-        lines.append(" ".join(str(vr) for vr, _ in layout.reals[n]) or "")
-        for c in copies:
-            src = next((m for m in plan.order if c.src is layout.out_arr[m]), None)
-            if src is None:   # (tables and events are refused: every copy reads the row)
-                raise CosimError(f"{n}: an input copy that does not read the row")
-            lines.append(f"copy {c.pos} {layout.offset[src] + c.slot} {_num(c.factor)} {_num(c.offset)}")
+        copies = _copies(n, wiring, slots)
+        body.append(" ".join(["inst", _hex(n), _hex(dirs[n]), _hex(ip.model.identifier), _hex(ip.model.md.guid),
+                              str(int(ip.tolerance is not None)), _num(ip.tolerance or 0.0),
+                              str(len(wiring.vrs[n])), str(len(layout.reals[n])), str(layout.offset[n]),
+                              str(len(copies)), str(len(ip.parameters)), str(ip.decimation)]))
+        body.append(" ".join(str(vr) for vr in wiring.vrs[n]) or "")
+        body.append(" ".join(str(vr) for vr, _ in layout.reals[n]) or "")
+        body += copies
         for var, value in ip.parameters:
-            lines.append(f"param {_param(var, value)} {index.get((i, var.type, var.vr), -1)}")
+            body.append(f"param {_param(var, value)} {index.get((i, var.type, var.vr), -1)}")
     for v in cvars:
-        lines.append(f"var {v.kind} {TYPES[v.type]} {v.inst} {v.ref} {_num(v.start)} "
-                     f"{int(v.variability == 'tunable' or v.kind == 'i')}")
-    lines.append("end")
-    return "\n".join(lines) + "\n"
+        body.append(f"var {v.kind} {TYPES[v.type]} {v.inst} {v.ref} {_num(v.start)} "
+                    f"{int(v.variability == 'tunable' or v.kind == 'i')}")
+    tables = _tables(plan, wiring, slots)
+    table_arrays = {id(t[0]) for t in wiring.tables.values()}
+    held = slots.held(table_arrays)       # (the event-driven inputs' start values, before any event)
+    events = _events(plan, wiring, slots, table_arrays)
+    head = [FORMAT, f"system {len(plan.order)} {slots.n} {int(plan.scenario.algorithm == JACOBI)} 1 "
+                    f"{_num(plan.scenario.step or 0.0)} {len(cvars)} {int(own_rates)}"]
+    return "\n".join([*head, *body, f"holds {len(held)}", *held,
+                      f"tables {sum(ln.startswith('table ') for ln in tables)}", *tables,
+                      f"events {sum(ln.startswith('at ') for ln in events)}", *events, "end"]) + "\n"
 
 
 def _param(var: Any, value: Any) -> str:
@@ -360,7 +477,7 @@ def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None, fmi:
             folder.mkdir(parents=True)
             build_binary(guid, folder / f"{name}.{_LIB[platform]}", platform, fmi)
         (tmp / "sources").mkdir()   # (for fmi 3, the FMI 3.0 face and the standard's headers beside it)
-        for src in (SOURCE, native.SOURCE, *((SOURCE3, *(native.fmi_headers(3) / h for h in HEADERS3)) if fmi == 3 else ())):
+        for src in (SOURCE, native.SOURCE, *INCLUDED, *((SOURCE3, *(native.fmi_headers(3) / h for h in HEADERS3)) if fmi == 3 else ())):
             shutil.copyfile(src, tmp / "sources" / src.name)
         out.parent.mkdir(parents=True, exist_ok=True)
         part = out.with_name(out.name + ".part")

@@ -245,6 +245,25 @@ class Wiring:
         return RunError(f"{name}: the inputs' values overflow (their sum is not finite) at t = {t:.6g} s", name, t)
 
 
+def discrete_event_value(plan: Plan, held: dict[tuple[str, int], Any], ev: EventPlan) -> Any:
+    """The value an event on an Integer, Enumeration, Boolean or String input sets now (None: none): a reset
+    its start (the scenario's, else the FMU's), a bias the value held plus its own, else its value; ``held``
+    ((instance, value reference) -> value) keeps it until the next event on that input."""
+    assert ev.instance is not None and ev.var is not None
+    key = (ev.instance, ev.var.vr)
+    start = ev.var.start
+    for v, val in plan.instances[ev.instance].parameters:
+        if v.vr == ev.var.vr:
+            start = val
+    current = held.get(key, start)
+    if ev.action == "reset":
+        held.pop(key, None)
+        return start
+    value = int(current or 0) + int(ev.value) if ev.action == "bias" else ev.value
+    held[key] = value
+    return value
+
+
 def _start(plan: Plan, ev: EventPlan) -> float:
     assert ev.instance is not None and ev.var is not None
     start = ev.var.start if ev.var.start is not None else 0.0

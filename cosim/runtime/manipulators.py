@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any, Callable
 from ..messages.errors import CosimError
 from ..model.description import Variable
 from ..plan.records import EventPlan, Plan
-from ..plan.wiring import Wiring
+from ..plan.wiring import Wiring, discrete_event_value
 from ..results.event_log import scenario_entry
 from ..scenario.condition import compile_condition
 from .views import Manipulable
@@ -74,21 +74,7 @@ class Actuator:
     def _discrete_event(self, ev: EventPlan) -> None:
         """An event on an Integer, Enumeration, Boolean or String input: set now, held until the next."""
         assert ev.instance is not None and ev.var is not None
-        key = (ev.instance, ev.var.vr)
-        start = ev.var.start
-        for v, val in self.plan.instances[ev.instance].parameters:
-            if v.vr == ev.var.vr:
-                start = val
-        current = self.discrete.get(key, start)
-        if ev.action == "reset":
-            self.discrete.pop(key, None)
-            value = start
-        elif ev.action == "bias":
-            value = int(current or 0) + int(ev.value)
-            self.discrete[key] = value
-        else:
-            value = ev.value
-            self.discrete[key] = value
+        value = discrete_event_value(self.plan, self.discrete, ev)
         if value is not None:
             self.instances[ev.instance].set_values([(ev.var, value)])
 

@@ -70,7 +70,7 @@ typedef fmi2Status (*seti_t)(fmi2Component, const fmi2ValueReference *, size_t, 
 typedef fmi2Status (*geti_t)(fmi2Component, const fmi2ValueReference *, size_t, fmi2Integer *);
 typedef fmi2Status (*sets_t)(fmi2Component, const fmi2ValueReference *, size_t, const fmi2String *);
 
-#define VERSION_TAG "wmr-container 3"
+#define VERSION_TAG "wmr-container 4"
 
 typedef struct { char type; unsigned vr; double r; int i; char *s; int var; } Param;
 
@@ -84,31 +84,6 @@ typedef struct {
     size_t n_out;   /* its Real outputs (Inst.n_out is 0 in the loop where they are read lazily) */
     int lazy;       /* its outputs feed no copy: read when the host asks for them, not after every step */
 } Inner;
-
-/* a variable of the container: kind 'o' (a recorded output), 'i' (an open input) or 'p' (a parameter); type
- * 'R', 'I' or 'B' (Real, Integer, Boolean); an Integer's or a Boolean's value held exactly as a double */
-typedef struct { char kind, type; int inst; unsigned ref; double value; int tunable; int set; } Var;
-
-typedef struct {
-    const fmi2CallbackFunctions *cb;
-    char *name;
-    int n; Inner *inner; Inst *insts; Loop L;
-    double *row; long n_row;
-    int n_vars; Var *vars;
-    double step; int mode;   /* 0 instantiated, 1 initialisation mode, 2 stepping, 3 terminated */
-    double t0; int stop_defined; double stop;
-    int stale;      /* the lazy instances' outputs in the row are older than their last step */
-} Container;
-
-static void say(Container *s, fmi2Status st, const char *fmt, ...) {
-    char msg[1024];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    if (s && s->cb && s->cb->logger)
-        s->cb->logger(s->cb->componentEnvironment, s->name, st, st == fmi2OK ? "logEvents" : "logStatusError", "%s", msg);
-}
 
 /* ------------------------------------------------------------------ reading system.txt */
 typedef struct { char *text, *at; int bad; } Reader;
@@ -135,6 +110,35 @@ static char *text(Reader *r) {
     return out;
 }
 static void expect(Reader *r, const char *word) { if (strcmp(token(r), word)) r->bad = 1; }
+
+#include "container_actions.c"
+
+/* a variable of the container: kind 'o' (a recorded output), 'i' (an open input) or 'p' (a parameter); type
+ * 'R', 'I' or 'B' (Real, Integer, Boolean); an Integer's or a Boolean's value held exactly as a double */
+typedef struct { char kind, type; int inst; unsigned ref; double value; int tunable; int set; } Var;
+
+typedef struct {
+    const fmi2CallbackFunctions *cb;
+    char *name;
+    int n; Inner *inner; Inst *insts; Loop L;
+    double *row; long n_row;
+    int n_vars; Var *vars;
+    double step; int mode;   /* 0 instantiated, 1 initialisation mode, 2 stepping, 3 terminated */
+    double t0; int stop_defined; double stop;
+    int stale;      /* the lazy instances' outputs in the row are older than their last step */
+    Actions act;    /* timed events and input tables (container_actions.c) */
+} Container;
+
+static void say(Container *s, fmi2Status st, const char *fmt, ...) {
+    char msg[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    if (s && s->cb && s->cb->logger)
+        s->cb->logger(s->cb->componentEnvironment, s->name, st, st == fmi2OK ? "logEvents" : "logStatusError", "%s", msg);
+}
+
 
 static int read_instance(Container *s, Reader *r, int i) {
     Inner *q = &s->inner[i];
@@ -226,9 +230,10 @@ static int read_system(Container *s, const char *path) {
         if (v->kind == 'o' && v->type == 'R' ? v->ref >= (unsigned)s->n_row : (v->inst < 0 || v->inst >= s->n))
             r.bad = 1;
     }
+    if (!r.bad && !read_actions(&s->act, &r, s->n_row, s->n)) r.bad = 1;
     expect(&r, "end");
     ok = !r.bad;
-    if (ok) lazy_outputs(s);
+    if (ok) { lazy_outputs(s); write_holds(&s->act, s->row); }
 done:
     free(r.text);
     return ok;
@@ -332,6 +337,7 @@ static void free_container(Container *s) {
         free(p->in_vr); free(p->in_val); free(p->out_vr);
         free(p->pos); free(p->src); free(p->slot); free(p->factor); free(p->offset); free(p->plain);
     }
+    free_actions(&s->act);
     free(s->inner); free(s->insts); free(s->vars); free(s->row); free(s->name);
     free(s);
 }
@@ -392,6 +398,29 @@ static int set_param(Container *s, Inner *q, Param *a) {
     return set_value(q, a->type, a->vr, a->type == 'R' ? a->r : (double)a->i);
 }
 
+/* the timed events of the communication points up to step k, in order (container_actions.c) */
+static int apply_at(Container *s, long k) {
+    Actions *A = &s->act;
+    int j, st;
+    while (A->next < A->n_at && A->at[A->next].k <= k) {
+        At *a = &A->at[A->next++];
+        for (j = 0; j < a->n; j++) {
+            Item *it = &a->items[j];
+            if (it->what == 's') {
+                Inner *q = &s->inner[it->inst];
+                Param *p = &it->p;
+                if (p->type == 'S') { fmi2String v = p->s; st = q->set_string(q->c, &p->vr, 1, &v); }
+                else st = set_value(q, p->type, p->vr, p->type == 'R' ? p->r : (double)p->i);
+                if (st) { say(s, fmi2Error, "%s: an event's value to value reference %u returned %d at t = %.17g s",
+                              q->name, p->vr, st, s->L.t0 + (double)a->k * s->L.h); return 1; }
+            } else if (it->what == 'c') replace_copies(&s->insts[it->inst], it, s->row);
+            else if (it->what == 'p') s->row[it->put_slot] = it->put_value;
+            else { A->stopped = 1; A->stop_index = it->index; A->stop_time = s->L.t0 + (double)a->k * s->L.h; return 0; }
+        }
+    }
+    return 0;
+}
+
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
     Container *s = c;
     int i, j, st;
@@ -439,6 +468,9 @@ static int exchange(Container *s) {
         m = 0;
         for (i = 0; i < s->n; i++) {
             Inst *p = &s->insts[i];
+            const char *who = NULL;
+            int st = feed_tables(&s->act, s->inner, s->row, (int)i, 0, &who);   /* (the master's feed(0)) */
+            if (st) { say(s, fmi2Error, "%s: setting its tabulated inputs returned %d", who, st); goto failed; }
             for (j = 0; j < p->n_copies; j++) {
                 double v = p->plain[j] ? p->src[j][p->slot[j]] : p->src[j][p->slot[j]] * p->factor[j] + p->offset[j];
                 p->in_val[p->pos[j]] = v;
@@ -648,7 +680,28 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
             "take steps that are whole multiples of it", t, h, s->step, s->t0);
         return fmi2Error;
     }
-    st = wmr_loop(&s->L, k0, k0 + nk);
+    if (s->act.stopped) { say(s, fmi2Error, "fmi2DoStep after the stop of events[%d]", s->act.stop_index); return fmi2Error; }
+    {
+        long k = k0, end = k0 + nk;
+        st = OK;
+        while (k < end && st == OK) {
+            long next = end;
+            if (apply_at(s, k)) return fmi2Error;
+            if (s->act.stopped) {
+                for (int i = 0; i < s->n; i++) s->stale |= s->inner[i].lazy;
+                say(s, fmi2OK, "stopped by events[%d] at t = %.17g s", s->act.stop_index, s->act.stop_time);
+                return fmi2Discard;
+            }
+            if (s->act.next < s->act.n_at && s->act.at[s->act.next].k < end) next = s->act.at[s->act.next].k;
+            if (!s->act.n_tables) { st = wmr_loop(&s->L, k, next); k = next; continue; }
+            for (; k < next && st == OK; k++) {   /* (the tables' row of each step before it) */
+                const char *who = NULL;
+                int fs = feed_tables(&s->act, s->inner, s->row, -1, k, &who);
+                if (fs) { say(s, fmi2Error, "%s: setting its tabulated inputs of step %ld returned %d", who, k, fs); return fmi2Error; }
+                st = wmr_loop(&s->L, k, k + 1);
+            }
+        }
+    }
     for (int i = 0; i < s->n; i++) s->stale |= s->inner[i].lazy;
     if (st == OK) return fmi2OK;
     {
@@ -660,11 +713,14 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
 }
 
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind k, fmi2Status *v) { (void)k; (void)v; return unsupported(c, "fmi2GetStatus"); }
-fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind k, fmi2Real *v) { (void)k; (void)v; return unsupported(c, "fmi2GetRealStatus"); }
+fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind k, fmi2Real *v) {
+    Container *s = c;
+    if (k == fmi2LastSuccessfulTime && s->act.stopped) { *v = s->act.stop_time; return fmi2OK; }
+    return unsupported(c, "fmi2GetRealStatus");
+}
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind k, fmi2Integer *v) { (void)k; (void)v; return unsupported(c, "fmi2GetIntegerStatus"); }
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind k, fmi2String *v) { (void)k; (void)v; return unsupported(c, "fmi2GetStringStatus"); }
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind k, fmi2Boolean *v) {
-    (void)c;
-    if (k == fmi2Terminated) { *v = 0; return fmi2OK; }
+    if (k == fmi2Terminated) { *v = ((Container *)c)->act.stopped; return fmi2OK; }
     return fmi2Discard;
 }

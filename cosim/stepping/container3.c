@@ -18,6 +18,7 @@ typedef struct {
     fmi3LogMessageCallback log;
     fmi2CallbackFunctions cb;   /* what the FMI 2.0 container and the inner FMUs are given */
     double time;                /* the independent variable (value reference 0), s */
+    int early_return_allowed;   /* a stop event inside a step of the host may return early */
 } Host3;
 
 /* the FMI 2.0 logger the container and the inner FMUs call: the message formatted, then to the host's */
@@ -71,10 +72,10 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
                                          fmi3IntermediateUpdateCallback intermediateUpdate) {
     Host3 *h = calloc(1, sizeof(Host3));
     char *uri;
-    (void)eventModeUsed; (void)earlyReturnAllowed; (void)requiredIntermediateVariables;
+    (void)eventModeUsed; (void)requiredIntermediateVariables;
     (void)nRequiredIntermediateVariables; (void)intermediateUpdate;
     if (!h) return NULL;
-    h->env = instanceEnvironment; h->log = logMessage;
+    h->env = instanceEnvironment; h->log = logMessage; h->early_return_allowed = earlyReturnAllowed;
     h->cb.logger = log3; h->cb.allocateMemory = alloc3; h->cb.freeMemory = free; h->cb.componentEnvironment = h;
     if (!resourcePath) {
         if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError", "no resource path");
@@ -125,6 +126,20 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     if (lastSuccessfulTime)
         *lastSuccessfulTime = st == fmi2OK ? currentCommunicationPoint + communicationStepSize
                                            : currentCommunicationPoint;
+    if (st == fmi2Discard && ((Container *)h->s)->act.stopped) {   /* a stop event: the simulation ends there */
+        double at = ((Container *)h->s)->act.stop_time;
+        if (terminateSimulation) *terminateSimulation = true;
+        /* (without early return the host's step ends where it asked, the outputs those of the stop's time) */
+        if (h->early_return_allowed) {
+            if (earlyReturn) *earlyReturn = at < currentCommunicationPoint + communicationStepSize;
+            if (lastSuccessfulTime) *lastSuccessfulTime = at;
+            h->time = at;
+        } else {
+            if (lastSuccessfulTime) *lastSuccessfulTime = currentCommunicationPoint + communicationStepSize;
+            h->time = currentCommunicationPoint + communicationStepSize;
+        }
+        return fmi3OK;
+    }
     return status3(st);
 }
 
