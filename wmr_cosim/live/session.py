@@ -72,6 +72,7 @@ class LiveSession:
         self._steps_left = 0                       # steps a step command still asks for
         self._stepping: Command | None = None      # that command, answered when they are done
         self._per_step = 0.0                       # [s] of wall time a step took in the last chunk
+        self._published = -1                       # the step whose row was streamed last
         self._rate: deque[tuple[float, float]] = deque()   # (wall [s], time [s]) at the chunks' ends
         plan = ex.plan
         columns = plan.columns()
@@ -248,10 +249,11 @@ class LiveSession:
     def _publish(self) -> None:
         """The state updated and the row of this communication point handed to every subscriber."""
         self._update_state()
-        row = self.ex.last_row() if not self.ex.ended else None
-        if row is None:
+        k = self.ex.k_done
+        if k == self._published:
             return
-        msg = {"type": "row", "row": [_finite(x) for x in row]}
+        self._published = k
+        msg = {"type": "row", "row": [_finite(x) for x in self.ex.last_row()]}   # (the last one too, after the end)
         with self._lock:
             sinks = list(self._sinks)
         for sink in sinks:
