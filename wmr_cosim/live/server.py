@@ -85,73 +85,73 @@ class Guard:
 
 def make_app(session: LiveSession, guard: Guard) -> Starlette:
     """The application: the page, the state, the commands, the stream of rows."""
+    api = _Api(session, guard)
+    return Starlette(routes=[
+        Route("/", api.guarded(api.page)),
+        Route("/api/state", api.guarded(api.state)),
+        Route("/api/pause", api.command("pause", no_args), methods=["POST"]),
+        Route("/api/resume", api.command("resume", no_args), methods=["POST"]),
+        Route("/api/stop", api.command("stop", no_args), methods=["POST"]),
+        Route("/api/step", api.command("step", step_args), methods=["POST"]),
+        Route("/api/rate", api.command("rate", rate_args), methods=["POST"]),
+        Route("/api/set", api.command("set", set_args), methods=["POST"]),
+        WebSocketRoute("/api/stream", api.stream),
+    ])
 
-    def guarded(fn: Callable[[Request], Awaitable[Response]]) -> Callable[[Request], Awaitable[Response]]:
+
+Handler = Callable[[Request], Awaitable[Response]]
+
+
+class _Api:
+    """The handlers of :func:`make_app` over one session."""
+
+    def __init__(self, session: LiveSession, guard: Guard) -> None:
+        self.session, self.guard = session, guard
+
+    def guarded(self, fn: Handler) -> Handler:
+        """``fn`` behind the guard (403 with the reason)."""
         async def handler(request: Request) -> Response:
-            why = guard.refusal(request)
+            why = self.guard.refusal(request)
             if why is not None:
                 return _error(why, 403)
             return await fn(request)
         return handler
 
-    async def page(request: Request) -> Response:
+    async def page(self, request: Request) -> Response:
         html = resources.files(__package__).joinpath("static", "index.html").read_text(encoding="utf-8")
         return HTMLResponse(html, headers={"Content-Security-Policy": "default-src 'self'; "
                                            "script-src 'unsafe-inline'; style-src 'unsafe-inline'; "
                                            "connect-src 'self'", "X-Frame-Options": "DENY"})
 
-    async def state(request: Request) -> Response:
-        return _json(session.state())
+    async def state(self, request: Request) -> Response:
+        return _json(self.session.state())
 
-    async def body(request: Request) -> dict[str, Any]:
-        raw = await request.body()
-        if not raw.strip():
-            return {}
-        try:
-            doc = json.loads(raw)
-        except (ValueError, UnicodeDecodeError):
-            raise Refused("the body is not JSON") from None
-        if not isinstance(doc, dict):
-            raise Refused("the body must be a JSON object")
-        return doc
-
-    def command(kind: str, check: Callable[[dict[str, Any]], dict[str, Any]]) -> Callable[[Request], Awaitable[Response]]:
+    def command(self, kind: str, check: Callable[[dict[str, Any]], dict[str, Any]]) -> Handler:
+        """The handler of a command: its body checked (400), queued, answered with the state after it."""
         async def handler(request: Request) -> Response:
             try:
-                args = check(await body(request))
-                result = await asyncio.wrap_future(session.submit(kind, **args))
+                args = check(await _body(request))
+                result = await asyncio.wrap_future(self.session.submit(kind, **args))
             except Refused as exc:
                 return _error(exc.reason, exc.status)
             return _json(result)
-        return guarded(handler)
+        return self.guarded(handler)
 
-    async def stream(ws: WebSocket) -> None:
-        why = guard.refusal(ws)
+    async def stream(self, ws: WebSocket) -> None:
+        """The rows as the run goes: the columns first, then each row, then the end (see docs/live.md)."""
+        why = self.guard.refusal(ws)
         if why is not None:
             await ws.close(code=1008, reason=why)   # (before the handshake: answered 403)
             return
         await ws.accept()
-        loop = asyncio.get_running_loop()
-        rows: asyncio.Queue[dict[str, Any] | None] = asyncio.Queue(maxsize=200)
-
-        def put(msg: dict[str, Any] | None) -> None:
-            if msg is not None and rows.full():
-                return   # a client that does not keep up misses rows, the run never waits for it
-            rows.put_nowait(msg)
-
-        def sink(msg: dict[str, Any] | None) -> None:   # (the stepping thread)
-            try:
-                loop.call_soon_threadsafe(put, msg)
-            except RuntimeError:   # the server's loop has closed
-                pass
-
-        await ws.send_text(json.dumps(clean({**session.header(), "state": session.state()})))
-        unsubscribe = session.subscribe(sink)
+        rows, sink = _client_queue(asyncio.get_running_loop())
+        await ws.send_text(json.dumps(clean({**self.session.header(), "state": self.session.state()})))
+        unsubscribe = self.session.subscribe(sink)
         try:
             while True:
                 msg = await rows.get()
                 if msg is None:
-                    await ws.send_text(json.dumps(clean({"type": "end", "state": session.state()})))
+                    await ws.send_text(json.dumps(clean({"type": "end", "state": self.session.state()})))
                     await ws.close()
                     break
                 await ws.send_text(json.dumps(msg))
@@ -160,17 +160,40 @@ def make_app(session: LiveSession, guard: Guard) -> Starlette:
         finally:
             unsubscribe()
 
-    return Starlette(routes=[
-        Route("/", guarded(page)),
-        Route("/api/state", guarded(state)),
-        Route("/api/pause", command("pause", no_args), methods=["POST"]),
-        Route("/api/resume", command("resume", no_args), methods=["POST"]),
-        Route("/api/stop", command("stop", no_args), methods=["POST"]),
-        Route("/api/step", command("step", step_args), methods=["POST"]),
-        Route("/api/rate", command("rate", rate_args), methods=["POST"]),
-        Route("/api/set", command("set", set_args), methods=["POST"]),
-        WebSocketRoute("/api/stream", stream),
-    ])
+
+def _client_queue(loop: asyncio.AbstractEventLoop
+                  ) -> tuple[asyncio.Queue[dict[str, Any] | None], Callable[[dict[str, Any] | None], None]]:
+    """A client's queue of rows on the server's loop, and the sink the stepping thread hands them to (a
+    client that does not keep up misses rows: the run never waits for it)."""
+    rows: asyncio.Queue[dict[str, Any] | None] = asyncio.Queue(maxsize=200)
+
+    def put(msg: dict[str, Any] | None) -> None:
+        if not rows.full():
+            rows.put_nowait(msg)
+        elif msg is None:   # the end always arrives: a row dropped for it
+            rows.get_nowait()
+            rows.put_nowait(msg)
+
+    def sink(msg: dict[str, Any] | None) -> None:   # (the stepping thread)
+        try:
+            loop.call_soon_threadsafe(put, msg)
+        except RuntimeError:   # the server's loop has closed
+            pass
+    return rows, sink
+
+
+async def _body(request: Request) -> dict[str, Any]:
+    """The JSON object of a command's body ({} for none); Refused otherwise."""
+    raw = await request.body()
+    if not raw.strip():
+        return {}
+    try:
+        doc = json.loads(raw)
+    except (ValueError, UnicodeDecodeError):
+        raise Refused("the body is not JSON") from None
+    if not isinstance(doc, dict):
+        raise Refused("the body must be a JSON object")
+    return doc
 
 
 def no_args(doc: dict[str, Any]) -> dict[str, Any]:
