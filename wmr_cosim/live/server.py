@@ -15,6 +15,7 @@ import hmac
 import ipaddress
 import json
 import math
+import os
 import socket
 import threading
 from importlib import resources
@@ -245,6 +246,8 @@ class LiveServer:
     def __init__(self, host: str, port: int, token: str | None) -> None:
         family = socket.AF_INET6 if ":" in host else socket.AF_INET
         sock = socket.socket(family, socket.SOCK_STREAM)
+        if os.name != "nt":   # a port whose last server has just ended (its connections in TIME_WAIT) binds again;
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)   # one another server listens on does not
         try:
             sock.bind((host, port))
             sock.listen(16)
