@@ -266,13 +266,13 @@ class Simulation:
         one), its address printed on stderr, ``paused`` to start paused; ``out`` then gets replay.toml too.
         It needs the live extra (CosimError naming what is missing) and takes no ``on_step``."""
         if live:
-            return self._run_live(out, real_time, progress, force, raise_on_failure, port, host, paused, on_step)
+            return self._run_live(out, real_time, force, raise_on_failure, port, host, paused, on_step)
         with self.start(out, real_time=real_time, progress=progress, force=force) as r:
             for fn in ([on_step] if callable(on_step) else list(on_step or [])):
                 r.on_step(fn)
             return r.finish(raise_on_failure=raise_on_failure)
 
-    def _run_live(self, out: str | Path | None, real_time: float | None, progress: bool | None, force: bool,
+    def _run_live(self, out: str | Path | None, real_time: float | None, force: bool,
                   raise_on_failure: bool, port: int, host: str, paused: bool, on_step: Any) -> Result:
         """:meth:`run` with ``live=True``."""
         import ipaddress
