@@ -598,8 +598,33 @@ def option_values(draw: Any, opt: schema.Option, broken: bool) -> list[str]:
 
 
 #: Options the command-line cases leave out: they change where the run goes, not what it is given
-#: (--real-time paces to the wall clock, --isolate starts child processes: both have their own tests).
-SLOW_OPTIONS = {"--real-time", "--isolate", "--show", "--dashboard", "--scheduler"}
+#: (--real-time paces to the wall clock, --isolate starts child processes, --live serves the run and waits for
+#: its clients with --paused: they have their own tests, and live_option_cases their bad values).
+SLOW_OPTIONS = {"--real-time", "--isolate", "--show", "--dashboard", "--scheduler", "--live", "--port", "--host",
+                "--paused"}
+
+#: Bad values of run --live's --port and --host.
+BAD_LIVE_VALUES = {"--port": ["-1", "65536", str(2 ** 32), "1.5", "x", "", "80 81"],
+                   "--host": ["", "nohost", "256.0.0.1", "127.0.0.1:80", "x" * 5000, "http://127.0.0.1", "\udcff"]}
+
+
+@st.composite
+def live_option_cases(draw: Any) -> Case:
+    """``run --live`` with a bad --port or --host, or --port, --host or --paused without --live: refused
+    before anything runs or listens, in one line naming the option."""
+    sysm = draw(systems())
+    doc = draw(scenario_docs(sysm))
+    argv = _base_argv(draw, "run", "s.toml")
+    flag = draw(st.sampled_from(["--port", "--host", "--paused"]))
+    if flag != "--paused" and draw(st.booleans()):
+        value = draw(st.sampled_from(BAD_LIVE_VALUES[flag]))
+        argv += ["--live", flag, value]
+        why, this = f"a bad {flag}", f"{flag} {value!r}"
+    else:
+        argv += [flag, *{"--port": ["8000"], "--host": ["127.0.0.1"]}.get(flag, [])]
+        why = this = f"{flag} without --live"
+    return Case("cli-run-live", argv, {"s.toml": dumps(doc).encode()}, Expectation(True, (flag,), why, this),
+                "broken live option")
 
 
 @st.composite

@@ -189,6 +189,47 @@ def test_bad_command_line(argv, words, sandbox, capsys):
     _one_line(capsys, main(argv), 2, words)
 
 
+@pytest.mark.parametrize("argv, words", [
+    (["run", "{good}", "--live", "--port", "70000"], ["--port", "'70000'", "0 (any free port) to 65535"]),
+    (["run", "{good}", "--live", "--port", "x"], ["--port", "'x'", "a port number"]),
+    (["run", "{good}", "--live", "--port", "-1"], ["--port"]),
+    (["run", "{good}", "--live", "--host", "nohost"], ["--host", "'nohost'", "an IP address"]),
+    (["run", "{good}", "--live", "--host", "127.0.0.1:80"], ["--host", "an IP address"]),
+    (["run", "{good}", "--port", "8000"], ["--port goes with --live"]),
+    (["run", "{good}", "--host", "0.0.0.0"], ["--host goes with --live"]),
+    (["run", "{good}", "--paused"], ["--paused goes with --live"]),
+    (["run", "{protocol}", "--live"], ["--live serves a single run", "a protocol of 2 runs"]),
+    (["check", "{good}", "--live"], ["unrecognized arguments: --live"]),
+    (["sweep", "{good}", "--live"], ["unrecognized arguments: --live"]),
+])
+def test_bad_live_options(argv, words, sandbox, capsys):
+    """run --live's options: bad values, without --live, with what cannot be served (a protocol), or given to
+    another command: one line, exit 2, before anything runs or listens."""
+    work, _ = sandbox
+    (work / "good.toml").write_text(HEAD)
+    (work / "protocol.toml").write_text(HEAD + '[[runs]]\nname = "a"\n[[runs]]\nname = "b"\n')
+    argv = [a.format(good=work / "good.toml", protocol=work / "protocol.toml") for a in argv] + ["--out", "o"] * (
+        argv[0] == "run")
+    try:
+        code = main(argv)
+    except SystemExit as exc:   # (argparse's refusals)
+        code = int(exc.code or 0)
+    _one_line(capsys, code, 2, words)
+    assert not (work / "o").exists()
+
+
+def test_live_without_its_extra_is_refused(sandbox, capsys, monkeypatch):
+    import importlib.util
+
+    work, _ = sandbox
+    (work / "good.toml").write_text(HEAD)
+    find = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "uvicorn" else find(name, *a))
+    _one_line(capsys, main(["run", str(work / "good.toml"), "--out", "o", "--live"]), 2,
+              ["--live needs uvicorn", "pip install 'wmr-cosim[live]'"])
+    assert not (work / "o").exists()
+
+
 def test_repeated_set_options_add_up(sandbox, capsys):
     work, _ = sandbox
     good = work / "good.toml"

@@ -89,6 +89,7 @@ IMPORTS = {
     "pandas": ("pandas", "sweep"), "distributed": ("dask[distributed]", "sweep"),  # sweep, gamma-search
     "scipy": ("scipy", "sweep"),   # falsify (and linearize: in the linear extra too)
     "control": ("control", "linear"),   # linearize (python-control)
+    "starlette": ("starlette", "live"), "uvicorn": ("uvicorn", "live"), "tomli_w": ("tomli-w", "live"),  # run --live
 }
 
 

@@ -255,14 +255,51 @@ class Simulation:
 
     def run(self, out: str | Path | None = None, *, real_time: float | None = None,
             on_step: Callable[["Run"], Any] | list[Callable[["Run"], Any]] | None = None,
-            progress: bool | None = False, force: bool = False, raise_on_failure: bool = True) -> Result:
+            progress: bool | None = False, force: bool = False, raise_on_failure: bool = True,
+            live: bool = False, port: int = 0, host: str = "127.0.0.1", paused: bool = False) -> Result:
         """Run to the stop time; ``on_step`` (a function or a list) is called with the :class:`Run` after
         every step.  A failed run raises RunError (the message the command line prints), unless
-        ``raise_on_failure=False``, which returns it with status "failed"."""
+        ``raise_on_failure=False``, which returns it with status "failed".
+
+        ``live=True`` serves the run while it goes, as ``wmr-cosim run --live`` (docs/live.md): on ``host``
+        (127.0.0.1; another interface requires the token printed in the address) and ``port`` (0: a free
+        one), its address printed on stderr, ``paused`` to start paused; ``out`` then gets replay.toml too.
+        It needs the live extra (CosimError naming what is missing) and takes no ``on_step``."""
+        if live:
+            return self._run_live(out, real_time, force, raise_on_failure, port, host, paused, on_step)
         with self.start(out, real_time=real_time, progress=progress, force=force) as r:
             for fn in ([on_step] if callable(on_step) else list(on_step or [])):
                 r.on_step(fn)
             return r.finish(raise_on_failure=raise_on_failure)
+
+    def _run_live(self, out: str | Path | None, real_time: float | None, force: bool,
+                  raise_on_failure: bool, port: int, host: str, paused: bool, on_step: Any) -> Result:
+        """:meth:`run` with ``live=True``."""
+        import ipaddress
+
+        from .live import LiveOptions, run_live
+
+        if on_step:
+            raise ScenarioError(self.file, "on_step", "a live run is steered through its API: it takes no on_step")
+        if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+            raise ScenarioError(self.file, "port", f"{port!r}: a port number is 0 (any free port) to 65535")
+        try:
+            host = host if host == "localhost" else str(ipaddress.ip_address(host))
+        except ValueError:
+            raise ScenarioError(self.file, "host", f"{host!r}: an IP address to serve on") from None
+        plan = self.check(force)
+        result = _result_of(run_live(plan, out, LiveOptions(host, port, paused), real_time=real_time,
+                                     keep_signals=True), plan)
+        if raise_on_failure and result.status == RunStatus.FAILED:
+            raise RunError(result.message)
+        return result
+
+
+def _result_of(r: Any, plan: Plan) -> Result:
+    """The :class:`Result` of the master's RunResult ``r`` of a run of ``plan``."""
+    signals = r.signals if r.signals is not None else np.zeros(0, dtype=[("time", "f8")])
+    return Result(r.status, r.message, r.steps, r.t_end, signals, r.summary, r.scenario, r.out_dir, list(r.events),
+                  layout(plan))
 
 
 class Run:
@@ -393,8 +430,6 @@ class Run:
         if r is None:
             return
         if self.result is None:
-            signals = r.signals if r.signals is not None else np.zeros(0, dtype=[("time", "f8")])
-            self.result = Result(r.status, r.message, r.steps, r.t_end, signals, r.summary, r.scenario,
-                                 r.out_dir, list(r.events), layout(self.plan))
+            self.result = _result_of(r, self.plan)
         if raise_on_failure and self.result.status == RunStatus.FAILED:
             raise RunError(self.result.message)

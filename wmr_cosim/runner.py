@@ -220,23 +220,31 @@ def run_scenario(path: str | Path, out: str | Path | None = None, overrides: dic
                  real_time: float | None = None, limits: LimitOverrides | None = None,
                  parsed: Protocol | None = None, fields: dict[str, Any] | None = None,
                  on_plan: Callable[[Plan], None] | None = None,
-                 judge: Callable[[RunResult], RunResult] | None = None) -> RunResult:
+                 judge: Callable[[RunResult], RunResult] | None = None, live: Any = None) -> RunResult:
     """Run a scenario file (.toml), an SSP archive (.ssp) or one FMU alone (.fmu); ``isolate`` hosts every
     instance in a child process of its own; ``real_time=FACTOR`` paces the steps to the wall clock;
     ``limits``: the caller's archive limits; ``parsed``: a scenario file already read (see :func:`load_plan`);
     ``fields``: one FMU alone: more keys of its instance (``solver``, ``max_step``: see :func:`fmu_plan`);
     ``on_plan``: called with the checked plan before the run starts (the command line prints its notes);
-    ``judge``: what a finished run of a scenario file becomes (see :func:`run_protocol`)."""
+    ``judge``: what a finished run of a scenario file becomes (see :func:`run_protocol`); ``live``: a
+    :class:`wmr_cosim.live.LiveOptions`: the run served live while it goes (docs/live.md; not an SSP archive,
+    whose FMUs are extracted for the run only: its replay.toml could not name them)."""
     out = out if out is not None else default_out(path)
     seen = on_plan or (lambda plan: None)
 
     def run(plan: Plan) -> RunResult:
         seen(plan)
+        if live is not None:
+            from .live import run_live
+            return run_live(plan, out, live, real_time=real_time)
         return run_plan(plan, out, progress=progress, real_time=real_time)
 
     if is_fmu(path):
         return run(fmu_plan(path, overrides, inputs, stop, step, force, isolate, limits, fields))
     if is_ssp(path):
+        if live is not None:
+            raise CosimError(f"{path}: --live serves a scenario file (.toml) or one FMU, not an SSP archive "
+                             "(its FMUs are extracted for the run only: its replay.toml could not name them)")
         with ssp_plan(path, overrides, force, isolate, limits) as plan:
             return run(plan)
     res = run(load_plan(path, overrides, force, isolate, limits, parsed))

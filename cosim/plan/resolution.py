@@ -32,8 +32,8 @@ from ..model.description import CO_SIMULATION, INTERFACE_NAMES, MODEL_EXCHANGE, 
 from ..model.kinds import FileKind, file_kind
 from ..model.types import PY_TYPES
 from ..model.units import conversion, lookup, same_unit, units_of
-from ..scenario.document import (SOLVER_KEYS, ConnectionSpec, InstanceSpec, Scenario, check_experiment, split_ref,
-                                steps_of)
+from ..scenario.document import (SOLVER_KEYS, ConnectionSpec, EventSpec as _EventSpec, InstanceSpec, Scenario,
+                                check_experiment, split_ref, steps_of)
 from ..scenario.inputs import InputPlan, read_inputs
 from ..stepping import table as algorithms
 from ..stepping.graph import FeedGraph
@@ -404,6 +404,35 @@ def _events(sc: Scenario, insts: dict[str, InstancePlan], driven: dict[tuple[str
         events.append(EventPlan(e.time, k, inst, var, e.action, value, e.variable, e.index, e.when, e.condition,
                                 e.trigger, e.delay, reads))
     return events
+
+
+def given_event(plan: Plan, ref: str, value: Any, k: int, index: int = 0) -> EventPlan:
+    """The timed event that gives ``ref`` (``"instance.variable"``) the value ``value`` before the step from
+    step ``k`` of a run of ``plan`` (a driver's change while the run goes), checked as an ``[[events]]``
+    entry at that time is: a tunable parameter is ``set``, an input is overridden (``override``), the value
+    checked against the variable's type and the min/max its model description declares.  Anything else (an
+    output, a fixed parameter, a local, an input a connection drives that is not Real, an array) is a
+    ScenarioError whose reason says why."""
+    file = plan.scenario.file
+    fld = "variable"
+    inst, vname = split_ref(file, fld, ref)
+    if inst not in plan.instances:
+        raise ScenarioError(file, fld, f"unknown instance {inst!r}{did_you_mean(inst, plan.instances)}")
+    var = variable(file, fld, plan.instances[inst], vname)
+    if var.causality == "parameter":
+        action = "set"
+    elif var.causality == "input":
+        action = "override"
+    else:
+        raise ScenarioError(file, fld, f"{ref} is {'an' if var.causality[0] in 'aeiou' else 'a'} "
+                                       f"{var.causality}: only tunable parameters and inputs can be given a value")
+    start, _, step = plan.scenario.times()
+    sc = dataclasses.replace(plan.scenario, events=[])
+    sc.events.append(_EventSpec(start + k * step, ref, action, value, index))
+    driven = {(c.dst, c.dst_var.name): i for i, c in enumerate(plan.connections)}
+    (ev,) = _events(sc, plan.instances, driven, plan.inputs)
+    ev.step = k
+    return ev
 
 
 def _condition_reads(file: str, fld: str, e: Any, insts: dict[str, InstancePlan]) -> dict[str, tuple[str, Variable]]:

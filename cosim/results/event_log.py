@@ -8,7 +8,9 @@ scenario's ``events[i]``, or the instance), ``kind`` and ``what`` (one line):
 - ``time``, ``state``, ``step``, ``input``: the events of a model exchange instance, handled by the
   master's integrator (a time event the FMU scheduled, an event indicator crossing zero,
   completedIntegratorStep asking for event mode, new inputs moving an indicator across zero);
-- ``terminate``: an FMU ended the simulation.
+- ``terminate``: an FMU ended the simulation;
+- a value a driver gave while the run went (:meth:`cosim.runtime.execution.Execution.give`): the kind and
+  the source are the driver's (``live`` for the live view), with ``action``, ``variable``, ``value``.
 
 At most :data:`MAX_ENTRIES` entries are kept (the first ones); the summary counts those left out."""
 from __future__ import annotations
@@ -47,6 +49,15 @@ def scenario_entry(ev: EventPlan, t: float, fired: float | None) -> dict[str, An
         entry["condition_time"] = fired
         what += f" (when {ev.when}: true at t = {fired:.9g} s)"
     entry["what"] = what
+    return entry
+
+
+def given_entry(ev: EventPlan, t: float, source: str) -> dict[str, Any]:
+    """The entry of the event ``ev`` a driver (``source``, e.g. ``live``) gave while the run went, acting at
+    ``t`` [s]: as a timed event's entry, its source and kind the driver's."""
+    entry = scenario_entry(ev, t, None)
+    del entry["event"]
+    entry.update(source=source, kind=source)
     return entry
 
 

@@ -26,6 +26,7 @@ script ends it cleanly before its stop time.  What was recorded up to there is o
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import math
 import shutil
 import tempfile
@@ -40,7 +41,8 @@ from ..instances.handoff import Handoff
 from ..instances.model_exchange import ModelExchange
 from ..messages.errors import CosimError, RunError, ScenarioError
 from ..model.description import Variable
-from ..plan.records import Plan
+from ..plan.records import EventPlan, Plan
+from ..plan.resolution import given_event
 from ..plan.wiring import RowLayout, Wiring
 from ..results.event_log import ended_entry, instance_entries, table
 from ..results.folder import ResultsFolder, RunResult, scenario_record, summary, write_results, write_robustness
@@ -50,7 +52,7 @@ from ..stepping.algorithm import Algorithm, Clock, InstanceIO
 from ..stepping.multirate import MultiRate
 from .access import VariableAccess
 from .interrupt import Interrupt
-from .manipulators import Actuator, ConditionEvents, EventStop, Manipulator, ScriptChanges, TimedEvents
+from .manipulators import Actuator, ConditionEvents, EventStop, GivenEvents, Manipulator, ScriptChanges, TimedEvents
 from .monitoring import RequirementMonitors
 from .observers import Observer, Pacing, ProgressBar, Recorder, StepCallback
 from .pacing import Pacer
@@ -139,6 +141,7 @@ class Execution:
         self._wiring = Wiring(plan, layout)
         actuator = self._actuator = Actuator(plan, self.instances, self._wiring)
         self._script = ScriptChanges(actuator)
+        self._given: dict[str, GivenEvents] = {}   # the events drivers give, by source (give)
         self.access = VariableAccess(plan, self.instances, layout, self._script)   # the variables by reference
         self.folder = ResultsFolder(out) if out is not None else None   # (None: the run kept in memory)
         if self.folder is not None:
@@ -148,9 +151,9 @@ class Execution:
                 self.folder.release()
                 raise
         self._work = Path(tempfile.mkdtemp(prefix="wmr-cosim-fmus-"))
+        self._slots = [layout.slot(r) for r in plan.record]   # each recorded column's slot in the row
         self._recorder = Recorder(self.folder.signals if self.folder is not None else None, self.columns,
-                                  recorded_types(plan),
-                                  [0] + [layout.slot(r) for r in plan.record], layout, layout.n_int, self.clock,
+                                  recorded_types(plan), [0] + self._slots, layout, layout.n_int, self.clock,
                                   native=not plan.scenario.event_rows)
         self._requirements = RequirementMonitors(plan.requirements) if plan.requirements else None
         self._add_builtin_parts(progress)
@@ -411,6 +414,15 @@ class Execution:
             self._alive()
         return self.access.get(ref)
 
+    def last_row(self) -> list[float]:
+        """The recorded columns (:attr:`columns`: the time [s] first) at the current communication point,
+        read from the row the loop fills, with no FMU call: the Float64 outputs at t_k, the recorded outputs
+        of other types as last recorded (they are read at the recorded steps).  What a view of the run as it
+        goes shows (the live view)."""
+        lay = self._layout
+        n = lay.n_double
+        return [self.time] + [lay.row[s] if s < n else float(lay.irow[s - n]) for s in self._slots]
+
     def reader(self, inst: str, var: Variable) -> Callable[[], Any]:
         """A function returning a variable's current value (see :meth:`.access.VariableAccess.reader`)."""
         self._alive()
@@ -422,6 +434,37 @@ class Execution:
         input no connection drives.  The value is checked against the variable's type and range."""
         self._alive()
         self.access.set(ref, value)
+
+    def give(self, ref: str, value: Any, source: str = "live") -> EventPlan:
+        """Give ``"instance.variable"`` the value ``value`` before the step from the current communication
+        point, exactly as a timed event of the scenario at that time would (a tunable parameter set, an input
+        overridden; checked as such an event is, against the variable's type and min/max: ScenarioError
+        otherwise, see :func:`cosim.plan.resolution.given_event`), with an entry in the event table whose
+        source and kind are ``source``.  Returns the event (its time [s] and checked value: what a scenario
+        that replays the run names in its ``[[events]]``)."""
+        self._alive()
+        if self.k_done >= self.clock.n_steps:
+            raise CosimError(f"the run is at its stop time (t = {self.time:.6g} s): a value given now would never act")
+        ev = given_event(self.plan, ref, value, self.k_done)
+        given = self._given.get(source)
+        if given is None:
+            given = self._given[source] = GivenEvents(self._actuator, source)
+            self.add_manipulator(given)
+        given.pending.append(ev)
+        return ev
+
+    def pace(self, factor: float | None) -> None:
+        """Pace the steps from now on at ``factor`` x real time (None: as fast as they go); the wall clock
+        of the current communication point is the moment the next step starts (a run paused and resumed is
+        not late).  The overruns of every pace so far add up in the result's ``real_time``."""
+        self._alive()
+        old = self.pacer
+        if factor is None:
+            self._pacing = None
+        else:
+            self.pacer = Pacer(factor) if old is None else dataclasses.replace(old, factor=factor, _wall0=None)
+            self._pacing = Pacing(self.pacer)   # (its clock starts with the next step: see _advance)
+        self._update_per_step()
 
     def release(self, ref: str) -> None:
         """End an override :meth:`set` put on a connected input or an output."""

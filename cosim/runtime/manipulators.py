@@ -32,7 +32,7 @@ from ..messages.errors import CosimError
 from ..model.description import Variable
 from ..plan.records import EventPlan, Plan
 from ..plan.wiring import Wiring, discrete_event_value
-from ..results.event_log import scenario_entry
+from ..results.event_log import given_entry, scenario_entry
 from ..scenario.condition import compile_condition
 from .views import Manipulable
 
@@ -56,10 +56,11 @@ class Actuator:
         self.log: list[dict[str, Any]] = []            # every event that acted (see .event_log)
         self.discrete: dict[tuple[str, int], Any] = {}  # values set on non-Real inputs, held until the next
 
-    def event(self, ev: EventPlan, k: int, t: float, fired: float | None) -> bool:
+    def event(self, ev: EventPlan, k: int, t: float, fired: float | None, source: str | None = None) -> bool:
         """One event's action before the step from t_k [s], written to the event log; whether the copies
-        changed.  ``fired``: the time its condition became true."""
-        self.log.append(scenario_entry(ev, t, fired))
+        changed.  ``fired``: the time its condition became true; ``source``: a driver's event (its entry's
+        source and kind), not one of the scenario's."""
+        self.log.append(scenario_entry(ev, t, fired) if source is None else given_entry(ev, t, source))
         if ev.action == "stop":
             raise EventStop(ev.index, t, k)
         assert ev.instance is not None and ev.var is not None
@@ -199,6 +200,34 @@ class ConditionEvents(Manipulator):
         while self.pending and self.pending[0][0] <= k:
             _, _, ev, fired = heapq.heappop(self.pending)
             changed = self.actuator.event(ev, k, ex.clock.time(k), fired) or changed
+        return changed
+
+
+class GivenEvents(Manipulator):
+    """Events a driver gives while the run goes (:meth:`.execution.Execution.give`): each acts before the
+    step from the communication point it was given at, exactly as a timed event of the scenario at that
+    time acts (the scenario's own events of that point act first); its entry in the event log has the
+    driver's source.  An input that no connection or table drives, and so no copy of the wiring, is set on
+    the FMU, which holds it (as a timed event's copy of a held value would give it)."""
+
+    def __init__(self, actuator: Actuator, source: str) -> None:
+        self.actuator, self.source = actuator, source
+        self.pending: list[EventPlan] = []
+
+    def next_action(self, k: int) -> int | None:
+        return self.pending[0].step if self.pending else None
+
+    def act(self, ex: Manipulable, k: int) -> bool:
+        changed = False
+        while self.pending and self.pending[0].step <= k:
+            ev = self.pending.pop(0)
+            assert ev.instance is not None and ev.var is not None
+            if ev.action == "override" and ev.var.type == "Real" and \
+                    not self.actuator.wiring.is_wired(ev.instance, ev.var.vr, "input"):
+                self.actuator.log.append(given_entry(ev, ex.clock.time(k), self.source))
+                changed = self.actuator.set(ev.instance, ev.var, ev.value) or changed
+            else:
+                changed = self.actuator.event(ev, k, ex.clock.time(k), None, self.source) or changed
         return changed
 
 

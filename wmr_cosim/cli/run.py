@@ -35,12 +35,71 @@ def add_parser(sub: Any, name: str) -> None:
     r.add_argument("--force", action="store_true",
                    help="run even beyond the limits of steps (experiment.max_steps) and recording size (record.max_bytes)")
     options.run_options(r)
+    live_options(r)
     asked = {name: f.flag for name, f in RESULT_FORMATS.items() if f.flag is not None}   # name -> [record] flag
     r.add_argument("--format", action="append", default=None, metavar="FORMAT",
                    help=f"what the results folder gets beside {RESULT_FORMATS[RECORDING].file} (always written): "
                         f"{format_help()}; repeat it or separate by commas for several (--format {','.join(asked)}); "
                         f"default: as the scenario's [record] {' and '.join(asked.values())} say (signals.csv)")
     r.set_defaults(func=cmd_run, subparser=r)
+
+
+def live_options(r: argparse.ArgumentParser) -> None:
+    """--live and what goes with it (--port, --host, --paused)."""
+    r.add_argument("--live", action="store_true",
+                   help="serve the run while it goes: an HTTP and WebSocket API (and a page) to watch it, pause, "
+                        "step, pace it and set values that replay exactly (docs/live.md); prints its address "
+                        "on stderr; needs the live extra")
+    r.add_argument("--port", type=_port, default=None, metavar="N",
+                   help="with --live: the port to serve on (default: a free one)")
+    r.add_argument("--host", type=_host, default=None, metavar="ADDRESS",
+                   help="with --live: the address to serve on (default 127.0.0.1; another interface requires the "
+                        "random token printed in the address)")
+    r.add_argument("--paused", action="store_true", help="with --live: start paused (at the start time)")
+
+
+def _port(text: str) -> int:
+    """--port N: a port number 0 (any free port) to 65535."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: a port number (0 to 65535)") from None
+    if not 0 <= n <= 65535:
+        raise argparse.ArgumentTypeError(f"{text!r}: a port number is 0 (any free port) to 65535")
+    return n
+
+
+def _host(text: str) -> str:
+    """--host ADDRESS: an IPv4 or IPv6 address of this machine's interfaces (or localhost)."""
+    import ipaddress
+
+    if text == "localhost":
+        return text
+    try:
+        return str(ipaddress.ip_address(text))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: an IP address to serve on (127.0.0.1, 0.0.0.0, ::1, ...)") \
+            from None
+
+
+def live_request(args: argparse.Namespace, parsed: Any) -> Any:
+    """The :class:`wmr_cosim.live.LiveOptions` of ``run --live`` (None without it); UsageError for
+    --port, --host or --paused without --live, --live of a protocol, or where the live extra is missing."""
+    if not getattr(args, "live", False):
+        given = [f for f, v in (("--port", args.port), ("--host", args.host)) if v is not None] + \
+            (["--paused"] if args.paused else [])
+        if given:
+            raise UsageError(f"{given[0]} goes with --live (it serves the run)")
+        return None
+    if parsed is not None and parsed.scenario.runs:
+        raise UsageError(f"--live serves a single run: {args.scenario} is a protocol of "
+                         f"{count(len(parsed.scenario.runs), 'run')}")
+    from ..live import LiveOptions, missing_libraries
+
+    missing = missing_libraries()
+    if missing:
+        raise UsageError(f"--live needs {', '.join(missing)} (the live extra): pip install 'wmr-cosim[live]'")
+    return LiveOptions(host=args.host or "127.0.0.1", port=args.port or 0, paused=args.paused)
 
 
 def format_overrides(args: argparse.Namespace) -> dict[str, Any]:
@@ -65,12 +124,13 @@ def cmd_run(args: argparse.Namespace) -> int:
     overrides = {**experiment_overrides(args), **format_overrides(args)}
     fields = instance_fields(args)
     parsed = scenario_file(args)
+    live = live_request(args, parsed)
     if parsed is not None and parsed.scenario.runs:  # a protocol: every run, in order, into OUT/<run>
         return _run_protocol(args, parsed, out, overrides)
     options.refuse_input_of_a_scenario(args)
     res = run_scenario(args.scenario, out, overrides, progress=False if args.quiet else None, inputs=args.input,
                        force=args.force, isolate=args.isolate, real_time=args.real_time, limits=args.limits,
-                       parsed=parsed, fields=fields, judge=judge_run,
+                       parsed=parsed, fields=fields, judge=judge_run, live=live,
                        on_plan=lambda plan: _print_notes([*plan.scenario.notes, *plan.run_notes]))
     _report_run(args, res, out)
     return for_runs([res.status], res.requirements)
