@@ -102,7 +102,28 @@ def mixed_system() -> dict[str, Any]:
                                      "g2.Boolean_output"]}}
 
 
-SYSTEMS = {"fmi2": fmi2_system, "fmi3": fmi3_system, "mixed": mixed_system}
+def arrays_system() -> dict[str, Any]:
+    """FMI 3.0 arrays: StateSpace -> StateSpace, a Float64 vector through a factor (fmi3Set/GetFloat64 with
+    the count of values), matrix and vector parameters (fmi3SetFloat64 of an array, whole)."""
+    return {"experiment": {"start": 0.0, "stop": STOP, "step": STEP},
+            "instances": {"s1": {"fmu": ref3("StateSpace"), "parameters": {
+                              "A": [-1.0, 0.0, 0.0, 0.0, -2.0, 0.0, 0.0, 0.0, -0.5], "x0": [1.0, 2.0, 3.0]}},
+                          "s2": {"fmu": ref3("StateSpace"), "parameters": {
+                              "A": [-0.5, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -3.0]}}},
+            "connections": [link("s1.y", "s2.u", factor=0.5)],
+            "record": {"variables": ["s1.y", "s2.y"]}}
+
+
+def mixed_rated_system() -> dict[str, Any]:
+    """The mixed system with two instances at their own rates (the master's multi-rate passes)."""
+    doc = mixed_system()
+    doc["instances"]["f3"]["step"] = 4 * STEP
+    doc["instances"]["vdp"]["step"] = 2 * STEP
+    return doc
+
+
+SYSTEMS = {"fmi2": fmi2_system, "fmi3": fmi3_system, "mixed": mixed_system, "arrays": arrays_system,
+           "mixed at own rates": mixed_rated_system}
 CASES = [(system, alg, face) for system in SYSTEMS for alg in ("gauss-seidel", "jacobi") for face in ("2", "3")]
 
 
@@ -170,6 +191,10 @@ def test_the_runs_move_and_tell_the_conversions_apart(runs: Any) -> None:
     rm = runs[("mixed", "gauss-seidel")]
     assert np.array_equal(rm["g2.Boolean_output"], rm["vdp.x0"] > 0.25)
     assert np.array_equal(rm["g2.Int32_output"], rm["stair.counter"])
+    for alg in ("gauss-seidel", "jacobi"):   # (the rates tell)
+        rated, one = runs[("mixed at own rates", alg)], runs[("mixed", alg)]
+        assert not np.array_equal(rated["f3.Float64_continuous_output"], one["f3.Float64_continuous_output"])
+        assert not np.array_equal(rated["g2.Boolean_output"], one["g2.Boolean_output"])
 
 
 def test_the_container_declares_the_types(fmus: Any) -> None:
