@@ -57,13 +57,14 @@ def fmi2_system() -> dict[str, Any]:
 
 def fmi3_system() -> dict[str, Any]:
     """FMI 3.0 FMUs: Int32 as it is, Int32 -> Int8 -> Int32, Float64 -> Float32 (a factor) -> Float64,
-    Real -> Boolean, Boolean -> Boolean, Boolean -> Float32; a Float32 start value (set with fmi3SetFloat32)
-    and Float64 parameters."""
+    Real -> Boolean, Boolean -> Boolean, Boolean -> Float32; a Float32 start value (set with fmi3SetFloat32),
+    Int32, Boolean and String start values and a Float64 parameter."""
     return {"experiment": {"start": 0.0, "stop": STOP, "step": STEP},
             "instances": {"stair": {"fmu": ref3("Stair")},
                           "vdp": {"fmu": ref3("VanDerPol"), "parameters": {"mu": 1.5}},
                           "a": {"fmu": ref3("Feedthrough"), "parameters": {"Float32_discrete_input": 0.1}},
-                          "b": {"fmu": ref3("Feedthrough")}, "c": {"fmu": ref3("Feedthrough")}},
+                          "b": {"fmu": ref3("Feedthrough"), "parameters": {"String_input": "set"}},
+                          "c": {"fmu": ref3("Feedthrough"), "parameters": {"Int32_input": 7, "Boolean_input": True}}},
             "connections": [link("stair.counter", "a.Int32_input"),
                             link("stair.counter", "a.Int8_input"),
                             link("a.Int8_output", "b.Int32_input"),
@@ -77,7 +78,8 @@ def fmi3_system() -> dict[str, Any]:
                             link("a.Float32_discrete_output", "c.Float64_discrete_input")],
             "record": {"variables": ["stair.counter", "vdp.x0", "vdp.x1", "a.Int32_output", "a.Boolean_output",
                                      "b.Int32_output", "b.Boolean_output", "b.Float64_continuous_output",
-                                     "c.Float64_continuous_output", "c.Float64_discrete_output"]}}
+                                     "c.Float64_continuous_output", "c.Float64_discrete_output", "c.Int32_output",
+                                     "c.Boolean_output"]}}
 
 
 def mixed_system() -> dict[str, Any]:
@@ -134,7 +136,8 @@ def document(system: str, algorithm: str) -> dict[str, Any]:
 
 
 #: Recorded outputs that hold one value (a start value through a copy; checked below).
-CONSTANT = ("c.Float64_discrete_output", "b.Enumeration_output", "f2.Enumeration_output")
+CONSTANT = ("c.Float64_discrete_output", "b.Enumeration_output", "f2.Enumeration_output", "c.Int32_output",
+            "c.Boolean_output")
 
 
 @pytest.fixture(scope="module")
@@ -188,6 +191,7 @@ def test_the_runs_move_and_tell_the_conversions_apart(runs: Any) -> None:
     assert np.array_equal(r3["b.Float64_continuous_output"], (r3["vdp.x1"] * 0.3).astype(np.float32).astype(float))
     assert set(np.unique(r3["c.Float64_continuous_output"])) == {0.25, 2.25}
     assert np.array_equal(r3["b.Int32_output"], r3["stair.counter"])
+    assert np.all(r3["c.Int32_output"] == 7) and np.all(r3["c.Boolean_output"])
     rm = runs[("mixed", "gauss-seidel")]
     assert np.array_equal(rm["g2.Boolean_output"], rm["vdp.x0"] > 0.25)
     assert np.array_equal(rm["g2.Int32_output"], rm["stair.counter"])
@@ -195,6 +199,20 @@ def test_the_runs_move_and_tell_the_conversions_apart(runs: Any) -> None:
         rated, one = runs[("mixed at own rates", alg)], runs[("mixed", alg)]
         assert not np.array_equal(rated["f3.Float64_continuous_output"], one["f3.Float64_continuous_output"])
         assert not np.array_equal(rated["g2.Boolean_output"], one["g2.Boolean_output"])
+
+
+@pytest.mark.parametrize("face", ["2", "3"])
+def test_values_the_host_sets_reach_the_inner_fmi3_fmu(face: str, fmus: Any, tmp_path: Path) -> None:
+    """An FMI 3.0 FMU's Float64 parameter, Int32 and Boolean inputs set by FMPy, as --set does for the run."""
+    import fmpy
+
+    sets = {"vdp.mu": 0.75, "c.Int32_input": -9, "c.Boolean_input": False}
+    got = fmpy.simulate_fmu(str(fmus[("fmi3", "gauss-seidel", face)]), stop_time=STOP, output_interval=STEP,
+                            start_values=sets)
+    want = run(document("fmi3", "gauss-seidel"), tmp_path, *(a for k, v in sets.items()
+                                                             for a in ("--set", f"{k}={str(v).lower()}")))
+    assert np.all(want["c.Int32_output"] == -9) and not np.any(want["c.Boolean_output"])
+    assert_same_columns(got, want)
 
 
 def test_the_container_declares_the_types(fmus: Any) -> None:
