@@ -191,13 +191,15 @@ REFUSALS: dict[str, Any] = {
         (d / "in.csv").write_text("time,body.F\n0.0,1.0\n1.0,2.0\n"), doc.update(inputs={"file": str(d / "in.csv")}),
         doc["instances"]["coupler"].update(step=4 * STEP), doc["connections"].pop(2)),
     "requirements": lambda doc, m, d: doc.update(requirements=[{"name": "r", "formula": "always body.x < 10"}]),
-    "fmi3": lambda doc, m, d: doc["instances"].update(ref={"fmu": str(REF / "fmi3" / "Dahlquist.fmu")}),
+    "an FMI 3.0 Float32 output": lambda doc, m, d: (
+        doc["instances"].update(ft3={"fmu": str(REF / "fmi3" / "Feedthrough.fmu")}),
+        doc["record"]["variables"].append("ft3.Float32_continuous_output")),
     "model exchange": lambda doc, m, d: doc["instances"].update(
         ref={"fmu": str(REF / "fmi2" / "Dahlquist.fmu"), "interface": "model-exchange"}),
     "no linux64 binary": lambda doc, m, d: doc["instances"]["body"].update(fmu=str(_no_binary(m, d))),
-    "a non-Real output": lambda doc, m, d: (
-        doc["instances"].update(ft={"fmu": str(REF / "fmi2" / "Feedthrough.fmu")}),
-        doc["record"]["variables"].append("ft.Enumeration_output")),
+    "an FMI 3.0 UInt64 output": lambda doc, m, d: (
+        doc["instances"].update(ft={"fmu": str(REF / "fmi3" / "Feedthrough.fmu")}),
+        doc["record"]["variables"].append("ft.UInt64_output")),
     "an output name twice": lambda doc, m, d: doc["record"]["variables"].append("body.m1"),
     "a stop off the step's grid": lambda doc, m, d: doc["experiment"].update(stop=doc["experiment"]["stop"] + STEP / 2),
 }
@@ -205,9 +207,9 @@ REFUSALS: dict[str, Any] = {
 
 #: The field each refusal names.
 REFUSED_AT = {"iterated": "experiment.algorithm", "condition events": "events", "tables and own rates": "inputs",
-              "requirements": "requirements", "fmi3": "instances.ref", "model exchange": "instances.ref",
+              "requirements": "requirements", "an FMI 3.0 Float32 output": "record", "model exchange": "instances.ref",
               "no linux64 binary": "instances.body.fmu",
-              "a non-Real output": "record", "an output name twice": "record",
+              "an FMI 3.0 UInt64 output": "record", "an output name twice": "record",
               "a stop off the step's grid": "experiment.stop"}
 
 

@@ -64,7 +64,7 @@ def test_the_fmi3_container_is_a_valid_fmi3_fmu(runs3: Any) -> None:
     names = zipfile.ZipFile(fmu).namelist()
     assert "binaries/x86_64-linux/system.so" in names and not any(n.startswith("binaries/linux64") for n in names)
     assert "resources/system.txt" in names and "sources/container3.c" in names
-    assert "resources/fmu0/binaries/linux64/MassForce.so" in names   # (the inner FMUs stay FMI 2.0)
+    assert "resources/fmu0/binaries/linux64/MassForce.so" in names   # (this system's inner FMUs: FMI 2.0)
 
 
 def test_a_start_value_the_host_sets_reaches_the_inner_fmu(mass3: tuple[Path, Path], runs3: Any,

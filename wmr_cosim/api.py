@@ -236,7 +236,7 @@ class Simulation:
         equal :meth:`run`'s bit for bit (docs/export-fmu.md); checked as ``wmr-cosim export-fmu`` checks it:
         ScenarioError for what it cannot hold, nothing written.  ``name``: its model name and identifier, a C
         name (default: the scenario file's name; ``system`` for one built in code); ``fmi``: the FMI version
-        of its interface, 2 or 3 (the FMUs inside stay FMI 2.0).  Returns the FMU's path."""
+        of its interface, 2 or 3 (whatever the FMI versions of the FMUs inside).  Returns the FMU's path."""
         from .cosim import export_fmu
 
         if file_kind(out) is not FileKind.FMU:

@@ -8,17 +8,20 @@ Its binary is built for linux64, and for win64 (MinGW-w64, the same C: the inner
 LoadLibrary) where the cross compiler is on PATH and every inner FMU has a win64 binary.
 
 What this export takes (everything else is refused before anything is written, one line naming it): FMI 2.0
-co-simulation FMUs with a linux64 binary (C, or pythonfmu's behind our loader, which finds its Python as
-when a host loads the FMU alone), Gauss-Seidel or Jacobi (instances at their own rates too, as the master's multi-rate passes), Real connections, recorded Real,
-Integer and Boolean outputs, timed events and input tables (the exporter replays the events through the
-master's wiring and writes what each one changes at its step: ``stepping/container_actions.c`` applies it), no
-events on conditions or requirements.  The container's variables: the
-recorded outputs (named as their columns), the open inputs and the parameters of the inner FMUs of type
-Real, Integer or Boolean (``instance.variable``, the scenario's value as start), in the plan's order.
+and FMI 3.0 co-simulation FMUs with a binary for this platform (C, or pythonfmu's behind our loader, which
+finds its Python as when a host loads the FMU alone; an FMI 3.0 one called as the master calls it:
+``stepping/container_inner3.c``), Gauss-Seidel or Jacobi (instances at their own rates too, as the master's
+multi-rate passes), connections of numbers and booleans (Float64 ones as the master's copies, the others as
+its get-and-set copiers, with their conversions: :func:`_other`), recorded Real (Float64), Integer (FMI 2.0
+Integer and Enumeration, FMI 3.0 Int32) and Boolean outputs, timed events and input tables (the exporter
+replays the events through the master's wiring and writes what each one changes at its step:
+``stepping/container_actions.c`` applies it), no events on conditions or requirements.  The container's
+variables: the recorded outputs (named as their columns), the open inputs and the parameters of the inner FMUs
+of type Real, Integer or Boolean (FMI 3.0: scalar Float64, Int32, Boolean; ``instance.variable``, the
+scenario's value as start), in the plan's order.
 
 The FMI 3.0 face (``stepping/container3.c`` around the same runtime, binaries/x86_64-linux): the same
-variables as Float64, Int32 and Boolean with the same value references, the GUID as instantiation token; the
-inner FMUs stay FMI 2.0.
+variables as Float64, Int32 and Boolean with the same value references, the GUID as instantiation token.
 """
 from __future__ import annotations
 
@@ -38,6 +41,7 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from ..instances.in_process import ACCESS
 from ..messages.errors import CosimError, ScenarioError
 from ..model.archive import safe_extract
 from ..model.description import CO_SIMULATION
@@ -48,17 +52,24 @@ from .wiring import RowLayout, Wiring, discrete_event_value
 
 SOURCE = native.SOURCE.with_name("container.c")
 SOURCE3 = native.SOURCE.with_name("container3.c")   # the FMI 3.0 face: includes container.c
-#: The files container.c includes beside native_loop.c (shipped in the container's sources/ with it).
-INCLUDED = (native.SOURCE.with_name("container_actions.c"),)
+#: The files container.c includes beside native_loop.c (shipped in the container's sources/ with it): timed
+#: events and input tables; inner FMI 3.0 FMUs and the connections that are not Float64.
+INCLUDED = (native.SOURCE.with_name("container_actions.c"), native.SOURCE.with_name("container_inner3.c"))
 #: The FMI 3.0 standard's headers container3.c includes (FMPy's copy: :func:`native.fmi_headers`).
 HEADERS3 = ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")
-FORMAT = "wmr-container 4"   # the first line of system.txt (container.c's VERSION_TAG)
+FORMAT = "wmr-container 5"   # the first line of system.txt (container.c's VERSION_TAG)
 
 
 #: The FMI 2.0 types of the container's variables, and their letters in system.txt.
 TYPES = {"Real": "R", "Integer": "I", "Boolean": "B"}
 #: Their FMI 3.0 types (the FMI 3.0 face of the container).
 TYPES3 = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
+#: The FMI 3.0 types of an inner FMU's scalar variables that are the container's variables, as their FMI 2.0 types.
+FMI3_VARS = {"Float64": "Real", "Int32": "Integer", "Boolean": "Boolean"}
+#: The FMI 3.0 types a scenario's value is set as by the container's own setters (the others: "param T").
+FMI3_SCALARS = ("Float64", "Int32", "Boolean", "String")
+#: The most connections that are not Float64 to Float64 a container holds (container_inner3.c's OTHER_MAX).
+OTHER_MAX = 256
 #: The FMI versions the container can be written for, and the binaries' folder of each platform in each.
 PLATFORM_FOLDERS = {2: {"linux64": "linux64", "win64": "win64"}, 3: {"linux64": "x86_64-linux", "win64": "x86_64-windows"}}
 
@@ -111,23 +122,48 @@ def refuse(plan: Plan, out: Path, name: str) -> None:
         no("events", f"events[{plan.conditions[0].index}] acts on a condition (timed events only)")
     if plan.inputs and any(plan.instances[n].decimation > 1 for n in plan.order):
         no("inputs", "input tables with instances at their own rates")
+    for ev in plan.events:   # (the values an event or a table sets go through the FMI 2.0 types' setters)
+        if ev.var is not None and ev.instance is not None and not _settable(plan, ev.instance, ev.var):
+            no("events", f"events[{ev.index}] acts on {ev.ref}, an FMI 3.0 {ev.var.fmi_type}"
+                         f"{' array' if ev.var.shape else ''} (only scalar Float64, Int32, Boolean and String)")
+    for ip in plan.inputs:
+        if not _settable(plan, ip.instance, ip.var):
+            no("inputs", f"{ip.column} is an FMI 3.0 {ip.var.fmi_type}{' array' if ip.var.shape else ''} "
+                         "(only scalar Float64, Int32, Boolean and String)")
     if plan.requirements:
         no("requirements", "requirements")
-    for c in plan.connections:
-        if not c.is_float64:
-            no("connections", f"{c.src}.{c.src_var.name} -> {c.dst}.{c.dst_var.name} is not Real to Real")
+    others = [c for c in plan.connections if not c.is_float64]
+    for c in others:
+        for var in (c.src_var, c.dst_var):
+            if var.type in ("String", "Binary", "Clock"):
+                no("connections", f"{c.src}.{c.src_var.name} -> {c.dst}.{c.dst_var.name} is {var.fmi_type} "
+                                  "(only numbers and booleans)")
+    if len(others) > OTHER_MAX:
+        no("connections", f"{len(others)} connections that are not Float64 to Float64 (at most {OTHER_MAX})")
     for r in plan.record:
-        if r.var.type not in TYPES:
-            no("record", f"{r.column} is {r.var.fmi_type} (only Real, Integer and Boolean outputs)")
+        if _record_type(plan, r) is None:
+            only = "Float64, Int32 and Boolean outputs of an FMI 3.0 FMU" if plan.instances[r.instance].model.fmi == 3 \
+                else "Real, Integer, Enumeration and Boolean outputs"
+            no("record", f"{r.column} is {r.var.fmi_type}{list(r.var.shape) if r.var.shape else ''} (only {only})")
+
+
+def _settable(plan: Plan, inst: str, var: Any) -> bool:
+    """Whether an event or a table can set ``var`` of ``inst`` (an FMI 2.0 variable, or a scalar FMI 3.0
+    one of the types the FMI 2.0 setters reach)."""
+    return plan.instances[inst].model.fmi == 2 or (not var.shape and var.fmi_type in FMI3_SCALARS)
 
 
 def _refuse_instance(plan: Plan, n: str, ip: InstancePlan, out: Path, no: Any) -> None:
     where = f"instances.{n}"
-    if ip.model.fmi != 2:
-        no(where, f"{ip.model.path.name} is an FMI {ip.model.fmi}.0 FMU (only FMI 2.0)")
+    if ip.model.fmi not in (2, 3):
+        no(where, f"{ip.model.path.name} is an FMI {ip.model.fmi}.0 FMU (only FMI 2.0 and 3.0)")
     if ip.interface != CO_SIMULATION:
         no(where, f"{ip.model.path.name} runs as Model Exchange (only co-simulation)")
     # (an FMU without a binary for this platform, linux64, has no plan: the master's resolution refuses it)
+    for var, value in ip.parameters:
+        if ip.model.fmi == 3 and (var.fmi_type == "Binary" or var.fmi_type == "String" and var.shape):
+            no(f"{where}.parameters.{var.name}", f"{var.fmi_type}{list(var.shape) if var.shape else ''} (the "
+                                                 "container sets numbers, booleans and single strings)")
     if out.resolve() == ip.model.path.resolve():
         raise ScenarioError(plan.scenario.file, "--out", f"{out} is the FMU of instance {n}: write the container "
                                                           "elsewhere")
@@ -138,11 +174,11 @@ def variables(plan: Plan, layout: RowLayout) -> list[ContainerVar]:
     instance (``inst``: its index in the plan's order)."""
     cols = plan.columns()
     index = {n: i for i, n in enumerate(plan.order)}
-    out = [ContainerVar(r.column, "o", -1 if r.var.type == "Real" else index[r.instance],
-                        layout.slot(r) if r.var.type == "Real" else r.var.vr, 0.0,
+    out = [ContainerVar(r.column, "o", -1 if r.var.is_float64 else index[r.instance],
+                        layout.slot(r) if r.var.is_float64 else r.var.vr, 0.0,
                         "continuous" if r.var.variability == "continuous" else "discrete", cols[r.column]["unit"],
                         f"{r.instance}.{plan.instances[r.instance].our_name(r.var)} of {cols[r.column]['fmu']}",
-                        r.var.type)
+                        _record_type(plan, r) or "Real")
            for r in plan.record]
     # (an input a connection, a table or an event drives is not the host's)
     driven = {(c.dst, c.dst_var.name) for c in plan.connections} | \
@@ -155,13 +191,14 @@ def variables(plan: Plan, layout: RowLayout) -> list[ContainerVar]:
             open_input = var.causality == "input" and (n, var.name) not in driven
             parameter = var.causality == "parameter" and var.variability in ("fixed", "tunable")
             value = given.get(var.name, var.start)
-            if var.type not in TYPES or not (open_input or parameter) or value is None:
+            typ = _var_type(ip, var)
+            if typ is None or not (open_input or parameter) or value is None:
                 continue
-            unit = var.unit.name if var.type == "Real" and var.unit is not None else None
-            variability = var.variability if parameter else "continuous" if var.type == "Real" else "discrete"
+            unit = var.unit.name if typ == "Real" and var.unit is not None else None
+            variability = var.variability if parameter else "continuous" if typ == "Real" else "discrete"
             out.append(ContainerVar(f"{n}.{ip.our_name(var)}", "i" if open_input else "p", i, var.vr,
-                                    float(value) if var.type == "Real" else float(int(value)), variability, unit,
-                                    var.description or f"{var.name} of {ip.model.path.name}", var.type))
+                                    float(value) if typ == "Real" else float(int(value)), variability, unit,
+                                    var.description or f"{var.name} of {ip.model.path.name}", typ))
     seen: dict[str, ContainerVar] = {}
     for v in out:
         if v.name in seen:
@@ -169,6 +206,26 @@ def variables(plan: Plan, layout: RowLayout) -> list[ContainerVar]:
                                                               f"(a recorded output and {_A[v.kind]})")
         seen[v.name] = v
     return out
+
+
+def _var_type(ip: InstancePlan, var: Any) -> str | None:
+    """The container's type (a key of :data:`TYPES`) of an inner FMU's input or parameter, None where it
+    cannot be the container's variable: FMI 2.0 Real, Integer, Boolean; FMI 3.0 scalar Float64, Int32,
+    Boolean."""
+    if ip.model.fmi == 3:
+        return None if var.shape else FMI3_VARS.get(var.fmi_type)
+    return var.type if var.type in TYPES else None
+
+
+def _record_type(plan: Plan, r: Any) -> str | None:
+    """The container's type of a recorded output (None: it cannot be one): a Float64 (of the row) Real; FMI 2.0
+    Integer and Enumeration (read with fmi2GetInteger, as the master records it) Integer, Boolean Boolean;
+    FMI 3.0 scalar Int32 Integer, Boolean Boolean."""
+    if r.var.is_float64:
+        return "Real"
+    if plan.instances[r.instance].model.fmi == 3:
+        return None if r.var.shape else {"Int32": "Integer", "Boolean": "Boolean"}.get(r.var.fmi_type)
+    return {"Integer": "Integer", "Enumeration": "Integer", "Boolean": "Boolean"}.get(r.var.type)
 
 
 _KIND = {"o": "output", "i": "input", "p": "parameter"}
@@ -292,15 +349,20 @@ def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[Conta
     for i, n in enumerate(plan.order):
         ip = plan.instances[n]
         copies = _copies(n, wiring, slots)
+        others = [c for c in plan.connections if c.dst == n and not c.is_float64]   # (the master's order)
         body.append(" ".join(["inst", _hex(n), _hex(dirs[n]), _hex(ip.model.identifier), _hex(ip.model.md.guid),
                               str(int(ip.tolerance is not None)), _num(ip.tolerance or 0.0),
                               str(len(wiring.vrs[n])), str(len(layout.reals[n])), str(layout.offset[n]),
-                              str(len(copies)), str(len(ip.parameters)), str(ip.decimation)]))
+                              str(len(copies)), str(len(ip.parameters)), str(ip.decimation), str(ip.model.fmi),
+                              str(len(wiring.values[n])), str(sum(size for _, size in layout.reals[n])),
+                              str(len(others))]))
         body.append(" ".join(str(vr) for vr in wiring.vrs[n]) or "")
         body.append(" ".join(str(vr) for vr, _ in layout.reals[n]) or "")
         body += copies
         for var, value in ip.parameters:
-            body.append(f"param {_param(var, value)} {index.get((i, var.type, var.vr), -1)}")
+            typ = _var_type(ip, var) or var.type
+            body.append(f"param {_param(var, value, ip.model.fmi)} {index.get((i, typ, var.vr), -1)}")
+        body += [_other(plan, o) for o in others]
     for v in cvars:
         body.append(f"var {v.kind} {TYPES[v.type]} {v.inst} {v.ref} {_num(v.start)} "
                     f"{int(v.variability == 'tunable' or v.kind == 'i')}")
@@ -315,7 +377,18 @@ def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[Conta
                       f"events {sum(ln.startswith('at ') for ln in events)}", *events, "end"]) + "\n"
 
 
-def _param(var: Any, value: Any) -> str:
+def _param(var: Any, value: Any, fmi: int = 2) -> str:
+    """A parameter or start value as container.c sets it: R, I, B, S through the FMI 2.0 setters (of an FMI
+    3.0 FMU: fmi3SetFloat64, Int32, Boolean, String); T (FMI 3.0, another type or an array) through
+    fmi3Set<TYPE> with the values as FMPy gives them (an Enumeration as Int64)."""
+    if fmi == 3 and (var.shape or var.fmi_type not in FMI3_SCALARS):
+        values = list(value) if isinstance(value, (list, tuple)) else [value]
+        if var.type == "Real":
+            text = [_num(float(v)) for v in values]
+        else:
+            text = [str(int(bool(v))) if var.type == "Boolean" else str(int(v)) for v in values]
+        call_type = "Int64" if var.fmi_type == "Enumeration" else var.fmi_type
+        return f"T {var.vr} {call_type} {len(values)} {' '.join(text)}"
     if var.type == "Real":
         return f"R {var.vr} {_num(float(value))}"
     if var.type == "String":
@@ -323,6 +396,27 @@ def _param(var: Any, value: Any) -> str:
     if var.type == "Boolean":
         return f"B {var.vr} {int(bool(value))}"
     return f"I {var.vr} {int(value)}"
+
+
+def _other(plan: Plan, c: Any) -> str:
+    """A connection that is not Float64 to Float64, as the master's copier makes it
+    (:func:`.wiring.discrete_copier`): the output's values (all of an array's) got and set with the FMI
+    functions of their types, converted as it converts them: c the same C type (as they are), r real to real
+    (float(x) * factor + offset), b Boolean to Real ((1.0 if x else 0.0) * factor + offset), t Real to
+    Boolean (x > threshold), i the others (integers, enumerations and booleans, to the input's C type)."""
+    index = {n: i for i, n in enumerate(plan.order)}
+    sf, df = plan.instances[c.src].model.fmi, plan.instances[c.dst].model.fmi
+    gt, gname = ACCESS[sf][c.src_var.fmi_type]
+    pt, pname = ACCESS[df][c.dst_var.fmi_type]
+    sk, dk = c.src_var.type, c.dst_var.type
+    if sk == dk and sk != "Real" and gt is pt:
+        mode = "c"
+    elif dk == "Real":
+        mode = "r" if sk == "Real" else "b"
+    else:
+        mode = "t" if dk == "Boolean" and sk == "Real" else "i"
+    return (f"other {index[c.src]} {sf} {gname} {c.src_var.vr} {pname} {c.dst_var.vr} {c.src_var.size} {mode} "
+            f"{_num(c.factor)} {_num(c.offset)} {_num(c.spec.threshold)}")
 
 
 def _attributes(j: int, v: ContainerVar) -> str:
@@ -387,7 +481,7 @@ def platforms(plan: Plan, asked: list[str] | None = None, fmi: int = 2) -> tuple
     why = "the FMI 3.0 face is built for x86_64-linux only, so far" if fmi == 3 else None
     for n in plan.order if why is None else ():
         ip = plan.instances[n]
-        binary = f"binaries/win64/{ip.model.identifier}.dll"
+        binary = f"binaries/{PLATFORM_FOLDERS[ip.model.fmi]['win64']}/{ip.model.identifier}.dll"
         with zipfile.ZipFile(ip.model.path) as zf:
             if binary not in zf.namelist():
                 why = f"instances.{n}: {ip.model.path.name} has no {binary}"
@@ -450,7 +544,7 @@ def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None, fmi:
                platforms_asked: list[str] | None = None, notes: list[str] | None = None) -> Path:
     """Write the resolved ``plan`` as one co-simulation FMU ``out`` (see the module); returns its path.
     ``name``: its model name and identifier (default: the scenario file's stem, as a C name); ``fmi``: the
-    FMI version of its interface, 2 or 3 (its inner FMUs stay FMI 2.0); ``platforms_asked``: the platforms to
+    FMI version of its interface, 2 or 3 (whatever its inner FMUs' versions); ``platforms_asked``: the platforms to
     build (default: each that can be, :func:`platforms`); ``notes``: a list the note on a platform not built
     is appended to."""
     if fmi not in PLATFORM_FOLDERS:

@@ -12,6 +12,7 @@
  * fmi2ExitInitializationMode, outputs copied to inputs in the plan's order pass after pass until nothing
  * changes, each one out of initialisation mode, their outputs read; fmi2DoStep(t, n h) = wmr_loop over the
  * n steps of the grid from k = (t - t0) / h (the time of step k is t0 + k h, as the master's).
+ * Inner FMI 3.0 FMUs and the connections that are not Float64 to Float64: container_inner3.c, included below.
  * Numbers in system.txt are C99 hexadecimal floats (exact); strings are "x" followed by their bytes in hex. */
 #ifdef _WIN32
 /* win64 (MinGW-w64): the inner FMUs' DLLs by LoadLibrary; the loop's wall clock by the performance counter
@@ -70,9 +71,10 @@ typedef fmi2Status (*seti_t)(fmi2Component, const fmi2ValueReference *, size_t, 
 typedef fmi2Status (*geti_t)(fmi2Component, const fmi2ValueReference *, size_t, fmi2Integer *);
 typedef fmi2Status (*sets_t)(fmi2Component, const fmi2ValueReference *, size_t, const fmi2String *);
 
-#define VERSION_TAG "wmr-container 4"
+#define VERSION_TAG "wmr-container 5"
 
-typedef struct { char type; unsigned vr; double r; int i; char *s; int var; } Param;
+/* (type T: a value of another FMI 3.0 type, typed: container_inner3.c) */
+typedef struct { char type; unsigned vr; double r; int i; char *s; int var; void *typed; } Param;
 
 typedef struct {
     char *name, *dir, *mi, *guid;
@@ -123,6 +125,7 @@ typedef struct {
     int n; Inner *inner; Inst *insts; Loop L;
     double *row; long n_row;
     int n_vars; Var *vars;
+    int n_others; struct Other *others;   /* the connections that are not Float64 to Float64 */
     double step; int mode;   /* 0 instantiated, 1 initialisation mode, 2 stepping, 3 terminated */
     double t0; int stop_defined; double stop;
     int stale;      /* the lazy instances' outputs in the row are older than their last step */
@@ -139,19 +142,31 @@ static void say(Container *s, fmi2Status st, const char *fmt, ...) {
         s->cb->logger(s->cb->componentEnvironment, s->name, st, st == fmi2OK ? "logEvents" : "logStatusError", "%s", msg);
 }
 
+#ifdef _WIN32
+#define LOOKUP(dll, sym) GetProcAddress((HMODULE)(dll), sym)
+#define UNLOAD(dll) FreeLibrary((HMODULE)(dll))
+#else
+#define LOOKUP(dll, sym) dlsym(dll, sym)
+#define UNLOAD(dll) dlclose(dll)
+#endif
+#include "container_inner3.c"   /* inner FMI 3.0 FMUs, the other connections */
 
 static int read_instance(Container *s, Reader *r, int i) {
     Inner *q = &s->inner[i];
     Inst *p = &s->insts[i];
-    long j, off, nc;
+    long j, off, nc, no;
     expect(r, "inst");
     q->name = text(r); q->dir = text(r); q->mi = text(r); q->guid = text(r);
     q->tol_defined = (int)num(r); q->tol = real(r);
-    p->abi = 2; p->raw_set = p->raw_step = p->raw_get = 1; p->no_set_prior = 1;
+    p->raw_set = p->raw_step = p->raw_get = 1; p->no_set_prior = 1;
     p->n_in = (size_t)num(r); p->n_out = (size_t)num(r); off = num(r); nc = num(r); q->n_params = (int)num(r);
     p->dec = num(r);   /* its decimation: it steps every dec base steps (Loop.multirate), as native.py sets it */
-    if (r->bad || p->dec < 1 || off < 0 || off + (long)p->n_out > s->n_row || nc < 0 || q->n_params < 0) return 0;
-    p->in_vr = calloc(p->n_in + 1, sizeof(unsigned)); p->in_val = calloc(p->n_in + 1, sizeof(double));
+    /* its FMI version, its count of Float64 values set and got (an FMI 3.0 array's elements each), its other
+     * connections */
+    p->abi = (int)num(r); p->n_in_values = (size_t)num(r); p->n_out_values = (size_t)num(r); no = num(r);
+    if (r->bad || p->dec < 1 || off < 0 || off + (long)p->n_out_values > s->n_row || nc < 0 || q->n_params < 0 ||
+        (p->abi != 2 && p->abi != 3) || p->n_in_values < p->n_in || p->n_out_values < p->n_out || no < 0) return 0;
+    p->in_vr = calloc(p->n_in + 1, sizeof(unsigned)); p->in_val = calloc(p->n_in_values + 1, sizeof(double));
     p->out_vr = calloc(p->n_out + 1, sizeof(unsigned)); p->out_val = s->row + off;
     for (j = 0; j < (long)p->n_in; j++) p->in_vr[j] = (unsigned)num(r);
     for (j = 0; j < (long)p->n_out; j++) p->out_vr[j] = (unsigned)num(r);
@@ -164,7 +179,7 @@ static int read_instance(Container *s, Reader *r, int i) {
         p->pos[j] = (int)num(r); p->src[j] = s->row; p->slot[j] = num(r);
         p->factor[j] = real(r); p->offset[j] = real(r);
         p->plain[j] = p->factor[j] == 1.0 && p->offset[j] == 0.0;
-        if (p->pos[j] < 0 || (size_t)p->pos[j] >= p->n_in || p->slot[j] < 0 || p->slot[j] >= s->n_row) r->bad = 1;
+        if (p->pos[j] < 0 || (size_t)p->pos[j] >= p->n_in_values || p->slot[j] < 0 || p->slot[j] >= s->n_row) r->bad = 1;
     }
     q->params = calloc((size_t)q->n_params + 1, sizeof(Param));
     for (j = 0; j < q->n_params; j++) {
@@ -173,9 +188,12 @@ static int read_instance(Container *s, Reader *r, int i) {
         a->type = token(r)[0]; a->vr = (unsigned)num(r);
         if (a->type == 'R') a->r = real(r);
         else if (a->type == 'S') a->s = text(r);
+        else if (a->type == 'T') a->typed = read_typed(r);
         else a->i = (int)num(r);
         a->var = (int)num(r);
     }
+    p->other = &OTHERS[s->n_others]; p->n_other = (int)no;   /* (the loop calls them after the set) */
+    for (j = 0; j < no && !r->bad; j++) if (!read_other(s, r, i)) r->bad = 1;
     return !r->bad;
 }
 
@@ -280,19 +298,12 @@ static char *encode_uri(const char *path) {
     return out;
 }
 
-#ifdef _WIN32
-#define LOOKUP(dll, sym) GetProcAddress((HMODULE)(dll), sym)
-#define UNLOAD(dll) FreeLibrary((HMODULE)(dll))
-#else
-#define LOOKUP(dll, sym) dlsym(dll, sym)
-#define UNLOAD(dll) dlclose(dll)
-#endif
 #define SYM(q, field, sym) \
     if (!((q)->field = (void *)LOOKUP(dll, sym))) { say(s, fmi2Error, "%s: %s not found", who, sym); return 0; }
 
 static int load_inner(Container *s, Inner *q, Inst *p, const char *res, fmi2Boolean visible, fmi2Boolean logging) {
     char *lib = malloc(strlen(res) + strlen(q->dir) + strlen(q->mi) + 40), *where, *uri;
-    sprintf(lib, "%s/%s/binaries/" PLATFORM "/%s." LIB_EXT, res, q->dir, q->mi);
+    sprintf(lib, "%s/%s/binaries/%s/%s." LIB_EXT, res, q->dir, p->abi == 3 ? PLATFORM3 : PLATFORM, q->mi);
 #ifdef _WIN32
     /* (a full path with backslashes: the DLLs beside it are found first) */
     for (where = lib; *where; where++) if (*where == '/') *where = '\\';
@@ -306,6 +317,7 @@ static int load_inner(Container *s, Inner *q, Inst *p, const char *res, fmi2Bool
     if (!q->dll) { say(s, fmi2Error, "%s: %s", q->name, dlerror()); free(lib); return 0; }
 #endif
     free(lib);
+    if (p->abi == 3) return load_inner3(s, q, p, res, dll, visible, logging);
     SYM(q, instantiate, "fmi2Instantiate") SYM(q, free_instance, "fmi2FreeInstance")
     SYM(q, setup, "fmi2SetupExperiment") SYM(q, enter, "fmi2EnterInitializationMode")
     SYM(q, exit_, "fmi2ExitInitializationMode") SYM(q, terminate, "fmi2Terminate")
@@ -332,12 +344,13 @@ static void free_container(Container *s) {
         if (q->c && q->free_instance) q->free_instance(q->c);
         if (q->dll) UNLOAD(q->dll);
         free(q->name); free(q->dir); free(q->mi); free(q->guid);
-        for (int j = 0; q->params && j < q->n_params; j++) free(q->params[j].s);
+        for (int j = 0; q->params && j < q->n_params; j++) { free(q->params[j].s); free_typed(q->params[j].typed); }
         free(q->params);
         free(p->in_vr); free(p->in_val); free(p->out_vr);
         free(p->pos); free(p->src); free(p->slot); free(p->factor); free(p->offset); free(p->plain);
     }
     free_actions(&s->act);
+    free_others(s);
     free(s->inner); free(s->insts); free(s->vars); free(s->row); free(s->name);
     free(s);
 }
@@ -368,6 +381,7 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
     for (i = 0; i < s->n; i++)
         if (!load_inner(s, &s->inner[i], &s->insts[i], res, visible, logging)) { free(res); free_container(s); return NULL; }
     free(res);
+    if (!link_others(s)) { free_container(s); return NULL; }
     s->L.n = s->n; s->L.inst = s->insts; s->L.h = s->step; s->L.h_last = s->step; s->L.k_last = -1;
     s->L.decimation = 1; s->L.n_steps = -1;
     return s;
@@ -394,6 +408,7 @@ static int set_value(Inner *q, char type, unsigned vr, double value) {
 /* a parameter or start value the scenario sets (the host's value where it set that variable) */
 static int set_param(Container *s, Inner *q, Param *a) {
     if (a->type == 'S') { fmi2String v = a->s; return q->set_string(q->c, &a->vr, 1, &v); }
+    if (a->type == 'T') return set_typed(s, q, a->vr, a->typed);
     if (a->var >= 0 && s->vars[a->var].set) return set_value(q, a->type, a->vr, s->vars[a->var].value);
     return set_value(q, a->type, a->vr, a->type == 'R' ? a->r : (double)a->i);
 }
@@ -463,6 +478,7 @@ static int exchange(Container *s) {
     int have_last = 0, pass;
     for (i = 0; i < s->n; i++) total += s->insts[i].n_copies;
     last = calloc((size_t)total + 1, sizeof(double)); now = calloc((size_t)total + 1, sizeof(double));
+    other_of = s;
     if (!read_all(s)) goto failed;
     for (pass = 0; pass <= s->n; pass++) {
         m = 0;
@@ -477,13 +493,14 @@ static int exchange(Container *s) {
                 now[m++] = v;
             }
             if (s->L.check_inputs)
-                for (j = 0; j < (long)p->n_in; j++)
+                for (j = 0; j < (long)p->n_in_values; j++)
                     if (p->in_val[j] - p->in_val[j] != 0.0) {
                         say(s, fmi2Error, "%s: a non-finite input at initialisation (value reference %u)",
                             s->inner[i].name, p->in_vr[j]);
                         goto failed;
                     }
-            if (p->n_in && ((set2_t)p->set)(p->c, p->in_vr, p->n_in, p->in_val)) goto failed;
+            if (p->n_in && set_inputs(p)) goto failed;
+            for (j = 0; j < p->n_other; j++) if (p->other[j]()) goto failed;   /* (as the master: after the set) */
             if (outputs(&s->L, (int)i, 0)) goto failed;
         }
         if (have_last) {   /* (as Python's list ==: value by value) */
@@ -680,6 +697,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
             "take steps that are whole multiples of it", t, h, s->step, s->t0);
         return fmi2Error;
     }
+    other_of = s;   /* (the connections that are not Float64: their container, for this thread) */
     if (s->act.stopped) { say(s, fmi2Error, "fmi2DoStep after the stop of events[%d]", s->act.stop_index); return fmi2Error; }
     {
         long k = k0, end = k0 + nk;

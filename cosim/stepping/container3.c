@@ -1,6 +1,6 @@
 /* The container's FMI 3.0 face (cosim/plan/container.py builds this file for an export with --fmi 3): the
- * FMI 2.0 container of container.c (included below, unchanged: the same loop, system.txt and inner FMI 2.0
- * FMUs) behind the FMI 3.0 co-simulation API.  An fmi3 instance holds the container and the host's logger;
+ * FMI 2.0 container of container.c (included below, unchanged: the same loop, system.txt and inner FMUs)
+ * behind the FMI 3.0 co-simulation API.  An fmi3 instance holds the container and the host's logger;
  * the inner FMUs get FMI 2.0 callbacks whose logger passes their messages (and the container's) on to it.
  * The container's variables: Real as Float64, Integer as Int32, Boolean as Boolean, their value references
  * those of the FMI 2.0 description.  The instantiation token is the container's GUID.  What the container

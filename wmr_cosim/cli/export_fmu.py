@@ -24,9 +24,11 @@ def add_parser(sub: Any, name: str) -> None:
                                    "timed events, input tables) "
                                    "as its runtime, so that its outputs equal `wmr-cosim run` of the scenario bit for "
                                    "bit. Its variables: the recorded outputs, the open inputs and the inner FMUs' "
-                                   "parameters (Real, Integer, Boolean), named instance.variable. What it cannot hold "
-                                   "yet (inner FMI 3.0 FMUs, Model Exchange, other algorithms, events on conditions, "
-                                   "requirements, non-Real connections, Enumeration or String outputs) is refused, "
+                                   "parameters (Real, Integer, Boolean), named instance.variable. The FMUs inside may be FMI "
+                                   "2.0 or 3.0, connected by Real, Integer, Boolean, Enumeration and the FMI 3.0 "
+                                   "number types' connections. What it cannot hold yet (Model Exchange, other "
+                                   "algorithms, events on conditions, requirements, String connections, String "
+                                   "outputs, FMI 3.0 outputs other than Float64, Int32 and Boolean) is refused, "
                                    "nothing written (docs/export-fmu.md).")
     e.add_argument("scenario", type=scenario_path, help="scenario file (.toml) or SSP archive (.ssp)")
     e.add_argument("--out", type=Path, required=True, metavar="FILE.fmu", help="the FMU to write")
@@ -38,7 +40,7 @@ def add_parser(sub: Any, name: str) -> None:
                         "note says why not)")
     e.add_argument("--fmi", type=int, choices=(2, 3), default=2,
                    help="the FMI version of the container's interface: 2 (default) or 3 (an FMI 3.0 co-simulation "
-                        "FMU; the FMUs inside stay FMI 2.0)")
+                        "FMU; whatever the FMI versions of the FMUs inside)")
     options.set_option(e)
     e.set_defaults(func=cmd_export_fmu, subparser=e)
 
