@@ -126,9 +126,9 @@ def refuse(plan: Plan, out: Path, name: str) -> None:
         if ev.var is not None and ev.instance is not None and not _settable(plan, ev.instance, ev.var):
             no("events", f"events[{ev.index}] acts on {ev.ref}, an FMI 3.0 {ev.var.fmi_type}"
                          f"{' array' if ev.var.shape else ''} (only scalar Float64, Int32, Boolean and String)")
-    for ip in plan.inputs:
-        if not _settable(plan, ip.instance, ip.var):
-            no("inputs", f"{ip.column} is an FMI 3.0 {ip.var.fmi_type}{' array' if ip.var.shape else ''} "
+    for col in plan.inputs:
+        if not _settable(plan, col.instance, col.var):
+            no("inputs", f"{col.column} is an FMI 3.0 {col.var.fmi_type}{' array' if col.var.shape else ''} "
                          "(only scalar Float64, Int32, Boolean and String)")
     if plan.requirements:
         no("requirements", "requirements")

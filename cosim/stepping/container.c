@@ -555,9 +555,12 @@ static fmi2Status fetch_lazy(Container *s) {
         Inner *q = &s->inner[i];
         Inst *p = &s->insts[i];
         if (!q->lazy) continue;
-        if ((st = ((set2_t)p->get)(p->c, p->out_vr, q->n_out, p->out_val))) {
-            say(s, fmi2Error, "%s: fmi2GetReal returned %d", q->name, st);
-            return (fmi2Status)st;
+        p->n_out = q->n_out;   /* (the loop's own read of its outputs, FMI 2.0 or 3.0) */
+        st = outputs(&s->L, i, 0);
+        p->n_out = 0;
+        if (st) {
+            say(s, fmi2Error, "%s: reading its outputs returned %g", q->name, s->L.f_value);
+            return fmi2Error;
         }
     }
     s->stale = 0;
