@@ -36,17 +36,19 @@ from xml.sax.saxutils import quoteattr
 
 from ..messages.errors import CosimError, ScenarioError
 from ..model.archive import safe_extract
-from ..model.description import CO_SIMULATION
+from ..model.description import MODEL_EXCHANGE
+from ..model.types import FLOAT64_TYPES
 from ..stepping import native
 from ..stepping.table import GAUSS_SEIDEL, JACOBI
 from .records import InstancePlan, Plan
 from .wiring import RowLayout, Wiring
 
 SOURCE = native.SOURCE.with_name("container.c")
+SOURCE_ME = native.SOURCE.with_name("container_me.c")   # Model Exchange instances: included by container.c
 SOURCE3 = native.SOURCE.with_name("container3.c")   # the FMI 3.0 face: includes container.c
 #: The FMI 3.0 standard's headers container3.c includes (FMPy's copy: :func:`native.fmi_headers`).
 HEADERS3 = ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")
-FORMAT = "wmr-container 3"   # the first line of system.txt (container.c's VERSION_TAG)
+FORMAT = "wmr-container 4"   # the first line of system.txt (container.c's VERSION_TAG)
 
 
 #: The FMI 2.0 types of the container's variables, and their letters in system.txt.
@@ -107,6 +109,8 @@ def refuse(plan: Plan, out: Path, name: str) -> None:
         no("inputs", "input tables")
     if plan.requirements:
         no("requirements", "requirements")
+    if sc.event_rows:
+        no("record.event_rows", "rows at the events of a Model Exchange instance")
     for c in plan.connections:
         if not c.is_float64:
             no("connections", f"{c.src}.{c.src_var.name} -> {c.dst}.{c.dst_var.name} is not Real to Real")
@@ -119,8 +123,9 @@ def _refuse_instance(plan: Plan, n: str, ip: InstancePlan, out: Path, no: Any) -
     where = f"instances.{n}"
     if ip.model.fmi != 2:
         no(where, f"{ip.model.path.name} is an FMI {ip.model.fmi}.0 FMU (only FMI 2.0)")
-    if ip.interface != CO_SIMULATION:
-        no(where, f"{ip.model.path.name} runs as Model Exchange (only co-simulation)")
+    if ip.interface == MODEL_EXCHANGE and ip.solver is not None and ip.solver.name not in ME_SOLVERS:
+        no(f"{where}.solver", f"solver = {ip.solver.name!r} (a Model Exchange instance inside is integrated by "
+                              f"{' or '.join(ME_SOLVERS)} only)")
     # (an FMU without a binary for this platform, linux64, has no plan: the master's resolution refuses it)
     if out.resolve() == ip.model.path.resolve():
         raise ScenarioError(plan.scenario.file, "--out", f"{out} is the FMU of instance {n}: write the container "
@@ -162,6 +167,27 @@ def variables(plan: Plan, layout: RowLayout) -> list[ContainerVar]:
     return out
 
 
+#: The integrators of a Model Exchange instance the container runs (stepping/container_me.c: the master's
+#: fixed-step ones; CVODE is refused, docs/export-fmu.md says why).
+ME_SOLVERS = ("euler", "rk4")
+
+
+def me_line(ip: InstancePlan, in_vrs: list[int]) -> str:
+    """The "me" line of a Model Exchange instance in system.txt (container_me.c's me_read): its integrator
+    (method, whether it has a largest step, that step [s], the event tolerance [s]), its numbers of continuous
+    states and event indicators, whether it needs fmi2CompletedIntegratorStep, whether a Real input it is set
+    each step is discrete (set in event mode only: the master's ``_discrete_inputs``)."""
+    sv, md = ip.solver, ip.model.md
+    assert sv is not None and sv.name in ME_SOLVERS, ip   # (refused before)
+    wanted = set(in_vrs)
+    discrete = any(v.variability == "discrete" and v.causality == "input" and int(v.valueReference) in wanted
+                   and v.type in FLOAT64_TYPES for v in md.modelVariables)
+    needs = not bool(getattr(md.modelExchange, "completedIntegratorStepNotNeeded", False))
+    return (f"me {sv.name} {int(sv.max_step is not None)} {_num(sv.max_step or 0.0)} {_num(sv.event_tolerance)} "
+            f"{int(md.numberOfContinuousStates or 0)} {int(md.numberOfEventIndicators or 0)} {int(needs)} "
+            f"{int(discrete)}")
+
+
 _KIND = {"o": "output", "i": "input", "p": "parameter"}
 _A = {"o": "a recorded output", "i": "an open input", "p": "a parameter"}
 
@@ -176,10 +202,11 @@ def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[Conta
     for i, n in enumerate(plan.order):
         ip = plan.instances[n]
         copies = wiring.copies(n)
-        lines.append(" ".join(["inst", _hex(n), _hex(dirs[n]), _hex(ip.model.identifier), _hex(ip.model.md.guid),
-                               str(int(ip.tolerance is not None)), _num(ip.tolerance or 0.0),
+        me = ip.interface == MODEL_EXCHANGE
+        lines.append(" ".join(["inst", _hex(n), _hex(dirs[n]), _hex(ip.model.identifier_of(ip.interface)),
+                               _hex(ip.model.md.guid), str(int(ip.tolerance is not None)), _num(ip.tolerance or 0.0),
                                str(len(wiring.vrs[n])), str(len(layout.reals[n])), str(layout.offset[n]),
-                               str(len(copies)), str(len(ip.parameters)), str(ip.decimation)]))
+                               str(len(copies)), str(len(ip.parameters)), str(ip.decimation), str(int(me))]))
         lines.append(" ".join(str(vr) for vr in wiring.vrs[n]) or "")
         lines.append(" ".join(str(vr) for vr, _ in layout.reals[n]) or "")
         for c in copies:
@@ -189,6 +216,8 @@ def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[Conta
             lines.append(f"copy {c.pos} {layout.offset[src] + c.slot} {_num(c.factor)} {_num(c.offset)}")
         for var, value in ip.parameters:
             lines.append(f"param {_param(var, value)} {index.get((i, var.type, var.vr), -1)}")
+        if me:
+            lines.append(me_line(ip, wiring.vrs[n]))
     for v in cvars:
         lines.append(f"var {v.kind} {TYPES[v.type]} {v.inst} {v.ref} {_num(v.start)} "
                      f"{int(v.variability == 'tunable' or v.kind == 'i')}")
@@ -268,7 +297,7 @@ def platforms(plan: Plan, asked: list[str] | None = None, fmi: int = 2) -> tuple
     why = "the FMI 3.0 face is built for x86_64-linux only, so far" if fmi == 3 else None
     for n in plan.order if why is None else ():
         ip = plan.instances[n]
-        binary = f"binaries/win64/{ip.model.identifier}.dll"
+        binary = f"binaries/win64/{ip.model.identifier_of(ip.interface)}.dll"
         with zipfile.ZipFile(ip.model.path) as zf:
             if binary not in zf.namelist():
                 why = f"instances.{n}: {ip.model.path.name} has no {binary}"
@@ -360,7 +389,7 @@ def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None, fmi:
             folder.mkdir(parents=True)
             build_binary(guid, folder / f"{name}.{_LIB[platform]}", platform, fmi)
         (tmp / "sources").mkdir()   # (for fmi 3, the FMI 3.0 face and the standard's headers beside it)
-        for src in (SOURCE, native.SOURCE, *((SOURCE3, *(native.fmi_headers(3) / h for h in HEADERS3)) if fmi == 3 else ())):
+        for src in (SOURCE, SOURCE_ME, native.SOURCE, *((SOURCE3, *(native.fmi_headers(3) / h for h in HEADERS3)) if fmi == 3 else ())):
             shutil.copyfile(src, tmp / "sources" / src.name)
         out.parent.mkdir(parents=True, exist_ok=True)
         part = out.with_name(out.name + ".part")

@@ -70,7 +70,7 @@ typedef fmi2Status (*seti_t)(fmi2Component, const fmi2ValueReference *, size_t, 
 typedef fmi2Status (*geti_t)(fmi2Component, const fmi2ValueReference *, size_t, fmi2Integer *);
 typedef fmi2Status (*sets_t)(fmi2Component, const fmi2ValueReference *, size_t, const fmi2String *);
 
-#define VERSION_TAG "wmr-container 3"
+#define VERSION_TAG "wmr-container 4"
 
 typedef struct { char type; unsigned vr; double r; int i; char *s; int var; } Param;
 
@@ -81,6 +81,7 @@ typedef struct {
     inst_t instantiate; free_t free_instance; setup_t setup; mode_t_ enter, exit_, terminate;
     set2_t set_real; seti_t set_integer, set_boolean; sets_t set_string; geti_t get_integer, get_boolean;
     int n_params; Param *params;
+    struct MeInst *me;   /* run as Model Exchange: its integrator and events (container_me.c); else NULL */
 } Inner;
 
 /* a variable of the container: kind 'o' (a recorded output), 'i' (an open input) or 'p' (a parameter); type
@@ -133,16 +134,19 @@ static char *text(Reader *r) {
 }
 static void expect(Reader *r, const char *word) { if (strcmp(token(r), word)) r->bad = 1; }
 
+static int me_read(Container *s, Reader *r, int i);   /* (container_me.c) */
+
 static int read_instance(Container *s, Reader *r, int i) {
     Inner *q = &s->inner[i];
     Inst *p = &s->insts[i];
-    long j, off, nc;
+    long j, off, nc, me;
     expect(r, "inst");
     q->name = text(r); q->dir = text(r); q->mi = text(r); q->guid = text(r);
     q->tol_defined = (int)num(r); q->tol = real(r);
     p->abi = 2; p->raw_set = p->raw_step = p->raw_get = 1; p->no_set_prior = 1;
     p->n_in = (size_t)num(r); p->n_out = (size_t)num(r); off = num(r); nc = num(r); q->n_params = (int)num(r);
     p->dec = num(r);   /* its decimation: it steps every dec base steps (Loop.multirate), as native.py sets it */
+    me = num(r);       /* 1: run as Model Exchange (its "me" line follows its parameters) */
     if (r->bad || p->dec < 1 || off < 0 || off + (long)p->n_out > s->n_row || nc < 0 || q->n_params < 0) return 0;
     p->in_vr = calloc(p->n_in + 1, sizeof(unsigned)); p->in_val = calloc(p->n_in + 1, sizeof(double));
     p->out_vr = calloc(p->n_out + 1, sizeof(unsigned)); p->out_val = s->row + off;
@@ -169,6 +173,7 @@ static int read_instance(Container *s, Reader *r, int i) {
         else a->i = (int)num(r);
         a->var = (int)num(r);
     }
+    if (me && !r->bad && !me_read(s, r, i)) return 0;
     return !r->bad;
 }
 
@@ -258,6 +263,8 @@ static char *encode_uri(const char *path) {
 #define LOOKUP(dll, sym) dlsym(dll, sym)
 #define UNLOAD(dll) dlclose(dll)
 #endif
+#include "container_me.c"
+
 #define SYM(q, field, sym) \
     if (!((q)->field = (void *)LOOKUP(dll, sym))) { say(s, fmi2Error, "%s: %s not found", who, sym); return 0; }
 
@@ -282,15 +289,17 @@ static int load_inner(Container *s, Inner *q, Inst *p, const char *res, fmi2Bool
     SYM(q, exit_, "fmi2ExitInitializationMode") SYM(q, terminate, "fmi2Terminate")
     SYM(q, set_real, "fmi2SetReal") SYM(q, set_integer, "fmi2SetInteger") SYM(q, set_boolean, "fmi2SetBoolean")
     SYM(q, set_string, "fmi2SetString") SYM(q, get_integer, "fmi2GetInteger") SYM(q, get_boolean, "fmi2GetBoolean")
-    SYM(p, step, "fmi2DoStep") SYM(p, get, "fmi2GetReal")
+    if (!q->me) { SYM(p, step, "fmi2DoStep") SYM(p, get, "fmi2GetReal") }
     p->set = (void *)q->set_real;
+    if (q->me && !me_load(s, q, p)) return 0;
     where = malloc(strlen(res) + strlen(q->dir) + 16);
     sprintf(where, "%s/%s/resources", res, q->dir);
     uri = encode_uri(where);
-    q->c = q->instantiate(q->name, fmi2CoSimulation, q->guid, uri, s->cb, visible, logging);
+    q->c = q->instantiate(q->name, q->me ? fmi2ModelExchange : fmi2CoSimulation, q->guid, uri, s->cb, visible, logging);
     free(where); free(uri);
     if (!q->c) { say(s, fmi2Error, "%s: fmi2Instantiate failed", q->name); return 0; }
     p->c = q->c;
+    if (q->me) q->me->c = q->c, p->c = q->me;   /* (the loop calls its wrappers: container_me.c) */
     return 1;
 }
 
@@ -301,6 +310,7 @@ static void free_container(Container *s) {
         Inner *q = &s->inner[i];
         Inst *p = &s->insts[i];
         if (q->c && q->free_instance) q->free_instance(q->c);
+        me_free(q->me);
         if (q->dll) UNLOAD(q->dll);
         free(q->name); free(q->dir); free(q->mi); free(q->guid);
         for (int j = 0; q->params && j < q->n_params; j++) free(q->params[j].s);
@@ -448,9 +458,11 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     Container *s = c;
     int i, st;
     if (!exchange(s)) { say(s, fmi2Error, "the initial exchange of outputs to inputs failed"); return fmi2Error; }
-    for (i = 0; i < s->n; i++)
+    for (i = 0; i < s->n; i++) {
         if ((st = s->inner[i].exit_(s->inner[i].c)))
             { say(s, fmi2Error, "%s: fmi2ExitInitializationMode returned %d", s->inner[i].name, st); return fmi2Error; }
+        if (s->inner[i].me && !me_start(s->inner[i].me, s->t0)) return fmi2Error;
+    }
     if (!read_all(s)) { say(s, fmi2Error, "reading the outputs after initialisation failed"); return fmi2Error; }
     s->mode = 2;
     return fmi2OK;
@@ -529,7 +541,8 @@ static fmi2Status set_values(Container *s, const fmi2ValueReference vr[], size_t
         v->value = value[j]; v->set = 1;
         if (s->mode >= 1) {
             Inner *q = &s->inner[v->inst];
-            int st = set_value(q, v->type, v->ref, v->value);
+            int st = s->mode == 2 ? me_before_set(q->me) : 0;
+            if (!st) st = set_value(q, v->type, v->ref, v->value);
             if (st) { say(s, fmi2Error, "%s: setting value reference %u returned %d", q->name, v->ref, st); return (fmi2Status)st; }
         }
     }
