@@ -189,8 +189,6 @@ REFUSALS: dict[str, Any] = {
                                                    "value": 1.0}]),
     "requirements": lambda doc, m, d: doc.update(requirements=[{"name": "r", "formula": "always body.x < 10"}]),
     "fmi3": lambda doc, m, d: doc["instances"].update(ref={"fmu": str(REF / "fmi3" / "Dahlquist.fmu")}),
-    "model exchange with cvode": lambda doc, m, d: doc["instances"].update(
-        ref={"fmu": str(REF / "fmi2" / "Dahlquist.fmu"), "interface": "model-exchange"}),
     "no linux64 binary": lambda doc, m, d: doc["instances"]["body"].update(fmu=str(_no_binary(m, d))),
     "a non-Real output": lambda doc, m, d: (
         doc["instances"].update(ft={"fmu": str(REF / "fmi2" / "Feedthrough.fmu")}),
@@ -202,7 +200,7 @@ REFUSALS: dict[str, Any] = {
 
 #: The field each refusal names.
 REFUSED_AT = {"iterated": "experiment.algorithm", "events": "events",
-              "requirements": "requirements", "fmi3": "instances.ref", "model exchange with cvode": "instances.ref.solver",
+              "requirements": "requirements", "fmi3": "instances.ref",
               "no linux64 binary": "instances.body.fmu",
               "a non-Real output": "record", "an output name twice": "record",
               "a stop off the step's grid": "experiment.stop"}

@@ -1,10 +1,10 @@
 """``wmr-cosim export-fmu`` of a system holding Model Exchange FMUs: the container integrates them with the
-master's fixed-step integrators (explicit Euler, RK4 with ``max_step`` sub-steps and state events located by
-bisection) and handles their events as the master does (stepping/container_me.c), so that run in FMPy (and in
-fmusim) every output equals ``wmr-cosim run`` of the same scenario bit for bit: our C plant as Model
-Exchange in G1 (Gauss-Seidel and Jacobi; its foam's time events and its state event), the Reference FMUs'
-BouncingBall with its bounces.  What the container does not integrate as the master does is refused in one
-line, exit 2, nothing written."""
+master's integrators (explicit Euler, RK4 with ``max_step`` sub-steps and state events located by bisection;
+CVODE from FMPy's SUNDIALS libraries, shipped inside) and handles their events as the master does
+(stepping/container_me.c), so that run in FMPy (and in fmusim, which links a SUNDIALS of its own) every
+output equals ``wmr-cosim run`` of the same scenario bit for bit: our C plant as Model Exchange in G1
+(Gauss-Seidel and Jacobi; its foam's time events and its state event), the Reference FMUs' BouncingBall
+with its bounces.  What the container cannot hold is refused in one line, exit 2, nothing written."""
 from __future__ import annotations
 
 import csv
@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from wmr_cosim.cli import main
+from wmr_cosim.cosim.plan import container
 
 from cosim_support import write_document
 from host_tools import FMUSIM, tool
@@ -39,12 +40,16 @@ G1_CASES = {"rk4 gauss-seidel": ("rk4", 0.001, "gauss-seidel", "none"),
             "euler jacobi": ("euler", 0.0005, "jacobi", "none"),
             "rk4 foam by region": ("rk4", 0.001, "gauss-seidel", "region"),
             "euler foam by time": ("euler", 0.0005, "jacobi", "time"),
-            "rk4 one step per step": ("rk4", None, "gauss-seidel", "none")}
+            "rk4 one step per step": ("rk4", None, "gauss-seidel", "none"),
+            "cvode gauss-seidel": ("cvode", None, "gauss-seidel", "none"),   # (g1_c_plant_me.toml as it is)
+            "cvode jacobi": ("cvode", None, "jacobi", "none"),
+            "cvode foam by region": ("cvode", None, "gauss-seidel", "region"),
+            "cvode foam by time": ("cvode", 0.01, "jacobi", "time")}
 
 
 def g1_scenario(folder: Path, case: str) -> Path:
-    """G1 with our C plant as Model Exchange (scenarios/g1_c_plant_me.toml) cut to 10 s, with the case's
-    integrator, algorithm and foam."""
+    """G1 with our C plant as Model Exchange (scenarios/g1_c_plant_me.toml: CVODE at a relative tolerance of
+    1e-9) cut to 10 s, with the case's integrator, algorithm and foam."""
     solver, max_step, algorithm, foam = G1_CASES[case]
     lines = [f"base = {str(SCENARIOS / 'g1_c_plant_me.toml')!r}", "[experiment]", f"stop = {G1_STOP!r}",
              f"algorithm = {algorithm!r}", "[instances.plant]", f"solver = {solver!r}"]
@@ -101,22 +106,29 @@ def test_the_cases_differ_and_the_foam_events_happen(g1: Any) -> None:
     """(So the equalities above tell the integrators, the algorithms and the events apart.)"""
     x = {case: g1[case][1]["plant.x_A"] for case in G1_CASES}
     for a, b in [("rk4 gauss-seidel", "rk4 jacobi"), ("rk4 gauss-seidel", "euler gauss-seidel"),
-                 ("euler gauss-seidel", "euler jacobi"), ("rk4 gauss-seidel", "rk4 one step per step")]:
+                 ("euler gauss-seidel", "euler jacobi"), ("rk4 gauss-seidel", "rk4 one step per step"),
+                 ("cvode gauss-seidel", "cvode jacobi"), ("cvode gauss-seidel", "rk4 gauss-seidel")]:
         assert not np.array_equal(x[a], x[b]), (a, b)
     assert not np.any(g1["rk4 gauss-seidel"][1]["plant.foam_level"])
-    events = {case: [(e["time"], e["kind"]) for e in g1[case][2]["events"]] for case in ("rk4 foam by region",
-                                                                                       "euler foam by time")}
-    region, timed = events["rk4 foam by region"], events["euler foam by time"]
-    assert [k for _, k in region] == ["state", "time"] and 6.4 < region[0][0] < 6.5, region   # (entry, ramp end)
-    assert timed == [(3.00033, "time"), (3.00033 + 0.1, "time")], timed   # (off the grid of the sub-steps)
+    for solver in ("rk4", "euler", "cvode"):
+        events = {case: [(e["time"], e["kind"]) for e in g1[case][2]["events"]]
+                  for case in (f"{solver} foam by region", f"{solver} foam by time") if case in g1}
+        region, timed = events.get(f"{solver} foam by region"), events.get(f"{solver} foam by time")
+        if region is not None:   # (the entry, then the ramp's end)
+            assert [k for _, k in region] == ["state", "time"] and 6.4 < region[0][0] < 6.5, region
+        if timed is not None:    # (off the grid of the sub-steps)
+            assert timed == [(3.00033, "time"), (3.00033 + 0.1, "time")], timed
     system = zipfile.ZipFile(g1["rk4 foam by region"][0]).read("resources/system.txt").decode()
-    assert f"me rk4 1 {0.001.hex()} {1e-10.hex()} 7 1 1 0" in system
+    assert f"me rk4 1 {0.001.hex()} {1e-10.hex()} 0x0.0p+0 7 1 1 0" in system
+    system = zipfile.ZipFile(g1["cvode gauss-seidel"][0]).read("resources/system.txt").decode()
+    assert f"me cvode 1 {(10.0 / 50).hex()} {1e-10.hex()} {1e-9.hex()} 7 1 1 0" in system   # (stop / 50, the tolerance)
 
 
 # ------------------------------------------------------------------ BouncingBall: state events, its bounces
 BALL_STOP, BALL_STEP = 3.0, 0.01
 BALL_CASES = {"rk4": {"solver": "rk4", "max_step": 0.001}, "euler": {"solver": "euler"},
-              "rk4 coarse events": {"solver": "rk4", "max_step": 0.002, "event_tolerance": 1e-4}}
+              "rk4 coarse events": {"solver": "rk4", "max_step": 0.002, "event_tolerance": 1e-4},
+              "cvode": {}, "cvode tight": {"solver": "cvode", "tolerance": 1e-10, "max_step": 0.05}}
 
 
 def ball_doc(case: str, algorithm: str = "gauss-seidel") -> dict[str, Any]:
@@ -146,7 +158,7 @@ def test_bouncing_ball_in_fmpy_equals_the_run_with_its_bounces(case: str, balls:
 
 def test_the_ball_cases_differ(balls: Any) -> None:
     h = [balls[c][1]["ball.h"] for c in BALL_CASES]
-    assert not np.array_equal(h[0], h[1]) and not np.array_equal(h[0], h[2])
+    assert all(not np.array_equal(a, b) for j, a in enumerate(h) for b in h[j + 1:])
 
 
 def test_a_model_exchange_instance_at_its_own_rate_equals_the_run(tmp_path: Path) -> None:
@@ -173,32 +185,48 @@ def fmusim_columns(fmu: Path, stop: float, step: float, folder: Path) -> tuple[l
     return rows[0], np.array([[float(x) for x in r] for r in rows[1:]])
 
 
-@pytest.mark.parametrize("which", ["ball rk4", "c plant foam by region"])
+@pytest.mark.parametrize("which", ["ball rk4", "ball cvode", "c plant rk4 foam by region",
+                                   "c plant cvode foam by region"])
 def test_in_fmusim_equals_the_run(which: str, balls: Any, g1: Any, tmp_path: Path) -> None:
-    """fmusim (a C host), to the 16 digits it writes."""
-    fmu, ref, _ = balls["rk4"] if which == "ball rk4" else g1["rk4 foam by region"]
-    stop, step = (BALL_STOP, BALL_STEP) if which == "ball rk4" else (G1_STOP, G1_STEP)
+    """fmusim (a C host that links SUNDIALS 6: the container's CVODE, FMPy's SUNDIALS 7, keeps to its own),
+    to the 16 digits it writes."""
+    ball = which.startswith("ball")
+    fmu, ref, _ = balls[which[5:]] if ball else g1[which[8:]]
+    stop, step = (BALL_STOP, BALL_STEP) if ball else (G1_STOP, G1_STEP)
     names, got = fmusim_columns(fmu, stop, step, tmp_path)
     assert sorted(names) == sorted(ref.dtype.names) and len(got) == len(ref)
     for j, name in enumerate(names):
         assert [float(x) for x in got[:, j]] == [float(f"{x:.16g}") for x in ref[name].astype(float)], name
 
 
-# ------------------------------------------------------------------ what the container does not integrate
-REFUSALS: dict[str, tuple[Any, str]] = {
-    "cvode": (lambda doc: doc["instances"]["ball"].update(solver="cvode"), "instances.ball.solver"),
-    "cvode by default": (lambda doc: [doc["instances"]["ball"].pop(k) for k in ("solver", "max_step")],
-                         "instances.ball.solver"),
-    "event rows": (lambda doc: doc["record"].update(event_rows=True), "record.event_rows"),
+def test_cvode_ships_fmpys_sundials_with_its_notice(balls: Any) -> None:
+    names = zipfile.ZipFile(balls["cvode"][0]).namelist()
+    assert {f"resources/sundials/{lib}.so" for lib in container.SUNDIALS_LIBS} <= set(names)
+    assert "resources/sundials/LICENSE-FMPy.txt" in names
+    assert not any("sundials" in n for n in zipfile.ZipFile(balls["rk4"][0]).namelist())
+
+
+# ------------------------------------------------------------------ what the container cannot hold
+def _no_sundials(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.setattr(container, "sundials_folder", lambda: tmp_path / "nowhere")
+
+
+REFUSALS: dict[str, tuple[Any, str, Any]] = {
+    "event rows": (lambda doc: doc["record"].update(event_rows=True), "record.event_rows", None),
+    "cvode without FMPy's SUNDIALS": (lambda doc: doc["instances"]["ball"].update(solver="cvode"),
+                                      "instances.ball.solver", _no_sundials),
 }
 
 
 @pytest.mark.parametrize("case", list(REFUSALS))
-def test_what_the_container_cannot_integrate_is_refused_in_one_line(case: str, tmp_path: Path,
-                                                                     capsys: pytest.CaptureFixture[str]) -> None:
+def test_what_the_container_cannot_hold_is_refused_in_one_line(case: str, tmp_path: Path,
+                                                               monkeypatch: pytest.MonkeyPatch,
+                                                               capsys: pytest.CaptureFixture[str]) -> None:
     doc = ball_doc("rk4")
-    edit, field = REFUSALS[case]
+    edit, field, patch = REFUSALS[case]
     edit(doc)
+    if patch is not None:
+        patch(monkeypatch, tmp_path / "elsewhere")
     sc = write_document(tmp_path / "system.toml", doc)
     assert main(["check", str(sc)]) == 0            # (the master runs it)
     capsys.readouterr()
@@ -207,4 +235,14 @@ def test_what_the_container_cannot_integrate_is_refused_in_one_line(case: str, t
     err = capsys.readouterr().err.strip()
     assert err.startswith("wmr-cosim: error: ") and "\n" not in err, err
     assert f"system.toml: {field}: " in err, err
+    assert sorted(tmp_path.iterdir()) == before
+
+
+def test_cvode_inside_is_built_for_linux64_only(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """(FMPy's SUNDIALS is shipped for linux64: asking for win64 is refused, saying so.)"""
+    sc = write_document(tmp_path / "system.toml", ball_doc("cvode"))
+    before = sorted(tmp_path.iterdir())
+    assert main(["export-fmu", str(sc), "--out", str(tmp_path / "S.fmu"), "--platforms", "linux64,win64"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--platforms: win64 cannot be built: CVODE inside" in err and "\n" not in err, err
     assert sorted(tmp_path.iterdir()) == before

@@ -21,6 +21,7 @@ inner FMUs stay FMI 2.0.
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import re
 import shutil
@@ -37,6 +38,7 @@ from xml.sax.saxutils import quoteattr
 from ..messages.errors import CosimError, ScenarioError
 from ..model.archive import safe_extract
 from ..model.description import MODEL_EXCHANGE
+from ..instances.integrators import DEFAULT_RTOL
 from ..model.types import FLOAT64_TYPES
 from ..stepping import native
 from ..stepping.table import GAUSS_SEIDEL, JACOBI
@@ -123,9 +125,15 @@ def _refuse_instance(plan: Plan, n: str, ip: InstancePlan, out: Path, no: Any) -
     where = f"instances.{n}"
     if ip.model.fmi != 2:
         no(where, f"{ip.model.path.name} is an FMI {ip.model.fmi}.0 FMU (only FMI 2.0)")
-    if ip.interface == MODEL_EXCHANGE and ip.solver is not None and ip.solver.name not in ME_SOLVERS:
-        no(f"{where}.solver", f"solver = {ip.solver.name!r} (a Model Exchange instance inside is integrated by "
-                              f"{' or '.join(ME_SOLVERS)} only)")
+    if ip.interface == MODEL_EXCHANGE and ip.solver is not None:
+        if ip.solver.name not in ME_SOLVERS:
+            no(f"{where}.solver", f"solver = {ip.solver.name!r} (a Model Exchange instance inside is integrated by "
+                                  f"{', '.join(ME_SOLVERS)} only)")
+        missing = [lib for lib in SUNDIALS_LIBS if not (sundials_folder() / f"{lib}.so").is_file()] \
+            if ip.solver.name == "cvode" else []
+        if missing:
+            no(f"{where}.solver", f"solver = 'cvode' needs FMPy's SUNDIALS libraries, and {missing[0]}.so is not in "
+                                  f"{sundials_folder()}")
     # (an FMU without a binary for this platform, linux64, has no plan: the master's resolution refuses it)
     if out.resolve() == ip.model.path.resolve():
         raise ScenarioError(plan.scenario.file, "--out", f"{out} is the FMU of instance {n}: write the container "
@@ -167,24 +175,62 @@ def variables(plan: Plan, layout: RowLayout) -> list[ContainerVar]:
     return out
 
 
-#: The integrators of a Model Exchange instance the container runs (stepping/container_me.c: the master's
-#: fixed-step ones; CVODE is refused, docs/export-fmu.md says why).
-ME_SOLVERS = ("euler", "rk4")
+#: The integrators of a Model Exchange instance the container runs (stepping/container_me.c): the master's
+#: fixed-step ones, and CVODE from FMPy's SUNDIALS libraries shipped in resources/sundials/.
+ME_SOLVERS = ("euler", "rk4", "cvode")
+#: FMPy's SUNDIALS libraries container_me.c loads, in its order.
+SUNDIALS_LIBS = ("sundials_core", "sundials_nvecserial", "sundials_sunmatrixdense", "sundials_sunlinsoldense",
+                 "sundials_cvode")
 
 
-def me_line(ip: InstancePlan, in_vrs: list[int]) -> str:
+def uses_cvode(plan: Plan) -> bool:
+    """Whether some Model Exchange instance of the plan is integrated by CVODE."""
+    return any(ip.interface == MODEL_EXCHANGE and ip.solver is not None and ip.solver.name == "cvode"
+               for ip in plan.instances.values())
+
+
+def sundials_folder() -> Path:
+    """FMPy's SUNDIALS libraries for linux64 (the ones the master's CVODE runs)."""
+    import fmpy
+
+    return Path(fmpy.__file__).parent / "sundials" / "x86_64-linux"
+
+
+def _ship_sundials(resources: Path) -> None:
+    """FMPy's SUNDIALS libraries into ``resources/sundials/``, with FMPy's licence text (which holds
+    SUNDIALS' notice, as its binary redistribution asks)."""
+    from importlib import metadata
+
+    dest = resources / "sundials"
+    dest.mkdir(parents=True)
+    for lib in SUNDIALS_LIBS:
+        shutil.copyfile(sundials_folder() / f"{lib}.so", dest / f"{lib}.so")
+    for f in metadata.distribution("fmpy").files or []:
+        if f.name == "LICENSE.txt":
+            shutil.copyfile(Path(str(f.locate())), dest / "LICENSE-FMPy.txt")
+            break
+
+
+def me_line(ip: InstancePlan, in_vrs: list[int], span: float) -> str:
     """The "me" line of a Model Exchange instance in system.txt (container_me.c's me_read): its integrator
-    (method, whether it has a largest step, that step [s], the event tolerance [s]), its numbers of continuous
-    states and event indicators, whether it needs fmi2CompletedIntegratorStep, whether a Real input it is set
-    each step is discrete (set in event mode only: the master's ``_discrete_inputs``)."""
+    (method, whether it has a largest step, that step [s], the event tolerance [s], CVODE's relative
+    tolerance), its numbers of continuous states and event indicators, whether it needs
+    fmi2CompletedIntegratorStep, whether a Real input it is set each step is discrete (set in event mode
+    only: the master's ``_discrete_inputs``).  CVODE's largest step and tolerance as the master's
+    ``make_integrator`` resolves them (its default largest step ``span`` / 50, ``span`` = stop - start [s])."""
     sv, md = ip.solver, ip.model.md
     assert sv is not None and sv.name in ME_SOLVERS, ip   # (refused before)
+    max_step, rtol = sv.max_step, 0.0
+    if sv.name == "cvode":
+        max_step = sv.max_step if sv.max_step is not None else (span / 50.0 if math.isfinite(span) and span > 0
+                                                                else math.inf)
+        rtol = sv.tolerance if sv.tolerance is not None else DEFAULT_RTOL
     wanted = set(in_vrs)
     discrete = any(v.variability == "discrete" and v.causality == "input" and int(v.valueReference) in wanted
                    and v.type in FLOAT64_TYPES for v in md.modelVariables)
     needs = not bool(getattr(md.modelExchange, "completedIntegratorStepNotNeeded", False))
-    return (f"me {sv.name} {int(sv.max_step is not None)} {_num(sv.max_step or 0.0)} {_num(sv.event_tolerance)} "
-            f"{int(md.numberOfContinuousStates or 0)} {int(md.numberOfEventIndicators or 0)} {int(needs)} "
+    return (f"me {sv.name} {int(max_step is not None)} {_num(max_step or 0.0)} {_num(sv.event_tolerance)} "
+            f"{_num(rtol)} {int(md.numberOfContinuousStates or 0)} {int(md.numberOfEventIndicators or 0)} {int(needs)} "
             f"{int(discrete)}")
 
 
@@ -217,7 +263,7 @@ def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[Conta
         for var, value in ip.parameters:
             lines.append(f"param {_param(var, value)} {index.get((i, var.type, var.vr), -1)}")
         if me:
-            lines.append(me_line(ip, wiring.vrs[n]))
+            lines.append(me_line(ip, wiring.vrs[n], (plan.scenario.stop or 0.0) - (plan.scenario.start or 0.0)))
     for v in cvars:
         lines.append(f"var {v.kind} {TYPES[v.type]} {v.inst} {v.ref} {_num(v.start)} "
                      f"{int(v.variability == 'tunable' or v.kind == 'i')}")
@@ -295,6 +341,8 @@ def platforms(plan: Plan, asked: list[str] | None = None, fmi: int = 2) -> tuple
     if "win64" not in want:
         return ["linux64"], None
     why = "the FMI 3.0 face is built for x86_64-linux only, so far" if fmi == 3 else None
+    if why is None and uses_cvode(plan):
+        why = "CVODE inside (FMPy's SUNDIALS libraries) is shipped for linux64 only, so far"
     for n in plan.order if why is None else ():
         ip = plan.instances[n]
         binary = f"binaries/win64/{ip.model.identifier_of(ip.interface)}.dll"
@@ -379,6 +427,8 @@ def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None, fmi:
     tmp = Path(tempfile.mkdtemp(prefix="wmr-cosim-fmu-"))
     try:
         dirs = _unpack(plan, tmp / "resources")
+        if uses_cvode(plan):
+            _ship_sundials(tmp / "resources")
         text = system_text(plan, layout, wiring, cvars, dirs)
         guid = "{" + str(uuid.UUID(hashlib.sha256((text + name).encode()).hexdigest()[:32])) + "}"
         (tmp / "resources" / "system.txt").write_text(text)

@@ -291,7 +291,7 @@ static int load_inner(Container *s, Inner *q, Inst *p, const char *res, fmi2Bool
     SYM(q, set_string, "fmi2SetString") SYM(q, get_integer, "fmi2GetInteger") SYM(q, get_boolean, "fmi2GetBoolean")
     if (!q->me) { SYM(p, step, "fmi2DoStep") SYM(p, get, "fmi2GetReal") }
     p->set = (void *)q->set_real;
-    if (q->me && !me_load(s, q, p)) return 0;
+    if (q->me && !me_load(s, q, p, res)) return 0;
     where = malloc(strlen(res) + strlen(q->dir) + 16);
     sprintf(where, "%s/%s/resources", res, q->dir);
     uri = encode_uri(where);

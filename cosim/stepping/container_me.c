@@ -30,7 +30,8 @@
 #define ME_MAX_EVENTS_AT_ONE_TIME 1000   /* model_exchange.py MAX_EVENTS_AT_ONE_TIME */
 #define ME_TOO_SHORT 1e-13               /* model_exchange.py TOO_SHORT [s per s of time] */
 
-enum { ME_EULER = 1, ME_RK4 = 2 };
+enum { ME_EULER = 1, ME_RK4 = 2, ME_CVODE = 3 };
+static const char *ME_METHODS[] = {"", "euler", "rk4", "cvode"};
 enum { ME_INSTANTIATED, ME_EVENT, ME_CONTINUOUS };
 
 typedef struct {
@@ -53,11 +54,11 @@ static const char *ME_EQ_NAMES[] = {"fmi2SetTime", "fmi2SetContinuousStates", "f
 typedef struct MeInst {
     Container *s; const char *name; fmi2Component c;
     /* its settings (system.txt "me" line) */
-    int method; int has_max_step; double max_step; double event_tol;
+    int method; int has_max_step; double max_step; double event_tol; double rtol;
     int nx, nz; int needs_completed; int discrete_inputs;
     /* the FMU's functions */
     set2_t set_real, get_real;
-    me_time_t set_time; me_setx_t set_x; me_getv_t get_x, get_dx, get_z;
+    me_time_t set_time; me_setx_t set_x; me_getv_t get_x, get_dx, get_z, get_nominals;
     mode_t_ enter_event, enter_continuous; me_new_t new_discrete; me_completed_t completed;
     /* the instance (ModelExchange): its mode, time [s], start [s], next time event, indicators at the end of
      * the last step, last inputs set, whether they changed since the integrator started, a step event */
@@ -70,12 +71,13 @@ typedef struct MeInst {
     /* the integrator (FixedStep): its states and indicators, and work arrays */
     double *x, *zx; int has_x;
     double *buf, *xt, *k1, *k2, *k3, *k4, *xn, *zn, *xm, *zm, *xh, *zh, *x0, *z0;
+    struct MeCvode *cv;   /* CVODE (NULL for Euler and RK4) */
 } MeInst;
 
 /* a failing call: said with the instance, the call and the time; its status (Error at least) returned */
 static int me_failed(MeInst *m, const char *what, int st, double t) {
     say(m->s, fmi2Error, "%s: %s returned status %d at t = %.9g s (the integration: %s)", m->name, what, st, t,
-        m->method == ME_EULER ? "euler" : "rk4");
+        ME_METHODS[m->method]);
     return st > 1 ? st : fmi2Error;
 }
 #define ME_EQ(m, call, which, t) do { int st_ = (call); if (st_ > 1) return me_failed(m, ME_EQ_NAMES[which], st_, t); } while (0)
@@ -135,8 +137,12 @@ static int me_indicators_at(MeInst *m, double t, const double *x, double *z) {
     return 0;
 }
 
-/* FixedStep.reset: start again from the FMU's states at t */
+static int me_cv_reset(MeInst *m, double t);
+static int me_cv_advance(MeInst *m, double t_out, double *t_now, int *state);
+
+/* Integrator.reset: start again from the FMU's states at t (FixedStep.reset, or Cvode.reset) */
 static int me_reset(MeInst *m, double t) {
+    if (m->cv) return me_cv_reset(m, t);
     if (m->nx) ME_EQ(m, m->get_x(m->c, m->x, (size_t)m->nx), 2, t);
     m->has_x = 1;
     return me_indicators_at(m, t, m->x, m->zx);
@@ -178,13 +184,14 @@ static int me_locate(MeInst *m, double ti, double tn, double *t_hit) {
     return 0;
 }
 
-/* FixedStep.advance: from t towards t_out; *t_now the time reached, *state 1 if a state event stopped it */
+/* Integrator.advance (FixedStep.advance; Cvode.advance): from t towards t_out; *t_now the time reached, *state 1 if a state event stopped it */
 static int me_integrate(MeInst *m, double t, double t_out, double *t_now, int *state) {
     size_t bx = sizeof(double) * (size_t)m->nx, bz = sizeof(double) * (size_t)m->nz;
     double span, q;
     long n, i;
     int stop;
     *state = 0;
+    if (m->cv) return me_cv_advance(m, t_out, t_now, state);
     if (!m->has_x && m->nx) ME_OK(me_reset(m, t));
     span = t_out - t;
     if (!m->has_max_step) n = 1;
@@ -207,6 +214,183 @@ static int me_integrate(MeInst *m, double t, double t_out, double *t_now, int *s
     }
     *t_now = t_out;
     return 0;
+}
+
+/* ------------------------------------------------------------------ CVODE (integrators.py Cvode) */
+/* FMPy's SUNDIALS libraries (7.x), shipped in the container's resources/sundials/ and loaded here, each with
+ * its own symbols first (RTLD_DEEPBIND: a host that links another SUNDIALS, as fmusim does, does not meet
+ * them); the calls and settings of the master's Cvode: BDF, a dense linear solver, relative tolerance rtol,
+ * absolute tolerance rtol times each state's nominal, the largest step, root finding on every indicator
+ * (an indicator at 0 given as the negative number nearest to it), normal mode. */
+#define ME_CV_BDF 2
+#define ME_CV_NORMAL 1
+#define ME_CV_ROOT_RETURN 2
+#define ME_CV_MAX_NUM_STEPS 100000L   /* Cvode.MAX_NUM_STEPS */
+static const char *ME_CV_LIBS[] = {"sundials_core", "sundials_nvecserial", "sundials_sunmatrixdense",
+                                   "sundials_sunlinsoldense", "sundials_cvode"};
+#define ME_CV_NLIBS 5
+
+typedef int (*me_rhs_t)(double, void *, void *, void *);
+typedef int (*me_root_t)(double, void *, double *, void *);
+
+typedef struct MeCvode {
+    void *lib[ME_CV_NLIBS];
+    int (*context_create)(int, void **); int (*context_free)(void **);
+    void *(*new_serial)(int64_t, void *); void (*destroy)(void *); double *(*data)(void *);
+    void *(*create)(int, void *); int (*init)(void *, me_rhs_t, double, void *);
+    int (*sv_tolerances)(void *, double, void *); int (*root_init)(void *, int, me_root_t);
+    void *(*dense_matrix)(int64_t, int64_t, void *); void *(*lin_sol_dense)(void *, void *, void *);
+    int (*set_linear_solver)(void *, void *, void *); int (*set_max_step)(void *, double);
+    int (*set_max_num_steps)(void *, long); int (*set_no_inactive_root_warn)(void *);
+    int (*set_user_data)(void *, void *); int (*reinit)(void *, double, void *);
+    int (*cvode)(void *, double, void *, double *, int); void (*cvode_free)(void **);
+    int (*lin_sol_free)(void *); void (*mat_destroy)(void *);
+    /* the run: context, states, absolute tolerances, CVODE, matrix, linear solver */
+    int discrete, n; void *ctx, *x, *abstol, *mem, *A, *LS;
+    int failure;   /* the status of a failing FMU call in a right-hand side (0: none) */
+} MeCvode;
+
+/* the SUNDIALS libraries from res/sundials and their functions; 0 (said) if they cannot be */
+static int me_cv_load(MeInst *m, const char *res) {
+    MeCvode *cv = m->cv = calloc(1, sizeof(MeCvode));
+    char *path;
+    int j;
+    if (!cv || !(path = malloc(strlen(res) + 64))) return 0;
+    for (j = 0; j < ME_CV_NLIBS; j++) {
+        sprintf(path, "%s/sundials/%s." LIB_EXT, res, ME_CV_LIBS[j]);
+#ifdef _WIN32
+        cv->lib[j] = (void *)LoadLibraryExA(path, NULL, LOAD_WITH_ALTERED_SEARCH_PATH);
+        if (!cv->lib[j]) { say(m->s, fmi2Error, "%s: LoadLibrary %s failed", m->name, path); free(path); return 0; }
+#else
+        cv->lib[j] = dlopen(path, RTLD_NOW | RTLD_LOCAL | RTLD_DEEPBIND);
+        if (!cv->lib[j]) { say(m->s, fmi2Error, "%s: %s", m->name, dlerror()); free(path); return 0; }
+#endif
+    }
+    free(path);
+#define ME_CV_SYM(field, sym) \
+    for (j = ME_CV_NLIBS - 1; j >= 0 && !(*(void **)&cv->field = (void *)LOOKUP(cv->lib[j], sym)); j--) {} \
+    if (!cv->field) { say(m->s, fmi2Error, "%s: SUNDIALS' %s not found", m->name, sym); return 0; }
+    ME_CV_SYM(context_create, "SUNContext_Create") ME_CV_SYM(context_free, "SUNContext_Free")
+    ME_CV_SYM(new_serial, "N_VNew_Serial") ME_CV_SYM(destroy, "N_VDestroy") ME_CV_SYM(data, "N_VGetArrayPointer")
+    ME_CV_SYM(create, "CVodeCreate") ME_CV_SYM(init, "CVodeInit") ME_CV_SYM(sv_tolerances, "CVodeSVtolerances")
+    ME_CV_SYM(root_init, "CVodeRootInit") ME_CV_SYM(dense_matrix, "SUNDenseMatrix")
+    ME_CV_SYM(lin_sol_dense, "SUNLinSol_Dense") ME_CV_SYM(set_linear_solver, "CVodeSetLinearSolver")
+    ME_CV_SYM(set_max_step, "CVodeSetMaxStep") ME_CV_SYM(set_max_num_steps, "CVodeSetMaxNumSteps")
+    ME_CV_SYM(set_no_inactive_root_warn, "CVodeSetNoInactiveRootWarn") ME_CV_SYM(set_user_data, "CVodeSetUserData")
+    ME_CV_SYM(reinit, "CVodeReInit") ME_CV_SYM(cvode, "CVode") ME_CV_SYM(cvode_free, "CVodeFree")
+    ME_CV_SYM(lin_sol_free, "SUNLinSolFree") ME_CV_SYM(mat_destroy, "SUNMatDestroy")
+#undef ME_CV_SYM
+    return 1;
+}
+
+static int me_cv_ok(MeInst *m, int flag, const char *what) {
+    if (!flag) return 0;
+    say(m->s, fmi2Error, "%s: CVODE: %s returned %d", m->name, what, flag);
+    return fmi2Error;
+}
+
+/* Cvode._load_states: x and the absolute tolerances from the FMU's states and nominals */
+static int me_cv_load_states(MeInst *m, double t) {
+    MeCvode *cv = m->cv;
+    double *px = cv->data(cv->x), *pabs = cv->data(cv->abstol);
+    int i;
+    if (cv->discrete) { px[0] = 1.0; pabs[0] = m->rtol; return 0; }
+    ME_EQ(m, m->get_x(m->c, px, (size_t)m->nx), 2, t);
+    ME_EQ(m, m->get_nominals(m->c, pabs, (size_t)m->nx), 4, t);
+    for (i = 0; i < m->nx; i++) pabs[i] = fabs(pabs[i]) * m->rtol;
+    return 0;
+}
+
+/* Cvode._fail: a failing FMU call as CVODE's recoverable (Discard) or unrecoverable error */
+static int me_cv_fail(MeInst *m, int st) {
+    m->cv->failure = st;
+    return st == fmi2Discard ? 1 : -1;
+}
+
+/* Cvode._f, the right-hand side */
+static int me_cv_f(double t, void *y, void *ydot, void *user_data) {
+    MeInst *m = user_data;
+    MeCvode *cv = m->cv;
+    int st;
+    if ((st = m->set_time(m->c, t)) > 1) return me_cv_fail(m, st);
+    if (cv->discrete) cv->data(ydot)[0] = 0.0;
+    else {
+        if ((st = m->set_x(m->c, cv->data(y), (size_t)m->nx)) > 1) return me_cv_fail(m, st);
+        if ((st = m->get_dx(m->c, cv->data(ydot), (size_t)m->nx)) > 1) return me_cv_fail(m, st);
+    }
+    return 0;
+}
+
+/* Cvode._g, the root function: the event indicators, a zero as the negative number nearest to it */
+static int me_cv_g(double t, void *y, double *gout, void *user_data) {
+    MeInst *m = user_data;
+    int st, i;
+    if ((st = m->set_time(m->c, t)) > 1) return me_cv_fail(m, st);
+    if (!m->cv->discrete && (st = m->set_x(m->c, m->cv->data(y), (size_t)m->nx)) > 1) return me_cv_fail(m, st);
+    if ((st = m->get_z(m->c, gout, (size_t)m->nz)) > 1) return me_cv_fail(m, st);
+    for (i = 0; i < m->nz; i++) if (gout[i] == 0.0) gout[i] = -0x1p-1074;   /* ZERO_SIDE = -ulp(0.0) */
+    return 0;
+}
+
+/* Cvode.__init__: CVODE started at t0 from the FMU's states */
+static int me_cv_create(MeInst *m, double t0) {
+    MeCvode *cv = m->cv;
+    cv->discrete = m->nx == 0;
+    cv->n = m->nx > 1 ? m->nx : 1;
+    ME_OK(me_cv_ok(m, cv->context_create(0, &cv->ctx), "SUNContext_Create"));   /* (SUN_COMM_NULL) */
+    cv->x = cv->new_serial(cv->n, cv->ctx);
+    cv->abstol = cv->new_serial(cv->n, cv->ctx);
+    if (!cv->x || !cv->abstol) return me_cv_ok(m, -1, "N_VNew_Serial");
+    ME_OK(me_cv_load_states(m, t0));
+    if (!(cv->mem = cv->create(ME_CV_BDF, cv->ctx))) return me_cv_ok(m, -1, "CVodeCreate");
+    ME_OK(me_cv_ok(m, cv->set_user_data(cv->mem, m), "CVodeSetUserData"));
+    ME_OK(me_cv_ok(m, cv->init(cv->mem, me_cv_f, t0, cv->x), "CVodeInit"));
+    ME_OK(me_cv_ok(m, cv->sv_tolerances(cv->mem, m->rtol, cv->abstol), "CVodeSVtolerances"));
+    ME_OK(me_cv_ok(m, cv->root_init(cv->mem, m->nz, me_cv_g), "CVodeRootInit"));
+    if (!(cv->A = cv->dense_matrix(cv->n, cv->n, cv->ctx))) return me_cv_ok(m, -1, "SUNDenseMatrix");
+    if (!(cv->LS = cv->lin_sol_dense(cv->x, cv->A, cv->ctx))) return me_cv_ok(m, -1, "SUNLinSol_Dense");
+    ME_OK(me_cv_ok(m, cv->set_linear_solver(cv->mem, cv->LS, cv->A), "CVodeSetLinearSolver"));
+    ME_OK(me_cv_ok(m, cv->set_max_step(cv->mem, m->max_step), "CVodeSetMaxStep"));
+    ME_OK(me_cv_ok(m, cv->set_max_num_steps(cv->mem, ME_CV_MAX_NUM_STEPS), "CVodeSetMaxNumSteps"));
+    return me_cv_ok(m, cv->set_no_inactive_root_warn(cv->mem), "CVodeSetNoInactiveRootWarn");
+}
+
+/* Cvode.reset */
+static int me_cv_reset(MeInst *m, double t) {
+    ME_OK(me_cv_load_states(m, t));
+    return me_cv_ok(m, m->cv->reinit(m->cv->mem, t, m->cv->x), "CVodeReInit");
+}
+
+/* Cvode.advance */
+static int me_cv_advance(MeInst *m, double t_out, double *t_now, int *state) {
+    MeCvode *cv = m->cv;
+    double tret = 0.0;
+    int flag, stop;
+    cv->failure = 0;
+    flag = cv->cvode(cv->mem, t_out, cv->x, &tret, ME_CV_NORMAL);
+    if (flag < 0) {
+        if (cv->failure) return me_failed(m, "a call in CVODE's right-hand side or root function", cv->failure, tret);
+        say(m->s, fmi2Error, "%s: CVODE failed at t = %.9g s (flag %d)", m->name, tret, flag);
+        return fmi2Error;
+    }
+    *t_now = flag == 0 ? t_out : tret;
+    ME_EQ(m, m->set_time(m->c, *t_now), 0, *t_now);
+    if (!cv->discrete) ME_EQ(m, m->set_x(m->c, cv->data(cv->x), (size_t)m->nx), 1, *t_now);
+    *state = flag == ME_CV_ROOT_RETURN;
+    return me_completed(m, *t_now, &stop);
+}
+
+static void me_cv_free(MeCvode *cv) {
+    int j;
+    if (!cv) return;
+    if (cv->mem) cv->cvode_free(&cv->mem);
+    if (cv->LS) cv->lin_sol_free(cv->LS);
+    if (cv->A) cv->mat_destroy(cv->A);
+    if (cv->x) cv->destroy(cv->x);
+    if (cv->abstol) cv->destroy(cv->abstol);
+    if (cv->ctx) cv->context_free(&cv->ctx);
+    for (j = ME_CV_NLIBS - 1; j >= 0; j--) if (cv->lib[j]) UNLOAD(cv->lib[j]);
+    free(cv);
 }
 
 /* ------------------------------------------------------------------ the instance's events */
@@ -363,8 +547,8 @@ static int me_read(Container *s, Reader *r, int i) {
     if (!m) return 0;
     expect(r, "me");
     method = token(r);
-    m->method = !strcmp(method, "euler") ? ME_EULER : !strcmp(method, "rk4") ? ME_RK4 : 0;
-    m->has_max_step = (int)num(r); m->max_step = real(r); m->event_tol = real(r);
+    m->method = !strcmp(method, "euler") ? ME_EULER : !strcmp(method, "rk4") ? ME_RK4 : !strcmp(method, "cvode") ? ME_CVODE : 0;
+    m->has_max_step = (int)num(r); m->max_step = real(r); m->event_tol = real(r); m->rtol = real(r);
     m->nx = (int)num(r); m->nz = (int)num(r); m->needs_completed = (int)num(r); m->discrete_inputs = (int)num(r);
     if (!m->method || m->nx < 0 || m->nz < 0 || (m->has_max_step && !(m->max_step > 0))) r->bad = 1;
     return !r->bad;
@@ -374,7 +558,7 @@ static int me_read(Container *s, Reader *r, int i) {
     if (!(*(void **)&m->field = (void *)LOOKUP(q->dll, sym))) { say(s, fmi2Error, "%s: %s not found", q->name, sym); return 0; }
 
 /* the Model Exchange functions of the loaded FMU; the instance's Inst given the wrappers */
-static int me_load(Container *s, Inner *q, Inst *p) {
+static int me_load(Container *s, Inner *q, Inst *p, const char *res) {
     MeInst *m = q->me;
     size_t nx = (size_t)m->nx + 1, nz = (size_t)m->nz + 1;
     m->s = s; m->name = q->name;
@@ -383,6 +567,8 @@ static int me_load(Container *s, Inner *q, Inst *p) {
     ME_SYM(get_z, "fmi2GetEventIndicators") ME_SYM(enter_event, "fmi2EnterEventMode")
     ME_SYM(enter_continuous, "fmi2EnterContinuousTimeMode") ME_SYM(new_discrete, "fmi2NewDiscreteStates")
     ME_SYM(completed, "fmi2CompletedIntegratorStep") ME_SYM(get_real, "fmi2GetReal")
+    ME_SYM(get_nominals, "fmi2GetNominalsOfContinuousStates")
+    if (m->method == ME_CVODE && !me_cv_load(m, res)) return 0;
     m->set_real = q->set_real;
     m->x = calloc(nx, sizeof(double)); m->buf = calloc(nx, sizeof(double)); m->xt = calloc(nx, sizeof(double));
     m->k1 = calloc(nx, sizeof(double)); m->k2 = calloc(nx, sizeof(double)); m->k3 = calloc(nx, sizeof(double));
@@ -410,6 +596,7 @@ static int me_start(MeInst *m, double t0) {
             m->name, m->t);
         return 0;
     }
+    if (m->cv && me_cv_create(m, m->t)) return 0;   /* (make_integrator: CVODE started, then reset as the others) */
     if (me_reset(m, m->t) || me_indicators(m, m->z)) return 0;
     m->dirty = 0;
     return 1;
@@ -421,6 +608,7 @@ static int me_before_set(MeInst *m) { return m ? me_enter_event_mode(m) : 0; }
 
 static void me_free(MeInst *m) {
     if (!m) return;
+    me_cv_free(m->cv);
     free(m->inputs); free(m->x); free(m->buf); free(m->xt); free(m->k1); free(m->k2); free(m->k3); free(m->k4);
     free(m->xn); free(m->xm); free(m->xh); free(m->x0);
     free(m->z); free(m->zx); free(m->zn); free(m->zm); free(m->zh); free(m->z0);
