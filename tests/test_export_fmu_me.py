@@ -199,6 +199,37 @@ def test_in_fmusim_equals_the_run(which: str, balls: Any, g1: Any, tmp_path: Pat
         assert [float(x) for x in got[:, j]] == [float(f"{x:.16g}") for x in ref[name].astype(float)], name
 
 
+# ------------------------------------------------------------------ an FMU that ends the simulation
+@pytest.fixture(scope="module")
+def stair(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, np.ndarray, dict[str, Any], Path]:
+    """The Reference FMUs' Stair as Model Exchange (a time event each second; at the tenth, t = 9 s, it ends
+    the simulation), run to 12 s: its container (FMI 2.0), its run, and its container with --fmi 3."""
+    d = tmp_path_factory.mktemp("stair")
+    doc = {"experiment": {"start": 0.0, "stop": 12.0, "step": 0.1},
+           "instances": {"stair": {"fmu": str(REF / "fmi2" / "Stair.fmu"), "interface": "model-exchange",
+                                   "solver": "euler"}},
+           "record": {"variables": ["stair.counter"]}}
+    sc = write_document(d / "stair.toml", doc)
+    assert main(["export-fmu", str(sc), "--out", str(d / "S3.fmu"), "--fmi", "3"]) == 0
+    return (*export_and_run(sc, d), d / "S3.fmu")
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_an_fmu_ending_the_simulation_ends_the_host_run_where_the_run_ends(fmi: int, stair: Any) -> None:
+    """The container says so (fmi2Discard with fmi2Terminated and the last row's time; FMI 3.0:
+    terminateSimulation): the host's last row is the run's."""
+    fmu, ref, summary, fmu3 = stair
+    assert summary["status"] == "terminated" and ref["time"][-1] == 9.0 and ref["stair.counter"][-1] == 10
+    assert_same_columns(in_fmpy(fmu if fmi == 2 else fmu3, 12.0, 0.1), ref)
+
+
+def test_an_fmu_ending_the_simulation_in_fmusim(stair: Any, tmp_path: Path) -> None:
+    fmu, ref, _, _ = stair
+    names, got = fmusim_columns(fmu, 12.0, 0.1, tmp_path)
+    assert names == ["time", "stair.counter"] and len(got) == len(ref)
+    assert [int(x) for x in got[:, 1]] == list(ref["stair.counter"])
+
+
 def test_cvode_ships_fmpys_sundials_with_its_notice(balls: Any) -> None:
     names = zipfile.ZipFile(balls["cvode"][0]).namelist()
     assert {f"resources/sundials/{lib}.so" for lib in container.SUNDIALS_LIBS} <= set(names)

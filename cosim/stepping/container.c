@@ -96,6 +96,7 @@ typedef struct {
     int n_vars; Var *vars;
     double step; int mode;   /* 0 instantiated, 1 initialisation mode, 2 stepping, 3 terminated */
     double t0; int stop_defined; double stop;
+    int terminated; double last_successful;   /* an inner FMU ended the simulation: the time of the last row [s] */
 } Container;
 
 static void say(Container *s, fmi2Status st, const char *fmt, ...) {
@@ -611,6 +612,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
     int st;
     (void)no_set_prior;
     if (s->mode != 2) { say(s, fmi2Error, "fmi2DoStep before fmi2ExitInitializationMode"); return fmi2Error; }
+    if (s->terminated) { say(s, fmi2Error, "fmi2DoStep after the simulation ended"); return fmi2Error; }
     if (nk < 1 || fabs(n - (double)nk) > 1e-6 || k0 < 0 || fabs(k - (double)k0) > 1e-6) {
         say(s, fmi2Error, "fmi2DoStep(%.17g, %.17g): the container steps on the grid of its step %.17g s from %.17g s: "
             "take steps that are whole multiples of it", t, h, s->step, s->t0);
@@ -618,6 +620,15 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
     }
     st = wmr_loop(&s->L, k0, k0 + nk);
     if (st == OK) return fmi2OK;
+    if (st == FAILED && s->L.f_call == C_TERMINATED) {
+        /* an inner FMU (a Model Exchange one's event) ended the simulation: the master records the row of the
+         * step it ended in and stops; the host is told so (fmi2Discard, fmi2Terminated, the row's time as
+         * fmi2LastSuccessfulTime) */
+        s->terminated = 1;
+        s->last_successful = s->L.t0 + (double)s->L.f_step * s->L.h;
+        say(s, fmi2OK, "%s ended the simulation at t = %.17g s", s->inner[s->L.f_inst].name, s->L.f_value);
+        return fmi2Discard;
+    }
     {
         int call = s->L.f_call >= 0 && s->L.f_call <= C_TERMINATED ? s->L.f_call : 0;
         say(s, fmi2Error, "%s: %s failed at step %ld (status or value %g)", s->inner[s->L.f_inst].name,
@@ -627,11 +638,14 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
 }
 
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind k, fmi2Status *v) { (void)k; (void)v; return unsupported(c, "fmi2GetStatus"); }
-fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind k, fmi2Real *v) { (void)k; (void)v; return unsupported(c, "fmi2GetRealStatus"); }
+fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind k, fmi2Real *v) {
+    Container *s = c;
+    if (k == fmi2LastSuccessfulTime && s->terminated) { *v = s->last_successful; return fmi2OK; }
+    return unsupported(c, "fmi2GetRealStatus");
+}
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind k, fmi2Integer *v) { (void)k; (void)v; return unsupported(c, "fmi2GetIntegerStatus"); }
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind k, fmi2String *v) { (void)k; (void)v; return unsupported(c, "fmi2GetStringStatus"); }
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind k, fmi2Boolean *v) {
-    (void)c;
-    if (k == fmi2Terminated) { *v = 0; return fmi2OK; }
+    if (k == fmi2Terminated) { *v = ((Container *)c)->terminated; return fmi2OK; }
     return fmi2Discard;
 }

@@ -121,6 +121,13 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     if (eventHandlingNeeded) *eventHandlingNeeded = false;
     if (terminateSimulation) *terminateSimulation = false;
     if (earlyReturn) *earlyReturn = false;
+    if (st == fmi2Discard && h->s->terminated) {   /* an inner FMU ended the simulation (container.c) */
+        if (terminateSimulation) *terminateSimulation = true;
+        if (earlyReturn) *earlyReturn = h->s->last_successful < currentCommunicationPoint + communicationStepSize;
+        if (lastSuccessfulTime) *lastSuccessfulTime = h->s->last_successful;
+        h->time = h->s->last_successful;
+        return fmi3OK;
+    }
     if (st == fmi2OK) h->time = currentCommunicationPoint + communicationStepSize;
     if (lastSuccessfulTime)
         *lastSuccessfulTime = st == fmi2OK ? currentCommunicationPoint + communicationStepSize
