@@ -9,8 +9,10 @@ LoadLibrary) where the cross compiler is on PATH and every inner FMU has a win64
 
 What this export takes (everything else is refused before anything is written, one line naming it): FMI 2.0
 co-simulation FMUs with a linux64 binary (C, or pythonfmu's behind our loader, which finds its Python as
-when a host loads the FMU alone), Gauss-Seidel or Jacobi (instances at their own rates too, as the master's multi-rate passes), Real connections, recorded Real,
-Integer and Boolean outputs, no events, input tables or requirements.  The container's variables: the
+when a host loads the FMU alone), FMI 2.0 Model Exchange FMUs integrated as the master integrates them
+(``stepping/container_me.c``: Euler, RK4, and CVODE from FMPy's SUNDIALS libraries shipped in
+resources/sundials/), Gauss-Seidel or Jacobi (instances at their own rates too, as the master's multi-rate passes), Real connections, recorded Real,
+Integer and Boolean outputs, no events, input tables, requirements or rows at events.  The container's variables: the
 recorded outputs (named as their columns), the open inputs and the parameters of the inner FMUs of type
 Real, Integer or Boolean (``instance.variable``, the scenario's value as start), in the plan's order.
 

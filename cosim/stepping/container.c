@@ -12,6 +12,8 @@
  * fmi2ExitInitializationMode, outputs copied to inputs in the plan's order pass after pass until nothing
  * changes, each one out of initialisation mode, their outputs read; fmi2DoStep(t, n h) = wmr_loop over the
  * n steps of the grid from k = (t - t0) / h (the time of step k is t0 + k h, as the master's).
+ * A Model Exchange instance is integrated by the master's integrators with its event handling
+ * (container_me.c, included below).
  * Numbers in system.txt are C99 hexadecimal floats (exact); strings are "x" followed by their bytes in hex. */
 #ifdef _WIN32
 /* win64 (MinGW-w64): the inner FMUs' DLLs by LoadLibrary; the loop's wall clock by the performance counter

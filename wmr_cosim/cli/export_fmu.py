@@ -24,9 +24,10 @@ def add_parser(sub: Any, name: str) -> None:
                                    "as its runtime, so that its outputs equal `wmr-cosim run` of the scenario bit for "
                                    "bit. Its variables: the recorded outputs, the open inputs and the inner FMUs' "
                                    "parameters (Real, Integer, Boolean), named instance.variable. What it cannot hold "
-                                   "yet (inner FMI 3.0 FMUs, Model Exchange, other algorithms, events, input tables, "
-                                   "requirements, non-Real connections, Enumeration or String outputs) is refused, "
-                                   "nothing written (docs/export-fmu.md).")
+                                   "yet (inner FMI 3.0 FMUs, other algorithms, events, input tables, requirements, "
+                                   "non-Real connections, Enumeration or String outputs, rows at events) is refused, "
+                                   "nothing written; Model Exchange FMUs inside are integrated by the master's "
+                                   "integrators (euler, rk4, cvode) as the run integrates them (docs/export-fmu.md).")
     e.add_argument("scenario", type=scenario_path, help="scenario file (.toml) or SSP archive (.ssp)")
     e.add_argument("--out", type=Path, required=True, metavar="FILE.fmu", help="the FMU to write")
     e.add_argument("--name", default=None, metavar="NAME",
