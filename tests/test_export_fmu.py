@@ -194,8 +194,8 @@ REFUSALS: dict[str, Any] = {
     "an FMI 3.0 Float32 output": lambda doc, m, d: (
         doc["instances"].update(ft3={"fmu": str(REF / "fmi3" / "Feedthrough.fmu")}),
         doc["record"]["variables"].append("ft3.Float32_continuous_output")),
-    "model exchange": lambda doc, m, d: doc["instances"].update(
-        ref={"fmu": str(REF / "fmi2" / "Dahlquist.fmu"), "interface": "model-exchange"}),
+    "FMI 3.0 model exchange": lambda doc, m, d: doc["instances"].update(
+        ref={"fmu": str(REF / "fmi3" / "Dahlquist.fmu"), "interface": "model-exchange"}),
     "no linux64 binary": lambda doc, m, d: doc["instances"]["body"].update(fmu=str(_no_binary(m, d))),
     "an FMI 3.0 UInt64 output": lambda doc, m, d: (
         doc["instances"].update(ft={"fmu": str(REF / "fmi3" / "Feedthrough.fmu")}),
@@ -207,7 +207,8 @@ REFUSALS: dict[str, Any] = {
 
 #: The field each refusal names.
 REFUSED_AT = {"iterated": "experiment.algorithm", "condition events": "events", "tables and own rates": "inputs",
-              "requirements": "requirements", "an FMI 3.0 Float32 output": "record", "model exchange": "instances.ref",
+              "requirements": "requirements", "an FMI 3.0 Float32 output": "record",
+              "FMI 3.0 model exchange": "instances.ref",
               "no linux64 binary": "instances.body.fmu",
               "an FMI 3.0 UInt64 output": "record", "an output name twice": "record",
               "a stop off the step's grid": "experiment.stop"}

@@ -10,12 +10,14 @@ LoadLibrary) where the cross compiler is on PATH and every inner FMU has a win64
 What this export takes (everything else is refused before anything is written, one line naming it): FMI 2.0
 and FMI 3.0 co-simulation FMUs with a binary for this platform (C, or pythonfmu's behind our loader, which
 finds its Python as when a host loads the FMU alone; an FMI 3.0 one called as the master calls it:
-``stepping/container_inner3.c``), Gauss-Seidel or Jacobi (instances at their own rates too, as the master's
+``stepping/container_inner3.c``), FMI 2.0 Model Exchange FMUs integrated as the master
+integrates them (``stepping/container_me.c``: Euler, RK4, and CVODE from FMPy's SUNDIALS libraries shipped in
+resources/sundials/), Gauss-Seidel or Jacobi (instances at their own rates too, as the master's
 multi-rate passes), connections of numbers and booleans (Float64 ones as the master's copies, the others as
 its get-and-set copiers, with their conversions: :func:`_other`), recorded Real (Float64), Integer (FMI 2.0
 Integer and Enumeration, FMI 3.0 Int32) and Boolean outputs, timed events and input tables (the exporter
 replays the events through the master's wiring and writes what each one changes at its step:
-``stepping/container_actions.c`` applies it), no events on conditions or requirements.  The container's
+``stepping/container_actions.c`` applies it), no events on conditions, requirements or rows at events.  The container's
 variables: the recorded outputs (named as their columns), the open inputs and the parameters of the inner FMUs
 of type Real, Integer or Boolean (FMI 3.0: scalar Float64, Int32, Boolean; ``instance.variable``, the
 scenario's value as start), in the plan's order.
@@ -26,6 +28,7 @@ variables as Float64, Int32 and Boolean with the same value references, the GUID
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import re
 import shutil
@@ -42,9 +45,11 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from ..instances.in_process import ACCESS
+from ..instances.integrators import DEFAULT_RTOL
 from ..messages.errors import CosimError, ScenarioError
 from ..model.archive import safe_extract
-from ..model.description import CO_SIMULATION
+from ..model.description import MODEL_EXCHANGE
+from ..model.types import FLOAT64_TYPES
 from ..stepping import native
 from ..stepping.table import GAUSS_SEIDEL, JACOBI
 from .records import InstancePlan, Plan
@@ -53,11 +58,12 @@ from .wiring import RowLayout, Wiring, discrete_event_value
 SOURCE = native.SOURCE.with_name("container.c")
 SOURCE3 = native.SOURCE.with_name("container3.c")   # the FMI 3.0 face: includes container.c
 #: The files container.c includes beside native_loop.c (shipped in the container's sources/ with it): timed
-#: events and input tables; inner FMI 3.0 FMUs and the connections that are not Float64.
-INCLUDED = (native.SOURCE.with_name("container_actions.c"), native.SOURCE.with_name("container_inner3.c"))
+#: events and input tables; inner FMI 3.0 FMUs and the connections that are not Float64; Model Exchange
+#: instances (the master's integrators and event handling).
+INCLUDED = tuple(native.SOURCE.with_name(f) for f in ("container_actions.c", "container_inner3.c", "container_me.c"))
 #: The FMI 3.0 standard's headers container3.c includes (FMPy's copy: :func:`native.fmi_headers`).
 HEADERS3 = ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")
-FORMAT = "wmr-container 5"   # the first line of system.txt (container.c's VERSION_TAG)
+FORMAT = "wmr-container 6"   # the first line of system.txt (container.c's VERSION_TAG)
 
 
 #: The FMI 2.0 types of the container's variables, and their letters in system.txt.
@@ -126,12 +132,21 @@ def refuse(plan: Plan, out: Path, name: str) -> None:
         if ev.var is not None and ev.instance is not None and not _settable(plan, ev.instance, ev.var):
             no("events", f"events[{ev.index}] acts on {ev.ref}, an FMI 3.0 {ev.var.fmi_type}"
                          f"{' array' if ev.var.shape else ''} (only scalar Float64, Int32, Boolean and String)")
+    for ev in plan.events:   # (a Model Exchange instance takes values through its integrator's set: copies)
+        if ev.instance is not None and ev.var is not None and plan.instances[ev.instance].interface == MODEL_EXCHANGE \
+                and (ev.action == "set" or ev.var.type != "Real"):
+            no("events", f"events[{ev.index}] sets {ev.ref} on a Model Exchange instance (only the overrides, "
+                         "biases and resets of its Real inputs)")
     for col in plan.inputs:
+        if plan.instances[col.instance].interface == MODEL_EXCHANGE and not col.var.is_float64:
+            no("inputs", f"{col.column}: a column that is not Float64 for a Model Exchange instance")
         if not _settable(plan, col.instance, col.var):
             no("inputs", f"{col.column} is an FMI 3.0 {col.var.fmi_type}{' array' if col.var.shape else ''} "
                          "(only scalar Float64, Int32, Boolean and String)")
     if plan.requirements:
         no("requirements", "requirements")
+    if sc.event_rows:
+        no("record.event_rows", "rows at the events of a Model Exchange instance")
     others = [c for c in plan.connections if not c.is_float64]
     for c in others:
         for var in (c.src_var, c.dst_var):
@@ -140,6 +155,10 @@ def refuse(plan: Plan, out: Path, name: str) -> None:
                                   "(only numbers and booleans)")
     if len(others) > OTHER_MAX:
         no("connections", f"{len(others)} connections that are not Float64 to Float64 (at most {OTHER_MAX})")
+    for c in others:   # (a Model Exchange instance's inputs go through its integrator's set: Float64 copies)
+        if plan.instances[c.dst].interface == MODEL_EXCHANGE:
+            no("connections", f"{c.src}.{c.src_var.name} -> {c.dst}.{c.dst_var.name}: a connection that is not "
+                              "Float64 to a Model Exchange instance")
     for r in plan.record:
         if _record_type(plan, r) is None:
             only = "Float64, Int32 and Boolean outputs of an FMI 3.0 FMU" if plan.instances[r.instance].model.fmi == 3 \
@@ -157,8 +176,17 @@ def _refuse_instance(plan: Plan, n: str, ip: InstancePlan, out: Path, no: Any) -
     where = f"instances.{n}"
     if ip.model.fmi not in (2, 3):
         no(where, f"{ip.model.path.name} is an FMI {ip.model.fmi}.0 FMU (only FMI 2.0 and 3.0)")
-    if ip.interface != CO_SIMULATION:
-        no(where, f"{ip.model.path.name} runs as Model Exchange (only co-simulation)")
+    if ip.interface == MODEL_EXCHANGE and ip.model.fmi == 3:
+        no(where, f"{ip.model.path.name} runs as FMI 3.0 Model Exchange (only FMI 2.0 Model Exchange)")
+    if ip.interface == MODEL_EXCHANGE and ip.solver is not None:
+        if ip.solver.name not in ME_SOLVERS:
+            no(f"{where}.solver", f"solver = {ip.solver.name!r} (a Model Exchange instance inside is integrated by "
+                                  f"{', '.join(ME_SOLVERS)} only)")
+        missing = [lib for lib in SUNDIALS_LIBS if not (sundials_folder() / f"{lib}.so").is_file()] \
+            if ip.solver.name == "cvode" else []
+        if missing:
+            no(f"{where}.solver", f"solver = 'cvode' needs FMPy's SUNDIALS libraries, and {missing[0]}.so is not in "
+                                  f"{sundials_folder()}")
     # (an FMU without a binary for this platform, linux64, has no plan: the master's resolution refuses it)
     for var, value in ip.parameters:
         if ip.model.fmi == 3 and (var.fmi_type == "Binary" or var.fmi_type == "String" and var.shape):
@@ -226,6 +254,65 @@ def _record_type(plan: Plan, r: Any) -> str | None:
     if plan.instances[r.instance].model.fmi == 3:
         return None if r.var.shape else {"Int32": "Integer", "Boolean": "Boolean"}.get(r.var.fmi_type)
     return {"Integer": "Integer", "Enumeration": "Integer", "Boolean": "Boolean"}.get(r.var.type)
+
+
+#: The integrators of a Model Exchange instance the container runs (stepping/container_me.c): the master's
+#: fixed-step ones, and CVODE from FMPy's SUNDIALS libraries shipped in resources/sundials/.
+ME_SOLVERS = ("euler", "rk4", "cvode")
+#: FMPy's SUNDIALS libraries container_me.c loads, in its order.
+SUNDIALS_LIBS = ("sundials_core", "sundials_nvecserial", "sundials_sunmatrixdense", "sundials_sunlinsoldense",
+                 "sundials_cvode")
+
+
+def uses_cvode(plan: Plan) -> bool:
+    """Whether some Model Exchange instance of the plan is integrated by CVODE."""
+    return any(ip.interface == MODEL_EXCHANGE and ip.solver is not None and ip.solver.name == "cvode"
+               for ip in plan.instances.values())
+
+
+def sundials_folder() -> Path:
+    """FMPy's SUNDIALS libraries for linux64 (the ones the master's CVODE runs)."""
+    import fmpy
+
+    return Path(fmpy.__file__).parent / "sundials" / "x86_64-linux"
+
+
+def _ship_sundials(resources: Path) -> None:
+    """FMPy's SUNDIALS libraries into ``resources/sundials/``, with FMPy's licence text (which holds
+    SUNDIALS' notice, as its binary redistribution asks)."""
+    from importlib import metadata
+
+    dest = resources / "sundials"
+    dest.mkdir(parents=True)
+    for lib in SUNDIALS_LIBS:
+        shutil.copyfile(sundials_folder() / f"{lib}.so", dest / f"{lib}.so")
+    for f in metadata.distribution("fmpy").files or []:
+        if f.name == "LICENSE.txt":
+            shutil.copyfile(Path(str(f.locate())), dest / "LICENSE-FMPy.txt")
+            break
+
+
+def me_line(ip: InstancePlan, in_vrs: list[int], span: float) -> str:
+    """The "me" line of a Model Exchange instance in system.txt (container_me.c's me_read): its integrator
+    (method, whether it has a largest step, that step [s], the event tolerance [s], CVODE's relative
+    tolerance), its numbers of continuous states and event indicators, whether it needs
+    fmi2CompletedIntegratorStep, whether a Real input it is set each step is discrete (set in event mode
+    only: the master's ``_discrete_inputs``).  CVODE's largest step and tolerance as the master's
+    ``make_integrator`` resolves them (its default largest step ``span`` / 50, ``span`` = stop - start [s])."""
+    sv, md = ip.solver, ip.model.md
+    assert sv is not None and sv.name in ME_SOLVERS, ip   # (refused before)
+    max_step, rtol = sv.max_step, 0.0
+    if sv.name == "cvode":
+        max_step = sv.max_step if sv.max_step is not None else (span / 50.0 if math.isfinite(span) and span > 0
+                                                                else math.inf)
+        rtol = sv.tolerance if sv.tolerance is not None else DEFAULT_RTOL
+    wanted = set(in_vrs)
+    discrete = any(v.variability == "discrete" and v.causality == "input" and int(v.valueReference) in wanted
+                   and v.type in FLOAT64_TYPES for v in md.modelVariables)
+    needs = not bool(getattr(md.modelExchange, "completedIntegratorStepNotNeeded", False))
+    return (f"me {sv.name} {int(max_step is not None)} {_num(max_step or 0.0)} {_num(sv.event_tolerance)} "
+            f"{_num(rtol)} {int(md.numberOfContinuousStates or 0)} {int(md.numberOfEventIndicators or 0)} {int(needs)} "
+            f"{int(discrete)}")
 
 
 _KIND = {"o": "output", "i": "input", "p": "parameter"}
@@ -350,12 +437,13 @@ def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[Conta
         ip = plan.instances[n]
         copies = _copies(n, wiring, slots)
         others = [c for c in plan.connections if c.dst == n and not c.is_float64]   # (the master's order)
-        body.append(" ".join(["inst", _hex(n), _hex(dirs[n]), _hex(ip.model.identifier), _hex(ip.model.md.guid),
-                              str(int(ip.tolerance is not None)), _num(ip.tolerance or 0.0),
+        me = ip.interface == MODEL_EXCHANGE
+        body.append(" ".join(["inst", _hex(n), _hex(dirs[n]), _hex(ip.model.identifier_of(ip.interface)),
+                              _hex(ip.model.md.guid), str(int(ip.tolerance is not None)), _num(ip.tolerance or 0.0),
                               str(len(wiring.vrs[n])), str(len(layout.reals[n])), str(layout.offset[n]),
                               str(len(copies)), str(len(ip.parameters)), str(ip.decimation), str(ip.model.fmi),
                               str(len(wiring.values[n])), str(sum(size for _, size in layout.reals[n])),
-                              str(len(others))]))
+                              str(len(others)), str(int(me))]))
         body.append(" ".join(str(vr) for vr in wiring.vrs[n]) or "")
         body.append(" ".join(str(vr) for vr, _ in layout.reals[n]) or "")
         body += copies
@@ -363,6 +451,8 @@ def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[Conta
             typ = _var_type(ip, var) or var.type
             body.append(f"param {_param(var, value, ip.model.fmi)} {index.get((i, typ, var.vr), -1)}")
         body += [_other(plan, o) for o in others]
+        if me:
+            body.append(me_line(ip, wiring.vrs[n], (plan.scenario.stop or 0.0) - (plan.scenario.start or 0.0)))
     for v in cvars:
         body.append(f"var {v.kind} {TYPES[v.type]} {v.inst} {v.ref} {_num(v.start)} "
                     f"{int(v.variability == 'tunable' or v.kind == 'i')}")
@@ -479,9 +569,11 @@ def platforms(plan: Plan, asked: list[str] | None = None, fmi: int = 2) -> tuple
     if "win64" not in want:
         return ["linux64"], None
     why = "the FMI 3.0 face is built for x86_64-linux only, so far" if fmi == 3 else None
+    if why is None and uses_cvode(plan):
+        why = "CVODE inside (FMPy's SUNDIALS libraries) is shipped for linux64 only, so far"
     for n in plan.order if why is None else ():
         ip = plan.instances[n]
-        binary = f"binaries/{PLATFORM_FOLDERS[ip.model.fmi]['win64']}/{ip.model.identifier}.dll"
+        binary = f"binaries/{PLATFORM_FOLDERS[ip.model.fmi]['win64']}/{ip.model.identifier_of(ip.interface)}.dll"
         with zipfile.ZipFile(ip.model.path) as zf:
             if binary not in zf.namelist():
                 why = f"instances.{n}: {ip.model.path.name} has no {binary}"
@@ -563,6 +655,8 @@ def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None, fmi:
     tmp = Path(tempfile.mkdtemp(prefix="wmr-cosim-fmu-"))
     try:
         dirs = _unpack(plan, tmp / "resources")
+        if uses_cvode(plan):
+            _ship_sundials(tmp / "resources")
         text = system_text(plan, layout, wiring, cvars, dirs)
         guid = "{" + str(uuid.UUID(hashlib.sha256((text + name).encode()).hexdigest()[:32])) + "}"
         (tmp / "resources" / "system.txt").write_text(text)

@@ -13,6 +13,8 @@
  * changes, each one out of initialisation mode, their outputs read; fmi2DoStep(t, n h) = wmr_loop over the
  * n steps of the grid from k = (t - t0) / h (the time of step k is t0 + k h, as the master's).
  * Inner FMI 3.0 FMUs and the connections that are not Float64 to Float64: container_inner3.c, included below.
+ * A Model Exchange instance is integrated by the master's integrators with its event handling
+ * (container_me.c, included below).
  * Numbers in system.txt are C99 hexadecimal floats (exact); strings are "x" followed by their bytes in hex. */
 #ifdef _WIN32
 /* win64 (MinGW-w64): the inner FMUs' DLLs by LoadLibrary; the loop's wall clock by the performance counter
@@ -71,7 +73,7 @@ typedef fmi2Status (*seti_t)(fmi2Component, const fmi2ValueReference *, size_t, 
 typedef fmi2Status (*geti_t)(fmi2Component, const fmi2ValueReference *, size_t, fmi2Integer *);
 typedef fmi2Status (*sets_t)(fmi2Component, const fmi2ValueReference *, size_t, const fmi2String *);
 
-#define VERSION_TAG "wmr-container 5"
+#define VERSION_TAG "wmr-container 6"
 
 /* (type T: a value of another FMI 3.0 type, typed: container_inner3.c) */
 typedef struct { char type; unsigned vr; double r; int i; char *s; int var; void *typed; } Param;
@@ -85,6 +87,7 @@ typedef struct {
     int n_params; Param *params;
     size_t n_out;   /* its Real outputs (Inst.n_out is 0 in the loop where they are read lazily) */
     int lazy;       /* its outputs feed no copy: read when the host asks for them, not after every step */
+    struct MeInst *me;   /* run as Model Exchange: its integrator and events (container_me.c); else NULL */
 } Inner;
 
 /* ------------------------------------------------------------------ reading system.txt */
@@ -130,6 +133,7 @@ typedef struct {
     double t0; int stop_defined; double stop;
     int stale;      /* the lazy instances' outputs in the row are older than their last step */
     Actions act;    /* timed events and input tables (container_actions.c) */
+    int terminated; double last_successful;   /* an inner FMU ended the simulation: the time of the last row [s] */
 } Container;
 
 static void say(Container *s, fmi2Status st, const char *fmt, ...) {
@@ -151,10 +155,12 @@ static void say(Container *s, fmi2Status st, const char *fmt, ...) {
 #endif
 #include "container_inner3.c"   /* inner FMI 3.0 FMUs, the other connections */
 
+static int me_read(Container *s, Reader *r, int i);   /* (container_me.c) */
+
 static int read_instance(Container *s, Reader *r, int i) {
     Inner *q = &s->inner[i];
     Inst *p = &s->insts[i];
-    long j, off, nc, no;
+    long j, off, nc, no, me;
     expect(r, "inst");
     q->name = text(r); q->dir = text(r); q->mi = text(r); q->guid = text(r);
     q->tol_defined = (int)num(r); q->tol = real(r);
@@ -162,10 +168,11 @@ static int read_instance(Container *s, Reader *r, int i) {
     p->n_in = (size_t)num(r); p->n_out = (size_t)num(r); off = num(r); nc = num(r); q->n_params = (int)num(r);
     p->dec = num(r);   /* its decimation: it steps every dec base steps (Loop.multirate), as native.py sets it */
     /* its FMI version, its count of Float64 values set and got (an FMI 3.0 array's elements each), its other
-     * connections */
-    p->abi = (int)num(r); p->n_in_values = (size_t)num(r); p->n_out_values = (size_t)num(r); no = num(r);
+     * connections, whether it runs as Model Exchange (its "me" line follows its other connections) */
+    p->abi = (int)num(r); p->n_in_values = (size_t)num(r); p->n_out_values = (size_t)num(r); no = num(r); me = num(r);
     if (r->bad || p->dec < 1 || off < 0 || off + (long)p->n_out_values > s->n_row || nc < 0 || q->n_params < 0 ||
-        (p->abi != 2 && p->abi != 3) || p->n_in_values < p->n_in || p->n_out_values < p->n_out || no < 0) return 0;
+        (p->abi != 2 && p->abi != 3) || p->n_in_values < p->n_in || p->n_out_values < p->n_out || no < 0 ||
+        (me && p->abi != 2)) return 0;
     p->in_vr = calloc(p->n_in + 1, sizeof(unsigned)); p->in_val = calloc(p->n_in_values + 1, sizeof(double));
     p->out_vr = calloc(p->n_out + 1, sizeof(unsigned)); p->out_val = s->row + off;
     for (j = 0; j < (long)p->n_in; j++) p->in_vr[j] = (unsigned)num(r);
@@ -194,6 +201,7 @@ static int read_instance(Container *s, Reader *r, int i) {
     }
     p->other = &OTHERS[s->n_others]; p->n_other = (int)no;   /* (the loop calls them after the set) */
     for (j = 0; j < no && !r->bad; j++) if (!read_other(s, r, i)) r->bad = 1;
+    if (me && !r->bad && !me_read(s, r, i)) return 0;
     return !r->bad;
 }
 
@@ -207,7 +215,7 @@ static void lazy_outputs(Container *s) {
     int i, j, m;
     for (i = 0; i < s->n; i++) {
         Inst *p = &s->insts[i];
-        long lo = p->out_val - s->row, hi = lo + (long)p->n_out;
+        long lo = p->out_val - s->row, hi = lo + (long)p->n_out_values;
         int fed = 0;
         for (m = 0; m < s->n && !fed; m++)
             for (j = 0; j < s->insts[m].n_copies; j++)
@@ -298,6 +306,8 @@ static char *encode_uri(const char *path) {
     return out;
 }
 
+#include "container_me.c"
+
 #define SYM(q, field, sym) \
     if (!((q)->field = (void *)LOOKUP(dll, sym))) { say(s, fmi2Error, "%s: %s not found", who, sym); return 0; }
 
@@ -323,15 +333,17 @@ static int load_inner(Container *s, Inner *q, Inst *p, const char *res, fmi2Bool
     SYM(q, exit_, "fmi2ExitInitializationMode") SYM(q, terminate, "fmi2Terminate")
     SYM(q, set_real, "fmi2SetReal") SYM(q, set_integer, "fmi2SetInteger") SYM(q, set_boolean, "fmi2SetBoolean")
     SYM(q, set_string, "fmi2SetString") SYM(q, get_integer, "fmi2GetInteger") SYM(q, get_boolean, "fmi2GetBoolean")
-    SYM(p, step, "fmi2DoStep") SYM(p, get, "fmi2GetReal")
+    if (!q->me) { SYM(p, step, "fmi2DoStep") SYM(p, get, "fmi2GetReal") }
     p->set = (void *)q->set_real;
+    if (q->me && !me_load(s, q, p, res)) return 0;
     where = malloc(strlen(res) + strlen(q->dir) + 16);
     sprintf(where, "%s/%s/resources", res, q->dir);
     uri = encode_uri(where);
-    q->c = q->instantiate(q->name, fmi2CoSimulation, q->guid, uri, s->cb, visible, logging);
+    q->c = q->instantiate(q->name, q->me ? fmi2ModelExchange : fmi2CoSimulation, q->guid, uri, s->cb, visible, logging);
     free(where); free(uri);
     if (!q->c) { say(s, fmi2Error, "%s: fmi2Instantiate failed", q->name); return 0; }
     p->c = q->c;
+    if (q->me) q->me->c = q->c, p->c = q->me;   /* (the loop calls its wrappers: container_me.c) */
     return 1;
 }
 
@@ -342,6 +354,7 @@ static void free_container(Container *s) {
         Inner *q = &s->inner[i];
         Inst *p = &s->insts[i];
         if (q->c && q->free_instance) q->free_instance(q->c);
+        me_free(q->me);
         if (q->dll) UNLOAD(q->dll);
         free(q->name); free(q->dir); free(q->mi); free(q->guid);
         for (int j = 0; q->params && j < q->n_params; j++) { free(q->params[j].s); free_typed(q->params[j].typed); }
@@ -521,9 +534,11 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     Container *s = c;
     int i, st;
     if (!exchange(s)) { say(s, fmi2Error, "the initial exchange of outputs to inputs failed"); return fmi2Error; }
-    for (i = 0; i < s->n; i++)
+    for (i = 0; i < s->n; i++) {
         if ((st = s->inner[i].exit_(s->inner[i].c)))
             { say(s, fmi2Error, "%s: fmi2ExitInitializationMode returned %d", s->inner[i].name, st); return fmi2Error; }
+        if (s->inner[i].me && !me_start(s->inner[i].me, s->t0)) return fmi2Error;
+    }
     if (!read_all(s)) { say(s, fmi2Error, "reading the outputs after initialisation failed"); return fmi2Error; }
     for (i = 0; i < s->n; i++) if (s->inner[i].lazy) s->insts[i].n_out = 0;   /* (read by fetch_lazy) */
     s->mode = 2;
@@ -626,7 +641,8 @@ static fmi2Status set_values(Container *s, const fmi2ValueReference vr[], size_t
         if (s->mode == 2 && fetch_lazy(s)) return fmi2Error;   /* (the outputs of the step, before the value) */
         if (s->mode >= 1) {
             Inner *q = &s->inner[v->inst];
-            int st = set_value(q, v->type, v->ref, v->value);
+            int st = s->mode == 2 ? me_before_set(q->me) : 0;
+            if (!st) st = set_value(q, v->type, v->ref, v->value);
             if (st) { say(s, fmi2Error, "%s: setting value reference %u returned %d", q->name, v->ref, st); return (fmi2Status)st; }
         }
     }
@@ -695,6 +711,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
     int st;
     (void)no_set_prior;
     if (s->mode != 2) { say(s, fmi2Error, "fmi2DoStep before fmi2ExitInitializationMode"); return fmi2Error; }
+    if (s->terminated) { say(s, fmi2Error, "fmi2DoStep after the simulation ended"); return fmi2Error; }
     if (nk < 1 || fabs(n - (double)nk) > 1e-6 || k0 < 0 || fabs(k - (double)k0) > 1e-6) {
         say(s, fmi2Error, "fmi2DoStep(%.17g, %.17g): the container steps on the grid of its step %.17g s from %.17g s: "
             "take steps that are whole multiples of it", t, h, s->step, s->t0);
@@ -725,6 +742,15 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
     }
     for (int i = 0; i < s->n; i++) s->stale |= s->inner[i].lazy;
     if (st == OK) return fmi2OK;
+    if (st == FAILED && s->L.f_call == C_TERMINATED) {
+        /* an inner FMU (a Model Exchange one's event) ended the simulation: the master records the row of the
+         * step it ended in and stops; the host is told so (fmi2Discard, fmi2Terminated, the row's time as
+         * fmi2LastSuccessfulTime) */
+        s->terminated = 1;
+        s->last_successful = s->L.t0 + (double)s->L.f_step * s->L.h;
+        say(s, fmi2OK, "%s ended the simulation at t = %.17g s", s->inner[s->L.f_inst].name, s->L.f_value);
+        return fmi2Discard;
+    }
     {
         int call = s->L.f_call >= 0 && s->L.f_call <= C_TERMINATED ? s->L.f_call : 0;
         say(s, fmi2Error, "%s: %s failed at step %ld (status or value %g)", s->inner[s->L.f_inst].name,
@@ -737,11 +763,12 @@ fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind k, fmi2Status *v)
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind k, fmi2Real *v) {
     Container *s = c;
     if (k == fmi2LastSuccessfulTime && s->act.stopped) { *v = s->act.stop_time; return fmi2OK; }
+    if (k == fmi2LastSuccessfulTime && s->terminated) { *v = s->last_successful; return fmi2OK; }
     return unsupported(c, "fmi2GetRealStatus");
 }
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind k, fmi2Integer *v) { (void)k; (void)v; return unsupported(c, "fmi2GetIntegerStatus"); }
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind k, fmi2String *v) { (void)k; (void)v; return unsupported(c, "fmi2GetStringStatus"); }
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind k, fmi2Boolean *v) {
-    if (k == fmi2Terminated) { *v = ((Container *)c)->act.stopped; return fmi2OK; }
+    if (k == fmi2Terminated) { *v = ((Container *)c)->terminated || ((Container *)c)->act.stopped; return fmi2OK; }
     return fmi2Discard;
 }

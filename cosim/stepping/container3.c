@@ -122,14 +122,11 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     if (eventHandlingNeeded) *eventHandlingNeeded = false;
     if (terminateSimulation) *terminateSimulation = false;
     if (earlyReturn) *earlyReturn = false;
-    if (st == fmi2OK) h->time = currentCommunicationPoint + communicationStepSize;
-    if (lastSuccessfulTime)
-        *lastSuccessfulTime = st == fmi2OK ? currentCommunicationPoint + communicationStepSize
-                                           : currentCommunicationPoint;
-    if (st == fmi2Discard && ((Container *)h->s)->act.stopped) {   /* a stop event: the simulation ends there */
-        double at = ((Container *)h->s)->act.stop_time;
+    if (st == fmi2Discard && (h->s->terminated || h->s->act.stopped)) {
+        /* the simulation ended inside the step: an inner FMU ended it, or a stop event (container.c); without
+         * early return the host's step ends where it asked, the outputs those of the end's time */
+        double at = h->s->act.stopped ? h->s->act.stop_time : h->s->last_successful;
         if (terminateSimulation) *terminateSimulation = true;
-        /* (without early return the host's step ends where it asked, the outputs those of the stop's time) */
         if (h->early_return_allowed) {
             if (earlyReturn) *earlyReturn = at < currentCommunicationPoint + communicationStepSize;
             if (lastSuccessfulTime) *lastSuccessfulTime = at;
@@ -140,6 +137,10 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
         }
         return fmi3OK;
     }
+    if (st == fmi2OK) h->time = currentCommunicationPoint + communicationStepSize;
+    if (lastSuccessfulTime)
+        *lastSuccessfulTime = st == fmi2OK ? currentCommunicationPoint + communicationStepSize
+                                           : currentCommunicationPoint;
     return status3(st);
 }
 

@@ -26,10 +26,11 @@ def add_parser(sub: Any, name: str) -> None:
                                    "bit. Its variables: the recorded outputs, the open inputs and the inner FMUs' "
                                    "parameters (Real, Integer, Boolean), named instance.variable. The FMUs inside may be FMI "
                                    "2.0 or 3.0, connected by Real, Integer, Boolean, Enumeration and the FMI 3.0 "
-                                   "number types' connections. What it cannot hold yet (Model Exchange, other "
-                                   "algorithms, events on conditions, requirements, String connections, String "
-                                   "outputs, FMI 3.0 outputs other than Float64, Int32 and Boolean) is refused, "
-                                   "nothing written (docs/export-fmu.md).")
+                                   "number types' connections; Model Exchange FMUs (FMI 2.0) inside are integrated "
+                                   "by the master's integrators (euler, rk4, cvode) as the run integrates them. What "
+                                   "it cannot hold yet (other algorithms, events on conditions, requirements, "
+                                   "String connections, String outputs, FMI 3.0 outputs other than Float64, Int32 "
+                                   "and Boolean, rows at events) is refused, nothing written (docs/export-fmu.md).")
     e.add_argument("scenario", type=scenario_path, help="scenario file (.toml) or SSP archive (.ssp)")
     e.add_argument("--out", type=Path, required=True, metavar="FILE.fmu", help="the FMU to write")
     e.add_argument("--name", default=None, metavar="NAME",
