@@ -184,7 +184,7 @@ def _no_binary(mass: tuple[Path, Path], d: Path) -> Path:
 
 
 REFUSALS: dict[str, Any] = {
-    "iterated": lambda doc, m, d: doc["experiment"].update(algorithm="iterated"),
+    "adaptive": lambda doc, m, d: doc["experiment"].update(algorithm="adaptive"),
     "events": lambda doc, m, d: doc.update(events=[{"time": 0.5, "variable": "body.F", "action": "override",
                                                    "value": 1.0}]),
     "requirements": lambda doc, m, d: doc.update(requirements=[{"name": "r", "formula": "always body.x < 10"}]),
@@ -201,7 +201,7 @@ REFUSALS: dict[str, Any] = {
 
 
 #: The field each refusal names.
-REFUSED_AT = {"iterated": "experiment.algorithm", "events": "events",
+REFUSED_AT = {"adaptive": "experiment.algorithm", "events": "events",
               "requirements": "requirements", "fmi3": "instances.ref", "model exchange": "instances.ref",
               "no linux64 binary": "instances.body.fmu",
               "a non-Real output": "record", "an output name twice": "record",

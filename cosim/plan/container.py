@@ -38,15 +38,17 @@ from ..messages.errors import CosimError, ScenarioError
 from ..model.archive import safe_extract
 from ..model.description import CO_SIMULATION
 from ..stepping import native
-from ..stepping.table import GAUSS_SEIDEL, JACOBI
+from ..stepping.settings import IterationSpec
+from ..stepping.table import GAUSS_SEIDEL, ITERATED, JACOBI
 from .records import InstancePlan, Plan
 from .wiring import RowLayout, Wiring
 
 SOURCE = native.SOURCE.with_name("container.c")
 SOURCE3 = native.SOURCE.with_name("container3.c")   # the FMI 3.0 face: includes container.c
+SOURCE_ITER = native.SOURCE.with_name("container_iter.c")   # the iterated coupling: container.c includes it
 #: The FMI 3.0 standard's headers container3.c includes (FMPy's copy: :func:`native.fmi_headers`).
 HEADERS3 = ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")
-FORMAT = "wmr-container 3"   # the first line of system.txt (container.c's VERSION_TAG)
+FORMAT = "wmr-container 4"   # the first line of system.txt (container.c's VERSION_TAG)
 
 
 #: The FMI 2.0 types of the container's variables, and their letters in system.txt.
@@ -94,8 +96,8 @@ def refuse(plan: Plan, out: Path, name: str) -> None:
         raise ScenarioError(sc.file, "--name", f"{name!r}: a model identifier is a C name (letters, digits, _)")
     if sys.platform != "linux":
         raise CosimError("export-fmu builds the container's linux64 binary: run it on Linux")
-    if sc.algorithm not in (GAUSS_SEIDEL, JACOBI):
-        no("experiment.algorithm", f"{sc.algorithm!r} (only gauss-seidel and jacobi)")
+    if sc.algorithm not in (GAUSS_SEIDEL, JACOBI, ITERATED):
+        no("experiment.algorithm", f"{sc.algorithm!r} (only gauss-seidel, jacobi and iterated)")
     for n, ip in plan.instances.items():
         _refuse_instance(plan, n, ip, out, no)
     if plan.last_step is not None:   # a host steps the container by whole steps of the scenario's
@@ -192,8 +194,45 @@ def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[Conta
     for v in cvars:
         lines.append(f"var {v.kind} {TYPES[v.type]} {v.inst} {v.ref} {_num(v.start)} "
                      f"{int(v.variability == 'tunable' or v.kind == 'i')}")
+    lines += iteration_text(plan, layout, wiring)
     lines.append("end")
     return "\n".join(lines) + "\n"
+
+
+def iteration_text(plan: Plan, layout: RowLayout, wiring: Wiring) -> list[str]:
+    """The iterated coupling's lines of system.txt (read by container_iter.c): ``iteration 0`` where the
+    algorithm is another; else the settings (method 0 fixed point, 1 Newton; tolerance; max_iterations;
+    relaxation; inputs linear 0/1; Jacobian from directional derivatives 0/1) and the components of the
+    plan's graph of copies in stepping order (FeedGraph.components, as the master's Iterated steps them):
+    ``comp LOOP N members...`` and, for a loop, ``unknown`` lines, one per coupling input in the master's
+    order (its members in order, each one's copies in order that read an output of the loop: instance,
+    input position, input value reference, the row slot it reads, the instance and value reference of that
+    output, factor, offset)."""
+    sc = plan.scenario
+    if sc.algorithm != ITERATED:
+        return ["iteration 0"]
+    spec = sc.iteration or IterationSpec()
+    graph = plan.feeds
+    lines = [f"iteration 1 {int(spec.method == 'newton')} {_num(spec.tolerance)} {spec.max_iterations} "
+             f"{_num(spec.relaxation)} {int(spec.inputs == 'linear')} {int(spec.jacobian == 'directional')} "
+             f"{len(graph.components)}"]
+    for comp in graph.components:
+        loop = graph.is_loop(comp)
+        unknowns = []
+        if loop:
+            mine = {plan.order[i] for i in comp}
+            for i in comp:
+                n = plan.order[i]
+                for c in wiring.copies(n):
+                    src = next((m for m in plan.order if c.src is layout.out_arr[m]), None)
+                    if src is None or src not in mine:
+                        continue
+                    unknowns.append(f"unknown {i} {c.pos} {wiring.vrs[n][c.pos]} {layout.offset[src] + c.slot} "
+                                    f"{plan.order.index(src)} {layout.reals[src][c.slot][0]} {_num(c.factor)} "
+                                    f"{_num(c.offset)}")
+        lines.append(f"comp {int(loop)} {len(comp)} {' '.join(map(str, comp))} {len(unknowns)}")
+        lines += unknowns
+    return lines
 
 
 def _param(var: Any, value: Any) -> str:
@@ -360,7 +399,7 @@ def export_fmu(plan: Plan, out: str | os.PathLike, name: str | None = None, fmi:
             folder.mkdir(parents=True)
             build_binary(guid, folder / f"{name}.{_LIB[platform]}", platform, fmi)
         (tmp / "sources").mkdir()   # (for fmi 3, the FMI 3.0 face and the standard's headers beside it)
-        for src in (SOURCE, native.SOURCE, *((SOURCE3, *(native.fmi_headers(3) / h for h in HEADERS3)) if fmi == 3 else ())):
+        for src in (SOURCE, SOURCE_ITER, native.SOURCE, *((SOURCE3, *(native.fmi_headers(3) / h for h in HEADERS3)) if fmi == 3 else ())):
             shutil.copyfile(src, tmp / "sources" / src.name)
         out.parent.mkdir(parents=True, exist_ok=True)
         part = out.with_name(out.name + ".part")

@@ -70,7 +70,7 @@ typedef fmi2Status (*seti_t)(fmi2Component, const fmi2ValueReference *, size_t, 
 typedef fmi2Status (*geti_t)(fmi2Component, const fmi2ValueReference *, size_t, fmi2Integer *);
 typedef fmi2Status (*sets_t)(fmi2Component, const fmi2ValueReference *, size_t, const fmi2String *);
 
-#define VERSION_TAG "wmr-container 3"
+#define VERSION_TAG "wmr-container 4"
 
 typedef struct { char type; unsigned vr; double r; int i; char *s; int var; } Param;
 
@@ -95,6 +95,7 @@ typedef struct {
     int n_vars; Var *vars;
     double step; int mode;   /* 0 instantiated, 1 initialisation mode, 2 stepping, 3 terminated */
     double t0; int stop_defined; double stop;
+    struct Iter *iter;       /* the iterated coupling (container_iter.c); NULL under Gauss-Seidel and Jacobi */
 } Container;
 
 static void say(Container *s, fmi2Status st, const char *fmt, ...) {
@@ -132,6 +133,8 @@ static char *text(Reader *r) {
     return out;
 }
 static void expect(Reader *r, const char *word) { if (strcmp(token(r), word)) r->bad = 1; }
+
+#include "container_iter.c"
 
 static int read_instance(Container *s, Reader *r, int i) {
     Inner *q = &s->inner[i];
@@ -203,6 +206,7 @@ static int read_system(Container *s, const char *path) {
         if (v->kind == 'o' && v->type == 'R' ? v->ref >= (unsigned)s->n_row : (v->inst < 0 || v->inst >= s->n))
             r.bad = 1;
     }
+    if (!r.bad && (!iter_read(s, &r) || !iter_link(s))) r.bad = 1;
     expect(&r, "end");
     ok = !r.bad;
 done:
@@ -308,6 +312,7 @@ static void free_container(Container *s) {
         free(p->in_vr); free(p->in_val); free(p->out_vr);
         free(p->pos); free(p->src); free(p->slot); free(p->factor); free(p->offset); free(p->plain);
     }
+    iter_free(s);
     free(s->inner); free(s->insts); free(s->vars); free(s->row); free(s->name);
     free(s);
 }
@@ -338,6 +343,7 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
     for (i = 0; i < s->n; i++)
         if (!load_inner(s, &s->inner[i], &s->insts[i], res, visible, logging)) { free(res); free_container(s); return NULL; }
     free(res);
+    if (!iter_load(s)) { free_container(s); return NULL; }
     s->L.n = s->n; s->L.inst = s->insts; s->L.h = s->step; s->L.h_last = s->step; s->L.k_last = -1;
     s->L.decimation = 1; s->L.n_steps = -1;
     return s;
@@ -448,6 +454,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     Container *s = c;
     int i, st;
     if (!exchange(s)) { say(s, fmi2Error, "the initial exchange of outputs to inputs failed"); return fmi2Error; }
+    if (!iter_initialize(s)) return fmi2Error;
     for (i = 0; i < s->n; i++)
         if ((st = s->inner[i].exit_(s->inner[i].c)))
             { say(s, fmi2Error, "%s: fmi2ExitInitializationMode returned %d", s->inner[i].name, st); return fmi2Error; }
@@ -603,8 +610,9 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
             "take steps that are whole multiples of it", t, h, s->step, s->t0);
         return fmi2Error;
     }
-    st = wmr_loop(&s->L, k0, k0 + nk);
+    st = s->iter ? iter_loop(s, k0, k0 + nk) : wmr_loop(&s->L, k0, k0 + nk);
     if (st == OK) return fmi2OK;
+    if (st == COUPLING) return fmi2Error;   /* (said) */
     {
         int call = s->L.f_call >= 0 && s->L.f_call <= C_TERMINATED ? s->L.f_call : 0;
         say(s, fmi2Error, "%s: %s failed at step %ld (status or value %g)", s->inner[s->L.f_inst].name,
