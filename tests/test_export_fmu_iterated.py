@@ -41,10 +41,10 @@ CASES: dict[str, tuple[str, dict[str, Any]]] = {
 #: The algebraic loop: y1 = 0.5 u1 + 1 + 0.3 t + 0.5 sin 3t, y2 = 0.8 u2 - 1 + 0.2 sin 7t (the initial exchange,
 #: three passes of outputs to inputs, leaves it unsolved at t = 0).
 LOOP = AffineLoop(0.5, 0.8, (1.0, 0.3, 0.5, 3.0), (-1.0, 0.0, 0.2, 7.0))
-#: The same with a1 = 2: the fixed point diverges, Newton's Jacobian needs its rows swapped (pivoting).
-EXPANDING = AffineLoop(2.0, 0.8, (1.0, 0.3, 0.5, 3.0), (-1.0, 0.0, 0.2, 7.0))
+#: The same with a1 = 2.3: the fixed point diverges, Newton's Jacobian needs its rows swapped (pivoting).
+EXPANDING = AffineLoop(2.3, 0.7, (1.1, 0.3, 0.5, 3.0), (-0.9, 0.0, 0.2, 7.0))
 #: ... with one.u = FACTOR * two.y + OFFSET.
-FACTOR, OFFSET = 1.5, 0.25
+FACTOR, OFFSET = 1.3, 0.35
 #: A loop whose fixed point needs more iterations as the run goes on (33 are too few from about t = 0.3 s).
 MID_RUN = AffineLoop(0.5, 0.8, (1.0, -1.5, 0.5, 3.0), (-2.0, 0.0, 0.0, 1.0))
 
