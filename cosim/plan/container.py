@@ -9,7 +9,9 @@ LoadLibrary) where the cross compiler is on PATH and every inner FMU has a win64
 
 What this export takes (everything else is refused before anything is written, one line naming it): FMI 2.0
 co-simulation FMUs with a linux64 binary (C, or pythonfmu's behind our loader, which finds its Python as
-when a host loads the FMU alone), Gauss-Seidel or Jacobi (instances at their own rates too, as the master's multi-rate passes), Real connections, recorded Real,
+when a host loads the FMU alone), Gauss-Seidel or Jacobi (instances at their own rates too, as the master's multi-rate passes), the
+iterated coupling (``stepping/container_iter.c``, included by container.c: the coupling loops rolled back
+through the inner FMUs' fmi2GetFMUstate / fmi2SetFMUstate), Real connections, recorded Real,
 Integer and Boolean outputs, no events, input tables or requirements.  The container's variables: the
 recorded outputs (named as their columns), the open inputs and the parameters of the inner FMUs of type
 Real, Integer or Boolean (``instance.variable``, the scenario's value as start), in the plan's order.

@@ -30,22 +30,22 @@ enum { COUPLING = 3, NOT_CONVERGED = 4 };
 
 /* a coupling input: instance i's input at position pos (value reference vr) takes row[slot] * factor + offset,
  * the output src_vr of instance src_i */
-typedef struct { int i, pos; unsigned vr; long slot; int src_i; unsigned src_vr; double factor, offset; } Unknown;
+typedef struct { int i, pos; unsigned vr; long slot; int src_i; unsigned src_vr; double factor, offset; } IterInput;
 
 typedef struct {
     int loop, n, *members, n_unk;
-    Unknown *unk;
+    IterInput *unk;
     char *label;                        /* "one <-> two" */
     int have_end, have_prev;            /* what the loop keeps from step to step: */
     double *u_end, *u_prev, h_prev;     /* the inputs the last two steps ended with, the last step [s] */
     int have_jac; double *jac;          /* Newton's Jacobian dr/du (row major), kept while it serves */
     double *u, *g, *r, *g0, *start, *uj, *gj, *a, *b, *col; unsigned *vrs;   /* scratch */
     fmi2FMUstate *states; double *row_saved;
-} Comp;
+} IterComp;
 
 typedef struct Iter {
     int newton; double tol; long max_it; double relax; int linear, directional;
-    int n_comps; Comp *comps;
+    int n_comps; IterComp *comps;
     int **gix;   /* per instance, per copy: the index of the unknown that replaces it in its loop, or -1 */
     getstate_t *get_state; setstate_t *set_state; freestate_t *free_state; setder_t *set_der; dirder_t *dir_der;
 } Iter;
@@ -62,9 +62,9 @@ static int iter_read(Container *s, Reader *r) {
     it->newton = (int)num(r); it->tol = real(r); it->max_it = num(r); it->relax = real(r);
     it->linear = (int)num(r); it->directional = (int)num(r); it->n_comps = (int)num(r);
     if (r->bad || it->max_it < 1 || it->n_comps < 1 || it->n_comps > s->n) return 0;
-    it->comps = ITER_ALLOC(it->n_comps, Comp);
+    it->comps = ITER_ALLOC(it->n_comps, IterComp);
     for (c = 0; c < it->n_comps; c++) {
-        Comp *C = &it->comps[c];
+        IterComp *C = &it->comps[c];
         size_t len = 1;
         expect(r, "comp");
         C->loop = (int)num(r); C->n = (int)num(r);
@@ -77,9 +77,9 @@ static int iter_read(Container *s, Reader *r) {
         }
         C->n_unk = (int)num(r);
         if (r->bad || C->n_unk < 0 || (C->loop && C->n_unk < 1)) return 0;
-        C->unk = ITER_ALLOC(C->n_unk, Unknown);
+        C->unk = ITER_ALLOC(C->n_unk, IterInput);
         for (x = 0; x < C->n_unk; x++) {
-            Unknown *u = &C->unk[x];
+            IterInput *u = &C->unk[x];
             expect(r, "unknown");
             u->i = (int)num(r); u->pos = (int)num(r); u->vr = (unsigned)num(r); u->slot = num(r);
             u->src_i = (int)num(r); u->src_vr = (unsigned)num(r); u->factor = real(r); u->offset = real(r);
@@ -114,7 +114,7 @@ static int iter_link(Container *s) {
     }
     for (c = 0; c < it->n_comps; c++)
         for (x = 0; x < it->comps[c].n_unk; x++) {
-            Unknown *u = &it->comps[c].unk[x];
+            IterInput *u = &it->comps[c].unk[x];
             Inst *p = &s->insts[u->i];
             for (found = 0, j = 0; j < p->n_copies; j++)
                 if (p->pos[j] == u->pos) { it->gix[u->i][j] = x; found = 1; }
@@ -139,7 +139,7 @@ static int iter_load(Container *s) {
     it->free_state = ITER_ALLOC(s->n, freestate_t); it->set_der = ITER_ALLOC(s->n, setder_t);
     it->dir_der = ITER_ALLOC(s->n, dirder_t);
     for (c = 0; c < it->n_comps; c++) {
-        Comp *C = &it->comps[c];
+        IterComp *C = &it->comps[c];
         if (!C->loop) continue;
         for (m = 0; m < C->n; m++) {
             int i = C->members[m];
@@ -164,7 +164,7 @@ static void iter_free(Container *s) {
     int c, i;
     if (!it) return;
     for (c = 0; it->comps && c < it->n_comps; c++) {
-        Comp *C = &it->comps[c];
+        IterComp *C = &it->comps[c];
         free(C->members); free(C->unk); free(C->label); free(C->u_end); free(C->u_prev); free(C->jac);
         free(C->u); free(C->g); free(C->r); free(C->g0); free(C->start); free(C->uj); free(C->gj); free(C->a);
         free(C->b); free(C->col); free(C->vrs); free(C->states); free(C->row_saved);
@@ -176,8 +176,8 @@ static void iter_free(Container *s) {
     s->iter = NULL;
 }
 
-/* G of the output now in the row (Unknown.g) */
-static double iter_g(const Container *s, const Unknown *u) {
+/* G of the output now in the row (iterated.py: Unknown.g) */
+static double iter_g(const Container *s, const IterInput *u) {
     double v = s->row[u->slot];
     return u->factor == 1.0 && u->offset == 0.0 ? v : v * u->factor + u->offset;
 }
@@ -204,12 +204,12 @@ static int iter_inputs(Container *s, int i, long k, const double *vals) {
 }
 
 /* one evaluation of a loop: u -> G(y(u)) into g (a step's, or at initialisation sets and gets only) */
-typedef struct { Container *s; Comp *C; long k; double t, h; int first, init; } Eval;
+typedef struct { Container *s; IterComp *C; long k; double t, h; int first, init; } IterEval;
 
-static int iter_evaluate(Eval *e, const double *u, double *g) {
+static int iter_evaluate(IterEval *e, const double *u, double *g) {
     Container *s = e->s;
     Iter *it = s->iter;
-    Comp *C = e->C;
+    IterComp *C = e->C;
     Loop *L = &s->L;
     int m, x, st, ended = -1;
     double ended_at = 0.0;
@@ -285,13 +285,13 @@ static int iter_solve_linear(double *a, double *b, int n) {
 }
 
 /* dr/du = D - I from the directional derivatives of the instance owning both ends (IteratedStep.directional) */
-static int iter_directional(Eval *e, double t) {
+static int iter_directional(IterEval *e, double t) {
     Container *s = e->s;
-    Comp *C = e->C;
+    IterComp *C = e->C;
     int n = C->n_unk, j, m, rows;
     for (m = 0; m < n; m++) for (j = 0; j < n; j++) C->jac[m * n + j] = m == j ? -1.0 : -0.0;   /* (-np.eye) */
     for (j = 0; j < n; j++) {
-        const Unknown *xj = &C->unk[j];
+        const IterInput *xj = &C->unk[j];
         double seed = 1.0;
         int st;
         for (rows = 0, m = 0; m < n; m++) if (C->unk[m].src_i == xj->i) C->vrs[rows++] = C->unk[m].src_vr;
@@ -312,10 +312,10 @@ static const char *iter_plural(long n) { return n == 1 ? "" : "s"; }
 
 /* LoopSolver.solve: u (the guess in, the inputs accepted out), the last evaluation's outputs in the row;
  * NOT_CONVERGED with the reason in why */
-static int iter_solve(Eval *e, char *why, size_t n_why) {
+static int iter_solve(IterEval *e, char *why, size_t n_why) {
     Container *s = e->s;
     Iter *it = s->iter;
-    Comp *C = e->C;
+    IterComp *C = e->C;
     int n = C->n_unk, x, j, st;
     long itn;
     const char *method = it->newton ? "newton" : "fixed-point";
@@ -376,11 +376,11 @@ static int iter_solve(Eval *e, char *why, size_t n_why) {
 }
 
 /* IteratedStep.loop_step: the loop C from t over h */
-static int iter_loop_step(Container *s, Comp *C, long k, double t, double h) {
+static int iter_loop_step(Container *s, IterComp *C, long k, double t, double h) {
     Iter *it = s->iter;
     int n = C->n_unk, m, x, st;
     char why[256];
-    Eval e = {s, C, k, t, h, 1, 0};
+    IterEval e = {s, C, k, t, h, 1, 0};
     for (x = 0; x < n; x++) C->g0[x] = iter_g(s, &C->unk[x]);
     memcpy(C->start, C->have_end ? C->u_end : C->g0, sizeof(double) * (size_t)n);
     if (C->have_end && C->have_prev && C->h_prev > 0.0) {
@@ -424,7 +424,7 @@ static int iter_loop(Container *s, long k0, long k1) {
     for (k = k0; k < k1; k++) {
         double t = L->t0 + (double)k * L->h, h = L->h;
         for (c = 0; c < it->n_comps; c++) {
-            Comp *C = &it->comps[c];
+            IterComp *C = &it->comps[c];
             if (C->loop) {
                 if ((st = iter_loop_step(s, C, k, t, h))) return st;
                 continue;
@@ -445,8 +445,8 @@ static int iter_initialize(Container *s) {
     char why[256];
     if (!it) return 1;
     for (c = 0; c < it->n_comps; c++) {
-        Comp *C = &it->comps[c];
-        Eval e = {s, C, 0, s->t0, 0.0, 1, 1};
+        IterComp *C = &it->comps[c];
+        IterEval e = {s, C, 0, s->t0, 0.0, 1, 1};
         int x;
         if (!C->loop) continue;
         for (x = 0; x < C->n_unk; x++) C->u[x] = iter_g(s, &C->unk[x]);

@@ -20,11 +20,12 @@ def add_parser(sub: Any, name: str) -> None:
                                    "(linux64, and win64 where it can be built for the FMI 2.0 face) that any FMI host "
                                    "runs: the scenario's FMUs under its resources, their connections with the unit "
                                    "conversions, factors and offsets, the parameters and start values, and the "
-                                   "master's own compiled loop (Gauss-Seidel or Jacobi, instances at their own rates) "
+                                   "master's own compiled loop (Gauss-Seidel or Jacobi, instances at their own rates; "
+                                   "the iterated coupling, its loops rolled back through the inner FMUs' state) "
                                    "as its runtime, so that its outputs equal `wmr-cosim run` of the scenario bit for "
                                    "bit. Its variables: the recorded outputs, the open inputs and the inner FMUs' "
                                    "parameters (Real, Integer, Boolean), named instance.variable. What it cannot hold "
-                                   "yet (inner FMI 3.0 FMUs, Model Exchange, other algorithms, events, input tables, "
+                                   "yet (inner FMI 3.0 FMUs, Model Exchange, the step-size control, events, input tables, "
                                    "requirements, non-Real connections, Enumeration or String outputs) is refused, "
                                    "nothing written (docs/export-fmu.md).")
     e.add_argument("scenario", type=scenario_path, help="scenario file (.toml) or SSP archive (.ssp)")
