@@ -184,7 +184,7 @@ def _no_binary(mass: tuple[Path, Path], d: Path) -> Path:
 
 
 REFUSALS: dict[str, Any] = {
-    "iterated": lambda doc, m, d: doc["experiment"].update(algorithm="iterated"),
+    "adaptive": lambda doc, m, d: doc["experiment"].update(algorithm="adaptive"),
     "condition events": lambda doc, m, d: doc.update(events=[{"when": "body.x > 0.1", "variable": "body.F",
                                                              "action": "override", "value": 1.0}]),
     "tables and own rates": lambda doc, m, d: (
@@ -206,7 +206,7 @@ REFUSALS: dict[str, Any] = {
 
 
 #: The field each refusal names.
-REFUSED_AT = {"iterated": "experiment.algorithm", "condition events": "events", "tables and own rates": "inputs",
+REFUSED_AT = {"adaptive": "experiment.algorithm", "condition events": "events", "tables and own rates": "inputs",
               "requirements": "requirements", "an FMI 3.0 Float32 output": "record",
               "FMI 3.0 model exchange": "instances.ref",
               "no linux64 binary": "instances.body.fmu",

@@ -13,7 +13,8 @@ finds its Python as when a host loads the FMU alone; an FMI 3.0 one called as th
 ``stepping/container_inner3.c``), FMI 2.0 Model Exchange FMUs integrated as the master
 integrates them (``stepping/container_me.c``: Euler, RK4, and CVODE from FMPy's SUNDIALS libraries shipped in
 resources/sundials/), Gauss-Seidel or Jacobi (instances at their own rates too, as the master's
-multi-rate passes), connections of numbers and booleans (Float64 ones as the master's copies, the others as
+multi-rate passes), the iterated coupling (``stepping/container_iter.c``: the coupling loops rolled back
+through the inner FMUs' fmi2GetFMUstate / fmi2SetFMUstate), connections of numbers and booleans (Float64 ones as the master's copies, the others as
 its get-and-set copiers, with their conversions: :func:`_other`), recorded Real (Float64), Integer (FMI 2.0
 Integer and Enumeration, FMI 3.0 Int32) and Boolean outputs, timed events and input tables (the exporter
 replays the events through the master's wiring and writes what each one changes at its step:
@@ -51,7 +52,8 @@ from ..model.archive import safe_extract
 from ..model.description import MODEL_EXCHANGE
 from ..model.types import FLOAT64_TYPES
 from ..stepping import native
-from ..stepping.table import GAUSS_SEIDEL, JACOBI
+from ..stepping.settings import IterationSpec
+from ..stepping.table import GAUSS_SEIDEL, ITERATED, JACOBI
 from .records import InstancePlan, Plan
 from .wiring import RowLayout, Wiring, discrete_event_value
 
@@ -59,11 +61,12 @@ SOURCE = native.SOURCE.with_name("container.c")
 SOURCE3 = native.SOURCE.with_name("container3.c")   # the FMI 3.0 face: includes container.c
 #: The files container.c includes beside native_loop.c (shipped in the container's sources/ with it): timed
 #: events and input tables; inner FMI 3.0 FMUs and the connections that are not Float64; Model Exchange
-#: instances (the master's integrators and event handling).
-INCLUDED = tuple(native.SOURCE.with_name(f) for f in ("container_actions.c", "container_inner3.c", "container_me.c"))
+#: instances (the master's integrators and event handling); the iterated coupling.
+INCLUDED = tuple(native.SOURCE.with_name(f) for f in ("container_actions.c", "container_inner3.c", "container_me.c",
+                                                             "container_iter.c"))
 #: The FMI 3.0 standard's headers container3.c includes (FMPy's copy: :func:`native.fmi_headers`).
 HEADERS3 = ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")
-FORMAT = "wmr-container 6"   # the first line of system.txt (container.c's VERSION_TAG)
+FORMAT = "wmr-container 7"   # the first line of system.txt (container.c's VERSION_TAG)
 
 
 #: The FMI 2.0 types of the container's variables, and their letters in system.txt.
@@ -117,10 +120,12 @@ def refuse(plan: Plan, out: Path, name: str) -> None:
         raise ScenarioError(sc.file, "--name", f"{name!r}: a model identifier is a C name (letters, digits, _)")
     if sys.platform != "linux":
         raise CosimError("export-fmu builds the container's linux64 binary: run it on Linux")
-    if sc.algorithm not in (GAUSS_SEIDEL, JACOBI):
-        no("experiment.algorithm", f"{sc.algorithm!r} (only gauss-seidel and jacobi)")
+    if sc.algorithm not in (GAUSS_SEIDEL, JACOBI, ITERATED):
+        no("experiment.algorithm", f"{sc.algorithm!r} (only gauss-seidel, jacobi and iterated)")
     for n, ip in plan.instances.items():
         _refuse_instance(plan, n, ip, out, no)
+    if sc.algorithm == ITERATED:   # (container_iter.c rolls back FMI 2.0 co-simulation FMUs on Float64 copies)
+        _refuse_iterated(plan, no)
     if plan.last_step is not None:   # a host steps the container by whole steps of the scenario's
         no("experiment.stop", f"stop = {sc.stop!r} s is not on the grid of step = {sc.step!r} s (the run's last step "
                               f"is {plan.last_step!r} s; the container takes whole steps)")
@@ -164,6 +169,24 @@ def refuse(plan: Plan, out: Path, name: str) -> None:
             only = "Float64, Int32 and Boolean outputs of an FMI 3.0 FMU" if plan.instances[r.instance].model.fmi == 3 \
                 else "Real, Integer, Enumeration and Boolean outputs"
             no("record", f"{r.column} is {r.var.fmi_type}{list(r.var.shape) if r.var.shape else ''} (only {only})")
+
+
+def _refuse_iterated(plan: Plan, no: Any) -> None:
+    """What the container's iterated coupling does not hold yet: FMI 3.0 FMUs, Model Exchange instances,
+    connections that are not Float64, timed events and input tables."""
+    why = "with the iterated coupling"
+    for n, ip in plan.instances.items():
+        if ip.model.fmi != 2:
+            no(f"instances.{n}", f"{ip.model.path.name} is an FMI {ip.model.fmi}.0 FMU {why} (only FMI 2.0)")
+        if ip.interface == MODEL_EXCHANGE:
+            no(f"instances.{n}", f"{ip.model.path.name} runs as Model Exchange {why} (only co-simulation)")
+    for c in plan.connections:
+        if not c.is_float64:
+            no("connections", f"{c.src}.{c.src_var.name} -> {c.dst}.{c.dst_var.name} is not Float64 to Float64 {why}")
+    if plan.events:
+        no("events", f"timed events {why}")
+    if plan.inputs:
+        no("inputs", f"input tables {why}")
 
 
 def _settable(plan: Plan, inst: str, var: Any) -> bool:
@@ -462,9 +485,45 @@ def system_text(plan: Plan, layout: RowLayout, wiring: Wiring, cvars: list[Conta
     events = _events(plan, wiring, slots, table_arrays)
     head = [FORMAT, f"system {len(plan.order)} {slots.n} {int(plan.scenario.algorithm == JACOBI)} 1 "
                     f"{_num(plan.scenario.step or 0.0)} {len(cvars)} {int(own_rates)}"]
-    return "\n".join([*head, *body, f"holds {len(held)}", *held,
+    return "\n".join([*head, *body, *iteration_text(plan, layout, wiring), f"holds {len(held)}", *held,
                       f"tables {sum(ln.startswith('table ') for ln in tables)}", *tables,
                       f"events {sum(ln.startswith('at ') for ln in events)}", *events, "end"]) + "\n"
+
+
+def iteration_text(plan: Plan, layout: RowLayout, wiring: Wiring) -> list[str]:
+    """The iterated coupling's lines of system.txt (read by container_iter.c): ``iteration 0`` where the
+    algorithm is another; else the settings (method 0 fixed point, 1 Newton; tolerance; max_iterations;
+    relaxation; inputs linear 0/1; Jacobian from directional derivatives 0/1) and the components of the
+    plan's graph of copies in stepping order (FeedGraph.components, as the master's Iterated steps them):
+    ``comp LOOP N members...`` and, for a loop, ``unknown`` lines, one per coupling input in the master's
+    order (its members in order, each one's copies in order that read an output of the loop: instance,
+    input position, input value reference, the row slot it reads, the instance and value reference of that
+    output, factor, offset)."""
+    sc = plan.scenario
+    if sc.algorithm != ITERATED:
+        return ["iteration 0"]
+    spec = sc.iteration or IterationSpec()
+    graph = plan.feeds
+    lines = [f"iteration 1 {int(spec.method == 'newton')} {_num(spec.tolerance)} {spec.max_iterations} "
+             f"{_num(spec.relaxation)} {int(spec.inputs == 'linear')} {int(spec.jacobian == 'directional')} "
+             f"{len(graph.components)}"]
+    for comp in graph.components:
+        loop = graph.is_loop(comp)
+        unknowns = []
+        if loop:
+            mine = {plan.order[i] for i in comp}
+            for i in comp:
+                n = plan.order[i]
+                for c in wiring.copies(n):
+                    src = next((m for m in plan.order if c.src is layout.out_arr[m]), None)
+                    if src is None or src not in mine:
+                        continue
+                    unknowns.append(f"unknown {i} {c.pos} {wiring.vrs[n][c.pos]} {layout.offset[src] + c.slot} "
+                                    f"{plan.order.index(src)} {layout.reals[src][c.slot][0]} {_num(c.factor)} "
+                                    f"{_num(c.offset)}")
+        lines.append(f"comp {int(loop)} {len(comp)} {' '.join(map(str, comp))} {len(unknowns)}")
+        lines += unknowns
+    return lines
 
 
 def _param(var: Any, value: Any, fmi: int = 2) -> str:

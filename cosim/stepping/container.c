@@ -73,7 +73,7 @@ typedef fmi2Status (*seti_t)(fmi2Component, const fmi2ValueReference *, size_t, 
 typedef fmi2Status (*geti_t)(fmi2Component, const fmi2ValueReference *, size_t, fmi2Integer *);
 typedef fmi2Status (*sets_t)(fmi2Component, const fmi2ValueReference *, size_t, const fmi2String *);
 
-#define VERSION_TAG "wmr-container 6"
+#define VERSION_TAG "wmr-container 7"
 
 /* (type T: a value of another FMI 3.0 type, typed: container_inner3.c) */
 typedef struct { char type; unsigned vr; double r; int i; char *s; int var; void *typed; } Param;
@@ -133,6 +133,7 @@ typedef struct {
     double t0; int stop_defined; double stop;
     int stale;      /* the lazy instances' outputs in the row are older than their last step */
     Actions act;    /* timed events and input tables (container_actions.c) */
+    struct Iter *iter;       /* the iterated coupling (container_iter.c); NULL under Gauss-Seidel and Jacobi */
     int terminated; double last_successful;   /* an inner FMU ended the simulation: the time of the last row [s] */
 } Container;
 
@@ -156,6 +157,7 @@ static void say(Container *s, fmi2Status st, const char *fmt, ...) {
 #include "container_inner3.c"   /* inner FMI 3.0 FMUs, the other connections */
 
 static int me_read(Container *s, Reader *r, int i);   /* (container_me.c) */
+#include "container_iter.c"
 
 static int read_instance(Container *s, Reader *r, int i) {
     Inner *q = &s->inner[i];
@@ -256,6 +258,7 @@ static int read_system(Container *s, const char *path) {
         if (v->kind == 'o' && v->type == 'R' ? v->ref >= (unsigned)s->n_row : (v->inst < 0 || v->inst >= s->n))
             r.bad = 1;
     }
+    if (!r.bad && (!iter_read(s, &r) || !iter_link(s))) r.bad = 1;
     if (!r.bad && !read_actions(&s->act, &r, s->n_row, s->n)) r.bad = 1;
     expect(&r, "end");
     ok = !r.bad;
@@ -364,6 +367,7 @@ static void free_container(Container *s) {
     }
     free_actions(&s->act);
     free_others(s);
+    iter_free(s);
     free(s->inner); free(s->insts); free(s->vars); free(s->row); free(s->name);
     free(s);
 }
@@ -395,6 +399,7 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
         if (!load_inner(s, &s->inner[i], &s->insts[i], res, visible, logging)) { free(res); free_container(s); return NULL; }
     free(res);
     if (!link_others(s)) { free_container(s); return NULL; }
+    if (!iter_load(s)) { free_container(s); return NULL; }
     s->L.n = s->n; s->L.inst = s->insts; s->L.h = s->step; s->L.h_last = s->step; s->L.k_last = -1;
     s->L.decimation = 1; s->L.n_steps = -1;
     return s;
@@ -534,6 +539,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     Container *s = c;
     int i, st;
     if (!exchange(s)) { say(s, fmi2Error, "the initial exchange of outputs to inputs failed"); return fmi2Error; }
+    if (!iter_initialize(s)) return fmi2Error;
     for (i = 0; i < s->n; i++) {
         if ((st = s->inner[i].exit_(s->inner[i].c)))
             { say(s, fmi2Error, "%s: fmi2ExitInitializationMode returned %d", s->inner[i].name, st); return fmi2Error; }
@@ -731,7 +737,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
                 return fmi2Discard;
             }
             if (s->act.next < s->act.n_at && s->act.at[s->act.next].k < end) next = s->act.at[s->act.next].k;
-            if (!s->act.n_tables) { st = wmr_loop(&s->L, k, next); k = next; continue; }
+            if (!s->act.n_tables) { st = s->iter ? iter_loop(s, k, next) : wmr_loop(&s->L, k, next); k = next; continue; }
             for (; k < next && st == OK; k++) {   /* (the tables' row of each step before it) */
                 const char *who = NULL;
                 int fs = feed_tables(&s->act, s->inner, s->row, -1, k, &who);
@@ -742,6 +748,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
     }
     for (int i = 0; i < s->n; i++) s->stale |= s->inner[i].lazy;
     if (st == OK) return fmi2OK;
+    if (st == COUPLING) return fmi2Error;   /* (said) */
     if (st == FAILED && s->L.f_call == C_TERMINATED) {
         /* an inner FMU (a Model Exchange one's event) ended the simulation: the master records the row of the
          * step it ended in and stops; the host is told so (fmi2Discard, fmi2Terminated, the row's time as

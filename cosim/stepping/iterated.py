@@ -17,7 +17,8 @@ evaluation.
 * fixed point: u <- u + relaxation * r;
 * Newton: u <- u - J^-1 r with J = dr/du by forward differences (one more evaluation per coupling
   input), kept from step to step while the residual shrinks at least by half per iteration (a chord
-  method: a linear loop then costs two evaluations per step), made anew where it does not.
+  method: a linear loop then costs two evaluations per step), made anew where it does not; J du = -r
+  solved by Gaussian elimination in plain floats (:func:`solve_linear`).
 
 The first guess at a step is the loop's coupling inputs extrapolated linearly from the last two steps
 (G(y(t)) at the first step).  At initialisation (in initialisation mode, after the initial exchange), the
@@ -103,6 +104,43 @@ class Loop:
                 "max_residual_accepted": self.worst_residual}
 
 
+def solve_linear(a: list[list[float]], b: list[float]) -> list[float] | None:
+    """x with ``a`` x = ``b`` (Newton's step: a loop's Jacobian, n by n, and minus its residual) by Gaussian
+    elimination with partial pivoting, in plain floats; None where a pivot is zero (the matrix is singular).
+
+    Written out, not numpy's LAPACK solve: its kernels (OpenBLAS's, chosen by the CPU at run time, with fused
+    multiply-adds) round differently from one machine to another, and the FMU container's runtime
+    (stepping/container_iter.c) does these operations in C in this order, so that its Newton steps equal
+    the master's bit for bit.  The pivot of column c is the first row at or below c of the largest |a[i][c]|;
+    each row below it loses l = a[i][c] / a[c][c] times it (then the right-hand side: b[i] - l * b[c]); back
+    substitution subtracts a[i][j] x[j] for j = i + 1 .. n - 1 in that order, then divides by a[i][i].  A 1 by
+    1 system is b / a, as LAPACK's."""
+    n = len(b)
+    m = [list(row) for row in a]
+    x = list(b)
+    for c in range(n):
+        p = c
+        for i in range(c + 1, n):
+            if abs(m[i][c]) > abs(m[p][c]):
+                p = i
+        if m[p][c] == 0.0:
+            return None
+        if p != c:
+            m[c], m[p] = m[p], m[c]
+            x[c], x[p] = x[p], x[c]
+        for i in range(c + 1, n):
+            lc = m[i][c] / m[c][c]
+            for j in range(c + 1, n):
+                m[i][j] = m[i][j] - lc * m[c][j]
+            x[i] = x[i] - lc * x[c]
+    for i in range(n - 1, -1, -1):
+        s = x[i]
+        for j in range(i + 1, n):
+            s = s - m[i][j] * x[j]
+        x[i] = s / m[i][i]
+    return x
+
+
 class NotConverged(Exception):
     """A loop's iteration failed: the message (without the step and time)."""
 
@@ -159,11 +197,10 @@ class LoopSolver:
                         loop.jacobians += 1
                     else:
                         loop.jac = self.jacobian(loop, evaluate, u, r)
-                try:
-                    du = np.linalg.solve(loop.jac, -np.asarray(r))
-                except np.linalg.LinAlgError:
-                    raise NotConverged(f"the Jacobian is singular after {count(it, 'iteration')} (newton)") from None
-                u = [ui + float(d) for ui, d in zip(u, du)]
+                du = solve_linear(loop.jac.tolist(), [-ri for ri in r])
+                if du is None:
+                    raise NotConverged(f"the Jacobian is singular after {count(it, 'iteration')} (newton)")
+                u = [ui + d for ui, d in zip(u, du)]
             if not all(math.isfinite(x) for x in u):
                 raise NotConverged(f"the iterate is no longer finite after {count(it, 'iteration')} ({spec.method})")
             err_prev = err

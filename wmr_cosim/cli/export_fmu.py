@@ -21,14 +21,15 @@ def add_parser(sub: Any, name: str) -> None:
                                    "runs: the scenario's FMUs under its resources, their connections with the unit "
                                    "conversions, factors and offsets, the parameters and start values, and the "
                                    "master's own compiled loop (Gauss-Seidel or Jacobi, instances at their own rates, "
-                                   "timed events, input tables) "
+                                   "timed events, input tables; the iterated coupling, its loops rolled back through "
+                                   "the inner FMUs' state) "
                                    "as its runtime, so that its outputs equal `wmr-cosim run` of the scenario bit for "
                                    "bit. Its variables: the recorded outputs, the open inputs and the inner FMUs' "
                                    "parameters (Real, Integer, Boolean), named instance.variable. The FMUs inside may be FMI "
                                    "2.0 or 3.0, connected by Real, Integer, Boolean, Enumeration and the FMI 3.0 "
                                    "number types' connections; Model Exchange FMUs (FMI 2.0) inside are integrated "
                                    "by the master's integrators (euler, rk4, cvode) as the run integrates them. What "
-                                   "it cannot hold yet (other algorithms, events on conditions, requirements, "
+                                   "it cannot hold yet (the step-size control, events on conditions, requirements, "
                                    "String connections, String outputs, FMI 3.0 outputs other than Float64, Int32 "
                                    "and Boolean, rows at events) is refused, nothing written (docs/export-fmu.md).")
     e.add_argument("scenario", type=scenario_path, help="scenario file (.toml) or SSP archive (.ssp)")
