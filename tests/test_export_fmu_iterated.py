@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 from wmr_cosim.cli import main
+from wmr_cosim.cosim.plan.container import FORMAT
 from wmr_cosim.cosim.stepping.iterated import solve_linear
 
 from cosim_support import write_document
@@ -112,7 +113,7 @@ def test_the_cases_differ_from_one_pass_and_from_each_other(fmus: dict[str, Any]
 
 def test_the_settings_and_loops_are_in_system_txt(runs: Any) -> None:
     text = zipfile.ZipFile(runs["newton"][0]).read("resources/system.txt").decode()
-    assert text.startswith("wmr-container 4\n")
+    assert text.startswith(FORMAT + "\n")
     lines = text.splitlines()
     head = next(line for line in lines if line.startswith("iteration "))
     assert head.split()[:3] == ["iteration", "1", "1"] and head.split()[-1] == "1"   # Newton; one component
