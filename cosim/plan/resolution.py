@@ -525,6 +525,7 @@ def _resolve(sc: Scenario) -> Plan:
     check_iteration(sc, insts, coupled)
     requirements = _requirements(sc, insts, notes)
     record, not_recorded = _record(sc, insts)
+    _live_xy(sc, insts, record)
     _event_rows(sc, insts)
     inputs = _inputs(sc, insts, driven)
     start, stop, step = sc.times()
@@ -537,6 +538,19 @@ def _resolve(sc: Scenario) -> Plan:
                 [idle] if idle else [], feeds)
     _check_recording_size(plan)
     return plan
+
+
+def _live_xy(sc: Scenario, insts: dict[str, InstancePlan], record: list[RecordPlan]) -> None:
+    """``[live] xy``: two variables of their FMUs, both recorded (the live view draws their path from the
+    recorded columns)."""
+    columns = {r.column for r in record}
+    for i, ref in enumerate(sc.xy):
+        fld = f"live.xy[{i}]"
+        inst, name = split_ref(sc.file, fld, ref)
+        _element(sc.file, fld, insts[inst], name)   # (MissingVariableError: not a variable of its FMU)
+        if ref not in columns:
+            raise ScenarioError(sc.file, fld, f"{ref} is not recorded (the path is drawn from the recording: "
+                                              "add it to record.variables)")
 
 
 @dataclasses.dataclass
@@ -602,6 +616,8 @@ def missing_variables(sc: Scenario, more: dict[str, str] | None = None) -> dict[
     for r in sc.requirements:
         for ref in formula_variables(r.node):
             look(f"requirements[{r.index}].formula", ref)
+    for i, ref in enumerate(sc.xy):
+        look(f"live.xy[{i}]", ref)
     for fld, ref in (more or {}).items():
         look(fld, ref)
     return found

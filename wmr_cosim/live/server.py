@@ -19,7 +19,7 @@ import os
 import socket
 import threading
 from importlib import resources
-from typing import Any, Awaitable, Callable
+from typing import Any, Awaitable, Callable, Protocol
 
 from starlette.applications import Starlette
 from starlette.requests import HTTPConnection, Request
@@ -27,7 +27,29 @@ from starlette.responses import HTMLResponse, Response
 from starlette.routing import Route, WebSocketRoute
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from .session import LiveSession, Refused
+from .session import Refused
+
+#: The files of the page beside index.html (static/; served at /static/NAME): its script, the chart library
+#: (uPlot, MIT licence, vendored with its licence) and its style sheet.  Nothing comes from another host.
+ASSETS = {"live.js": "text/javascript", "uPlot.iife.min.js": "text/javascript", "uPlot.min.css": "text/css",
+          "uPlot.LICENSE": "text/plain"}
+
+#: What the page may load: its own files only (its script and styles; the API and the stream on its host).
+CSP = ("default-src 'none'; script-src 'self'; style-src 'self' 'unsafe-inline'; img-src 'self' data:; "
+       "connect-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'")
+
+
+class Source(Protocol):
+    """What the server serves: a live run (:class:`.session.LiveSession`) or a finished one
+    (:class:`.finished.FinishedRun`)."""
+
+    def state(self) -> dict[str, Any]: ...
+
+    def submit(self, kind: str, **args: Any) -> Any: ...
+
+    def subscribe(self, sink: Callable[[dict[str, Any] | None], None]) -> Callable[[], None]: ...
+
+    def header(self) -> dict[str, Any]: ...
 
 
 def clean(obj: Any) -> Any:
@@ -66,9 +88,10 @@ class Guard:
         if is_loopback(host):
             self.hosts = {f"{h}:{port}" for h in ("127.0.0.1", "localhost", "[::1]")}
 
-    def refusal(self, conn: HTTPConnection) -> str | None:
-        """Why the request is refused (403), or None."""
-        if self.token is not None:
+    def refusal(self, conn: HTTPConnection, token: bool = True) -> str | None:
+        """Why the request is refused (403), or None (``token``: the request needs the token, where one is
+        required)."""
+        if self.token is not None and token:
             given = conn.query_params.get("token")
             auth = conn.headers.get("authorization", "")
             if given is None and auth.lower().startswith("bearer "):
@@ -84,11 +107,12 @@ class Guard:
         return None
 
 
-def make_app(session: LiveSession, guard: Guard) -> Starlette:
-    """The application: the page, the state, the commands, the stream of rows."""
+def make_app(session: Source, guard: Guard) -> Starlette:
+    """The application: the page (and its files), the state, the commands, the stream of rows."""
     api = _Api(session, guard)
     return Starlette(routes=[
         Route("/", api.guarded(api.page)),
+        Route("/static/{name}", api.asset),
         Route("/api/state", api.guarded(api.state)),
         Route("/api/pause", api.command("pause", no_args), methods=["POST"]),
         Route("/api/resume", api.command("resume", no_args), methods=["POST"]),
@@ -106,7 +130,7 @@ Handler = Callable[[Request], Awaitable[Response]]
 class _Api:
     """The handlers of :func:`make_app` over one session."""
 
-    def __init__(self, session: LiveSession, guard: Guard) -> None:
+    def __init__(self, session: Source, guard: Guard) -> None:
         self.session, self.guard = session, guard
 
     def guarded(self, fn: Handler) -> Handler:
@@ -120,9 +144,21 @@ class _Api:
 
     async def page(self, request: Request) -> Response:
         html = resources.files(__package__).joinpath("static", "index.html").read_text(encoding="utf-8")
-        return HTMLResponse(html, headers={"Content-Security-Policy": "default-src 'self'; "
-                                           "script-src 'unsafe-inline'; style-src 'unsafe-inline'; "
-                                           "connect-src 'self'", "X-Frame-Options": "DENY"})
+        return HTMLResponse(html, headers={"Content-Security-Policy": CSP, "X-Frame-Options": "DENY",
+                                           "Cache-Control": "no-store"})
+
+    async def asset(self, request: Request) -> Response:
+        """A file of the page (the same for every run, no token needed: it holds nothing of the run); the
+        Host and Origin checks still apply."""
+        name = request.path_params["name"]
+        why = self.guard.refusal(request, token=False)
+        if why is not None:
+            return _error(why, 403)
+        if name not in ASSETS:
+            return _error(f"no file {name!r}", 404)
+        data = resources.files(__package__).joinpath("static", name).read_bytes()
+        return Response(data, media_type=ASSETS[name], headers={"Cache-Control": "max-age=3600",
+                                                                "X-Content-Type-Options": "nosniff"})
 
     async def state(self, request: Request) -> Response:
         return _json(self.session.state())
@@ -146,16 +182,16 @@ class _Api:
             return
         await ws.accept()
         rows, sink = _client_queue(asyncio.get_running_loop())
-        await ws.send_text(json.dumps(clean({**self.session.header(), "state": self.session.state()})))
+        await ws.send_text(json.dumps(clean({**self.session.header(), "state": self.session.state()}), default=str))
         unsubscribe = self.session.subscribe(sink)
         try:
             while True:
                 msg = await rows.get()
                 if msg is None:
-                    await ws.send_text(json.dumps(clean({"type": "end", "state": self.session.state()})))
+                    await ws.send_text(json.dumps(clean({"type": "end", "state": self.session.state()}), default=str))
                     await ws.close()
                     break
-                await ws.send_text(json.dumps(msg))
+                await ws.send_text(json.dumps(msg if len(msg) == 2 else clean(msg), default=str))
         except (WebSocketDisconnect, RuntimeError):
             pass
         finally:
@@ -266,7 +302,7 @@ class LiveServer:
         host = f"[{self.host}]" if ":" in self.host else self.host
         return f"http://{host}:{self.port}/" + (f"?token={self.token}" if self.token else "")
 
-    def start(self, session: LiveSession) -> None:
+    def start(self, session: Source) -> None:
         import uvicorn
 
         config = uvicorn.Config(make_app(session, self.guard), log_level="warning", access_log=False,
