@@ -74,6 +74,7 @@ class LiveSession:
         self._stepping: Command | None = None      # that command, answered when they are done
         self._per_step = 0.0                       # [s] of wall time a step took in the last chunk
         self._published = -1                       # the step whose row was streamed last
+        self._last_row: list[float | None] | None = None   # ... and that row
         self._rate: deque[tuple[float, float]] = deque()   # (wall [s], time [s]) at the chunks' ends
         plan = ex.plan
         columns = plan.columns()
@@ -124,9 +125,10 @@ class LiveSession:
         return unsubscribe
 
     def header(self) -> dict[str, Any]:
-        """The stream's first message: the columns of the rows and their units, the event table so far."""
+        """The stream's first message: the columns of the rows and their units, the event table so far, the
+        row of the communication point last streamed (None before the first)."""
         return {"type": "columns", "columns": [v["name"] for v in self.variables],
-                "units": [v["unit"] for v in self.variables], "events": self.ex.events}
+                "units": [v["unit"] for v in self.variables], "events": self.ex.events, "row": self._last_row}
 
     # ------------------------------------------------------------------ the stepping thread
     def drive(self) -> None:
@@ -134,6 +136,7 @@ class LiveSession:
         result set) on return, also on a Ctrl-C (status interrupted) or a failure (status failed)."""
         ex = self.ex
         try:
+            self._publish()   # (the row of the start: what the stream's header gives a client of a paused run)
             while not ex.ended:
                 self._handle(block=self.paused and not self._steps_left)
                 if ex.ended:
@@ -262,6 +265,7 @@ class LiveSession:
             return
         self._published = k
         msg: dict[str, Any] = {"type": "row", "row": [_finite(x) for x in self.ex.last_row()]}   # (also after the end)
+        self._last_row = msg["row"]
         events = self.ex.events
         if len(events) > self._events_sent:   # the event table's new entries, as they happen
             msg["events"] = events[self._events_sent:]

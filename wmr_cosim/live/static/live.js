@@ -291,6 +291,7 @@
       if (msg.type === "columns") {
         if (msg.state && msg.state.xy) xy = msg.state.xy;
         setColumns(msg);
+        if (msg.row) addRow(msg.row);
         showState(msg.state);
         addEvents(msg.events || []);
       } else if (msg.type === "row" || msg.type === "rows") {
