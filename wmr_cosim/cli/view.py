@@ -6,7 +6,7 @@ from pathlib import Path
 from typing import Any
 
 from ..exit_codes import OK as EXIT_OK
-from .run import _host, _port
+from .run import host_arg, port_arg
 
 
 def add_parser(sub: Any, name: str) -> None:
@@ -19,8 +19,8 @@ def add_parser(sub: Any, name: str) -> None:
                                    "view: URL`) and serves until Ctrl-C (docs/live.md). Needs the live extra. Exit "
                                    "code 0, or 2 for a folder that is not a results folder or a port in use.")
     p.add_argument("results", type=Path, metavar="RESULTS", help="a results folder of `wmr-cosim run`")
-    p.add_argument("--port", type=_port, default=0, metavar="N", help="the port to serve on (default: a free one)")
-    p.add_argument("--host", type=_host, default="127.0.0.1", metavar="ADDRESS",
+    p.add_argument("--port", type=port_arg, default=0, metavar="N", help="the port to serve on (default: a free one)")
+    p.add_argument("--host", type=host_arg, default="127.0.0.1", metavar="ADDRESS",
                    help="the address to serve on (default 127.0.0.1; another interface requires the random token "
                         "printed in the address)")
     p.set_defaults(func=cmd_view, subparser=p)

@@ -9,7 +9,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..cosim import CosimError, ResultsError, read_json
+from ..cosim import CosimError, ResultsError, read_json, read_signals
 from .scene import finished_scene
 from .session import Refused
 
@@ -28,33 +28,46 @@ def _finite(x: float) -> float | None:
     return x if math.isfinite(x) else None
 
 
+def _read(folder: Path) -> tuple[Any, dict[str, Any], dict[str, Any]]:
+    """The recording, summary.json and scenario.json of a results folder; NotResults (one line naming the
+    folder or the file) where it is not one or a file of it cannot be read."""
+    if not folder.is_dir():
+        raise NotResults(f"{folder}: {'not a folder' if folder.exists() else 'no such folder'}")
+    if not (folder / "signals.npy").is_file():
+        raise NotResults(f"{folder}: no signals.npy (not a results folder of `wmr-cosim run`)")
+    shapes: dict[str, type | tuple[type, ...]] = {"columns": dict, "events": list, "requirements": list,
+                                                  "experiment": dict, "instances": dict}
+    try:
+        return (read_signals(folder / "signals.npy"), read_json(folder / "summary.json", shapes),
+                read_json(folder / "scenario.json", shapes))
+    except ResultsError as exc:
+        raise NotResults(str(exc)) from None
+
+
 class FinishedRun:
     """The results folder ``folder`` as a source of the live view's server (the interface of
     :class:`.session.LiveSession`); NotResults where it is not one."""
 
     def __init__(self, folder: str | Path) -> None:
-        from ..runs.plot import PlotError, read_results
-
         self.folder = Path(folder)
-        try:
-            res = read_results(self.folder)
-            summary = read_json(self.folder / "summary.json", {"columns": dict, "events": list})
-            scenario = read_json(self.folder / "scenario.json", {"experiment": dict, "instances": dict})
-        except (PlotError, ResultsError) as exc:
-            raise NotResults(str(exc)) from None
-        names = [c for c in res.columns if res.signals.dtype[c].shape == ()]
-        if not names or names[0] != "time":
-            raise NotResults(f"{self.folder}: signals.npy has no time column (not a results folder of `wmr-cosim run`)")
+        recording, summary, scenario = _read(self.folder)
+        signals = recording.signals
+        declared = summary.get("columns") or scenario.get("columns") or {}
+        unit_of = {n: (c.get("unit") if isinstance(c, dict) else None) for n, c in declared.items()}
+        fields = list(signals.dtype.names or ())
+        names = list(dict.fromkeys(["time"] + [n for n in [*unit_of, *fields] if n in fields and n != "time"
+                                               and signals.dtype[n].shape == () and signals.dtype[n].kind in "fiub"]))
         self.columns = names
-        self.units = [res.units.get(c) if c != "time" else "s" for c in names]
-        table = np.column_stack([np.asarray(res.signals[c], dtype=float) for c in names]) if len(res.signals) \
+        self.units = [unit_of.get(c) if c != "time" else "s" for c in names]
+        table = np.column_stack([np.asarray(signals[c], dtype=float) for c in names]) if len(signals) \
             else np.empty((0, len(names)))
         every = max(1, math.ceil(len(table) / MAX_ROWS))
         keep = list(range(0, len(table), every))
         if table.shape[0] and keep[-1] != len(table) - 1:
             keep.append(len(table) - 1)
         self.rows = [[_finite(float(x)) for x in table[k]] for k in keep]
-        self.events = list(res.events)
+        self.events = [e for e in summary.get("events") or [] if isinstance(e, dict)
+                       and isinstance(e.get("time"), (int, float)) and not isinstance(e.get("time"), bool)]
         exp = scenario.get("experiment") or {}
         t_end = float(table[-1, 0]) if len(table) else 0.0
         stop = exp.get("stop") if isinstance(exp.get("stop"), (int, float)) else t_end
@@ -65,9 +78,9 @@ class FinishedRun:
             "steps": summary.get("steps"), "n_steps": summary.get("n_steps"), "paused": True, "rate": 0.0,
             "real_time_factor": None, "status": str(summary.get("status", "unknown")),
             "message": str(summary.get("message", "")), "events": [e for e in self.events if e.get("source") == "live"],
-            "requirements": list(res.requirements.values()), "variables": [{"name": c, "unit": u} for c, u in
-                                                                          zip(names, self.units)],
-            "settable": [], "xy": finished_scene(scenario, self.events, units), "note": res.note}
+            "requirements": [r for r in summary.get("requirements") or [] if isinstance(r, dict) and "name" in r],
+            "variables": [{"name": c, "unit": u} for c, u in zip(names, self.units)],
+            "settable": [], "xy": finished_scene(scenario, self.events, units), "note": recording.note}
 
     def state(self) -> dict[str, Any]:
         return dict(self._state)

@@ -7,7 +7,7 @@ import threading
 from pathlib import Path
 from typing import Callable
 
-from .run import LiveError, LiveOptions, _announce, missing_libraries
+from .run import LiveError, LiveOptions, announce_url, missing_libraries
 
 
 def serve_results(folder: str | Path, options: LiveOptions, announce: Callable[[str], None] | None = None,
@@ -35,7 +35,7 @@ def serve_results(folder: str | Path, options: LiveOptions, announce: Callable[[
     done = until or threading.Event()
     try:
         server.start(source)
-        (announce or _announce)(server.url)
+        (announce or announce_url)(server.url)
         while not done.wait(0.2):
             pass
     except KeyboardInterrupt:
