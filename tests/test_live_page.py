@@ -3,7 +3,8 @@ executable path.  The page of a live G1 run (cut short) loads, its plots receive
 least 10 times a second, pause stops the time, a value set through the page's own control changes the
 recorded signal from that time and appears in the event table, the XY path and the goal are drawn, and
 ``wmr-cosim view`` shows a finished run; the page loads nothing from another host.  Each test saves a
-screenshot in its temporary folder (``LIVE_SCREENSHOTS=DIR`` also copies them there: docs/live.png is one)."""
+screenshot in its temporary folder (``LIVE_SCREENSHOTS=DIR`` also copies them there; docs/live.png is taken by
+docs/live_screenshot.py)."""
 from __future__ import annotations
 
 import json

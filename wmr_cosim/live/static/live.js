@@ -14,8 +14,10 @@
 
   let columns = [], units = [], data = [], shown = new Set(), settable = [], events = [], state = null;
   let charts = [], dirty = false, ended = false, xy = null, needCharts = false;
-  // what the tests and the benchmark read: rows received, plot redraws, the time of the last row
-  const stats = window.liveStats = {rows: 0, draws: 0, lastTime: null, xyPoints: 0, charts: 0};
+  // what the tests read: rows received, plot redraws, the time of the last row, the points of the path, the
+  // wall time of the last redraw [ms] and of the longest
+  const stats = window.liveStats = {rows: 0, draws: 0, lastTime: null, xyPoints: 0, charts: 0, redrawMs: 0,
+                                    maxRedrawMs: 0};
 
   const unitLabel = (u) => (u ? u : "no unit");
   const fmt = (x, d) => (x == null ? "-" : (Math.abs(x) >= 1e5 || (Math.abs(x) < 1e-3 && x !== 0)
@@ -218,10 +220,13 @@
 
   function redraw() {
     if (!dirty) return;
+    const t0 = performance.now();
     dirty = false;
     if (needCharts) buildCharts();
     for (const c of charts) c.setData([data[0]].concat(c.columns.map((i) => data[i])));
     drawXY();
+    stats.redrawMs = performance.now() - t0;
+    stats.maxRedrawMs = Math.max(stats.maxRedrawMs, stats.redrawMs);
   }
 
   // ---------------------------------------------------------------- the XY path
