@@ -15,6 +15,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import urllib.request
 from pathlib import Path
 from typing import Any, Callable
 
@@ -214,6 +215,11 @@ def test_a_value_set_through_the_page_acts_from_that_time_and_is_in_the_event_ta
         pg.page.click("#set")
         time.sleep(0.3)
         assert (pg.page.text_content("#error") or "") == ""
+        pg.page.fill("#steps", "10")
+        pg.page.click("#step")
+        _wait(lambda: pg.time() == 1.02, why="10 steps more")
+        with urllib.request.urlopen(url.rstrip("/") + "/api/state", timeout=30) as r:
+            assert json.loads(r.read())["xy"]["goals"] == [[3.0, 5.0]]   # the goal moved with the value set
         pg.page.select_option("#rate", "0")
         pg.page.click("#resume")
         _wait(lambda: " ok" in pg.status(), why="the end of the run")

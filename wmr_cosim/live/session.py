@@ -230,7 +230,6 @@ class LiveSession:
             self._per_step = 0.0
         elif cmd.kind == "set":
             self._set(str(a["variable"]), a["value"])
-            self._read_goals()
         else:
             raise Refused(f"unknown command {cmd.kind!r}")
         if cmd.kind != "set":
@@ -259,6 +258,10 @@ class LiveSession:
 
     def _publish(self) -> None:
         """The state updated and the row of this communication point handed to every subscriber."""
+        events = self.ex.events
+        new = events[self._events_sent:]
+        if new and self._goal_refs:   # (an event may have moved a goal)
+            self._read_goals()
         self._update_state()
         k = self.ex.k_done
         if k == self._published:
@@ -266,9 +269,8 @@ class LiveSession:
         self._published = k
         msg: dict[str, Any] = {"type": "row", "row": [_finite(x) for x in self.ex.last_row()]}   # (also after the end)
         self._last_row = msg["row"]
-        events = self.ex.events
-        if len(events) > self._events_sent:   # the event table's new entries, as they happen
-            msg["events"] = events[self._events_sent:]
+        if new:   # the event table's new entries, as they happen
+            msg["events"] = new
             self._events_sent = len(events)
         verdicts = self._state.get("requirements") or []
         if verdicts != self._verdicts:        # the requirements' verdicts, where they changed
@@ -302,8 +304,8 @@ class LiveSession:
             self._state = state
 
     def _read_goals(self) -> None:
-        """The task's goals [m] as the run has them now (a value set on one moves it: read again after each
-        set, never while the run steps)."""
+        """The task's goals [m] as the run has them now (an event setting one moves it: read again between
+        chunks when the event table has grown, never while the run steps)."""
         goals = []
         for gx, gy in self._goal_refs:
             try:
