@@ -70,6 +70,11 @@ NAME:
             looking 5 s ahead), each with *_overhead_us_per_step (medians of interleaved runs); and the
             monitor alone over the recorded signals: monitor_tracking_us_per_sample,
             monitor_look_ahead_us_per_sample.
+    live    what serving a run live costs (docs/live.md): G1 (25,000 steps, the analysis' recording, as fast as
+            possible) plain (no server), served live without a client, and served live with a client
+            consuming the WebSocket stream, interleaved, medians of the whole run's wall time (set-up and the
+            server's start and end included): plain_s, live_s, live_client_s, rows_received (by the client),
+            overhead = live_client_s / plain_s - 1 (target <= 0.10), overhead_no_client.
     loader  what the FMUs' Python loader (binaries/linux64/<model>.so forwarding to pythonfmu's binary) costs:
             the sensor FMU stepped 25,000 times (setReal + doStep + getReal through ctypes, as a master does)
             once through the loader and once through pythonfmu's binary loaded directly, in one process,
@@ -1190,6 +1195,56 @@ def bench_scripting(repeats: int) -> dict[str, float]:
     return out
 
 
+def bench_live(repeats: int) -> dict[str, Any]:
+    """A run served live (wmr_cosim.live) against the same run plain, as fast as possible (see the module's
+    docstring): interleaved plain, live without a client and live with a client reading the stream."""
+    import threading
+    import time as _time
+
+    from websockets.sync.client import connect
+
+    from wmr_cosim import Simulation
+    from wmr_cosim.cosim import run as cosim_run
+    from wmr_cosim.live import LiveOptions, run_live
+
+    root = __import__("pathlib").Path(__file__).resolve().parents[1]
+    sim = Simulation.load(root / "scenarios" / "g1_learn.toml")
+    sim.document["record"] = {"variables": ANALYSIS_RECORD, "csv": False}
+    plan = sim.check()
+    received: list[int] = []
+
+    def client(url: str) -> None:
+        """Read the stream to its end (started once the server listens)."""
+        def read() -> None:
+            n = 0
+            with connect(url.replace("http://", "ws://").rstrip("/") + "/api/stream", open_timeout=30) as ws:
+                while json.loads(ws.recv())["type"] != "end":
+                    n += 1
+            received.append(n)
+        threading.Thread(target=read, daemon=True).start()
+
+    def timed(fn: Any) -> float:
+        t0 = _time.perf_counter()
+        r = fn()
+        assert str(r.status) == "ok", r.message
+        return _time.perf_counter() - t0
+
+    kinds = {"plain": lambda: cosim_run(plan, None, progress=False),
+             "live": lambda: run_live(plan, None, LiveOptions(), announce=lambda url: None),
+             "live_client": lambda: run_live(plan, None, LiveOptions(), announce=client)}
+    walls: dict[str, list[float]] = {k: [] for k in kinds}
+    timed(kinds["plain"])   # (the FMUs built and cached, the loop compiled)
+    for _ in range(max(3, repeats)):
+        for k, fn in kinds.items():
+            walls[k].append(timed(fn))
+    med = {k: statistics.median(v) for k, v in walls.items()}
+    return {"steps": plan.n_steps, "repeats": max(3, repeats), "plain_s": round(med["plain"], 3),
+            "live_s": round(med["live"], 3), "live_client_s": round(med["live_client"], 3),
+            "rows_received": int(statistics.median(received)) if received else 0,
+            "overhead_no_client": round(med["live"] / med["plain"] - 1, 4),
+            "overhead": round(med["live_client"] / med["plain"] - 1, 4)}
+
+
 def bench_requirements(repeats: int) -> dict[str, Any]:
     """What monitoring requirements costs per step on G1 on foam (scenarios/g1_requirements.toml, 25,000
     steps, the analysis' recording), medians of interleaved runs through the Python API: without its
@@ -1453,7 +1508,7 @@ BENCHES = {"generic": bench_generic, "container": bench_container, "loop": bench
            "sweep": bench_sweep, "interop": bench_interop, "archive": bench_archive, "binary": bench_binary,
            "loader": bench_loader,
            "isolation": bench_isolation, "scripting": bench_scripting, "mutation": bench_mutation,
-           "requirements": bench_requirements,
+           "requirements": bench_requirements, "live": bench_live,
            "bugs": bench_bugs, "exit": bench_exit, "me": bench_me,
            "adaptive": bench_adaptive, "parallel": bench_parallel, "contract": bench_contract}
 

@@ -38,7 +38,7 @@ from wmr_cosim.cosim.stepping import settings, table as algorithms
 VALUE_KINDS: dict[str, dict[str, Any]] = {
     "top": {"base": "str", "replace": ("subset", tuple(document.EXTENDED)), "description": "str", "experiment": "table", "instances": "table",
             "connections": "table", "record": "table", "events": "table", "runs": "table",
-            "variants": "table", "inputs": "table", "limits": "table", "requirements": "table"},
+            "variants": "table", "inputs": "table", "limits": "table", "requirements": "table", "live": "table"},
     "experiment": {"start": "time", "stop": "time+", "step": "time+", "algorithm": ("enum", algorithms.NAMES),
                    "order": "refs", "tolerance": "num+", "max_steps": "count", "max_internal_steps": "count",
                    "iteration": "table", "adaptive": "table", "workers": "count"},
@@ -56,6 +56,7 @@ VALUE_KINDS: dict[str, dict[str, Any]] = {
     "requirement": {"name": "ident", "formula": "formula", "on_violation": ("enum", document.ON_VIOLATION),
                     "description": "str", "runs": "refs"},
     "run": {"name": "ident", "description": "str", "parameters": "table", "carry": "table"},
+    "live": {"xy": "refs"},
     "variant": {"description": "str", "parameters": "table"},
     "inputs": {"file": "str", "interpolation": "table"},
     "iteration": {"method": ("enum", settings.ITERATION_METHODS), "tolerance": "num+", "max_iterations": "count",
@@ -81,7 +82,8 @@ def code_key_tables() -> dict[str, set[str]]:
             "requirement": set(document._REQUIREMENT_KEYS), "run": set(document._RUN_KEYS),
             "variant": set(document._VARIANT_KEYS), "inputs": set(document._INPUTS_KEYS),
             "iteration": set(settings.ITERATION_KEYS), "adaptive": set(settings.ADAPTIVE_KEYS),
-            "sweep": set(sweep_file._KEYS), "metric": set(sweep_metrics._KEYS), "falsify": set(falsify._KEYS)}
+            "sweep": set(sweep_file._KEYS), "metric": set(sweep_metrics._KEYS), "falsify": set(falsify._KEYS),
+            "live": set(document._LIVE_KEYS)}
 
 
 def keys(table: str) -> dict[str, Any]:

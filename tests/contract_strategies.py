@@ -355,6 +355,9 @@ def scenario_docs(draw: Any, sysm: System, requirements: bool = False) -> dict[s
         # (event_rows: a lone model-exchange instance's only, which these systems of co-simulation are not)
         _optional(draw, "record", rec, sysm, skip=("max_bytes", "decimation", "event_rows"))
         doc["record"] = rec
+    recorded = doc.get("record", {}).get("variables") or outs
+    if draw(st.integers(0, 5)) == 0 and len(recorded) >= 2:   # the live view's path: two recorded outputs
+        doc["live"] = {"xy": draw(st.lists(st.sampled_from(recorded), min_size=2, max_size=2, unique=True))}
     tunable = sorted(f"{i}.{p}" for i, m in sysm.instances.items() for p in models[m].tunable)
     if draw(st.integers(0, 3)) == 0 and tunable and sysm.stop > sysm.step:
         ref = draw(st.sampled_from(tunable))
@@ -409,7 +412,8 @@ def table_of(path: tuple[Any, ...], kind: str = "scenario") -> str | None:
     pats = {(): "top", ("experiment",): "experiment", ("instances", "*"): "instance",
             ("connections", "#"): "connection", ("record",): "record", ("events", "#"): "event",
             ("requirements", "#"): "requirement", ("runs", "#"): "run", ("variants", "*"): "variant",
-            ("inputs",): "inputs", ("experiment", "iteration"): "iteration", ("experiment", "adaptive"): "adaptive"}
+            ("inputs",): "inputs", ("experiment", "iteration"): "iteration", ("experiment", "adaptive"): "adaptive",
+            ("live",): "live"}
     for pat, name in pats.items():
         if len(pat) == len(path) and all(p == q or (p == "*" and isinstance(q, str)) or (p == "#" and isinstance(q, int))
                                           for p, q in zip(pat, path)):
@@ -625,6 +629,28 @@ def live_option_cases(draw: Any) -> Case:
         why = this = f"{flag} without --live"
     return Case("cli-run-live", argv, {"s.toml": dumps(doc).encode()}, Expectation(True, (flag,), why, this),
                 "broken live option")
+
+
+#: What ``view`` is given that is not a results folder (a valid one would be served until Ctrl-C).
+NOT_RESULTS = {"no such folder": {}, "an empty folder": {"r/.keep": b""}, "a file": {"r": b"x"},
+               "no signals.npy": {"r/summary.json": b"{}", "r/scenario.json": b"{}"},
+               "signals.npy empty": {"r/signals.npy": b""}, "signals.npy not one": {"r/signals.npy": b"\x93NUMPY"}}
+
+
+@st.composite
+def view_cases(draw: Any) -> Case:
+    """``view`` of a folder that is not a results folder, or with a bad --port or --host: refused in one line
+    (exit 2), before anything listens."""
+    what = draw(st.sampled_from(sorted(NOT_RESULTS)))
+    argv = ["view", "r"]
+    words: tuple[str, ...] = ("r",)
+    flag = draw(st.sampled_from([None, "--port", "--host"]))
+    if flag is not None:
+        value = draw(st.sampled_from(BAD_LIVE_VALUES[flag]))
+        argv += [flag, value]
+        words, what = (flag,), f"{what}, {flag} {value!r}"
+    return Case("view-broken", argv, dict(NOT_RESULTS[what.split(",")[0]]),
+                Expectation(True, words, "not a results folder" if flag is None else f"a bad {flag}", what), what)
 
 
 @st.composite

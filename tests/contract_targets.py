@@ -46,6 +46,7 @@ TARGETS: dict[str, Target] = {
     "cli-check": Target(lambda: cs.command_line_cases("check", True), 25),
     "cli-run": Target(lambda: cs.command_line_cases("run", True), 10),
     "cli-run-live-broken": Target(cs.live_option_cases, 10),
+    "view-broken": Target(cs.view_cases, 10),
     "cli-linearize": Target(lambda: cs.linearize_cases(False), 5, timeout=60.0),
     "cli-linearize-broken": Target(lambda: cs.linearize_cases(True), 10, timeout=60.0),
     "sweep-broken": Target(lambda: cs.sweep_cases(True), 30),

@@ -256,3 +256,47 @@ def test_a_port_in_use_is_one_line_and_exit_2(work, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and f"--port {port}" in err[0] and "in use" in err[0], err
     assert not (work / "out").exists()
+
+
+@pytest.mark.parametrize("xy, words", [
+    ('["bb.h"]', ["live.xy", "two names"]),
+    ('["bb.h", "bb.h"]', ["live.xy", "two different names"]),
+    ('"bb.h"', ["live.xy", "two names"]),
+    ('["bb.h", "nope.v"]', ["live.xy[1]", "unknown instance 'nope'"]),
+    ('["bb.h", "bb.nope"]', ["live.xy[1]", "no variable 'nope'"]),
+])
+def test_live_xy_names_two_recorded_variables_else_check_says_so_in_one_line(work, capsys, xy, words):
+    (work / "s.toml").write_text(SCENARIO + f"[live]\nxy = {xy}\n")
+    code = main(["check", str(work / "s.toml")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and all(w in err[0] for w in words), err
+
+
+def test_live_xy_not_recorded_is_a_note_and_no_path(work, capsys):
+    """A base's [live] must not refuse a file that records less: the path is not drawn, check says why."""
+    from wmr_cosim import Simulation
+
+    (work / "s.toml").write_text(SCENARIO + '[live]\nxy = ["bb.h", "f.Float64_continuous_input"]\n')
+    assert main(["check", str(work / "s.toml")]) == 0
+    out = capsys.readouterr().out
+    assert "[live] xy: f.Float64_continuous_input is not recorded: the live view draws no path" in out, out
+    plan = Simulation.load(work / "s.toml").check()
+    assert plan.scenario.xy == []
+
+
+def test_live_xy_is_in_the_state_and_the_robots_scenarios_name_it(work):
+    from wmr_cosim.cosim import read_document
+
+    (work / "s.toml").write_text(SCENARIO + '[live]\nxy = ["bb.h", "bb.v"]\n')
+    assert main(["check", str(work / "s.toml")]) == 0
+    p, url = _start(work, "--paused")
+    try:
+        code, st = Client(url)("/api/state")
+        assert code == 200 and st["xy"] == {"x": "bb.h", "y": "bb.v", "units": ["m", "m/s"], "goals": []}
+        assert st["requirements"] == [] and st["mode"] == "live"
+        assert Client(url)("/api/stop", post=True)[0] == 200
+        assert _finish(p)[0] == 0
+    finally:
+        _finish(p)
+    for name in ("g1_learn.toml", "g1_requirements.toml", "example.toml", "paper/g1.toml", "paper/line.toml"):
+        assert read_document(ROOT / "scenarios" / name)["live"] == {"xy": ["plant.x_A", "plant.y_A"]}, name

@@ -291,6 +291,7 @@ def test_every_command_runs_its_smallest_case_from_the_installed_wheel(venv, tmp
     cli("falsify", "falsify.toml", "--out", "falsify", "--workers", "1", "--quiet")
     assert "eigenvalues" in cli("linearize", str(REF / "fmi2" / "VanDerPol.fmu"), "--at", "0", "--out", "lin")
     cli("paper", "--help")   # (the paper job itself: the test above)
+    cli("view", "--help")    # (it serves until Ctrl-C: tests/test_live_page.py)
     assert ran == set(COMMANDS)
     assert (work / "short.png").is_file() and (work / "short.ssp").is_file() and (work / "vdp3.fmu").is_file()
     assert (work / "sweep" / "results.csv").is_file() and (work / "falsify" / "falsify.json").is_file()

@@ -525,6 +525,7 @@ def _resolve(sc: Scenario) -> Plan:
     check_iteration(sc, insts, coupled)
     requirements = _requirements(sc, insts, notes)
     record, not_recorded = _record(sc, insts)
+    _live_xy(sc, insts, record, notes)
     _event_rows(sc, insts)
     inputs = _inputs(sc, insts, driven)
     start, stop, step = sc.times()
@@ -537,6 +538,21 @@ def _resolve(sc: Scenario) -> Plan:
                 [idle] if idle else [], feeds)
     _check_recording_size(plan)
     return plan
+
+
+def _live_xy(sc: Scenario, insts: dict[str, InstancePlan], record: list[RecordPlan], notes: list[str]) -> None:
+    """``[live] xy``: two variables of their FMUs (MissingVariableError otherwise); the live view draws their
+    path from the recorded columns, so where one is not recorded it draws none, and a note says so (a base's
+    ``[live]`` must not refuse a file that records less)."""
+    columns = {r.column for r in record}
+    for i, ref in enumerate(sc.xy):
+        inst, name = split_ref(sc.file, f"live.xy[{i}]", ref)
+        _element(sc.file, f"live.xy[{i}]", insts[inst], name)
+    missing = [ref for ref in sc.xy if ref not in columns]
+    if missing:
+        notes.append(f"[live] xy: {' and '.join(missing)} {'is' if len(missing) == 1 else 'are'} not recorded: the "
+                     "live view draws no path (record.variables names what is recorded)")
+        sc.xy = []
 
 
 @dataclasses.dataclass
@@ -602,6 +618,8 @@ def missing_variables(sc: Scenario, more: dict[str, str] | None = None) -> dict[
     for r in sc.requirements:
         for ref in formula_variables(r.node):
             look(f"requirements[{r.index}].formula", ref)
+    for i, ref in enumerate(sc.xy):
+        look(f"live.xy[{i}]", ref)
     for fld, ref in (more or {}).items():
         look(fld, ref)
     return found

@@ -552,6 +552,16 @@ class Execution:
         if failed:
             raise failed[0]
 
+    def verdicts(self) -> list[dict[str, Any]]:
+        """The requirements' verdicts so far, as their online monitors have them at the current communication
+        point (name, formula, verdict, robustness in the unit of the comparison, at [s], first_violation
+        [s], decided_at [s], window [s], on_violation, description, unit); after the end, the run's (as
+        summary.json has them).  [] for a run without requirements."""
+        if self.result is not None:
+            return list(self.result.requirements or [])
+        monitors = self._requirements
+        return monitors.so_far() if monitors is not None else []
+
     @property
     def events(self) -> list[dict[str, Any]]:
         """The event log so far: time, event, action, ..."""

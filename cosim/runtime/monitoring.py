@@ -41,6 +41,17 @@ class RequirementMonitors(Manipulator):
                         f"{rob})", RunStatus.VIOLATED)
                 return
 
+    def so_far(self) -> list[dict[str, Any]]:
+        """Each requirement's verdict as its monitor has it at the last communication point sampled (what
+        :meth:`finish` gives at the end, before the run has ended: an ``always`` not yet violated is
+        undecided, its robustness the lowest value judged so far, in the unit of its comparison)."""
+        out = []
+        for r, m in zip(self.requirements, self.monitors):
+            unit = sorted(set(r.checked.unit_of.values()) - {""})
+            out.append({**m.verdict.as_dict(), "on_violation": r.on_violation, "description": r.description,
+                        "unit": str(unit[0]) if len(unit) == 1 else None})
+        return out
+
     def finish(self, status: RunStatus) -> list[dict[str, Any]]:
         """The verdicts of the run that ended with ``status`` (summary.json's ``requirements``): each monitor
         told the run has ended, and whether it reached its planned stop (status ok: an unbounded ``always``

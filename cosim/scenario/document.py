@@ -33,7 +33,7 @@ INTERFACES = (CO_SIMULATION, MODEL_EXCHANGE)
 SOLVER_KEYS = ("solver", "max_step", "event_tolerance")
 
 _TOP_KEYS = {"base", "replace", "description", "experiment", "instances", "connections", "record", "events", "runs",
-             "variants", "inputs", "limits", "requirements"}
+             "variants", "inputs", "limits", "requirements", "live"}
 _INPUTS_KEYS = {"file", "interpolation"}
 _EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps", "max_internal_steps",
                     *(t.name for t in algorithms.TABLES), "workers"}
@@ -45,6 +45,7 @@ _RUN_KEYS = {"name", "description", "parameters", "carry"}
 _VARIANT_KEYS = {"description", "parameters"}
 _EVENT_KEYS = {"time", "when", "trigger", "delay", "variable", "action", "value"}
 _REQUIREMENT_KEYS = {"name", "formula", "on_violation", "description", "runs"}
+_LIVE_KEYS = {"xy"}
 #: What a requirement's violation does: recorded in the results, or the run stopped at once.
 ON_VIOLATION = ("record", "stop")
 
@@ -169,6 +170,7 @@ class Scenario:
     archive_limits: ArchiveLimits = DEFAULT_LIMITS      # how far its FMU and SSP archives may unpack ([limits])
     notes: list[str] = field(default_factory=list)      # what check and run print of it (a table not read)
     tools_choice: set[str] = field(default_factory=set)  # fields given as 0, "the tool's choice" (TOOLS_CHOICE)
+    xy: list[str] = field(default_factory=list)   # [live] xy: the two recorded outputs of a position [m] (x, y)
 
     @property
     def iteration(self) -> IterationSpec | None:
@@ -550,6 +552,7 @@ def parse(doc: dict[str, Any], file: str, resolver=None, limits: LimitOverrides 
     _parse_inputs(sc, doc)
     _parse_events(sc, doc)
     _parse_requirements(sc, doc)
+    _parse_live(sc, doc)
     return sc
 
 
@@ -730,6 +733,25 @@ def _parse_record(sc: Scenario, doc: dict[str, Any]) -> None:
     sc.event_rows = _flag(file, "record.event_rows", rec.get("event_rows", False))
     if "max_bytes" in rec:
         sc.max_bytes = _count(file, "record.max_bytes", rec["max_bytes"])
+
+
+def _parse_live(sc: Scenario, doc: dict[str, Any]) -> None:
+    """[live]: what the live view draws beyond the time plots; ``xy``, the two outputs of a position
+    ("instance.variable", x then y) drawn as a path (the resolution checks that both are recorded)."""
+    file = sc.file
+    live = _table(file, "live", doc.get("live"))
+    _keys(file, "live", live, _LIVE_KEYS)
+    if "xy" in live:
+        xy = live["xy"]
+        if not isinstance(xy, list) or len(xy) != 2 or not all(isinstance(v, str) for v in xy):
+            raise ScenarioError(file, "live.xy", f"{xy!r}: must be two names, [\"instance.x\", \"instance.y\"]")
+        for i, ref in enumerate(xy):
+            inst, _ = split_ref(file, f"live.xy[{i}]", ref)
+            if inst not in sc.instances:
+                raise ScenarioError(file, f"live.xy[{i}]", f"unknown instance {inst!r}")
+        if xy[0] == xy[1]:
+            raise ScenarioError(file, "live.xy", f"{xy!r}: must be two different names")
+        sc.xy = list(xy)
 
 
 def _parse_runs(sc: Scenario, doc: dict[str, Any]) -> None:

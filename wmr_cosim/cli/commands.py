@@ -7,7 +7,7 @@ from __future__ import annotations
 from types import ModuleType
 
 from . import (build, check, direct, export_fmu, export_ssp, falsify, gamma_search, info, linearize, paper, plot, run,
-               sweep)
+               sweep, view)
 
 COMMANDS: dict[str, ModuleType] = {
     "direct": direct,
@@ -15,6 +15,7 @@ COMMANDS: dict[str, ModuleType] = {
     "run": run,
     "check": check,
     "plot": plot,
+    "view": view,
     "export-ssp": export_ssp,
     "export-fmu": export_fmu,
     "info": info,

@@ -50,15 +50,15 @@ def live_options(r: argparse.ArgumentParser) -> None:
                    help="serve the run while it goes: an HTTP and WebSocket API (and a page) to watch it, pause, "
                         "step, pace it and set values that replay exactly (docs/live.md); prints its address "
                         "on stderr; needs the live extra")
-    r.add_argument("--port", type=_port, default=None, metavar="N",
+    r.add_argument("--port", type=port_arg, default=None, metavar="N",
                    help="with --live: the port to serve on (default: a free one)")
-    r.add_argument("--host", type=_host, default=None, metavar="ADDRESS",
+    r.add_argument("--host", type=host_arg, default=None, metavar="ADDRESS",
                    help="with --live: the address to serve on (default 127.0.0.1; another interface requires the "
                         "random token printed in the address)")
     r.add_argument("--paused", action="store_true", help="with --live: start paused (at the start time)")
 
 
-def _port(text: str) -> int:
+def port_arg(text: str) -> int:
     """--port N: a port number 0 (any free port) to 65535."""
     try:
         n = int(text)
@@ -69,7 +69,7 @@ def _port(text: str) -> int:
     return n
 
 
-def _host(text: str) -> str:
+def host_arg(text: str) -> str:
     """--host ADDRESS: an IPv4 or IPv6 address of this machine's interfaces (or localhost)."""
     import ipaddress
 

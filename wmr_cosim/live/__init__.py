@@ -10,4 +10,5 @@ import lazy_loader
 
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "run": ["LiveError", "LiveOptions", "missing_libraries", "replay_document", "run_live"],
+    "view": ["serve_results"],
 })

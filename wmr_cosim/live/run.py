@@ -95,7 +95,7 @@ def run_live(plan: Plan, out: str | Path | None, options: LiveOptions, real_time
             return ex.close()   # the run has ended: its status and message say how
         session = LiveSession(ex, paused=options.paused, factor=real_time)
         server.start(session)
-        (announce or _announce)(server.url)
+        (announce or announce_url)(server.url)
         try:
             session.drive()
         finally:
@@ -108,5 +108,5 @@ def run_live(plan: Plan, out: str | Path | None, options: LiveOptions, real_time
     return result
 
 
-def _announce(url: str) -> None:
+def announce_url(url: str) -> None:
     print(f"live view: {url}", file=sys.stderr, flush=True)

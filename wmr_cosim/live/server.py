@@ -18,8 +18,9 @@ import math
 import os
 import socket
 import threading
+import time
 from importlib import resources
-from typing import Any, Awaitable, Callable
+from typing import Any, Awaitable, Callable, Protocol
 
 from starlette.applications import Starlette
 from starlette.requests import HTTPConnection, Request
@@ -27,7 +28,29 @@ from starlette.responses import HTMLResponse, Response
 from starlette.routing import Route, WebSocketRoute
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from .session import LiveSession, Refused
+from .session import Refused
+
+#: The files of the page beside index.html (static/; served at /static/NAME): its script, the chart library
+#: (uPlot, MIT licence, vendored with its licence) and its style sheet.  Nothing comes from another host.
+ASSETS = {"live.js": "text/javascript", "uPlot.iife.min.js": "text/javascript", "uPlot.min.css": "text/css",
+          "uPlot.LICENSE": "text/plain"}
+
+#: What the page may load: its own files only (its script and styles; the API and the stream on its host).
+CSP = ("default-src 'none'; script-src 'self'; style-src 'self' 'unsafe-inline'; img-src 'self' data:; "
+       "connect-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'")
+
+
+class Source(Protocol):
+    """What the server serves: a live run (:class:`.session.LiveSession`) or a finished one
+    (:class:`.finished.FinishedRun`)."""
+
+    def state(self) -> dict[str, Any]: ...
+
+    def submit(self, kind: str, **args: Any) -> Any: ...
+
+    def subscribe(self, sink: Callable[[dict[str, Any] | None], None]) -> Callable[[], None]: ...
+
+    def header(self) -> dict[str, Any]: ...
 
 
 def clean(obj: Any) -> Any:
@@ -66,9 +89,10 @@ class Guard:
         if is_loopback(host):
             self.hosts = {f"{h}:{port}" for h in ("127.0.0.1", "localhost", "[::1]")}
 
-    def refusal(self, conn: HTTPConnection) -> str | None:
-        """Why the request is refused (403), or None."""
-        if self.token is not None:
+    def refusal(self, conn: HTTPConnection, token: bool = True) -> str | None:
+        """Why the request is refused (403), or None (``token``: the request needs the token, where one is
+        required)."""
+        if self.token is not None and token:
             given = conn.query_params.get("token")
             auth = conn.headers.get("authorization", "")
             if given is None and auth.lower().startswith("bearer "):
@@ -84,11 +108,12 @@ class Guard:
         return None
 
 
-def make_app(session: LiveSession, guard: Guard) -> Starlette:
-    """The application: the page, the state, the commands, the stream of rows."""
+def make_app(session: Source, guard: Guard) -> Starlette:
+    """The application: the page (and its files), the state, the commands, the stream of rows."""
     api = _Api(session, guard)
     return Starlette(routes=[
         Route("/", api.guarded(api.page)),
+        Route("/static/{name}", api.asset),
         Route("/api/state", api.guarded(api.state)),
         Route("/api/pause", api.command("pause", no_args), methods=["POST"]),
         Route("/api/resume", api.command("resume", no_args), methods=["POST"]),
@@ -106,7 +131,7 @@ Handler = Callable[[Request], Awaitable[Response]]
 class _Api:
     """The handlers of :func:`make_app` over one session."""
 
-    def __init__(self, session: LiveSession, guard: Guard) -> None:
+    def __init__(self, session: Source, guard: Guard) -> None:
         self.session, self.guard = session, guard
 
     def guarded(self, fn: Handler) -> Handler:
@@ -120,9 +145,21 @@ class _Api:
 
     async def page(self, request: Request) -> Response:
         html = resources.files(__package__).joinpath("static", "index.html").read_text(encoding="utf-8")
-        return HTMLResponse(html, headers={"Content-Security-Policy": "default-src 'self'; "
-                                           "script-src 'unsafe-inline'; style-src 'unsafe-inline'; "
-                                           "connect-src 'self'", "X-Frame-Options": "DENY"})
+        return HTMLResponse(html, headers={"Content-Security-Policy": CSP, "X-Frame-Options": "DENY",
+                                           "Cache-Control": "no-store"})
+
+    async def asset(self, request: Request) -> Response:
+        """A file of the page (the same for every run, no token needed: it holds nothing of the run); the
+        Host and Origin checks still apply."""
+        name = request.path_params["name"]
+        why = self.guard.refusal(request, token=False)
+        if why is not None:
+            return _error(why, 403)
+        if name not in ASSETS:
+            return _error(f"no file {name!r}", 404)
+        data = resources.files(__package__).joinpath("static", name).read_bytes()
+        return Response(data, media_type=ASSETS[name], headers={"Cache-Control": "max-age=3600",
+                                                                "X-Content-Type-Options": "nosniff"})
 
     async def state(self, request: Request) -> Response:
         return _json(self.session.state())
@@ -146,16 +183,16 @@ class _Api:
             return
         await ws.accept()
         rows, sink = _client_queue(asyncio.get_running_loop())
-        await ws.send_text(json.dumps(clean({**self.session.header(), "state": self.session.state()})))
+        await ws.send_text(json.dumps(clean({**self.session.header(), "state": self.session.state()}), default=str))
         unsubscribe = self.session.subscribe(sink)
         try:
             while True:
                 msg = await rows.get()
                 if msg is None:
-                    await ws.send_text(json.dumps(clean({"type": "end", "state": self.session.state()})))
+                    await ws.send_text(json.dumps(clean({"type": "end", "state": self.session.state()}), default=str))
                     await ws.close()
                     break
-                await ws.send_text(json.dumps(msg))
+                await ws.send_text(json.dumps(msg if len(msg) == 2 else clean(msg), default=str))
         except (WebSocketDisconnect, RuntimeError):
             pass
         finally:
@@ -266,22 +303,80 @@ class LiveServer:
         host = f"[{self.host}]" if ":" in self.host else self.host
         return f"http://{host}:{self.port}/" + (f"?token={self.token}" if self.token else "")
 
-    def start(self, session: LiveSession) -> None:
+    def start(self, session: Source) -> None:
+        """Serve ``session`` in a thread; returns once the server has started (its start-up, a few tens of
+        milliseconds of imports and set-up, then does not compete with the run's first steps)."""
         import uvicorn
 
         config = uvicorn.Config(make_app(session, self.guard), log_level="warning", access_log=False,
                                 lifespan="off", ws="websockets-sansio", timeout_graceful_shutdown=2)
-        self._server = uvicorn.Server(config)
+        self._server = _server_class()(config)
         self._thread = threading.Thread(target=self._server.run, kwargs={"sockets": [self.sock]},
                                         name="wmr-cosim live view", daemon=True)
         self._thread.start()
+        deadline = time.monotonic() + 10.0
+        while not self._server.started and self._thread.is_alive() and time.monotonic() < deadline:
+            time.sleep(0.002)
 
     def close(self) -> None:
         """Stop serving (the clients' connections closed) and wait for the thread; the socket closed."""
         if self._thread is not None and self._server is not None:
-            self._server.should_exit = True
+            self._server.stop()
             self._thread.join(5.0)
             if self._thread.is_alive():
                 self._server.force_exit = True
                 self._thread.join(5.0)
         self.sock.close()
+
+
+def _server_class() -> Any:
+    """uvicorn's Server, stopped at once: its own main loop looks whether to stop every 0.1 s, which would add
+    that much to the end of every live run; this one is woken by :meth:`stop`."""
+    import uvicorn
+
+    class WokenServer(uvicorn.Server):
+        _loop: asyncio.AbstractEventLoop | None = None
+        _wake: asyncio.Event | None = None
+
+        async def main_loop(self) -> None:
+            self._loop, self._wake = asyncio.get_running_loop(), asyncio.Event()
+            counter = 0
+            while not await self.on_tick(counter):   # (on_tick: the date header, should_exit)
+                counter = (counter + 1) % 864000
+                try:
+                    await asyncio.wait_for(self._wake.wait(), 0.1)
+                except asyncio.TimeoutError:
+                    pass
+
+        async def shutdown(self, sockets: list[socket.socket] | None = None) -> None:
+            """uvicorn's shutdown (stop accepting, ask each connection to close, wait for them and their
+            tasks up to the graceful timeout, then cancel what is left) looking every 5 ms, not every 0.1 s."""
+            for server in self.servers:
+                server.close()
+            for sock in sockets or []:
+                sock.close()
+            state = self.server_state
+            for connection in list(state.connections):
+                connection.shutdown()
+            loop = asyncio.get_running_loop()
+            deadline = loop.time() + float(self.config.timeout_graceful_shutdown or 2.0)
+            while (state.connections or state.tasks) and not self.force_exit and loop.time() < deadline:
+                await asyncio.sleep(0.005)
+            for t in list(state.tasks):
+                t.cancel()
+            for server in self.servers:
+                await server.wait_closed()
+            if not self.force_exit:
+                await self.lifespan.shutdown()
+
+        def stop(self) -> None:
+            """Stop serving (from another thread)."""
+            self.should_exit = True
+            loop, wake = self._loop, self._wake
+            if loop is not None and wake is not None:
+                try:
+                    loop.call_soon_threadsafe(wake.set)
+                except RuntimeError:   # the loop has closed
+                    pass
+
+    return WokenServer

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from ..cosim import CosimError, Execution, RunStatus, ScenarioError
+from .scene import goal_refs, xy_of
 
 #: The wall time [s] of one chunk of steps: the state and the stream are updated this often (20 per second).
 FRAME_S = 0.05
@@ -73,11 +74,18 @@ class LiveSession:
         self._stepping: Command | None = None      # that command, answered when they are done
         self._per_step = 0.0                       # [s] of wall time a step took in the last chunk
         self._published = -1                       # the step whose row was streamed last
+        self._last_row: list[float | None] | None = None   # ... and that row
         self._rate: deque[tuple[float, float]] = deque()   # (wall [s], time [s]) at the chunks' ends
         plan = ex.plan
         columns = plan.columns()
         self.variables = [{"name": c, "unit": columns.get(c, {}).get("unit")} for c in ex.columns]
         self.settable = _settable(plan)
+        self.xy = xy_of(plan)                      # [live] xy and the task's goals (None: no path drawn)
+        self._goal_refs = goal_refs(plan) if self.xy is not None else []
+        self._goals: list[list[float]] = []
+        self._read_goals()
+        self._events_sent = len(ex.events)        # the event table's entries streamed so far
+        self._verdicts: list[dict[str, Any]] = []  # the requirements' verdicts as last streamed
         self._state: dict[str, Any] = {}
         self._ended = False
         if factor is not None:
@@ -117,9 +125,10 @@ class LiveSession:
         return unsubscribe
 
     def header(self) -> dict[str, Any]:
-        """The stream's first message: the columns of the rows and their units."""
+        """The stream's first message: the columns of the rows and their units, the event table so far, the
+        row of the communication point last streamed (None before the first)."""
         return {"type": "columns", "columns": [v["name"] for v in self.variables],
-                "units": [v["unit"] for v in self.variables]}
+                "units": [v["unit"] for v in self.variables], "events": self.ex.events, "row": self._last_row}
 
     # ------------------------------------------------------------------ the stepping thread
     def drive(self) -> None:
@@ -127,6 +136,7 @@ class LiveSession:
         result set) on return, also on a Ctrl-C (status interrupted) or a failure (status failed)."""
         ex = self.ex
         try:
+            self._publish()   # (the row of the start: what the stream's header gives a client of a paused run)
             while not ex.ended:
                 self._handle(block=self.paused and not self._steps_left)
                 if ex.ended:
@@ -248,12 +258,24 @@ class LiveSession:
 
     def _publish(self) -> None:
         """The state updated and the row of this communication point handed to every subscriber."""
+        events = self.ex.events
+        new = events[self._events_sent:]
+        if new and self._goal_refs:   # (an event may have moved a goal)
+            self._read_goals()
         self._update_state()
         k = self.ex.k_done
         if k == self._published:
             return
         self._published = k
-        msg = {"type": "row", "row": [_finite(x) for x in self.ex.last_row()]}   # (the last one too, after the end)
+        msg: dict[str, Any] = {"type": "row", "row": [_finite(x) for x in self.ex.last_row()]}   # (also after the end)
+        self._last_row = msg["row"]
+        if new:   # the event table's new entries, as they happen
+            msg["events"] = new
+            self._events_sent = len(events)
+        verdicts = self._state.get("requirements") or []
+        if verdicts != self._verdicts:        # the requirements' verdicts, where they changed
+            msg["requirements"] = verdicts
+            self._verdicts = verdicts
         with self._lock:
             sinks = list(self._sinks)
         for sink in sinks:
@@ -275,9 +297,22 @@ class LiveSession:
                  "rate": self.factor or 0.0, "real_time_factor": achieved,
                  "status": "running" if r is None else str(r.status), "message": "" if r is None else r.message,
                  "events": [e for e in ex.events if e.get("source") == "live"],
-                 "variables": self.variables, "settable": self.settable}
+                 "requirements": ex.verdicts(), "mode": "live",
+                 "variables": self.variables, "settable": self.settable,
+                 "xy": None if self.xy is None else {**self.xy, "goals": self._goals}}
         with self._lock:
             self._state = state
+
+    def _read_goals(self) -> None:
+        """The task's goals [m] as the run has them now (an event setting one moves it: read again between
+        chunks when the event table has grown, never while the run steps)."""
+        goals = []
+        for gx, gy in self._goal_refs:
+            try:
+                goals.append([float(self.ex.get(gx)), float(self.ex.get(gy))])
+            except (CosimError, TypeError, ValueError):
+                return   # (the run has ended: the goals as last read)
+        self._goals = goals
 
     def _ended_reason(self) -> str:
         r = self.ex.result
@@ -314,7 +349,8 @@ def _settable(plan: Any) -> list[dict[str, Any]]:
                                                                 and var.variability == "tunable")):
                 continue
             start = var.start
+            unit = var.unit
             out.append({"name": f"{name}.{ip.our_name(var)}", "causality": var.causality, "type": var.type,
-                        "unit": var.unit, "start": start if isinstance(start, (int, float, str, bool)) else None,
+                        "unit": getattr(unit, "name", unit), "start": start if isinstance(start, (int, float, str, bool)) else None,
                         "min": var.min, "max": var.max})
     return out
