@@ -605,7 +605,7 @@ def option_values(draw: Any, opt: schema.Option, broken: bool) -> list[str]:
 #: (--real-time paces to the wall clock, --isolate starts child processes, --live serves the run and waits for
 #: its clients with --paused: they have their own tests, and live_option_cases their bad values).
 SLOW_OPTIONS = {"--real-time", "--isolate", "--show", "--dashboard", "--scheduler", "--live", "--port", "--host",
-                "--paused"}
+                "--paused", "--open"}
 
 #: Bad values of run --live's --port and --host.
 BAD_LIVE_VALUES = {"--port": ["-1", "65536", str(2 ** 32), "1.5", "x", "", "80 81"],
@@ -614,13 +614,13 @@ BAD_LIVE_VALUES = {"--port": ["-1", "65536", str(2 ** 32), "1.5", "x", "", "80 8
 
 @st.composite
 def live_option_cases(draw: Any) -> Case:
-    """``run --live`` with a bad --port or --host, or --port, --host or --paused without --live: refused
+    """``run --live`` with a bad --port or --host, or --port, --host, --paused or --open without --live: refused
     before anything runs or listens, in one line naming the option."""
     sysm = draw(systems())
     doc = draw(scenario_docs(sysm))
     argv = _base_argv(draw, "run", "s.toml")
-    flag = draw(st.sampled_from(["--port", "--host", "--paused"]))
-    if flag != "--paused" and draw(st.booleans()):
+    flag = draw(st.sampled_from(["--port", "--host", "--paused", "--open"]))
+    if flag in BAD_LIVE_VALUES and draw(st.booleans()):
         value = draw(st.sampled_from(BAD_LIVE_VALUES[flag]))
         argv += ["--live", flag, value]
         why, this = f"a bad {flag}", f"{flag} {value!r}"

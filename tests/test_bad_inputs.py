@@ -198,6 +198,7 @@ def test_bad_command_line(argv, words, sandbox, capsys):
     (["run", "{good}", "--port", "8000"], ["--port goes with --live"]),
     (["run", "{good}", "--host", "0.0.0.0"], ["--host goes with --live"]),
     (["run", "{good}", "--paused"], ["--paused goes with --live"]),
+    (["run", "{good}", "--open"], ["--open goes with --live"]),
     (["run", "{protocol}", "--live"], ["--live serves a single run", "a protocol of 2 runs"]),
     (["check", "{good}", "--live"], ["unrecognized arguments: --live"]),
     (["sweep", "{good}", "--live"], ["unrecognized arguments: --live"]),

@@ -300,3 +300,18 @@ def test_live_xy_is_in_the_state_and_the_robots_scenarios_name_it(work):
         _finish(p)
     for name in ("g1_learn.toml", "g1_requirements.toml", "example.toml", "paper/g1.toml", "paper/line.toml"):
         assert read_document(ROOT / "scenarios" / name)["live"] == {"xy": ["plant.x_A", "plant.y_A"]}, name
+
+
+@pytest.mark.parametrize("browser", [True, False])
+def test_open_gives_the_page_to_the_browser_or_says_it_cannot(work, capsys, monkeypatch, browser):
+    """--open hands the page's address (the one printed) to the default browser once the server listens;
+    where no browser can be started, one note says so and the run goes on."""
+    import webbrowser
+
+    opened: list[str] = []
+    monkeypatch.setattr(webbrowser, "open", lambda url, *a, **k: opened.append(url) or browser)
+    assert main(["run", str(work / "s.toml"), "--out", str(work / "out"), "--quiet", "--live", "--open"]) == 0
+    err = capsys.readouterr().err
+    address = next(ln for ln in err.splitlines() if ln.startswith("live view: http"))
+    assert opened == [address.split(": ", 1)[1]]
+    assert ("no web browser could be opened" in err) is (not browser)

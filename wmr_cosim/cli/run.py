@@ -45,7 +45,7 @@ def add_parser(sub: Any, name: str) -> None:
 
 
 def live_options(r: argparse.ArgumentParser) -> None:
-    """--live and what goes with it (--port, --host, --paused)."""
+    """--live and what goes with it (--port, --host, --paused, --open)."""
     r.add_argument("--live", action="store_true",
                    help="serve the run while it goes: an HTTP and WebSocket API (and a page) to watch it, pause, "
                         "step, pace it and set values that replay exactly (docs/live.md); prints its address "
@@ -56,6 +56,7 @@ def live_options(r: argparse.ArgumentParser) -> None:
                    help="with --live: the address to serve on (default 127.0.0.1; another interface requires the "
                         "random token printed in the address)")
     r.add_argument("--paused", action="store_true", help="with --live: start paused (at the start time)")
+    r.add_argument("--open", action="store_true", help="with --live: open the page in the default web browser")
 
 
 def port_arg(text: str) -> int:
@@ -84,10 +85,11 @@ def host_arg(text: str) -> str:
 
 def live_request(args: argparse.Namespace, parsed: Any) -> Any:
     """The :class:`wmr_cosim.live.LiveOptions` of ``run --live`` (None without it); UsageError for
-    --port, --host or --paused without --live, --live of a protocol, or where the live extra is missing."""
+    --port, --host, --paused or --open without --live, --live of a protocol, or where the live extra is
+    missing."""
     if not getattr(args, "live", False):
         given = [f for f, v in (("--port", args.port), ("--host", args.host)) if v is not None] + \
-            (["--paused"] if args.paused else [])
+            (["--paused"] if args.paused else []) + (["--open"] if args.open else [])
         if given:
             raise UsageError(f"{given[0]} goes with --live (it serves the run)")
         return None
@@ -99,7 +101,7 @@ def live_request(args: argparse.Namespace, parsed: Any) -> Any:
     missing = missing_libraries()
     if missing:
         raise UsageError(f"--live needs {', '.join(missing)} (the live extra): pip install 'wmr-cosim[live]'")
-    return LiveOptions(host=args.host or "127.0.0.1", port=args.port or 0, paused=args.paused)
+    return LiveOptions(host=args.host or "127.0.0.1", port=args.port or 0, paused=args.paused, open=args.open)
 
 
 def format_overrides(args: argparse.Namespace) -> dict[str, Any]:

@@ -25,11 +25,13 @@ class LiveError(CosimError):
 @dataclass(frozen=True)
 class LiveOptions:
     """How a run is served: ``host`` (an address; 127.0.0.1 by default, another interface requires a
-    token), ``port`` (0: a free one), ``paused`` (the run starts paused)."""
+    token), ``port`` (0: a free one), ``paused`` (the run starts paused), ``open`` (the page opened in the
+    default web browser once the server listens)."""
 
     host: str = "127.0.0.1"
     port: int = 0
     paused: bool = False
+    open: bool = False
 
 
 def missing_libraries() -> list[str]:
@@ -96,6 +98,8 @@ def run_live(plan: Plan, out: str | Path | None, options: LiveOptions, real_time
         session = LiveSession(ex, paused=options.paused, factor=real_time)
         server.start(session)
         (announce or announce_url)(server.url)
+        if options.open:
+            open_page(server.url)
         try:
             session.drive()
         finally:
@@ -106,6 +110,20 @@ def run_live(plan: Plan, out: str | Path | None, options: LiveOptions, real_time
     if result.out_dir is not None:
         write_replay(Path(result.out_dir), plan, session.given)
     return result
+
+
+def open_page(url: str) -> None:
+    """The page at ``url`` in the default web browser (Python's webbrowser); where none can be started, a
+    note on stderr (the address is printed already)."""
+    import webbrowser
+
+    try:
+        opened = webbrowser.open(url)
+    except webbrowser.Error:
+        opened = False
+    if not opened:
+        print("live view: note: no web browser could be opened here; open the address above", file=sys.stderr,
+              flush=True)
 
 
 def announce_url(url: str) -> None:
