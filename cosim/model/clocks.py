@@ -85,7 +85,7 @@ def clocks_of(xml: bytes) -> list[Clock]:
     return out
 
 
-def grid_multiple(value: float | str, step: float) -> int | None:
+def grid_multiple(value: float | str | Fraction, step: float) -> int | None:
     """``value`` [s] as a whole number of master steps ``step`` [s] (exactly, in decimal: 0.002 is 2 steps
     of 0.001), else None."""
     q = Fraction(str(value)) / Fraction(str(step))

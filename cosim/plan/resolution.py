@@ -944,9 +944,9 @@ def _scheduled(sc: Scenario, insts: dict[str, InstancePlan], conns: list[Connect
             if getattr(ip.spec, key):
                 raise ScenarioError(sc.file, f"{fld}.{key}", "not supported for a scheduled execution instance "
                                                              "(its partitions run in the master's process, on its grid)")
-        for c in conns:
-            if name in (c.src, c.dst):
-                raise ScenarioError(sc.file, "connections", f"{c.src}.{c.src_var.name} -> {c.dst}.{c.dst_var.name}: "
+        for cp in conns:
+            if name in (cp.src, cp.dst):
+                raise ScenarioError(sc.file, "connections", f"{cp.src}.{cp.src_var.name} -> {cp.dst}.{cp.dst_var.name}: "
                                     "connections of a scheduled execution instance are not supported yet")
         by_name = {c.name: c for c in ip.model.clocks}
         for cname in ip.spec.clock_ticks:
