@@ -83,6 +83,8 @@ def test_check_lists_each_clock_its_kind_interval_and_variables(tmp_path):
      "not supported for a scheduled execution instance"),
     ('clock_ticks = { inClock2 = [0.0] }\ninterface = "co-simulation"', "", "1.0", "instances.C.interface",
      "has no co-simulation interface"),
+    ('clock_ticks = { inClock2 = [0.0] }\n[[events]]\ntime = 2.0\nvariable = "C.inClock1Ticks"\naction = "override"\n'
+     'value = 1', "", "1.0", "events[0].variable", "events on a scheduled execution instance are not supported yet"),
 ])
 def test_what_the_scheduler_cannot_honour_is_refused_at_check_in_one_line(instance, experiment, step, field, words,
                                                                          tmp_path):

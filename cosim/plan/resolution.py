@@ -531,6 +531,10 @@ def _resolve(sc: Scenario) -> Plan:
     _live_xy(sc, insts, record, notes)
     _event_rows(sc, insts)
     inputs = _inputs(sc, insts, driven)
+    for col in inputs:
+        if insts[col.instance].interface == SCHEDULED_EXECUTION:
+            raise ScenarioError(sc.file, "inputs", f"{col.column}: tabulated inputs of a scheduled execution instance "
+                                                   "are not supported yet")
     start, stop, step = sc.times()
     n_steps, last_step = steps_of(start, stop, step)
     checked = _events(sc, insts, driven, inputs)
@@ -948,6 +952,10 @@ def _scheduled(sc: Scenario, insts: dict[str, InstancePlan], conns: list[Connect
             if name in (cp.src, cp.dst):
                 raise ScenarioError(sc.file, "connections", f"{cp.src}.{cp.src_var.name} -> {cp.dst}.{cp.dst_var.name}: "
                                     "connections of a scheduled execution instance are not supported yet")
+        for ev in sc.events:   # (its variables change at its clocks' ticks: the scheduler sets nothing between)
+            if ev.variable is not None and ev.variable.split(".", 1)[0] == name:
+                raise ScenarioError(sc.file, f"events[{ev.index}].variable", f"{ev.variable}: events on a scheduled "
+                                                                             "execution instance are not supported yet")
         by_name = {c.name: c for c in ip.model.clocks}
         for cname in ip.spec.clock_ticks:
             c = by_name.get(cname)
