@@ -46,7 +46,7 @@ VALUE_KINDS: dict[str, dict[str, Any]] = {
                  "override_declared_units": "bool", "description": "str", "logging": ("enum", document.LOGGING),
                  "isolate": "bool", "step_timeout": "num+", "tolerance": "num+",
                  "interface": ("enum", document.INTERFACES), "step": "time+", "solver": ("enum", tuple(SOLVERS)),
-                 "max_step": "time+", "event_tolerance": "time+"},
+                 "max_step": "time+", "event_tolerance": "time+", "clock_ticks": "table"},
     "connection": {"from": "ref", "to": "ref", "factor": "num", "offset": "num", "convert": "bool",
                    "threshold": "num"},
     "record": {"variables": "refs", "decimation": "count", "csv": "bool", "mat": "bool", "max_bytes": "count",

@@ -141,11 +141,11 @@ variables = ["a.y", "b.y"]
     assert d["a.y[3]"][0] == 3.0 and d["b.y[2]"][0] == 4.0   # b.y = C x + D u with x(0) = 0: 2 * a.y
 
 
-def test_an_fmu_with_clocks_is_refused_at_check(tmp_path):
+def test_an_fmu_with_clocks_and_no_tick_for_its_triggered_clock_is_refused_at_check(tmp_path):
     path = write_scenario(tmp_path / "c.toml", f'[instances.c]\nfmu = "{FMI3 / "Clocks.fmu"}"\n')
-    with pytest.raises(ScenarioError, match="scheduled execution only") as exc:
+    with pytest.raises(ScenarioError, match="triggered input clock inClock2 has no source") as exc:
         cosim.resolve(cosim.load(path))
-    assert exc.value.field == "instances.c.fmu"
+    assert exc.value.field == "instances.c.clock_ticks"
 
 
 def test_one_element_of_an_fmi3_array_connected_and_recorded(tmp_path):

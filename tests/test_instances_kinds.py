@@ -13,14 +13,16 @@ import pytest
 from wmr_cosim.cosim.instances import isolation, kinds
 from wmr_cosim.cosim.instances.integrators import SolverSpec
 from wmr_cosim.cosim.instances.model_exchange import ModelExchange
-from wmr_cosim.cosim.model.description import CO_SIMULATION, MODEL_EXCHANGE
+from wmr_cosim.cosim.model.description import CO_SIMULATION, MODEL_EXCHANGE, SCHEDULED_EXECUTION
 from wmr_cosim.cosim.runtime import startup
 
 ALL_KINDS = [(CO_SIMULATION, 2), (CO_SIMULATION, 3), (MODEL_EXCHANGE, 2), (MODEL_EXCHANGE, 3)]
+#: Hosted in the master's process only (``check`` refuses to isolate it).
+IN_PROCESS_ONLY = [(SCHEDULED_EXECUTION, 3)]
 
 
 def test_every_kind_has_the_class_of_its_interface_and_fmi_version():
-    assert sorted(kinds.HOSTS) == sorted(ALL_KINDS)
+    assert sorted(kinds.HOSTS) == sorted(ALL_KINDS + IN_PROCESS_ONLY)
     for (interface, fmi), cls in kinds.HOSTS.items():
         assert cls.fmi_version == fmi, cls
         assert issubclass(cls, ModelExchange) == (interface == MODEL_EXCHANGE), cls
@@ -37,7 +39,7 @@ def test_the_start_up_and_the_isolation_child_host_a_kind_alike(kind, monkeypatc
     interface, fmi = kind
     md = SimpleNamespace(fmiVersion="2.0" if fmi == 2 else "3.0")
     solver = SolverSpec("cvode", 1e-6) if interface == MODEL_EXCHANGE else None
-    ip = SimpleNamespace(spec=SimpleNamespace(isolate=False, logging="all"), solver=solver,
+    ip = SimpleNamespace(spec=SimpleNamespace(isolate=False, logging="all"), solver=solver, interface=interface,
                          model=SimpleNamespace(md=md, fmi=fmi, path=Path("m.fmu")))
     here = startup._host("p", ip, "/unz", Path("/logs/p.log"), None)
     there = isolation._hosted("p", md, "/unz", "/logs/p.log", "all",

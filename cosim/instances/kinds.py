@@ -10,13 +10,15 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-from ..model.description import CO_SIMULATION, MODEL_EXCHANGE, fmi_of
+from ..model.description import CO_SIMULATION, MODEL_EXCHANGE, SCHEDULED_EXECUTION, fmi_of
 from .contract import FmuInstance
 from .in_process import Instance, Instance3
 from .integrators import SolverSpec
 from .model_exchange import ModelExchange2, ModelExchange3
+from .scheduled import ScheduledExecution3
 
-#: An instance's kind: (its interface, "co-simulation" | "model-exchange"; its FMU's FMI major version, 2 | 3).
+#: An instance's kind: (its interface, "co-simulation" | "model-exchange" | "scheduled-execution"; its FMU's FMI
+#: major version, 2 | 3).
 Kind = tuple[str, int]
 
 #: Each kind of instance -> the class that hosts it in a process.
@@ -25,6 +27,7 @@ HOSTS: dict[Kind, type[FmuInstance]] = {
     (CO_SIMULATION, 3): Instance3,
     (MODEL_EXCHANGE, 2): ModelExchange2,
     (MODEL_EXCHANGE, 3): ModelExchange3,
+    (SCHEDULED_EXECUTION, 3): ScheduledExecution3,
 }
 
 
@@ -35,12 +38,14 @@ def kind_of(fmi: int, solver: SolverSpec | None) -> Kind:
 
 
 def host(name: str, md: Any, fmi: int, unzipdir: str, log_path: Any, logging: str,
-         solver: SolverSpec | None) -> FmuInstance:
+         solver: SolverSpec | None, interface: str | None = None) -> FmuInstance:
     """Instance ``name`` of the FMU extracted in ``unzipdir`` (FMPy's model description ``md``, FMI major
     version ``fmi``), loaded in this process by the class of its kind (:data:`HOSTS`): model exchange with
     ``solver``'s integrator where one is given, else co-simulation; its log written to ``log_path`` (None:
-    kept in memory only) at the level ``logging``."""
-    make: Callable[..., FmuInstance] = HOSTS[kind_of(fmi, solver)]
+    kept in memory only) at the level ``logging``; ``interface`` "scheduled-execution": by the scheduled
+    execution host."""
+    kind = (SCHEDULED_EXECUTION, fmi) if interface == SCHEDULED_EXECUTION else kind_of(fmi, solver)
+    make: Callable[..., FmuInstance] = HOSTS[kind]
     if solver is None:
         return make(name, md, unzipdir, log_path, logging)
     return make(name, md, unzipdir, log_path, logging, solver)

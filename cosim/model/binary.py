@@ -16,6 +16,7 @@ REQUIRED = {
     (2, "model-exchange"): ("fmi2Instantiate", "fmi2GetDerivatives"),
     (3, "co-simulation"): ("fmi3InstantiateCoSimulation", "fmi3DoStep"),
     (3, "model-exchange"): ("fmi3InstantiateModelExchange", "fmi3GetContinuousStateDerivatives"),
+    (3, "scheduled-execution"): ("fmi3InstantiateScheduledExecution", "fmi3ActivateModelPartition"),
 }
 
 _ELF_MACHINES = {3: "x86 (32-bit)", 40: "ARM", 62: "x86-64", 183: "AArch64", 243: "RISC-V"}

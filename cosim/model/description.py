@@ -15,17 +15,21 @@ from fmpy import read_model_description
 from ..messages.errors import FmuLoadError
 from .archive import ArchiveLimits, check_archive
 from .binary import library_problem
+from .clocks import Clock, read_clocks
 from .types import FLOAT64_TYPES, INT_RANGES, INTEGER_KINDS, KINDS, NUMERIC_KINDS, TEXT_KINDS
 from .units import Unit, lookup, units_of
 
 #: The FMU interfaces an instance can use (``[instances.X] interface``).
 CO_SIMULATION, MODEL_EXCHANGE = "co-simulation", "model-exchange"
+#: FMI 3.0 Scheduled Execution: the master activates the FMU's model partitions at its clocks' ticks.
+SCHEDULED_EXECUTION = "scheduled-execution"
 
 if TYPE_CHECKING:   # (FMPy has no type information: to mypy these are Any)
     from fmpy.model_description import ModelDescription, ScalarVariable
 
 #: The interfaces the master runs -> the model description's attribute (FMPy) that declares each.
-INTERFACES = {CO_SIMULATION: "coSimulation", MODEL_EXCHANGE: "modelExchange"}
+INTERFACES = {CO_SIMULATION: "coSimulation", MODEL_EXCHANGE: "modelExchange",
+              SCHEDULED_EXECUTION: "scheduledExecution"}
 #: The platform folder of the binaries by FMI version.
 PLATFORMS = {2: "linux64", 3: "x86_64-linux"}
 
@@ -117,7 +121,8 @@ class Variable:
 
 
 #: The readable name of each interface (messages, ``check``, ``info``).
-INTERFACE_NAMES = {CO_SIMULATION: "co-simulation", MODEL_EXCHANGE: "model exchange"}
+INTERFACE_NAMES = {CO_SIMULATION: "co-simulation", MODEL_EXCHANGE: "model exchange",
+                   SCHEDULED_EXECUTION: "scheduled execution"}
 
 
 def declares_state(element: Any) -> bool:
@@ -146,6 +151,7 @@ class FmuModel:
     variables: dict[str, Variable] = field(default_factory=dict)
     fmi: int = 2           # the FMI major version, 2 or 3 (decided at load by fmi_major)
     missing_binaries: dict[str, str] = field(default_factory=dict)
+    clocks: list[Clock] = field(default_factory=list)   # FMI 3.0: its clocks (:mod:`.clocks`)
 
     @property
     def model_name(self) -> str:
@@ -163,13 +169,15 @@ class FmuModel:
 
     @property
     def interfaces(self) -> tuple[str, ...]:
-        """The interfaces the FMU declares that the master runs, of "co-simulation", "model-exchange"."""
+        """The interfaces the FMU declares that the master runs, of "co-simulation", "model-exchange",
+        "scheduled-execution"."""
         return tuple(name for name, attr in INTERFACES.items() if getattr(self.md, attr, None) is not None)
 
     @property
     def identifier(self) -> str:
         """The model identifier (of the co-simulation interface where there is one)."""
-        return self.identifier_of(CO_SIMULATION if self.has_cs else MODEL_EXCHANGE)
+        return self.identifier_of(CO_SIMULATION if self.has_cs else MODEL_EXCHANGE if self.has_me
+                                  else SCHEDULED_EXECUTION)
 
     def declares_state(self, interface: str) -> bool:
         """Whether ``interface`` ("co-simulation" | "model-exchange") can get and set the FMU state."""
@@ -339,12 +347,9 @@ def _missing_binaries(path: Path, model: FmuModel) -> dict[str, str]:
 
 
 def _interfaces_checked(path: Path, md: Any) -> None:
-    """FmuLoadError unless the FMU declares co-simulation or model exchange (scheduled execution only is
-    refused)."""
-    if md.coSimulation is None and md.modelExchange is None:
-        only = "scheduled execution only" if getattr(md, "scheduledExecution", None) is not None else \
-            "it declares no interface"
-        raise FmuLoadError(f"{path}: neither a co-simulation nor a model exchange FMU ({only})")
+    """FmuLoadError unless the FMU declares co-simulation, model exchange or scheduled execution."""
+    if md.coSimulation is None and md.modelExchange is None and getattr(md, "scheduledExecution", None) is None:
+        raise FmuLoadError(f"{path}: neither a co-simulation nor a model exchange FMU (it declares no interface)")
 
 
 def _default_experiment_checked(path: Path, md: Any) -> None:
@@ -365,8 +370,8 @@ def _default_experiment_checked(path: Path, md: Any) -> None:
 
 def load_model(path: str | os.PathLike, limits: ArchiveLimits | None = None) -> FmuModel:
     """Read and check an FMU: it exists, is a safe archive (within ``limits``; default: the default
-    limits), and is FMI 2.0 or 3.0 with co-simulation or model exchange or both (not scheduled execution
-    only), needs no clocks, and holds the binary for this platform of at least one interface it declares
+    limits), and is FMI 2.0 or 3.0 with co-simulation, model exchange or scheduled execution, needs no
+    clocks unless it has scheduled execution (its clocks: :attr:`FmuModel.clocks`), and holds the binary for this platform of at least one interface it declares
     (the one an instance uses is checked when it is planned: :meth:`FmuModel.check_binary`)."""
     path = Path(path)
     check_archive(path, limits)
@@ -382,12 +387,17 @@ def load_model(path: str | os.PathLike, limits: ArchiveLimits | None = None) -> 
     _default_experiment_checked(path, md)
     model = FmuModel(path, md, fmi=fmi)
     model.missing_binaries = _missing_binaries(path, model)
+    has_se = getattr(md, "scheduledExecution", None) is not None
+    if has_se:
+        model.clocks = read_clocks(path)
     defined = units_of(md)
     for v in md.modelVariables:
         kind = KINDS.get(v.type, v.type) if fmi == 3 else v.type
+        if kind == "Clock" and has_se:
+            continue   # (in model.clocks)
         if kind == "Clock":
-            raise FmuLoadError(f"{path}: clock {v.name!r}: FMUs with clocks (event mode, scheduled execution) "
-                               "are not supported")
+            raise FmuLoadError(f"{path}: clock {v.name!r}: FMUs with clocks are supported through "
+                               "scheduled execution, which this one does not declare")
         # FMPy sizes each FMI 3.0 array (fixed dimensions, start values of structural parameters)
         shape = tuple(v.shape or ()) if fmi == 3 else ()
         unit_name = v.unit or (v.declaredType.unit if v.declaredType is not None else None)

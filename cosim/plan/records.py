@@ -51,6 +51,9 @@ class InstancePlan:
         text = self._interface_words()
         if self.decimation > 1:
             text += f"; steps of {self.spec.step:g} s, every {self.decimation} base steps"
+        for c in self.model.clocks:   # (scheduled execution: each clock on a line of its own)
+            ticks = self.spec.clock_ticks.get(c.name)
+            text += f"\n    {c.describe()}" + (f"; ticked at {', '.join(f'{t:g}' for t in ticks)} s" if ticks else "")
         return text
 
     def _interface_words(self) -> str:

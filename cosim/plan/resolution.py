@@ -28,7 +28,9 @@ from ..messages.errors import CosimError, FmuLoadError, MissingVariableError, Sc
 from ..messages.suggest import did_you_mean
 from ..messages.words import count, plural
 from ..model.binary import PYTHON_FMU, runs_python
-from ..model.description import CO_SIMULATION, INTERFACE_NAMES, MODEL_EXCHANGE, FmuModel, Variable, load_model
+from ..model.clocks import grid_multiple
+from ..model.description import (CO_SIMULATION, INTERFACE_NAMES, MODEL_EXCHANGE, SCHEDULED_EXECUTION, FmuModel,
+                                 Variable, load_model)
 from ..model.kinds import FileKind, file_kind
 from ..model.types import PY_TYPES
 from ..model.units import conversion, lookup, same_unit, units_of
@@ -522,12 +524,17 @@ def _resolve(sc: Scenario) -> Plan:
     idle = _workers(sc, insts, feeds, notes)
     coupled = coupling(feeds, insts, conns)
     _check_stepping(sc, insts)
+    _scheduled(sc, insts, conns, notes)
     check_iteration(sc, insts, coupled)
     requirements = _requirements(sc, insts, notes)
     record, not_recorded = _record(sc, insts)
     _live_xy(sc, insts, record, notes)
     _event_rows(sc, insts)
     inputs = _inputs(sc, insts, driven)
+    for col in inputs:
+        if insts[col.instance].interface == SCHEDULED_EXECUTION:
+            raise ScenarioError(sc.file, "inputs", f"{col.column}: tabulated inputs of a scheduled execution instance "
+                                                   "are not supported yet")
     start, stop, step = sc.times()
     n_steps, last_step = steps_of(start, stop, step)
     checked = _events(sc, insts, driven, inputs)
@@ -903,7 +910,8 @@ def _interface(file: str, name: str, spec: InstanceSpec, model: FmuModel) -> str
         wanted, fld = MODEL_EXCHANGE, f"instances.{name}.{asked_by[0]}"
         why = " (an integrator setting runs it as model exchange)"
     else:
-        wanted, fld, why = (CO_SIMULATION if model.has_cs else MODEL_EXCHANGE), f"instances.{name}.fmu", ""
+        wanted = CO_SIMULATION if model.has_cs else MODEL_EXCHANGE if model.has_me else SCHEDULED_EXECUTION
+        fld, why = f"instances.{name}.fmu", ""
     if wanted not in model.interfaces:
         has = " and ".join(INTERFACE_NAMES[i] for i in model.interfaces)
         raise ScenarioError(file, fld, f"{model.path.name} has no {INTERFACE_NAMES[wanted]} interface (it has "
@@ -913,6 +921,85 @@ def _interface(file: str, name: str, spec: InstanceSpec, model: FmuModel) -> str
     except FmuLoadError as exc:
         raise ScenarioError(file, fld, f"{INTERFACE_NAMES[wanted]}: {exc}") from None
     return wanted
+
+
+def _scheduled(sc: Scenario, insts: dict[str, InstancePlan], conns: list[ConnectionPlan], notes: list[str]) -> None:
+    """What the master's scheduler of a scheduled execution instance honours exactly, else ScenarioError in
+    one line: the default algorithm at the experiment's step, in this process, nothing connected to it or
+    from it (clocked variables are not exchanged yet); each periodic input clock with its interval (and
+    shift) declared and a whole number of steps; each triggered input clock ticked by ``clock_ticks`` at
+    times on the grid; no tunable or changing clock.  ``clock_ticks`` only for the triggered input clocks
+    of such an instance.  An output clock, which feeds nothing yet, is a note."""
+    start, stop, step = sc.times()
+    for name, ip in insts.items():
+        fld = f"instances.{name}"
+        if ip.interface != SCHEDULED_EXECUTION:
+            if ip.spec.clock_ticks:
+                raise ScenarioError(sc.file, f"{fld}.clock_ticks", "ticks are for the clocks of a scheduled "
+                                                                   "execution instance")
+            if ip.model.clocks:
+                raise ScenarioError(sc.file, f"{fld}.interface", f"{ip.model.path.name} has clocks: the master runs "
+                                    f'them through scheduled execution only (interface = "scheduled-execution")')
+            continue
+        if sc.algorithm != algorithms.DEFAULT:
+            raise ScenarioError(sc.file, "experiment.algorithm", f"{sc.algorithm}: a scheduled execution instance "
+                                f"({name}) runs under {algorithms.DEFAULT} only")
+        for key in ("isolate", "step"):
+            if getattr(ip.spec, key):
+                raise ScenarioError(sc.file, f"{fld}.{key}", "not supported for a scheduled execution instance "
+                                                             "(its partitions run in the master's process, on its grid)")
+        for cp in conns:
+            if name in (cp.src, cp.dst):
+                raise ScenarioError(sc.file, "connections", f"{cp.src}.{cp.src_var.name} -> {cp.dst}.{cp.dst_var.name}: "
+                                    "connections of a scheduled execution instance are not supported yet")
+        for ev in sc.events:   # (its variables change at its clocks' ticks: the scheduler sets nothing between)
+            if ev.variable is not None and ev.variable.split(".", 1)[0] == name:
+                raise ScenarioError(sc.file, f"events[{ev.index}].variable", f"{ev.variable}: events on a scheduled "
+                                                                             "execution instance are not supported yet")
+        by_name = {c.name: c for c in ip.model.clocks}
+        for cname in ip.spec.clock_ticks:
+            c = by_name.get(cname)
+            if c is None or c.causality != "input" or c.variability != "triggered":
+                raise ScenarioError(sc.file, f"{fld}.clock_ticks.{cname}", f"{ip.model.path.name} has no triggered "
+                                                                          f"input clock {cname!r}")
+        for c in ip.model.clocks:
+            cf = f"{fld}.fmu"
+            if c.causality == "output":
+                notes.append(f"{name}: output clock {c.name} is raised by the FMU and feeds nothing (output "
+                             "clocks are not connected yet)")
+            elif c.causality != "input":
+                continue
+            elif c.variability in ("tunable", "changing"):
+                raise ScenarioError(sc.file, cf, f"clock {c.name}: intervalVariability {c.variability!r} is not "
+                                                 "supported yet (the FMU may change its interval)")
+            elif c.periodic:
+                if c.interval is None:
+                    raise ScenarioError(sc.file, cf, f"clock {c.name}: a {c.variability} clock with no intervalDecimal "
+                                                     "is not supported yet (its interval is known only at run time)")
+                k, n0 = grid_multiple(c.interval, step), grid_multiple(c.shift or "0", step)
+                if not k or n0 is None or float(c.interval) <= 0:
+                    raise ScenarioError(sc.file, "experiment.step", f"{step:g} s: clock {name}.{c.name} ticks every "
+                                        f"{c.interval} s" + (f" from {c.shift} s" if c.shift else "") +
+                                        ", not a whole number of steps")
+            elif c.variability == "triggered":
+                times = ip.spec.clock_ticks.get(c.name)
+                if not times:
+                    raise ScenarioError(sc.file, f"{fld}.clock_ticks", f"triggered input clock {c.name} has no "
+                                                                       f"source: give its times, clock_ticks = "
+                                                                       f"{{ {c.name} = [...] }}")
+                for t in times:
+                    if grid_multiple(_minus(t, start), step) is None or t < start:
+                        raise ScenarioError(sc.file, f"{fld}.clock_ticks.{c.name}", f"{t:g} s is not on the grid of "
+                                                                                   f"{step:g} s steps from {start:g} s")
+            elif c.variability != "countdown":
+                raise ScenarioError(sc.file, cf, f"clock {c.name}: intervalVariability {c.variability!r} is not "
+                                                 "supported")
+
+
+def _minus(a: float, b: float) -> Any:
+    """a - b [s] exactly (as fractions of their decimal forms)."""
+    from fractions import Fraction
+    return Fraction(repr(a)) - Fraction(repr(b))
 
 
 def _solvers(sc: Scenario, insts: dict[str, InstancePlan]) -> None:

@@ -19,6 +19,7 @@ from ..instances.contract import FmuInstance
 from ..instances.handoff import Handoff
 from ..instances.in_process import vr_array
 from ..instances.kinds import host
+from ..instances.scheduled import ScheduledExecution3
 from ..messages.errors import CosimError, FmuLoadError
 from ..model.archive import safe_extract
 from ..model.binary import load_failure
@@ -49,11 +50,12 @@ def load_instances(plan: Plan, work: Path, logs: Path, handoff: Handoff | None =
         p = ip.model.path.resolve()
         if p not in unz:
             unz[p] = str(safe_extract(p, work / f"{len(unz)}_{p.stem}", plan.archive_limits))
-        instances[name] = _host(name, ip, unz[p], logs / f"{name}.log", handoff)
+        instances[name] = _host(name, ip, unz[p], logs / f"{name}.log", handoff, plan.scenario.times())
     return instances
 
 
-def _host(name: str, ip: InstancePlan, unzipdir: str, log: Path, handoff: Handoff | None) -> FmuInstance:
+def _host(name: str, ip: InstancePlan, unzipdir: str, log: Path, handoff: Handoff | None,
+          plan_times: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> FmuInstance:
     """Instance ``name`` hosted: in a child process, or here by the class of its kind (co-simulation, or
     model exchange where the plan gives it an integrator; FMI 2.0 or 3.0: :data:`.instances.kinds.HOSTS`,
     the table the isolation child reads too).  A binary
@@ -67,7 +69,11 @@ def _host(name: str, ip: InstancePlan, unzipdir: str, log: Path, handoff: Handof
             assert handoff is not None   # (handoff_for gives one where an instance is isolated)
             return IsolatedInstance(name, ip.model.md, unzipdir, log, ip.spec.logging,
                                     ip.spec.step_timeout or 60.0, handoff, ip.solver)
-        return host(name, ip.model.md, ip.model.fmi, unzipdir, log, ip.spec.logging, ip.solver)
+        inst = host(name, ip.model.md, ip.model.fmi, unzipdir, log, ip.spec.logging, ip.solver, ip.interface)
+        if isinstance(inst, ScheduledExecution3):   # its scheduler on the master's grid
+            start, _, step = plan_times
+            inst.schedule(start, step, ip.spec.clock_ticks)
+        return inst
     except CosimError:
         raise
     except Exception as exc:   # FMPy raises a plain Exception when the library does not load

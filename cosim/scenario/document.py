@@ -19,7 +19,7 @@ from ..messages.errors import OtherFileError, ScenarioError
 from ..messages.suggest import did_you_mean, unknown_key
 from ..messages.words import count, plural
 from ..model.archive import DEFAULT_LIMITS, ArchiveLimits, LimitOverrides, parse_limits
-from ..model.description import CO_SIMULATION, MODEL_EXCHANGE
+from ..model.description import CO_SIMULATION, MODEL_EXCHANGE, SCHEDULED_EXECUTION
 from ..model.kinds import FileKind, file_kind
 from ..stepping import table as algorithms
 from ..stepping.settings import AdaptiveSpec, IterationSpec, SpecError
@@ -28,7 +28,7 @@ ACTIONS = ("override", "bias", "reset", "set", "stop")
 TRIGGERS = ("once", "each")
 LOGGING = ("error", "warning", "info", "all")
 #: The FMI interfaces an instance may use (``[instances.NAME] interface``).
-INTERFACES = (CO_SIMULATION, MODEL_EXCHANGE)
+INTERFACES = (CO_SIMULATION, MODEL_EXCHANGE, SCHEDULED_EXECUTION)
 #: The instance fields that set a Model Exchange instance's integrator (any of them asks for model exchange).
 SOLVER_KEYS = ("solver", "max_step", "event_tolerance")
 
@@ -38,7 +38,7 @@ _INPUTS_KEYS = {"file", "interpolation"}
 _EXPERIMENT_KEYS = {"start", "stop", "step", "algorithm", "order", "tolerance", "max_steps", "max_internal_steps",
                     *(t.name for t in algorithms.TABLES), "workers"}
 _INSTANCE_KEYS = {"fmu", "parameters", "names", "units", "override_declared_units", "description", "logging", "isolate",
-                  "step_timeout", "tolerance", "interface", "step", *SOLVER_KEYS}
+                  "step_timeout", "tolerance", "interface", "step", "clock_ticks", *SOLVER_KEYS}
 _CONNECTION_KEYS = {"from", "to", "factor", "offset", "convert", "threshold"}
 _RECORD_KEYS = {"variables", "decimation", "csv", "mat", "max_bytes", "event_rows"}
 _RUN_KEYS = {"name", "description", "parameters", "carry"}
@@ -72,11 +72,14 @@ class InstanceSpec:
     step_timeout: float | None = None   # seconds a call may take before the instance is ended (isolated: 60)
     override_declared_units: bool = False   # ``units`` may replace a unit the model description declares
     tolerance: float | None = None      # this FMU's own solver tolerance (else [experiment], else its default)
-    interface: str | None = None        # "co-simulation" | "model-exchange"; None: chosen by the FMU and the solver keys
+    interface: str | None = None        # "co-simulation" | "model-exchange" | "scheduled-execution"; None: chosen
+                                        # by the FMU and the solver keys
     solver: str | None = None           # a Model Exchange instance's integrator (cosim.instances.integrators.SOLVERS)
     max_step: float | None = None       # [s] its largest internal step
     event_tolerance: float | None = None   # [s] the width to which Euler and RK4 locate a state event
     step: float | None = None           # [s] its own communication step, a whole multiple of the experiment's
+    clock_ticks: dict[str, list[float]] = field(default_factory=dict)   # scheduled execution: the times [s] the
+                                        # master ticks each triggered input clock (``clock_ticks = {c = [0.0, 1.0]}``)
 
 
 @dataclass
@@ -659,7 +662,8 @@ def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:
                                   else None for key in ("step_timeout", "tolerance", "step"))
         sc.instances[iname] = InstanceSpec(iname, fmu, path, dict(params), dict(names), dict(units), logging,
                                            flag["isolate"], timeout, flag["override_declared_units"], tol,
-                                           **_interface_fields(file, fld, inst), step=own_step)
+                                           **_interface_fields(file, fld, inst), step=own_step,
+                                           clock_ticks=_clock_ticks(file, f"{fld}.clock_ticks", inst.get("clock_ticks")))
 
 
     exp = doc.get("experiment") or {}
@@ -669,6 +673,19 @@ def _parse_instances(sc: Scenario, doc: dict[str, Any], resolver=None) -> None:
         raise ScenarioError(file, "experiment.order",
                             f"{order!r} must list every instance exactly once ({', '.join(sc.instances)})")
     sc.order = list(order)
+
+
+def _clock_ticks(file: str, fld: str, v: Any) -> dict[str, list[float]]:
+    """``clock_ticks``: a table of clock name -> a list of times [s], each finite, in increasing order."""
+    out: dict[str, list[float]] = {}
+    for clock, times in _table(file, fld, v).items():
+        if not isinstance(times, list) or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                  and math.isfinite(x) for x in times):
+            raise ScenarioError(file, f"{fld}.{clock}", "must be a list of times [s] (finite numbers)")
+        if any(b <= a for a, b in zip(times, times[1:])):
+            raise ScenarioError(file, f"{fld}.{clock}", "the times must increase")
+        out[clock] = [float(x) for x in times]
+    return out
 
 
 def _interface_fields(file: str, fld: str, inst: dict[str, Any]) -> dict[str, Any]:

@@ -61,9 +61,9 @@ def verdict(path: Path, md: Any, limits: ArchiveLimits = DEFAULT_LIMITS) -> str:
     version = str(md.fmiVersion)
     if version != "2.0" and not version.startswith("3."):
         return f"cannot run here: FMI {version} (the master runs FMI 2.0 and 3.0 FMUs)"
-    if md.coSimulation is None and md.modelExchange is None:
-        only = "Scheduled Execution only" if getattr(md, "scheduledExecution", None) is not None else "no interface"
-        return f"cannot run here: {only} (the master runs co-simulation and model exchange FMUs)"
+    if md.coSimulation is None and md.modelExchange is None and getattr(md, "scheduledExecution", None) is None:
+        return "cannot run here: no interface (the master runs co-simulation, model exchange and scheduled " \
+               "execution FMUs)"
     try:
         model = load_model(path, limits)
     except FmuLoadError as exc:
@@ -74,6 +74,9 @@ def verdict(path: Path, md: Any, limits: ArchiveLimits = DEFAULT_LIMITS) -> str:
 def _runs_as(model: FmuModel) -> str:
     """How ``wmr-cosim run`` runs a runnable FMU: the interface it uses by default, how to ask for the other."""
     usable = [i for i in model.interfaces if i not in model.missing_binaries]
+    if not model.has_cs and not model.has_me:
+        return ("scheduled execution, its partitions activated at its input clocks' ticks by the master's scheduler "
+                "(a scenario gives a triggered clock's ticks: clock_ticks)")
     if CO_SIMULATION not in usable:
         no_cs = "" if not model.has_cs else " (no co-simulation binary for this platform)"
         return f"model exchange{no_cs}, integrated by the master (cvode; --solver euler or rk4, or an instance's solver)"
