@@ -106,3 +106,13 @@ clock_ticks = {{ c = [0.0] }}
 ''')
     p = _cli("check", path)
     assert p.returncode == 2 and "instances.F.clock_ticks" in p.stderr and "\n" not in p.stderr.strip(), p.stderr
+
+
+def test_export_ssp_and_export_fmu_refuse_a_scheduled_execution_instance(tmp_path):
+    """(Its clock_ticks have no place in SSP 1.0, and the container runs co-simulation and Model Exchange
+    instances): one line, exit 2, nothing written."""
+    sc = _scenario(tmp_path)
+    for command, out, field in (("export-ssp", "c.ssp", "instances.C"), ("export-fmu", "c.fmu", "instances.C")):
+        p = _cli(command, sc, "--out", tmp_path / out)
+        assert p.returncode == 2 and field in p.stderr and "scheduled" in p.stderr, p.stderr
+        assert len(p.stderr.strip().splitlines()) == 1 and not (tmp_path / out).exists()

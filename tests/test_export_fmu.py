@@ -196,6 +196,8 @@ REFUSALS: dict[str, Any] = {
         doc["record"]["variables"].append("ft3.Float32_continuous_output")),
     "FMI 3.0 model exchange": lambda doc, m, d: doc["instances"].update(
         ref={"fmu": str(REF / "fmi3" / "Dahlquist.fmu"), "interface": "model-exchange"}),
+    "scheduled execution": lambda doc, m, d: doc["instances"].update(
+        clocks={"fmu": str(REF / "fmi3" / "Clocks.fmu"), "clock_ticks": {"inClock2": [0.0]}}),
     "no linux64 binary": lambda doc, m, d: doc["instances"]["body"].update(fmu=str(_no_binary(m, d))),
     "an FMI 3.0 UInt64 output": lambda doc, m, d: (
         doc["instances"].update(ft={"fmu": str(REF / "fmi3" / "Feedthrough.fmu")}),
@@ -208,7 +210,7 @@ REFUSALS: dict[str, Any] = {
 #: The field each refusal names.
 REFUSED_AT = {"adaptive": "experiment.algorithm", "condition events": "events", "tables and own rates": "inputs",
               "requirements": "requirements", "an FMI 3.0 Float32 output": "record",
-              "FMI 3.0 model exchange": "instances.ref",
+              "FMI 3.0 model exchange": "instances.ref", "scheduled execution": "instances.clocks",
               "no linux64 binary": "instances.body.fmu",
               "an FMI 3.0 UInt64 output": "record", "an output name twice": "record",
               "a stop off the step's grid": "experiment.stop"}

@@ -49,7 +49,7 @@ from ..instances.in_process import ACCESS
 from ..instances.integrators import DEFAULT_RTOL
 from ..messages.errors import CosimError, ScenarioError
 from ..model.archive import safe_extract
-from ..model.description import MODEL_EXCHANGE
+from ..model.description import CO_SIMULATION, MODEL_EXCHANGE
 from ..model.types import FLOAT64_TYPES
 from ..stepping import native
 from ..stepping.settings import IterationSpec
@@ -201,6 +201,8 @@ def _refuse_instance(plan: Plan, n: str, ip: InstancePlan, out: Path, no: Any) -
         no(where, f"{ip.model.path.name} is an FMI {ip.model.fmi}.0 FMU (only FMI 2.0 and 3.0)")
     if ip.interface == MODEL_EXCHANGE and ip.model.fmi == 3:
         no(where, f"{ip.model.path.name} runs as FMI 3.0 Model Exchange (only FMI 2.0 Model Exchange)")
+    if ip.interface not in (CO_SIMULATION, MODEL_EXCHANGE):
+        no(where, f"{ip.model.path.name} runs as {ip.interface} (only co-simulation and Model Exchange)")
     if ip.interface == MODEL_EXCHANGE and ip.solver is not None:
         if ip.solver.name not in ME_SOLVERS:
             no(f"{where}.solver", f"solver = {ip.solver.name!r} (a Model Exchange instance inside is integrated by "

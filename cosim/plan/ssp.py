@@ -49,7 +49,7 @@ from typing import Any
 
 from ..messages.errors import CosimError, FmuLoadError, ScenarioError
 from ..model.archive import ArchiveLimits, LimitOverrides, check_archive, check_entries, check_sizes, safe_extract
-from ..model.description import CO_SIMULATION, INTERFACE_NAMES, MODEL_EXCHANGE, load_model
+from ..model.description import CO_SIMULATION, INTERFACE_NAMES, MODEL_EXCHANGE, SCHEDULED_EXECUTION, load_model
 from ..model.kinds import FileKind, file_kind
 from ..scenario.document import Scenario, apply_overrides, parse
 from ..stepping import table as algorithms
@@ -179,6 +179,11 @@ def export_ssp(plan: Plan, out: str | os.PathLike, name: str | None = None) -> P
     if plan.events or plan.conditions:
         raise ScenarioError(sc.file, "events", "events cannot be expressed in SSP 1.0 (timed or on conditions): "
                                                 "export a scenario without [[events]]")
+    for n, ip in plan.instances.items():   # (its clock_ticks have no place in SSP 1.0: the archive could not run)
+        if ip.interface == SCHEDULED_EXECUTION:
+            raise ScenarioError(sc.file, f"instances.{n}", f"{ip.model.path.name} runs as scheduled execution, which "
+                                                           "cannot be exported to SSP yet (its clock_ticks have no "
+                                                           "place in SSP 1.0)")
     name = name or Path(sc.file).stem or "system"
     resources = _resource_names(plan)
     conns, params = _connectors(plan)
