@@ -930,7 +930,6 @@ def _scheduled(sc: Scenario, insts: dict[str, InstancePlan], conns: list[Connect
     shift) declared and a whole number of steps; each triggered input clock ticked by ``clock_ticks`` at
     times on the grid; no tunable or changing clock.  ``clock_ticks`` only for the triggered input clocks
     of such an instance.  An output clock, which feeds nothing yet, is a note."""
-    start, stop, step = sc.times()
     for name, ip in insts.items():
         fld = f"instances.{name}"
         if ip.interface != SCHEDULED_EXECUTION:
@@ -962,38 +961,47 @@ def _scheduled(sc: Scenario, insts: dict[str, InstancePlan], conns: list[Connect
             if c is None or c.causality != "input" or c.variability != "triggered":
                 raise ScenarioError(sc.file, f"{fld}.clock_ticks.{cname}", f"{ip.model.path.name} has no triggered "
                                                                           f"input clock {cname!r}")
-        for c in ip.model.clocks:
-            cf = f"{fld}.fmu"
-            if c.causality == "output":
-                notes.append(f"{name}: output clock {c.name} is raised by the FMU and feeds nothing (output "
-                             "clocks are not connected yet)")
-            elif c.causality != "input":
-                continue
-            elif c.variability in ("tunable", "changing"):
-                raise ScenarioError(sc.file, cf, f"clock {c.name}: intervalVariability {c.variability!r} is not "
-                                                 "supported yet (the FMU may change its interval)")
-            elif c.periodic:
-                if c.interval is None:
-                    raise ScenarioError(sc.file, cf, f"clock {c.name}: a {c.variability} clock with no intervalDecimal "
-                                                     "is not supported yet (its interval is known only at run time)")
-                k, n0 = grid_multiple(c.interval, step), grid_multiple(c.shift or "0", step)
-                if not k or n0 is None or float(c.interval) <= 0:
-                    raise ScenarioError(sc.file, "experiment.step", f"{step:g} s: clock {name}.{c.name} ticks every "
-                                        f"{c.interval} s" + (f" from {c.shift} s" if c.shift else "") +
-                                        ", not a whole number of steps")
-            elif c.variability == "triggered":
-                times = ip.spec.clock_ticks.get(c.name)
-                if not times:
-                    raise ScenarioError(sc.file, f"{fld}.clock_ticks", f"triggered input clock {c.name} has no "
-                                                                       f"source: give its times, clock_ticks = "
-                                                                       f"{{ {c.name} = [...] }}")
-                for t in times:
-                    if grid_multiple(_minus(t, start), step) is None or t < start:
-                        raise ScenarioError(sc.file, f"{fld}.clock_ticks.{c.name}", f"{t:g} s is not on the grid of "
-                                                                                   f"{step:g} s steps from {start:g} s")
-            elif c.variability != "countdown":
-                raise ScenarioError(sc.file, cf, f"clock {c.name}: intervalVariability {c.variability!r} is not "
-                                                 "supported")
+        _scheduled_clocks(sc, name, ip, notes)
+
+
+def _scheduled_clocks(sc: Scenario, name: str, ip: InstancePlan, notes: list[str]) -> None:
+    """:func:`_scheduled` for the clocks of one scheduled execution instance ``name``: each input clock
+    periodic with its interval (and shift) a whole number of steps, or triggered with ``clock_ticks`` on the
+    grid, or countdown; an output clock a note."""
+    start, _, step = sc.times()
+    fld = f"instances.{name}"
+    for c in ip.model.clocks:
+        cf = f"{fld}.fmu"
+        if c.causality == "output":
+            notes.append(f"{name}: output clock {c.name} is raised by the FMU and feeds nothing (output "
+                         "clocks are not connected yet)")
+        elif c.causality != "input":
+            continue
+        elif c.variability in ("tunable", "changing"):
+            raise ScenarioError(sc.file, cf, f"clock {c.name}: intervalVariability {c.variability!r} is not "
+                                             "supported yet (the FMU may change its interval)")
+        elif c.periodic:
+            if c.interval is None:
+                raise ScenarioError(sc.file, cf, f"clock {c.name}: a {c.variability} clock with no intervalDecimal "
+                                                 "is not supported yet (its interval is known only at run time)")
+            k, n0 = grid_multiple(c.interval, step), grid_multiple(c.shift or "0", step)
+            if not k or n0 is None or float(c.interval) <= 0:
+                raise ScenarioError(sc.file, "experiment.step", f"{step:g} s: clock {name}.{c.name} ticks every "
+                                    f"{c.interval} s" + (f" from {c.shift} s" if c.shift else "") +
+                                    ", not a whole number of steps")
+        elif c.variability == "triggered":
+            times = ip.spec.clock_ticks.get(c.name)
+            if not times:
+                raise ScenarioError(sc.file, f"{fld}.clock_ticks", f"triggered input clock {c.name} has no "
+                                                                   f"source: give its times, clock_ticks = "
+                                                                   f"{{ {c.name} = [...] }}")
+            for t in times:
+                if grid_multiple(_minus(t, start), step) is None or t < start:
+                    raise ScenarioError(sc.file, f"{fld}.clock_ticks.{c.name}", f"{t:g} s is not on the grid of "
+                                                                               f"{step:g} s steps from {start:g} s")
+        elif c.variability != "countdown":
+            raise ScenarioError(sc.file, cf, f"clock {c.name}: intervalVariability {c.variability!r} is not "
+                                             "supported")
 
 
 def _minus(a: float, b: float) -> Any:
