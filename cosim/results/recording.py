@@ -227,8 +227,8 @@ class RowBuffer:
     """The rows of the current segment (``bytes`` of the master's row buffer: ``n_double`` float64 slots,
     then ``n_int`` int64 slots), flushed to the recorder with a check that every recorded real is finite.
     A native loop may instead write the rows as the recorder's records straight into this buffer's
-    records (:meth:`reserve`, :meth:`took`: ``stepping.algorithm.RecordSink``; :attr:`columns` None where
-    a column's conversion is not one it makes), checking the reals as it writes them."""
+    records (:meth:`reserve`, :meth:`took`: ``stepping.algorithm.RecordSink``; :attr:`takes_records` False
+    where a column's conversion is not one it makes), checking the reals as it writes them."""
 
     def __init__(self, recorder: RecordedRows, cols: list[int], n_double: int, n_int: int = 0) -> None:
         self.recorder = recorder
@@ -238,7 +238,9 @@ class RowBuffer:
         self.chunk: list[Any] = []     # each a row, or several (:meth:`extend`), or a run of records
         self.more = 0                  # the rows beyond one per element of chunk
         self.record_bytes = recorder.dtype.itemsize
-        self.columns = self._layout()
+        layout = self._layout()
+        self.columns: list[tuple[int, int, int]] = layout or []
+        self.takes_records = layout is not None   # False: a column's conversion is not one the loop makes
         self.records = np.empty(0, recorder.dtype)   # the records written by a native loop, not yet flushed
         self.fill = 0
 
@@ -246,8 +248,10 @@ class RowBuffer:
         """Per recorded column: (its value's byte offset in the row, its conversion, its byte offset in the
         record); None where one is not a conversion the native loop makes."""
         out = []
+        fields = self.recorder.dtype.fields
+        assert fields is not None
         for name, c in zip(self.recorder.columns, self.cols):
-            dt, dst = self.recorder.dtype.fields[name][:2]
+            dt, dst = fields[name][:2]
             kind = (_REC_FROM_DOUBLE if c < self.n_double else _REC_FROM_INT).get(dt.str)
             if kind is None:
                 return None

@@ -159,7 +159,7 @@ class Recorder(Observer):
         if self.native:
             take.native = NativeRecording(buf, ctypes.sizeof(buf), dec, n, stop, t0, h,   # type: ignore[attr-defined]
                                           read_others if getters else None, self.rows.extend,
-                                          self.rows if self.rows.columns is not None else None)
+                                          self.rows if self.rows.takes_records else None)
         return take
 
     def record_at(self, t: float) -> None:
