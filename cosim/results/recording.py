@@ -129,6 +129,12 @@ class RecordedRows:
         self._write(rec)
         self.rows += n
 
+    def append_records(self, rec: np.ndarray) -> None:
+        """Append rows given as records of this dtype (kept: not a view of a buffer written again)."""
+        if len(rec):
+            self._write(rec)
+            self.rows += len(rec)
+
     def _write(self, rec: np.ndarray) -> None:
         raise NotImplementedError
 
@@ -201,17 +207,56 @@ class MemoryRecorder(RecordedRows):
         return np.concatenate(self._blocks) if self._blocks else np.zeros(0, self.dtype)
 
 
+#: A recorded column's conversion in a native loop (native_loop.c's REC_*): from a double (the type in
+#: signals.npy) and from a 64-bit integer.
+_REC_FROM_DOUBLE = {"<f8": 0, "<f4": 1}
+_REC_FROM_INT = {"|i1": 2, "<i2": 3, "<i4": 4, "<i8": 5, "|u1": 6, "<u2": 7, "<u4": 8, "<u8": 9, "|b1": 10}
+
+
+class _Records:
+    """A run of ``n`` records written by a native loop at ``start`` of the buffer, the first non-finite real
+    in record ``bad_row`` of them (-1: none), column ``bad_col``."""
+
+    __slots__ = ("start", "n", "bad_row", "bad_col")
+
+    def __init__(self, start: int, n: int, bad_row: int, bad_col: int) -> None:
+        self.start, self.n, self.bad_row, self.bad_col = start, n, bad_row, bad_col
+
+
 class RowBuffer:
     """The rows of the current segment (``bytes`` of the master's row buffer: ``n_double`` float64 slots,
-    then ``n_int`` int64 slots), flushed to the recorder with a check that every recorded real is finite."""
+    then ``n_int`` int64 slots), flushed to the recorder with a check that every recorded real is finite.
+    A native loop may instead write the rows as the recorder's records straight into this buffer's
+    records (:meth:`reserve`, :meth:`took`: ``stepping.algorithm.RecordSink``; :attr:`takes_records` False
+    where a column's conversion is not one it makes), checking the reals as it writes them."""
 
     def __init__(self, recorder: RecordedRows, cols: list[int], n_double: int, n_int: int = 0) -> None:
         self.recorder = recorder
         self.cols = list(cols)
         self.n_double = n_double
         self.dtype = np.dtype([("d", "<f8", (n_double,)), ("i", "<i8", (n_int,))])
-        self.chunk: list[bytes] = []   # each a row, or several (:meth:`extend`)
+        self.chunk: list[Any] = []     # each a row, or several (:meth:`extend`), or a run of records
         self.more = 0                  # the rows beyond one per element of chunk
+        self.record_bytes = recorder.dtype.itemsize
+        layout = self._layout()
+        self.columns: list[tuple[int, int, int]] = layout or []
+        self.takes_records = layout is not None   # False: a column's conversion is not one the loop makes
+        self.records = np.empty(0, recorder.dtype)   # the records written by a native loop, not yet flushed
+        self.fill = 0
+
+    def _layout(self) -> list[tuple[int, int, int]] | None:
+        """Per recorded column: (its value's byte offset in the row, its conversion, its byte offset in the
+        record); None where one is not a conversion the native loop makes."""
+        out = []
+        fields = self.recorder.dtype.fields
+        assert fields is not None
+        for name, c in zip(self.recorder.columns, self.cols):
+            dt, dst = fields[name][:2]
+            kind = (_REC_FROM_DOUBLE if c < self.n_double else _REC_FROM_INT).get(dt.str)
+            if kind is None:
+                return None
+            out.append((8 * c, kind, dst))
+        return out
 
     def __len__(self) -> int:
         return len(self.chunk) + self.more
@@ -221,19 +266,69 @@ class RowBuffer:
         self.chunk.append(rows)
         self.more += n - 1
 
+    def reserve(self, n: int) -> int:
+        """The address where up to ``n`` records may be written next (the buffer grown if need be)."""
+        if self.fill + n > len(self.records):
+            grown = np.empty(max(2 * len(self.records), self.fill + n), self.recorder.dtype)
+            grown[:self.fill] = self.records[:self.fill]
+            self.records = grown
+        return int(self.records.ctypes.data) + self.fill * self.record_bytes
+
+    def took(self, n: int, bad_row: int, bad_col: int) -> None:
+        """``n`` records were written where :meth:`reserve` said (the first non-finite real: record
+        ``bad_row`` of them, -1: none, column ``bad_col``)."""
+        self.chunk.append(_Records(self.fill, n, bad_row, bad_col))
+        self.more += n - 1
+        self.fill += n
+
     def last_time(self) -> float | None:
         if not self.chunk:
             return None
         last = self.chunk[-1]
+        if isinstance(last, _Records):
+            rec = self.records[last.start + last.n - 1]
+            return float(rec[self.recorder.columns[self.cols.index(0)]])
         return float(np.frombuffer(last, "<f8", 1, len(last) - self.dtype.itemsize)[0])
 
     def flush(self) -> None:
         """Write the rows; RunError at the first non-finite value (rows up to it are written)."""
         if not self.chunk:
             return
-        raw = np.frombuffer(b"".join(self.chunk), dtype=self.dtype)
-        self.chunk.clear()
+        chunk = self.chunk[:]
+        self.chunk.clear()   # (the same list: the recording's take appends to it)
         self.more = 0
+        try:
+            rows: list[bytes] = []
+            for item in chunk:
+                if not isinstance(item, _Records):
+                    rows.append(item)
+                    continue
+                if rows:
+                    self._rows(rows)
+                    rows = []
+                self._records(item)
+            if rows:
+                self._rows(rows)
+        finally:
+            self.fill = 0
+
+    def _records(self, r: _Records) -> None:
+        """A native loop's records written (a copy: the buffer is written again)."""
+        block = self.records[r.start:r.start + r.n]
+        n = r.n if r.bad_row < 0 else r.bad_row + 1
+        # (through bytes: a structured array's copy() goes field by field, many times slower)
+        self.recorder.append_records(np.frombuffer(block[:n].tobytes(), self.recorder.dtype))
+        if r.bad_row < 0:
+            return
+        columns = self.recorder.columns
+        reals = [j for j, c in enumerate(self.cols) if c < self.n_double]
+        name = columns[r.bad_col]
+        row = block[r.bad_row]
+        value, t = float(row[name]), float(row[columns[reals[0]]])
+        raise RunError(f"{name} is {value!r} at t = {t:.6g} s (a non-finite output)", name.split(".", 1)[0], t)
+
+    def _rows(self, chunk: list[bytes]) -> None:
+        raw = np.frombuffer(b"".join(chunk), dtype=self.dtype)
         d, i = raw["d"], raw["i"]
         cols = [d[:, c] if c < self.n_double else i[:, c - self.n_double] for c in self.cols]
         reals = [j for j, c in enumerate(self.cols) if c < self.n_double]

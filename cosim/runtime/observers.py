@@ -158,7 +158,8 @@ class Recorder(Observer):
             return None
         if self.native:
             take.native = NativeRecording(buf, ctypes.sizeof(buf), dec, n, stop, t0, h,   # type: ignore[attr-defined]
-                                          read_others if getters else None, self.rows.extend)
+                                          read_others if getters else None, self.rows.extend,
+                                          self.rows if self.rows.takes_records else None)
         return take
 
     def record_at(self, t: float) -> None:

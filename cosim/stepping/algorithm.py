@@ -74,7 +74,8 @@ class NativeRecording:
     taken (every ``decimation``-th point of ``n_steps``, the last one, an FMU's end), the last point's time
     ``stop`` [s] where the last step is short, ``t0`` and ``h`` [s]; ``read_others(k)`` reads the recorded
     outputs of other types into the row (None: there are none), returning None or the Failure; ``extend``
-    takes the rows written (bytes of n whole rows, n)."""
+    takes the rows written (bytes of n whole rows, n); ``records`` (None: none), where the loop may write
+    the rows as records instead (:class:`RecordSink`)."""
 
     buf: Any
     row_bytes: int
@@ -85,6 +86,23 @@ class NativeRecording:
     h: float
     read_others: Callable[[int], Failure | None] | None
     extend: Callable[[bytes, int], None]
+    records: "RecordSink | None" = None
+
+
+class RecordSink(Protocol):
+    """Where a native loop may write the recorded rows as they are kept (the records of signals.npy) in
+    place of copying the row: ``columns`` (per recorded column: the byte offset of its value in the row,
+    its conversion, native_loop.c's REC_*, and its byte offset in the record), ``record_bytes`` (a
+    record's size); ``reserve(n)``: the address where up to n records may be written next; ``took(n,
+    bad_row, bad_col)``: n records were written there, the first non-finite value of a real column in
+    record ``bad_row`` of them (-1: none), column ``bad_col``."""
+
+    columns: list[tuple[int, int, int]]
+    record_bytes: int
+
+    def reserve(self, n: int) -> int: ...
+
+    def took(self, n: int, bad_row: int, bad_col: int) -> None: ...
 
 
 class Copy(NamedTuple):

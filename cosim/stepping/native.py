@@ -77,7 +77,8 @@ class Loop(ctypes.Structure):
                 ("stop", ctypes.c_double), ("getters", _P), ("rec", _P), ("rec_cap", ctypes.c_long),
                 ("rec_n", ctypes.c_long), ("f_step", ctypes.c_long), ("f_inst", ctypes.c_int),
                 ("f_call", ctypes.c_int), ("f_value", ctypes.c_double), ("f_time", ctypes.c_double),
-                ("multirate", ctypes.c_int)]
+                ("multirate", ctypes.c_int), ("n_cols", ctypes.c_int), ("col_src", _P), ("col_kind", _P),
+                ("col_dst", _P), ("rec_bytes", ctypes.c_size_t), ("bad_row", ctypes.c_long), ("bad_col", ctypes.c_int)]
 
 
 _IO = ctypes.CFUNCTYPE(ctypes.c_int)
@@ -121,11 +122,15 @@ def _build() -> Path:
     path = shutil.which(cc)
     if path is None:
         raise _NoLoop(f"no C compiler ({cc}) on PATH")
+    # the compiler known by the file it is (its links followed), its size and its time of change: no
+    # process started where the library is in the cache (``cc --version`` costs milliseconds every run)
+    real = os.path.realpath(path)
     try:
-        version = subprocess.run([path, "--version"], capture_output=True, text=True, timeout=60).stdout
-    except (OSError, subprocess.SubprocessError) as exc:
+        st = os.stat(real)
+    except OSError as exc:
         raise _NoLoop(f"the C compiler {path} does not run: {exc}") from None
-    key = hashlib.sha256("\0".join([SOURCE.read_text(), path, version, *FLAGS]).encode()).hexdigest()[:20]
+    compiler = f"{real}\0{st.st_size}\0{st.st_mtime_ns}"
+    key = hashlib.sha256("\0".join([SOURCE.read_text(), path, compiler, *FLAGS]).encode()).hexdigest()[:20]
     lib = _cache() / f"native-loop-{key}.so"
     if lib.is_file():
         return lib
@@ -133,7 +138,11 @@ def _build() -> Path:
         lib.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(suffix=".so", dir=lib.parent)
         os.close(fd)
-        p = subprocess.run([path, *FLAGS, str(SOURCE), "-o", tmp], capture_output=True, text=True, timeout=300)
+        try:
+            p = subprocess.run([path, *FLAGS, str(SOURCE), "-o", tmp], capture_output=True, text=True, timeout=300)
+        except (OSError, subprocess.SubprocessError) as exc:
+            os.unlink(tmp)
+            raise _NoLoop(f"the C compiler {path} does not run: {exc}") from None
         if p.returncode:
             os.unlink(tmp)
             raise _NoLoop(f"the C compiler {path} failed on {SOURCE.name}: {p.stderr.strip()[:300]}")
@@ -246,8 +255,9 @@ class NativeLoop:
         p.pos, p.src, p.slot, p.factor, p.offset, p.plain = (ctypes.addressof(a) for a in arrays)
 
     def _recording(self, done: StepDone, clock: Clock) -> None:
-        """The row copied into a buffer the recording takes after the segment; or, for a ``done`` that gives
-        no row to copy, ``done`` called after every step."""
+        """The rows written as the records of the recording, in its buffer, where it gives their layout
+        (``rec.records``); else the row copied into a buffer the recording takes after the segment; or, for a
+        ``done`` that gives no row to copy, ``done`` called after every step."""
         L = self.L
         rec: NativeRecording | None = getattr(done, "native", None)
         self.rec = rec
@@ -262,6 +272,12 @@ class NativeLoop:
         read = rec.read_others
         if read is not None:
             L.getters = self._failing(lambda k, ended: read(k))
+        if rec.records is not None:
+            cols = rec.records.columns
+            arrays = tuple((ctypes.c_int * len(cols))(*[c[j] for c in cols]) for j in range(3))
+            self.keep += arrays
+            L.n_cols, L.rec_bytes = len(cols), rec.records.record_bytes
+            L.col_src, L.col_kind, L.col_dst = (ctypes.addressof(a) for a in arrays)
 
     def _failing(self, fn: Callable[[int, int], Failure | None]) -> int:
         """A C callback ``(k, ended)`` of ``fn``, whose Failure is kept for the segment's end (status 1)."""
@@ -288,16 +304,24 @@ class NativeLoop:
 
     # ------------------------------------------------------------------ the loop
     def __call__(self, k0: int, k1: int) -> Failure | None:
-        L = self.L
-        if self.rec is not None:
+        L, rec = self.L, self.rec
+        if rec is not None:
             need = (k1 - k0) // max(1, L.decimation) + 2
-            if ctypes.sizeof(self.buf) < need * L.row_bytes:
-                self.buf = ctypes.create_string_buffer(need * L.row_bytes)
-            L.rec, L.rec_cap, L.rec_n = ctypes.addressof(self.buf), need, 0
+            if L.n_cols:   # (written where the recording keeps them)
+                assert rec.records is not None
+                L.rec, L.rec_cap, L.rec_n, L.bad_row = rec.records.reserve(need), need, 0, -1
+            else:
+                if ctypes.sizeof(self.buf) < need * L.row_bytes:
+                    self.buf = ctypes.create_string_buffer(need * L.row_bytes)
+                L.rec, L.rec_cap, L.rec_n = ctypes.addressof(self.buf), need, 0
         self.error = self.failure = None
         code = self.lib.wmr_loop(ctypes.byref(L), k0, k1)
-        if self.rec is not None and L.rec_n:
-            self.rec.extend(self.buf.raw[:L.rec_n * L.row_bytes], L.rec_n)
+        if rec is not None and L.rec_n:
+            if L.n_cols:
+                assert rec.records is not None
+                rec.records.took(L.rec_n, L.bad_row, L.bad_col)
+            else:
+                rec.extend(self.buf.raw[:L.rec_n * L.row_bytes], L.rec_n)
         if code == 0:
             return None
         if code == 2:

@@ -14,7 +14,8 @@
  *     input, reported with that sum;
  *   - a call that returns a status other than 0 (fmi2OK, fmi3OK) ends the segment with that status;
  *   - the row is taken (the recording) after every step where it is due: every decimation-th point, the
- *     last point, and where an FMU ended the simulation.
+ *     last point, and where an FMU ended the simulation; copied whole, or written as the record of
+ *     signals.npy (its columns converted in C) into the recording's buffer.
  * Each of an instance's set, step and get is either an FMI function called directly (FMI 2.0 or 3.0
  * signatures, as its fast path's tails give the extra arguments) or a callback into Python (a Model
  * Exchange instance's integration, an isolated instance, a timed call). */
@@ -71,7 +72,17 @@ typedef struct {
      * the time f_time [s] (multi-rate: its failures carry their time, as the stepper's) */
     long f_step; int f_inst; int f_call; double f_value; double f_time;
     int multirate;            /* the instances at their rates (Inst.dec), as cosim/stepping/multirate.py */
+    /* the recording's rows as records (n_cols > 0): in place of the row, each recorded column converted
+     * from the row (bytes col_src[j], a double or a 64-bit integer) to its type in signals.npy (col_kind[j],
+     * REC_*) at byte col_dst[j] of a record of rec_bytes, written at rec; the first non-finite value of a
+     * column taken from a double noted (bad_row: the record's index from rec, -1: none; bad_col: the
+     * column), the segment going on as the Python flush would */
+    int n_cols; int *col_src; int *col_kind; int *col_dst; size_t rec_bytes;
+    long bad_row; int bad_col;
 } Loop;
+
+/* a recorded column's type in signals.npy, from a double (F8, F4) or from a 64-bit integer (the rest) */
+enum { REC_F8, REC_F4, REC_I1, REC_I2, REC_I4, REC_I8, REC_U1, REC_U2, REC_U4, REC_U8, REC_BOOL };
 
 static double now_s(void) {
     struct timespec ts;
@@ -146,6 +157,36 @@ static int outputs(Loop *L, int i, long k) {
     return OK;
 }
 
+/* the row as the record rec_n: each column converted as numpy converts it (C casts: an integer truncated to
+ * its width, a double rounded to a float, a Boolean any non-zero value), memcpy for the packed layout */
+static void record(Loop *L) {
+    char *rec = L->rec + (size_t)L->rec_n * L->rec_bytes, *row = (char *)L->row;
+    int j;
+    for (j = 0; j < L->n_cols; j++) {
+        char *src = row + L->col_src[j], *dst = rec + L->col_dst[j];
+        double x; int64_t v;
+        if (L->col_kind[j] <= REC_F4) {
+            memcpy(&x, src, sizeof x);
+            if (L->bad_row < 0 && x - x != 0.0) { L->bad_row = L->rec_n; L->bad_col = j; }
+            if (L->col_kind[j] == REC_F8) memcpy(dst, &x, 8);
+            else { float f = (float)x; memcpy(dst, &f, 4); }
+            continue;
+        }
+        memcpy(&v, src, sizeof v);
+        switch (L->col_kind[j]) {
+        case REC_I1: { int8_t w = (int8_t)v; memcpy(dst, &w, 1); break; }
+        case REC_I2: { int16_t w = (int16_t)v; memcpy(dst, &w, 2); break; }
+        case REC_I4: { int32_t w = (int32_t)v; memcpy(dst, &w, 4); break; }
+        case REC_I8: memcpy(dst, &v, 8); break;
+        case REC_U1: { uint8_t w = (uint8_t)v; memcpy(dst, &w, 1); break; }
+        case REC_U2: { uint16_t w = (uint16_t)v; memcpy(dst, &w, 2); break; }
+        case REC_U4: { uint32_t w = (uint32_t)v; memcpy(dst, &w, 4); break; }
+        case REC_U8: { uint64_t w = (uint64_t)v; memcpy(dst, &w, 8); break; }
+        default: { _Bool w = v != 0; memcpy(dst, &w, 1); break; }
+        }
+    }
+}
+
 /* the recording's take of the point k (the row copied when it is due) */
 static int take(Loop *L, long k, int ended) {
     if (L->decimation != 1 && k % L->decimation && k != L->n_steps && !ended) return OK;
@@ -153,7 +194,8 @@ static int take(Loop *L, long k, int ended) {
     if (L->getters && L->getters(k, ended)) return PYTHON;   /* (Python made the failure, or raised) */
     if (L->rec) {
         if (L->rec_n >= L->rec_cap) return PYTHON;   /* (cannot happen: the buffer is sized for the segment) */
-        memcpy(L->rec + (size_t)L->rec_n * L->row_bytes, L->row, L->row_bytes);
+        if (L->n_cols) record(L);
+        else memcpy(L->rec + (size_t)L->rec_n * L->row_bytes, L->row, L->row_bytes);
         L->rec_n++;
     }
     return OK;
