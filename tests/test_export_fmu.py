@@ -156,8 +156,14 @@ def test_open_inputs_are_the_containers_and_the_host_drives_them(tmp_path: Path)
 @pytest.mark.parametrize("rates", ["one rate", "own rates"])
 def test_the_container_in_fmusim_equals_the_run(rates: str, runs: Any, rated: Any, tmp_path: Path) -> None:
     """fmusim (a C host), to the 16 digits it writes; the coupler at its own rate too."""
+    assert_fmusim_equals((runs if rates == "one rate" else rated)["gauss-seidel"], tmp_path)
+
+
+def assert_fmusim_equals(case: tuple[Path, np.ndarray], tmp_path: Path) -> None:
+    """The container ``case[0]`` run by fmusim (STOP, STEP), every column equal to the run ``case[1]`` to
+    the 16 digits fmusim writes."""
     fmusim = tool(FMUSIM)
-    fmu, ref = (runs if rates == "one rate" else rated)["gauss-seidel"]
+    fmu, ref = case
     out = tmp_path / "fmusim.csv"
     p = subprocess.run([str(fmusim), "--interface-type", "cs", "--stop-time", repr(STOP), "--output-interval",
                         repr(STEP), "--output-file", str(out), str(fmu)], capture_output=True, text=True,

@@ -10,10 +10,8 @@ derivatives (its rows swapped by the pivoting); the FMI 3.0 face.  A loop that f
 rows before it equal.  An instance of a loop that cannot get and set its state is refused in one line."""
 from __future__ import annotations
 
-import csv
 import json
 import random
-import subprocess
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -27,8 +25,7 @@ from wmr_cosim.cosim.stepping.iterated import solve_linear
 
 from cosim_support import write_document
 from coupling_fmus import AffineLoop, build_affine, build_mass
-from host_tools import FMUSIM, tool
-from test_export_fmu import STEP, STOP, assert_equal, export, in_fmpy, run, two_mass
+from test_export_fmu import STEP, STOP, assert_equal, assert_fmusim_equals, export, in_fmpy, run, two_mass
 
 #: Each case: the system ("mass", "affine": LOOP, "expanding": EXPANDING) and its [experiment.iteration].
 CASES: dict[str, tuple[str, dict[str, Any]]] = {
@@ -131,20 +128,7 @@ def test_the_fmi3_face_iterates_as_the_run(fmus: dict[str, Any], runs: Any, tmp_
 
 def test_the_iterated_container_in_fmusim_equals_the_run(runs: Any, tmp_path: Path) -> None:
     """fmusim (a C host), to the 16 digits it writes: Newton on the two-mass system."""
-    fmusim = tool(FMUSIM)
-    fmu, ref = runs["newton"]
-    out = tmp_path / "fmusim.csv"
-    p = subprocess.run([str(fmusim), "--interface-type", "cs", "--stop-time", repr(STOP), "--output-interval",
-                        repr(STEP), "--output-file", str(out), str(fmu)], capture_output=True, text=True,
-                       cwd=tmp_path, timeout=600)
-    assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
-    with out.open() as f:
-        rows = list(csv.reader(f))
-    assert rows[0] == list(ref.dtype.names)
-    got = np.array([[float(x) for x in r] for r in rows[1:]])
-    assert len(got) == len(ref)
-    for j, name in enumerate(ref.dtype.names[1:], start=1):
-        assert np.array_equal(got[:, j], np.array([float(f"{x:.16g}") for x in ref[name]])), name
+    assert_fmusim_equals(runs["newton"], tmp_path)
 
 
 def test_a_loop_failing_mid_run_ends_the_hosts_step_with_the_runs_line(fmus: dict[str, Any], tmp_path: Path) -> None:

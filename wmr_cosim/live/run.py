@@ -80,15 +80,9 @@ def run_live(plan: Plan, out: str | Path | None, options: LiveOptions, real_time
     missing = missing_libraries()
     if missing:
         raise LiveError(f"--live needs {', '.join(missing)} (the live extra): pip install 'wmr-cosim[live]'")
-    from .server import LiveServer, is_loopback
     from .session import LiveSession
 
-    token = None if is_loopback(options.host) else secrets.token_urlsafe(24)
-    try:
-        server = LiveServer(options.host, options.port, token)
-    except OSError as exc:
-        raise LiveError(f"--port {options.port}: cannot serve on {options.host}:{options.port} "
-                        f"({exc.strerror or exc})") from None
+    server = bind_server(options)
     try:
         ex = Execution(plan, out, progress=False, keep_signals=keep_signals)
         try:
@@ -110,6 +104,19 @@ def run_live(plan: Plan, out: str | Path | None, options: LiveOptions, real_time
     if result.out_dir is not None:
         write_replay(Path(result.out_dir), plan, session.given)
     return result
+
+
+def bind_server(options: LiveOptions) -> Any:
+    """A :class:`.server.LiveServer` bound to ``options``' address and port, with a random token where the
+    address is not loopback; LiveError (one line) where the port cannot be bound."""
+    from .server import LiveServer, is_loopback
+
+    token = None if is_loopback(options.host) else secrets.token_urlsafe(24)
+    try:
+        return LiveServer(options.host, options.port, token)
+    except OSError as exc:
+        raise LiveError(f"--port {options.port}: cannot serve on {options.host}:{options.port} "
+                        f"({exc.strerror or exc})") from None
 
 
 def open_page(url: str) -> None:

@@ -2,12 +2,11 @@
 table and requirements' verdicts) until interrupted (Ctrl-C)."""
 from __future__ import annotations
 
-import secrets
 import threading
 from pathlib import Path
 from typing import Callable
 
-from .run import LiveError, LiveOptions, announce_url, missing_libraries
+from .run import LiveError, LiveOptions, announce_url, bind_server, missing_libraries
 
 
 def serve_results(folder: str | Path, options: LiveOptions, announce: Callable[[str], None] | None = None,
@@ -20,18 +19,12 @@ def serve_results(folder: str | Path, options: LiveOptions, announce: Callable[[
     if missing:
         raise LiveError(f"view needs {', '.join(missing)} (the live extra): pip install 'wmr-cosim[live]'")
     from .finished import FinishedRun, NotResults
-    from .server import LiveServer, is_loopback
 
     try:
         source = FinishedRun(folder)
     except NotResults as exc:
         raise LiveError(str(exc)) from None
-    token = None if is_loopback(options.host) else secrets.token_urlsafe(24)
-    try:
-        server = LiveServer(options.host, options.port, token)
-    except OSError as exc:
-        raise LiveError(f"--port {options.port}: cannot serve on {options.host}:{options.port} "
-                        f"({exc.strerror or exc})") from None
+    server = bind_server(options)
     done = until or threading.Event()
     try:
         server.start(source)
