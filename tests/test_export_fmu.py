@@ -202,6 +202,19 @@ REFUSALS: dict[str, Any] = {
         doc["record"]["variables"].append("ft3.Float32_continuous_output")),
     "FMI 3.0 model exchange": lambda doc, m, d: doc["instances"].update(
         ref={"fmu": str(REF / "fmi3" / "Dahlquist.fmu"), "interface": "model-exchange"}),
+    "iterated with an FMI 3.0 FMU": lambda doc, m, d: (
+        doc["experiment"].update(algorithm="iterated"),
+        doc["instances"].update(ref={"fmu": str(REF / "fmi3" / "Dahlquist.fmu")})),
+    "iterated with events": lambda doc, m, d: (
+        doc["experiment"].update(algorithm="iterated"),
+        doc.update(events=[{"time": 0.5, "variable": "body.F", "action": "override", "value": 1.0}])),
+    "an Integer event on a Model Exchange instance": lambda doc, m, d: (
+        doc["instances"].update(ft={"fmu": str(REF / "fmi2" / "Feedthrough.fmu"), "interface": "model-exchange",
+                                    "solver": "rk4"}),
+        doc.update(events=[{"time": 0.5, "variable": "ft.Int32_input", "action": "override", "value": 3}])),
+    "an event on an FMI 3.0 Int8": lambda doc, m, d: (
+        doc["instances"].update(ft3={"fmu": str(REF / "fmi3" / "Feedthrough.fmu")}),
+        doc.update(events=[{"time": 0.5, "variable": "ft3.Int8_input", "action": "override", "value": 3}])),
     "scheduled execution": lambda doc, m, d: doc["instances"].update(
         clocks={"fmu": str(REF / "fmi3" / "Clocks.fmu"), "clock_ticks": {"inClock2": [0.0]}}),
     "no linux64 binary": lambda doc, m, d: doc["instances"]["body"].update(fmu=str(_no_binary(m, d))),
@@ -217,6 +230,8 @@ REFUSALS: dict[str, Any] = {
 REFUSED_AT = {"adaptive": "experiment.algorithm", "condition events": "events", "tables and own rates": "inputs",
               "requirements": "requirements", "an FMI 3.0 Float32 output": "record",
               "FMI 3.0 model exchange": "instances.ref", "scheduled execution": "instances.clocks",
+              "iterated with an FMI 3.0 FMU": "instances.ref", "iterated with events": "events",
+              "an Integer event on a Model Exchange instance": "events", "an event on an FMI 3.0 Int8": "events",
               "no linux64 binary": "instances.body.fmu",
               "an FMI 3.0 UInt64 output": "record", "an output name twice": "record",
               "a stop off the step's grid": "experiment.stop"}
