@@ -12,6 +12,7 @@ import os
 import subprocess
 from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
 import pytest
 from fmpy import read_model_description
@@ -41,6 +42,34 @@ def run_omsimulator(exe: Path, args: list[str], cwd: Path) -> subprocess.Complet
     session's TMPDIR (so that anything it left there would be seen): no PATH, LD_PRELOAD or PYTHONHOME."""
     env = {"TMPDIR": os.environ["TMPDIR"]} if "TMPDIR" in os.environ else {}
     return subprocess.run([str(exe), *args], capture_output=True, text=True, env=env, cwd=cwd, timeout=900)
+
+
+def fmusim_csv(fmu: Path, stop: float, step: float, folder: Path) -> list[list[str]]:
+    """fmusim's output of ``fmu`` as co-simulation to ``stop`` every ``step`` [s] (run in ``folder``): its
+    header and rows (a skip where fmusim is absent)."""
+    import csv
+
+    fmusim = tool(FMUSIM)
+    out = folder / "fmusim.csv"
+    p = subprocess.run([str(fmusim), "--interface-type", "cs", "--stop-time", repr(stop), "--output-interval",
+                        repr(step), "--output-file", str(out), str(fmu)], capture_output=True, text=True,
+                       cwd=folder, timeout=600, check=False)
+    assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
+    with out.open() as f:
+        return list(csv.reader(f))
+
+
+def assert_printed_columns(rows: list[list[str]], ref: Any) -> None:
+    """Every column of fmusim's ``rows`` (by its header's names) equal to the structured array ``ref``'s
+    column to the digits fmusim prints: a Boolean as 1/true, an integer as it is, a real to 16 digits."""
+    for j, name in enumerate(rows[0]):
+        col = [r[j] for r in rows[1:]]
+        if ref[name].dtype.kind == "b":
+            assert [x in ("1", "true") for x in col] == list(ref[name]), name
+        elif ref[name].dtype.kind in "iu":
+            assert [int(x) for x in col] == [int(x) for x in ref[name]], name
+        else:
+            assert [float(x) for x in col] == [float(f"{x:.16g}") for x in ref[name]], name
 
 
 def tool(relative: str) -> Path:

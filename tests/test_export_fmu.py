@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import csv
 import shutil
-import subprocess
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -18,7 +17,7 @@ from wmr_cosim.cli import main
 
 from cosim_support import write_document
 from coupling_fmus import TwoMass, build_mass, two_mass_document
-from host_tools import FMUSIM, OMSIMULATOR, run_omsimulator, tool
+from host_tools import OMSIMULATOR, assert_printed_columns, fmusim_csv, run_omsimulator, tool
 from reference_fmus import REF
 
 STOP, STEP = 1.0, 0.01
@@ -162,21 +161,10 @@ def test_the_container_in_fmusim_equals_the_run(rates: str, runs: Any, rated: An
 def assert_fmusim_equals(case: tuple[Path, np.ndarray], tmp_path: Path) -> None:
     """The container ``case[0]`` run by fmusim (STOP, STEP), every column equal to the run ``case[1]`` to
     the 16 digits fmusim writes."""
-    fmusim = tool(FMUSIM)
     fmu, ref = case
-    out = tmp_path / "fmusim.csv"
-    p = subprocess.run([str(fmusim), "--interface-type", "cs", "--stop-time", repr(STOP), "--output-interval",
-                        repr(STEP), "--output-file", str(out), str(fmu)], capture_output=True, text=True,
-                       cwd=tmp_path, timeout=600)
-    assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
-    with out.open() as f:
-        rows = list(csv.reader(f))
-    assert rows[0] == list(ref.dtype.names)
-    got = np.array([[float(x) for x in r] for r in rows[1:]])
-    assert len(got) == len(ref)
-    for j, name in enumerate(ref.dtype.names[1:], start=1):
-        printed = np.array([float(f"{x:.16g}") for x in ref[name]])
-        assert np.array_equal(got[:, j], printed), name
+    rows = fmusim_csv(fmu, STOP, STEP, tmp_path)
+    assert rows[0] == list(ref.dtype.names) and len(rows) == len(ref) + 1
+    assert_printed_columns(rows, ref)
 
 
 # ------------------------------------------------------------------ what the container cannot hold yet
@@ -383,22 +371,10 @@ def test_g1_container_in_our_master_equals_the_run(g1: Any, tmp_path: Path) -> N
 @pytest.mark.parametrize("case", list(G1_CASES))
 def test_g1_in_fmusim_equals_the_run(case: str, g1: Any, tmp_path: Path) -> None:
     """fmusim (a C host, no Python in it: our loader starts one), to the 16 digits it writes."""
-    fmusim = tool(FMUSIM)
     fmu, ref = g1[case]
-    out = tmp_path / "fmusim.csv"
-    p = subprocess.run([str(fmusim), "--interface-type", "cs", "--stop-time", repr(G1_STOP), "--output-interval",
-                        repr(G1_STEP), "--output-file", str(out), str(fmu)], capture_output=True, text=True,
-                       cwd=tmp_path, timeout=600)
-    assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
-    with out.open() as f:
-        rows = list(csv.reader(f))
+    rows = fmusim_csv(fmu, G1_STOP, G1_STEP, tmp_path)
     assert sorted(rows[0]) == sorted(ref.dtype.names) and len(rows) == len(ref) + 1
-    for j, name in enumerate(rows[0]):
-        col = [r[j] for r in rows[1:]]
-        if ref[name].dtype.kind in "biu":
-            assert [int(x) for x in col] == [int(x) for x in ref[name]], name
-        else:
-            assert [float(x) for x in col] == [float(f"{x:.16g}") for x in ref[name]], name
+    assert_printed_columns(rows, ref)
 
 
 @pytest.mark.parametrize("case", ["gauss-seidel", "c plant", "fmi 3"])

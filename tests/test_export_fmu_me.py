@@ -7,8 +7,6 @@ output equals ``wmr-cosim run`` of the same scenario bit for bit: our C plant as
 with its bounces.  What the container cannot hold is refused in one line, exit 2, nothing written."""
 from __future__ import annotations
 
-import csv
-import subprocess
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -20,7 +18,7 @@ from wmr_cosim.cli import main
 from wmr_cosim.cosim.plan import container
 
 from cosim_support import write_document
-from host_tools import FMUSIM, tool
+from host_tools import fmusim_csv
 from reference_fmus import REF
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
@@ -174,14 +172,7 @@ def test_a_model_exchange_instance_at_its_own_rate_equals_the_run(tmp_path: Path
 
 
 def fmusim_columns(fmu: Path, stop: float, step: float, folder: Path) -> tuple[list[str], np.ndarray]:
-    fmusim = tool(FMUSIM)
-    out = folder / "fmusim.csv"
-    p = subprocess.run([str(fmusim), "--interface-type", "cs", "--stop-time", repr(stop), "--output-interval",
-                        repr(step), "--output-file", str(out), str(fmu)], capture_output=True, text=True,
-                       cwd=folder, timeout=600)
-    assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
-    with out.open() as f:
-        rows = list(csv.reader(f))
+    rows = fmusim_csv(fmu, stop, step, folder)
     return rows[0], np.array([[float(x) for x in r] for r in rows[1:]])
 
 

@@ -18,7 +18,7 @@ from wmr_cosim.cli import main
 from cosim_support import write_document
 from reference_fmus import REF
 from test_export_fmu import assert_same_columns, export, run
-from test_export_fmu3 import fmusim_csv
+from host_tools import assert_printed_columns, fmusim_csv
 
 STOP, STEP = 5.0, 0.05
 
@@ -237,14 +237,7 @@ def test_the_container_in_fmusim_equals_the_run(system: str, face: str, runs: An
     ref = runs[(system, "gauss-seidel")]
     rows = fmusim_csv(fmus[(system, "gauss-seidel", face)], STOP, STEP, tmp_path)
     assert sorted(rows[0]) == sorted(ref.dtype.names) and len(rows) == len(ref) + 1
-    for j, name in enumerate(rows[0]):
-        col = [r[j] for r in rows[1:]]
-        if ref[name].dtype.kind == "b":
-            assert [x in ("1", "true") for x in col] == list(ref[name]), name
-        elif ref[name].dtype.kind in "iu":
-            assert [int(x) for x in col] == [int(x) for x in ref[name]], name
-        else:
-            assert [float(x) for x in col] == [float(f"{x:.16g}") for x in ref[name]], name
+    assert_printed_columns(rows, ref)
 
 
 # ------------------------------------------------------------------ what the container cannot hold of them
