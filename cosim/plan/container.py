@@ -420,14 +420,15 @@ def _events(plan: Plan, wiring: Wiring, slots: _Slots, tables: set[int]) -> list
                 break
             assert ev.instance is not None and ev.var is not None
             where = index[ev.instance]
+            fmi = plan.instances[ev.instance].model.fmi
             if ev.action == "set":
-                items.append(f"set {where} {_param(ev.var, ev.value)}")
+                items.append(f"set {where} {_param(ev.var, ev.value, fmi)}")
             elif ev.var.type == "Real":
                 wiring.apply(ev)
             else:
                 value = discrete_event_value(plan, held, ev)
                 if value is not None:
-                    items.append(f"set {where} {_param(ev.var, value)}")
+                    items.append(f"set {where} {_param(ev.var, value, fmi)}")
         for n in plan.order:
             now = _copies(n, wiring, slots)
             if now != before[n]:
@@ -591,24 +592,30 @@ def _typed(v: ContainerVar) -> str:
 def model_description(plan: Plan, name: str, guid: str, cvars: list[ContainerVar]) -> str:
     """The container's modelDescription.xml (FMI 2.0 co-simulation)."""
     sc = plan.scenario
-    units = sorted({v.unit for v in cvars if v.unit and v.type == "Real"})
     rows = []
     for j, v in enumerate(cvars):
         rows.append(f'    <ScalarVariable {_attributes(j, v)} description={quoteattr(v.description)}><{v.type}{_typed(v)}/>'
                     "</ScalarVariable>")
     outs = "".join(f'<Unknown index="{j + 1}"/>' for j, v in enumerate(cvars) if v.kind == "o")
-    unit_defs = ("  <UnitDefinitions>" + "".join(f"<Unit name={quoteattr(u)}/>" for u in units) +
-                 "</UnitDefinitions>\n") if units else ""
     return (f'<?xml version="1.0" encoding="UTF-8"?>\n<fmiModelDescription fmiVersion="2.0" modelName={quoteattr(name)} '
             f'guid="{guid}" generationTool="wmr-cosim export-fmu" variableNamingConvention="flat" '
             f'numberOfEventIndicators="0"\n  description={quoteattr(f"the system of {Path(sc.file).name} as one FMU")}>\n'
             f'  <CoSimulation modelIdentifier="{name}" canHandleVariableCommunicationStepSize="false" '
-            'canNotUseMemoryManagementFunctions="true"/>\n' + unit_defs +
-            '  <LogCategories><Category name="logEvents"/><Category name="logStatusError"/></LogCategories>\n'
-            f'  <DefaultExperiment startTime="{sc.start!r}" stopTime="{sc.stop!r}" stepSize="{sc.step!r}"/>\n'
+            'canNotUseMemoryManagementFunctions="true"/>\n' + _shared_elements(plan, cvars, set()) +
             "  <ModelVariables>\n" + "\n".join(rows) + "\n  </ModelVariables>\n"
             f"  <ModelStructure><Outputs>{outs}</Outputs><InitialUnknowns>{outs}</InitialUnknowns></ModelStructure>\n"
             "</fmiModelDescription>\n")
+
+
+def _shared_elements(plan: Plan, cvars: list[ContainerVar], units: set[str]) -> str:
+    """The elements both descriptions hold between CoSimulation and ModelVariables: the units (of the Real
+    variables, and ``units``), the log categories, the default experiment (the scenario's start, stop, step)."""
+    sc = plan.scenario
+    names = sorted(units | {v.unit for v in cvars if v.unit and v.type == "Real"})
+    unit_defs = ("  <UnitDefinitions>" + "".join(f"<Unit name={quoteattr(u)}/>" for u in names) +
+                 "</UnitDefinitions>\n") if names else ""
+    return (unit_defs + '  <LogCategories><Category name="logEvents"/><Category name="logStatusError"/></LogCategories>\n'
+            f'  <DefaultExperiment startTime="{sc.start!r}" stopTime="{sc.stop!r}" stepSize="{sc.step!r}"/>\n')
 
 
 #: The platforms a container is built for: linux64 always, win64 where it can be (:func:`platforms`).
@@ -653,7 +660,6 @@ def model_description3(plan: Plan, name: str, token: str, cvars: list[ContainerV
     with the value references of the FMI 2.0 description, and time, the independent variable, at value
     reference 0; ``token`` its instantiation token)."""
     sc = plan.scenario
-    units = sorted({"s", *(v.unit for v in cvars if v.unit and v.type == "Real")})
     rows = [('    <Float64 name="time" valueReference="0" causality="independent" variability="continuous" unit="s" '
              'description="the time of the system"/>')]
     for j, v in enumerate(cvars):
@@ -661,15 +667,11 @@ def model_description3(plan: Plan, name: str, token: str, cvars: list[ContainerV
     outs = [j + 1 for j, v in enumerate(cvars) if v.kind == "o"]
     structure = "".join(f'<Output valueReference="{r}"/>' for r in outs) + \
         "".join(f'<InitialUnknown valueReference="{r}"/>' for r in outs)
-    unit_defs = ("  <UnitDefinitions>" + "".join(f"<Unit name={quoteattr(u)}/>" for u in units) +
-                 "</UnitDefinitions>\n") if units else ""
     return (f'<?xml version="1.0" encoding="UTF-8"?>\n<fmiModelDescription fmiVersion="3.0" modelName={quoteattr(name)} '
             f'instantiationToken="{token}" generationTool="wmr-cosim export-fmu" variableNamingConvention="flat"\n'
             f'  description={quoteattr(f"the system of {Path(sc.file).name} as one FMU")}>\n'
             f'  <CoSimulation modelIdentifier="{name}" canHandleVariableCommunicationStepSize="false" '
-            f'fixedInternalStepSize="{sc.step!r}"/>\n' + unit_defs +
-            '  <LogCategories><Category name="logEvents"/><Category name="logStatusError"/></LogCategories>\n'
-            f'  <DefaultExperiment startTime="{sc.start!r}" stopTime="{sc.stop!r}" stepSize="{sc.step!r}"/>\n'
+            f'fixedInternalStepSize="{sc.step!r}"/>\n' + _shared_elements(plan, cvars, {"s"}) +
             "  <ModelVariables>\n" + "\n".join(rows) + "\n  </ModelVariables>\n"
             f"  <ModelStructure>{structure}</ModelStructure>\n"
             "</fmiModelDescription>\n")

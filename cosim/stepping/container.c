@@ -194,12 +194,8 @@ static int read_instance(Container *s, Reader *r, int i) {
     for (j = 0; j < q->n_params; j++) {
         Param *a = &q->params[j];
         expect(r, "param");
-        a->type = token(r)[0]; a->vr = (unsigned)num(r);
-        if (a->type == 'R') a->r = real(r);
-        else if (a->type == 'S') a->s = text(r);
-        else if (a->type == 'T') a->typed = read_typed(r);
-        else a->i = (int)num(r);
-        a->var = (int)num(r);
+        read_param(r, a);
+        a->var = (int)num(r);   /* (the container's variable of that name, -1: none) */
     }
     p->other = &OTHERS[s->n_others]; p->n_other = (int)no;   /* (the loop calls them after the set) */
     for (j = 0; j < no && !r->bad; j++) if (!read_other(s, r, i)) r->bad = 1;
@@ -442,9 +438,7 @@ static int apply_at(Container *s, long k) {
             if (it->what == 's') {
                 Inner *q = &s->inner[it->inst];
                 Param *p = &it->p;
-                if (p->type == 'S') { fmi2String v = p->s; st = q->set_string(q->c, &p->vr, 1, &v); }
-                else st = set_value(q, p->type, p->vr, p->type == 'R' ? p->r : (double)p->i);
-                if (st) { say(s, fmi2Error, "%s: an event's value to value reference %u returned %d at t = %.17g s",
+                if ((st = set_param(s, q, p))) { say(s, fmi2Error, "%s: an event's value to value reference %u returned %d at t = %.17g s",
                               q->name, p->vr, st, s->L.t0 + (double)a->k * s->L.h); return 1; }
             } else if (it->what == 'c') replace_copies(&s->insts[it->inst], it, s->row);
             else if (it->what == 'p') s->row[it->put_slot] = it->put_value;

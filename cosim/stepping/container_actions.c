@@ -30,10 +30,15 @@ typedef struct {
     int stopped, stop_index; double stop_time;
 } Actions;
 
+static void *read_typed(Reader *r);   /* (container_inner3.c) */
+
+/* "TYPE VR VALUE": a value a parameter line or an event sets (R, I, B, S; T an FMI 3.0 type's value or array,
+ * read_typed); no container variable of its own (var -1) */
 static int read_param(Reader *r, Param *a) {
     a->type = token(r)[0]; a->vr = (unsigned)num(r);
     if (a->type == 'R') a->r = real(r);
     else if (a->type == 'S') a->s = text(r);
+    else if (a->type == 'T') a->typed = read_typed(r);
     else if (a->type == 'I' || a->type == 'B') a->i = (int)num(r);
     else r->bad = 1;
     a->var = -1;
