@@ -52,7 +52,7 @@ from ..stepping.algorithm import Algorithm, Clock, InstanceIO
 from ..stepping.multirate import MultiRate
 from .access import VariableAccess
 from .interrupt import Interrupt
-from .manipulators import Actuator, ConditionEvents, EventStop, GivenEvents, Manipulator, ScriptChanges, TimedEvents
+from .manipulators import Actuator, ConditionEvents, EventStop, Manipulator, ScriptChanges, TimedEvents
 from .monitoring import RequirementMonitors
 from .observers import Observer, Pacing, ProgressBar, Recorder, StepCallback
 from .pacing import Pacer
@@ -141,7 +141,7 @@ class Execution:
         self._wiring = Wiring(plan, layout)
         actuator = self._actuator = Actuator(plan, self.instances, self._wiring)
         self._script = ScriptChanges(actuator)
-        self._given: dict[str, GivenEvents] = {}   # the events drivers give, by source (give)
+        self._given: dict[str, TimedEvents] = {}   # the events drivers give, by source (give)
         self.access = VariableAccess(plan, self.instances, layout, self._script)   # the variables by reference
         self.folder = ResultsFolder(out) if out is not None else None   # (None: the run kept in memory)
         if self.folder is not None:
@@ -448,9 +448,9 @@ class Execution:
         ev = given_event(self.plan, ref, value, self.k_done)
         given = self._given.get(source)
         if given is None:
-            given = self._given[source] = GivenEvents(self._actuator, source)
+            given = self._given[source] = TimedEvents(self._actuator, [], source)
             self.add_manipulator(given)
-        given.pending.append(ev)
+        given.events.append(ev)
         return ev
 
     def pace(self, factor: float | None) -> None:

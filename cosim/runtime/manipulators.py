@@ -68,6 +68,11 @@ class Actuator:
             self.instances[ev.instance].set_values([(ev.var, ev.value)])
             return False
         if ev.var.type == "Real":
+            if ev.action == "override" and ev.var.causality == "input" and \
+                    not self.wiring.is_wired(ev.instance, ev.var.vr, "input"):
+                # (an input no copy carries: a driver's override, the FMU holding it; the scenario's events
+                # on such inputs have copies of held values from the plan on)
+                return self.set(ev.instance, ev.var, ev.value)
             return self.wiring.apply(ev)
         self._discrete_event(ev)
         return False
@@ -141,10 +146,12 @@ class Manipulator:
 
 
 class TimedEvents(Manipulator):
-    """The scenario's events at given times, each before the step from its communication point."""
+    """Events at given times, each before the step from its communication point: the scenario's, or
+    (``source``) those a driver gives while the run goes (:meth:`.execution.Execution.give` appends them to
+    ``events``), their entries in the event log the driver's."""
 
-    def __init__(self, actuator: Actuator, events: list[EventPlan]) -> None:
-        self.actuator, self.events, self.i = actuator, events, 0
+    def __init__(self, actuator: Actuator, events: list[EventPlan], source: str | None = None) -> None:
+        self.actuator, self.events, self.i, self.source = actuator, events, 0, source
 
     def next_action(self, k: int) -> int | None:
         return self.events[self.i].step if self.i < len(self.events) else None
@@ -152,7 +159,7 @@ class TimedEvents(Manipulator):
     def act(self, ex: Manipulable, k: int) -> bool:
         changed = False
         while self.i < len(self.events) and self.events[self.i].step <= k:
-            changed = self.actuator.event(self.events[self.i], k, ex.clock.time(k), None) or changed
+            changed = self.actuator.event(self.events[self.i], k, ex.clock.time(k), None, self.source) or changed
             self.i += 1
         return changed
 
@@ -200,34 +207,6 @@ class ConditionEvents(Manipulator):
         while self.pending and self.pending[0][0] <= k:
             _, _, ev, fired = heapq.heappop(self.pending)
             changed = self.actuator.event(ev, k, ex.clock.time(k), fired) or changed
-        return changed
-
-
-class GivenEvents(Manipulator):
-    """Events a driver gives while the run goes (:meth:`.execution.Execution.give`): each acts before the
-    step from the communication point it was given at, exactly as a timed event of the scenario at that
-    time acts (the scenario's own events of that point act first); its entry in the event log has the
-    driver's source.  An input that no connection or table drives, and so no copy of the wiring, is set on
-    the FMU, which holds it (as a timed event's copy of a held value would give it)."""
-
-    def __init__(self, actuator: Actuator, source: str) -> None:
-        self.actuator, self.source = actuator, source
-        self.pending: list[EventPlan] = []
-
-    def next_action(self, k: int) -> int | None:
-        return self.pending[0].step if self.pending else None
-
-    def act(self, ex: Manipulable, k: int) -> bool:
-        changed = False
-        while self.pending and self.pending[0].step <= k:
-            ev = self.pending.pop(0)
-            assert ev.instance is not None and ev.var is not None
-            if ev.action == "override" and ev.var.type == "Real" and \
-                    not self.actuator.wiring.is_wired(ev.instance, ev.var.vr, "input"):
-                self.actuator.log.append(given_entry(ev, ex.clock.time(k), self.source))
-                changed = self.actuator.set(ev.instance, ev.var, ev.value) or changed
-            else:
-                changed = self.actuator.event(ev, k, ex.clock.time(k), None, self.source) or changed
         return changed
 
 
