@@ -152,3 +152,50 @@ def test_a_default_experiment_that_is_not_a_finite_number_is_refused_in_one_line
     assert not (tmp_path / "out").exists()
     assert cli.main(["info", str(bad)]) == 0   # info describes it as it is
     assert "default experiment:" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------------- what a run unpacks
+def test_a_run_unpacks_the_model_description_resources_and_this_platforms_binaries_only(tmp_path):
+    """Sources, documentation, extra/ and other platforms' binaries stay packed (an FMU may assume nothing
+    outside its resources); the archive is still checked whole: an unsafe entry among the ones left out
+    refuses it all the same."""
+    from wmr_cosim.cosim.model.archive import run_members
+
+    src = edited_fmu(REF / "fmi2" / "Feedthrough.fmu", tmp_path / "f.fmu", lambda n, b: b)
+    with zipfile.ZipFile(src, "a") as zf:
+        zf.writestr("resources/data/table.txt", "1 2 3\n")
+        zf.writestr("binaries/win64/Feedthrough.dll", b"MZ")
+        zf.writestr("documentation/index.html", "<p>doc</p>")
+    out = safe_extract(src, tmp_path / "x", only=run_members("linux64"))
+    got = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
+    assert got == ["binaries/linux64/Feedthrough.so", "modelDescription.xml", "resources/data/table.txt"]
+    assert (out / "resources" / "data" / "table.txt").read_text() == "1 2 3\n"
+    bad = edited_fmu(src, tmp_path / "bad.fmu", lambda n, b: b)
+    with zipfile.ZipFile(bad, "a") as zf:
+        zf.writestr("sources/../../evil.c", "x")
+    with pytest.raises(FmuLoadError, match="evil.c"):
+        safe_extract(bad, tmp_path / "y", only=run_members("linux64"))
+    assert not (tmp_path / "y").exists()
+
+
+def test_a_model_is_read_once_while_its_file_stays_the_same(tmp_path):
+    """load_model reads an FMU once per process (the plan and an SSP's loading both ask for it); the file
+    changed (rewritten in place, or replaced) is read again, and a model asked for by another path names
+    that path."""
+    import os
+    import shutil
+
+    from wmr_cosim.cosim.model.description import load_model
+
+    path = shutil.copy(REF / "fmi2" / "Feedthrough.fmu", tmp_path / "f.fmu")
+    first = load_model(path)
+    assert load_model(path) is first
+    edited_fmu(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "d.fmu", lambda n, b: b)
+    os.replace(tmp_path / "d.fmu", path)                      # replaced: another inode
+    assert load_model(path).md.modelName == "Dahlquist"
+    with open(path, "r+b") as fh:                             # rewritten in place: other times
+        fh.write(Path(REF / "fmi2" / "Feedthrough.fmu").read_bytes())
+        fh.truncate()
+    assert load_model(path).md.modelName == "Feedthrough"
+    os.symlink(path, tmp_path / "link.fmu")
+    assert load_model(tmp_path / "link.fmu").path == tmp_path / "link.fmu"

@@ -218,14 +218,62 @@ def test_the_npy_file_loads_after_every_append_with_a_header_of_fixed_length(tmp
     assert header % 64 == 0
     rec.append([np.array([]), np.array([])])                  # nothing to add
     assert rec.rows == 0 and path.stat().st_size == header
-    for n in (1, 3, 1000):
+    for n in (1, 3, 1000, 5000):
         rec.append([np.arange(n, dtype=float), np.full(n, 0.5)])
-        assert path.stat().st_size == header + 16 * rec.rows
-        assert len(np.load(path)) == rec.rows
+        assert path.stat().st_size >= header + 16 * rec.rows       # (room for more, cut at the close)
+        assert len(np.load(path)) == rec.rows and np.load(path)["time"][-1] == n - 1
     rec.close()
     rec.close()
+    assert path.stat().st_size == header + 16 * 6004
     d = np.load(path)
-    assert rec.rows == 1004 and d["time"][-1] == 999.0 and np.all(d["x"] == 0.5)
+    assert rec.rows == 6004 and d["time"][-1] == 4999.0 and np.all(d["x"] == 0.5)
+
+
+@pytest.mark.parametrize("memory", [False, True])
+def test_records_written_in_place_count_once_committed_after_the_rows_pending(tmp_path, memory):
+    """A native loop's records: written at the address ``space`` gives (after the rows kept and those
+    pending in the row buffer), invisible until committed; the row buffer's flush writes its pending rows
+    first, then counts the records, so the rows come out in the order they were taken."""
+    import ctypes
+
+    from wmr_cosim.cosim.results.recording import MemoryRecorder
+
+    rec = MemoryRecorder(["time", "x"]) if memory else NpyRecorder(tmp_path / "s.npy", ["time", "x"])
+    rows = RowBuffer(rec, [0, 1], 2)
+    rows.chunk.append(_row(0.0, 10.0))                        # the start row, taken in Python
+    n = 3000                                                  # (more than the first store holds)
+    addr = rows.reserve(n)
+    block = np.array([(1.0 + i, 20.0 + i) for i in range(n)], rec.dtype)
+    ctypes.memmove(addr, block.ctypes.data, block.nbytes)
+    rows.took(n, -1, 0)
+    assert rec.rows == 0 and rows.last_time() == float(n)
+    rows.flush()
+    assert rec.rows == n + 1 and rows.last_time() is None
+    data = np.array(rec.array())
+    assert data["time"].tolist() == [float(i) for i in range(n + 1)] and data["x"][0] == 10.0
+    rec.close()
+    if not memory:
+        assert np.array_equal(np.load(tmp_path / "s.npy"), data)
+        assert (tmp_path / "s.npy").stat().st_size == 128 + 16 * (n + 1)
+
+
+def test_a_process_killed_mid_recording_leaves_the_rows_committed(tmp_path):
+    """The file is mapped into memory: a process killed (SIGKILL) after committing rows leaves them in
+    the file, loadable, as many as its header says."""
+    import subprocess
+    import sys
+
+    path = tmp_path / "s.npy"
+    code = ("import os, signal, numpy as np\n"
+            "from wmr_cosim.cosim.results.recording import NpyRecorder\n"
+            f"rec = NpyRecorder({str(path)!r}, ['time', 'x'])\n"
+            "rec.append([np.arange(2500.0), np.arange(2500.0) * 2])\n"
+            "rec.space(0, 10000)\n"
+            "os.kill(os.getpid(), signal.SIGKILL)\n")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True)
+    assert p.returncode == -9, p.stderr
+    d = np.load(path)
+    assert len(d) == 2500 and d["x"][-1] == 4998.0
 
 
 def test_column_names_outside_latin1_use_the_utf8_header(tmp_path):

@@ -33,7 +33,7 @@ import zipfile
 import zlib
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
-from typing import IO, Any
+from typing import IO, Any, Callable
 
 from ..messages.errors import CosimError, FmuLoadError, ScenarioError
 from ..messages.suggest import unknown_key
@@ -259,11 +259,30 @@ def _copy_member(label: str, zf: zipfile.ZipFile, info: zipfile.ZipInfo, sink: I
     return n
 
 
-def safe_extract(path: str | os.PathLike, dest: str | os.PathLike, limits: ArchiveLimits | None = None) -> Path:
-    """Check the whole archive, then extract it into ``dest`` (created), counting the bytes written;
-    returns ``dest``.  On any refusal what was written is removed (``dest`` too if it did not exist)."""
+def run_members(platform: str) -> Callable[[str], bool]:
+    """Which entries of an FMU a run needs unpacked: ``modelDescription.xml``, ``resources/`` and the
+    binaries of ``platform`` (``binaries/<platform>/``: the shared library and what it loads).  An FMU may
+    assume nothing of the folder outside its resources (FMI 2.0 2.3, FMI 3.0 2.5); sources, documentation,
+    ``extra/`` and other platforms' binaries stay packed (each file written costs a create)."""
+    binaries = f"binaries/{platform}/"
+
+    def needed(name: str) -> bool:
+        parts = [p for p in PurePosixPath(name.replace("\\", "/")).parts if p not in ("", ".")]
+        path = "/".join(parts) + "/"
+        return path == "modelDescription.xml/" or path.startswith(("resources/", binaries)) or \
+            binaries.startswith(path)
+    return needed
+
+
+def safe_extract(path: str | os.PathLike, dest: str | os.PathLike, limits: ArchiveLimits | None = None,
+                 only: Callable[[str], bool] | None = None) -> Path:
+    """Check the whole archive, then extract it (its entries that ``only`` keeps, None: all) into ``dest``
+    (created), counting the bytes written; returns ``dest``.  On any refusal what was written is removed
+    (``dest`` too if it did not exist)."""
     lim = limits or DEFAULT_LIMITS
     infos = check_archive(path, lim, verify=False)
+    if only is not None:
+        infos = [i for i in infos if only(i.filename)]
     dest = Path(dest)
     top = dest                         # the first folder this call creates: removed on failure
     while not top.parent.exists():

@@ -368,7 +368,31 @@ def _default_experiment_checked(path: Path, md: Any) -> None:
             raise FmuLoadError(f"{path}: modelDescription.xml: DefaultExperiment {attr} {v!r} is not a finite number")
 
 
+#: The models read in this process, by file (path, size, times, inode) and limits: a scenario's FMUs are
+#: read when it is loaded (an SSP's) and again when it is planned, and a study plans one scenario many times.
+_READ: dict[tuple[Any, ...], FmuModel] = {}
+_READ_MAX = 64
+
+
 def load_model(path: str | os.PathLike, limits: ArchiveLimits | None = None) -> FmuModel:
+    """The FMU at ``path`` read and checked (:func:`read_model`), once per process while the file stays the
+    same (its size, modification and change times and inode): the model is shared, and read only."""
+    path = Path(path)
+    try:
+        st = path.stat()
+    except OSError:
+        return read_model(path, limits)   # (its one line for a file that is not there)
+    key = (str(path.resolve()), st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino, limits)
+    model = _READ.get(key)
+    if model is None or model.path != path:
+        model = read_model(path, limits)
+        if len(_READ) >= _READ_MAX:
+            _READ.pop(next(iter(_READ)))
+        _READ[key] = model
+    return model
+
+
+def read_model(path: str | os.PathLike, limits: ArchiveLimits | None = None) -> FmuModel:
     """Read and check an FMU: it exists, is a safe archive (within ``limits``; default: the default
     limits), and is FMI 2.0 or 3.0 with co-simulation, model exchange or scheduled execution, needs no
     clocks unless it has scheduled execution (its clocks: :attr:`FmuModel.clocks`), and holds the binary for this platform of at least one interface it declares

@@ -9,6 +9,7 @@ so whatever was recorded up to a failure (or a kill) loads with one call.
 from __future__ import annotations
 
 import json
+import mmap
 import os
 from decimal import Decimal
 from pathlib import Path
@@ -106,13 +107,18 @@ def write_json(path: Path, obj: Any) -> None:
 
 class RecordedRows:
     """The recorded rows, in the structured dtype of signals.npy (one field per column: Real as float64,
-    integers and enumerations as their FMI type, Boolean as bool), appended as the run goes."""
+    integers and enumerations as their FMI type, Boolean as bool), appended as the run goes.
+
+    The rows live in one growing store of records (a file mapped into memory, or an array).  A native
+    loop writes records straight into the store beyond the rows kept (:meth:`space`), and they count once
+    they are checked (:meth:`commit`): no copy between the loop and the recording."""
 
     def __init__(self, columns: list[str], types: list[str] | None = None) -> None:
         self.columns = list(columns)
         types = types or ["Real"] * len(columns)
         self.dtype = np.dtype([(c, DTYPES[t]) for c, t in zip(self.columns, types)])
         self.rows = 0
+        self._store: np.ndarray = np.empty(0, self.dtype)   # rows kept, then room for more
 
     def append(self, cols: list[np.ndarray]) -> None:
         """Append rows given as one array per column (float64 or int64), each converted to its type
@@ -122,21 +128,40 @@ class RecordedRows:
         n = len(cols[0]) if cols else 0
         if not n:
             return
-        rec = np.empty(n, self.dtype)
+        rec = np.empty(n, self.dtype)   # (not a view of the store, which an error's traceback would keep)
         for name, col in zip(self.columns, cols):
             kind = self.dtype[name].kind
             rec[name] = col.view(np.uint64) if kind == "u" and col.dtype == np.int64 else col
-        self._write(rec)
+        self._room(self.rows + n)
+        self._store[self.rows:self.rows + n] = rec
+        self.commit(n)
+
+    def space(self, offset: int, n: int) -> int:
+        """The address of record ``offset`` after the rows kept, with room for ``n`` records from there
+        (valid until the next call: the store may move when it grows)."""
+        self._room(self.rows + offset + n)
+        return int(self._store.ctypes.data) + (self.rows + offset) * self.dtype.itemsize
+
+    def pending(self, offset: int) -> np.void:
+        """A copy of record ``offset`` after the rows kept (written by a native loop, not yet committed)."""
+        i = self.rows + offset
+        return self._store[i:i + 1].copy()[0]
+
+    def commit(self, n: int) -> None:
+        """The next ``n`` records of the store (written in place) are rows."""
         self.rows += n
+        self._published()
 
-    def append_records(self, rec: np.ndarray) -> None:
-        """Append rows given as records of this dtype (kept: not a view of a buffer written again)."""
-        if len(rec):
-            self._write(rec)
-            self.rows += len(rec)
+    def _room(self, need: int) -> None:
+        if need > len(self._store):
+            self._grow(max(need, 2 * len(self._store), 1024))
 
-    def _write(self, rec: np.ndarray) -> None:
+    def _grow(self, capacity: int) -> None:
+        """The store made ``capacity`` records long, every record in it kept."""
         raise NotImplementedError
+
+    def _published(self) -> None:
+        """The rows kept made visible to a reader (the file's header)."""
 
     def array(self) -> np.ndarray:
         """Every row written so far."""
@@ -147,20 +172,26 @@ class RecordedRows:
 
 
 class NpyRecorder(RecordedRows):
-    """Append rows to a structured .npy file, keeping the file loadable after every flush."""
+    """Rows kept in a structured .npy file mapped into memory: the file loadable after every commit (its
+    header says the rows kept; the records beyond them, room not yet used, are cut when it is closed).
+    What a process that dies leaves is in the file, as far as its header says."""
 
     def __init__(self, path: str | os.PathLike, columns: list[str], types: list[str] | None = None) -> None:
         super().__init__(columns, types)
         self.path = Path(path)
         self._fh = open(self.path, "wb+")
-        self._write_header(0)
+        d = {"descr": npformat.dtype_to_descr(self.dtype), "fortran_order": False, "shape": (10 ** 15,)}
+        self._descr = repr(d).rsplit("'shape'", 1)[0]
+        self._width = len(repr(d))
+        self._offset = len(self._header(0))
+        self._fh.write(self._header(0))
+        self._fh.flush()
+        self._map: mmap.mmap | None = None
 
-    def _write_header(self, rows: int) -> None:
-        """Write the .npy 1.0 header for ``rows`` rows; its length never changes (room for 10^15 rows).
-        Column names outside Latin-1 need the .npy 3.0 header (UTF-8)."""
-        d = {"descr": npformat.dtype_to_descr(self.dtype), "fortran_order": False, "shape": (rows,)}
-        width = len(repr({**d, "shape": (10 ** 15,)}))
-        body = repr(d).ljust(width)
+    def _header(self, rows: int) -> bytes:
+        """The .npy 1.0 header for ``rows`` rows; its length never changes (room for 10^15 rows).  Column
+        names outside Latin-1 need the .npy 3.0 header (UTF-8)."""
+        body = (self._descr + f"'shape': ({rows},)}}").ljust(self._width)
         try:
             body.encode("latin1")
             version, enc, nlen = b"\x01\x00", "latin1", 2
@@ -169,42 +200,52 @@ class NpyRecorder(RecordedRows):
         encoded = body.encode(enc)
         total = 8 + nlen + len(encoded) + 1
         encoded += b" " * ((64 - total % 64) % 64) + b"\n"
-        self._fh.seek(0)
-        self._fh.write(b"\x93NUMPY" + version + len(encoded).to_bytes(nlen, "little") + encoded)
-        self._fh.flush()
+        return b"\x93NUMPY" + version + len(encoded).to_bytes(nlen, "little") + encoded
+
+    def _grow(self, capacity: int) -> None:
+        self._unmap()
+        size = self._offset + capacity * self.dtype.itemsize
+        os.ftruncate(self._fh.fileno(), size)
+        self._map = mmap.mmap(self._fh.fileno(), size)
+        self._store = np.frombuffer(self._map, self.dtype, capacity, self._offset)
+
+    def _unmap(self) -> None:
+        if self._map is not None:
+            self._store = np.empty(0, self.dtype)   # (no view of the map left: it can close)
+            self._map.close()
+            self._map = None
+
+    def _published(self) -> None:
+        head = self._header(self.rows)
+        if self._map is not None:
+            self._map[:len(head)] = head
+        else:
+            os.pwrite(self._fh.fileno(), head, 0)
 
     def array(self) -> np.ndarray:
         """The rows, read back from the file (mapped, not loaded)."""
-        if not self._fh.closed:
-            self._fh.flush()
         return np.load(self.path, mmap_mode="r")
 
-    def _write(self, rec: np.ndarray) -> None:
-        """The rows appended to the file, its header updated."""
-        self._fh.seek(0, os.SEEK_END)
-        self._fh.write(rec.tobytes())
-        self._write_header(self.rows + len(rec))
-        self._fh.flush()
-
     def close(self) -> None:
+        """The file cut to the rows kept, and closed."""
         if not self._fh.closed:
-            self._fh.flush()
+            self._unmap()
+            os.ftruncate(self._fh.fileno(), self._offset + self.rows * self.dtype.itemsize)
+            self._published()
             self._fh.close()
 
 
 class MemoryRecorder(RecordedRows):
     """The rows kept in memory (a run without a results folder: the Python API's in-memory run)."""
 
-    def __init__(self, columns: list[str], types: list[str] | None = None) -> None:
-        super().__init__(columns, types)
-        self._blocks: list[np.ndarray] = []
-
-    def _write(self, rec: np.ndarray) -> None:
-        self._blocks.append(rec)
+    def _grow(self, capacity: int) -> None:
+        grown = np.empty(capacity, self.dtype)
+        grown[:len(self._store)] = self._store    # (the records written beyond the rows too)
+        self._store = grown
 
     def array(self) -> np.ndarray:
         """Every row so far."""
-        return np.concatenate(self._blocks) if self._blocks else np.zeros(0, self.dtype)
+        return self._store[:self.rows]
 
 
 #: A recorded column's conversion in a native loop (native_loop.c's REC_*): from a double (the type in
@@ -226,9 +267,10 @@ class _Records:
 class RowBuffer:
     """The rows of the current segment (``bytes`` of the master's row buffer: ``n_double`` float64 slots,
     then ``n_int`` int64 slots), flushed to the recorder with a check that every recorded real is finite.
-    A native loop may instead write the rows as the recorder's records straight into this buffer's
-    records (:meth:`reserve`, :meth:`took`: ``stepping.algorithm.RecordSink``; :attr:`takes_records` False
-    where a column's conversion is not one it makes), checking the reals as it writes them."""
+    A native loop may instead write the rows as the recorder's records straight into the recorder's store,
+    after the rows pending here (:meth:`reserve`, :meth:`took`: ``stepping.algorithm.RecordSink``;
+    :attr:`takes_records` False where a column's conversion is not one it makes), checking the reals as it
+    writes them; the flush then only counts them."""
 
     def __init__(self, recorder: RecordedRows, cols: list[int], n_double: int, n_int: int = 0) -> None:
         self.recorder = recorder
@@ -241,8 +283,6 @@ class RowBuffer:
         layout = self._layout()
         self.columns: list[tuple[int, int, int]] = layout or []
         self.takes_records = layout is not None   # False: a column's conversion is not one the loop makes
-        self.records = np.empty(0, recorder.dtype)   # the records written by a native loop, not yet flushed
-        self.fill = 0
 
     def _layout(self) -> list[tuple[int, int, int]] | None:
         """Per recorded column: (its value's byte offset in the row, its conversion, its byte offset in the
@@ -267,26 +307,22 @@ class RowBuffer:
         self.more += n - 1
 
     def reserve(self, n: int) -> int:
-        """The address where up to ``n`` records may be written next (the buffer grown if need be)."""
-        if self.fill + n > len(self.records):
-            grown = np.empty(max(2 * len(self.records), self.fill + n), self.recorder.dtype)
-            grown[:self.fill] = self.records[:self.fill]
-            self.records = grown
-        return int(self.records.ctypes.data) + self.fill * self.record_bytes
+        """The address where up to ``n`` records may be written next: in the recorder's store, after the
+        rows kept and those pending here (which the flush writes in order before counting these)."""
+        return self.recorder.space(len(self), n)
 
     def took(self, n: int, bad_row: int, bad_col: int) -> None:
         """``n`` records were written where :meth:`reserve` said (the first non-finite real: record
         ``bad_row`` of them, -1: none, column ``bad_col``)."""
-        self.chunk.append(_Records(self.fill, n, bad_row, bad_col))
+        self.chunk.append(_Records(len(self), n, bad_row, bad_col))
         self.more += n - 1
-        self.fill += n
 
     def last_time(self) -> float | None:
         if not self.chunk:
             return None
         last = self.chunk[-1]
         if isinstance(last, _Records):
-            rec = self.records[last.start + last.n - 1]
+            rec = self.recorder.pending(last.start + last.n - 1)
             return float(rec[self.recorder.columns[self.cols.index(0)]])
         return float(np.frombuffer(last, "<f8", 1, len(last) - self.dtype.itemsize)[0])
 
@@ -297,34 +333,29 @@ class RowBuffer:
         chunk = self.chunk[:]
         self.chunk.clear()   # (the same list: the recording's take appends to it)
         self.more = 0
-        try:
-            rows: list[bytes] = []
-            for item in chunk:
-                if not isinstance(item, _Records):
-                    rows.append(item)
-                    continue
-                if rows:
-                    self._rows(rows)
-                    rows = []
-                self._records(item)
+        rows: list[bytes] = []
+        for item in chunk:
+            if not isinstance(item, _Records):
+                rows.append(item)
+                continue
             if rows:
                 self._rows(rows)
-        finally:
-            self.fill = 0
+                rows = []
+            self._records(item)
+        if rows:
+            self._rows(rows)
 
     def _records(self, r: _Records) -> None:
-        """A native loop's records written (a copy: the buffer is written again)."""
-        block = self.records[r.start:r.start + r.n]
-        n = r.n if r.bad_row < 0 else r.bad_row + 1
-        # (through bytes: a structured array's copy() goes field by field, many times slower)
-        self.recorder.append_records(np.frombuffer(block[:n].tobytes(), self.recorder.dtype))
+        """A native loop's records, written in place, counted (up to the first non-finite real)."""
         if r.bad_row < 0:
+            self.recorder.commit(r.n)
             return
         columns = self.recorder.columns
         reals = [j for j, c in enumerate(self.cols) if c < self.n_double]
         name = columns[r.bad_col]
-        row = block[r.bad_row]
+        row = self.recorder.pending(r.bad_row)
         value, t = float(row[name]), float(row[columns[reals[0]]])
+        self.recorder.commit(r.bad_row + 1)
         raise RunError(f"{name} is {value!r} at t = {t:.6g} s (a non-finite output)", name.split(".", 1)[0], t)
 
     def _rows(self, chunk: list[bytes]) -> None:

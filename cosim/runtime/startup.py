@@ -21,8 +21,9 @@ from ..instances.in_process import vr_array
 from ..instances.kinds import host
 from ..instances.scheduled import ScheduledExecution3
 from ..messages.errors import CosimError, FmuLoadError
-from ..model.archive import safe_extract
+from ..model.archive import run_members, safe_extract
 from ..model.binary import load_failure
+from ..model.description import PLATFORMS
 from ..plan.records import InstancePlan, Plan
 from ..plan.wiring import RowLayout, Wiring, discrete_copier, table_feeder
 from ..stepping.algorithm import InstanceIO
@@ -39,7 +40,7 @@ def handoff_for(plan: Plan) -> Handoff | None:
 
 
 def load_instances(plan: Plan, work: Path, logs: Path, handoff: Handoff | None = None) -> dict[str, FmuInstance]:
-    """Extract every FMU file once (into ``work``) and host each instance of the plan: in a child process
+    """Extract every FMU file once (into ``work``; what a run needs of it: :func:`..model.archive.run_members`) and host each instance of the plan: in a child process
     where it says ``isolate`` (waiting for each other as ``handoff`` chooses; None: a new one,
     :func:`handoff_for`), else in this one; as co-simulation or, where the plan says, as model exchange with
     its integrator; its log goes to ``logs/<instance>.log``."""
@@ -49,7 +50,8 @@ def load_instances(plan: Plan, work: Path, logs: Path, handoff: Handoff | None =
     for name, ip in plan.instances.items():
         p = ip.model.path.resolve()
         if p not in unz:
-            unz[p] = str(safe_extract(p, work / f"{len(unz)}_{p.stem}", plan.archive_limits))
+            unz[p] = str(safe_extract(p, work / f"{len(unz)}_{p.stem}", plan.archive_limits,
+                                      run_members(PLATFORMS[ip.model.fmi])))
         instances[name] = _host(name, ip, unz[p], logs / f"{name}.log", handoff, plan.scenario.times())
     return instances
 
