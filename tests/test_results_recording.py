@@ -220,7 +220,7 @@ def test_the_npy_file_loads_after_every_append_with_a_header_of_fixed_length(tmp
     assert rec.rows == 0 and path.stat().st_size == header
     for n in (1, 3, 1000, 5000):
         rec.append([np.arange(n, dtype=float), np.full(n, 0.5)])
-        assert path.stat().st_size >= header + 16 * rec.rows       # (room for more, cut at the close)
+        assert path.stat().st_size == header + 16 * rec.rows
         assert len(np.load(path)) == rec.rows and np.load(path)["time"][-1] == n - 1
     rec.close()
     rec.close()
@@ -230,10 +230,10 @@ def test_the_npy_file_loads_after_every_append_with_a_header_of_fixed_length(tmp
 
 
 @pytest.mark.parametrize("memory", [False, True])
-def test_records_written_in_place_count_once_committed_after_the_rows_pending(tmp_path, memory):
-    """A native loop's records: written at the address ``space`` gives (after the rows kept and those
-    pending in the row buffer), invisible until committed; the row buffer's flush writes its pending rows
-    first, then counts the records, so the rows come out in the order they were taken."""
+def test_a_native_loops_records_come_out_after_the_rows_taken_before_them(tmp_path, memory):
+    """A native loop's records, written where ``reserve`` says (the buffer grown past its first size),
+    are kept after the row taken in Python before them (the start row), in the order taken, as they were
+    written (the buffer is used again after the flush: the recorder keeps its own copy)."""
     import ctypes
 
     from wmr_cosim.cosim.results.recording import MemoryRecorder
@@ -249,6 +249,7 @@ def test_records_written_in_place_count_once_committed_after_the_rows_pending(tm
     assert rec.rows == 0 and rows.last_time() == float(n)
     rows.flush()
     assert rec.rows == n + 1 and rows.last_time() is None
+    ctypes.memset(rows.reserve(n), 0, block.nbytes)          # (the buffer written again)
     data = np.array(rec.array())
     assert data["time"].tolist() == [float(i) for i in range(n + 1)] and data["x"][0] == 10.0
     rec.close()
@@ -268,7 +269,6 @@ def test_a_process_killed_mid_recording_leaves_the_rows_committed(tmp_path):
             "from wmr_cosim.cosim.results.recording import NpyRecorder\n"
             f"rec = NpyRecorder({str(path)!r}, ['time', 'x'])\n"
             "rec.append([np.arange(2500.0), np.arange(2500.0) * 2])\n"
-            "rec.space(0, 10000)\n"
             "os.kill(os.getpid(), signal.SIGKILL)\n")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True)
     assert p.returncode == -9, p.stderr

@@ -9,7 +9,6 @@ so whatever was recorded up to a failure (or a kill) loads with one call.
 from __future__ import annotations
 
 import json
-import mmap
 import os
 from decimal import Decimal
 from pathlib import Path
@@ -107,18 +106,13 @@ def write_json(path: Path, obj: Any) -> None:
 
 class RecordedRows:
     """The recorded rows, in the structured dtype of signals.npy (one field per column: Real as float64,
-    integers and enumerations as their FMI type, Boolean as bool), appended as the run goes.
-
-    The rows live in one growing store of records (a file mapped into memory, or an array).  A native
-    loop writes records straight into the store beyond the rows kept (:meth:`space`), and they count once
-    they are checked (:meth:`commit`): no copy between the loop and the recording."""
+    integers and enumerations as their FMI type, Boolean as bool), appended as the run goes."""
 
     def __init__(self, columns: list[str], types: list[str] | None = None) -> None:
         self.columns = list(columns)
         types = types or ["Real"] * len(columns)
         self.dtype = np.dtype([(c, DTYPES[t]) for c, t in zip(self.columns, types)])
         self.rows = 0
-        self._store: np.ndarray = np.empty(0, self.dtype)   # rows kept, then room for more
 
     def append(self, cols: list[np.ndarray]) -> None:
         """Append rows given as one array per column (float64 or int64), each converted to its type
@@ -128,40 +122,22 @@ class RecordedRows:
         n = len(cols[0]) if cols else 0
         if not n:
             return
-        rec = np.empty(n, self.dtype)   # (not a view of the store, which an error's traceback would keep)
+        rec = np.empty(n, self.dtype)
         for name, col in zip(self.columns, cols):
             kind = self.dtype[name].kind
             rec[name] = col.view(np.uint64) if kind == "u" and col.dtype == np.int64 else col
-        self._room(self.rows + n)
-        self._store[self.rows:self.rows + n] = rec
-        self.commit(n)
+        self.append_records(rec)
 
-    def space(self, offset: int, n: int) -> int:
-        """The address of record ``offset`` after the rows kept, with room for ``n`` records from there
-        (valid until the next call: the store may move when it grows)."""
-        self._room(self.rows + offset + n)
-        return int(self._store.ctypes.data) + (self.rows + offset) * self.dtype.itemsize
+    def append_records(self, rec: np.ndarray) -> None:
+        """Append rows given as records of this dtype (contiguous; copied or written out at once: ``rec``
+        may be a view of a buffer written again)."""
+        if len(rec):
+            self._write(rec.view(np.uint8))
+            self.rows += len(rec)
 
-    def pending(self, offset: int) -> np.void:
-        """A copy of record ``offset`` after the rows kept (written by a native loop, not yet committed)."""
-        i = self.rows + offset
-        return self._store[i:i + 1].copy()[0]
-
-    def commit(self, n: int) -> None:
-        """The next ``n`` records of the store (written in place) are rows."""
-        self.rows += n
-        self._published()
-
-    def _room(self, need: int) -> None:
-        if need > len(self._store):
-            self._grow(max(need, 2 * len(self._store), 1024))
-
-    def _grow(self, capacity: int) -> None:
-        """The store made ``capacity`` records long, every record in it kept."""
+    def _write(self, data: np.ndarray) -> None:
+        """The records' bytes kept."""
         raise NotImplementedError
-
-    def _published(self) -> None:
-        """The rows kept made visible to a reader (the file's header)."""
 
     def array(self) -> np.ndarray:
         """Every row written so far."""
@@ -172,21 +148,19 @@ class RecordedRows:
 
 
 class NpyRecorder(RecordedRows):
-    """Rows kept in a structured .npy file mapped into memory: the file loadable after every commit (its
-    header says the rows kept; the records beyond them, room not yet used, are cut when it is closed).
-    What a process that dies leaves is in the file, as far as its header says."""
+    """Rows appended to a structured .npy file, its header rewritten after every append so that the file
+    loads whole at any time (what a process that dies leaves is in the file)."""
 
     def __init__(self, path: str | os.PathLike, columns: list[str], types: list[str] | None = None) -> None:
         super().__init__(columns, types)
         self.path = Path(path)
-        self._fh = open(self.path, "wb+")
         d = {"descr": npformat.dtype_to_descr(self.dtype), "fortran_order": False, "shape": (10 ** 15,)}
         self._descr = repr(d).rsplit("'shape'", 1)[0]
         self._width = len(repr(d))
-        self._offset = len(self._header(0))
-        self._fh.write(self._header(0))
-        self._fh.flush()
-        self._map: mmap.mmap | None = None
+        self._fd: int | None = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o666)
+        head = self._header(0)
+        self._end = len(head)    # where the next row goes [bytes]
+        os.pwrite(self._fd, head, 0)
 
     def _header(self, rows: int) -> bytes:
         """The .npy 1.0 header for ``rows`` rows; its length never changes (room for 10^15 rows).  Column
@@ -202,46 +176,41 @@ class NpyRecorder(RecordedRows):
         encoded += b" " * ((64 - total % 64) % 64) + b"\n"
         return b"\x93NUMPY" + version + len(encoded).to_bytes(nlen, "little") + encoded
 
-    def _grow(self, capacity: int) -> None:
-        self._unmap()
-        size = self._offset + capacity * self.dtype.itemsize
-        os.ftruncate(self._fh.fileno(), size)
-        self._map = mmap.mmap(self._fh.fileno(), size)
-        self._store = np.frombuffer(self._map, self.dtype, capacity, self._offset)
-
-    def _unmap(self) -> None:
-        if self._map is not None:
-            self._store = np.empty(0, self.dtype)   # (no view of the map left: it can close)
-            self._map.close()
-            self._map = None
-
-    def _published(self) -> None:
-        head = self._header(self.rows)
-        if self._map is not None:
-            self._map[:len(head)] = head
-        else:
-            os.pwrite(self._fh.fileno(), head, 0)
+    def _write(self, data: np.ndarray) -> None:
+        """The rows' bytes written after the last (straight from ``data``: no copy), then the header."""
+        assert self._fd is not None
+        view = memoryview(data)
+        while len(view):
+            n = os.pwrite(self._fd, view, self._end)
+            self._end += n
+            view = view[n:]
+        os.pwrite(self._fd, self._header(self.rows + len(data) // self.dtype.itemsize), 0)
 
     def array(self) -> np.ndarray:
         """The rows, read back from the file (mapped, not loaded)."""
         return np.load(self.path, mmap_mode="r")
 
     def close(self) -> None:
-        """The file cut to the rows kept, and closed."""
-        if not self._fh.closed:
-            self._unmap()
-            os.ftruncate(self._fh.fileno(), self._offset + self.rows * self.dtype.itemsize)
-            self._published()
-            self._fh.close()
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
 
 
 class MemoryRecorder(RecordedRows):
-    """The rows kept in memory (a run without a results folder: the Python API's in-memory run)."""
+    """The rows kept in memory (a run without a results folder: the Python API's in-memory run), in one
+    store grown by doubling."""
 
-    def _grow(self, capacity: int) -> None:
-        grown = np.empty(capacity, self.dtype)
-        grown[:len(self._store)] = self._store    # (the records written beyond the rows too)
-        self._store = grown
+    def __init__(self, columns: list[str], types: list[str] | None = None) -> None:
+        super().__init__(columns, types)
+        self._store = np.empty(0, self.dtype)
+
+    def _write(self, data: np.ndarray) -> None:
+        n = len(data) // self.dtype.itemsize
+        if self.rows + n > len(self._store):
+            grown = np.empty(max(self.rows + n, 2 * len(self._store), 1024), self.dtype)
+            grown.view(np.uint8)[:self.rows * self.dtype.itemsize] = self._store[:self.rows].view(np.uint8)
+            self._store = grown
+        self._store[self.rows:self.rows + n].view(np.uint8)[:] = data
 
     def array(self) -> np.ndarray:
         """Every row so far."""
@@ -267,10 +236,10 @@ class _Records:
 class RowBuffer:
     """The rows of the current segment (``bytes`` of the master's row buffer: ``n_double`` float64 slots,
     then ``n_int`` int64 slots), flushed to the recorder with a check that every recorded real is finite.
-    A native loop may instead write the rows as the recorder's records straight into the recorder's store,
-    after the rows pending here (:meth:`reserve`, :meth:`took`: ``stepping.algorithm.RecordSink``;
-    :attr:`takes_records` False where a column's conversion is not one it makes), checking the reals as it
-    writes them; the flush then only counts them."""
+    A native loop may instead write the rows as the recorder's records straight into this buffer's
+    records (:meth:`reserve`, :meth:`took`: ``stepping.algorithm.RecordSink``; :attr:`takes_records` False
+    where a column's conversion is not one it makes), checking the reals as it writes them; the flush
+    hands them to the recorder as they are (one write of their bytes to signals.npy)."""
 
     def __init__(self, recorder: RecordedRows, cols: list[int], n_double: int, n_int: int = 0) -> None:
         self.recorder = recorder
@@ -283,6 +252,8 @@ class RowBuffer:
         layout = self._layout()
         self.columns: list[tuple[int, int, int]] = layout or []
         self.takes_records = layout is not None   # False: a column's conversion is not one the loop makes
+        self.records = np.empty(0, recorder.dtype)   # the records written by a native loop, not yet flushed
+        self.fill = 0
 
     def _layout(self) -> list[tuple[int, int, int]] | None:
         """Per recorded column: (its value's byte offset in the row, its conversion, its byte offset in the
@@ -307,22 +278,27 @@ class RowBuffer:
         self.more += n - 1
 
     def reserve(self, n: int) -> int:
-        """The address where up to ``n`` records may be written next: in the recorder's store, after the
-        rows kept and those pending here (which the flush writes in order before counting these)."""
-        return self.recorder.space(len(self), n)
+        """The address where up to ``n`` records may be written next (the buffer grown if need be: it is
+        used again after each flush, so it stays in the cache)."""
+        if self.fill + n > len(self.records):
+            grown = np.empty(max(2 * len(self.records), self.fill + n), self.recorder.dtype)
+            grown.view(np.uint8)[:self.fill * self.record_bytes] = self.records[:self.fill].view(np.uint8)
+            self.records = grown
+        return int(self.records.ctypes.data) + self.fill * self.record_bytes
 
     def took(self, n: int, bad_row: int, bad_col: int) -> None:
         """``n`` records were written where :meth:`reserve` said (the first non-finite real: record
         ``bad_row`` of them, -1: none, column ``bad_col``)."""
-        self.chunk.append(_Records(len(self), n, bad_row, bad_col))
+        self.chunk.append(_Records(self.fill, n, bad_row, bad_col))
         self.more += n - 1
+        self.fill += n
 
     def last_time(self) -> float | None:
         if not self.chunk:
             return None
         last = self.chunk[-1]
         if isinstance(last, _Records):
-            rec = self.recorder.pending(last.start + last.n - 1)
+            rec = self.records[last.start + last.n - 1]
             return float(rec[self.recorder.columns[self.cols.index(0)]])
         return float(np.frombuffer(last, "<f8", 1, len(last) - self.dtype.itemsize)[0])
 
@@ -333,29 +309,32 @@ class RowBuffer:
         chunk = self.chunk[:]
         self.chunk.clear()   # (the same list: the recording's take appends to it)
         self.more = 0
-        rows: list[bytes] = []
-        for item in chunk:
-            if not isinstance(item, _Records):
-                rows.append(item)
-                continue
+        try:
+            rows: list[bytes] = []
+            for item in chunk:
+                if not isinstance(item, _Records):
+                    rows.append(item)
+                    continue
+                if rows:
+                    self._rows(rows)
+                    rows = []
+                self._records(item)
             if rows:
                 self._rows(rows)
-                rows = []
-            self._records(item)
-        if rows:
-            self._rows(rows)
+        finally:
+            self.fill = 0
 
     def _records(self, r: _Records) -> None:
-        """A native loop's records, written in place, counted (up to the first non-finite real)."""
+        """A native loop's records handed to the recorder (up to the first non-finite real)."""
+        block = self.records[r.start:r.start + r.n]
+        self.recorder.append_records(block[:r.n if r.bad_row < 0 else r.bad_row + 1])
         if r.bad_row < 0:
-            self.recorder.commit(r.n)
             return
         columns = self.recorder.columns
         reals = [j for j, c in enumerate(self.cols) if c < self.n_double]
         name = columns[r.bad_col]
-        row = self.recorder.pending(r.bad_row)
+        row = block[r.bad_row]
         value, t = float(row[name]), float(row[columns[reals[0]]])
-        self.recorder.commit(r.bad_row + 1)
         raise RunError(f"{name} is {value!r} at t = {t:.6g} s (a non-finite output)", name.split(".", 1)[0], t)
 
     def _rows(self, chunk: list[bytes]) -> None:
