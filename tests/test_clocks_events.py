@@ -1,0 +1,142 @@
+"""FMI 3.0 co-simulation with clocks and event mode: the public synchronous-clock example (a periodic
+input clock, an output clock raised at a state event and connected to a triggered input clock, a clocked
+variable exchanged at its clock's ticks) run by the master equals the FMI 3.0 semantics computed from the
+FMUs' equations, the instants where both clocks tick together included (dependency order); a periodic
+clock of 2 ms ticks every 4th step of 0.5 ms; what the master cannot run exactly is refused at ``check`` in
+one line (exit 2)."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from clock_fmus import build_example, expected, scenario
+from wmr_cosim import cosim
+
+
+@pytest.fixture(scope="module")
+def example(tmp_path_factory) -> dict[str, Path]:
+    return build_example(tmp_path_factory.mktemp("sync-clocks"))
+
+
+def _cli(*args: object) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "wmr_cosim.cli", *map(str, args)], capture_output=True, text=True,
+                          timeout=600)
+
+
+def _run(tmp: Path, text: str) -> tuple[np.ndarray, cosim.Execution]:
+    path = tmp / "sync.toml"
+    path.write_text(text)
+    plan = cosim.resolve(cosim.load(path))
+    ex = cosim.Execution(plan, tmp / "out")
+    ex.initialize()
+    ex.simulate_until()
+    res = ex.close()
+    assert ex.status == "ok", ex.message
+    return np.load(tmp / "out" / "signals.npy"), ex
+
+
+@pytest.mark.parametrize("step, r_every", [(0.01, 10), (0.025, 4)])
+def test_the_example_in_cosimulation_equals_the_fmi_semantics(example, tmp_path, step, r_every):
+    n = round(10.0 / step)
+    ours, ex = _run(tmp_path, scenario(example, step=step))
+    want = expected(step, n, r_every)
+    assert len(ours) == len(want) == n + 1
+    for col, j in (("Plant.x", 1), ("Controller.ur", 2), ("Supervisor.as", 3)):
+        assert ours[col].tolist() == [w[j] for w in want], col
+    flips = [w[0] for a, w in zip(want, want[1:]) if a[3] != w[3]]
+    assert len(flips) > 10                                    # the Supervisor's clock s rose many times ...
+    sup, ctl = ex.instances["Supervisor"], ex.instances["Controller"]
+    assert [t for t, c in sup.raised] == pytest.approx(flips)  # ... at its state events, raised by the FMU
+    s_ticks = [t for t, c in ctl.ticked if c == "s"]
+    assert s_ticks == [t for t, _ in sup.raised]              # and ticked the Controller's s at those instants
+    r_ticks = [t for t, c in ctl.ticked if c == "r"]
+    assert len(r_ticks) == n // r_every + 1
+    together = sorted(set(s_ticks) & set(r_ticks))
+    if step == 0.025:
+        assert [round(t, 9) for t in together][:2] == [2.3, 2.8]   # both clocks tick together there
+
+
+def test_both_clocks_together_take_the_new_value_first(example, tmp_path):
+    """At 2.3 s (steps of 25 ms) s and r tick together: ur takes the Supervisor's new as (-1), not the
+    old one: 5 + (-1) = 4; the Controller stepping before the Supervisor is refused (its clock s would
+    tick a step late)."""
+    ours, _ = _run(tmp_path, scenario(example, step=0.025))
+    i = int(np.flatnonzero(np.isclose(ours["time"], 2.3))[0])
+    assert (ours["Supervisor.as"][i - 1], ours["Supervisor.as"][i]) == (1.0, -1.0)
+    assert (ours["Controller.ur"][i - 1], ours["Controller.ur"][i]) == (5.0, 4.0)
+    bad = tmp_path / "bad.toml"
+    bad.write_text(scenario(example, step=0.025, order='["Plant", "Controller", "Supervisor"]'))
+    p = _cli("check", bad)
+    assert p.returncode == 2
+    assert p.stderr.strip().splitlines()[-1].endswith(
+        "experiment.order: Supervisor.s -> Controller.s: Supervisor must step before Controller (an output clock "
+        "ticks the input clocks of the instances after it)")
+
+
+def test_a_2_ms_clock_ticks_every_4th_step_of_half_a_millisecond(example, tmp_path):
+    """The Controller with its periodic clock r declared at 2 ms, alone, its as fixed: at steps of 0.5 ms
+    r ticks at every 4th point (event mode entered, r set, the discrete states updated, ur read), and ur
+    counts the ticks."""
+    src = build_example(tmp_path / "fmus")["Controller"]
+    import zipfile
+    with zipfile.ZipFile(src) as zf:
+        text = zf.read("modelDescription.xml").decode().replace('intervalDecimal="0.1"', 'intervalDecimal="0.002"')
+    fmus = build_example(tmp_path / "fmus2", {"Controller": text})
+    (tmp_path / "c.toml").write_text(f'''[experiment]
+stop = 0.02
+step = 0.0005
+[instances.C]
+fmu = "{fmus["Controller"]}"
+clock_ticks = {{ s = [] }}
+[record]
+variables = ["C.ur"]
+''')
+    p = _cli("check", tmp_path / "c.toml")
+    assert p.returncode == 2 and "triggered input clock s has no source" in p.stderr
+    (tmp_path / "c.toml").write_text((tmp_path / "c.toml").read_text().replace("clock_ticks = { s = [] }",
+                                                                                "clock_ticks = { s = [0.001] }"))
+    p = _cli("check", tmp_path / "c.toml")
+    assert p.returncode == 0, p.stderr
+    assert "clock r: periodic input clock (constant); interval 0.002 s; clocks ur" in p.stdout
+    ours, ex = _run(tmp_path, (tmp_path / "c.toml").read_text())
+    ticks = [round(t / 0.0005) for t, c in ex.instances["C"].ticked if c == "r"]
+    assert ticks == list(range(0, 41, 4))
+    ur = ours["C.ur"].tolist()
+    assert ur == [float(k // 4 + 1) for k in range(41)]
+
+
+@pytest.mark.parametrize("edit, field, words", [
+    (("step = 0.01", "step = 0.03"), "experiment.step", "0.03 s: clock Controller.r ticks every 0.1 s, not a whole "
+                                                        "number of steps"),
+    (('[[connections]]\nfrom = "Supervisor.s"\nto = "Controller.s"\n', ""), "instances.Controller.clock_ticks",
+     "triggered input clock s has no source"),
+    (('from = "Supervisor.s"\nto = "Controller.s"', 'from = "Supervisor.s"\nto = "Plant.u_r"'), "connections[2]",
+     "Supervisor.s -> Plant.u_r: an output clock connects to an input clock only (Plant.u_r is not a clock)"),
+    (('from = "Supervisor.s"\nto = "Controller.s"', 'from = "Plant.x"\nto = "Controller.s"'), "connections[2]",
+     "Plant.x -> Controller.s: an input clock is ticked by an output clock only (Plant.x is not a clock)"),
+])
+def test_bad_clock_settings_are_one_line_at_check(example, tmp_path, edit, field, words):
+    text = scenario(example).replace(*edit)
+    (tmp_path / "bad.toml").write_text(text)
+    p = _cli("check", tmp_path / "bad.toml")
+    assert p.returncode == 2, p.stdout
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1, lines
+    assert f"{field}: {words}" in lines[0]
+
+
+def test_check_lists_the_clocks_and_notes_what_is_read_between_ticks(example, tmp_path):
+    (tmp_path / "s.toml").write_text(scenario(example))
+    p = _cli("check", tmp_path / "s.toml")
+    assert p.returncode == 0, p.stderr
+    out = p.stdout
+    assert "Controller: co-simulation with event mode" in out
+    assert "clock r: periodic input clock (constant); interval 0.1 s; clocks ur" in out
+    assert "clock s: triggered input clock; clocks as; ticked by Supervisor.s" in out
+    assert "clock s: output clock, raised by the FMU; clocks as; ticks Controller.s" in out
+    assert ("note: Controller.ur -> Plant.u_r: the output is clocked by r, defined at its ticks only; the input "
+            "holds the value of the last tick") in out
