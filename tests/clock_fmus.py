@@ -63,11 +63,14 @@ def build_example(out: Path, model_descriptions: dict[str, str] | None = None) -
 
 
 def scenario(fmus: dict[str, Path], step: float = 0.01, stop: float = 10.0,
-             order: str = '["Plant", "Supervisor", "Controller"]', extra: str = "") -> str:
+             order: str = '["Supervisor", "Controller", "Plant"]', extra: str = "",
+             interface: str = "co-simulation") -> str:
     """The example's system as a scenario: Controller.ur -> Plant.u_r, Plant.x -> Supervisor.x, the
     Supervisor's output clock s -> the Controller's input clock s, and Supervisor.as -> Controller.as
-    (clocked by s), in co-simulation."""
-    inst = "".join(f'[instances.{m}]\nfmu = "{fmus[m]}"\ninterface = "co-simulation"\n' for m in MODELS)
+    (clocked by s), each FMU through ``interface`` (the Plant in Model Exchange integrated by Euler, one
+    step per communication step)."""
+    inst = "".join(f'[instances.{m}]\nfmu = "{fmus[m]}"\ninterface = "{interface}"\n'
+                   + ('solver = "euler"\n' if m == "Plant" and interface == "model-exchange" else "") for m in MODELS)
     return f'''[experiment]
 start = 0.0
 stop = {stop}
@@ -93,25 +96,47 @@ variables = ["Plant.x", "Controller.ur", "Supervisor.as"]
 '''
 
 
-def expected(h: float, n_steps: int, r_every: int) -> list[tuple[float, float, float, float]]:
-    """The example under the FMI 3.0 rules the master follows, computed here from the FMUs' equations (the
-    oracle): rows (t, Plant.x, Controller.ur, Supervisor.as) at t_k = k h.
+def _crosses(pz: float, z: float) -> bool:
+    """The Supervisor's zero crossing of z since pz (its isZeroCrossing)."""
+    return pz * z < 0.0 or (pz != 0 and z == 0)
 
-    Plant: x += h (-x + u_r) in each step (its fixed-step Euler); u_r holds the Controller's ur of the last
-    tick.  Supervisor: at the end of a step, z = 2 - x; a zero crossing of z since its last event (pz)
-    raises its output clock s, and its clocked output as flips sign.  Controller: r ticks every
-    ``r_every`` steps from t = 0; at a tick ur becomes ur + as, with as the Supervisor's if s ticks at
-    the same instant (the Supervisor's partition first: the dependency order)."""
-    x, ur, as_c, as_s, pz = 0.0, 0.0, 1.0, 1.0, 2.0
-    ur += as_c                      # r ticks at the start time
+
+def expected(h: float, n_steps: int, r_every: int, me: bool = False) -> list[tuple[float, float, float, float]]:
+    """The example under the FMI 3.0 rules the master follows, computed here from the FMUs' equations (the
+    oracle): rows (t, Plant.x, Controller.ur, Supervisor.as) at t_k = k h, each the values before the
+    events of t_k, the instances in the order Supervisor, Controller, Plant.
+
+    At t_k: the Supervisor's event, if any, raises its output clock s (its clocked output as flips sign);
+    s ticks the Controller's input clock s (as set); r ticks every ``r_every`` points from t = 0: ur
+    becomes ur + as (the as of this instant: the Supervisor's partition first, the dependency order).
+    Then the step: the Plant's x += h (-x + u_r) (its Euler step), u_r the ur of the last tick.
+
+    The Supervisor's event: in co-simulation its step from t_k computes z = 2 - x with its input x(t_k)
+    and asks for an event at its end when z crossed zero since its last event (pz); in Model Exchange z
+    moves with its input: x(t_k) set at t_k is an event there when z changes sign (the master's test,
+    z > 0 against z <= 0) and the FMU sees the crossing."""
+    x, ur, as_c, as_s = 0.0, 0.0, 1.0, 1.0
+    pz = z = 2.0 - x                # the Supervisor's indicator after initialisation
+    ur += as_c                      # r ticks at the start time (the events of initialisation)
     rows = [(0.0, x, ur, as_s)]
-    for n in range(1, n_steps + 1):
-        x = x + h * (-x + ur)
-        z = 2.0 - x
-        if pz * z < 0.0 or (pz != 0 and z == 0):
-            as_s, pz = -as_s, z
-            as_c = as_s             # s ticks the Controller's s: as set at the tick
-        if n % r_every == 0:
+    pending = False
+    for k in range(n_steps):
+        raised = False
+        if me and k > 0:
+            z_new = 2.0 - x
+            if (z > 0.0) != (z_new > 0.0):          # an event of its new input
+                raised, pz = _crosses(pz, z_new), z_new
+            z = z_new
+        elif pending:
+            raised, pz, pending = True, z, False
+        if raised:
+            as_s = -as_s
+            as_c = as_s
+        if k > 0 and k % r_every == 0:
             ur = ur + as_c
-        rows.append((n * h, x, ur, as_s))
+        if not me:
+            z = 2.0 - x
+            pending = _crosses(pz, z)
+        x = x + h * (-x + ur)
+        rows.append(((k + 1) * h, x, ur, as_s))
     return rows

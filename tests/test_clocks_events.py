@@ -47,29 +47,30 @@ def test_the_example_in_cosimulation_equals_the_fmi_semantics(example, tmp_path,
     assert len(ours) == len(want) == n + 1
     for col, j in (("Plant.x", 1), ("Controller.ur", 2), ("Supervisor.as", 3)):
         assert ours[col].tolist() == [w[j] for w in want], col
-    flips = [w[0] for a, w in zip(want, want[1:]) if a[3] != w[3]]
+    flips = [a[0] for a, w in zip(want, want[1:]) if a[3] != w[3]]   # (a row: the values before its events)
     assert len(flips) > 10                                    # the Supervisor's clock s rose many times ...
     sup, ctl = ex.instances["Supervisor"], ex.instances["Controller"]
     assert [t for t, c in sup.raised] == pytest.approx(flips)  # ... at its state events, raised by the FMU
     s_ticks = [t for t, c in ctl.ticked if c == "s"]
     assert s_ticks == [t for t, _ in sup.raised]              # and ticked the Controller's s at those instants
     r_ticks = [t for t, c in ctl.ticked if c == "r"]
-    assert len(r_ticks) == n // r_every + 1
-    together = sorted(set(s_ticks) & set(r_ticks))
-    if step == 0.025:
-        assert [round(t, 9) for t in together][:2] == [2.3, 2.8]   # both clocks tick together there
+    assert len(r_ticks) == n // r_every   # (from t = 0; the events of the stop time are not run: no step follows)
+    together = [round(t, 9) for t in sorted(set(s_ticks) & set(r_ticks))]
+    assert together == {0.01: [2.3], 0.025: [0.7]}[step]   # both clocks tick together there
 
 
 def test_both_clocks_together_take_the_new_value_first(example, tmp_path):
-    """At 2.3 s (steps of 25 ms) s and r tick together: ur takes the Supervisor's new as (-1), not the
-    old one: 5 + (-1) = 4; the Controller stepping before the Supervisor is refused (its clock s would
-    tick a step late)."""
-    ours, _ = _run(tmp_path, scenario(example, step=0.025))
-    i = int(np.flatnonzero(np.isclose(ours["time"], 2.3))[0])
+    """At 2.3 s (steps of 10 ms) s and r tick together: ur takes the Supervisor's new as (-1), not the
+    old one: 5 + (-1) = 4 (seen from the next row: a row holds the values before the events of its time);
+    the Controller stepping before the Supervisor is refused (its clock s would tick a step late)."""
+    ours, ex = _run(tmp_path, scenario(example, step=0.01))
+    assert (2.3, "s") in [(round(t, 9), c) for t, c in ex.instances["Controller"].ticked]
+    assert (2.3, "r") in [(round(t, 9), c) for t, c in ex.instances["Controller"].ticked]
+    i = int(np.flatnonzero(np.isclose(ours["time"], 2.31))[0])
     assert (ours["Supervisor.as"][i - 1], ours["Supervisor.as"][i]) == (1.0, -1.0)
     assert (ours["Controller.ur"][i - 1], ours["Controller.ur"][i]) == (5.0, 4.0)
     bad = tmp_path / "bad.toml"
-    bad.write_text(scenario(example, step=0.025, order='["Plant", "Controller", "Supervisor"]'))
+    bad.write_text(scenario(example, step=0.025, order='["Controller", "Supervisor", "Plant"]'))
     p = _cli("check", bad)
     assert p.returncode == 2
     assert p.stderr.strip().splitlines()[-1].endswith(
@@ -104,9 +105,9 @@ variables = ["C.ur"]
     assert "clock r: periodic input clock (constant); interval 0.002 s; clocks ur" in p.stdout
     ours, ex = _run(tmp_path, (tmp_path / "c.toml").read_text())
     ticks = [round(t / 0.0005) for t, c in ex.instances["C"].ticked if c == "r"]
-    assert ticks == list(range(0, 41, 4))
+    assert ticks == list(range(0, 40, 4))   # (the events of the stop time are not run: no step follows)
     ur = ours["C.ur"].tolist()
-    assert ur == [float(k // 4 + 1) for k in range(41)]
+    assert ur == [1.0] + [float((k - 1) // 4 + 1) for k in range(1, 41)]   # (a row: before its events)
 
 
 @pytest.mark.parametrize("edit, field, words", [
@@ -140,3 +141,24 @@ def test_check_lists_the_clocks_and_notes_what_is_read_between_ticks(example, tm
     assert "clock s: output clock, raised by the FMU; clocks as; ticks Controller.s" in out
     assert ("note: Controller.ur -> Plant.u_r: the output is clocked by r, defined at its ticks only; the input "
             "holds the value of the last tick") in out
+
+
+@pytest.mark.parametrize("step, r_every", [(0.01, 10), (0.025, 4)])
+def test_the_example_in_model_exchange_equals_the_fmi_semantics(example, tmp_path, step, r_every):
+    """The three FMUs in Model Exchange (the Plant integrated by Euler, one step per communication step):
+    the Supervisor's indicator moves with its input, so its state event, and the output clock s, come at
+    the communication point where the input crosses; both clocks tick together at 2.3 s and 2.8 s with
+    steps of 25 ms."""
+    n = round(10.0 / step)
+    ours, ex = _run(tmp_path, scenario(example, step=step, interface="model-exchange"))
+    want = expected(step, n, r_every, me=True)
+    # (the master's Euler steps over t_(k+1) - t_k, which may differ from h in its last bit)
+    np.testing.assert_allclose(ours["Plant.x"], [w[1] for w in want], rtol=1e-12, atol=0)
+    for col, j in (("Controller.ur", 2), ("Supervisor.as", 3)):
+        assert ours[col].tolist() == [w[j] for w in want], col
+    sup, ctl = ex.instances["Supervisor"], ex.instances["Controller"]
+    flips = [a[0] for a, w in zip(want, want[1:]) if a[3] != w[3]]
+    assert len(flips) > 10 and [t for t, _ in sup.raised] == pytest.approx(flips)
+    assert [t for t, c in ctl.ticked if c == "s"] == [t for t, _ in sup.raised]
+    together = [round(t, 9) for t, c in ctl.ticked if c == "s" and (t, "r") in ctl.ticked]
+    assert together == {0.01: [], 0.025: [2.3, 2.8]}[step]

@@ -18,13 +18,15 @@ the same ``from``/``to`` syntax as variables).  What the master runs exactly, an
 from __future__ import annotations
 
 from fractions import Fraction
+from typing import Any
 
 from ..messages.errors import ScenarioError
 from ..model.clocks import Clock, grid_multiple
 from ..model.description import CO_SIMULATION, SCHEDULED_EXECUTION
 from ..scenario.document import Scenario, split_ref
+from ..scenario.inputs import InputPlan
 from ..stepping import table as algorithms
-from .records import ClockLink, ConnectionPlan, InstancePlan
+from .records import ClockLink, ConnectionPlan, EventPlan, InstancePlan, RecordPlan, RequirementPlan
 
 
 def _clock(insts: dict[str, InstancePlan], inst: str, name: str) -> Clock | None:
@@ -91,10 +93,7 @@ def check_clocked(sc: Scenario, insts: dict[str, InstancePlan], conns: list[Conn
             continue
         fld = f"instances.{name}"
         file = ip.model.path.name
-        if ip.interface != CO_SIMULATION:
-            raise ScenarioError(sc.file, f"{fld}.interface", f"{file} has clocks: the master runs them in "
-                                "co-simulation with event mode and in scheduled execution, not yet in model exchange")
-        if not ip.model.has_event_mode:
+        if ip.interface == CO_SIMULATION and not ip.model.has_event_mode:
             raise ScenarioError(sc.file, f"{fld}.fmu", f"{file} has clocks but its co-simulation interface does not "
                                                        "declare hasEventMode (the master ticks clocks in event mode)")
         if sc.algorithm != algorithms.DEFAULT:
@@ -156,3 +155,35 @@ def check_clocked(sc: Scenario, insts: dict[str, InstancePlan], conns: list[Conn
 def clock_of(ip: InstancePlan, var: str) -> str | None:
     """The clock that clocks variable ``var`` of an instance (None: it is not clocked)."""
     return next((c.name for c in ip.model.clocks if var in c.clocked), None)
+
+
+def check_clocked_reads(sc: Scenario, insts: dict[str, InstancePlan], record: list[RecordPlan],
+                        inputs: list[InputPlan], events: list[EventPlan], requirements: list[RequirementPlan]) -> None:
+    """What reads or sets a clocked variable of an instance with clocks in co-simulation between its
+    ticks, ScenarioError in one line: an event on it (a clocked input is set at its clock's ticks only), a
+    tabulated input of it that is not Float64 (a Float64 one is held for the tick), a record or requirement
+    of a clocked output that is not Float64 (a Float64 one reads the value of its last tick, which the
+    master keeps)."""
+    def clocked(inst: str | None, var: Any) -> str | None:
+        if inst is None or var is None:
+            return None
+        ip = insts[inst]
+        if ip.interface == SCHEDULED_EXECUTION:
+            return None
+        return clock_of(ip, var.name)
+
+    for ev in events:
+        if clocked(ev.instance, ev.var):
+            raise ScenarioError(sc.file, f"events[{ev.index}].variable", f"{ev.ref}: clocked by "
+                                f"{clocked(ev.instance, ev.var)}, set at its ticks only: events on it are not supported")
+    for col in inputs:
+        if clocked(col.instance, col.var) and not col.var.is_float64:
+            raise ScenarioError(sc.file, "inputs", f"{col.column}: a clocked {col.var.fmi_type} input takes no table "
+                                                   "yet (Float64 ones do)")
+    reads = [("record", r.instance, r.var) for r in record]
+    reads += [(f"requirements[{q.index}]", i, v) for q in requirements for i, v in q.reads.values()]
+    for fld, inst, var in reads:
+        if clocked(inst, var) and not var.is_float64:
+            raise ScenarioError(sc.file, fld, f"{inst}.{var.name}: a clocked {var.fmi_type} output is defined at its "
+                                              "clock's ticks only and cannot be read between them yet (Float64 ones "
+                                              "keep the value of their last tick)")

@@ -40,7 +40,7 @@ from ..scenario.inputs import InputPlan, read_inputs
 from ..stepping import table as algorithms
 from ..stepping.graph import FeedGraph
 from ..stepping.settings import SpecError, check_adaptive
-from .clocked import check_clocked, clock_links
+from .clocked import check_clocked, check_clocked_reads, clock_links
 from .feeds import feed_graph
 from .loops import check_iteration, coupling
 from .records import ConnectionPlan, EventPlan, InstancePlan, Plan, RecordPlan, RequirementPlan, unit_of
@@ -543,6 +543,7 @@ def _resolve(sc: Scenario) -> Plan:
     checked = _events(sc, insts, driven, inputs)
     events = sorted((ev for ev in checked if ev.condition is None), key=lambda ev: ev.step)  # stable within a step
     conditions = [ev for ev in checked if ev.condition is not None]
+    check_clocked_reads(sc, insts, record, inputs, checked, requirements)
     plan = Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs, not_recorded,
                 conditions, notes, internal, sc.archive_limits, coupled, last_step, requirements,
                 [idle] if idle else [], feeds, links)
