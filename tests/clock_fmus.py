@@ -3,8 +3,8 @@ periodic input clock r and a triggered input clock s, a Plant, a Supervisor whos
 at a state event) built from its sources with the system C compiler (not a test module).
 
 The sources are read from a local copy of that repository (``SYNC_CLOCK_FMUS``: a git directory or a
-checkout; by default the mirror this project's sessions fetch); the tests that need them are skipped
-where there is none.  The FMUs are FMI 3.0 (3.0-beta.3 model descriptions) with model exchange and
+checkout; by default a mirror ``.mirror/clagms+synchronous-clock-fmus/repo`` in a folder above the
+checkout); the tests that need them are skipped where there is none.  The FMUs are FMI 3.0 (3.0-beta.3 model descriptions) with model exchange and
 co-simulation (``hasEventMode``) in one binary each."""
 from __future__ import annotations
 
@@ -18,7 +18,16 @@ from pathlib import Path
 
 import pytest
 
-SOURCES = Path(os.environ.get("SYNC_CLOCK_FMUS", "/work/.mirror/clagms+synchronous-clock-fmus/repo"))
+_MIRROR = Path(".mirror") / "clagms+synchronous-clock-fmus" / "repo"
+
+
+def _default_sources() -> Path:
+    """The mirror of the example in the nearest folder above the checkout that has one."""
+    here = Path(__file__).resolve()
+    return next((p / _MIRROR for p in here.parents if (p / _MIRROR).is_dir()), _MIRROR)
+
+
+SOURCES = Path(os.environ["SYNC_CLOCK_FMUS"]) if os.environ.get("SYNC_CLOCK_FMUS") else _default_sources()
 MODELS = ("Controller", "Plant", "Supervisor")
 
 
