@@ -73,10 +73,11 @@ class ClockEvents:
         #: the clocked Float64 variables: value reference -> the clock's name
         self.clocked_vr: dict[int, str] = {int(reals[n].valueReference): c.name for n, c in by_var.items()
                                            if n in reals}
-        #: the value at the last tick of each clocked output [vr -> value]; before the first, its start
+        #: the value at the last tick of each clocked variable [vr -> value]; before the first, its start
         self.held: dict[int, float] = {int(v.valueReference): float(v.start) if v.start is not None else 0.0
-                                       for v in reals.values()
-                                       if int(v.valueReference) in self.clocked_vr and v.causality == "output"}
+                                       for v in reals.values() if int(v.valueReference) in self.clocked_vr}
+        self._outputs = {int(v.valueReference) for v in reals.values()
+                         if int(v.valueReference) in self.clocked_vr and v.causality == "output"}
         self.in_held: dict[int, float] = {}                # the clocked inputs' values, set at their next tick
         self.raised: list[tuple[float, str]] = []          # (time [s], output clock) the FMU raised
         self.ticked: list[tuple[float, str]] = []          # (time [s], input clock) the master ticked
@@ -153,6 +154,8 @@ class ClockEvents:
                 self._ok(raw(self.fmu.dll, "fmi3SetFloat64")(c, (ctypes.c_uint32 * len(ins))(*[vr for vr, _ in ins]),
                                                              n_in, (ctypes.c_double * len(ins))(*[v for _, v in ins]),
                                                              n_in), "fmi3SetFloat64 (clocked inputs)", t)
+                for vr, v in ins:
+                    self.held[vr] = v
         self._read_outputs(n, t, {k.name for k in due})
 
     def _read_outputs(self, n: int | None, t: float, active: set[str]) -> None:
@@ -176,7 +179,7 @@ class ClockEvents:
                                    "points: the FMUs it ticks are at communication points only", self.name, t)
             else:
                 self.raised_at[k.name] = (n, self.raised_at.get(k.name, (0, 0))[1] + 1)
-        outs = [vr for vr in self.held if self.clocked_vr[vr] in active]
+        outs = [vr for vr in self._outputs if self.clocked_vr[vr] in active]
         if outs:
             vals, n_out = (ctypes.c_double * len(outs))(), ctypes.c_size_t(len(outs))
             self._ok(raw(self.fmu.dll, "fmi3GetFloat64")(c, (ctypes.c_uint32 * len(outs))(*outs), n_out, vals, n_out),
