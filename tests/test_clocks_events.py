@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from c_fmu_support import build_ticker
 from clock_fmus import build_example, expected, scenario
 from wmr_cosim import cosim
 
@@ -78,36 +79,128 @@ def test_both_clocks_together_take_the_new_value_first(example, tmp_path):
         "ticks the input clocks of the instances after it)")
 
 
-def test_a_2_ms_clock_ticks_every_4th_step_of_half_a_millisecond(example, tmp_path):
-    """The Controller with its periodic clock r declared at 2 ms, alone, its as fixed: at steps of 0.5 ms
-    r ticks at every 4th point (event mode entered, r set, the discrete states updated, ur read), and ur
-    counts the ticks."""
-    src = build_example(tmp_path / "fmus")["Controller"]
-    import zipfile
-    with zipfile.ZipFile(src) as zf:
-        text = zf.read("modelDescription.xml").decode().replace('intervalDecimal="0.1"', 'intervalDecimal="0.002"')
-    fmus = build_example(tmp_path / "fmus2", {"Controller": text})
-    (tmp_path / "c.toml").write_text(f'''[experiment]
+@pytest.fixture(scope="module")
+def ticker(tmp_path_factory) -> Path:
+    return build_ticker(tmp_path_factory.mktemp("ticker"))
+
+
+def _ticker_scenario(fmu: Path, interface: str = "co-simulation", extra: str = "", step: str = "0.0005",
+                     a: str = 'clock_ticks = { s = [0.001] }', order: str = "") -> str:
+    """Two Tickers: A's output clock o ticks B's input clock s, A's m (clocked by o) feeds B's u (clocked
+    by s)."""
+    return f'''[experiment]
 stop = 0.02
-step = 0.0005
-[instances.C]
-fmu = "{fmus["Controller"]}"
-clock_ticks = {{ s = [] }}
+step = {step}
+{order}
+[instances.A]
+fmu = "{fmu}"
+interface = "{interface}"
+{a}
+[instances.B]
+fmu = "{fmu}"
+interface = "{interface}"
+[[connections]]
+from = "A.o"
+to = "B.s"
+[[connections]]
+from = "A.m"
+to = "B.u"
+{extra}
 [record]
-variables = ["C.ur"]
-''')
-    p = _cli("check", tmp_path / "c.toml")
-    assert p.returncode == 2 and "triggered input clock s has no source" in p.stderr
-    (tmp_path / "c.toml").write_text((tmp_path / "c.toml").read_text().replace("clock_ticks = { s = [] }",
-                                                                                "clock_ticks = { s = [0.001] }"))
-    p = _cli("check", tmp_path / "c.toml")
-    assert p.returncode == 0, p.stderr
-    assert "clock r: periodic input clock (constant); interval 0.002 s; clocks ur" in p.stdout
-    ours, ex = _run(tmp_path, (tmp_path / "c.toml").read_text())
-    ticks = [round(t / 0.0005) for t, c in ex.instances["C"].ticked if c == "r"]
-    assert ticks == list(range(0, 40, 4))   # (the events of the stop time are not run: no step follows)
-    ur = ours["C.ur"].tolist()
-    assert ur == [1.0] + [float((k - 1) // 4 + 1) for k in range(1, 41)]   # (a row: before its events)
+variables = ["A.n", "A.m", "B.n", "B.y", "B.u"]
+'''
+
+
+@pytest.mark.parametrize("interface", ["co-simulation", "model-exchange"])
+def test_a_2_ms_clock_ticks_every_4th_step_of_half_a_millisecond(ticker, tmp_path, interface):
+    """The Ticker's periodic clock r of 2 ms at steps of 0.5 ms: an event at every 4th communication
+    point (event mode entered, r set, its clocked output n read, the discrete states updated, then the
+    step), n counting the ticks; A's output clock o, raised at every 3rd tick, ticks B's s at that instant
+    and B takes A's m of that instant (its new value: the dependency order): B.y = 2 A.m."""
+    ours, ex = _run(tmp_path, _ticker_scenario(ticker, interface))
+    a, b = ex.instances["A"], ex.instances["B"]
+    assert [round(t / 0.0005) for t, c in a.ticked if c == "r"] == list(range(0, 40, 4))
+    assert [round(t / 0.0005) for t, c in a.ticked if c == "s"] == [2]
+    assert [round(t, 9) for t, _ in a.raised] == [0.004, 0.01, 0.016]
+    assert [round(t, 9) for t, c in b.ticked if c == "s"] == [0.004, 0.01, 0.016]
+    k = np.arange(41)
+    n_want = np.where(k == 0, 1, (k - 1) // 4 + 1)   # (a row: the values before the events of its time)
+    assert ours["A.n"].tolist() == n_want.tolist() == ours["B.n"].tolist()
+    m_want = (n_want // 3).tolist()
+    assert ours["A.m"].tolist() == m_want
+    assert ours["B.y"].tolist() == [2.0 * m for m in m_want]   # 2 x the m of the same tick, not the one before
+    assert ours["B.u"].tolist() == m_want
+
+
+def test_the_order_decides_nothing_else_and_is_checked(ticker, tmp_path):
+    """B stepping before A would take A's o a step late: refused at check, one line (exit 2)."""
+    (tmp_path / "t.toml").write_text(_ticker_scenario(ticker, order='order = ["B", "A"]'))
+    p = _cli("check", tmp_path / "t.toml")
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1
+    assert "experiment.order: A.o -> B.s: A must step before B" in p.stderr
+
+
+@pytest.mark.parametrize("kw, field, words", [
+    ({"step": "0.0003"}, "experiment.step", "0.0003 s: clock A.r ticks every 0.002 s, not a whole number of steps"),
+    ({"a": 'clock_ticks = { s = [0.00025] }'}, "instances.A.clock_ticks.s", "0.00025 s is not on the grid of "
+                                                                             "0.0005 s steps from 0 s"),
+    ({"a": ""}, "instances.A.clock_ticks", "triggered input clock s has no source"),
+    ({"a": 'clock_ticks = { s = [0.001], r = [0.002] }'}, "instances.A.clock_ticks.r",
+     "Ticker.fmu has no triggered input clock 'r'"),
+    ({"extra": '[[connections]]\nfrom = "A.o"\nto = "B.u"\n'}, "connections[2]",
+     "A.o -> B.u: an output clock connects to an input clock only (B.u is not a clock)"),
+    ({"extra": '[[connections]]\nfrom = "A.n"\nto = "A.s"\n'}, "connections[2]",
+     "A.n -> A.s: an input clock is ticked by an output clock only (A.n is not a clock)"),
+    ({"extra": '[[connections]]\nfrom = "A.o"\nto = "B.r"\n'}, "connections[2].to",
+     "B.r is a constant clock: an output clock ticks a triggered input clock only"),
+    ({"extra": '[[connections]]\nfrom = "A.s"\nto = "B.r"\n'}, "connections[2].from",
+     "A.s is an input clock, not an output clock"),
+    ({"extra": '[[events]]\ntime = 0.001\nvariable = "A.u"\naction = "override"\nvalue = 1.0\n'},
+     "events[0].variable", "A.u: clocked by s, set at its ticks only: events on it are not supported"),
+    ({"order": 'algorithm = "jacobi"'}, "experiment.algorithm", "jacobi: an instance with clocks (A) runs under "
+                                                                "gauss-seidel only"),
+    ({"order": "workers = 2"}, "experiment.workers", "2: an instance with clocks (A) steps in the plan's order"),
+    ({"a": 'clock_ticks = { s = [0.001] }\nisolate = true'}, "instances.A.isolate",
+     "not supported for an instance with clocks"),
+    ({"a": 'clock_ticks = { s = [0.001] }\nstep = 0.001'}, "instances.A.step",
+     "not supported for an instance with clocks"),
+])
+def test_bad_clock_settings_of_the_ticker_are_one_line_at_check(ticker, tmp_path, kw, field, words):
+    (tmp_path / "t.toml").write_text(_ticker_scenario(ticker, **kw))
+    p = _cli("check", tmp_path / "t.toml")
+    assert p.returncode == 2, p.stdout
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1, lines
+    assert f"{field}: {words}" in lines[0]
+
+
+@pytest.mark.parametrize("interval, variability, event_mode, words", [
+    ("", "fixed", True, "clock r: a fixed clock with no intervalDecimal is not supported yet"),
+    ("0.002", "changing", True, "clock r: a changing input clock is not supported in co-simulation yet"),
+    ("0.002", "countdown", True, "clock r: a countdown input clock is not supported in co-simulation yet"),
+    ("0.002", "constant", False, "Ticker.fmu has clocks but its co-simulation interface does not declare "
+                                 "hasEventMode"),
+])
+def test_clocks_the_master_cannot_run_are_refused(tmp_path, interval, variability, event_mode, words):
+    fmu = build_ticker(tmp_path / "fmu", interval, variability, event_mode)
+    (tmp_path / "t.toml").write_text(_ticker_scenario(fmu))
+    p = _cli("check", tmp_path / "t.toml")
+    assert p.returncode == 2, p.stdout
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and "instances.A.fmu: " + words in lines[0], lines
+
+
+def test_a_system_with_clocks_is_not_exported_nor_linearised(ticker, tmp_path):
+    (tmp_path / "t.toml").write_text(_ticker_scenario(ticker))
+    for args, words in ((("export-ssp", tmp_path / "t.toml", "--out", tmp_path / "t.ssp"),
+                         "instances.A: Ticker.fmu has clocks, which cannot be exported to SSP yet"),
+                        (("export-fmu", tmp_path / "t.toml", "--out", tmp_path / "T.fmu"),
+                         "instances.A: Ticker.fmu has clocks (its events and clocked variables are run by the master "
+                         "only): it cannot be exported as an FMU container yet")):
+        p = _cli(*args)
+        assert p.returncode == 2, (args, p.stdout, p.stderr)
+        assert len(p.stderr.strip().splitlines()) == 1 and words in p.stderr, p.stderr
+    assert not (tmp_path / "t.ssp").exists() and not (tmp_path / "T.fmu").exists()
 
 
 @pytest.mark.parametrize("edit, field, words", [
