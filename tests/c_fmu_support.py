@@ -216,3 +216,31 @@ def build_ticker(out: Path, interval: str = "0.002", variability: str = "constan
         zf.write(so, "binaries/x86_64-linux/Ticker.so")
     so.unlink()
     return fmu
+
+
+def ticker_scenario(fmu: Path | str, interface: str = "co-simulation", extra: str = "", step: str = "0.0005",
+                     a: str = 'clock_ticks = { s = [0.001] }', order: str = "") -> str:
+    """Two Tickers through ``interface``: A's output clock o ticks B's input clock s, A's m (clocked by o)
+    feeds B's u (clocked by s); A's s ticked by ``a``'s clock_ticks; ``extra`` before the record; ``order``
+    in the experiment."""
+    return f'''[experiment]
+stop = 0.02
+step = {step}
+{order}
+[instances.A]
+fmu = "{fmu}"
+interface = "{interface}"
+{a}
+[instances.B]
+fmu = "{fmu}"
+interface = "{interface}"
+[[connections]]
+from = "A.o"
+to = "B.s"
+[[connections]]
+from = "A.m"
+to = "B.u"
+{extra}
+[record]
+variables = ["A.n", "A.m", "B.n", "B.y", "B.u"]
+'''

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from c_fmu_support import build_ticker
+from c_fmu_support import build_ticker, ticker_scenario
 from clock_fmus import build_example, expected, scenario
 from wmr_cosim import cosim
 
@@ -84,40 +84,13 @@ def ticker(tmp_path_factory) -> Path:
     return build_ticker(tmp_path_factory.mktemp("ticker"))
 
 
-def _ticker_scenario(fmu: Path, interface: str = "co-simulation", extra: str = "", step: str = "0.0005",
-                     a: str = 'clock_ticks = { s = [0.001] }', order: str = "") -> str:
-    """Two Tickers: A's output clock o ticks B's input clock s, A's m (clocked by o) feeds B's u (clocked
-    by s)."""
-    return f'''[experiment]
-stop = 0.02
-step = {step}
-{order}
-[instances.A]
-fmu = "{fmu}"
-interface = "{interface}"
-{a}
-[instances.B]
-fmu = "{fmu}"
-interface = "{interface}"
-[[connections]]
-from = "A.o"
-to = "B.s"
-[[connections]]
-from = "A.m"
-to = "B.u"
-{extra}
-[record]
-variables = ["A.n", "A.m", "B.n", "B.y", "B.u"]
-'''
-
-
 @pytest.mark.parametrize("interface", ["co-simulation", "model-exchange"])
 def test_a_2_ms_clock_ticks_every_4th_step_of_half_a_millisecond(ticker, tmp_path, interface):
     """The Ticker's periodic clock r of 2 ms at steps of 0.5 ms: an event at every 4th communication
     point (event mode entered, r set, its clocked output n read, the discrete states updated, then the
     step), n counting the ticks; A's output clock o, raised at every 3rd tick, ticks B's s at that instant
     and B takes A's m of that instant (its new value: the dependency order): B.y = 2 A.m."""
-    ours, ex = _run(tmp_path, _ticker_scenario(ticker, interface))
+    ours, ex = _run(tmp_path, ticker_scenario(ticker, interface))
     a, b = ex.instances["A"], ex.instances["B"]
     assert [round(t / 0.0005) for t, c in a.ticked if c == "r"] == list(range(0, 40, 4))
     assert [round(t / 0.0005) for t, c in a.ticked if c == "s"] == [2]
@@ -134,7 +107,7 @@ def test_a_2_ms_clock_ticks_every_4th_step_of_half_a_millisecond(ticker, tmp_pat
 
 def test_the_order_decides_nothing_else_and_is_checked(ticker, tmp_path):
     """B stepping before A would take A's o a step late: refused at check, one line (exit 2)."""
-    (tmp_path / "t.toml").write_text(_ticker_scenario(ticker, order='order = ["B", "A"]'))
+    (tmp_path / "t.toml").write_text(ticker_scenario(ticker, order='order = ["B", "A"]'))
     p = _cli("check", tmp_path / "t.toml")
     assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1
     assert "experiment.order: A.o -> B.s: A must step before B" in p.stderr
@@ -166,7 +139,7 @@ def test_the_order_decides_nothing_else_and_is_checked(ticker, tmp_path):
      "not supported for an instance with clocks"),
 ])
 def test_bad_clock_settings_of_the_ticker_are_one_line_at_check(ticker, tmp_path, kw, field, words):
-    (tmp_path / "t.toml").write_text(_ticker_scenario(ticker, **kw))
+    (tmp_path / "t.toml").write_text(ticker_scenario(ticker, **kw))
     p = _cli("check", tmp_path / "t.toml")
     assert p.returncode == 2, p.stdout
     lines = p.stderr.strip().splitlines()
@@ -183,7 +156,7 @@ def test_bad_clock_settings_of_the_ticker_are_one_line_at_check(ticker, tmp_path
 ])
 def test_clocks_the_master_cannot_run_are_refused(tmp_path, interval, variability, event_mode, words):
     fmu = build_ticker(tmp_path / "fmu", interval, variability, event_mode)
-    (tmp_path / "t.toml").write_text(_ticker_scenario(fmu))
+    (tmp_path / "t.toml").write_text(ticker_scenario(fmu))
     p = _cli("check", tmp_path / "t.toml")
     assert p.returncode == 2, p.stdout
     lines = p.stderr.strip().splitlines()
@@ -191,7 +164,7 @@ def test_clocks_the_master_cannot_run_are_refused(tmp_path, interval, variabilit
 
 
 def test_a_system_with_clocks_is_not_exported_nor_linearised(ticker, tmp_path):
-    (tmp_path / "t.toml").write_text(_ticker_scenario(ticker))
+    (tmp_path / "t.toml").write_text(ticker_scenario(ticker))
     for args, words in ((("export-ssp", tmp_path / "t.toml", "--out", tmp_path / "t.ssp"),
                          "instances.A: Ticker.fmu has clocks, which cannot be exported to SSP yet"),
                         (("export-fmu", tmp_path / "t.toml", "--out", tmp_path / "T.fmu"),
