@@ -71,75 +71,21 @@ def check_clocked(sc: Scenario, insts: dict[str, InstancePlan], conns: list[Conn
                   links: list[ClockLink], notes: list[str]) -> None:
     """The instances with clocks that are not scheduled execution, and the connections of clocks and
     clocked variables (see the module's docstring)."""
-    start, _, step = sc.times()
-    order = {n: i for i, n in enumerate(sc.order)}
+    _links(sc, insts, links)
     linked_in = {(lk.dst, lk.dst_clock) for lk in links}
     linked_out = {(lk.src, lk.src_clock) for lk in links}
-    for lk in links:
-        for end in (lk.src, lk.dst):
-            if insts[end].interface == SCHEDULED_EXECUTION:
-                raise ScenarioError(sc.file, f"connections[{lk.index}]", f"{lk}: clocks of a scheduled execution "
-                                                                         "instance are not connected yet")
-        insts[lk.src].clock_words.setdefault(lk.src_clock, []).append(f"ticks {lk.dst}.{lk.dst_clock}")
-        insts[lk.dst].clock_words.setdefault(lk.dst_clock, []).append(f"ticked by {lk.src}.{lk.src_clock}")
-        if order[lk.src] > order[lk.dst]:
-            raise ScenarioError(sc.file, "experiment.order", f"{lk}: {lk.src} must step before {lk.dst} (an output "
-                                                             "clock ticks the input clocks of the instances after it)")
     for name, ip in insts.items():
         if ip.interface == SCHEDULED_EXECUTION or not ip.model.clocks:
             if ip.spec.clock_ticks and ip.interface != SCHEDULED_EXECUTION:
                 raise ScenarioError(sc.file, f"instances.{name}.clock_ticks", "ticks are for the input clocks of "
                                                                               "an FMU that has clocks")
             continue
-        fld = f"instances.{name}"
-        file = ip.model.path.name
-        if ip.interface == CO_SIMULATION and not ip.model.has_event_mode:
-            raise ScenarioError(sc.file, f"{fld}.fmu", f"{file} has clocks but its co-simulation interface does not "
-                                                       "declare hasEventMode (the master ticks clocks in event mode)")
-        if sc.algorithm != algorithms.DEFAULT:
-            raise ScenarioError(sc.file, "experiment.algorithm", f"{sc.algorithm}: an instance with clocks ({name}) "
-                                f"runs under {algorithms.DEFAULT} only (its events follow the plan's order)")
-        if sc.workers > 1:
-            raise ScenarioError(sc.file, "experiment.workers", f"{sc.workers}: an instance with clocks ({name}) "
-                                                               "steps in the plan's order, one instance at a time")
-        for key in ("isolate", "step"):
-            if getattr(ip.spec, key):
-                raise ScenarioError(sc.file, f"{fld}.{key}", "not supported for an instance with clocks (its events "
-                                                             "run in the master's process, at every communication point)")
-        by_name = {c.name: c for c in ip.model.clocks}
-        for cname in ip.spec.clock_ticks:
-            c = by_name.get(cname)
-            if c is None or c.causality != "input" or c.variability != "triggered":
-                raise ScenarioError(sc.file, f"{fld}.clock_ticks.{cname}", f"{file} has no triggered input clock "
-                                                                          f"{cname!r}")
+        _instance(sc, name, ip)
         for c in ip.model.clocks:
-            if c.causality == "output":
-                if (name, c.name) not in linked_out:
-                    notes.append(f"{name}: output clock {c.name} is raised by the FMU and feeds nothing")
-            elif c.causality != "input":
-                continue
-            elif c.periodic:
-                if c.interval is None:
-                    raise ScenarioError(sc.file, f"{fld}.fmu", f"clock {c.name}: a {c.variability} clock with no "
-                                        "intervalDecimal is not supported yet (its interval is known only at run time)")
-                k, n0 = grid_multiple(c.interval, step), grid_multiple(c.shift or "0", step)
-                if not k or n0 is None or float(c.interval) <= 0:
-                    raise ScenarioError(sc.file, "experiment.step", f"{step:g} s: clock {name}.{c.name} ticks every "
-                                        f"{c.interval} s" + (f" from {c.shift} s" if c.shift else "") +
-                                        ", not a whole number of steps")
-            elif c.variability == "triggered":
-                times = ip.spec.clock_ticks.get(c.name)
-                if not times and (name, c.name) not in linked_in:
-                    raise ScenarioError(sc.file, f"{fld}.clock_ticks", f"triggered input clock {c.name} has no "
-                                        f"source: connect an output clock to it, or give its times, clock_ticks = "
-                                        f"{{ {c.name} = [...] }}")
-                for t in times or ():
-                    if t < start or grid_multiple(Fraction(repr(t)) - Fraction(repr(start)), step) is None:
-                        raise ScenarioError(sc.file, f"{fld}.clock_ticks.{c.name}", f"{t:g} s is not on the grid "
-                                                                                   f"of {step:g} s steps from {start:g} s")
-            else:
-                raise ScenarioError(sc.file, f"{fld}.fmu", f"clock {c.name}: a {c.variability} input clock is not "
-                                    "supported in co-simulation yet (the master ticks periodic and triggered clocks)")
+            if c.causality == "output" and (name, c.name) not in linked_out:
+                notes.append(f"{name}: output clock {c.name} is raised by the FMU and feeds nothing")
+            elif c.causality == "input":
+                _input_clock(sc, name, ip, c, (name, c.name) in linked_in)
     for cp in conns:
         s_clock = clock_of(insts[cp.src], cp.src_var.name)
         d_clock = clock_of(insts[cp.dst], cp.dst_var.name)
@@ -150,6 +96,76 @@ def check_clocked(sc: Scenario, insts: dict[str, InstancePlan], conns: list[Conn
             if clock is not None and not cp.src_var.is_float64:
                 raise ScenarioError(sc.file, f"connections[{cp.spec.index}]", f"{end}.{var.name}: clocked "
                                     f"{cp.src_var.fmi_type} variables are not exchanged yet (Float64 ones are)")
+
+
+def _links(sc: Scenario, insts: dict[str, InstancePlan], links: list[ClockLink]) -> None:
+    """Each connection between clocks: not of a scheduled execution instance, its output clock's instance
+    stepping first (each clock's connections noted for ``check``)."""
+    order = {n: i for i, n in enumerate(sc.order)}
+    for lk in links:
+        for end in (lk.src, lk.dst):
+            if insts[end].interface == SCHEDULED_EXECUTION:
+                raise ScenarioError(sc.file, f"connections[{lk.index}]", f"{lk}: clocks of a scheduled execution "
+                                                                         "instance are not connected yet")
+        insts[lk.src].clock_words.setdefault(lk.src_clock, []).append(f"ticks {lk.dst}.{lk.dst_clock}")
+        insts[lk.dst].clock_words.setdefault(lk.dst_clock, []).append(f"ticked by {lk.src}.{lk.src_clock}")
+        if order[lk.src] > order[lk.dst]:
+            raise ScenarioError(sc.file, "experiment.order", f"{lk}: {lk.src} must step before {lk.dst} (an output "
+                                                             "clock ticks the input clocks of the instances after it)")
+
+
+def _instance(sc: Scenario, name: str, ip: InstancePlan) -> None:
+    """An instance with clocks: event mode in co-simulation, the default algorithm, one worker, in this
+    process, at the experiment's step; ``clock_ticks`` for its triggered input clocks only."""
+    fld, file = f"instances.{name}", ip.model.path.name
+    if ip.interface == CO_SIMULATION and not ip.model.has_event_mode:
+        raise ScenarioError(sc.file, f"{fld}.fmu", f"{file} has clocks but its co-simulation interface does not "
+                                                   "declare hasEventMode (the master ticks clocks in event mode)")
+    if sc.algorithm != algorithms.DEFAULT:
+        raise ScenarioError(sc.file, "experiment.algorithm", f"{sc.algorithm}: an instance with clocks ({name}) "
+                            f"runs under {algorithms.DEFAULT} only (its events follow the plan's order)")
+    if sc.workers > 1:
+        raise ScenarioError(sc.file, "experiment.workers", f"{sc.workers}: an instance with clocks ({name}) "
+                                                           "steps in the plan's order, one instance at a time")
+    for key in ("isolate", "step"):
+        if getattr(ip.spec, key):
+            raise ScenarioError(sc.file, f"{fld}.{key}", "not supported for an instance with clocks (its events "
+                                                         "run in the master's process, at every communication point)")
+    by_name = {c.name: c for c in ip.model.clocks}
+    for cname in ip.spec.clock_ticks:
+        c = by_name.get(cname)
+        if c is None or c.causality != "input" or c.variability != "triggered":
+            raise ScenarioError(sc.file, f"{fld}.clock_ticks.{cname}", f"{file} has no triggered input clock "
+                                                                      f"{cname!r}")
+
+
+def _input_clock(sc: Scenario, name: str, ip: InstancePlan, c: Clock, linked: bool) -> None:
+    """One input clock: periodic with its interval (and shift) a whole number of steps, or triggered with a
+    source (``linked``: an output clock connected to it; or ``clock_ticks`` on the grid)."""
+    start, _, step = sc.times()
+    fld = f"instances.{name}"
+    if c.periodic:
+        if c.interval is None:
+            raise ScenarioError(sc.file, f"{fld}.fmu", f"clock {c.name}: a {c.variability} clock with no "
+                                "intervalDecimal is not supported yet (its interval is known only at run time)")
+        k, n0 = grid_multiple(c.interval, step), grid_multiple(c.shift or "0", step)
+        if not k or n0 is None or float(c.interval) <= 0:
+            raise ScenarioError(sc.file, "experiment.step", f"{step:g} s: clock {name}.{c.name} ticks every "
+                                f"{c.interval} s" + (f" from {c.shift} s" if c.shift else "") +
+                                ", not a whole number of steps")
+    elif c.variability == "triggered":
+        times = ip.spec.clock_ticks.get(c.name)
+        if not times and not linked:
+            raise ScenarioError(sc.file, f"{fld}.clock_ticks", f"triggered input clock {c.name} has no "
+                                f"source: connect an output clock to it, or give its times, clock_ticks = "
+                                f"{{ {c.name} = [...] }}")
+        for t in times or ():
+            if t < start or grid_multiple(Fraction(repr(t)) - Fraction(repr(start)), step) is None:
+                raise ScenarioError(sc.file, f"{fld}.clock_ticks.{c.name}", f"{t:g} s is not on the grid "
+                                                                           f"of {step:g} s steps from {start:g} s")
+    else:
+        raise ScenarioError(sc.file, f"{fld}.fmu", f"clock {c.name}: a {c.variability} input clock is not "
+                            "supported in co-simulation and model exchange yet (the master ticks periodic and triggered clocks)")
 
 
 def clock_of(ip: InstancePlan, var: str) -> str | None:
