@@ -4,8 +4,8 @@ at a state event) built from its sources with the system C compiler (not a test 
 
 The sources are read from a local copy of that repository (``SYNC_CLOCK_FMUS``: a git directory or a
 checkout; by default a mirror ``.mirror/clagms+synchronous-clock-fmus/repo`` in a folder above the
-checkout); the tests that need them are skipped where there is none.  The FMUs are FMI 3.0 (3.0-beta.3 model descriptions) with model exchange and
-co-simulation (``hasEventMode``) in one binary each."""
+checkout); the tests that need them are skipped where there is none.  The FMUs are FMI 3.0 (3.0-beta.3
+model descriptions) with model exchange and co-simulation (``hasEventMode``) in one binary each."""
 from __future__ import annotations
 
 import io

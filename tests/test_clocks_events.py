@@ -149,8 +149,10 @@ def test_bad_clock_settings_of_the_ticker_are_one_line_at_check(ticker, tmp_path
 
 @pytest.mark.parametrize("interval, variability, event_mode, words", [
     ("", "fixed", True, "clock r: a fixed clock with no intervalDecimal is not supported yet"),
-    ("0.002", "changing", True, "clock r: a changing input clock is not supported in co-simulation and model exchange yet"),
-    ("0.002", "countdown", True, "clock r: a countdown input clock is not supported in co-simulation and model exchange yet"),
+    ("0.002", "changing", True, "clock r: a changing input clock is not supported in co-simulation and model "
+                                "exchange yet"),
+    ("0.002", "countdown", True, "clock r: a countdown input clock is not supported in co-simulation and model "
+                                 "exchange yet"),
     ("0.002", "constant", False, "Ticker.fmu has clocks but its co-simulation interface does not declare "
                                  "hasEventMode"),
 ])

@@ -165,7 +165,8 @@ def _input_clock(sc: Scenario, name: str, ip: InstancePlan, c: Clock, linked: bo
                                                                            f"of {step:g} s steps from {start:g} s")
     else:
         raise ScenarioError(sc.file, f"{fld}.fmu", f"clock {c.name}: a {c.variability} input clock is not "
-                            "supported in co-simulation and model exchange yet (the master ticks periodic and triggered clocks)")
+                            "supported in co-simulation and model exchange yet (the master ticks periodic and "
+                            "triggered clocks)")
 
 
 def clock_of(ip: InstancePlan, var: str) -> str | None:
@@ -174,7 +175,8 @@ def clock_of(ip: InstancePlan, var: str) -> str | None:
 
 
 def check_clocked_reads(sc: Scenario, insts: dict[str, InstancePlan], record: list[RecordPlan],
-                        inputs: list[InputPlan], events: list[EventPlan], requirements: list[RequirementPlan]) -> None:
+                        inputs: list[InputPlan], events: list[EventPlan],
+                        requirements: list[RequirementPlan]) -> None:
     """What reads or sets a clocked variable of an instance with clocks in co-simulation between its
     ticks, ScenarioError in one line: an event on it (a clocked input is set at its clock's ticks only), a
     tabulated input of it that is not Float64 (a Float64 one is held for the tick), a record or requirement
