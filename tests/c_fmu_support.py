@@ -168,6 +168,7 @@ TICKER_FMI3 = """<?xml version="1.0" encoding="UTF-8"?>
     <Float64 name="y" valueReference="6" causality="output" variability="discrete" clocks="2" initial="exact" start="0"/>
     <Float64 name="m" valueReference="7" causality="output" variability="discrete" clocks="3" initial="exact" start="0"/>
     <Float64 name="every" valueReference="8" causality="parameter" variability="fixed" start="3"/>
+    <Float64 name="t_o" valueReference="9" causality="parameter" variability="fixed" start="-1"/>
   </ModelVariables>
   <ModelStructure>
     <Output valueReference="3"/>

@@ -265,3 +265,31 @@ def test_the_discrete_states_follow_the_published_reference(example, tmp_path):
         assert len(ref) == n and ours_me[:n] == ref, name
         assert ours_cs[:25] == ref[:25] and ref[25:27] == [(5.0, -1.0), (4.0, -1.0)], name
         assert ours_cs[25] == (4.0, -1.0), name
+
+
+@pytest.mark.parametrize("interface, row", [("co-simulation", 7), ("model-exchange", 6)])
+def test_an_output_clock_raised_at_the_fmus_own_time_event(ticker, tmp_path, interface, row):
+    """A's o raised at its own time event at 3 ms (t_o; not at r's ticks: every = 100): in co-simulation the
+    step ending at 3 ms asks for event handling (eventHandlingNeeded), the event runs at 3 ms before the
+    next step; in model exchange the integration stops at the time event.  Either way B's s ticks at 3 ms
+    with A's m of that instant."""
+    text = ticker_scenario(ticker, interface,
+                           a='clock_ticks = { s = [0.001] }\nparameters = { every = 100, t_o = 0.003 }')
+    ours, ex = _run(tmp_path, text)
+    assert [round(t, 9) for t, _ in ex.instances["A"].raised] == [0.003]
+    assert [round(t, 9) for t, c in ex.instances["B"].ticked if c == "s"] == [0.003]
+    assert ours["A.m"].tolist() == [0.0] * row + [1.0] * (41 - row)   # (A's own event shows in the row of its time)
+    assert ours["B.y"].tolist() == [0.0] * 7 + [2.0] * 34
+
+
+def test_an_output_clock_raised_between_communication_points_ends_the_run_in_one_line(ticker, tmp_path):
+    """A model exchange FMU's time event at 3.25 ms raises A's o, connected to B's s: B is at 3 ms, and
+    stops at communication points only: the run ends there (exit 1), saying why."""
+    text = ticker_scenario(ticker, "model-exchange",
+                           a='clock_ticks = { s = [0.001] }\nparameters = { every = 100, t_o = 0.00325 }')
+    (tmp_path / "t.toml").write_text(text)
+    p = _cli("run", tmp_path / "t.toml", "--out", tmp_path / "out", "--quiet")
+    assert p.returncode == 1, p.stderr
+    first = p.stderr.strip().splitlines()[0]   # (then where what was recorded is)
+    assert first.startswith("wmr-cosim: run failed: A: ")
+    assert "A: output clock o raised at t = 0.00325 s, between communication points" in first

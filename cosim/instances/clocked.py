@@ -175,8 +175,10 @@ class ClockEvents:
             self.raised.append((t, k.name))
             if n is None:
                 if k.name in self.fed:
-                    raise RunError(f"{self.name}: output clock {k.name} raised at t = {t:.9g} s, between communication "
-                                   "points: the FMUs it ticks are at communication points only", self.name, t)
+                    why = (f"{self.name}: output clock {k.name} raised at t = {t:.9g} s, between communication "
+                           "points: the FMUs it ticks are at communication points only")
+                    self.log.append(why)   # (the integration's failure names it as its last log)
+                    raise RunError(why, self.name, t)
             else:
                 self.raised_at[k.name] = (n, self.raised_at.get(k.name, (0, 0))[1] + 1)
         outs = [vr for vr in self._outputs if self.clocked_vr[vr] in active]

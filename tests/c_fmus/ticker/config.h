@@ -18,7 +18,7 @@
 #define DEFAULT_STOP_TIME 1
 
 typedef enum {
-    vr_time = 0, vr_r = 1, vr_s = 2, vr_o = 3, vr_n = 4, vr_u = 5, vr_y = 6, vr_m = 7, vr_every = 8
+    vr_time = 0, vr_r = 1, vr_s = 2, vr_o = 3, vr_n = 4, vr_u = 5, vr_y = 6, vr_m = 7, vr_every = 8, vr_t_o = 9
 } ValueReference;
 
 typedef struct {
@@ -28,7 +28,8 @@ typedef struct {
     double y;          /* clocked by s: 2 u at s's last tick */
     double m;          /* clocked by o: the rises of o */
     double every;      /* o rises at every this many ticks of r */
-    int r_active, s_active, o_active;
+    double t_o;        /* o rises at this time too (a time event of the FMU; none when < 0) */
+    int r_active, s_active, o_active, o_done;
 
 } ModelData;
 
