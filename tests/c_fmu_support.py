@@ -220,10 +220,10 @@ def build_ticker(out: Path, interval: str = "0.002", variability: str = "constan
 
 
 def ticker_scenario(fmu: Path | str, interface: str = "co-simulation", extra: str = "", step: str = "0.0005",
-                     a: str = 'clock_ticks = { s = [0.001] }', order: str = "") -> str:
+                     a: str = 'clock_ticks = { s = [0.001] }', order: str = "", record: str = "") -> str:
     """Two Tickers through ``interface``: A's output clock o ticks B's input clock s, A's m (clocked by o)
     feeds B's u (clocked by s); A's s ticked by ``a``'s clock_ticks; ``extra`` before the record; ``order``
-    in the experiment."""
+    in the experiment; ``record`` more keys of the record."""
     return f'''[experiment]
 stop = 0.02
 step = {step}
@@ -244,4 +244,5 @@ to = "B.u"
 {extra}
 [record]
 variables = ["A.n", "A.m", "B.n", "B.y", "B.u"]
+{record}
 '''

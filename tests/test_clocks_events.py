@@ -137,6 +137,8 @@ def test_the_order_decides_nothing_else_and_is_checked(ticker, tmp_path):
      "not supported for an instance with clocks"),
     ({"a": 'clock_ticks = { s = [0.001] }\nstep = 0.001'}, "instances.A.step",
      "not supported for an instance with clocks"),
+    ({"record": "event_rows = true"}, "record.event_rows", "rows at the events are not recorded for an instance "
+                                                           "with clocks (A)"),
 ])
 def test_bad_clock_settings_of_the_ticker_are_one_line_at_check(ticker, tmp_path, kw, field, words):
     (tmp_path / "t.toml").write_text(ticker_scenario(ticker, **kw))

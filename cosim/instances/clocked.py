@@ -65,6 +65,19 @@ class ClockEvents:
 
         def fail_status(self, what: str, status: int, t: float | None) -> RunError: ...
 
+    @property
+    def can_get_and_set_state(self) -> bool:
+        """No: its clocks' state (the ticks taken, the values held at them) is the master's, not saved with
+        the FMU's."""
+        return False
+
+    def get_state(self) -> Any:
+        raise RunError(f"{self.name}: an instance with clocks cannot save its state (the master keeps its "
+                       "clocks' ticks and values)", self.name)
+
+    def set_state(self, state: Any) -> None:
+        raise RunError(f"{self.name}: an instance with clocks cannot restore a state", self.name)
+
     def _init_clocks(self, md: Any, unzipdir: str) -> None:
         with open(os.path.join(unzipdir, "modelDescription.xml"), "rb") as fh:
             self.clocks: list[Clock] = clocks_of(fh.read())

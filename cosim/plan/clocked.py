@@ -127,6 +127,9 @@ def _instance(sc: Scenario, name: str, ip: InstancePlan) -> None:
     if sc.workers > 1:
         raise ScenarioError(sc.file, "experiment.workers", f"{sc.workers}: an instance with clocks ({name}) "
                                                            "steps in the plan's order, one instance at a time")
+    if sc.event_rows:
+        raise ScenarioError(sc.file, "record.event_rows", f"rows at the events are not recorded for an instance "
+                                                          f"with clocks ({name})")
     for key in ("isolate", "step"):
         if getattr(ip.spec, key):
             raise ScenarioError(sc.file, f"{fld}.{key}", "not supported for an instance with clocks (its events "
