@@ -167,17 +167,20 @@ def test_clocks_the_master_cannot_run_are_refused(tmp_path, interval, variabilit
     assert len(lines) == 1 and "instances.A.fmu: " + words in lines[0], lines
 
 
-def test_a_system_with_clocks_is_not_exported_nor_linearised(ticker, tmp_path):
+def test_a_system_with_clocks_is_neither_exported_nor_linearised(ticker, tmp_path):
     (tmp_path / "t.toml").write_text(ticker_scenario(ticker))
     for args, words in ((("export-ssp", tmp_path / "t.toml", "--out", tmp_path / "t.ssp"),
                          "instances.A: Ticker.fmu has clocks, which cannot be exported to SSP yet"),
                         (("export-fmu", tmp_path / "t.toml", "--out", tmp_path / "T.fmu"),
                          "instances.A: Ticker.fmu has clocks (its events and clocked variables are run by the master "
-                         "only): it cannot be exported as an FMU container yet")):
+                         "only): it cannot be exported as an FMU container yet"),
+                        (("linearize", tmp_path / "t.toml", "--inputs", "B.u", "--outputs", "B.y", "--out",
+                          tmp_path / "lin"), "instances.A: A (Ticker.fmu) has clocks: systems with clocks are not "
+                                             "linearised")):
         p = _cli(*args)
         assert p.returncode == 2, (args, p.stdout, p.stderr)
         assert len(p.stderr.strip().splitlines()) == 1 and words in p.stderr, p.stderr
-    assert not (tmp_path / "t.ssp").exists() and not (tmp_path / "T.fmu").exists()
+    assert not (tmp_path / "t.ssp").exists() and not (tmp_path / "T.fmu").exists() and not (tmp_path / "lin").exists()
 
 
 @pytest.mark.parametrize("edit, field, words", [
