@@ -105,12 +105,20 @@ def test_a_2_ms_clock_ticks_every_4th_step_of_half_a_millisecond(ticker, tmp_pat
     assert ours["B.u"].tolist() == m_want
 
 
-def test_the_order_decides_nothing_else_and_is_checked(ticker, tmp_path):
-    """B stepping before A would take A's o a step late: refused at check, one line (exit 2)."""
+def test_the_order_is_checked(ticker, tmp_path):
+    """B stepping before A would take A's o, or A's m, a step late: refused at check, one line (exit 2)."""
     (tmp_path / "t.toml").write_text(ticker_scenario(ticker, order='order = ["B", "A"]'))
     p = _cli("check", tmp_path / "t.toml")
     assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1
     assert "experiment.order: A.o -> B.s: A must step before B" in p.stderr
+    text = ticker_scenario(ticker, order='order = ["B", "A"]').replace('from = "A.o"\nto = "B.s"',
+                                                                       'from = "A.o"\nto = "A.s"')
+    (tmp_path / "t.toml").write_text(text.replace('clock_ticks = { s = [0.001] }', "").replace(
+        '[instances.B]\nfmu = "' + str(ticker) + '"', '[instances.B]\nfmu = "' + str(ticker) + '"\n'
+        'clock_ticks = { s = [0.001] }'))
+    p = _cli("check", tmp_path / "t.toml")
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1, p.stderr
+    assert "experiment.order: A.m -> B.u: A must step before B" in p.stderr
 
 
 @pytest.mark.parametrize("kw, field, words", [

@@ -10,7 +10,8 @@ the same ``from``/``to`` syntax as variables).  What the master runs exactly, an
 - each periodic input clock (constant, fixed, tunable) declares its interval (and shift) as a whole number
   of steps; each triggered input clock has a source: an output clock connected to it, or ``clock_ticks``
   at times on the grid; countdown and changing clocks are refused;
-- an output clock connected to an input clock steps before it in the plan's order (``experiment.order``);
+- an output clock connected to an input clock, and a clocked output connected to a clocked input, step
+  before them in the plan's order (``experiment.order``);
   a clock connected to a variable, or a variable to a clock, is refused;
 - notes: an output clock that feeds nothing; a clocked output connected to an input that is not clocked
   (its value is defined at its clock's ticks only: the input holds the value of the last tick).
@@ -92,6 +93,10 @@ def check_clocked(sc: Scenario, insts: dict[str, InstancePlan], conns: list[Conn
         if s_clock is not None and d_clock is None:
             notes.append(f"{cp.src}.{cp.src_var.name} -> {cp.dst}.{cp.dst_var.name}: the output is clocked by "
                          f"{s_clock}, defined at its ticks only; the input holds the value of the last tick")
+        if s_clock is not None and d_clock is not None and sc.order.index(cp.src) > sc.order.index(cp.dst):
+            raise ScenarioError(sc.file, "experiment.order", f"{cp.src}.{cp.src_var.name} -> "
+                                f"{cp.dst}.{cp.dst_var.name}: {cp.src} must step before {cp.dst} (a clocked value reaches the clocked partitions "
+                                "of the instances after it at the same instant)")
         for end, var, clock in ((cp.src, cp.src_var, s_clock), (cp.dst, cp.dst_var, d_clock)):
             if clock is not None and not cp.src_var.is_float64:
                 raise ScenarioError(sc.file, f"connections[{cp.spec.index}]", f"{end}.{var.name}: clocked "
