@@ -142,3 +142,107 @@ def build_ramp(out: Path, version: int) -> Path:
         zf.write(so, f"binaries/{'x86_64-linux' if version == 3 else 'linux64'}/Ramp.so")
     so.unlink()
     return fmu
+
+
+# -------------------------------------------------------------------------------------------- Ticker
+#: The Ticker model (tests/c_fmus/ticker/: an input clock r, periodic, whose ticks n counts; a triggered
+#: input clock s with its clocked input u and output y = 2 u; an output clock o raised at every
+#: ``every``-th tick of r, whose rises m counts), on the Reference FMUs' common code, FMI 3.0.
+TICKER = Path(__file__).resolve().parent / "c_fmus" / "ticker"
+TICKER_TOKEN = "{3f6a2b1c-0d4e-4c8a-9b7e-5a1d2c3eticker}"
+
+TICKER_FMI3 = """<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="3.0" modelName="Ticker" generationTool="wmr-cosim tests" instantiationToken="{token}">
+  <ModelExchange modelIdentifier="Ticker"/>
+  <CoSimulation modelIdentifier="Ticker" canHandleVariableCommunicationStepSize="true" fixedInternalStepSize="1e-4"
+    hasEventMode="{event_mode}"/>
+  <LogCategories><Category name="logEvents"/><Category name="logStatusError"/></LogCategories>
+  <DefaultExperiment startTime="0" stopTime="1" stepSize="0.0005"/>
+  <ModelVariables>
+    <Float64 name="time" valueReference="0" causality="independent" variability="continuous"/>
+    <Clock name="r" valueReference="1" causality="input" intervalVariability="{variability}"{interval}/>
+    <Clock name="s" valueReference="2" causality="input" intervalVariability="triggered"/>
+    <Clock name="o" valueReference="3" causality="output" intervalVariability="triggered"/>
+    <Float64 name="n" valueReference="4" causality="output" variability="discrete" clocks="1" initial="exact" start="0"/>
+    <Float64 name="u" valueReference="5" causality="input" variability="discrete" clocks="2" start="0"/>
+    <Float64 name="y" valueReference="6" causality="output" variability="discrete" clocks="2" initial="exact" start="0"/>
+    <Float64 name="m" valueReference="7" causality="output" variability="discrete" clocks="3" initial="exact" start="0"/>
+    <Float64 name="every" valueReference="8" causality="parameter" variability="fixed" start="3"/>
+    <Float64 name="t_o" valueReference="9" causality="parameter" variability="fixed" start="-1"/>
+  </ModelVariables>
+  <ModelStructure>
+    <Output valueReference="3"/>
+    <Output valueReference="4"/>
+    <Output valueReference="6"/>
+    <Output valueReference="7"/>
+  </ModelStructure>
+</fmiModelDescription>
+"""
+
+
+def ticker_bytes(interval: str = "0.002", variability: str = "constant", event_mode: bool = True) -> bytes:
+    """The Ticker FMU's bytes, its clock r of ``variability`` with ``interval`` [s] ("": none declared),
+    ``hasEventMode`` as ``event_mode`` (built in a temporary folder, removed after)."""
+    import tempfile
+
+    tmp = Path(tempfile.mkdtemp(prefix="ticker-"))
+    try:
+        return build_ticker(tmp, interval, variability, event_mode).read_bytes()
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def build_ticker(out: Path, interval: str = "0.002", variability: str = "constant", event_mode: bool = True) -> Path:
+    """``out/Ticker.fmu`` (FMI 3.0 co-simulation and model exchange): tests/c_fmus/ticker/ compiled with the
+    Reference FMUs' common code against the FMI headers FMPy ships (see :func:`ticker_bytes`)."""
+    import fmpy
+
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        pytest.skip("no C compiler on this machine")
+    out.mkdir(parents=True, exist_ok=True)
+    so = out / "Ticker.so"
+    sources = [TICKER / "model.c", REFERENCE_COMMON / "cosimulation.c", REFERENCE_COMMON / "fmi3Functions.c"]
+    flags = ["-DFMI_VERSION=3", "-DDISABLE_PREFIX", f"-I{Path(fmpy.__file__).parent / 'c-code'}", f"-I{TICKER}",
+             f"-I{REFERENCE_COMMON}"]
+    p = subprocess.run([cc, "-shared", "-fPIC", "-O1", *flags, *map(str, sources), "-o", str(so), "-lm"],
+                       capture_output=True, text=True)
+    if p.returncode:
+        raise RuntimeError(p.stderr)
+    fmu = out / "Ticker.fmu"
+    md = TICKER_FMI3.format(token=TICKER_TOKEN, variability=variability, event_mode=str(event_mode).lower(),
+                            interval=f' intervalDecimal="{interval}"' if interval else "")
+    with zipfile.ZipFile(fmu, "w") as zf:
+        zf.writestr("modelDescription.xml", md)
+        zf.write(so, "binaries/x86_64-linux/Ticker.so")
+    so.unlink()
+    return fmu
+
+
+def ticker_scenario(fmu: Path | str, interface: str = "co-simulation", extra: str = "", step: str = "0.0005",
+                     a: str = 'clock_ticks = { s = [0.001] }', order: str = "", record: str = "") -> str:
+    """Two Tickers through ``interface``: A's output clock o ticks B's input clock s, A's m (clocked by o)
+    feeds B's u (clocked by s); A's s ticked by ``a``'s clock_ticks; ``extra`` before the record; ``order``
+    in the experiment; ``record`` more keys of the record."""
+    return f'''[experiment]
+stop = 0.02
+step = {step}
+{order}
+[instances.A]
+fmu = "{fmu}"
+interface = "{interface}"
+{a}
+[instances.B]
+fmu = "{fmu}"
+interface = "{interface}"
+[[connections]]
+from = "A.o"
+to = "B.s"
+[[connections]]
+from = "A.m"
+to = "B.u"
+{extra}
+[record]
+variables = ["A.n", "A.m", "B.n", "B.y", "B.u"]
+{record}
+'''

@@ -11,6 +11,8 @@ bytes that are not UTF-8, the file cut short.
 """
 from __future__ import annotations
 
+import functools
+
 import json
 import math
 from dataclasses import dataclass, field
@@ -558,6 +560,52 @@ def requirement_cases(draw: Any, command: str = "check") -> Case:
         how = f"requirement name {req['name'][:20]!r}"
     return Case(f"requirements-{command}", _base_argv(draw, command, "s.toml"), {"s.toml": dumps(doc).encode()},
                 None, how)
+
+
+#: Bad settings of a system with clocks (two Tickers: tests/c_fmu_support.py): what each changes of
+#: ticker_scenario and the field its one-line refusal names.
+CLOCK_BAD: dict[str, tuple[dict[str, str], str]] = {
+    "a clock interval the step cannot meet": ({"step": "0.0003"}, "experiment.step"),
+    "a tick off the grid": ({"a": "clock_ticks = { s = [0.00025] }"}, "instances.A.clock_ticks.s"),
+    "a triggered clock with no source": ({"a": ""}, "instances.A.clock_ticks"),
+    "ticks for a periodic clock": ({"a": "clock_ticks = { s = [0.001], r = [0.002] }"}, "instances.A.clock_ticks.r"),
+    "an output clock connected to a variable": ({"extra": '[[connections]]\nfrom = "A.o"\nto = "B.u"\n'},
+                                                "connections[2]"),
+    "a variable connected to an input clock": ({"extra": '[[connections]]\nfrom = "A.n"\nto = "A.s"\n'},
+                                               "connections[2]"),
+    "an output clock connected to a periodic clock": ({"extra": '[[connections]]\nfrom = "A.o"\nto = "B.r"\n'},
+                                                      "connections[2].to"),
+    "an input clock as a source": ({"extra": '[[connections]]\nfrom = "A.s"\nto = "B.r"\n'},
+                                   "connections[2].from"),
+    "a clock connection against the order": ({"order": 'order = ["B", "A"]'}, "experiment.order"),
+    "an event on a clocked input": ({"extra": '[[events]]\ntime = 0.001\nvariable = "A.u"\naction = "override"\n'
+                                              "value = 1.0\n"}, "events[0].variable"),
+    "another algorithm": ({"order": 'algorithm = "jacobi"'}, "experiment.algorithm"),
+    "workers": ({"order": "workers = 2"}, "experiment.workers"),
+    "isolation": ({"a": "clock_ticks = { s = [0.001] }\nisolate = true"}, "instances.A.isolate"),
+    "its own step": ({"a": "clock_ticks = { s = [0.001] }\nstep = 0.001"}, "instances.A.step"),
+}
+
+
+@functools.cache
+def _ticker() -> bytes:
+    from c_fmu_support import ticker_bytes
+    return ticker_bytes()
+
+
+@st.composite
+def clock_cases(draw: Any, command: str = "check") -> Case:
+    """A system with clocks (two Tickers, in co-simulation or model exchange), valid or with one bad clock
+    setting (:data:`CLOCK_BAD`: refused, in one line naming its field)."""
+    from c_fmu_support import ticker_scenario
+
+    interface = draw(st.sampled_from(["co-simulation", "model-exchange"]))
+    how = draw(st.sampled_from(["valid", *CLOCK_BAD]))
+    edits, fld = CLOCK_BAD.get(how, ({}, ""))
+    text = ticker_scenario("ticker.fmu", interface, **edits)
+    expect = Expectation(True, (fld,), f"a bad clock setting: {how}", how) if how != "valid" else None
+    return Case(f"clocks-{command}", _base_argv(draw, command, "s.toml"),
+                {"s.toml": text.encode(), "ticker.fmu": _ticker()}, expect, how)
 
 
 @st.composite

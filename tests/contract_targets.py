@@ -39,6 +39,8 @@ TARGETS: dict[str, Target] = {
     "check-then-run": Target(cs.check_then_run_cases, 15),
     "conditions-check-broken": Target(lambda: cs.condition_cases("check"), 20),
     "conditions-run-broken": Target(lambda: cs.condition_cases("run"), 5),
+    "clocks-check-broken": Target(lambda: cs.clock_cases("check"), 15),
+    "clocks-run": Target(lambda: cs.clock_cases("run"), 4),
     "export-ssp": Target(lambda: cs.scenario_cases(False, "export-ssp"), 5),
     "export-ssp-broken": Target(lambda: cs.scenario_cases(True, "export-ssp"), 10),
     "export-fmu": Target(lambda: cs.scenario_cases(False, "export-fmu"), 5, timeout=60.0),

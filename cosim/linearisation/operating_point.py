@@ -100,6 +100,10 @@ class Linearizer:
     def check(self) -> None:
         """Every check that needs no run: ScenarioError naming the field."""
         req = self.req
+        for name, ip in self.plan.instances.items():   # (a linear model of a sampled system is not one)
+            if ip.model.clocks:
+                raise ScenarioError(self.file, f"instances.{name}", f"{name} ({ip.model.path.name}) has clocks: "
+                                                                    "systems with clocks are not linearised")
         at = self.start if req.at is None else req.at
         if not (isinstance(at, (int, float)) and math.isfinite(at)) or at < self.start or at > self.stop:
             raise ScenarioError(self.file, "--at", f"t = {at} s is outside the run ({self.start:g} s to "

@@ -179,6 +179,11 @@ class FmuModel:
         return self.identifier_of(CO_SIMULATION if self.has_cs else MODEL_EXCHANGE if self.has_me
                                   else SCHEDULED_EXECUTION)
 
+    @property
+    def has_event_mode(self) -> bool:
+        """Whether the FMI 3.0 co-simulation interface declares ``hasEventMode``."""
+        return bool(getattr(self.md.coSimulation, "hasEventMode", False)) if self.has_cs else False
+
     def declares_state(self, interface: str) -> bool:
         """Whether ``interface`` ("co-simulation" | "model-exchange") can get and set the FMU state."""
         return declares_state(getattr(self.md, INTERFACES[interface], None))
@@ -394,8 +399,8 @@ def load_model(path: str | os.PathLike, limits: ArchiveLimits | None = None) -> 
 
 def read_model(path: str | os.PathLike, limits: ArchiveLimits | None = None) -> FmuModel:
     """Read and check an FMU: it exists, is a safe archive (within ``limits``; default: the default
-    limits), and is FMI 2.0 or 3.0 with co-simulation, model exchange or scheduled execution, needs no
-    clocks unless it has scheduled execution (its clocks: :attr:`FmuModel.clocks`), and holds the binary for this platform of at least one interface it declares
+    limits), and is FMI 2.0 or 3.0 with co-simulation, model exchange or scheduled execution (its clocks:
+    :attr:`FmuModel.clocks`), and holds the binary for this platform of at least one interface it declares
     (the one an instance uses is checked when it is planned: :meth:`FmuModel.check_binary`)."""
     path = Path(path)
     check_archive(path, limits)
@@ -411,17 +416,13 @@ def read_model(path: str | os.PathLike, limits: ArchiveLimits | None = None) -> 
     _default_experiment_checked(path, md)
     model = FmuModel(path, md, fmi=fmi)
     model.missing_binaries = _missing_binaries(path, model)
-    has_se = getattr(md, "scheduledExecution", None) is not None
-    if has_se:
+    if fmi == 3:
         model.clocks = read_clocks(path)
     defined = units_of(md)
     for v in md.modelVariables:
         kind = KINDS.get(v.type, v.type) if fmi == 3 else v.type
-        if kind == "Clock" and has_se:
-            continue   # (in model.clocks)
         if kind == "Clock":
-            raise FmuLoadError(f"{path}: clock {v.name!r}: FMUs with clocks are supported through "
-                               "scheduled execution, which this one does not declare")
+            continue   # (in model.clocks: the resolver says which interfaces run them)
         # FMPy sizes each FMI 3.0 array (fixed dimensions, start values of structural parameters)
         shape = tuple(v.shape or ()) if fmi == 3 else ()
         unit_name = v.unit or (v.declaredType.unit if v.declaredType is not None else None)

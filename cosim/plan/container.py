@@ -203,6 +203,8 @@ def _refuse_instance(plan: Plan, n: str, ip: InstancePlan, out: Path, no: Any) -
         no(where, f"{ip.model.path.name} runs as FMI 3.0 Model Exchange (only FMI 2.0 Model Exchange)")
     if ip.interface not in (CO_SIMULATION, MODEL_EXCHANGE):
         no(where, f"{ip.model.path.name} runs as {ip.interface} (only co-simulation and Model Exchange)")
+    if ip.model.clocks:   # (the container's C loop has no event mode)
+        no(where, f"{ip.model.path.name} has clocks (its events and clocked variables are run by the master only)")
     if ip.interface == MODEL_EXCHANGE and ip.solver is not None:
         if ip.solver.name not in ME_SOLVERS:
             no(f"{where}.solver", f"solver = {ip.solver.name!r} (a Model Exchange instance inside is integrated by "

@@ -40,6 +40,7 @@ class InstancePlan:
     interface: str = CO_SIMULATION    # the FMU's interface the run uses ("co-simulation" | "model-exchange")
     solver: SolverSpec | None = None  # model exchange: the master's integrator of it (None for co-simulation)
     decimation: int = 1               # it steps every this many of the experiment's steps (its own ``step``)
+    clock_words: dict[str, list[str]] = field(default_factory=dict)   # clock -> its connections ("ticks X.c")
 
     def our_name(self, var: Variable) -> str:
         return self.theirs_to_ours.get(var.name, var.name)
@@ -54,10 +55,13 @@ class InstancePlan:
         for c in self.model.clocks:   # (scheduled execution: each clock on a line of its own)
             ticks = self.spec.clock_ticks.get(c.name)
             text += f"\n    {c.describe()}" + (f"; ticked at {', '.join(f'{t:g}' for t in ticks)} s" if ticks else "")
+            text += "".join(f"; {w}" for w in self.clock_words.get(c.name, ()))
         return text
 
     def _interface_words(self) -> str:
         if self.solver is None:
+            if self.model.clocks and self.interface == CO_SIMULATION:
+                return f"{INTERFACE_NAMES[self.interface]} with event mode"
             return INTERFACE_NAMES[self.interface]
         sv = self.solver
         parts = [INTERFACE_NAMES[self.interface], sv.name]
@@ -89,6 +93,21 @@ class ConnectionPlan:
     def is_float64(self) -> bool:
         """Float64 -> Float64 (a copy in the generated loop; the others are copied by closures)."""
         return self.src_var.is_float64 and self.dst_var.is_float64
+
+
+@dataclass(frozen=True)
+class ClockLink:
+    """An output clock -> an input clock (a connection between clocks): ``dst_clock`` of instance ``dst``
+    ticks when ``src`` raises ``src_clock``."""
+
+    src: str
+    src_clock: str
+    dst: str
+    dst_clock: str
+    index: int          # the connection's index in the scenario (``connections[i]``)
+
+    def __str__(self) -> str:
+        return f"{self.src}.{self.src_clock} -> {self.dst}.{self.dst_clock}"
 
 
 @dataclass
@@ -154,6 +173,7 @@ class Plan:
     requirements: list[RequirementPlan] = field(default_factory=list)   # monitored at every communication point
     run_notes: list[str] = field(default_factory=list)   # what run says too before it starts (workers left idle)
     feeds: FeedGraph = field(default_factory=FeedGraph)   # who feeds whom: the coupling loops', the levels', the run's
+    clock_links: list[ClockLink] = field(default_factory=list)   # output clocks -> input clocks
 
     @property
     def watched(self) -> list[tuple[str, Variable]]:

@@ -40,6 +40,7 @@ from ..scenario.inputs import InputPlan, read_inputs
 from ..stepping import table as algorithms
 from ..stepping.graph import FeedGraph
 from ..stepping.settings import SpecError, check_adaptive
+from .clocked import check_clocked, check_clocked_reads, clock_links
 from .feeds import feed_graph
 from .loops import check_iteration, coupling
 from .records import ConnectionPlan, EventPlan, InstancePlan, Plan, RecordPlan, RequirementPlan, unit_of
@@ -518,13 +519,15 @@ def _resolve(sc: Scenario) -> Plan:
     _tolerances(sc, insts, notes)
     _solvers(sc, insts)
     internal = _internal_steps(sc, insts)
-    conns, driven = _connection_plans(sc, insts)
+    links = clock_links(sc, insts)
+    conns, driven = _connection_plans(sc, insts, {lk.index for lk in links})
     _rates(sc, insts, conns)
     feeds = feed_graph(sc.order, conns)
     idle = _workers(sc, insts, feeds, notes)
     coupled = coupling(feeds, insts, conns)
     _check_stepping(sc, insts)
     _scheduled(sc, insts, conns, notes)
+    check_clocked(sc, insts, conns, links, notes)
     check_iteration(sc, insts, coupled)
     requirements = _requirements(sc, insts, notes)
     record, not_recorded = _record(sc, insts)
@@ -540,9 +543,10 @@ def _resolve(sc: Scenario) -> Plan:
     checked = _events(sc, insts, driven, inputs)
     events = sorted((ev for ev in checked if ev.condition is None), key=lambda ev: ev.step)  # stable within a step
     conditions = [ev for ev in checked if ev.condition is not None]
+    check_clocked_reads(sc, insts, record, inputs, checked, requirements)
     plan = Plan(sc, {n: insts[n] for n in sc.order}, conns, record, events, n_steps, inputs, not_recorded,
                 conditions, notes, internal, sc.archive_limits, coupled, last_step, requirements,
-                [idle] if idle else [], feeds)
+                [idle] if idle else [], feeds, links)
     _check_recording_size(plan)
     return plan
 
@@ -933,13 +937,7 @@ def _scheduled(sc: Scenario, insts: dict[str, InstancePlan], conns: list[Connect
     for name, ip in insts.items():
         fld = f"instances.{name}"
         if ip.interface != SCHEDULED_EXECUTION:
-            if ip.spec.clock_ticks:
-                raise ScenarioError(sc.file, f"{fld}.clock_ticks", "ticks are for the clocks of a scheduled "
-                                                                   "execution instance")
-            if ip.model.clocks:
-                raise ScenarioError(sc.file, f"{fld}.interface", f"{ip.model.path.name} has clocks: the master runs "
-                                    f'them through scheduled execution only (interface = "scheduled-execution")')
-            continue
+            continue   # (an instance with clocks in co-simulation: plan.clocked.check_clocked)
         if sc.algorithm != algorithms.DEFAULT:
             raise ScenarioError(sc.file, "experiment.algorithm", f"{sc.algorithm}: a scheduled execution instance "
                                 f"({name}) runs under {algorithms.DEFAULT} only")
@@ -1021,12 +1019,15 @@ def _solvers(sc: Scenario, insts: dict[str, InstancePlan]) -> None:
                                spec.event_tolerance if spec.event_tolerance is not None else DEFAULT_EVENT_TOLERANCE)
 
 
-def _connection_plans(sc: Scenario, insts: dict[str, InstancePlan]
+def _connection_plans(sc: Scenario, insts: dict[str, InstancePlan], between_clocks: set[int] = set()
                       ) -> tuple[list[ConnectionPlan], dict[tuple[str, str], int]]:
-    """The connections checked, and the inputs they drive ((instance, variable) -> connection index)."""
+    """The connections checked, and the inputs they drive ((instance, variable) -> connection index); the
+    connections between clocks (their indices ``between_clocks``) are not among them."""
     conns: list[ConnectionPlan] = []
     driven: dict[tuple[str, str], int] = {}
     for c in sc.connections:
+        if c.index in between_clocks:
+            continue
         conns.append(_connection_plan(sc.file, c, insts, driven))
     return conns, driven
 

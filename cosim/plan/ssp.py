@@ -184,6 +184,9 @@ def export_ssp(plan: Plan, out: str | os.PathLike, name: str | None = None) -> P
             raise ScenarioError(sc.file, f"instances.{n}", f"{ip.model.path.name} runs as scheduled execution, which "
                                                            "cannot be exported to SSP yet (its clock_ticks have no "
                                                            "place in SSP 1.0)")
+        if ip.model.clocks:
+            raise ScenarioError(sc.file, f"instances.{n}", f"{ip.model.path.name} has clocks, which cannot be exported "
+                                                           "to SSP yet (SSP 1.0 has no connections between clocks)")
     name = name or Path(sc.file).stem or "system"
     resources = _resource_names(plan)
     conns, params = _connectors(plan)

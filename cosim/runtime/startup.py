@@ -15,15 +15,17 @@ import time as _time
 from pathlib import Path
 from typing import Any, Callable
 
+from ..instances.clocked import Clocked3, ClockedME3, ClockEvents
 from ..instances.contract import FmuInstance
 from ..instances.handoff import Handoff
 from ..instances.in_process import vr_array
+from ..instances.integrators import SolverSpec
 from ..instances.kinds import host
 from ..instances.scheduled import ScheduledExecution3
 from ..messages.errors import CosimError, FmuLoadError
 from ..model.archive import run_members, safe_extract
 from ..model.binary import load_failure
-from ..model.description import PLATFORMS
+from ..model.description import CO_SIMULATION, MODEL_EXCHANGE, PLATFORMS
 from ..plan.records import InstancePlan, Plan
 from ..plan.wiring import RowLayout, Wiring, discrete_copier, table_feeder
 from ..stepping.algorithm import InstanceIO
@@ -53,6 +55,10 @@ def load_instances(plan: Plan, work: Path, logs: Path, handoff: Handoff | None =
             unz[p] = str(safe_extract(p, work / f"{len(unz)}_{p.stem}", plan.archive_limits,
                                       run_members(PLATFORMS[ip.model.fmi])))
         instances[name] = _host(name, ip, unz[p], logs / f"{name}.log", handoff, plan.scenario.times())
+    for lk in plan.clock_links:   # (the instances with clocks in co-simulation)
+        dst, src = instances[lk.dst], instances[lk.src]
+        assert isinstance(dst, ClockEvents) and isinstance(src, ClockEvents)
+        dst.connect_clock(lk.dst_clock, src, lk.src_clock)
     return instances
 
 
@@ -71,6 +77,13 @@ def _host(name: str, ip: InstancePlan, unzipdir: str, log: Path, handoff: Handof
             assert handoff is not None   # (handoff_for gives one where an instance is isolated)
             return IsolatedInstance(name, ip.model.md, unzipdir, log, ip.spec.logging,
                                     ip.spec.step_timeout or 60.0, handoff, ip.solver)
+        if getattr(ip.model, "clocks", None) and ip.interface in (CO_SIMULATION, MODEL_EXCHANGE):   # clocks on the grid
+            clocked: Clocked3 | ClockedME3 = Clocked3(name, ip.model.md, unzipdir, log, ip.spec.logging) \
+                if ip.interface == CO_SIMULATION else \
+                ClockedME3(name, ip.model.md, unzipdir, log, ip.spec.logging, ip.solver or SolverSpec())
+            start, _, step = plan_times
+            clocked.schedule(start, step, ip.spec.clock_ticks)
+            return clocked
         inst = host(name, ip.model.md, ip.model.fmi, unzipdir, log, ip.spec.logging, ip.solver, ip.interface)
         if isinstance(inst, ScheduledExecution3):   # its scheduler on the master's grid
             start, _, step = plan_times

@@ -64,7 +64,9 @@ def _report_check(args: argparse.Namespace, plan: Any, inherited: Any = ()) -> N
     integrator), the inputs nothing drives, then its notes."""
     sc = plan.scenario
     print(f"{args.scenario}: ok: {count(len(plan.instances), 'instance')} ({', '.join(plan.order)}), "
-          f"{count(len(plan.connections), 'connection')}, {count(len(plan.record), 'recorded variable')}, "
+          f"{count(len(plan.connections) + len(plan.clock_links), 'connection')}"
+          f"{f' ({len(plan.clock_links)} between clocks)' if plan.clock_links else ''}, "
+          f"{count(len(plan.record), 'recorded variable')}, "
           f"{count(len(plan.events) + len(plan.conditions), 'event')}, "
           f"{count(plan.n_steps, 'step')} of {sc.step:g} s"
           f"{'' if plan.last_step is None else f' (the last {plan.last_step:.6g} s, to the stop time)'} "

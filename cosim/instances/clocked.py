@@ -1,0 +1,377 @@
+"""FMI 3.0 FMUs with clocks in co-simulation (with event mode: ``hasEventMode``, instantiated with
+eventModeUsed on and earlyReturnAllowed off) and in Model Exchange: the master ticks their input clocks and
+reads the output clocks they raise, at the communication points, in the plan's order.
+
+The events of a communication point t_k are handled at the start of the step from t_k (the instance's
+fast-path step), before the step itself; each instance's after those of the instances before it in the
+plan's order.  An event is due at t_k when
+
+- a periodic input clock ticks there (intervalVariability constant, fixed or tunable: shift + i interval
+  [s], on the master's grid; a tunable clock keeps the interval it declares: the master never changes it);
+- a triggered input clock is ticked there: by ``clock_ticks``, or by an output clock connected to it that
+  its FMU raised at t_k (an instance before this one in the order: ``check`` refuses the rest);
+- (co-simulation) the FMU asked for event handling in the step that ended at t_k (fmi3DoStep's
+  eventHandlingNeeded; without early return the FMU ends its step at the communication point).
+
+The event (FMI 3.0, co-simulation with event mode, 4.2.5; Model Exchange, 3.2.4):
+
+  fmi3EnterEventMode; fmi3SetClock (the input clocks that tick); the clocked inputs of those clocks set
+  (their values as the step's inputs carry them); fmi3GetClock (the output clocks: which the FMU raised);
+  the clocked outputs of every active clock read (their values at the tick); fmi3UpdateDiscreteStates
+  until no new discrete states are needed; fmi3EnterStepMode (co-simulation) or
+  fmi3EnterContinuousTimeMode (Model Exchange, whose integrator restarts there).
+
+Then the step.  The events at the start time are those of the end of initialisation (the FMU is in event
+mode there).  A Model Exchange FMU's own events (time, state, step events, and those of its new inputs)
+read its output clocks too; one it raises at an instant that is not a communication point reaches no
+other FMU: if it is connected, the run ends there in one line (the FMUs after it are at t_k already).
+
+A clocked variable is exchanged only at its clock's ticks: the fast path's set passes on the inputs that
+are not clocked and keeps the clocked ones for their clock's next tick; its get gives, for a clocked
+output, the value read at its last tick (before the first: its start value).  The row of a communication
+point is read after the steps that end there and before its events: what is recorded at t_k is the value
+just before the events of t_k (a tick's effect shows from t_{k+1})."""
+from __future__ import annotations
+
+import ctypes
+import os
+from fractions import Fraction
+from typing import TYPE_CHECKING, Any
+
+from ..messages.errors import RunError
+from ..model.clocks import Clock, clocks_of, grid_multiple
+from .contract import FastPath
+from .in_process import Instance3, raw
+from .model_exchange import ModelExchange3
+
+#: Why the step of an instance with clocks runs alone (:attr:`FastPath.alone`).
+CLOCKED_ALONE = "an instance with clocks: its events run in Python, in the plan's order"
+#: Updates of the discrete states at one event after which the event iteration is taken not to end.
+MAX_UPDATES = 1000
+
+
+class ClockEvents:
+    """The clocks of an FMI 3.0 instance and its events at the communication points (mixed into the
+    co-simulation and the Model Exchange instance: see the module's docstring)."""
+
+    name: str
+    c: Any
+    fmu: Any
+    log: Any
+    fatal: bool
+
+    if TYPE_CHECKING:   # (given by the instance this is mixed into)
+        def call(self, what: str, fn: Any, *args: Any, t: float | None = None) -> Any: ...
+
+        def fail_status(self, what: str, status: int, t: float | None) -> RunError: ...
+
+    @property
+    def can_get_and_set_state(self) -> bool:
+        """No: its clocks' state (the ticks taken, the values held at them) is the master's, not saved with
+        the FMU's."""
+        return False
+
+    def get_state(self) -> Any:
+        raise RunError(f"{self.name}: an instance with clocks cannot save its state (the master keeps its "
+                       "clocks' ticks and values)", self.name)
+
+    def set_state(self, state: Any) -> None:
+        raise RunError(f"{self.name}: an instance with clocks cannot restore a state", self.name)
+
+    def _init_clocks(self, md: Any, unzipdir: str) -> None:
+        with open(os.path.join(unzipdir, "modelDescription.xml"), "rb") as fh:
+            self.clocks: list[Clock] = clocks_of(fh.read())
+        by_var = {v: c for c in self.clocks for v in c.clocked}
+        reals = {v.name: v for v in md.modelVariables if v.type == "Float64"}
+        #: the clocked Float64 variables: value reference -> the clock's name
+        self.clocked_vr: dict[int, str] = {int(reals[n].valueReference): c.name for n, c in by_var.items()
+                                           if n in reals}
+        #: the value at the last tick of each clocked variable [vr -> value]; before the first, its start
+        self.held: dict[int, float] = {int(v.valueReference): float(v.start) if v.start is not None else 0.0
+                                       for v in reals.values() if int(v.valueReference) in self.clocked_vr}
+        self._outputs = {int(v.valueReference) for v in reals.values()
+                         if int(v.valueReference) in self.clocked_vr and v.causality == "output"}
+        self.in_held: dict[int, float] = {}                # the clocked inputs' values, set at their next tick
+        self.raised: list[tuple[float, str]] = []          # (time [s], output clock) the FMU raised
+        self.ticked: list[tuple[float, str]] = []          # (time [s], input clock) the master ticked
+        self.raised_at: dict[str, tuple[int, int]] = {}    # output clock -> (grid index, count) of its last rise
+        self.sources: dict[str, list[tuple["ClockEvents", str]]] = {}   # input clock -> (instance, output clock)
+        self.fed: set[str] = set()                         # the output clocks connected to an input clock
+        self._seen: dict[tuple[int, str], int] = {}        # (source, its output clock) -> the rises taken
+        self._start, self._step = 0.0, 1.0
+        self._periodic: dict[str, tuple[int, int]] = {}    # clock -> (first grid index, interval in steps)
+        self._ticks: dict[str, set[int]] = {}              # triggered clock -> its grid indices (clock_ticks)
+        self._done = -1                                    # the last grid index whose scheduled ticks were taken
+        self._outputs_read = False                         # this event's output clocks are read already
+
+    def schedule(self, start: float, step: float, ticks: dict[str, list[float]]) -> None:
+        """The master's grid (``start`` [s], ``step`` [s]) and the times [s] of the triggered clocks given
+        by ``clock_ticks`` (each on the grid: ``check`` refuses the rest)."""
+        self._start, self._step = start, step
+        for c in self.clocks:
+            if c.periodic and c.interval is not None:
+                n0, k = grid_multiple(Fraction(c.shift or "0"), step), grid_multiple(c.interval, step)
+                assert n0 is not None and k is not None and k > 0   # (check refuses the rest)
+                self._periodic[c.name] = (n0, k)
+        for name, times in ticks.items():
+            self._ticks[name] = {round((t - start) / step) for t in times}
+
+    def connect_clock(self, clock: str, source: "ClockEvents", output_clock: str) -> None:
+        """Input clock ``clock`` ticks when ``source`` raises ``output_clock`` (``source`` steps first)."""
+        self.sources.setdefault(clock, []).append((source, output_clock))
+        source.fed.add(output_clock)
+
+    def _index(self, t: float) -> int | None:
+        """The grid index of the time ``t`` [s], None off the grid."""
+        n = round((t - self._start) / self._step)
+        return n if abs(self._start + n * self._step - t) <= 1e-9 * self._step else None
+
+    def _due(self, n: int) -> list[Clock]:
+        """The input clocks that tick at grid index ``n`` and have not ticked for it yet."""
+        out = []
+        for c in self.clocks:
+            if c.causality != "input":
+                continue
+            p = self._periodic.get(c.name)
+            if n > self._done and ((p is not None and n >= p[0] and (n - p[0]) % p[1] == 0)
+                                   or n in self._ticks.get(c.name, ())):
+                out.append(c)
+                continue
+            for src, oc in self.sources.get(c.name, ()):
+                at = src.raised_at.get(oc)
+                if at is not None and at[0] == n and at[1] > self._seen.get((id(src), oc), 0):
+                    out.append(c)
+                    break
+        return out
+
+    def _tick(self, n: int, t: float, due: list[Clock]) -> None:
+        """In event mode at grid index ``n`` (time ``t`` [s]): the input clocks ``due`` set, their clocked
+        inputs set, the output clocks and the clocked outputs of every active clock read."""
+        c = ctypes.c_void_p(self.c)
+        self._done = max(self._done, n)
+        for k in due:
+            for src, oc in self.sources.get(k.name, ()):
+                at = src.raised_at.get(oc)
+                if at is not None and at[0] == n:
+                    self._seen[(id(src), oc)] = at[1]
+        if due:
+            vrs = (ctypes.c_uint32 * len(due))(*[k.vr for k in due])
+            on = (ctypes.c_bool * len(due))(*[True] * len(due))
+            self._ok(raw(self.fmu.dll, "fmi3SetClock")(c, vrs, ctypes.c_size_t(len(due)), on),
+                     "fmi3SetClock(" + ", ".join(k.name for k in due) + ")", t)
+            self.ticked += [(t, k.name) for k in due]
+            names = {k.name for k in due}
+            ins = [(vr, v) for vr, v in self.in_held.items() if self.clocked_vr[vr] in names]
+            if ins:
+                n_in = ctypes.c_size_t(len(ins))
+                self._ok(raw(self.fmu.dll, "fmi3SetFloat64")(c, (ctypes.c_uint32 * len(ins))(*[vr for vr, _ in ins]),
+                                                             n_in, (ctypes.c_double * len(ins))(*[v for _, v in ins]),
+                                                             n_in), "fmi3SetFloat64 (clocked inputs)", t)
+                for vr, v in ins:
+                    self.held[vr] = v
+        self._read_outputs(n, t, {k.name for k in due})
+
+    def _read_outputs(self, n: int | None, t: float, active: set[str]) -> None:
+        """The output clocks read (those raised: at grid index ``n``, None off the grid) and the clocked
+        outputs of every active clock (``active``: the input clocks that tick) read into :attr:`held`."""
+        c = ctypes.c_void_p(self.c)
+        active = set(active)
+        for k in self.clocks:
+            if k.causality != "output":
+                continue
+            value = (ctypes.c_bool * 1)()
+            self._ok(raw(self.fmu.dll, "fmi3GetClock")(c, (ctypes.c_uint32 * 1)(k.vr), ctypes.c_size_t(1), value),
+                     f"fmi3GetClock({k.name})", t)
+            if not value[0]:
+                continue
+            active.add(k.name)
+            self.raised.append((t, k.name))
+            if n is None:
+                if k.name in self.fed:
+                    why = (f"{self.name}: output clock {k.name} raised at t = {t:.9g} s, between communication "
+                           "points: the FMUs it ticks are at communication points only")
+                    self.log.append(why)   # (the integration's failure names it as its last log)
+                    raise RunError(why, self.name, t)
+            else:
+                self.raised_at[k.name] = (n, self.raised_at.get(k.name, (0, 0))[1] + 1)
+        outs = [vr for vr in self._outputs if self.clocked_vr[vr] in active]
+        if outs:
+            vals, n_out = (ctypes.c_double * len(outs))(), ctypes.c_size_t(len(outs))
+            self._ok(raw(self.fmu.dll, "fmi3GetFloat64")(c, (ctypes.c_uint32 * len(outs))(*outs), n_out, vals, n_out),
+                     "fmi3GetFloat64 (clocked outputs)", t)
+            for vr, v in zip(outs, vals):
+                self.held[vr] = float(v)
+        self._outputs_read = True
+
+    def _ok(self, status: int, what: str, t: float) -> None:
+        if status > 1:
+            raise self.fail_status(what, status, t)
+
+    def _clocked_path(self, inner: FastPath, in_vrs: list[int], n_in: int, out_vrs: list[int], n_out: int,
+                      in_val: Any, plain_in: list[int], plain_out: list[int]) -> FastPath:
+        """The fast path over ``inner`` (built for the inputs ``plain_in`` and outputs ``plain_out`` that are
+        not clocked, positions in ``in_vrs``/``out_vrs``): the set keeps the clocked inputs for their tick;
+        the step handles the events due at its start, then steps; the get gives each clocked output its
+        value at its last tick."""
+        in_val = in_val if in_val is not None else (ctypes.c_double * max(1, n_in))()
+        clocked_in = [(i, vr) for i, vr in enumerate(in_vrs) if vr in self.clocked_vr]
+        clocked_out = [(i, vr) for i, vr in enumerate(out_vrs) if vr in self.clocked_vr]
+        i_set, i_step, i_get, p_in = inner.set_real, inner.do_step, inner.get_real, inner.in_val
+        p_in_vr = (ctypes.c_uint32 * max(1, len(plain_in)))(*[in_vrs[i] for i in plain_in])
+        p_out_vr = (ctypes.c_uint32 * max(1, len(plain_out)))(*[out_vrs[i] for i in plain_out])
+        p_out = (ctypes.c_double * max(1, len(plain_out)))()
+        n_pin, n_pout = ctypes.c_size_t(len(plain_in)), ctypes.c_size_t(len(plain_out))
+        held, in_held = self.held, self.in_held
+
+        def set_real(c: Any, vrs: Any, n: Any, vals: Any, *tail: Any) -> int:
+            for i, vr in clocked_in:
+                in_held[vr] = vals[i]
+            if not plain_in:
+                return 0
+            for j, i in enumerate(plain_in):
+                p_in[j] = vals[i]
+            return int(i_set(c, p_in_vr, n_pin, p_in, *inner.set_tail))
+
+        def get_real(c: Any, vrs: Any, n: Any, out: Any, *tail: Any) -> int:
+            s = 0
+            if plain_out:
+                s = int(i_get(c, p_out_vr, n_pout, p_out, *inner.get_tail))
+                for j, i in enumerate(plain_out):
+                    out[i] = p_out[j]
+            for i, vr in clocked_out:
+                out[i] = held[vr]
+            return s
+
+        def do_step(c: Any, t: Any, h: Any, *tail: Any) -> int:
+            try:
+                n = self._index(t.value)
+                if n is not None:
+                    self._events_at(n, t.value)
+            except RunError as exc:
+                self.log.append(str(exc))
+                return 4 if self.fatal else 3
+            s = int(i_step(c, t, h, *inner.step_tail))
+            self._stepped(s)
+            return s
+
+        return FastPath(inner.c, set_real, do_step, get_real, in_val, set_tail=(ctypes.c_size_t(n_in),),
+                        get_tail=(ctypes.c_size_t(n_out),), terminated=inner.terminated, last_time=inner.last_time,
+                        alone=CLOCKED_ALONE, abi=inner.abi)
+
+    def _events_at(self, n: int, t: float) -> None:
+        """The event at grid index ``n`` (time ``t`` [s]) if one is due."""
+        raise NotImplementedError
+
+    def _stepped(self, status: int) -> None:
+        """After the step (its FMI status)."""
+
+    def _split(self, in_vrs: list[int], out_vrs: list[int]) -> tuple[list[int], list[int]]:
+        """The positions of the inputs and outputs that are not clocked."""
+        return ([i for i, vr in enumerate(in_vrs) if vr not in self.clocked_vr],
+                [i for i, vr in enumerate(out_vrs) if vr not in self.clocked_vr])
+
+
+class Clocked3(ClockEvents, Instance3):
+    """An FMI 3.0 co-simulation FMU with clocks, run with event mode (see the module's docstring)."""
+
+    def _slave(self, md: Any, unzipdir: str) -> Any:
+        fmu = super()._slave(md, unzipdir)
+        self._init_clocks(md, unzipdir)
+        self._event_needed = False
+        return fmu
+
+    def instantiate(self) -> None:
+        """fmi3InstantiateCoSimulation with eventModeUsed on (earlyReturnAllowed off: the FMU ends each
+        step at the communication point and asks for event handling there)."""
+        self.call("fmi3InstantiateCoSimulation", self.fmu.instantiate, False, True, True, False, self._log3)
+        self.c = self.fmu.component
+        self._debug_logging("fmi3SetDebugLogging")
+
+    def exit_initialization(self) -> None:
+        """Exit initialisation mode (the FMU is in event mode then: eventModeUsed), the events at the start
+        time, step mode."""
+        super().exit_initialization()
+        n = self._index(self._start)
+        assert n is not None
+        self._event(n, self._start, self._due(n), in_event_mode=True)
+
+    def _events_at(self, n: int, t: float) -> None:
+        due = self._due(n)
+        if due or self._event_needed:
+            self._event(n, t, due)
+
+    def _event(self, n: int, t: float, due: list[Clock], in_event_mode: bool = False) -> None:
+        self._event_needed = False
+        c = ctypes.c_void_p(self.c)
+        if not in_event_mode:
+            self._ok(raw(self.fmu.dll, "fmi3EnterEventMode")(c), "fmi3EnterEventMode", t)
+        self._tick(n, t, due)
+        for _ in range(MAX_UPDATES):
+            needed, terminate = self.call("fmi3UpdateDiscreteStates", self.fmu.updateDiscreteStates, t=t)[:2]
+            if terminate:
+                raise RunError(f"{self.name}: the FMU ended the simulation in its event at t = {t:.9g} s", self.name, t)
+            if not needed:
+                break
+        else:
+            raise RunError(f"{self.name}: the event iteration at t = {t:.9g} s did not end after {MAX_UPDATES} "
+                           "updates of the discrete states", self.name, t)
+        self._ok(raw(self.fmu.dll, "fmi3EnterStepMode")(c), "fmi3EnterStepMode", t)
+
+    def fast_path(self, in_vrs: list[int], n_in: int, out_vrs: list[int], n_out: int,
+                  in_val: Any = None) -> FastPath:
+        """fmi3DoStep after the events due at the start of the step; eventHandlingNeeded is kept for the
+        next (see :meth:`ClockEvents._clocked_path`)."""
+        plain_in, plain_out = self._split(in_vrs, out_vrs)
+        inner = super().fast_path([in_vrs[i] for i in plain_in], len(plain_in), [out_vrs[i] for i in plain_out],
+                                  len(plain_out))
+        self._needed_flag = inner.step_tail[1]._obj   # fmi3DoStep's eventHandlingNeeded
+        return self._handed(self._clocked_path(inner, in_vrs, n_in, out_vrs, n_out, in_val, plain_in, plain_out))
+
+    def _stepped(self, status: int) -> None:
+        self._event_needed = status <= 1 and bool(self._needed_flag.value)
+
+
+class ClockedME3(ClockEvents, ModelExchange3):
+    """An FMI 3.0 Model Exchange FMU with clocks (see the module's docstring)."""
+
+    def _slave(self, md: Any, unzipdir: str) -> Any:
+        fmu = super()._slave(md, unzipdir)
+        self._init_clocks(md, unzipdir)
+        return fmu
+
+    def _event_iteration(self, t: float, kind: str) -> bool:
+        """The FMU's own events read its output clocks first (and at the start time its input clocks due
+        there tick); the ticks the master gives have read them already."""
+        if kind == "initial":
+            n = self._index(t)
+            assert n is not None
+            self._tick(n, t, self._due(n))
+        elif not self._outputs_read:
+            self._read_outputs(self._index(t), t, set())
+        self._outputs_read = False
+        return super()._event_iteration(t, kind)
+
+    def _events_at(self, n: int, t: float) -> None:
+        due = self._due(n)
+        if not due:
+            return
+        assert self.integrator is not None
+        if self.mode != "event":
+            self.call("fmi3EnterEventMode", self.fmu.enterEventMode, t=t)
+            self.mode = "event"
+        self.events.append((t, "clock"))
+        self._tick(n, t, due)
+        if self._event_iteration(t, "clock"):
+            raise RunError(f"{self.name}: the FMU ended the simulation in its event at t = {t:.9g} s", self.name, t)
+        self.integrator.reset(t)
+        self.z = self._indicators()
+        self.dirty = False   # (the event iteration took the new inputs: as after any event)
+
+    def fast_path(self, in_vrs: list[int], n_in: int, out_vrs: list[int], n_out: int,
+                  in_val: Any = None) -> FastPath:
+        """The Model Exchange fast path (the integration) after the events due at the start of the step (see
+        :meth:`ClockEvents._clocked_path`)."""
+        plain_in, plain_out = self._split(in_vrs, out_vrs)
+        inner = super().fast_path([in_vrs[i] for i in plain_in], len(plain_in), [out_vrs[i] for i in plain_out],
+                                  len(plain_out))
+        return self._clocked_path(inner, in_vrs, n_in, out_vrs, n_out, in_val, plain_in, plain_out)
