@@ -89,7 +89,7 @@ What differs from the FMI 2.0 FMUs:
   value reference 19 in `WmrSensor3`, 90 in `WmrController3`, after every variable's), which clocks their
   inputs and outputs (`clocks`, variability discrete; clocked variables are no `InitialUnknown`);
   `CoSimulation` has `hasEventMode="true"`. An importer runs them one of two ways:
-  - eventModeUsed = false (`fmusim`, FMPy's `simulate_fmu`, OMSimulator): as the FMI 2.0 FMUs, one
+  - eventModeUsed = false (`fmusim`, FMPy's `simulate_fmu`): as the FMI 2.0 FMUs, one
     fixed step (`canHandleVariableCommunicationStepSize="false"`): they sample at the end of every
     communication step, refuse a step of another length than the first (fmi3Discard), and the clock is
     unused (fmi3SetClock is refused, fmi3Fatal).
@@ -106,7 +106,10 @@ What differs from the FMI 2.0 FMUs:
 - Hosts: any FMI 3.0 host, Python or not (FMPy, this project's master, `fmusim`, OMSimulator, a C
   program): `binaries/x86_64-linux/<model>.so` is the C loader of the FMI 2.0 FMUs in its FMI 3.0 form,
   which finds or starts the Python interpreter and forwards every call to pythonfmu3's binary (see
-  [hosts.md](hosts.md)).
+  [hosts.md](hosts.md)); it also carries the clock calls pythonfmu3 lacks (fmi3SetClock, fmi3GetClock,
+  eventModeUsed) to the slave. OMSimulator 2.1 knows no Clock: it reads `sample` as a Float64 (refused,
+  fmi3Fatal, unless its result file leaves `sample` out) and, after a run of `WmrSensor3` or
+  `WmrController3`, aborts freeing it twice (its own defect; `WmrPlant3` has no clock).
 """
 
 _OUTSIDE = """## Running the FMUs outside this project

@@ -600,7 +600,7 @@ class WmrSlave(SlaveCore, Fmi3Slave):
         sample over the clock's interval, with the inputs set now.  A tick at the time of the last sample
         takes none, except the tick at the start time, which recomputes the outputs from the current inputs
         and parameters as initialization mode does.  Returns False (logged) if the sample failed or the tick
-        is not one interval after the last sample."""
+        is not one interval after the last sample; every later sample and step is then refused."""
         self._tick = False
         self._remove_tick_paths()
         assert self.sample_clock is not None
@@ -621,6 +621,7 @@ class WmrSlave(SlaveCore, Fmi3Slave):
                     return False
             return True
         if abs(t - last - h) > FIXED_STEP_RTOL * h:
+            self._failed = f"a tick of clock {name} at t = {t!r} s, not {h!r} s after the last sample"
             self.log(f"{where} refused: the clock ticks every {h!r} s (intervalVariability constant) and the "
                      f"last sample was at t = {last!r} s", Fmi3Status.error)
             return False
