@@ -370,7 +370,7 @@ class WmrSlave(SlaveCore, Fmi3Slave):
     def get_boolean(self, vrs: list[int]) -> list[bool]:
         if vrs == self._bool_key:
             return [bool(x) for x in self._bool_items(self._vals)]
-        if self._clock_vr in vrs:   # fmi3GetClock (our loader forwards it as fmi3GetBoolean)
+        if self._clock_vr >= 0 and self._clock_vr in vrs:   # fmi3GetClock (our loader: as fmi3GetBoolean)
             return [self._get_clock(i) for i in vrs]
         self._bool_key, self._bool_items = list(vrs), self._items(vrs, "Boolean")
         return self._getter(vrs, "Boolean")(self._vals)
