@@ -77,16 +77,39 @@ What differs from the FMI 2.0 FMUs:
   rad (`deg`), deg/s and rpm for rad/s, deg/s2 for rad/s2.
 - The independent variable `time` [s] (value reference 0), which FMI 3.0 requires.
 - Dependencies: `Output` and `InitialUnknown` carry the same direct feedthrough as the FMI 2.0 FMUs (by
-  value reference; an array output depends on the union of its elements' inputs).
+  value reference; an array output depends on the union of its elements' inputs); the clocked outputs
+  of `WmrSensor3` and `WmrController3` (below) are `Output`s only.
 - Failure rules as in FMI 2.0: a failed step returns fmi3Discard with its logged cause and every later
   step is refused; a failure in initialisation, a refused set (an output, a fixed parameter after
   initialisation, an asymmetric `P_init`) is fmi3Fatal (pythonfmu3 turns an exception in any call but a step into fmi3Fatal),
   after which the instance must not be called again.
 - State: fmi3GetFMUState/SetFMUState and serialisation, with the component's whole internal state.
+- Sample clock (`WmrSensor3`, `WmrController3`): their 2 ms sample period is a periodic input clock
+  `sample` (`intervalVariability="constant"`, `intervalDecimal="0.002"`, no shift: ticks at t0 + k 2 ms;
+  value reference 19 in `WmrSensor3`, 90 in `WmrController3`, after every variable's), which clocks their
+  inputs and outputs (`clocks`, variability discrete; clocked variables are no `InitialUnknown`);
+  `CoSimulation` has `hasEventMode="true"`. An importer runs them one of two ways:
+  - eventModeUsed = false (`fmusim`, FMPy's `simulate_fmu`): as the FMI 2.0 FMUs, one
+    fixed step (`canHandleVariableCommunicationStepSize="false"`): they sample at the end of every
+    communication step, refuse a step of another length than the first (fmi3Discard), and the clock is
+    unused (fmi3SetClock is refused, fmi3Fatal).
+  - eventModeUsed = true: they sample only at the clock's ticks. At a tick (after
+    fmi3ExitInitializationMode the instance is in Event Mode already, later fmi3EnterEventMode):
+    fmi3SetClock(`sample`, true), set the inputs, fmi3UpdateDiscreteStates (it takes the sample, unless
+    a read of an output took it first), read the outputs, fmi3EnterStepMode; then fmi3DoStep with steps
+    of any length up to the next tick, over which the outputs hold (a step past the next tick is refused,
+    fmi3Discard). Ticked every 2 ms, the outputs are bit for bit those of the fixed-step 2 ms run. The
+    tick at the start time takes no step: it recomputes the outputs from the current inputs and
+    parameters, as initialization mode does (the importer may leave it out). A tick that is not 2 ms after
+    the last sample, or a failed sample, returns fmi3Error from fmi3UpdateDiscreteStates with its logged
+    cause; every later step is refused.
 - Hosts: any FMI 3.0 host, Python or not (FMPy, this project's master, `fmusim`, OMSimulator, a C
   program): `binaries/x86_64-linux/<model>.so` is the C loader of the FMI 2.0 FMUs in its FMI 3.0 form,
   which finds or starts the Python interpreter and forwards every call to pythonfmu3's binary (see
-  [hosts.md](hosts.md)).
+  [hosts.md](hosts.md)); it also carries the clock calls pythonfmu3 lacks (fmi3SetClock, fmi3GetClock,
+  eventModeUsed) to the slave. OMSimulator 2.1 knows no Clock: it reads `sample` as a Float64 (refused,
+  fmi3Fatal, unless its result file leaves `sample` out) and, after a run of `WmrSensor3` or
+  `WmrController3`, aborts freeing it twice (its own defect; `WmrPlant3` has no clock).
 """
 
 _OUTSIDE = """## Running the FMUs outside this project
@@ -156,6 +179,10 @@ def interface_table(fmu: Path) -> str:
             vtype += "[" + ",".join(str(d.start) for d in v.dimensions) + "]"
         if fmi3 and v.causality == "independent":
             caus = "independent"
+        if fmi3 and v.type == "Clock":   # (FMPy reads no interval: the model description says it)
+            caus = f"input clock ({v.intervalVariability})"
+        elif fmi3 and v.clocks:
+            caus += ", clocked by " + ", ".join(f"`{c.name}`" for c in v.clocks)
         lines.append(f"| `{v.name}` | {caus} | {vtype} | {v.unit or ''} | {start} | {_range(v)} | {meaning} |")
     return "\n".join(lines) + "\n"
 

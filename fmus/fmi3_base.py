@@ -17,9 +17,22 @@ What FMI 3.0 adds, used here:
 * The independent variable ``time`` (value reference 0; FMI 3.0 requires one); every other variable
   follows in declaration order, an array taking one value reference.
 * ModelStructure: every output with its true direct-feedthrough dependencies (value references of
-  inputs), and as InitialUnknown with its initialisation dependencies (inputs and parameters).
+  inputs), and as InitialUnknown with its initialisation dependencies (inputs and parameters), except
+  the outputs of a slave with a sample clock: clocked variables are no InitialUnknowns in FMI 3.0.
 * State: fmi3GetFMUState/SetFMUState and serialisation (JSON) save every variable and the component's
   whole internal state.
+
+* A sample clock (slaves that set ``sample_clock``: the sensor chain and the controller): one periodic input
+  Clock (``intervalVariability="constant"``), its sampled inputs and outputs clocked by it, and
+  ``hasEventMode="true"``.  Instantiated with eventModeUsed = false, the slave samples at the end of every
+  communication step as the FMI 2.0 slave does (the clock is not used).  With eventModeUsed = true it
+  samples only at the clock's ticks: the importer sets the clock (fmi3SetClock) in Event Mode, and the
+  sample is taken at fmi3UpdateDiscreteStates, or at the first read of an output before it; between ticks
+  fmi3DoStep only advances time (the outputs hold), with steps of any length that do not pass the next tick.
+  pythonfmu3 has no clock calls: our loader (wmr_pyloader3.c) tells the slave eventModeUsed by a set of the
+  Boolean value reference :data:`EVENT_MODE_VR` right after instantiation (and after fmi3Reset), routes
+  fmi3SetClock/GetClock through fmi3SetBoolean/GetBoolean of the clock's value reference, and turns the
+  result of :meth:`WmrSlave.update_discrete_states` into fmi3Error when the sample failed.
 
 Failure rules (as in FMI 2.0): a failed step is logged with its cause and returned as fmi3Discard; later
 steps are refused the same way.  Initialisation and refused calls fail as fmi3Fatal (pythonfmu3 turns
@@ -27,6 +40,7 @@ every exception into fmi3Fatal), after the one-line cause is logged.
 """
 from __future__ import annotations
 
+import math
 from operator import itemgetter
 from typing import Any, NoReturn
 from xml.etree.ElementTree import Element, SubElement
@@ -36,7 +50,7 @@ from pythonfmu3.enums import Fmi3Status
 from pythonfmu3.fmi3slave import Fmi3StepResult
 
 from .fmi_decl import (SlaveCore, DBL_MAX, DBL_MIN, DISPLAY_UNITS, FINITE, INT_MAX, NON_NEGATIVE, POSITIVE, SIGN,  # noqa: F401
-                       STEP_RTOL, UNITS, Var, exception_cause, xml_number, parameters_of)
+                       FIXED_STEP_RTOL, STEP_RTOL, UNITS, Var, exception_cause, xml_number, parameters_of)
 
 #: FMI 2.0 kind of a declaration -> FMI 3.0 type.
 TYPE3 = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
@@ -46,6 +60,31 @@ _CONV = {"Float64": float, "Int32": int, "Boolean": bool, "String": str}
 #: plant's step took 8 us longer with a bool).
 _OK = Fmi3StepResult(status=Fmi3Status.ok)
 _DISCARD = Fmi3StepResult(status=Fmi3Status.discard)
+#: The value reference our loader (wmr_pyloader3.c, WMR_EVENT_MODE_VR) sets true through fmi3SetBoolean when
+#: the instance was instantiated with eventModeUsed = true.  No variable has it; the model description
+#: does not name it.  (pythonfmu3 passes value references to Python as C ints: the largest one is kept.)
+EVENT_MODE_VR = 2**31 - 1
+
+
+class _Event:
+    """What update_discrete_states returns; pythonfmu3 reads these attributes into fmi3UpdateDiscreteStates'
+    outputs.  ``nominalContinuousStatesChanged`` (meaningless in co-simulation) carries to our loader that the
+    sample failed: the loader then returns fmi3Error and reports false to the importer."""
+
+    __slots__ = ("discreteStatesNeedUpdate", "terminateSimulation", "nominalContinuousStatesChanged",
+                 "valuesOfContinuousStatesChanged", "nextEventTimeDefined", "nextEventTime")
+
+    def __init__(self, failed: bool) -> None:
+        self.discreteStatesNeedUpdate = False
+        self.terminateSimulation = False
+        self.nominalContinuousStatesChanged = failed
+        self.valuesOfContinuousStatesChanged = False
+        self.nextEventTimeDefined = False
+        self.nextEventTime = 0.0
+
+
+_EVENT_OK = _Event(False)
+_EVENT_FAILED = _Event(True)
 
 
 class Var3:
@@ -146,12 +185,21 @@ class WmrSlave(SlaveCore, Fmi3Slave):
     _ACCESS = ("get_float64", "get_int32", "get_boolean", "get_string")
     _SETS = ("set_float64", "set_int32", "set_boolean", "set_string")
 
+    #: The sample clock of a sampled-data slave: (name, interval [s], description), or None (no clock).
+    sample_clock: tuple[str, float, str] | None = None
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self.author = "wmr-cosim"
         self.default_experiment = type(self).default_experiment
         self.description = getattr(type(self), "description", None)  # (pythonfmu3's __init__ set None)
         self._init_state()
+        self._clock_vr = -1                  # the clock's value reference (-1: no clock)
+        self._specials: frozenset[int] = frozenset({EVENT_MODE_VR})   # Boolean sets that are not variables
+        self._event_mode = False             # instantiated with eventModeUsed = true (our loader says so)
+        self._tick = False                   # the clock is active: a sample is due
+        self._t_sample = math.nan            # time of the last sample [s] (event mode)
+        self._samples = 0                    # samples taken since initialisation (event mode)
 
     # ------------------------------------------------------------------ declaration
     def declare(self, variables: list[Var]) -> None:
@@ -166,6 +214,9 @@ class WmrSlave(SlaveCore, Fmi3Slave):
         tvar = Var3("time", "Float64", 0, [time], [self._tslot], (), False, "simulation time")
         self._v3 = [tvar] + _group(self._decl, 1)
         self._v3_by_name = {v.name: v for v in self._v3}
+        if self.sample_clock is not None:   # the clock: the value reference after every variable's
+            self._clock_vr = len(self._v3)
+            self._specials = frozenset({EVENT_MODE_VR, self._clock_vr})
         self._index()
 
     def _index(self) -> None:
@@ -216,6 +267,12 @@ class WmrSlave(SlaveCore, Fmi3Slave):
         variables = SubElement(root, "ModelVariables")
         for v in self._v3:
             variables.append(self._variable_xml(v))
+        if self.sample_clock is not None:
+            name, interval, doc = self.sample_clock
+            cs.set("hasEventMode", "true")
+            SubElement(variables, "Clock", {"name": name, "valueReference": str(self._clock_vr), "description": doc,
+                                            "causality": "input", "variability": "discrete",
+                                            "intervalVariability": "constant", "intervalDecimal": xml_number(interval)})
         structure = SubElement(root, "ModelStructure")
         group_of = {d.name: v for v in self._v3 for d in v.decl}
         inputs = [v for v in self._v3 if v.causality == "input" and v.name != "time"]
@@ -230,7 +287,7 @@ class WmrSlave(SlaveCore, Fmi3Slave):
         for v in outputs:
             SubElement(structure, "Output", {"valueReference": str(v.vr),
                                              "dependencies": " ".join(map(str, refs(v.deps)))})
-        for v in outputs:
+        for v in outputs if self.sample_clock is None else ():   # (FMI 3.0: clocked variables are no InitialUnknowns)
             deps = sorted(set(params) | set(refs(v.init_deps)))
             SubElement(structure, "InitialUnknown", {"valueReference": str(v.vr),
                                                      "dependencies": " ".join(map(str, deps))})
@@ -243,6 +300,9 @@ class WmrSlave(SlaveCore, Fmi3Slave):
             return Element("Float64", a)
         a["causality"] = v.causality
         a["variability"] = v.variability
+        if self.sample_clock is not None and v.causality in ("input", "output"):
+            a["variability"] = "discrete"   # sampled at the clock's ticks
+            a["clocks"] = str(self._clock_vr)
         if v.causality == "parameter":
             a["initial"] = "exact"
         if v.unit is not None:
@@ -310,6 +370,8 @@ class WmrSlave(SlaveCore, Fmi3Slave):
     def get_boolean(self, vrs: list[int]) -> list[bool]:
         if vrs == self._bool_key:
             return [bool(x) for x in self._bool_items(self._vals)]
+        if self._clock_vr >= 0 and self._clock_vr in vrs:   # fmi3GetClock (our loader: as fmi3GetBoolean)
+            return [self._get_clock(i) for i in vrs]
         self._bool_key, self._bool_items = list(vrs), self._items(vrs, "Boolean")
         return self._getter(vrs, "Boolean")(self._vals)
 
@@ -337,6 +399,9 @@ class WmrSlave(SlaveCore, Fmi3Slave):
         self._set(vrs, values, "Int32")
 
     def set_boolean(self, vrs: list[int], values: list[bool]) -> None:
+        if not self._specials.isdisjoint(vrs):   # fmi3SetClock, or our loader's eventModeUsed
+            self._set_clock(vrs, values)
+            return
         self._set(vrs, values, "Boolean")
 
     def set_string(self, vrs: list[int], values: list[str]) -> None:
@@ -419,6 +484,8 @@ class WmrSlave(SlaveCore, Fmi3Slave):
         return any(out0 <= s < out1 for i in vrs if 0 <= i < len(v3) for s in v3[i].slots)
 
     def do_step(self, current_time: float, step_size: float) -> Fmi3StepResult:
+        if self._event_mode and self._clock_vr >= 0:
+            return self._event_step(current_time, step_size)
         h: float | None = step_size   # None: the step refused (_before_step)
         try:
             if h != self._h or self._dirty or self._failed:  # the rare cases, out of the hot path
@@ -441,3 +508,157 @@ class WmrSlave(SlaveCore, Fmi3Slave):
     def _after_restore(self) -> None:
         self._get_key = [-1]
         self._set_key = [-1]
+        self._remove_tick_paths()
+        if self._tick:
+            self._install_tick_paths()
+
+    def _get_fmu_state(self) -> dict[str, Any]:
+        state = super()._get_fmu_state()
+        state["clock"] = {"tick": self._tick, "t_sample": None if math.isnan(self._t_sample) else self._t_sample,
+                          "samples": self._samples}
+        return state
+
+    def _set_fmu_state(self, state: dict[str, Any]) -> None:
+        clock = state.get("clock") or {}
+        self._tick = bool(clock.get("tick", False))
+        t = clock.get("t_sample")
+        self._t_sample = math.nan if t is None else float(t)
+        self._samples = int(clock.get("samples", 0))
+        super()._set_fmu_state(state)
+
+    # ------------------------------------------------------------------ the sample clock (event mode)
+    def exit_initialization_mode(self) -> None:
+        super().exit_initialization_mode()
+        self._t_sample = self._vals[self._tslot]   # initialisation is the sample at the start time
+        self._samples = 0
+        self._tick = False
+
+    def _clock_name(self) -> str:
+        return self.sample_clock[0] if self.sample_clock is not None else "(no clock)"
+
+    def _get_clock(self, vr: int) -> bool:
+        if vr != self._clock_vr:
+            self._fatal(f"fmi3GetClock of {self._name_of(vr)}: not a clock (the clock is {self._clock_name()}, "
+                        f"value reference {self._clock_vr})")
+        return self._tick
+
+    def _set_clock(self, vrs: list[int], values: list[bool]) -> None:
+        """fmi3SetClock of the sample clock (active: a sample is due), or our loader's eventModeUsed."""
+        if len(values) != len(vrs):
+            self._fatal(f"fmi3SetClock: {len(values)} values for {len(vrs)} value references")
+        for vr, on in zip(vrs, values):
+            if vr == EVENT_MODE_VR:
+                self._event_mode = bool(on)
+                continue
+            name = self._clock_name()
+            if vr != self._clock_vr:
+                self._fatal(f"fmi3SetClock of {self._name_of(vr)}: not a clock (the clock is {name}, value "
+                            f"reference {self._clock_vr})")
+            if not self._event_mode:
+                self._fatal(f"fmi3SetClock of {name} refused: the instance was instantiated with eventModeUsed = "
+                            "false (it samples at the end of every communication step)")
+            if self._mode != "run":
+                self._fatal(f"fmi3SetClock of {name} refused in initialization mode (the clock ticks from "
+                            "the Event Mode after fmi3ExitInitializationMode on)")
+            if on and not self._tick:
+                self._tick = True
+                self._install_tick_paths()
+            elif not on and self._tick:
+                self._tick = False
+                self._remove_tick_paths()
+
+    def _install_tick_paths(self) -> None:
+        """While a sample is due, reading an output takes it first (instance attributes, as in
+        initialization mode: no cost to the stepping paths)."""
+        cls = type(self)
+        for name in self._ACCESS:
+            fast = getattr(cls, name).__get__(self)
+            setattr(self, name, self._tick_getter(fast))
+
+    def _remove_tick_paths(self) -> None:
+        if self._mode == "run":
+            for name in self._ACCESS:
+                self.__dict__.pop(name, None)
+
+    def _tick_getter(self, fast: Any) -> Any:
+        def get(vrs: list[int]) -> list[Any]:
+            if self._tick and self._reads_output(vrs):
+                self._sample()
+            return fast(vrs)
+        return get
+
+    def update_discrete_states(self) -> _Event:
+        """fmi3UpdateDiscreteStates: take the sample due at an active clock (if an output read has not
+        already); the clock is then inactive.  A failed or mistimed sample is logged and returned as failed
+        (our loader: fmi3Error)."""
+        if self._tick:
+            return _EVENT_OK if self._sample() else _EVENT_FAILED
+        return _EVENT_OK
+
+    def _sample(self) -> bool:
+        """The sample at the clock's tick at the current time: the fixed-step slave's step from the last
+        sample over the clock's interval, with the inputs set now.  A tick at the time of the last sample
+        takes none, except the tick at the start time, which recomputes the outputs from the current inputs
+        and parameters as initialization mode does.  Returns False (logged) if the sample failed or the tick
+        is not one interval after the last sample; every later sample and step is then refused."""
+        self._tick = False
+        self._remove_tick_paths()
+        assert self.sample_clock is not None
+        name, h, _ = self.sample_clock
+        t = self._vals[self._tslot]
+        last = self._t_sample
+        where = f"{self.modelName} instance {self.instance_name}: sample of clock {name} at t = {t!r} s"
+        if self._failed:
+            self.log(f"{where} refused: an earlier step failed ({self._failed})", Fmi3Status.error)
+            return False
+        if abs(t - last) <= STEP_RTOL * h:
+            if self._samples == 0:
+                try:
+                    self._build()
+                except Exception as exc:
+                    self._failed = exception_cause(exc)
+                    self.log(f"{where} failed: {self._failed}", Fmi3Status.error)
+                    return False
+            return True
+        if abs(t - last - h) > FIXED_STEP_RTOL * h:
+            self._failed = f"a tick of clock {name} at t = {t!r} s, not {h!r} s after the last sample"
+            self.log(f"{where} refused: the clock ticks every {h!r} s (intervalVariability constant) and the "
+                     f"last sample was at t = {last!r} s", Fmi3Status.error)
+            return False
+        try:
+            if h != self._h or self._dirty:
+                if self._before_step(last, h) is None:
+                    return False
+            tk = last
+            tn = round(tk / h) * h
+            if tn != tk and abs(tn - tk) <= STEP_RTOL * abs(tk):
+                tk = tn
+            self._step(tk, h)
+        except Exception as exc:
+            self._failed = exception_cause(exc)
+            self.log(f"{where} failed: {self._failed}", Fmi3Status.error)
+            return False
+        self._t_sample = t
+        self._samples += 1
+        return True
+
+    def _event_step(self, current_time: float, step_size: float) -> Fmi3StepResult:
+        """fmi3DoStep of an instance in event mode: a due sample first, then time advances; the outputs hold.
+        A step past the next tick (one interval after the last sample) is refused (Discard)."""
+        if self._tick and not self._sample():
+            return _DISCARD
+        assert self.sample_clock is not None
+        name, h, _ = self.sample_clock
+        end = current_time + step_size
+        if self._failed:
+            self.log(f"{self.modelName} instance {self.instance_name}: step at t = {current_time!r} s refused: "
+                     f"an earlier step failed ({self._failed})", Fmi3Status.discard)
+            return _DISCARD
+        tick = self._t_sample + h
+        if end - tick > FIXED_STEP_RTOL * h:
+            self.log(f"{self.modelName} instance {self.instance_name}: step from t = {current_time!r} s over h = "
+                     f"{step_size!r} s refused: it passes the tick of clock {name} at t = {tick!r} s (set the "
+                     "clock in Event Mode there: the instance samples only at the clock's ticks)", Fmi3Status.discard)
+            return _DISCARD
+        self._vals[self._tslot] = end
+        return _OK

@@ -104,6 +104,8 @@ class WmrController(WmrSlave):
     description = ("Controller of the wheeled mobile robot: odometry, kinematic planner (26)-(32), (50) and "
                    "ADP H-infinity critic (45)-(51) with RLS adaptation")
     variable_step = False   # a sampled-data block: its sample period is the communication step
+    #: FMI 3.0: its sample period as a periodic input clock (fmi3_base.py): name, interval [s], description
+    sample_clock = ("sample", 0.002, "sample clock (period 2 ms): the controller takes its inputs (the measurements) and updates every output at each tick")
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)

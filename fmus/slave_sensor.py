@@ -33,6 +33,8 @@ _OUT = {  # SENSOR_OUTPUTS name: (kind, unit, description, wheel)
 class WmrSensor(WmrSlave):
     description = "Sensor chain of the two drive wheels: quantised encoders, increment velocity (42), filter (43), wheel angle"
     variable_step = False   # a sampled-data block: its sample period is the communication step
+    #: FMI 3.0: its sample period as a periodic input clock (fmi3_base.py): name, interval [s], description
+    sample_clock = ("sample", 0.002, "sample clock (period 2 ms): the sensor samples its inputs alpha1, alpha2 and updates every output at each tick")
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)

@@ -420,6 +420,7 @@ oms_newModel("m")
 oms_addSystem("m.root", oms_system_wc)
 oms_addSubModel("m.root.x", {fmu})
 oms_setResultFile("m", {out})
+oms_removeSignalsFromResults("m", "^m[.]root[.]x[.]sample$")
 oms_setStartTime("m", 0.0)
 oms_setStopTime("m", {stop})
 oms_setFixedStepSize("m.root", {step})
@@ -432,11 +433,21 @@ oms_delete("m")
 """
 
 
-@pytest.mark.parametrize("model", MODELS6)
+#: OMSimulator 2.1 reads an FMI 3.0 Clock as a variable of unknown type and frees it twice when the model goes
+#: (valgrind: an invalid free in its own code, after the run): the FMI 3.0 sensor and controller, which declare
+#: their sample clock, abort it at the end ("double free or corruption").
+_OMS_MODELS = [pytest.param(m, marks=pytest.mark.xfail(strict=True, reason="OMSimulator 2.1 double-frees an "
+                                                       "FMI 3.0 Clock variable")) if m in ("WmrSensor3", "WmrController3")
+               else m for m in MODELS6]
+
+
+@pytest.mark.parametrize("model", _OMS_MODELS)
 def test_omsimulator_with_an_empty_environment_runs_each_fmu_as_fmpy_does(model, six_fmus, tmp_path):
     """OMSimulator (a C++ host) under ``env -i`` running a Lua script, 500 steps with constant inputs:
     every scalar output equal to FMPy's to the 12 digits OMSimulator writes.  (pythonfmu3's binary alone
-    failed here: "fmi3Instantiate() failed".)"""
+    failed here: "fmi3Instantiate() failed".)  The result file leaves out the sensor's and the controller's
+    clock ``sample``: OMSimulator 2.1 knows no FMI 3.0 Clock ("Unknown FMI3 base type") and would read it as
+    a Float64."""
     oms = tool(OMSIMULATOR)
     inputs = CONSTANT_INPUTS[model.removesuffix("3")]
     out = tmp_path / "oms.csv"

@@ -730,10 +730,12 @@ static void wmr_instantiate_end(void) {
     wmr_unlock(&wmr_instantiate_lock);
 }
 
-/* What the host holds: the binary's instance and whether it returned Fatal (see "Fatal" above). */
+/* What the host holds: the binary's instance, whether it returned Fatal (see "Fatal" above), and (FMI 3.0
+ * co-simulation, wmr_pyloader3.c) whether it was instantiated with eventModeUsed. */
 typedef struct {
     void *real;
     int fatal;
+    int event_mode;
 } wmr_instance;
 
 static wmr_instance *wmr_wrap(void *real) {

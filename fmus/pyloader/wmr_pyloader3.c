@@ -10,6 +10,15 @@
  * exports all of them).  When no interpreter can be had, the instantiation returns NULL after one line
  * through the host's logMessage callback.  The interpreter is never finalised.
  *
+ * Clocks (the sampled-data FMUs' periodic input clock): pythonfmu3 0.3's binary tells the slave nothing of
+ * eventModeUsed and has no fmi3SetClock/GetClock (it throws "not implemented").  This loader sets the
+ * Boolean value reference WMR_EVENT_MODE_VR of the slave true after an instantiation with eventModeUsed
+ * (and again after fmi3Reset, which makes a new slave), forwards fmi3SetClock and fmi3GetClock as
+ * fmi3SetBoolean and fmi3GetBoolean of the clock's value reference (fmi3Clock and fmi3Boolean are both
+ * bool), and returns fmi3Error from fmi3UpdateDiscreteStates when the slave reports a failed sample (it sets
+ * nominalsOfContinuousStatesChanged, which means nothing in co-simulation; the importer gets false).  The
+ * slave's side is fmus/fmi3_base.py (EVENT_MODE_VR, update_discrete_states).
+ *
  * Around pythonfmu3 0.3's defects (wmr_pyfinder.h): after each instantiation the binary's global, empty
  * PyState is released (no use-after-free at exit), and an instance that returned fmi3Fatal gets no
  * further call (not even fmi3FreeInstance, which would release its Python objects a second time).
@@ -30,7 +39,6 @@
     X(fmi3ExitInitializationMode, (fmi3Instance instance), (REAL)) \
     X(fmi3EnterEventMode, (fmi3Instance instance), (REAL)) \
     X(fmi3Terminate, (fmi3Instance instance), (REAL)) \
-    X(fmi3Reset, (fmi3Instance instance), (REAL)) \
     X(fmi3GetFloat32, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, fmi3Float32 values[], size_t nValues), (REAL, valueReferences, nValueReferences, values, nValues)) \
     X(fmi3GetFloat64, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, fmi3Float64 values[], size_t nValues), (REAL, valueReferences, nValueReferences, values, nValues)) \
     X(fmi3GetInt8, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, fmi3Int8 values[], size_t nValues), (REAL, valueReferences, nValueReferences, values, nValues)) \
@@ -44,7 +52,6 @@
     X(fmi3GetBoolean, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, fmi3Boolean values[], size_t nValues), (REAL, valueReferences, nValueReferences, values, nValues)) \
     X(fmi3GetString, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, fmi3String values[], size_t nValues), (REAL, valueReferences, nValueReferences, values, nValues)) \
     X(fmi3GetBinary, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, size_t valueSizes[], fmi3Binary values[], size_t nValues), (REAL, valueReferences, nValueReferences, valueSizes, values, nValues)) \
-    X(fmi3GetClock, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, fmi3Clock values[]), (REAL, valueReferences, nValueReferences, values)) \
     X(fmi3SetFloat32, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, const fmi3Float32 values[], size_t nValues), (REAL, valueReferences, nValueReferences, values, nValues)) \
     X(fmi3SetFloat64, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, const fmi3Float64 values[], size_t nValues), (REAL, valueReferences, nValueReferences, values, nValues)) \
     X(fmi3SetInt8, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, const fmi3Int8 values[], size_t nValues), (REAL, valueReferences, nValueReferences, values, nValues)) \
@@ -58,7 +65,6 @@
     X(fmi3SetBoolean, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, const fmi3Boolean values[], size_t nValues), (REAL, valueReferences, nValueReferences, values, nValues)) \
     X(fmi3SetString, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, const fmi3String values[], size_t nValues), (REAL, valueReferences, nValueReferences, values, nValues)) \
     X(fmi3SetBinary, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, const size_t valueSizes[], const fmi3Binary values[], size_t nValues), (REAL, valueReferences, nValueReferences, valueSizes, values, nValues)) \
-    X(fmi3SetClock, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, const fmi3Clock values[]), (REAL, valueReferences, nValueReferences, values)) \
     X(fmi3GetNumberOfVariableDependencies, (fmi3Instance instance, fmi3ValueReference valueReference, size_t* nDependencies), (REAL, valueReference, nDependencies)) \
     X(fmi3GetVariableDependencies, (fmi3Instance instance, fmi3ValueReference dependent, size_t elementIndicesOfDependent[], fmi3ValueReference independents[], size_t elementIndicesOfIndependents[], fmi3DependencyKind dependencyKinds[], size_t nDependencies), (REAL, dependent, elementIndicesOfDependent, independents, elementIndicesOfIndependents, dependencyKinds, nDependencies)) \
     X(fmi3GetFMUState, (fmi3Instance instance, fmi3FMUState* FMUState), (REAL, FMUState)) \
@@ -80,7 +86,6 @@
     X(fmi3SetShiftDecimal, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, const fmi3Float64 shifts[]), (REAL, valueReferences, nValueReferences, shifts)) \
     X(fmi3SetShiftFraction, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, const fmi3UInt64 counters[], const fmi3UInt64 resolutions[]), (REAL, valueReferences, nValueReferences, counters, resolutions)) \
     X(fmi3EvaluateDiscreteStates, (fmi3Instance instance), (REAL)) \
-    X(fmi3UpdateDiscreteStates, (fmi3Instance instance, fmi3Boolean* discreteStatesNeedUpdate, fmi3Boolean* terminateSimulation, fmi3Boolean* nominalsOfContinuousStatesChanged, fmi3Boolean* valuesOfContinuousStatesChanged, fmi3Boolean* nextEventTimeDefined, fmi3Float64* nextEventTime), (REAL, discreteStatesNeedUpdate, terminateSimulation, nominalsOfContinuousStatesChanged, valuesOfContinuousStatesChanged, nextEventTimeDefined, nextEventTime)) \
     X(fmi3EnterContinuousTimeMode, (fmi3Instance instance), (REAL)) \
     X(fmi3CompletedIntegratorStep, (fmi3Instance instance, fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean* enterEventMode, fmi3Boolean* terminateSimulation), (REAL, noSetFMUStatePriorToCurrentPoint, enterEventMode, terminateSimulation)) \
     X(fmi3SetTime, (fmi3Instance instance, fmi3Float64 time), (REAL, time)) \
@@ -96,6 +101,13 @@
     X(fmi3DoStep, (fmi3Instance instance, fmi3Float64 currentCommunicationPoint, fmi3Float64 communicationStepSize, fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean* eventHandlingNeeded, fmi3Boolean* terminateSimulation, fmi3Boolean* earlyReturn, fmi3Float64* lastSuccessfulTime), (REAL, currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint, eventHandlingNeeded, terminateSimulation, earlyReturn, lastSuccessfulTime)) \
     X(fmi3ActivateModelPartition, (fmi3Instance instance, fmi3ValueReference clockReference, fmi3Float64 activationTime), (REAL, clockReference, activationTime))
 
+/* The FMI 3.0 functions this loader wraps rather than forwards (the clock, below): the same form. */
+#define FMI3_WRAPPED(X) \
+    X(fmi3Reset, (fmi3Instance instance), (REAL)) \
+    X(fmi3GetClock, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, fmi3Clock values[]), (REAL, valueReferences, nValueReferences, values)) \
+    X(fmi3SetClock, (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, const fmi3Clock values[]), (REAL, valueReferences, nValueReferences, values)) \
+    X(fmi3UpdateDiscreteStates, (fmi3Instance instance, fmi3Boolean* discreteStatesNeedUpdate, fmi3Boolean* terminateSimulation, fmi3Boolean* nominalsOfContinuousStatesChanged, fmi3Boolean* valuesOfContinuousStatesChanged, fmi3Boolean* nextEventTimeDefined, fmi3Float64* nextEventTime), (REAL, discreteStatesNeedUpdate, terminateSimulation, nominalsOfContinuousStatesChanged, valuesOfContinuousStatesChanged, nextEventTimeDefined, nextEventTime))
+
 /* pythonfmu3's FMI functions */
 static struct {
     fmi3InstantiateModelExchangeTYPE *fmi3InstantiateModelExchange;
@@ -104,6 +116,7 @@ static struct {
     fmi3FreeInstanceTYPE *fmi3FreeInstance;
 #define X(name, params, args) name##TYPE *name;
     FMI3_FORWARDED(X)
+    FMI3_WRAPPED(X)
 #undef X
 } F;
 
@@ -125,6 +138,7 @@ static int load_real(const wmr_char *dir, const char *resourcePath) {
     RESOLVE(fmi3FreeInstance);
 #define X(name, params, args) RESOLVE(name);
     FMI3_FORWARDED(X)
+    FMI3_WRAPPED(X)
 #undef X
     return 1;
 }
@@ -144,6 +158,19 @@ static int ready(fmi3String resourcePath, fmi3InstanceEnvironment env, fmi3LogMe
 
 const char *fmi3GetVersion(void) { return fmi3Version; }
 
+/* The Boolean value reference that tells the slave eventModeUsed (fmus/fmi3_base.py, EVENT_MODE_VR): no
+ * variable has it.  pythonfmu3 hands value references to Python as C ints, so it is the largest one. */
+#define WMR_EVENT_MODE_VR 0x7FFFFFFFu
+
+/* Tell the slave of `w` that the importer uses event mode; 0 on failure (then the slave logged why). */
+static int tell_event_mode(wmr_instance *w) {
+    const fmi3ValueReference vr = WMR_EVENT_MODE_VR;
+    const fmi3Boolean on = fmi3True;
+    fmi3Status s = F.fmi3SetBoolean(w->real, &vr, 1, &on, 1);
+    if (s == fmi3Fatal) w->fatal = 1;
+    return s <= fmi3Warning;
+}
+
 fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String instantiationToken,
                                          fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
                                          fmi3Boolean eventModeUsed, fmi3Boolean earlyReturnAllowed,
@@ -159,7 +186,15 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
                                                    requiredIntermediateVariables, nRequiredIntermediateVariables,
                                                    instanceEnvironment, logMessage, intermediateUpdate);
     wmr_instantiate_end();
-    return (fmi3Instance)wmr_wrap(c);
+    wmr_instance *w = wmr_wrap(c);
+    if (w != NULL && eventModeUsed) {
+        w->event_mode = 1;
+        if (!tell_event_mode(w)) {
+            fmi3FreeInstance((fmi3Instance)w);
+            return NULL;
+        }
+    }
+    return (fmi3Instance)w;
 }
 
 fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
@@ -212,3 +247,60 @@ void fmi3FreeInstance(fmi3Instance instance) {
 FMI3_FORWARDED(X)
 #undef X
 #undef REAL
+
+/* fmi3Reset makes a new slave: it is told eventModeUsed again. */
+fmi3Status fmi3Reset(fmi3Instance instance) {
+    wmr_instance *w = (wmr_instance *)instance;
+    if (w == NULL || F.fmi3Reset == NULL) return fmi3Error;
+    if (w->fatal) return fmi3Fatal;
+    fmi3Status s = F.fmi3Reset(w->real);
+    if (s == fmi3Fatal) w->fatal = 1;
+    if (s <= fmi3Warning && w->event_mode && !tell_event_mode(w)) return w->fatal ? fmi3Fatal : fmi3Error;
+    return s;
+}
+
+/* The clock calls as fmi3SetBoolean/GetBoolean of the clock's value reference (the slave routes them). */
+fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                        const fmi3Clock values[]) {
+    wmr_instance *w = (wmr_instance *)instance;
+    if (w == NULL || F.fmi3SetBoolean == NULL) return fmi3Error;
+    if (w->fatal) return fmi3Fatal;
+    fmi3Status s = F.fmi3SetBoolean(w->real, valueReferences, nValueReferences, (const fmi3Boolean *)values,
+                                    nValueReferences);
+    if (s == fmi3Fatal) w->fatal = 1;
+    return s;
+}
+
+fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                        fmi3Clock values[]) {
+    wmr_instance *w = (wmr_instance *)instance;
+    if (w == NULL || F.fmi3GetBoolean == NULL) return fmi3Error;
+    if (w->fatal) return fmi3Fatal;
+    fmi3Status s = F.fmi3GetBoolean(w->real, valueReferences, nValueReferences, (fmi3Boolean *)values,
+                                    nValueReferences);
+    if (s == fmi3Fatal) w->fatal = 1;
+    return s;
+}
+
+/* The slave's answer into the importer's (non-NULL) outputs; a failed sample (the slave sets
+ * nominalsOfContinuousStatesChanged) is fmi3Error. */
+fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discreteStatesNeedUpdate,
+                                    fmi3Boolean *terminateSimulation, fmi3Boolean *nominalsOfContinuousStatesChanged,
+                                    fmi3Boolean *valuesOfContinuousStatesChanged, fmi3Boolean *nextEventTimeDefined,
+                                    fmi3Float64 *nextEventTime) {
+    wmr_instance *w = (wmr_instance *)instance;
+    if (w == NULL || F.fmi3UpdateDiscreteStates == NULL) return fmi3Error;
+    if (w->fatal) return fmi3Fatal;
+    fmi3Boolean need = fmi3False, term = fmi3False, failed = fmi3False, values = fmi3False, defined = fmi3False;
+    fmi3Float64 next = 0.0;
+    fmi3Status s = F.fmi3UpdateDiscreteStates(w->real, &need, &term, &failed, &values, &defined, &next);
+    if (s == fmi3Fatal) w->fatal = 1;
+    if (discreteStatesNeedUpdate) *discreteStatesNeedUpdate = need;
+    if (terminateSimulation) *terminateSimulation = term;
+    if (nominalsOfContinuousStatesChanged) *nominalsOfContinuousStatesChanged = fmi3False;
+    if (valuesOfContinuousStatesChanged) *valuesOfContinuousStatesChanged = values;
+    if (nextEventTimeDefined) *nextEventTimeDefined = defined;
+    if (nextEventTime && defined) *nextEventTime = next;
+    if (s <= fmi3Warning && failed) return fmi3Error;
+    return s;
+}
