@@ -179,7 +179,7 @@ class NpyRecorder(RecordedRows):
     def _write(self, data: np.ndarray) -> None:
         """The rows' bytes written after the last (straight from ``data``: no copy), then the header."""
         assert self._fd is not None
-        view = memoryview(data)
+        view = data.data   # (bytes, not copied)
         while len(view):
             n = os.pwrite(self._fd, view, self._end)
             self._end += n
