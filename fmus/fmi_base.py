@@ -321,6 +321,26 @@ class WmrSlave(SlaveCore, Fmi2Slave):
             return self.get_real(vrs)
         return None
 
+    def _loader_held(self) -> list[int]:
+        """The value references whose fmi2SetReal the loader may hold until this slave's next call: the Real
+        inputs, which set_real takes in every mode, without a message."""
+        return [v.vr for v in self._inputs if v.kind == "Real"]
+
+    def _loader_step(self, current_time: float, step_size: float, vrs: list[int] | None,
+                     values: list[float] | None, get_vrs: list[int] | None) -> bool | list[float]:
+        """fmi2DoStep from t = ``current_time`` over h = ``step_size`` [s]: first the sets the loader held
+        (``vrs``, ``values``: held inputs only, in the order they were set), then do_step; after a step
+        that succeeded, the values of ``get_vrs`` (what the loader's next fmi2GetReal will likely ask),
+        else do_step's result."""
+        if vrs is not None:
+            self.set_real(vrs, values)  # type: ignore[arg-type]
+        ok = self.do_step(current_time, step_size)
+        if ok and get_vrs is not None:
+            got = self._loader_get_real(get_vrs)
+            if got is not None:
+                return got
+        return ok
+
     def _loader_fatal(self, message: str) -> None:
         """Queue pythonfmu's own line for an exception out of a call (Fatal, no category), after the
         messages queued before it."""

@@ -18,32 +18,41 @@
  * interpreter is found as wmr_pyfinder.h says for Windows.
  *
  * The direct path (Linux): fmi2SetReal, fmi2DoStep and fmi2GetReal, the three calls a master makes at
- * every step, call the slave's Python methods here instead of in pythonfmu's binary, which spends about
- * 1 us of a 1.3 us call building its arguments by name, formatting and looking up the method, and
- * creating three strings to empty the log queue (measured on G1: docs/benchmarks.md).  The slave (our
- * fmus/fmi_base.py WmrSlave) hands itself to the loader while pythonfmu's binary constructs it (in
- * fmi2Instantiate and fmi2Reset, which constructs a new one): the loader puts this thread's key, with
- * None, in the dict sys._wmr_pyloader_slaves, the slave's __init__ replaces None by itself, and the
- * loader takes it out again.  A slave that does not (pythonfmu's own slaves) keeps every call on
- * pythonfmu's binary.  With the slave in hand:
- *   - fmi2SetReal calls slave._loader_set_real(vrs, values): True when set_real set them; False when it
- *     would refuse them (nothing changed): then pythonfmu's fmi2SetReal, whose failure and messages are
- *     pythonfmu's own;
- *   - fmi2GetReal calls slave._loader_get_real(vrs): the values, or None (initialization mode, or a value
- *     reference that is not a Real): then pythonfmu's fmi2GetReal;
- *   - fmi2DoStep calls slave.do_step(t, h), as pythonfmu does: true gives fmi2OK, false fmi2Discard.
- * Each as pythonfmu calls them: the value references and values as Python lists of int and float, the
- * method looked up on the slave at every call, the GIL taken with PyGILState_Ensure; the log messages the
- * call queued go to the host through pythonfmu's binary (an fmi2GetReal of no variables empties the
- * queue, through its logger and the categories the host enabled), in the order they were queued.  An
- * exception out of a Python call is Fatal as in pythonfmu: the one line pythonfmu writes ("Fatal py
- * exception encountered: [doStep] PyObject_CallMethod" and the exception's repr) is queued after the
- * slave's own messages and sent the same way, and the instance gets no further call.  The step's
- * outcome also sets what fmi2GetRealStatus (fmi2LastSuccessfulTime) and fmi2GetBooleanStatus
- * (fmi2Terminated) report: the loader keeps both, for the steps of either path, as pythonfmu does.
- * Nothing is cached between calls: every FMI call sequence (get before or after a step, set between,
- * reset, FMU state, several instances, threads) reaches the slave as through pythonfmu.  Windows keeps
- * pythonfmu's path.
+ * every step, reach the slave's Python methods from here instead of through pythonfmu's binary, which
+ * spends about 1 us of each call building its arguments, formatting and looking up the method by name and
+ * creating three strings to empty the log queue (measured on G1: docs/benchmarks.md), and the three calls
+ * of a step cross into Python once.  The slave (our fmus/fmi_base.py WmrSlave) hands itself to the loader
+ * while pythonfmu's binary constructs it (in fmi2Instantiate, and in fmi2Reset, which constructs a new
+ * one): the loader puts this thread's key, with None, in the dict sys._wmr_pyloader_slaves, the slave's
+ * __init__ replaces None by itself, and the loader takes it out again.  A slave that does not (pythonfmu's
+ * own slaves) keeps every call on pythonfmu's binary.  With the slave in hand:
+ *   - fmi2SetReal of inputs only (slave._loader_held(): the Real inputs, which set_real takes in every
+ *     mode without a message) returns fmi2OK at once and holds the values, each input once with its last
+ *     value; any other fmi2SetReal calls slave._loader_set_real(vrs, values): True when set_real set them,
+ *     False when it would refuse them (nothing changed): then pythonfmu's fmi2SetReal, whose failure and
+ *     messages are pythonfmu's own;
+ *   - fmi2DoStep calls slave._loader_step(t, h, held vrs, held values, get vrs): set_real of the held
+ *     values, then do_step(t, h) as pythonfmu calls it (true: fmi2OK, false: fmi2Discard), then, after a
+ *     step that succeeded, the values of the value references of the last fmi2GetReal, which the loader
+ *     keeps as the step's outputs;
+ *   - fmi2GetReal of those value references, with no call since the step, copies the step's outputs;
+ *     any other calls slave._loader_get_real(vrs): the values, or None (initialization mode, or a value
+ *     reference that is not a Real): then pythonfmu's fmi2GetReal.
+ * Every other call (and fmi2SetReal and fmi2GetReal not served as above) first makes the held sets
+ * (slave._loader_set_real) and forgets the step's outputs, so the slave sees every call in the order the
+ * host made it, as through pythonfmu: a get before or after a step, a set between, the FMU state, reset.
+ * The Python calls are made as pythonfmu makes them: value references and values as Python lists of int
+ * and float, the method looked up on the slave at every call, the GIL taken with PyGILState_Ensure; the
+ * log messages a call queued go to the host through pythonfmu's binary (an fmi2GetReal of no variables
+ * empties the queue, through its logger and the categories the host enabled), in the order they were
+ * queued.  An exception out of a Python call is Fatal as in pythonfmu: the one line pythonfmu writes
+ * ("Fatal py exception encountered: [doStep] PyObject_CallMethod" and the exception's repr, or "unknown
+ * error" where messages were queued before it, as pythonfmu's binary loses the exception then) is queued
+ * after the slave's own messages and sent the same way, and the instance gets no further call.  The
+ * step's outcome also sets what fmi2GetRealStatus (fmi2LastSuccessfulTime) and fmi2GetBooleanStatus
+ * (fmi2Terminated) report: the loader keeps both, for the steps of either path, as pythonfmu does.  What
+ * the loader keeps is per instance (FMI calls on one instance never overlap; instances on several threads
+ * each take the GIL).  Windows keeps pythonfmu's path.
  *
  * Built by fmus/build.py with the system C compiler:
  *   cc -shared -fPIC -O2 -I<FMI 2.0 headers> -DWMR_PY_LIBRARY=... -DWMR_PY_HOME=... -DWMR_PY_VERSION=...
@@ -173,8 +182,9 @@ static struct {
     void (*err_clear)(void);
     PyObject *(*repr)(PyObject *);
     const char *(*utf8)(PyObject *);
-    PyObject *none;
-    PyObject *s_set, *s_get, *s_step, *s_fatal, *s_queue;
+    unsigned long (*ulong_as)(PyObject *);
+    PyObject *none, *true_, *false_;
+    PyObject *s_set, *s_get, *s_step, *s_fatal, *s_queue, *s_held;
 } P;
 
 #define PY_SYM(field, name)                                        \
@@ -212,15 +222,19 @@ static int py_resolve(void) {
     PY_SYM(err_clear, "PyErr_Clear");
     PY_SYM(repr, "PyObject_Repr");
     PY_SYM(utf8, "PyUnicode_AsUTF8");
+    PY_SYM(ulong_as, "PyLong_AsUnsignedLong");
     PY_SYM(none, "_Py_NoneStruct");
+    PY_SYM(true_, "_Py_TrueStruct");
+    PY_SYM(false_, "_Py_FalseStruct");
     int g = P.gil_ensure();
     P.s_set = P.intern("_loader_set_real");
     P.s_get = P.intern("_loader_get_real");
-    P.s_step = P.intern("do_step");
+    P.s_step = P.intern("_loader_step");
+    P.s_held = P.intern("_loader_held");
     P.s_fatal = P.intern("_loader_fatal");
     P.s_queue = P.intern("_get_log_queue");
     P.gil_release(g);
-    return P.s_set && P.s_get && P.s_step && P.s_fatal && P.s_queue;
+    return P.s_set && P.s_get && P.s_step && P.s_fatal && P.s_queue && P.s_held;
 }
 
 static wmr_mutex py_resolve_lock = WMR_MUTEX_INITIALIZER;
@@ -279,10 +293,19 @@ typedef struct {
 #ifndef _WIN32
     PyObject *slave;    /* the slave (a reference of ours), or NULL: every call to pythonfmu's binary */
     PyObject *queue;    /* its log queue (a reference of ours) */
-    PyObject *set_key;  /* the value references of the last fmi2SetReal, as a list (reused while unchanged) */
-    PyObject *get_key;  /* of the last fmi2GetReal */
+    PyObject *set_key;  /* the value references of the last set, as a list (reused while unchanged) */
+    PyObject *get_key;  /* of the last fmi2GetReal on the direct path: the outputs each step returns */
     size_t set_n, get_n;
     fmi2ValueReference *set_vr, *get_vr;
+    unsigned char *held; /* [vr] 1 for a Real input: its fmi2SetReal waits for the next call (see above) */
+    size_t n_held;       /* the size of held */
+    size_t pend_n;       /* the held inputs waiting: each once, in the order first set, its last value */
+    fmi2ValueReference *pend_vr; /* (n_held of each) */
+    double *pend_val;
+    size_t *pend_at;     /* [vr] its position in pend_vr + 1, or 0 */
+    int cached;          /* 1: cache holds get_key's values after the last step, and nothing was called since */
+    double *cache;       /* get_n values */
+    size_t cache_cap;
 #endif
 } instance;
 
@@ -297,8 +320,41 @@ static void slave_drop(instance *x) {
         }
     free(x->set_vr);
     free(x->get_vr);
-    x->set_vr = x->get_vr = NULL;
-    x->set_n = x->get_n = 0;
+    free(x->held);
+    free(x->pend_vr);
+    free(x->pend_val);
+    free(x->pend_at);
+    free(x->cache);
+    x->set_vr = x->get_vr = x->pend_vr = NULL;
+    x->held = NULL;
+    x->pend_val = x->cache = NULL;
+    x->pend_at = NULL;
+    x->set_n = x->get_n = x->n_held = x->pend_n = x->cache_cap = 0;
+    x->cached = 0;
+}
+
+/* The map of the value references whose sets may wait: slave._loader_held() (the GIL held; 0: none). */
+static int held_map(instance *x, PyObject *slave) {
+    PyObject *list = P.vcall_method(P.s_held, &slave, 1, NULL);
+    wmr_ssize n = list ? P.list_size(list) : -1;
+    unsigned long top = 0;
+    for (wmr_ssize i = 0; i < n; ++i) {
+        unsigned long vr = P.ulong_as(P.list_get(list, i));
+        if (vr > top) top = vr;
+    }
+    if (n > 0) {
+        x->held = (unsigned char *)calloc(top + 1, 1);
+        x->pend_vr = (fmi2ValueReference *)calloc(top + 1, sizeof x->pend_vr[0]);
+        x->pend_val = (double *)calloc(top + 1, sizeof x->pend_val[0]);
+        x->pend_at = (size_t *)calloc(top + 1, sizeof x->pend_at[0]);
+        if (x->held && x->pend_vr && x->pend_val && x->pend_at) { /* else none held */
+            x->n_held = top + 1;
+            for (wmr_ssize i = 0; i < n; ++i) x->held[P.ulong_as(P.list_get(list, i))] = 1;
+        }
+    }
+    if (list) P.decref(list);
+    if (n < 0) P.err_clear();
+    return 1;
 }
 
 /* Take the slave constructed on this thread (slot_close), replacing the one held. */
@@ -311,6 +367,7 @@ static void slave_take(instance *x, PyObject *slave) {
         if (queue) {
             x->slave = slave;
             x->queue = queue;
+            held_map(x, slave);
         } else {
             P.err_clear();
             P.decref(slave);
@@ -319,7 +376,8 @@ static void slave_take(instance *x, PyObject *slave) {
     P.gil_release(g);
 }
 
-/* The value references as a Python list: `*key` while they are the same as last time (the GIL held). */
+/* The value references as a Python list: `*key` while they are the same as last time (the GIL held); a
+ * list that is not `*key` is the caller's to release. */
 static PyObject *vr_list(PyObject **key, fmi2ValueReference **kept, size_t *kept_n, const fmi2ValueReference vr[],
                          size_t n) {
     if (*key && *kept_n == n && (n == 0 || memcmp(*kept, vr, n * sizeof vr[0]) == 0)) return *key;
@@ -333,11 +391,24 @@ static PyObject *vr_list(PyObject **key, fmi2ValueReference **kept, size_t *kept
         }
     }
     fmi2ValueReference *copy = (fmi2ValueReference *)malloc(n ? n * sizeof vr[0] : 1);
-    if (copy == NULL) return list; /* used once: the caller releases what is not its key */
+    if (copy == NULL) return list;
     memcpy(copy, vr, n * sizeof vr[0]);
     if (*key) P.decref(*key);
     free(*kept);
     *key = list, *kept = copy, *kept_n = n;
+    return list;
+}
+
+/* A Python list of floats (the GIL held), or NULL. */
+static PyObject *float_list(const double v[], size_t n) {
+    PyObject *list = P.list_new((wmr_ssize)n);
+    for (size_t i = 0; list && i < n; ++i) {
+        PyObject *f = P.float_from(v[i]);
+        if (f == NULL || P.list_set(list, (wmr_ssize)i, f) != 0) {
+            P.decref(list);
+            list = NULL;
+        }
+    }
     return list;
 }
 
@@ -354,7 +425,11 @@ static fmi2Status fatal(instance *x, const char *what) {
     P.err_fetch(&type, &value, &tb);
     char text[4096];
     const char *r = NULL;
-    PyObject *rep = value ? P.repr(value) : NULL;
+    wmr_ssize queued = P.list_size(x->queue);
+    if (queued < 0) P.err_clear();
+    /* pythonfmu's binary empties the queue before it reads the exception, and loses it when there were
+     * messages to send ("unknown error"): the same words here */
+    PyObject *rep = value && queued == 0 ? P.repr(value) : NULL;
     if (rep) r = P.utf8(rep);
     if (r == NULL) P.err_clear();
     snprintf(text, sizeof text, "Fatal py exception encountered: %s\n%s", what, r ? r : "unknown error");
@@ -371,29 +446,20 @@ static fmi2Status fatal(instance *x, const char *what) {
     return fmi2Fatal;
 }
 
-/* fmi2SetReal on the direct path: the status, or -1 for pythonfmu's binary. */
-static int direct_set(instance *x, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]) {
-    int g = P.gil_ensure();
+/* slave._loader_set_real(vrs, values) (the GIL held): the status, or -1 for pythonfmu's binary. */
+static int set_now(instance *x, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]) {
     int s = -1;
     PyObject *vrs = vr_list(&x->set_key, &x->set_vr, &x->set_n, vr, n);
-    PyObject *vals = vrs ? P.list_new((wmr_ssize)n) : NULL;
-    for (size_t i = 0; vals && i < n; ++i) {
-        PyObject *f = P.float_from(v[i]);
-        if (f == NULL || P.list_set(vals, (wmr_ssize)i, f) != 0) {
-            P.decref(vals);
-            vals = NULL;
-        }
-    }
+    PyObject *vals = vrs ? float_list(v, n) : NULL;
     if (vals) {
         PyObject *args[3] = {x->slave, vrs, vals};
         PyObject *r = P.vcall_method(P.s_set, args, 3, NULL);
-        if (r == NULL) {
+        int done = r ? P.is_true(r) : -1;
+        if (r) P.decref(r);
+        if (done < 0) {
             s = fatal(x, "[setReal] PyObject_CallMethod");
         } else {
-            int done = P.is_true(r);
-            P.decref(r);
-            if (done < 0) s = fatal(x, "[setReal] PyObject_CallMethod");
-            else if (done) s = fmi2OK;
+            if (done) s = fmi2OK;
             flush_log(x);
         }
         P.decref(vals);
@@ -401,12 +467,59 @@ static int direct_set(instance *x, const fmi2ValueReference vr[], size_t n, cons
         P.err_clear();
     }
     if (vrs && vrs != x->set_key) P.decref(vrs);
+    return s;
+}
+
+/* No held set waits any more. */
+static void pend_clear(instance *x) {
+    for (size_t i = 0; i < x->pend_n; ++i) x->pend_at[x->pend_vr[i]] = 0;
+    x->pend_n = 0;
+}
+
+/* Before any call but a held set, a step and a cached get: the cache is stale, and the sets held are made
+ * (the slave's next call comes after them, as through pythonfmu).  fmi2OK, or fmi2Fatal. */
+static fmi2Status settle(instance *x) {
+    x->cached = 0;
+    if (x->pend_n == 0 || x->slave == NULL || x->w.fatal) return fmi2OK;
+    int g = P.gil_ensure();
+    int s = set_now(x, x->pend_vr, x->pend_n, x->pend_val);
+    pend_clear(x);
+    P.gil_release(g);
+    return s == fmi2Fatal ? fmi2Fatal : fmi2OK; /* (held sets are always taken: _loader_held) */
+}
+
+/* fmi2SetReal on the direct path: held when every value reference may wait, else made now (after the
+ * held ones).  The status, or -1 for pythonfmu's binary. */
+static int direct_set(instance *x, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]) {
+    size_t i = 0;
+    while (i < n && vr[i] < x->n_held && x->held[vr[i]]) ++i;
+    if (i == n) { /* each input once, its last value (set_real assigns each in turn: the same outcome) */
+        x->cached = 0;
+        for (i = 0; i < n; ++i) {
+            size_t at = x->pend_at[vr[i]];
+            if (at == 0) {
+                x->pend_vr[x->pend_n] = vr[i];
+                at = x->pend_at[vr[i]] = ++x->pend_n;
+            }
+            x->pend_val[at - 1] = v[i];
+        }
+        return fmi2OK;
+    }
+    if (settle(x) != fmi2OK) return fmi2Fatal;
+    int g = P.gil_ensure();
+    int s = set_now(x, vr, n, v);
     P.gil_release(g);
     return s;
 }
 
-/* fmi2GetReal on the direct path: the status, or -1 for pythonfmu's binary. */
+/* fmi2GetReal on the direct path: from the cache when these are the outputs the last step returned and
+ * nothing was called since, else slave._loader_get_real(vrs).  The status, or -1 for pythonfmu's binary. */
 static int direct_get(instance *x, const fmi2ValueReference vr[], size_t n, fmi2Real v[]) {
+    if (x->cached && n == x->get_n && (n == 0 || memcmp(vr, x->get_vr, n * sizeof vr[0]) == 0)) {
+        memcpy(v, x->cache, n * sizeof v[0]);
+        return fmi2OK;
+    }
+    if (settle(x) != fmi2OK) return fmi2Fatal;
     int g = P.gil_ensure();
     int s = -1;
     PyObject *vrs = vr_list(&x->get_key, &x->get_vr, &x->get_n, vr, n);
@@ -431,20 +544,47 @@ static int direct_get(instance *x, const fmi2ValueReference vr[], size_t n, fmi2
     return s;
 }
 
-/* fmi2DoStep on the direct path: pythonfmu's Step (do_step(t, h), its truth value) and fmi2DoStep's status. */
+/* fmi2DoStep on the direct path: slave._loader_step(t, h, held vrs, held values, get_key): the held sets,
+ * then pythonfmu's Step (do_step(t, h), its truth value), then, after a step that succeeded, the values
+ * of get_key into the cache. */
 static fmi2Status direct_step(instance *x, fmi2Real t, fmi2Real h) {
     int g = P.gil_ensure();
     fmi2Status s;
-    PyObject *ft = P.float_from(t), *fh = P.float_from(h), *r = NULL;
-    if (ft && fh) {
-        PyObject *args[3] = {x->slave, ft, fh};
-        r = P.vcall_method(P.s_step, args, 3, NULL);
+    PyObject *pv = NULL, *pf = NULL, *r = NULL;
+    if (x->pend_n) {
+        pv = vr_list(&x->set_key, &x->set_vr, &x->set_n, x->pend_vr, x->pend_n);
+        pf = pv ? float_list(x->pend_val, x->pend_n) : NULL;
     }
-    if (ft) P.decref(ft);
-    if (fh) P.decref(fh);
-    int ok = r ? P.is_true(r) : -1;
+    pend_clear(x);
+    x->cached = 0;
+    PyObject *ft = P.float_from(t), *fh = P.float_from(h);
+    if (ft && fh && (pf || !pv)) {
+        PyObject *args[6] = {x->slave, ft, fh, pv ? pv : P.none, pf ? pf : P.none,
+                             x->get_key && x->get_n ? x->get_key : P.none};
+        r = P.vcall_method(P.s_step, args, 6, NULL);
+    }
+    PyObject *garbage[] = {ft, fh, pf, pv != x->set_key ? pv : NULL};
+    for (size_t k = 0; k < sizeof garbage / sizeof garbage[0]; ++k)
+        if (garbage[k]) P.decref(garbage[k]);
+    int ok = -1;
+    if (r == P.true_ || r == P.false_) {
+        ok = r == P.true_;
+    } else if (r) {
+        wmr_ssize n = P.list_size(r);   /* the values of get_key: the step succeeded */
+        if (n >= 0 && (size_t)n == x->get_n && x->cache_cap < x->get_n) {
+            double *c = (double *)realloc(x->cache, x->get_n * sizeof c[0]);
+            if (c) x->cache = c, x->cache_cap = x->get_n;
+        }
+        if (n >= 0 && (size_t)n == x->get_n && x->cache_cap >= x->get_n) {
+            for (wmr_ssize i = 0; i < n; ++i) x->cache[i] = P.float_as(P.list_get(r, i));
+            x->cached = 1;
+        }
+        if (n < 0) P.err_clear();
+        ok = P.is_true(r);
+    }
     if (r) P.decref(r);
     if (ok < 0) {
+        x->cached = 0;
         s = fatal(x, "[doStep] PyObject_CallMethod");
     } else {
         flush_log(x);
@@ -452,6 +592,11 @@ static fmi2Status direct_step(instance *x, fmi2Real t, fmi2Real h) {
     }
     P.gil_release(g);
     return s;
+}
+#else
+static fmi2Status settle(instance *x) {
+    (void)x;
+    return fmi2OK;
 }
 #endif
 
@@ -498,14 +643,15 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
 
 /* Every other function is called only with a component fmi2Instantiate returned (our wrapper), so
  * pythonfmu's binary is loaded; the NULL checks guard hosts that call out of order.  An instance that
- * returned fmi2Fatal gets no further call (see wmr_pyfinder.h). */
+ * returned fmi2Fatal gets no further call (see wmr_pyfinder.h).  The held sets are made first (settle). */
 #define FORWARD(field, c, ...)                                               \
     do {                                                                     \
-        wmr_instance *w_ = (wmr_instance *)(c);                              \
-        if (w_ == NULL || F.field == NULL) return fmi2Error;                 \
-        if (w_->fatal) return fmi2Fatal;                                     \
-        fmi2Status s_ = F.field(w_->real, ##__VA_ARGS__);                    \
-        if (s_ == fmi2Fatal) w_->fatal = 1;                                  \
+        instance *x_ = (instance *)(c);                                      \
+        if (x_ == NULL || F.field == NULL) return fmi2Error;                 \
+        if (x_->w.fatal) return fmi2Fatal;                                   \
+        if (settle(x_) != fmi2OK) return fmi2Fatal;                          \
+        fmi2Status s_ = F.field(x_->w.real, ##__VA_ARGS__);                  \
+        if (s_ == fmi2Fatal) x_->w.fatal = 1;                                \
         return s_;                                                           \
     } while (0)
 
