@@ -132,6 +132,8 @@ class WmrSlave(SlaveCore, Fmi2Slave):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self._init_state()
+        self._held_slice: tuple[Any, int, int] = (None, -1, 0)   # (see _loader_step)
+        self._got: tuple[Any, Any] = (None, None)
         # our loader waits for the slave it is constructing on this thread (see _loader_set_real)
         slots = getattr(sys, "_wmr_pyloader_slaves", None)
         if slots is not None and slots.get(get_ident(), 0) is None:
@@ -329,16 +331,35 @@ class WmrSlave(SlaveCore, Fmi2Slave):
     def _loader_step(self, current_time: float, step_size: float, vrs: list[int] | None,
                      values: list[float] | None, get_vrs: list[int] | None) -> bool | list[float]:
         """fmi2DoStep from t = ``current_time`` over h = ``step_size`` [s]: first the sets the loader held
-        (``vrs``, ``values``: held inputs only, in the order they were set), then do_step; after a step
-        that succeeded, the values of ``get_vrs`` (what the loader's next fmi2GetReal will likely ask),
-        else do_step's result."""
+        (``vrs``, ``values``: Real inputs only, each once), then do_step; after a step that succeeded, the
+        values of ``get_vrs`` (what the loader's last fmi2GetReal asked for), else do_step's result.  The
+        loader passes the same list objects while the value references stay the same: what is derived from
+        them is kept by identity."""
         if vrs is not None:
-            self.set_real(vrs, values)  # type: ignore[arg-type]
+            if "set_real" in self.__dict__:   # (initialization mode)
+                self.set_real(vrs, values)  # type: ignore[arg-type]
+            else:   # what set_real does with inputs: assign them (settable in every mode, never watched)
+                held = self._held_slice
+                if held[0] is not vrs:
+                    first = vrs[0] if vrs else 0
+                    contiguous = vrs == list(range(first, first + len(vrs)))
+                    held = self._held_slice = (vrs, first if contiguous else -1, first + len(vrs))
+                v = self._vals
+                if held[1] >= 0:
+                    v[held[1]:held[2]] = values  # type: ignore[assignment]
+                else:
+                    for i, x in zip(vrs, values):  # type: ignore[arg-type]
+                        v[i] = x
         ok = self.do_step(current_time, step_size)
-        if ok and get_vrs is not None:
-            got = self._loader_get_real(get_vrs)
-            if got is not None:
-                return got
+        if ok and get_vrs is not None and "get_real" not in self.__dict__:
+            got = self._got
+            if got[0] is not get_vrs:
+                if not self._kind_vrs["Real"].issuperset(get_vrs):
+                    return ok
+                got = self._got = (get_vrs, itemgetter(*get_vrs) if len(get_vrs) > 1 else None)
+            if got[1] is None:
+                return [self._vals[get_vrs[0]]]
+            return list(got[1](self._vals))
         return ok
 
     def _loader_fatal(self, message: str) -> None:

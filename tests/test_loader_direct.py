@@ -104,7 +104,12 @@ def drive(f: Fmu, model: str) -> list[Any]:
         t = k * H
         if k % 7 == 3:
             call("get before set", fmu.getReal, outs)
-        call("set", fmu.setReal, ins, inputs(model, t))
+        if k % 6 == 5:   # the inputs in another order, or some of them only
+            call("set reversed", fmu.setReal, ins[::-1], inputs(model, t)[::-1])
+        elif k % 6 == 4:
+            call("set every other", fmu.setReal, ins[::2], inputs(model, t)[::2])
+        else:
+            call("set", fmu.setReal, ins, inputs(model, t))
         if k % 5 == 1:
             call("set again", fmu.setReal, ins[:1] + ins[:1], [1.5, -0.5])
         if k % 11 == 2:
