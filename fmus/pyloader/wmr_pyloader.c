@@ -169,7 +169,6 @@ static struct {
     int (*list_set)(PyObject *, wmr_ssize, PyObject *);
     PyObject *(*list_get)(PyObject *, wmr_ssize);
     wmr_ssize (*list_size)(PyObject *);
-    int (*list_append)(PyObject *, PyObject *);
     PyObject *(*float_from)(double);
     double (*float_as)(PyObject *);
     PyObject *(*intern)(const char *);
@@ -209,7 +208,6 @@ static int py_resolve(void) {
     PY_SYM(list_set, "PyList_SetItem");
     PY_SYM(list_get, "PyList_GetItem");
     PY_SYM(list_size, "PyList_Size");
-    PY_SYM(list_append, "PyList_Append");
     PY_SYM(float_from, "PyFloat_FromDouble");
     PY_SYM(float_as, "PyFloat_AsDouble");
     PY_SYM(intern, "PyUnicode_InternFromString");
