@@ -38,12 +38,14 @@ Design (each point answers a measured behaviour of pythonfmu 0.7 under FMPy):
 from __future__ import annotations
 
 import sys
+from _thread import get_ident
 from operator import itemgetter
 from typing import Any, NoReturn
 from xml.etree.ElementTree import Element, SubElement
 
 from pythonfmu import Boolean, DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
+from pythonfmu.logmsg import LogMsg
 from pythonfmu.variables import ScalarVariable
 
 from .fmi_decl import (SlaveCore, DBL_MAX, DBL_MIN, FINITE, INT_MAX, NON_NEGATIVE, POSITIVE, SIGN, STEP_RTOL, UNITS,  # noqa: F401
@@ -130,6 +132,12 @@ class WmrSlave(SlaveCore, Fmi2Slave):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self._init_state()
+        self._held_slice: tuple[Any, int, int] = (None, -1, 0)   # (see _loader_step)
+        self._got: tuple[Any, Any] = (None, None)
+        # our loader waits for the slave it is constructing on this thread (see _loader_set_real)
+        slots = getattr(sys, "_wmr_pyloader_slaves", None)
+        if slots is not None and slots.get(get_ident(), 0) is None:
+            slots[get_ident()] = self
 
     def declare(self, variables: list[Var]) -> None:
         """Register the variables (value reference = position) and prepare the fast paths."""
@@ -295,6 +303,69 @@ class WmrSlave(SlaveCore, Fmi2Slave):
         msg = f"{self.modelName} instance {self.instance_name}: set{kind} refused for {', '.join(bad)}"
         self.log(msg, Fmi2Status.fatal)
         raise ValueError(msg)
+
+    # ------------------------------------------------------------------ our loader's direct path
+    # fmus/pyloader/wmr_pyloader.c calls these three, and do_step, without pythonfmu's binary (its header
+    # says why and how); each either does what the call through pythonfmu does, or changes nothing and
+    # leaves the call to pythonfmu's binary (refusals, initialization mode: pythonfmu's messages and status).
+    def _loader_set_real(self, vrs: list[int], values: list[float]) -> bool:
+        """fmi2SetReal: True once set_real has set the values [their variables' units]; False (nothing set)
+        where set_real would refuse them."""
+        if vrs == self._in_list or self._settable["Real"].issuperset(vrs):
+            self.set_real(vrs, values)
+            return True
+        return False
+
+    def _loader_get_real(self, vrs: list[int]) -> list[float] | None:
+        """fmi2GetReal: get_real's values [their variables' units]; None in initialization mode (where a read
+        may build the component) or where get_real would refuse them."""
+        if "get_real" not in self.__dict__ and (vrs == self._get_key or self._kind_vrs["Real"].issuperset(vrs)):
+            return self.get_real(vrs)
+        return None
+
+    def _loader_held(self) -> list[int]:
+        """The value references whose fmi2SetReal the loader may hold until this slave's next call: the Real
+        inputs, which set_real takes in every mode, without a message."""
+        return [v.vr for v in self._inputs if v.kind == "Real"]
+
+    def _loader_step(self, current_time: float, step_size: float, vrs: list[int] | None,
+                     values: list[float] | None, get_vrs: list[int] | None) -> bool | list[float]:
+        """fmi2DoStep from t = ``current_time`` over h = ``step_size`` [s]: first the sets the loader held
+        (``vrs``, ``values``: Real inputs only, each once), then do_step; after a step that succeeded, the
+        values of ``get_vrs`` (what the loader's last fmi2GetReal asked for), else do_step's result.  The
+        loader passes the same list objects while the value references stay the same: what is derived from
+        them is kept by identity."""
+        if vrs is not None:
+            if "set_real" in self.__dict__:   # (initialization mode)
+                self.set_real(vrs, values)  # type: ignore[arg-type]
+            else:   # what set_real does with inputs: assign them (settable in every mode, never watched)
+                held = self._held_slice
+                if held[0] is not vrs:
+                    first = vrs[0] if vrs else 0
+                    contiguous = vrs == list(range(first, first + len(vrs)))
+                    held = self._held_slice = (vrs, first if contiguous else -1, first + len(vrs))
+                v = self._vals
+                if held[1] >= 0:
+                    v[held[1]:held[2]] = values  # type: ignore[assignment]
+                else:
+                    for i, x in zip(vrs, values):  # type: ignore[arg-type]
+                        v[i] = x
+        ok = self.do_step(current_time, step_size)
+        if ok and get_vrs is not None and "get_real" not in self.__dict__:
+            got = self._got
+            if got[0] is not get_vrs:
+                if not self._kind_vrs["Real"].issuperset(get_vrs):
+                    return ok
+                got = self._got = (get_vrs, itemgetter(*get_vrs) if len(get_vrs) > 1 else None)
+            if got[1] is None:
+                return [self._vals[get_vrs[0]]]
+            return list(got[1](self._vals))
+        return ok
+
+    def _loader_fatal(self, message: str) -> None:
+        """Queue pythonfmu's own line for an exception out of a call (Fatal, no category), after the
+        messages queued before it."""
+        self.log_queue.append(LogMsg(Fmi2Status.fatal, None, message))
 
     # ------------------------------------------------------------------ life cycle
     def setup_experiment(self, start_time: float = 0.0, stop_time: float | None = None,

@@ -738,7 +738,7 @@ typedef struct {
     int event_mode;
 } wmr_instance;
 
-static wmr_instance *wmr_wrap(void *real) {
+static inline wmr_instance *wmr_wrap(void *real) { /* (the FMI 2.0 loader wraps in a larger struct of its own) */
     if (real == NULL) return NULL;
     wmr_instance *w = (wmr_instance *)calloc(1, sizeof *w);
     if (w) w->real = real;
