@@ -53,6 +53,13 @@ def test_clocked_int32_and_array_outputs_are_read_at_the_ticks(built_fmus, fmus3
         assert np.array_equal(two[c], three[c]), c
     for k in (0, 1, len(three) - 1):   # (the weights move from 3.7 s on)
         assert [three[f"controller.W[{i}]"][k] for i in (1, 2, 3)] == [0.02, 0.04, 0.06]
+    # the controller's columns that stay constant over these 0.1 s in the FMI 2.0 run (its P, t_goal ...):
+    # the same values, each in its own column (an array read at the tick with the wrong count shifts them)
+    steady = [c for c in two.dtype.names if c.startswith("controller.") and c[11] != "W" and (two[c] == two[c][0]).all()]
+    assert len(steady) >= 8, steady
+    for c in steady:
+        name3 = re.sub(r"^controller\.P(\d)(\d)$", r"controller.P[\1,\2]", c)
+        assert (three[name3] == two[c][0]).all(), c
 
 
 def test_a_clocked_int32_output_between_ticks_is_refused_in_one_line(fmus3, tmp_path):
