@@ -41,13 +41,35 @@ from typing import TYPE_CHECKING, Any
 from ..messages.errors import RunError
 from ..model.clocks import Clock, clocks_of, grid_multiple
 from .contract import FastPath
-from .in_process import Instance3, raw
+from .in_process import ACCESS, Instance3, raw
 from .model_exchange import ModelExchange3
 
 #: Why the step of an instance with clocks runs alone (:attr:`FastPath.alone`).
 CLOCKED_ALONE = "an instance with clocks: its events run in Python, in the plan's order"
 #: Updates of the discrete states at one event after which the event iteration is taken not to end.
 MAX_UPDATES = 1000
+#: The name of each FMI 3.0 type in its get and set functions (fmi3GetInt32 ...).
+_TNAME = {t: name for t, (_, name) in ACCESS[3].items()}
+
+
+def _size(v: Any) -> int:
+    """The number of values of a variable (FMPy's): 1 for a scalar, the product of an array's dimensions."""
+    n = 1
+    for d in v.dimensions or ():
+        n *= int(d.start) if d.start is not None else 1
+    return n
+
+
+def _start(v: Any, size: int) -> list[Any]:
+    """A variable's start values (FMPy's start text: its values separated by blanks), as Python values of
+    its type; without a start, zeros (false)."""
+    words = str(v.start).split() if v.start is not None else []
+    conv: Any = float if v.type in ("Float64", "Float32") else (
+        (lambda w: w.lower() in ("true", "1")) if v.type == "Boolean" else int)
+    if v.type == "String":
+        return [w.encode() for w in words[:1]] or [b""]
+    vals = [conv(w) for w in words] or [conv("0")] * size
+    return (vals * size)[:size] if len(vals) != size else vals
 
 
 class ClockEvents:
@@ -82,16 +104,20 @@ class ClockEvents:
         with open(os.path.join(unzipdir, "modelDescription.xml"), "rb") as fh:
             self.clocks: list[Clock] = clocks_of(fh.read())
         by_var = {v: c for c in self.clocks for v in c.clocked}
-        reals = {v.name: v for v in md.modelVariables if v.type == "Float64"}
-        #: the clocked Float64 variables: value reference -> the clock's name
-        self.clocked_vr: dict[int, str] = {int(reals[n].valueReference): c.name for n, c in by_var.items()
-                                           if n in reals}
-        #: the value at the last tick of each clocked variable [vr -> value]; before the first, its start
-        self.held: dict[int, float] = {int(v.valueReference): float(v.start) if v.start is not None else 0.0
-                                       for v in reals.values() if int(v.valueReference) in self.clocked_vr}
-        self._outputs = {int(v.valueReference) for v in reals.values()
-                         if int(v.valueReference) in self.clocked_vr and v.causality == "output"}
-        self.in_held: dict[int, float] = {}                # the clocked inputs' values, set at their next tick
+        clocked = [v for v in md.modelVariables if v.name in by_var and v.type != "Clock"]
+        #: the number of values of each variable [vr -> count] (an array's elements, row-major)
+        self.sizes: dict[int, int] = {int(v.valueReference): _size(v) for v in md.modelVariables}
+        #: the clocked variables, of every type: value reference -> the clock's name
+        self.clocked_vr: dict[int, str] = {int(v.valueReference): by_var[v.name].name for v in clocked}
+        #: the values at the last tick of each clocked variable [vr -> its values]; before the first, its start
+        self.held: dict[int, list[Any]] = {int(v.valueReference): _start(v, self.sizes[int(v.valueReference)])
+                                           for v in clocked}
+        #: the clocked outputs by FMI type (read at their clock's ticks): type -> value references
+        self._outputs: dict[str, list[int]] = {}
+        for v in clocked:
+            if v.causality == "output":
+                self._outputs.setdefault(v.type, []).append(int(v.valueReference))
+        self.in_held: dict[int, list[float]] = {}          # the clocked Float64 inputs' values, set at their next tick
         self.raised: list[tuple[float, str]] = []          # (time [s], output clock) the FMU raised
         self.ticked: list[tuple[float, str]] = []          # (time [s], input clock) the master ticked
         self.raised_at: dict[str, tuple[int, int]] = {}    # output clock -> (grid index, count) of its last rise
@@ -163,12 +189,12 @@ class ClockEvents:
             names = {k.name for k in due}
             ins = [(vr, v) for vr, v in self.in_held.items() if self.clocked_vr[vr] in names]
             if ins:
-                n_in = ctypes.c_size_t(len(ins))
+                flat = [x for _, v in ins for x in v]
                 self._ok(raw(self.fmu.dll, "fmi3SetFloat64")(c, (ctypes.c_uint32 * len(ins))(*[vr for vr, _ in ins]),
-                                                             n_in, (ctypes.c_double * len(ins))(*[v for _, v in ins]),
-                                                             n_in), "fmi3SetFloat64 (clocked inputs)", t)
+                                                             ctypes.c_size_t(len(ins)), (ctypes.c_double * len(flat))(*flat),
+                                                             ctypes.c_size_t(len(flat))), "fmi3SetFloat64 (clocked inputs)", t)
                 for vr, v in ins:
-                    self.held[vr] = v
+                    self.held[vr] = list(v)
         self._read_outputs(n, t, {k.name for k in due})
 
     def _read_outputs(self, n: int | None, t: float, active: set[str]) -> None:
@@ -194,18 +220,55 @@ class ClockEvents:
                     raise RunError(why, self.name, t)
             else:
                 self.raised_at[k.name] = (n, self.raised_at.get(k.name, (0, 0))[1] + 1)
-        outs = [vr for vr in self._outputs if self.clocked_vr[vr] in active]
-        if outs:
-            vals, n_out = (ctypes.c_double * len(outs))(), ctypes.c_size_t(len(outs))
-            self._ok(raw(self.fmu.dll, "fmi3GetFloat64")(c, (ctypes.c_uint32 * len(outs))(*outs), n_out, vals, n_out),
-                     "fmi3GetFloat64 (clocked outputs)", t)
-            for vr, v in zip(outs, vals):
-                self.held[vr] = float(v)
+        for fmi_type, vrs in self._outputs.items():
+            outs = [vr for vr in vrs if self.clocked_vr[vr] in active]
+            if not outs:
+                continue
+            get, ctype = self._get_of(fmi_type)
+            nv = sum(self.sizes[vr] for vr in outs)
+            vals = (ctype * nv)()
+            self._ok(get((ctypes.c_uint32 * len(outs))(*outs), ctypes.c_size_t(len(outs)), vals, ctypes.c_size_t(nv)),
+                     f"fmi3Get{_TNAME.get(fmi_type, fmi_type)} (clocked outputs)", t)
+            i = 0
+            for vr in outs:
+                size = self.sizes[vr]
+                self.held[vr] = list(vals[i:i + size])
+                i += size
         self._outputs_read = True
 
     def _ok(self, status: int, what: str, t: float) -> None:
         if status > 1:
             raise self.fail_status(what, status, t)
+
+    def _get_of(self, fmi_type: str) -> tuple[Any, Any]:
+        """The FMU's own get of ``fmi_type`` (:meth:`accessor` without the held values)."""
+        return super().accessor(fmi_type, "Get")   # type: ignore[misc]
+
+    def accessor(self, fmi_type: str, op: str) -> tuple[Any, Any]:
+        """The FMU's get or set of ``fmi_type``; its get gives each clocked variable the values of its last
+        tick (held by the master: the FMU defines them at its clock's ticks only), asking the FMU for the
+        others."""
+        fn, ctype = super().accessor(fmi_type, op)   # type: ignore[misc]
+        if op != "Get" or not any(vr in self.clocked_vr for vr in self._outputs.get(fmi_type, ())):
+            return fn, ctype
+        held, sizes = self.held, self.sizes
+
+        def call(vrs: Any, n: Any, buf: Any, nv: Any) -> int:
+            status, i = 0, 0
+            for j in range(int(getattr(n, "value", n))):
+                vr = int(vrs[j])
+                size = sizes.get(vr, 1)
+                vals = held.get(vr)
+                if vals is None:
+                    one = (ctype * size)()
+                    status = max(status, int(fn((ctypes.c_uint32 * 1)(vr), ctypes.c_size_t(1), one,
+                                                ctypes.c_size_t(size))))
+                    vals = list(one)
+                for e in range(size):
+                    buf[i + e] = vals[e]
+                i += size
+            return status
+        return call, ctype
 
     def _clocked_path(self, inner: FastPath, in_vrs: list[int], n_in: int, out_vrs: list[int], n_out: int,
                       in_val: Any, plain_in: list[int], plain_out: list[int]) -> FastPath:
@@ -214,21 +277,25 @@ class ClockEvents:
         the step handles the events due at its start, then steps; the get gives each clocked output its
         value at its last tick."""
         in_val = in_val if in_val is not None else (ctypes.c_double * max(1, n_in))()
-        clocked_in = [(i, vr) for i, vr in enumerate(in_vrs) if vr in self.clocked_vr]
-        clocked_out = [(i, vr) for i, vr in enumerate(out_vrs) if vr in self.clocked_vr]
+        sizes = self.sizes
+        in_off, out_off = self._offsets(in_vrs), self._offsets(out_vrs)
+        clocked_in = [(in_off[i], vr, sizes.get(vr, 1)) for i, vr in enumerate(in_vrs) if vr in self.clocked_vr]
+        clocked_out = [(out_off[i], vr, sizes.get(vr, 1)) for i, vr in enumerate(out_vrs) if vr in self.clocked_vr]
+        p_in_pos = [in_off[i] + e for i in plain_in for e in range(sizes.get(in_vrs[i], 1))]
+        p_out_pos = [out_off[i] + e for i in plain_out for e in range(sizes.get(out_vrs[i], 1))]
         i_set, i_step, i_get, p_in = inner.set_real, inner.do_step, inner.get_real, inner.in_val
         p_in_vr = (ctypes.c_uint32 * max(1, len(plain_in)))(*[in_vrs[i] for i in plain_in])
         p_out_vr = (ctypes.c_uint32 * max(1, len(plain_out)))(*[out_vrs[i] for i in plain_out])
-        p_out = (ctypes.c_double * max(1, len(plain_out)))()
+        p_out = (ctypes.c_double * max(1, len(p_out_pos)))()
         n_pin, n_pout = ctypes.c_size_t(len(plain_in)), ctypes.c_size_t(len(plain_out))
         held, in_held = self.held, self.in_held
 
         def set_real(c: Any, vrs: Any, n: Any, vals: Any, *tail: Any) -> int:
-            for i, vr in clocked_in:
-                in_held[vr] = vals[i]
+            for i, vr, size in clocked_in:
+                in_held[vr] = vals[i:i + size]
             if not plain_in:
                 return 0
-            for j, i in enumerate(plain_in):
+            for j, i in enumerate(p_in_pos):
                 p_in[j] = vals[i]
             return int(i_set(c, p_in_vr, n_pin, p_in, *inner.set_tail))
 
@@ -236,10 +303,12 @@ class ClockEvents:
             s = 0
             if plain_out:
                 s = int(i_get(c, p_out_vr, n_pout, p_out, *inner.get_tail))
-                for j, i in enumerate(plain_out):
+                for j, i in enumerate(p_out_pos):
                     out[i] = p_out[j]
-            for i, vr in clocked_out:
-                out[i] = held[vr]
+            for i, vr, size in clocked_out:
+                vals = held[vr]
+                for e in range(size):
+                    out[i + e] = vals[e]
             return s
 
         def do_step(c: Any, t: Any, h: Any, *tail: Any) -> int:
@@ -264,6 +333,19 @@ class ClockEvents:
 
     def _stepped(self, status: int) -> None:
         """After the step (its FMI status)."""
+
+    def _offsets(self, vrs: list[int]) -> list[int]:
+        """The position of each variable's first value among the values of ``vrs`` (arrays take several)."""
+        out, i = [], 0
+        for vr in vrs:
+            out.append(i)
+            i += self.sizes.get(vr, 1)
+        return out
+
+    def _plain(self, vrs: list[int], plain: list[int]) -> tuple[list[int], int]:
+        """The value references at the positions ``plain`` and how many values they have."""
+        sel = [vrs[i] for i in plain]
+        return sel, sum(self.sizes.get(vr, 1) for vr in sel)
 
     def _split(self, in_vrs: list[int], out_vrs: list[int]) -> tuple[list[int], list[int]]:
         """The positions of the inputs and outputs that are not clocked."""
@@ -322,8 +404,7 @@ class Clocked3(ClockEvents, Instance3):
         """fmi3DoStep after the events due at the start of the step; eventHandlingNeeded is kept for the
         next (see :meth:`ClockEvents._clocked_path`)."""
         plain_in, plain_out = self._split(in_vrs, out_vrs)
-        inner = super().fast_path([in_vrs[i] for i in plain_in], len(plain_in), [out_vrs[i] for i in plain_out],
-                                  len(plain_out))
+        inner = super().fast_path(*self._plain(in_vrs, plain_in), *self._plain(out_vrs, plain_out))
         self._needed_flag = inner.step_tail[1]._obj   # fmi3DoStep's eventHandlingNeeded
         return self._handed(self._clocked_path(inner, in_vrs, n_in, out_vrs, n_out, in_val, plain_in, plain_out))
 
@@ -372,6 +453,5 @@ class ClockedME3(ClockEvents, ModelExchange3):
         """The Model Exchange fast path (the integration) after the events due at the start of the step (see
         :meth:`ClockEvents._clocked_path`)."""
         plain_in, plain_out = self._split(in_vrs, out_vrs)
-        inner = super().fast_path([in_vrs[i] for i in plain_in], len(plain_in), [out_vrs[i] for i in plain_out],
-                                  len(plain_out))
+        inner = super().fast_path(*self._plain(in_vrs, plain_in), *self._plain(out_vrs, plain_out))
         return self._clocked_path(inner, in_vrs, n_in, out_vrs, n_out, in_val, plain_in, plain_out)

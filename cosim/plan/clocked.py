@@ -206,10 +206,24 @@ def check_clocked_reads(sc: Scenario, insts: dict[str, InstancePlan], record: li
         if clocked(col.instance, col.var) and not col.var.is_float64:
             raise ScenarioError(sc.file, "inputs", f"{col.column}: a clocked {col.var.fmi_type} input takes no table "
                                                    "yet (Float64 ones do)")
-    reads = [("record", r.instance, r.var) for r in record]
-    reads += [(f"requirements[{q.index}]", i, v) for q in requirements for i, v in q.reads.values()]
-    for fld, inst, var in reads:
-        if clocked(inst, var) and not var.is_float64:
+    reads = [("record", r.instance, r.var, sc.decimation) for r in record]
+    reads += [(f"requirements[{q.index}]", i, v, 1) for q in requirements for i, v in q.reads.values()]
+    for fld, inst, var, every in reads:
+        clock = clocked(inst, var)
+        if clock and not var.is_float64 and not ticks_at_every(sc, insts[inst], clock, every):
             raise ScenarioError(sc.file, fld, f"{inst}.{var.name}: a clocked {var.fmi_type} output is defined at its "
-                                              "clock's ticks only and cannot be read between them yet (Float64 ones "
-                                              "keep the value of their last tick)")
+                                              f"clock's ticks only and cannot be read between them yet: {clock} does "
+                                              f"not tick at every {'recorded ' if fld == 'record' else ''}communication "
+                                              "point (Float64 ones keep the value of their last tick)")
+
+
+def ticks_at_every(sc: Scenario, ip: InstancePlan, clock: str, every: int) -> bool:
+    """Whether the periodic input clock ``clock`` of an instance ticks at every ``every``-th communication
+    point from the start time and at the stop time: what a clocked output of a type other than Float64 needs
+    to be read there (the master reads it at its ticks and holds it to the next communication point)."""
+    c = next(k for k in ip.model.clocks if k.name == clock)
+    if not (c.periodic and c.causality == "input" and c.interval is not None and Fraction(c.shift or "0") == 0):
+        return False
+    start, stop, step = sc.times()
+    k, n = grid_multiple(c.interval, step), grid_multiple(Fraction(repr(stop)) - Fraction(repr(start)), step)
+    return k is not None and k > 0 and every % k == 0 and n is not None and n % k == 0

@@ -171,8 +171,9 @@ def _ssv_value(var, value) -> tuple[str, dict[str, str]]:
 def export_ssp(plan: Plan, out: str | os.PathLike, name: str | None = None) -> Path:
     """Write the resolved ``plan`` as an SSP 1.0 archive ``out``; returns its path.
 
-    Refuses (ScenarioError) what SSP 1.0 cannot express: timed events, and Integer/Boolean connections
-    with a linear transform (already refused by the master).
+    Refuses (ScenarioError) what SSP 1.0 cannot express: timed events, Integer/Boolean connections
+    with a linear transform (already refused by the master), scheduled execution, and clocks other than
+    periodic input clocks (those tick from the FMU's own declaration).
     """
     sc = plan.scenario
     out = Path(out)
@@ -184,7 +185,8 @@ def export_ssp(plan: Plan, out: str | os.PathLike, name: str | None = None) -> P
             raise ScenarioError(sc.file, f"instances.{n}", f"{ip.model.path.name} runs as scheduled execution, which "
                                                            "cannot be exported to SSP yet (its clock_ticks have no "
                                                            "place in SSP 1.0)")
-        if ip.model.clocks:
+        if any(not (c.periodic and c.causality == "input") for c in ip.model.clocks):
+            # (periodic input clocks alone need nothing of the system: the FMU's own declaration ticks them)
             raise ScenarioError(sc.file, f"instances.{n}", f"{ip.model.path.name} has clocks, which cannot be exported "
                                                            "to SSP yet (SSP 1.0 has no connections between clocks)")
     name = name or Path(sc.file).stem or "system"

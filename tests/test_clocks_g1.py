@@ -1,0 +1,76 @@
+"""G1 through our clocked FMI 3.0 sensor and controller (a periodic input clock ``sample`` of 2 ms, run with
+event mode): their clocked outputs of every type and shape (Int32 counts, the controller's W Float64[3]) are
+read at the ticks and held by the master; a clocked output that is not Float64 is read only where its clock
+ticks at every recorded communication point, else refused at check in one line."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosim_support import G1, toml_value, write_scenario
+from wmr_cosim import cosim
+from wmr_cosim.cosim.messages.errors import ScenarioError
+
+
+@pytest.fixture(scope="session")
+def fmus3(tmp_path_factory):
+    from wmr_cosim.fmus.build import SLAVES3, build_all
+
+    from conftest import fmu_cache
+
+    return build_all(fmu_cache(tmp_path_factory, "fmus3"), models=tuple(SLAVES3))
+
+
+def _scenario(tmp: Path, models: dict[str, Path], name: str, extra: str = "") -> Path:
+    text = f"base = {toml_value(str(G1))}\n[experiment]\nstop = 0.1\n{extra}"
+    text += "".join(f"[instances.{inst}]\nfmu = {toml_value(str(models[inst]))}\n"
+                    for inst in ("plant", "sensor", "controller"))
+    return write_scenario(tmp / f"{name}.toml", text)
+
+
+def _run(path: Path, out: Path) -> np.ndarray:
+    res = cosim.run(cosim.resolve(cosim.load(path)), out, progress=False)
+    assert res.status == "ok", res.message
+    return np.load(out / "signals.npy")
+
+
+def test_clocked_int32_and_array_outputs_are_read_at_the_ticks(built_fmus, fmus3, tmp_path):
+    """At the 2 ms step (a tick at every communication point) the clocked sensor's outputs, its Int32
+    counts included, equal the FMI 2.0 sensor's bit for bit; the controller's clocked W Float64[3] is read
+    as its three elements."""
+    two = _run(_scenario(tmp_path, {"plant": built_fmus["WmrPlant"], "sensor": built_fmus["WmrSensor"],
+                                    "controller": built_fmus["WmrController"]}, "two"), tmp_path / "two")
+    three = _run(_scenario(tmp_path, {"plant": fmus3["WmrPlant3"], "sensor": fmus3["WmrSensor3"],
+                                      "controller": fmus3["WmrController3"]}, "three",
+                                     "[instances.controller.parameters]\nW_init = [0.02, 0.04, 0.06]\n"), tmp_path / "three")
+    sensor = [c for c in two.dtype.names if c.startswith("sensor.")]
+    assert "sensor.count1" in sensor and "sensor.count2" in sensor
+    assert three["sensor.count1"].dtype.kind == "i"
+    for c in sensor:
+        assert np.array_equal(two[c], three[c]), c
+    for k in (0, 1, len(three) - 1):   # (the weights move from 3.7 s on)
+        assert [three[f"controller.W[{i}]"][k] for i in (1, 2, 3)] == [0.02, 0.04, 0.06]
+    # the controller's columns that stay constant over these 0.1 s in the FMI 2.0 run (its P, t_goal ...):
+    # the same values, each in its own column (an array read at the tick with the wrong count shifts them)
+    steady = [c for c in two.dtype.names if c.startswith("controller.") and c[11] != "W" and (two[c] == two[c][0]).all()]
+    assert len(steady) >= 8, steady
+    for c in steady:
+        name3 = re.sub(r"^controller\.P(\d)(\d)$", r"controller.P[\1,\2]", c)
+        assert (three[name3] == two[c][0]).all(), c
+
+
+def test_a_clocked_int32_output_between_ticks_is_refused_in_one_line(fmus3, tmp_path):
+    """At 0.5 ms steps the 2 ms clock ticks at every 4th point: recording sensor.count1 at every point is
+    refused; with decimation 4 every recorded point is a tick and it is accepted."""
+    models = {"plant": fmus3["WmrPlant3"], "sensor": fmus3["WmrSensor3"], "controller": fmus3["WmrController3"]}
+    path = _scenario(tmp_path, models, "fast", "step = 0.0005\n")
+    with pytest.raises(ScenarioError) as exc:
+        cosim.resolve(cosim.load(path))
+    msg = str(exc.value)
+    assert "\n" not in msg and re.search(r"sensor\.count\d: a clocked Int32 output .* sample does not tick at "
+                                         r"every recorded communication point", msg), msg
+    path = _scenario(tmp_path, models, "dec", "step = 0.0005\n[record]\ndecimation = 4\n")
+    cosim.resolve(cosim.load(path))
