@@ -42,6 +42,7 @@ enum { LOST_DIED = 1001, LOST_HUNG = 1002 };
 /* a step after which an FMI 3.0 FMU ended the simulation (isolation.py SLOT_TERMINATED) */
 enum { SLOT_TERMINATED = 100 };
 #define SPIN_S 0.25e-6   /* [s] a poll of a spinning wait (200 polls: 50 us) */
+#define MAX_BACKOFF 256   /* waits that block at once after spins that ran out, at most */
 
 typedef struct {         /* the slot's header (isolation.py _HEAD), as the Python child reads it too */
     int64_t status; double t, h; int64_t spin;
@@ -57,6 +58,12 @@ typedef struct {         /* the slot's own words, after its values; the master's
     char pad2[52];
 } Words;
 
+typedef struct {         /* a side's spins that ran out: the next `skip` waits block at once (doubled each
+                            time, up to MAX_BACKOFF, until a spin is answered): where the other side has
+                            no core of its own, polling for it only keeps it from running */
+    int skip, backoff;
+} Backoff;
+
 typedef struct {         /* the master's side of one child */
     Head *head; Words *w; double *out; size_t out_bytes;
     int step_w, done_r;
@@ -69,6 +76,7 @@ typedef struct {         /* the master's side of one child */
     uint64_t seq;        /* requests made */
     tick_t tick;         /* the hand-off's measure, called before a step's request when left is 0 */
     long left, skipped, ran_out;
+    Backoff backoff;
 } Parent;
 
 typedef struct {         /* the child's side: the FMU's functions on the slot */
@@ -81,6 +89,7 @@ typedef struct {         /* the child's side: the FMU's functions on the slot */
     pre_t pre;           /* before the next step's DoStep, after its inputs, once (the inputs' derivatives) */
     uint64_t last;       /* the last request answered */
     _Bool flags[3]; double last_success;   /* fmi3DoStep's outputs */
+    Backoff backoff;
 } Served;
 
 static double now_s(void) {
@@ -115,6 +124,26 @@ static int spin_wait(_Atomic uint64_t *word, uint64_t old, int64_t spin) {
         if ((i & 63) == 63 && now_s() > end) return 0;
         relax();
     }
+}
+
+/* the polls of the next wait: none while the spins back off */
+static int64_t spin_budget(Backoff *b, int64_t spin) {
+    if (!spin) return 0;
+    if (b->skip > 0) {
+        b->skip--;
+        return 0;
+    }
+    return spin;
+}
+
+/* a wait's spin was answered (ok) or ran out */
+static void spin_result(Backoff *b, int ok) {
+    if (ok) {
+        b->backoff = 0;
+        return;
+    }
+    b->backoff = b->backoff ? (2 * b->backoff < MAX_BACKOFF ? 2 * b->backoff : MAX_BACKOFF) : 1;
+    b->skip = b->backoff;
 }
 
 /* read what is on a non-blocking pipe: 0 at its end (the other side gone), else 1 */
@@ -210,8 +239,13 @@ int wmr_slot_serve(Served *s) {
     atomic_store(&w->child_asleep, 0);
     for (;;) {
         uint64_t r = atomic_load(&w->req);
+        int64_t polls;
         if (r != s->last) { answer(s, r); continue; }
-        if (spin_wait(&w->req, s->last, s->head->spin)) continue;
+        if ((polls = spin_budget(&s->backoff, s->head->spin))) {
+            int ok = spin_wait(&w->req, s->last, polls);
+            spin_result(&s->backoff, ok);
+            if (ok) continue;
+        }
         switch (block_wait(&w->req, s->last, &w->child_asleep, s->s_r, s->ctl_r, -1.0)) {
         case 0: continue;
         case 3: return 1;
@@ -237,11 +271,15 @@ static int request(Parent *p, int kind) {
 /* the answer to the last request: its status (or LOST_*); spin 0: block at once */
 static int await_answer(Parent *p, int spin) {
     Words *w = p->w;
-    int64_t polls = spin ? p->head->spin : 0;
+    int64_t polls = spin ? spin_budget(&p->backoff, p->head->spin) : 0;
     int r;
     if (p->lost) return p->lost;
-    if (spin_wait(&w->done, p->seq - 1, polls)) return (int)p->head->status;
-    if (polls) p->ran_out++;
+    if (polls) {
+        int ok = spin_wait(&w->done, p->seq - 1, polls);
+        spin_result(&p->backoff, ok);
+        if (ok) return (int)p->head->status;
+        p->ran_out++;
+    }
     r = block_wait(&w->done, p->seq - 1, &w->master_asleep, p->done_r, -1, p->timeout);
     if (r == 1) return p->lost = LOST_DIED;
     if (r == 2) return p->lost = LOST_HUNG;

@@ -41,7 +41,7 @@ class Parent(ctypes.Structure):
                 ("done_r", ctypes.c_int), ("timeout", ctypes.c_double), ("stepping", ctypes.c_int),
                 ("fresh", ctypes.c_int), ("terminated", _P), ("last_time", _P), ("t", ctypes.c_double),
                 ("lost", ctypes.c_int), ("seq", ctypes.c_uint64), ("tick", _P), ("left", ctypes.c_long),
-                ("skipped", ctypes.c_long), ("ran_out", ctypes.c_long)]
+                ("skipped", ctypes.c_long), ("ran_out", ctypes.c_long), ("backoff", ctypes.c_int * 2)]
 
 
 class Served(ctypes.Structure):
@@ -50,7 +50,8 @@ class Served(ctypes.Structure):
                 ("ctl_r", ctypes.c_int), ("abi", ctypes.c_int), ("c", _P), ("set", _P), ("step", _P), ("get", _P),
                 ("in_vr", _P), ("n_in", ctypes.c_size_t), ("n_in_values", ctypes.c_size_t), ("out_vr", _P),
                 ("n_out", ctypes.c_size_t), ("n_out_values", ctypes.c_size_t), ("no_set_prior", ctypes.c_int),
-                ("pre", _P), ("last", ctypes.c_uint64), ("flags", ctypes.c_bool * 3), ("last_success", ctypes.c_double)]
+                ("pre", _P), ("last", ctypes.c_uint64), ("flags", ctypes.c_bool * 3), ("last_success", ctypes.c_double),
+                ("backoff", ctypes.c_int * 2)]
 
 
 _LIBS: dict[str, Any] = {}
