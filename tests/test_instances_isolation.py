@@ -139,6 +139,35 @@ def test_a_hang_in_an_isolated_fmu_is_ended_after_its_step_timeout(child, tmp_pa
     assert len(np.load(tmp_path / "out" / "signals.npy")) == 26
 
 
+def test_a_second_ctrl_c_during_a_hung_isolated_step_interrupts_the_run(child, tmp_path):
+    """Ctrl-C twice while an isolated FMU hangs in its step: the run ends interrupted (exit code 130, the
+    steps before kept), with either child: the C child's wait, in C, asks Python whether the signal's
+    handler raised.  (The hung child is then asked to shut down, which takes the step timeout.)"""
+    import signal
+    import time
+
+    fmu = build_probe(tmp_path / "fmu", HANG_AT=0.25)
+    out = tmp_path / "out"
+    p = subprocess.Popen([sys.executable, "-m", "wmr_cosim.cli", "run",
+                          str(_scenario(tmp_path, fmu, True, "step_timeout = 15.0")), "--out", str(out), "--quiet"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        for _ in range(600):   # the child started (its output file made), then the hang reached
+            if list(tmp_path.rglob("probe.log.stdout")):
+                break
+            time.sleep(0.05)
+        time.sleep(3.0)
+        p.send_signal(signal.SIGINT)
+        time.sleep(0.3)
+        p.send_signal(signal.SIGINT)
+        _, err = p.communicate(timeout=60)
+        assert p.returncode == 130 and "interrupted by the user at t = 0.25 s" in err, (p.returncode, err)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.communicate()
+
+
 def test_a_child_slower_to_start_than_the_step_timeout_is_not_ended(child, tmp_path, monkeypatch):
     """The child's start (here made 1.5 s slower by a sitecustomize on its path) is not held to a step
     timeout of 1 s: the run completes, bit-identical to the run in process."""

@@ -763,6 +763,8 @@ class IsolatedInstance(FmuInstance):
 
         def finish_step(spin: bool = True) -> int:
             s = side.finish(spin)
+            if s == slot_c.INTERRUPTED:
+                raise KeyboardInterrupt
             if s in (slot_c.LOST_DIED, slot_c.LOST_HUNG):
                 raise self.died(ChildDied(child.lost(s)), step_name, child.t)
             return s
@@ -773,8 +775,11 @@ class IsolatedInstance(FmuInstance):
 
     def fail_status(self, what: str, status: int, t: float | None) -> RunError:
         """The error for a call that returned ``status``; where the C child's side returned it because the
-        child is lost, the one line of a lost child (as the Python child raises it)."""
+        child is lost, the one line of a lost child (as the Python child raises it); KeyboardInterrupt where
+        a second Ctrl-C interrupted its wait."""
         side = self.child.c_side
+        if side is not None and status == slot_c.INTERRUPTED:   # (a second Ctrl-C during the wait)
+            raise KeyboardInterrupt
         if side is not None and side.p.lost and status in (slot_c.LOST_DIED, slot_c.LOST_HUNG):
             return self.died(ChildDied(self.child.lost(status)), what, t)
         return super().fail_status(what, status, t)

@@ -35,10 +35,15 @@ typedef int (*get3_t)(void *, const unsigned *, size_t, double *, size_t);
 typedef int (*step3_t)(void *, double, double, _Bool, _Bool *, _Bool *, _Bool *, double *);
 typedef int (*pre_t)(void);
 typedef long (*tick_t)(long, long);
+typedef int (*gil_ensure_t)(void);
+typedef void (*gil_release_t)(int);
+typedef int (*int_call_t)(void);
+typedef void (*void_call_t)(void);
 
 enum { REQ_STEP = 0, REQ_SET = 1, REQ_GET = 2 };
-/* the child died (its process ended) or did not answer within the timeout: not FMI statuses */
-enum { LOST_DIED = 1001, LOST_HUNG = 1002 };
+/* the child died (its process ended) or did not answer within the timeout; the master's wait interrupted
+ * (Ctrl-C, its handler raised): not FMI statuses */
+enum { LOST_DIED = 1001, LOST_HUNG = 1002, INTERRUPTED = 1003 };
 /* a step after which an FMI 3.0 FMU ended the simulation (isolation.py SLOT_TERMINATED) */
 enum { SLOT_TERMINATED = 100 };
 #define SPIN_S 0.25e-6   /* [s] a poll of a spinning wait (200 polls: 50 us) */
@@ -77,6 +82,9 @@ typedef struct {         /* the master's side of one child */
     tick_t tick;         /* the hand-off's measure, called before a step's request when left is 0 */
     long left, skipped, ran_out;
     Backoff backoff;
+    /* Python's PyGILState_Ensure, PyGILState_Release, PyErr_CheckSignals, PyErr_Clear (NULL: none), so
+     * that a signal whose handler raises (a second Ctrl-C) ends a wait as it ends the Python child's */
+    void *gil_ensure, *gil_release, *check_signals, *err_clear;
 } Parent;
 
 typedef struct {         /* the child's side: the FMU's functions on the slot */
@@ -158,10 +166,23 @@ static int drain(int fd) {
     }
 }
 
+/* a signal interrupted the master's wait: whether its Python handler raised (the exception cleared: the
+ * master's Python raises KeyboardInterrupt on INTERRUPTED) */
+static int raised(const Parent *p) {
+    int g, r;
+    if (!p || !p->check_signals) return 0;
+    g = ((gil_ensure_t)p->gil_ensure)();
+    r = ((int_call_t)p->check_signals)();
+    if (r < 0) ((void_call_t)p->err_clear)();
+    ((gil_release_t)p->gil_release)(g);
+    return r < 0;
+}
+
 /* block until *word is no longer old: 0 it changed, 1 the pipe fd ended, 2 timed out, 3 the pipe other
- * (the child's control channel; -1: none) has a request (asleep then stays set) */
+ * (the child's control channel; -1: none) has a request (asleep then stays set), 4 a signal's handler
+ * raised (the master's, p) */
 static int block_wait(_Atomic uint64_t *word, uint64_t old, _Atomic int32_t *asleep, int fd, int other,
-                      double timeout) {
+                      double timeout, const Parent *p) {
     struct pollfd fds[2] = {{fd, POLLIN, 0}, {other, POLLIN, 0}};
     double end = timeout >= 0 ? now_s() + timeout : 0.0;
     int r, ms = -1;
@@ -174,6 +195,7 @@ static int block_wait(_Atomic uint64_t *word, uint64_t old, _Atomic int32_t *asl
             ms = (int)ceil(left * 1e3);
         }
         r = poll(fds, other >= 0 ? 2 : 1, ms);
+        if (r < 0 && errno == EINTR && raised(p)) { r = 4; break; }
         if (r < 0 && errno != EINTR) { r = 1; break; }
         if (r <= 0) continue;
         if (fds[0].revents && !drain(fd)) { r = atomic_load(word) != old ? 0 : 1; break; }
@@ -246,7 +268,7 @@ int wmr_slot_serve(Served *s) {
             spin_result(&s->backoff, ok);
             if (ok) continue;
         }
-        switch (block_wait(&w->req, s->last, &w->child_asleep, s->s_r, s->ctl_r, -1.0)) {
+        switch (block_wait(&w->req, s->last, &w->child_asleep, s->s_r, s->ctl_r, -1.0, NULL)) {
         case 0: continue;
         case 3: return 1;
         default: return 0;
@@ -280,9 +302,10 @@ static int await_answer(Parent *p, int spin) {
         if (ok) return (int)p->head->status;
         p->ran_out++;
     }
-    r = block_wait(&w->done, p->seq - 1, &w->master_asleep, p->done_r, -1, p->timeout);
+    r = block_wait(&w->done, p->seq - 1, &w->master_asleep, p->done_r, -1, p->timeout, p);
     if (r == 1) return p->lost = LOST_DIED;
     if (r == 2) return p->lost = LOST_HUNG;
+    if (r == 4) return INTERRUPTED;   /* (the run ends: the child's answer is not awaited) */
     return (int)p->head->status;
 }
 
@@ -311,7 +334,7 @@ int wmr_slot_start(Parent *p, double t, double h) {
  * set, *last_time its last successful time) */
 int wmr_slot_finish(Parent *p, int spin) {
     int s = await_answer(p, spin);
-    if (s == LOST_DIED || s == LOST_HUNG) return s;
+    if (s == LOST_DIED || s == LOST_HUNG || s == INTERRUPTED) return s;
     p->fresh = s == 0;
     if (s == SLOT_TERMINATED && p->terminated) {
         *p->terminated = 1;

@@ -27,8 +27,9 @@ FLAGS = ["-O2", "-shared", "-fPIC", "-ffp-contract=off", "-fno-strict-aliasing"]
 WORDS = 128
 #: Offset of the child's asleep word in them: set while the child is in Python (before its first request).
 CHILD_ASLEEP = 72
-#: What the master's side returns for a child that died or did not answer within the timeout (no FMI status).
-LOST_DIED, LOST_HUNG = 1001, 1002
+#: What the master's side returns for a child that died or did not answer within the timeout, and for a wait
+#: a signal's handler interrupted by raising (a second Ctrl-C): no FMI statuses.
+LOST_DIED, LOST_HUNG, INTERRUPTED = 1001, 1002, 1003
 
 _P = ctypes.c_void_p
 TICK = ctypes.CFUNCTYPE(ctypes.c_long, ctypes.c_long, ctypes.c_long)
@@ -41,7 +42,8 @@ class Parent(ctypes.Structure):
                 ("done_r", ctypes.c_int), ("timeout", ctypes.c_double), ("stepping", ctypes.c_int),
                 ("fresh", ctypes.c_int), ("terminated", _P), ("last_time", _P), ("t", ctypes.c_double),
                 ("lost", ctypes.c_int), ("seq", ctypes.c_uint64), ("tick", _P), ("left", ctypes.c_long),
-                ("skipped", ctypes.c_long), ("ran_out", ctypes.c_long), ("backoff", ctypes.c_int * 2)]
+                ("skipped", ctypes.c_long), ("ran_out", ctypes.c_long), ("backoff", ctypes.c_int * 2),
+                ("gil_ensure", _P), ("gil_release", _P), ("check_signals", _P), ("err_clear", _P)]
 
 
 class Served(ctypes.Structure):
@@ -114,6 +116,9 @@ class MasterSide:
                         timeout=-1.0 if timeout is None else float(timeout))
         self.outputs_at = addr + head + 8 * cap
         self.tick: Any = None
+        api = ctypes.pythonapi
+        self.p.gil_ensure, self.p.gil_release, self.p.check_signals, self.p.err_clear = (
+            _address(f) for f in (api.PyGILState_Ensure, api.PyGILState_Release, api.PyErr_CheckSignals, api.PyErr_Clear))
 
     def outputs(self, n_out: int) -> None:
         """The Float64 outputs: ``n_out`` values at the slot's outputs."""
