@@ -150,7 +150,7 @@ def test_a_second_ctrl_c_during_a_hung_isolated_step_interrupts_the_run(child, t
     out = tmp_path / "out"
     p = subprocess.Popen([sys.executable, "-m", "wmr_cosim.cli", "run",
                           str(_scenario(tmp_path, fmu, True, "step_timeout = 15.0")), "--out", str(out), "--quiet"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         for _ in range(600):   # the child started (its output file made), then the hang reached
             if list(tmp_path.rglob("probe.log.stdout")):
@@ -162,10 +162,12 @@ def test_a_second_ctrl_c_during_a_hung_isolated_step_interrupts_the_run(child, t
         p.send_signal(signal.SIGINT)
         _, err = p.communicate(timeout=60)
         assert p.returncode == 130 and "interrupted by the user at t = 0.25 s" in err, (p.returncode, err)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.communicate()
+    finally:   # (the master and its hung child, should the run not have ended)
+        try:
+            os.killpg(p.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        p.communicate()
 
 
 def test_a_child_slower_to_start_than_the_step_timeout_is_not_ended(child, tmp_path, monkeypatch):

@@ -11,6 +11,10 @@ The child (``python -m`` this module) loads the FMU with FMPy and serves two cha
 - the **control channel**, length-prefixed pickled requests on another pair of pipes, for everything else
   (instantiate, set-up, start values, initialisation, other types, state, terminate, free).
 
+For a C FMU hosted as co-simulation the step slot is served in C on both sides instead (:mod:`.slot_c`: the
+C child; the pipes carry a byte only to wake a side that sleeps); a pythonfmu FMU, a model exchange
+instance, or any with ``WMR_COSIM_CHILD=python``, steps in the child's Python as above.
+
 A child that dies is seen at once (end of file on its pipe): the master reports the instance, the time
 and how it died (the signal's name, or the exit code). A step that takes longer than ``step_timeout``
 seconds ends the child (SIGKILL) and is reported the same way; the child's first answer (its interpreter
