@@ -58,10 +58,13 @@ NAME:
             extract_ms (counted extraction), summed over the three FMUs, medians; lying_bomb_refused_ms (256 MiB
             of zeros whose directory declares 1 KiB, refused while extracting) and nothing_left.
     isolation  G1 in process, with the plant in a child process and with all three FMUs in child processes
-            (isolate = true), interleaved, on a quiet machine, then beside one and beside two CPU-bound
-            processes the benchmark starts (quiet, loaded_1, loaded_2): us_per_step of each,
+            (isolate = true); G1 with the C plant in process and isolated (the C child: c_plant; the
+            Python child: c_plant_py); the Reference FMUs Dahlquist into Feedthrough in process and with
+            Dahlquist isolated (ref_c, ref_py); interleaved, on a quiet machine, then beside one and beside
+            two CPU-bound processes the benchmark starts (quiet, loaded_1, loaded_2): us_per_step of each,
             isolated_us_per_fmu_step_overhead (targets: the plant under 10 us quiet and under 60 us
-            loaded_1), handoff (the steps the children's hand-off spun and blocked), same_results.
+            loaded_1; a C FMU with the C child under 5 us quiet and under 40 us loaded_1), handoff (the
+            steps the children's hand-off spun and blocked), same_results.
     scripting what scripting costs per step on G1 through the Python API (wmr_cosim.Simulation): plain_us_per_step
             (no hooks), noop_callback / get_callback (a per-step callback doing nothing / reading one
             variable), condition (one condition event that never fires), each with *_overhead_us_per_step
@@ -990,26 +993,66 @@ def bench_binary(repeats: int) -> dict[str, float]:
     return figures
 
 
-def _isolation_walls(repeats: int) -> tuple[dict[str, float], dict[str, dict], dict[str, dict[str, int]]]:
-    """G1 in process, plant isolated, all isolated, interleaved: the median wall [s] of each, its final
-    values, and how the isolated runs' hand-off waited (steps spun and blocked, summed over the runs)."""
+#: The runs of the isolation benchmark: (scenario, ("instance" isolated | "*" every one | None), the child
+#: that serves an isolated C FMU ("c" or "python")); the Reference FMUs' run is made by _reference_plan.
+ISOLATION_RUNS: dict[str, tuple[str, str | None, str]] = {
+    "none": ("g1_learn.toml", None, "c"), "plant": ("g1_learn.toml", "plant", "c"), "all": ("g1_learn.toml", "*", "c"),
+    "c_none": ("g1_c_plant.toml", None, "c"), "c_plant": ("g1_c_plant.toml", "plant", "c"),
+    "c_plant_py": ("g1_c_plant.toml", "plant", "python"),
+    "ref_none": ("reference", None, "c"), "ref_c": ("reference", "d", "c"), "ref_py": ("reference", "d", "python")}
+
+
+def _reference_plan(isolated: str | None) -> Any:
+    """Dahlquist into Feedthrough (the Reference FMUs, FMI 2.0, C), 25,000 steps of 2 ms, both recorded;
+    ``isolated``: the instance isolated (d, Dahlquist)."""
+    from pathlib import Path
+
+    from wmr_cosim import cosim
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from reference_fmus import fmu
+
+    doc = {"experiment": {"start": 0.0, "stop": 50.0, "step": 0.002},
+           "instances": {"d": {"fmu": str(fmu("fmi2", "Dahlquist")), "isolate": isolated == "d"},
+                         "f": {"fmu": str(fmu("fmi2", "Feedthrough")), "isolate": isolated == "f"}},
+           "connections": [{"from": "d.x", "to": "f.Float64_continuous_input"}],
+           "record": {"variables": ["d.x", "f.Float64_continuous_output"]}}
+    return cosim.resolve(cosim.parse(doc, "reference.toml"))
+
+
+def _isolation_run(kind: str) -> Any:
+    """One run of ISOLATION_RUNS[kind]: its result (failed runs end the benchmark)."""
     from wmr_cosim import cosim
     from wmr_cosim.runner import resolve_model
 
     root = __import__("pathlib").Path(__file__).resolve().parents[1]
-    walls: dict[str, list[float]] = {"none": [], "plant": [], "all": []}
+    scenario, isolated, child = ISOLATION_RUNS[kind]
+    if scenario == "reference":
+        plan = _reference_plan(isolated)
+    else:
+        sc = cosim.load(root / "scenarios" / scenario, resolve_model)
+        sc.record = ANALYSIS_RECORD
+        plan = cosim.resolve(sc)
+        for n, ip in plan.instances.items():
+            ip.spec.isolate = isolated == "*" or isolated == n
+    os.environ["WMR_COSIM_CHILD"] = child
+    try:
+        r = cosim.run(plan, None, progress=False)
+    finally:
+        os.environ.pop("WMR_COSIM_CHILD", None)
+    if r.status != "ok":
+        raise SystemExit(f"{kind}: {r.message}")
+    return r
+
+
+def _isolation_walls(repeats: int) -> tuple[dict[str, float], dict[str, dict], dict[str, dict[str, int]]]:
+    """Each run of ISOLATION_RUNS, interleaved: the median wall [s] of each, its final values, and how the
+    isolated runs' hand-off waited (steps spun and blocked, summed over the runs)."""
+    walls: dict[str, list[float]] = {k: [] for k in ISOLATION_RUNS}
     finals: dict[str, dict] = {}
-    waits: dict[str, dict[str, int]] = {"plant": {}, "all": {}}
+    waits: dict[str, dict[str, int]] = {k: {} for k, run in ISOLATION_RUNS.items() if run[1] is not None}
     for _ in range(max(1, repeats)):
         for kind in walls:
-            sc = cosim.load(root / "scenarios" / "g1_learn.toml", resolve_model)
-            sc.record = ANALYSIS_RECORD
-            plan = cosim.resolve(sc)
-            for n, ip in plan.instances.items():
-                ip.spec.isolate = kind == "all" or (kind == "plant" and n == "plant")
-            r = cosim.run(plan, None, progress=False)
-            if r.status != "ok":
-                raise SystemExit(f"{kind}: {r.message}")
+            r = _isolation_run(kind)
             walls[kind].append(r.wall_s)
             finals[kind] = r.final
             for mode, n in (r.summary.get("handoff") or {}).get("steps", {}).items():
@@ -1019,11 +1062,15 @@ def _isolation_walls(repeats: int) -> tuple[dict[str, float], dict[str, dict], d
 
 def bench_isolation(repeats: int) -> dict[str, Any]:
     """G1 (50 s, Gauss-Seidel, the analysis record) in process, with the plant isolated and with all three
-    FMUs isolated (each in a child process), interleaved, medians; on a quiet machine, then beside one and
-    beside two CPU-bound processes of its own (a busy loop, as a user's other work would be):
-    isolated_us_per_fmu_step_overhead = (isolated wall - in-process wall) / steps / isolated FMUs (targets:
-    the plant under 10 us quiet and under 60 us beside one busy process); handoff: the steps whose answer
-    the master waited for spinning and blocking; same_results (bit for bit, in every run)."""
+    FMUs isolated (each in a child process); G1 with the C plant (WmrCPlant) in process and isolated, served
+    by the C child (c_plant) and by the Python child (c_plant_py); the Reference FMUs Dahlquist into
+    Feedthrough (25,000 steps) in process and with Dahlquist isolated, C child (ref_c) and Python child
+    (ref_py); interleaved, medians; on a quiet machine, then beside one and beside two CPU-bound processes
+    of its own (a busy loop, as a user's other work would be): isolated_us_per_fmu_step_overhead =
+    (isolated wall - in-process wall) / steps / isolated FMUs (targets: the plant under 10 us quiet and
+    under 60 us beside one busy process; a C FMU with the C child under 5 us quiet and under 40 us beside
+    one); handoff: the steps whose answer the master waited for spinning and blocking; same_results (bit
+    for bit, in every run, with each scenario's run in process)."""
     import subprocess
 
     steps = 25_000
@@ -1038,17 +1085,27 @@ def bench_isolation(repeats: int) -> dict[str, Any]:
                 b.kill()
                 b.wait()
         finals.append(fin)
+
+        def over(kind: str, base: str, n: int = 1) -> float:
+            return round((med[kind] - med[base]) / steps / n * 1e6, 2)
         out[load] = {"us_per_step": {k: round(v / steps * 1e6, 2) for k, v in med.items()},
                      "isolated_us_per_fmu_step_overhead": {
-                         "plant": round((med["plant"] - med["none"]) / steps * 1e6, 2),
-                         "all": round((med["all"] - med["none"]) / steps / 3 * 1e6, 2)},
+                         "plant": over("plant", "none"), "all": over("all", "none", 3),
+                         "c_plant": over("c_plant", "c_none"), "c_plant_py": over("c_plant_py", "c_none"),
+                         "ref_c": over("ref_c", "ref_none"), "ref_py": over("ref_py", "ref_none")},
                      "handoff": waits}
-    over = {k: out[k]["isolated_us_per_fmu_step_overhead"]["plant"] for k in ("quiet", "loaded_1", "loaded_2")}
-    out["plant_overhead_us"] = over
-    out["quiet_under_10us"] = over["quiet"] < 10.0
-    out["loaded_1_under_60us"] = over["loaded_1"] < 60.0
-    ref = finals[0]["none"]
-    out["same_results"] = all(f[k] == ref for f in finals for k in f)
+    loads = ("quiet", "loaded_1", "loaded_2")
+    over_ = {k: out[k]["isolated_us_per_fmu_step_overhead"]["plant"] for k in loads}
+    c_over = {k: {c: out[k]["isolated_us_per_fmu_step_overhead"][c] for c in ("c_plant", "ref_c")} for k in loads}
+    out["plant_overhead_us"] = over_
+    out["quiet_under_10us"] = over_["quiet"] < 10.0
+    out["loaded_1_under_60us"] = over_["loaded_1"] < 60.0
+    out["c_fmu_overhead_us"] = c_over
+    out["c_quiet_under_5us"] = all(v < 5.0 for v in c_over["quiet"].values())
+    out["c_loaded_1_under_40us"] = all(v < 40.0 for v in c_over["loaded_1"].values())
+    groups = {"none": ("none", "plant", "all"), "c_none": ("c_none", "c_plant", "c_plant_py"),
+              "ref_none": ("ref_none", "ref_c", "ref_py")}
+    out["same_results"] = all(f[k] == finals[0][ref] for f in finals for ref, ks in groups.items() for k in ks)
     out["cores"] = os.cpu_count()
     out["repeats"] = max(1, repeats)
     return out

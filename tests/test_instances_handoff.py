@@ -59,6 +59,36 @@ def test_on_a_busy_machine_the_children_block(monkeypatch: pytest.MonkeyPatch) -
     assert a.spins == [0, -50, 0] and h.summary()["steps"] == {"blocked": Measured.PROBE + 18, "spun": 1}
 
 
+def test_ticks_only_where_the_way_may_change_measure_as_ticks_at_every_step(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A child served in C ticks only when the steps it may skip (what the last tick returned) are done,
+    giving their count with the next tick: the ways taken step by step and the counts are those of ticks at
+    every step, over rounds where the kept way changes (the spinning step slower after a while)."""
+    now = [0.0]
+    monkeypatch.setattr(handoff.time, "perf_counter", lambda: now[0])
+    n = 3 * (2 * Measured.PROBE + Measured.KEEP) + 7
+
+    def cost(k: int, way: int) -> float:
+        return (30e-6 if k < 1500 else 300e-6) if way == 1 else 60e-6
+
+    every, sparse = Handoff(200), Handoff(200)
+    wa, wb = Waiter(), Waiter()
+    every.add(wa)
+    sparse.add(wb)
+    left = skipped = 0
+    ticks = 0
+    for k in range(n):
+        assert every.current == sparse.current, k
+        now[0] += cost(k, every.current)
+        every.tick(wa)
+        if left:
+            left, skipped = left - 1, skipped + 1
+        else:
+            left, skipped, ticks = sparse.tick(wb, skipped), 0, ticks + 1
+    sparse.settle(wb, skipped)
+    assert every.summary() == sparse.summary() and wa.spins == wb.spins and len(wa.spins) > 3
+    assert ticks < n / 10
+
+
 def test_the_master_writes_the_spin_count_into_the_childs_slot(tmp_path) -> None:
     """The child reads how to wait for the next request from its slot's spin word (offset 24)."""
     from wmr_cosim.cosim.instances.isolation import Child

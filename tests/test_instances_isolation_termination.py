@@ -84,7 +84,9 @@ def test_outputs_cross_the_control_channel_only_before_stepping_and_after_the_en
                                                                                   version, interface, t_end, steps):
     """Each isolated instance's outputs are asked for on the control channel while initialising, then
     never while its steps are OK (the child writes them into the step slot), and once after the step in
-    which the ramp ended the simulation (it did not write them then)."""
+    which the ramp ended the simulation (it did not write them then).  (The Python child: the C child asks
+    for them on the slot, next test.)"""
+    monkeypatch.setenv("WMR_COSIM_CHILD", "python")
     asked: collections.Counter[str] = collections.Counter()
     call = isolation.Child.call
 
@@ -103,6 +105,31 @@ def test_outputs_cross_the_control_channel_only_before_stepping_and_after_the_en
         assert ex.simulate_until(0.5) == "terminated"
         assert (ex.message, ex.k_done) == (f"terminated by FMU r at t = {t_end:g} s", steps)
         assert asked == {"r": initial["r"] + 1, "ft": initial["ft"]}
+    finally:
+        ex.close()
+
+
+@pytest.mark.parametrize("version, t_end, steps", [(3, 0.26, 26), (2, T_STOP, 25)])
+def test_the_c_child_asks_for_outputs_only_before_stepping_and_after_the_end(ramps, tmp_path, version, t_end, steps):
+    """The C child (co-simulation): after the first step, the master's requests on the slot are the steps
+    alone while they are OK (the outputs come with each), one more after the step in which the ramp ended
+    the simulation."""
+    plan = cosim.resolve(cosim.parse(_document(ramps[version], "co-simulation", True), "ramp.toml"))
+    ex = cosim.Execution(plan, tmp_path / "out")
+    ex.initialize()
+    try:
+        sides = {n: i.child.c_side for n, i in ex.instances.items()}
+        assert all(s is not None for s in sides.values()), "no C child here"
+        assert ex.simulate_until(0.01) == "ok"
+        initial = {n: s.p.seq for n, s in sides.items()}
+        assert ex.simulate_until(0.2) == "ok"
+        assert {n: s.p.seq - initial[n] for n, s in sides.items()} == {"r": 19, "ft": 19}   # the steps alone
+        assert ex.simulate_until(0.5) == "terminated"
+        assert (ex.message, ex.k_done) == (f"terminated by FMU r at t = {t_end:g} s", steps)
+        # r's 26th step ended it and its outputs were asked for then: FMI 3.0 after ft's 26th step, FMI 2.0
+        # after a Discard (no step of ft after it)
+        expected = {"r": 25 + 1, "ft": 25 if version == 3 else 24}
+        assert {n: s.p.seq - initial[n] for n, s in sides.items()} == expected
     finally:
         ex.close()
 

@@ -47,6 +47,17 @@ class Measured:
         p = self.phase
         return p // self.PROBE if p < self.n * self.PROBE else self.best
 
+    def quiet(self) -> int:
+        """How many of the next cycles only count (the way kept, not measured): their :meth:`took` may be
+        left out and given to :meth:`skip` afterwards (the one after them ends the kept phase: it is timed)."""
+        probing = self.n * self.PROBE
+        return max(0, probing + self.keep - 1 - self.phase) if self.phase >= probing else 0
+
+    def skip(self, n: int) -> None:
+        """``n`` cycles taken the kept way, not timed (at most :meth:`quiet`)."""
+        self.taken[self.best] += n
+        self.phase += n
+
     def took(self, way: int, seconds: float) -> None:
         """A cycle took ``seconds`` [s] of wall time the way ``way``."""
         self.taken[way] += 1
@@ -66,6 +77,11 @@ class Measured:
             self.keep = min(2 * self.keep, self.MAX_KEEP) if self.rounds and best == self.best else self.KEEP
             self.best, self.sums, self.longest = best, [0.0] * self.n, [0.0] * self.n
             self.rounds += 1
+
+
+#: Steps a child other than the first may take between two ticks (its ticks count nothing but the answers
+#: that did not come within the polls).
+QUIET = 1 << 20
 
 
 class Waiter(Protocol):
@@ -94,10 +110,13 @@ class Handoff:
         self.waiters.append(waiter)
         waiter.set_spin(self.spins[self.current])
 
-    def tick(self, waiter: Waiter) -> None:
-        """``waiter`` is about to request a step."""
+    def tick(self, waiter: Waiter, skipped: int = 0) -> int:
+        """``waiter`` is about to request a step, after ``skipped`` steps it requested without a tick (a
+        child served in C ticks only where the way may change): how many of its next steps may go without
+        one."""
         if waiter is not self.waiters[0]:
-            return
+            return QUIET
+        self.settle(waiter, skipped)
         now = time.perf_counter()
         if self.last is not None:
             self.choice.took(self.current, now - self.last)
@@ -107,6 +126,12 @@ class Handoff:
             self.current = way
             for w in self.waiters:
                 w.set_spin(self.spins[way])
+        return self.choice.quiet()
+
+    def settle(self, waiter: Waiter, skipped: int) -> None:
+        """``skipped`` steps ``waiter`` requested without a tick (:meth:`tick`), counted."""
+        if skipped and waiter is self.waiters[0]:
+            self.choice.skip(skipped)
 
     def summary(self) -> dict[str, Any]:
         """For summary.json: the spin count, the steps (of the first child) whose answer was waited for

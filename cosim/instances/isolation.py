@@ -11,6 +11,10 @@ The child (``python -m`` this module) loads the FMU with FMPy and serves two cha
 - the **control channel**, length-prefixed pickled requests on another pair of pipes, for everything else
   (instantiate, set-up, start values, initialisation, other types, state, terminate, free).
 
+For a C FMU hosted as co-simulation the step slot is served in C on both sides instead (:mod:`.slot_c`: the
+C child; the pipes carry a byte only to wake a side that sleeps); a pythonfmu FMU, a model exchange
+instance, or any with ``WMR_COSIM_CHILD=python``, steps in the child's Python as above.
+
 A child that dies is seen at once (end of file on its pipe): the master reports the instance, the time
 and how it died (the signal's name, or the exit code). A step that takes longer than ``step_timeout``
 seconds ends the child (SIGKILL) and is reported the same way; the child's first answer (its interpreter
@@ -45,6 +49,7 @@ from .failure import Call, InstanceLost
 from .handoff import Handoff
 from .in_process import ACCESS
 from .integrators import SolverSpec
+from . import slot_c
 
 #: Header of the step slot: status (int64), t (float64), h (float64), the spin count the child waits for the
 #: next request with (int64, set by the master: :class:`~.handoff.Handoff`), then inputs and outputs (float64).
@@ -97,12 +102,18 @@ class Child:
     """The master's side of one child process."""
 
     def __init__(self, name: str, fmu_dir: str, log_path: Path | None, logging: str, step_timeout: float | None,
-                 handoff: Handoff | int, slot_values: int = 4096, solver: SolverSpec | None = None) -> None:
+                 handoff: Handoff | int, slot_values: int = 4096, solver: SolverSpec | None = None,
+                 c_child: Path | None = None) -> None:
         """``handoff``: the run's :class:`~.handoff.Handoff`, which chooses how both sides wait as the run
-        goes, or a spin count kept (0: block at once; negative: poll yielding the core)."""
+        goes, or a spin count kept (0: block at once; negative: poll yielding the core); ``c_child``: the
+        library of the C child (:mod:`.slot_c`), which serves the slot where the child's instance allows
+        (None: the Python child)."""
         self.name, self.step_timeout = name, step_timeout
         self.started = False      # the child has answered once
-        self.shm = shared_memory.SharedMemory(create=True, size=_HEAD + 16 * slot_values)
+        self.c_lib = c_child
+        self.c_side: slot_c.MasterSide | None = None   # the master's side of the C child, once configured
+        words = slot_c.WORDS if c_child is not None else 0
+        self.shm = shared_memory.SharedMemory(create=True, size=_HEAD + 16 * slot_values + words)
         self.cap = slot_values
         c_r, p_w = os.pipe()      # control: master -> child
         p_r, c_w = os.pipe()      # control: child -> master
@@ -112,7 +123,7 @@ class Child:
         self.proc = subprocess.Popen(
             [sys.executable, "-m", __name__, self.shm.name, str(c_r), str(c_w), str(s_r),
              str(d_w), fmu_dir, name, str(log_path or ""), logging,
-             json.dumps(dataclasses.asdict(solver)) if solver is not None else ""],
+             json.dumps(dataclasses.asdict(solver)) if solver is not None else "", str(c_child or "")],
             pass_fds=(c_r, c_w, s_r, d_w), stdin=subprocess.DEVNULL, stdout=out, stderr=out, close_fds=True)
         if out is not subprocess.DEVNULL:
             out.close()
@@ -122,6 +133,8 @@ class Child:
         os.set_blocking(m_d, False)
         self.t = 0.0   # the time of the last step (the instance sets the start time at its set-up)
         self.addr = _address(self.shm)
+        if c_child is not None:   # the child is in Python until its first request: woken by a byte
+            ctypes.c_int32.from_address(self.addr + _HEAD + 16 * slot_values + slot_c.CHILD_ASLEEP).value = 1
         self.status = ctypes.c_int64.from_address(self.addr)
         self.time = ctypes.c_double.from_address(self.addr + 8)
         self.h = ctypes.c_double.from_address(self.addr + 16)
@@ -169,6 +182,25 @@ class Child:
             out += chunk
         return out
 
+    @property
+    def t(self) -> float:
+        """[s] The time of the last step requested (the C child's side keeps it)."""
+        return float(self.c_side.p.t) if self.c_side is not None else self._t
+
+    @t.setter
+    def t(self, value: float) -> None:
+        self._t = value
+        if self.c_side is not None:
+            self.c_side.p.t = value
+
+    def lost(self, status: int) -> str:
+        """How the C child was lost (its side returned ``status``, one of slot_c.LOST_*): ended after a hang,
+        or how it died."""
+        if status == slot_c.LOST_HUNG:
+            self.kill()
+            return f"did not answer within {self.step_timeout:g} s (ended)"
+        return self._died()
+
     def _died(self) -> str:
         try:
             code = self.proc.wait(timeout=5)
@@ -187,10 +219,29 @@ class Child:
         """The Float64 inputs and outputs of the step slot, as ctypes arrays over the shared memory."""
         if n_in + n_out > 2 * self.cap:
             raise RuntimeError(f"{n_in + n_out} values: more than the step slot holds")
-        self.call("configure", in_vrs, n_in, out_vrs, n_out)
+        in_c = self.call("configure", in_vrs, n_in, out_vrs, n_out)
         self.inputs = (ctypes.c_double * max(1, n_in)).from_address(self.addr + _HEAD)
         self.outputs = (ctypes.c_double * max(1, n_out)).from_address(self.addr + _HEAD + 8 * self.cap)
+        if in_c is True and self.c_lib is not None:   # (the child serves the slot in C)
+            self._c_side(n_out)
         return self.inputs, self.outputs
+
+    def _c_side(self, n_out: int) -> None:
+        """The master's side of the C child, its outputs ``n_out`` values; measured by the run's hand-off."""
+        side = self.c_side
+        if side is None:
+            assert self.c_lib is not None
+            side = slot_c.MasterSide(str(self.c_lib), self.addr, _HEAD, self.cap, self.step_w, self.done_r,
+                                     self.step_timeout)
+            side.p.t = self._t
+            handoff = self.handoff
+            if handoff is not None:
+                def tick(skipped: int, ran_out: int) -> int:
+                    handoff.ran_out += ran_out
+                    return handoff.tick(self, skipped)
+                side.measured_by(tick)
+            self.c_side = side
+        side.outputs(n_out)
 
     def step(self, t: float, h: float) -> int:
         """fmi2SetReal (the inputs in place), fmi2DoStep, fmi2GetReal in the child; the status."""
@@ -230,6 +281,11 @@ class Child:
 
     def close(self) -> None:
         """End the child (politely, then by force) and release the memory and pipes."""
+        if self.c_side is not None and self.handoff is not None:   # (the steps not ticked yet, counted)
+            p = self.c_side.p
+            self.handoff.settle(self, int(p.skipped))
+            self.handoff.ran_out += int(p.ran_out)
+            p.skipped = p.ran_out = 0
         for fd in (self.ctl_w, self.step_w):
             try:
                 os.close(fd)
@@ -269,10 +325,14 @@ SLOT_TERMINATED = 100
 class _Server:
     """The child: one FMU instance in this process, its step slot and its control channel's operations."""
 
-    def __init__(self, shm: shared_memory.SharedMemory, inst: Any) -> None:
-        self.shm, self.inst = shm, inst
+    def __init__(self, shm: shared_memory.SharedMemory, inst: Any, c_lib: str = "",
+                 fds: tuple[int, int, int] = (-1, -1, -1)) -> None:
+        """``c_lib``: the C child's library, where the master asks for it ("": the step in Python); ``fds``:
+        the step pipe's end to read, the done pipe's to write, the control channel's to read."""
+        self.shm, self.inst, self.c_lib, self.fds = shm, inst, c_lib, fds
         self.addr = _address(shm)
-        self.cap = (shm.size - _HEAD) // 16
+        self.cap = (shm.size - _HEAD - (slot_c.WORDS if c_lib else 0)) // 16
+        self.c: slot_c.ChildSide | None = None   # the slot served in C (configured so)
         self.fast: Any = None                 # the instance's FastPath, once configured
         self.io: tuple[Any, ...] = ()         # (in_vr, n_in, out_vr, n_out, out_val)
         self.states: dict[int, Any] = {}      # the instance's saved states, by the key the master holds
@@ -280,8 +340,9 @@ class _Server:
         self.keys = itertools.count(1)
         self.T, self.H = ctypes.c_double(0.0), ctypes.c_double(0.0)
 
-    def configure(self, in_vrs: list[int], n_in: int, out_vrs: list[int], n_out: int) -> None:
-        """The instance's fast path over the slot: its input array is the slot's inputs."""
+    def configure(self, in_vrs: list[int], n_in: int, out_vrs: list[int], n_out: int) -> bool | None:
+        """The instance's fast path over the slot: its input array is the slot's inputs.  True where the
+        slot is served in C from now on (:mod:`.slot_c`)."""
         from .in_process import vr_array
 
         slot_in = (ctypes.c_double * max(1, n_in)).from_address(self.addr + _HEAD)
@@ -289,6 +350,28 @@ class _Server:
         self.fast = self.inst.fast_path(in_vrs, n_in, out_vrs, n_out, in_val=slot_in)
         self.io = (vr_array(in_vrs), ctypes.c_size_t(len(in_vrs)), vr_array(out_vrs), ctypes.c_size_t(len(out_vrs)),
                    slot_out)
+        self.c = None
+        if self.c_lib and slot_c.raw_path(self.fast) and not getattr(self.inst, "python", False):
+            self.c = slot_c.ChildSide(self.c_lib, self.addr, _HEAD, self.cap, self.fds, self.fast, self.io, n_in, n_out)
+            return True   # (the master's side in C too)
+        return None
+
+    def serve_c(self) -> bool:
+        """The slot served in C until the master sends a control request (True) or goes (False); the
+        inputs' derivatives given for the next step set there, after its inputs."""
+        assert self.c is not None
+        pre = None
+        if self.derivatives is not None:
+            vrs, values = self.derivatives
+
+            def pre() -> int:
+                self.derivatives = None
+                try:
+                    return int(self.inst.set_input_derivatives(vrs, values))
+                except Exception:
+                    return 3   # (fmi2Error)
+        tail = self.fast.step_tail
+        return self.c.serve(bool(tail[0]) if tail else True, pre)
 
     def set_inputs(self) -> int:
         """Outside the step loop (initialisation): the slot's inputs set now."""
@@ -396,7 +479,7 @@ def _serve(argv: list[str]) -> int:
             data = pickle.dumps(("error", f"cannot load the FMU: {load_failure(exc, fmu_dir)}"))
             os.write(c_w, struct.pack("<q", len(data)) + data)
         return 1
-    server = _Server(shm, inst)
+    server = _Server(shm, inst, argv[10] if len(argv) > 10 else "", (s_r, d_w, c_r))
     return _loop(server, ctl_in, c_w, s_r, d_w)
 
 
@@ -419,7 +502,7 @@ def _loop(server: _Server, ctl_in: Any, c_w: int, s_r: int, d_w: int) -> int:
     while True:
         for fd, _ in polls.poll():
             if fd == s_r:
-                if not _steps(s_r, d_w, server):
+                if not (server.serve_c() if server.c is not None else _steps(s_r, d_w, server)):
                     return 0
                 continue
             head = ctl_in.read(8)
@@ -475,7 +558,7 @@ class IsolatedInstance(FmuInstance):
         self.fatal = self.freed = False
         self.dead = ""
         self.child = Child(name, unzipdir, Path(log_path) if log_path else None, logging, step_timeout, handoff,
-                           solver=solver)
+                           solver=solver, c_child=slot_c.for_fmu(unzipdir, solver))
         self.c = 0
 
     # ------------------------------------------------------------------ log
@@ -621,6 +704,8 @@ class IsolatedInstance(FmuInstance):
         child, size = self.child, 8 * n_out
         # FMI 3.0's terminateSimulation, and a model exchange FMU's
         terminated = ctypes.c_bool(False) if self.fmi_version == 3 or self.solver is not None else None
+        if child.c_side is not None:
+            return self._c_fast_path(child.c_side, inputs, terminated)
         # stepping: the step loop has begun (the child sets the inputs with each step); fresh: the last step
         # left the outputs in the slot (the child reads them after an OK step only; none before the first)
         mode = {"stepping": False, "fresh": False}
@@ -664,6 +749,44 @@ class IsolatedInstance(FmuInstance):
             return 0
         return FastPath(ctypes.c_void_p(0), set_real, do_step, get_real, inputs, terminated=terminated,
                         last_time=last_time, start_step=start_step, finish_step=finish_step)
+
+    def _c_fast_path(self, side: slot_c.MasterSide, inputs: Any, terminated: ctypes.c_bool | None) -> FastPath:
+        """The fast path of the C child: the master's side's C functions with FMI 2.0's arguments (``c`` its
+        Parent), which the compiled loop calls directly; a lost child is a status of its own
+        (:meth:`fail_status` reports it), or raised by the step's halves."""
+        last_time = ctypes.c_double(math.nan) if terminated is not None else None
+        if terminated is not None and last_time is not None:
+            side.p.terminated, side.p.last_time = ctypes.addressof(terminated), ctypes.addressof(last_time)
+        step_name = self.call_name(Call.DO_STEP)
+        child = self.child
+
+        def start_step(c: Any, T: Any, H: Any) -> None:
+            s = side.start(T.value, H.value)
+            if s in (slot_c.LOST_DIED, slot_c.LOST_HUNG):
+                raise self.died(ChildDied(child.lost(s)), step_name, T.value)
+
+        def finish_step(spin: bool = True) -> int:
+            s = side.finish(spin)
+            if s == slot_c.INTERRUPTED:
+                raise KeyboardInterrupt
+            if s in (slot_c.LOST_DIED, slot_c.LOST_HUNG):
+                raise self.died(ChildDied(child.lost(s)), step_name, child.t)
+            return s
+        lib = side.lib
+        return FastPath(ctypes.c_void_p(ctypes.addressof(side.p)), lib.wmr_slot_set, lib.wmr_slot_step,
+                        lib.wmr_slot_get, inputs, step_tail=(1,), terminated=terminated, last_time=last_time,
+                        start_step=start_step, finish_step=finish_step, abi=2)
+
+    def fail_status(self, what: str, status: int, t: float | None) -> RunError:
+        """The error for a call that returned ``status``; where the C child's side returned it because the
+        child is lost, the one line of a lost child (as the Python child raises it); KeyboardInterrupt where
+        a second Ctrl-C interrupted its wait."""
+        side = self.child.c_side
+        if side is not None and status == slot_c.INTERRUPTED:   # (a second Ctrl-C during the wait)
+            raise KeyboardInterrupt
+        if side is not None and side.p.lost and status in (slot_c.LOST_DIED, slot_c.LOST_HUNG):
+            return self.died(ChildDied(self.child.lost(status)), what, t)
+        return super().fail_status(what, status, t)
 
     def accessor(self, fmi_type: str, op: str) -> tuple[Any, Any]:
         """(call, ctype) as :meth:`.fmu_instance.FmuInstance.accessor`, through the control channel."""

@@ -18,15 +18,11 @@ FMUs: an FMU's Python code (pythonfmu) and the log callbacks take it recursively
 from __future__ import annotations
 
 import ctypes
-import hashlib
 import os
-import shutil
-import subprocess
-import sys
-import tempfile
 from pathlib import Path
 from typing import Any, Callable
 
+from ..instances import compiled
 from ..instances.failure import Call, Failure
 from ..messages.errors import CosimError
 from .algorithm import Clock, InstanceIO, NativeRecording, StepDone
@@ -108,48 +104,12 @@ class _NoLoop(Exception):
     pass
 
 
-def _cache() -> Path:
-    base = os.environ.get("WMR_COSIM_CACHE") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "wmr-cosim")
-    return Path(base)
-
-
 def _build() -> Path:
-    """The library, compiled once per source and compiler into the cache folder."""
-    if sys.platform == "win32":
-        raise _NoLoop("no compiled loop on Windows yet")
-    cc = os.environ.get("CC") or "cc"
-    path = shutil.which(cc)
-    if path is None:
-        raise _NoLoop(f"no C compiler ({cc}) on PATH")
-    # the compiler known by the file it is (its links followed), its size and its time of change: no
-    # process started where the library is in the cache (``cc --version`` costs milliseconds every run)
-    real = os.path.realpath(path)
+    """The library, compiled once per source and compiler into the cache folder (:mod:`..instances.compiled`)."""
     try:
-        st = os.stat(real)
-    except OSError as exc:
-        raise _NoLoop(f"the C compiler {path} does not run: {exc}") from None
-    compiler = f"{real}\0{st.st_size}\0{st.st_mtime_ns}"
-    key = hashlib.sha256("\0".join([SOURCE.read_text(), path, compiler, *FLAGS]).encode()).hexdigest()[:20]
-    lib = _cache() / f"native-loop-{key}.so"
-    if lib.is_file():
-        return lib
-    try:
-        lib.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(suffix=".so", dir=lib.parent)
-        os.close(fd)
-        try:
-            p = subprocess.run([path, *FLAGS, str(SOURCE), "-o", tmp], capture_output=True, text=True, timeout=300)
-        except (OSError, subprocess.SubprocessError) as exc:
-            os.unlink(tmp)
-            raise _NoLoop(f"the C compiler {path} does not run: {exc}") from None
-        if p.returncode:
-            os.unlink(tmp)
-            raise _NoLoop(f"the C compiler {path} failed on {SOURCE.name}: {p.stderr.strip()[:300]}")
-        os.replace(tmp, lib)   # (atomic: a process that builds it at the same time writes the same file)
-    except OSError as exc:
-        raise _NoLoop(f"the compiled loop cannot be built in {lib.parent}: {exc}") from None
-    return lib
+        return compiled.build(SOURCE, "native-loop", FLAGS, "the compiled loop")
+    except compiled.NoBuild as exc:
+        raise _NoLoop(str(exc)) from None
 
 
 def _load(path: Path) -> Any:
