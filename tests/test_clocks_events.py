@@ -88,8 +88,8 @@ def ticker(tmp_path_factory) -> Path:
 @pytest.mark.parametrize("interface", ["co-simulation", "model-exchange"])
 def test_a_2_ms_clock_ticks_every_4th_step_of_half_a_millisecond(ticker, tmp_path, interface):
     """The Ticker's periodic clock r of 2 ms at steps of 0.5 ms: an event at every 4th communication
-    point (event mode entered, r set, its clocked output n read, the discrete states updated, then the
-    step), n counting the ticks; A's output clock o, raised at every 3rd tick, ticks B's s at that instant
+    point, at the end of the step that ends there (event mode entered, r set, its clocked output n read,
+    the discrete states updated, step mode), n counting the ticks, the stop time's included; A's output clock o, raised at every 3rd tick, ticks B's s at that instant
     and B takes A's m of that instant (its new value: the dependency order): B.y = 2 A.m."""
     ours, ex = _run(tmp_path, ticker_scenario(ticker, interface))
     a, b = ex.instances["A"], ex.instances["B"]
