@@ -112,40 +112,43 @@ def _crosses(pz: float, z: float) -> bool:
 
 def expected(h: float, n_steps: int, r_every: int, me: bool = False) -> list[tuple[float, float, float, float]]:
     """The example under the FMI 3.0 rules the master follows, computed here from the FMUs' equations (the
-    oracle): rows (t, Plant.x, Controller.ur, Supervisor.as) at t_k = k h, each the values before the
-    events of t_k, the instances in the order Supervisor, Controller, Plant.
+    oracle): rows (t, Plant.x, Controller.ur, Supervisor.as) at t_k = k h, each the values after the events
+    of t_k, the instances in the order Supervisor, Controller, Plant (Gauss-Seidel: each takes the values
+    of the instances before it at t_(k+1), those of the instances after it at t_k).
 
-    At t_k: the Supervisor's event, if any, raises its output clock s (its clocked output as flips sign);
-    s ticks the Controller's input clock s (as set); r ticks every ``r_every`` points from t = 0: ur
-    becomes ur + as (the as of this instant: the Supervisor's partition first, the dependency order).
-    Then the step: the Plant's x += h (-x + u_r) (its Euler step), u_r the ur of the last tick.
+    The step from t_k to t_(k+1), instance by instance, each step followed by its events at t_(k+1):
+    the Supervisor's (its output clock s raised: its clocked output as flips sign); the Controller's: s
+    ticks its input clock s (as set: the new as, the Supervisor's partition first, the dependency order),
+    r ticks every ``r_every`` points from t = 0 (ur becomes ur + as, after s where both tick); then the
+    Plant's Euler step x += h (-x + u_r), u_r the Controller's ur at t_(k+1).  The events at t = 0 are
+    those of initialisation (r ticks: ur = as); those of the stop time run too.
 
     The Supervisor's event: in co-simulation its step from t_k computes z = 2 - x with its input x(t_k)
-    and asks for an event at its end when z crossed zero since its last event (pz); in Model Exchange z
-    moves with its input: x(t_k) set at t_k is an event there when z changes sign (the master's test,
-    z > 0 against z <= 0) and the FMU sees the crossing."""
+    and asks for an event at its end (t_(k+1)) when z crossed zero since its last event (pz).  In Model
+    Exchange z moves with its input: x(t_k), set at the start of its step from t_k, is an event at t_k
+    when z changes sign (the master's test, z > 0 against z <= 0) and the FMU sees the crossing; the
+    Controller, past t_k already, takes that tick of s at t_k at the start of its step from t_k."""
     x, ur, as_c, as_s = 0.0, 0.0, 1.0, 1.0
     pz = z = 2.0 - x                # the Supervisor's indicator after initialisation
     ur += as_c                      # r ticks at the start time (the events of initialisation)
     rows = [(0.0, x, ur, as_s)]
-    pending = False
     for k in range(n_steps):
         raised = False
-        if me and k > 0:
-            z_new = 2.0 - x
-            if (z > 0.0) != (z_new > 0.0):          # an event of its new input
-                raised, pz = _crosses(pz, z_new), z_new
-            z = z_new
-        elif pending:
-            raised, pz, pending = True, z, False
+        if me:
+            if k > 0:                                   # its input x(t_k), set at t_k
+                z_new = 2.0 - x
+                if (z > 0.0) != (z_new > 0.0):          # an event of its new input, at t_k
+                    raised, pz = _crosses(pz, z_new), z_new
+                z = z_new
+        else:
+            z = 2.0 - x                                 # its step from t_k, with x(t_k)
+            if _crosses(pz, z):                         # an event at t_(k+1)
+                raised, pz = True, z
         if raised:
             as_s = -as_s
-            as_c = as_s
-        if k > 0 and k % r_every == 0:
+            as_c = as_s                                 # the Controller's s ticks (at t_k in ME, t_(k+1) in CS)
+        if (k + 1) % r_every == 0:                      # the Controller's r at t_(k+1)
             ur = ur + as_c
-        if not me:
-            z = 2.0 - x
-            pending = _crosses(pz, z)
-        x = x + h * (-x + ur)
+        x = x + h * (-x + ur)                           # the Plant's step, u_r = ur(t_(k+1))
         rows.append(((k + 1) * h, x, ur, as_s))
     return rows

@@ -2,16 +2,23 @@
 eventModeUsed on and earlyReturnAllowed off) and in Model Exchange: the master ticks their input clocks and
 reads the output clocks they raise, at the communication points, in the plan's order.
 
-The events of a communication point t_k are handled at the start of the step from t_k (the instance's
-fast-path step), before the step itself; each instance's after those of the instances before it in the
-plan's order.  An event is due at t_k when
+The events of a communication point t_(k+1) are handled at the end of the step that ends there (the
+instance's fast-path step): after its fmi3DoStep (or integration) from t_k to t_(k+1), with the inputs set
+for that step (under Gauss-Seidel the values at t_(k+1) of the instances before it in the plan's order),
+the instance enters event mode at t_(k+1); each instance's events come after those of the instances before
+it in the order, as the FMI 3.0 co-simulation event mode loop has them (the importer steps to the
+communication point, then handles the events there).  An event is due at t_(k+1) when
 
 - a periodic input clock ticks there (intervalVariability constant, fixed or tunable: shift + i interval
   [s], on the master's grid; a tunable clock keeps the interval it declares: the master never changes it);
 - a triggered input clock is ticked there: by ``clock_ticks``, or by an output clock connected to it that
-  its FMU raised at t_k (an instance before this one in the order: ``check`` refuses the rest);
-- (co-simulation) the FMU asked for event handling in the step that ended at t_k (fmi3DoStep's
+  its FMU raised at t_(k+1) (an instance before this one in the order: ``check`` refuses the rest);
+- (co-simulation) the FMU asked for event handling in the step that ended at t_(k+1) (fmi3DoStep's
   eventHandlingNeeded; without early return the FMU ends its step at the communication point).
+
+At the start of the step from t_k the instance takes the ticks of t_k that came after its events there:
+those of an output clock raised at t_k by a Model Exchange FMU before it in the order at the start of its
+own step from t_k (an event of its new inputs, which an instance after it in the order computed).
 
 The event (FMI 3.0, co-simulation with event mode, 4.2.5; Model Exchange, 3.2.4):
 
@@ -21,16 +28,19 @@ The event (FMI 3.0, co-simulation with event mode, 4.2.5; Model Exchange, 3.2.4)
   until no new discrete states are needed; fmi3EnterStepMode (co-simulation) or
   fmi3EnterContinuousTimeMode (Model Exchange, whose integrator restarts there).
 
-Then the step.  The events at the start time are those of the end of initialisation (the FMU is in event
-mode there).  A Model Exchange FMU's own events (time, state, step events, and those of its new inputs)
+The events at the start time are those of the end of initialisation (the FMU is in event mode there);
+those of the stop time end the last step.  A Model Exchange FMU's own events (time, state, step events, and those of its new inputs)
 read its output clocks too; one it raises at an instant that is not a communication point reaches no
 other FMU: if it is connected, the run ends there in one line (the FMUs after it are at t_k already).
 
 A clocked variable is exchanged only at its clock's ticks: the fast path's set passes on the inputs that
 are not clocked and keeps the clocked ones for their clock's next tick; its get gives, for a clocked
 output, the value read at its last tick (before the first: its start value).  The row of a communication
-point is read after the steps that end there and before its events: what is recorded at t_k is the value
-just before the events of t_k (a tick's effect shows from t_{k+1})."""
+point is read after the steps that end there, and so after their events: what is recorded at t_k is the
+value after the events of t_k (a tick's effect shows in the row of its time).  Where every step of a
+clocked FMU is one interval of its periodic clock, it so computes what the same FMU without event mode
+computes at the end of each step (G1 through the clocked sensor and controller equals the fixed-step run
+bit for bit)."""
 from __future__ import annotations
 
 import ctypes
@@ -274,7 +284,8 @@ class ClockEvents:
                       in_val: Any, plain_in: list[int], plain_out: list[int]) -> FastPath:
         """The fast path over ``inner`` (built for the inputs ``plain_in`` and outputs ``plain_out`` that are
         not clocked, positions in ``in_vrs``/``out_vrs``): the set keeps the clocked inputs for their tick;
-        the step handles the events due at its start, then steps; the get gives each clocked output its
+        the step takes the ticks still due at its start (output clocks raised there after this instance's
+        events), steps, then handles the events due at its end; the get gives each clocked output its
         value at its last tick."""
         in_val = in_val if in_val is not None else (ctypes.c_double * max(1, n_in))()
         sizes = self.sizes
@@ -314,13 +325,23 @@ class ClockEvents:
         def do_step(c: Any, t: Any, h: Any, *tail: Any) -> int:
             try:
                 n = self._index(t.value)
-                if n is not None:
+                if n is not None:          # (ticks from output clocks raised at t_k after our events there)
                     self._events_at(n, t.value)
             except RunError as exc:
                 self.log.append(str(exc))
                 return 4 if self.fatal else 3
             s = int(i_step(c, t, h, *inner.step_tail))
             self._stepped(s)
+            if s > 1:
+                return s
+            try:
+                end = t.value + h.value
+                n = self._index(end)
+                if n is not None:          # the events of t_(k+1), at the end of the step that ends there
+                    self._events_at(n, end)
+            except RunError as exc:
+                self.log.append(str(exc))
+                return 4 if self.fatal else 3
             return s
 
         return FastPath(inner.c, set_real, do_step, get_real, in_val, set_tail=(ctypes.c_size_t(n_in),),
@@ -401,8 +422,8 @@ class Clocked3(ClockEvents, Instance3):
 
     def fast_path(self, in_vrs: list[int], n_in: int, out_vrs: list[int], n_out: int,
                   in_val: Any = None) -> FastPath:
-        """fmi3DoStep after the events due at the start of the step; eventHandlingNeeded is kept for the
-        next (see :meth:`ClockEvents._clocked_path`)."""
+        """fmi3DoStep, then the events due at its end, eventHandlingNeeded among them (see
+        :meth:`ClockEvents._clocked_path`)."""
         plain_in, plain_out = self._split(in_vrs, out_vrs)
         inner = super().fast_path(*self._plain(in_vrs, plain_in), *self._plain(out_vrs, plain_out))
         self._needed_flag = inner.step_tail[1]._obj   # fmi3DoStep's eventHandlingNeeded
@@ -450,8 +471,8 @@ class ClockedME3(ClockEvents, ModelExchange3):
 
     def fast_path(self, in_vrs: list[int], n_in: int, out_vrs: list[int], n_out: int,
                   in_val: Any = None) -> FastPath:
-        """The Model Exchange fast path (the integration) after the events due at the start of the step (see
-        :meth:`ClockEvents._clocked_path`)."""
+        """The Model Exchange fast path (the integration, the FMU's own events inside it handled where they
+        happen), then the ticks due at its end (see :meth:`ClockEvents._clocked_path`)."""
         plain_in, plain_out = self._split(in_vrs, out_vrs)
         inner = super().fast_path(*self._plain(in_vrs, plain_in), *self._plain(out_vrs, plain_out))
         return self._clocked_path(inner, in_vrs, n_in, out_vrs, n_out, in_val, plain_in, plain_out)

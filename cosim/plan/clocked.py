@@ -6,7 +6,8 @@ the same ``from``/``to`` syntax as variables).  What the master runs exactly, an
 
 - the instance runs as co-simulation and its FMU declares ``hasEventMode``, in the master's process, at
   the experiment's step, under the default algorithm (Gauss-Seidel: the instances step in the plan's order
-  and an instance's events at a communication point come after those of the instances before it);
+  and an instance's events at a communication point, at the end of its step that ends there, come after
+  those of the instances before it);
 - each periodic input clock (constant, fixed, tunable) declares its interval (and shift) as a whole number
   of steps; each triggered input clock has a source: an output clock connected to it, or ``clock_ticks``
   at times on the grid; countdown and changing clocks are refused;
