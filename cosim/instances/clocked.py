@@ -323,26 +323,15 @@ class ClockEvents:
             return s
 
         def do_step(c: Any, t: Any, h: Any, *tail: Any) -> int:
-            try:
-                n = self._index(t.value)
-                if n is not None:          # (ticks from output clocks raised at t_k after our events there)
-                    self._events_at(n, t.value)
-            except RunError as exc:
-                self.log.append(str(exc))
-                return 4 if self.fatal else 3
+            s = self._events_or_status(t.value)   # (ticks from output clocks raised at t_k after our events there)
+            if s:
+                return s
             s = int(i_step(c, t, h, *inner.step_tail))
             self._stepped(s)
             if s > 1:
                 return s
-            try:
-                end = t.value + h.value
-                n = self._index(end)
-                if n is not None:          # the events of t_(k+1), at the end of the step that ends there
-                    self._events_at(n, end)
-            except RunError as exc:
-                self.log.append(str(exc))
-                return 4 if self.fatal else 3
-            return s
+            # the events of t_(k+1), at the end of the step that ends there
+            return self._events_or_status(t.value + h.value) or s
 
         return FastPath(inner.c, set_real, do_step, get_real, in_val, set_tail=(ctypes.c_size_t(n_in),),
                         get_tail=(ctypes.c_size_t(n_out),), terminated=inner.terminated, last_time=inner.last_time,
@@ -351,6 +340,18 @@ class ClockEvents:
     def _events_at(self, n: int, t: float) -> None:
         """The event at grid index ``n`` (time ``t`` [s]) if one is due."""
         raise NotImplementedError
+
+    def _events_or_status(self, t: float) -> int:
+        """The events due at ``t`` [s] where it is a point of the grid: 0, or the FMI status of their failure
+        (its line logged)."""
+        try:
+            n = self._index(t)
+            if n is not None:
+                self._events_at(n, t)
+        except RunError as exc:
+            self.log.append(str(exc))
+            return 4 if self.fatal else 3
+        return 0
 
     def _stepped(self, status: int) -> None:
         """After the step (its FMI status)."""

@@ -148,30 +148,45 @@ def _instance(sc: Scenario, name: str, ip: InstancePlan) -> None:
                                                                       f"{cname!r}")
 
 
+def periodic_on_grid(sc: Scenario, name: str, c: Clock) -> None:
+    """A periodic input clock of instance ``name``: its intervalDecimal (and shiftDecimal) [s] declared and
+    a whole number of the scenario's steps, else ScenarioError (one line)."""
+    step = sc.times()[2]
+    if c.interval is None:
+        raise ScenarioError(sc.file, f"instances.{name}.fmu", f"clock {c.name}: a {c.variability} clock with "
+                            "no intervalDecimal is not supported yet (its interval is known only at run time)")
+    k, n0 = grid_multiple(c.interval, step), grid_multiple(c.shift or "0", step)
+    if not k or n0 is None or float(c.interval) <= 0:
+        raise ScenarioError(sc.file, "experiment.step", f"{step:g} s: clock {name}.{c.name} ticks every "
+                            f"{c.interval} s" + (f" from {c.shift} s" if c.shift else "") +
+                            ", not a whole number of steps")
+
+
+def triggered_on_grid(sc: Scenario, name: str, ip: InstancePlan, c: Clock, linked: bool | None) -> None:
+    """A triggered input clock of instance ``name``: a source (``linked``: an output clock connected to it;
+    None where no clock can be connected to it, as in scheduled execution) or ``clock_ticks``, each time [s]
+    on the grid from the start; else ScenarioError (one line)."""
+    start, _, step = sc.times()
+    fld = f"instances.{name}"
+    times = ip.spec.clock_ticks.get(c.name)
+    if not times and not linked:
+        how = "give its times" if linked is None else "connect an output clock to it, or give its times"
+        raise ScenarioError(sc.file, f"{fld}.clock_ticks", f"triggered input clock {c.name} has no source: {how}, "
+                            f"clock_ticks = {{ {c.name} = [...] }}")
+    for t in times or ():
+        if t < start or grid_multiple(Fraction(repr(t)) - Fraction(repr(start)), step) is None:
+            raise ScenarioError(sc.file, f"{fld}.clock_ticks.{c.name}", f"{t:g} s is not on the grid "
+                                                                       f"of {step:g} s steps from {start:g} s")
+
+
 def _input_clock(sc: Scenario, name: str, ip: InstancePlan, c: Clock, linked: bool) -> None:
     """One input clock: periodic with its interval (and shift) a whole number of steps, or triggered with a
     source (``linked``: an output clock connected to it; or ``clock_ticks`` on the grid)."""
-    start, _, step = sc.times()
     fld = f"instances.{name}"
     if c.periodic:
-        if c.interval is None:
-            raise ScenarioError(sc.file, f"{fld}.fmu", f"clock {c.name}: a {c.variability} clock with no "
-                                "intervalDecimal is not supported yet (its interval is known only at run time)")
-        k, n0 = grid_multiple(c.interval, step), grid_multiple(c.shift or "0", step)
-        if not k or n0 is None or float(c.interval) <= 0:
-            raise ScenarioError(sc.file, "experiment.step", f"{step:g} s: clock {name}.{c.name} ticks every "
-                                f"{c.interval} s" + (f" from {c.shift} s" if c.shift else "") +
-                                ", not a whole number of steps")
+        periodic_on_grid(sc, name, c)
     elif c.variability == "triggered":
-        times = ip.spec.clock_ticks.get(c.name)
-        if not times and not linked:
-            raise ScenarioError(sc.file, f"{fld}.clock_ticks", f"triggered input clock {c.name} has no "
-                                f"source: connect an output clock to it, or give its times, clock_ticks = "
-                                f"{{ {c.name} = [...] }}")
-        for t in times or ():
-            if t < start or grid_multiple(Fraction(repr(t)) - Fraction(repr(start)), step) is None:
-                raise ScenarioError(sc.file, f"{fld}.clock_ticks.{c.name}", f"{t:g} s is not on the grid "
-                                                                           f"of {step:g} s steps from {start:g} s")
+        triggered_on_grid(sc, name, ip, c, linked)
     else:
         raise ScenarioError(sc.file, f"{fld}.fmu", f"clock {c.name}: a {c.variability} input clock is not "
                             "supported in co-simulation and model exchange yet (the master ticks periodic and "

@@ -28,7 +28,6 @@ from ..messages.errors import CosimError, FmuLoadError, MissingVariableError, Sc
 from ..messages.suggest import did_you_mean
 from ..messages.words import count, plural
 from ..model.binary import PYTHON_FMU, runs_python
-from ..model.clocks import grid_multiple
 from ..model.description import (CO_SIMULATION, INTERFACE_NAMES, MODEL_EXCHANGE, SCHEDULED_EXECUTION, FmuModel,
                                  Variable, load_model)
 from ..model.kinds import FileKind, file_kind
@@ -40,7 +39,8 @@ from ..scenario.inputs import InputPlan, read_inputs
 from ..stepping import table as algorithms
 from ..stepping.graph import FeedGraph
 from ..stepping.settings import SpecError, check_adaptive
-from .clocked import check_clocked, check_clocked_reads, clock_links
+from .clocked import (check_clocked, check_clocked_reads, clock_links, periodic_on_grid,
+                      triggered_on_grid)
 from .feeds import feed_graph
 from .loops import check_iteration, coupling
 from .records import ConnectionPlan, EventPlan, InstancePlan, Plan, RecordPlan, RequirementPlan, unit_of
@@ -966,10 +966,8 @@ def _scheduled_clocks(sc: Scenario, name: str, ip: InstancePlan, notes: list[str
     """:func:`_scheduled` for the clocks of one scheduled execution instance ``name``: each input clock
     periodic with its interval (and shift) a whole number of steps, or triggered with ``clock_ticks`` on the
     grid, or countdown; an output clock a note."""
-    start, _, step = sc.times()
-    fld = f"instances.{name}"
     for c in ip.model.clocks:
-        cf = f"{fld}.fmu"
+        cf = f"instances.{name}.fmu"
         if c.causality == "output":
             notes.append(f"{name}: output clock {c.name} is raised by the FMU and feeds nothing (output "
                          "clocks are not connected yet)")
@@ -979,33 +977,12 @@ def _scheduled_clocks(sc: Scenario, name: str, ip: InstancePlan, notes: list[str
             raise ScenarioError(sc.file, cf, f"clock {c.name}: intervalVariability {c.variability!r} is not "
                                              "supported yet (the FMU may change its interval)")
         elif c.periodic:
-            if c.interval is None:
-                raise ScenarioError(sc.file, cf, f"clock {c.name}: a {c.variability} clock with no intervalDecimal "
-                                                 "is not supported yet (its interval is known only at run time)")
-            k, n0 = grid_multiple(c.interval, step), grid_multiple(c.shift or "0", step)
-            if not k or n0 is None or float(c.interval) <= 0:
-                raise ScenarioError(sc.file, "experiment.step", f"{step:g} s: clock {name}.{c.name} ticks every "
-                                    f"{c.interval} s" + (f" from {c.shift} s" if c.shift else "") +
-                                    ", not a whole number of steps")
+            periodic_on_grid(sc, name, c)
         elif c.variability == "triggered":
-            times = ip.spec.clock_ticks.get(c.name)
-            if not times:
-                raise ScenarioError(sc.file, f"{fld}.clock_ticks", f"triggered input clock {c.name} has no "
-                                                                   f"source: give its times, clock_ticks = "
-                                                                   f"{{ {c.name} = [...] }}")
-            for t in times:
-                if grid_multiple(_minus(t, start), step) is None or t < start:
-                    raise ScenarioError(sc.file, f"{fld}.clock_ticks.{c.name}", f"{t:g} s is not on the grid of "
-                                                                               f"{step:g} s steps from {start:g} s")
+            triggered_on_grid(sc, name, ip, c, None)
         elif c.variability != "countdown":
             raise ScenarioError(sc.file, cf, f"clock {c.name}: intervalVariability {c.variability!r} is not "
                                              "supported")
-
-
-def _minus(a: float, b: float) -> Any:
-    """a - b [s] exactly (as fractions of their decimal forms)."""
-    from fractions import Fraction
-    return Fraction(repr(a)) - Fraction(repr(b))
 
 
 def _solvers(sc: Scenario, insts: dict[str, InstancePlan]) -> None:
