@@ -52,9 +52,8 @@ DISPLAY_UNITS: dict[str, dict[str, float]] = {
 
 #: Relative tolerance within which a step size equals the previous one, or a time a multiple of it.
 #: The snapping rule (inlined in do_step, the controller's step and the FMI 3.0 clock's sample, all on the
-#: hot path): a time t
-#: within STEP_RTOL * |t| of round(t / h) * h is that multiple, so a master that accumulates time sees
-#: the times k h of the direct loop.
+#: hot path): a time t within STEP_RTOL * |t| of round(t / h) * h is that multiple, so a master that
+#: accumulates time sees the times k h of the direct loop.
 STEP_RTOL = 1e-9
 #: Relative tolerance within which a step of a slave that takes steps of one length only (``variable_step``
 #: false) is its sample period: a host that accumulates time in floating point ends its last step a little
