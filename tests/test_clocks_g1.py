@@ -120,3 +120,27 @@ def test_check_lists_each_instance_clock_of_g1(fmus3, tmp_path):
     assert clocks == [(inst + ": co-simulation with event mode",
                        ["    clock sample: periodic input clock (constant)", " interval 0.002 s"])
                       for inst in ("sensor", "controller")]
+
+
+def test_the_plant_at_half_a_millisecond_beside_the_clocked_blocks_equals_the_multirate_run(built_fmus, fmus3,
+                                                                                             tmp_path):
+    """The plant stepped every 0.5 ms, the sensor and the controller ticked by their 2 ms clock (every 4th
+    point, event mode): every recorded column (every 4th point, where the clock ticks) equals the multi-rate
+    run of the FMI 2.0 FMUs with the sensor and the controller at their own step of 2 ms, bit for bit.  The
+    two are the same schedule: a multi-rate block steps from t_(k+1-4) in the base step that ends at t_(k+1),
+    taking its inputs as they are then (the plant's at t_(k+1)), and its outputs appear at t_(k+1); a clocked
+    block's tick at t_(k+1) takes the inputs set for the step that ends there (the plant's at t_(k+1)), and
+    its outputs are read right after."""
+    head = "step = 0.0005\n[record]\ndecimation = 4\n"
+    path = _scenario(tmp_path, {"plant": built_fmus["WmrPlant"], "sensor": built_fmus["WmrSensor"],
+                                "controller": built_fmus["WmrController"]}, "multirate", head, stop=1.0)
+    text = path.read_text()
+    for inst in ("sensor", "controller"):   # (their own step of 2 ms: the master's multi-rate setting)
+        text = text.replace(f"[instances.{inst}]\n", f"[instances.{inst}]\nstep = 0.002\n", 1)
+    path.write_text(text)
+    two = _run(path, tmp_path / "two")
+    three = _run(_scenario(tmp_path, _fmi3(fmus3), "clocked", head, stop=1.0), tmp_path / "three")
+    assert len(two) == len(three) == 501
+    for c in two.dtype.names:
+        assert np.array_equal(two[c], three[_column3(c)]), c
+    assert not (two["controller.u1"] == two["controller.u1"][0]).all()
