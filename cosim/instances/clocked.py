@@ -111,6 +111,11 @@ class ClockEvents:
         raise RunError(f"{self.name}: an instance with clocks cannot restore a state", self.name)
 
     def _init_clocks(self, md: Any, unzipdir: str) -> None:
+        self._fns: dict[str, Any] = {}                  # the FMU's functions, looked up once (:meth:`_fn`)
+        self._getters: dict[str, tuple[Any, Any]] = {}  # its get of each type (:meth:`_get_of`)
+        self._in_plans: dict[tuple[frozenset[str], int], tuple[Any, ...]] = {}   # (:meth:`_set_clocked_inputs`)
+        self._out_plans: dict[frozenset[str], list[tuple[Any, ...]]] = {}        # (:meth:`_out_plan`)
+        self._set_clocks: dict[tuple[str, ...], tuple[Any, ...]] = {}            # (:meth:`_tick`)
         with open(os.path.join(unzipdir, "modelDescription.xml"), "rb") as fh:
             self.clocks: list[Clock] = clocks_of(fh.read())
         by_var = {v: c for c in self.clocks for v in c.clocked}
@@ -191,21 +196,38 @@ class ClockEvents:
                 if at is not None and at[0] == n:
                     self._seen[(id(src), oc)] = at[1]
         if due:
-            vrs = (ctypes.c_uint32 * len(due))(*[k.vr for k in due])
-            on = (ctypes.c_bool * len(due))(*[True] * len(due))
-            self._ok(raw(self.fmu.dll, "fmi3SetClock")(c, vrs, ctypes.c_size_t(len(due)), on),
-                     "fmi3SetClock(" + ", ".join(k.name for k in due) + ")", t)
-            self.ticked += [(t, k.name) for k in due]
-            names = {k.name for k in due}
-            ins = [(vr, v) for vr, v in self.in_held.items() if self.clocked_vr[vr] in names]
-            if ins:
-                flat = [x for _, v in ins for x in v]
-                self._ok(raw(self.fmu.dll, "fmi3SetFloat64")(c, (ctypes.c_uint32 * len(ins))(*[vr for vr, _ in ins]),
-                                                             ctypes.c_size_t(len(ins)), (ctypes.c_double * len(flat))(*flat),
-                                                             ctypes.c_size_t(len(flat))), "fmi3SetFloat64 (clocked inputs)", t)
-                for vr, v in ins:
-                    self.held[vr] = list(v)
+            names = tuple(k.name for k in due)
+            setting = self._set_clocks.get(names)
+            if setting is None:   # (the arrays of a set of clocks made once)
+                setting = self._set_clocks[names] = (
+                    (ctypes.c_uint32 * len(due))(*[k.vr for k in due]), ctypes.c_size_t(len(due)),
+                    (ctypes.c_bool * len(due))(*[True] * len(due)), f"fmi3SetClock({', '.join(names)})")
+            vrs, n_vr, on, what = setting
+            self._ok(self._fn("fmi3SetClock")(c, vrs, n_vr, on), what, t)
+            self.ticked += [(t, name) for name in names]
+            self._set_clocked_inputs(c, frozenset(names), t)
         self._read_outputs(n, t, {k.name for k in due})
+
+    def _set_clocked_inputs(self, c: Any, names: frozenset[str], t: float) -> None:
+        """The clocked inputs of the clocks ``names`` set to the values kept for their tick (one
+        fmi3SetFloat64; its arrays made once for the clocks and the inputs kept)."""
+        key = (names, len(self.in_held))
+        plan = self._in_plans.get(key)
+        if plan is None:
+            vrs = [vr for vr in self.in_held if self.clocked_vr[vr] in names]
+            nv = sum(len(self.in_held[vr]) for vr in vrs)
+            plan = self._in_plans[key] = (vrs, (ctypes.c_uint32 * max(1, len(vrs)))(*vrs), ctypes.c_size_t(len(vrs)),
+                                          (ctypes.c_double * max(1, nv))(), ctypes.c_size_t(nv))
+        vrs, vr_arr, n_vr, vals, nv = plan
+        if not vrs:
+            return
+        i, held, in_held = 0, self.held, self.in_held
+        for vr in vrs:
+            v = in_held[vr]
+            vals[i:i + len(v)] = v
+            i += len(v)
+            held[vr] = list(v)
+        self._ok(self._fn("fmi3SetFloat64")(c, vr_arr, n_vr, vals, nv), "fmi3SetFloat64 (clocked inputs)", t)
 
     def _read_outputs(self, n: int | None, t: float, active: set[str]) -> None:
         """The output clocks read (those raised: at grid index ``n``, None off the grid) and the clocked
@@ -216,7 +238,7 @@ class ClockEvents:
             if k.causality != "output":
                 continue
             value = (ctypes.c_bool * 1)()
-            self._ok(raw(self.fmu.dll, "fmi3GetClock")(c, (ctypes.c_uint32 * 1)(k.vr), ctypes.c_size_t(1), value),
+            self._ok(self._fn("fmi3GetClock")(c, (ctypes.c_uint32 * 1)(k.vr), ctypes.c_size_t(1), value),
                      f"fmi3GetClock({k.name})", t)
             if not value[0]:
                 continue
@@ -230,29 +252,51 @@ class ClockEvents:
                     raise RunError(why, self.name, t)
             else:
                 self.raised_at[k.name] = (n, self.raised_at.get(k.name, (0, 0))[1] + 1)
+        held = self.held
+        for get, vr_arr, n_vr, vals, nv, slices, what in self._out_plan(frozenset(active)):
+            self._ok(get(vr_arr, n_vr, vals, nv), what, t)
+            for vr, i, j in slices:
+                held[vr] = vals[i:j]
+        self._outputs_read = True
+
+    def _out_plan(self, active: frozenset[str]) -> list[tuple[Any, ...]]:
+        """Per FMI type with outputs clocked by a clock of ``active``: its get, the value references, a
+        buffer for their values and where each one's values are in it; made once for each set of clocks."""
+        plan = self._out_plans.get(active)
+        if plan is not None:
+            return plan
+        plan = []
         for fmi_type, vrs in self._outputs.items():
             outs = [vr for vr in vrs if self.clocked_vr[vr] in active]
             if not outs:
                 continue
             get, ctype = self._get_of(fmi_type)
-            nv = sum(self.sizes[vr] for vr in outs)
-            vals = (ctype * nv)()
-            self._ok(get((ctypes.c_uint32 * len(outs))(*outs), ctypes.c_size_t(len(outs)), vals, ctypes.c_size_t(nv)),
-                     f"fmi3Get{_TNAME.get(fmi_type, fmi_type)} (clocked outputs)", t)
-            i = 0
+            slices, i = [], 0
             for vr in outs:
-                size = self.sizes[vr]
-                self.held[vr] = list(vals[i:i + size])
-                i += size
-        self._outputs_read = True
+                slices.append((vr, i, i + self.sizes[vr]))
+                i += self.sizes[vr]
+            plan.append((get, (ctypes.c_uint32 * len(outs))(*outs), ctypes.c_size_t(len(outs)), (ctype * i)(),
+                         ctypes.c_size_t(i), slices, f"fmi3Get{_TNAME.get(fmi_type, fmi_type)} (clocked outputs)"))
+        self._out_plans[active] = plan
+        return plan
 
     def _ok(self, status: int, what: str, t: float) -> None:
         if status > 1:
             raise self.fail_status(what, status, t)
 
     def _get_of(self, fmi_type: str) -> tuple[Any, Any]:
-        """The FMU's own get of ``fmi_type`` (:meth:`accessor` without the held values)."""
-        return super().accessor(fmi_type, "Get")   # type: ignore[misc]
+        """The FMU's own get of ``fmi_type`` (:meth:`accessor` without the held values), made once."""
+        got = self._getters.get(fmi_type)
+        if got is None:
+            got = self._getters[fmi_type] = super().accessor(fmi_type, "Get")   # type: ignore[misc]
+        return got
+
+    def _fn(self, name: str) -> Any:
+        """The FMU's function ``name`` (:func:`.in_process.raw`), looked up once: an event calls several."""
+        f = self._fns.get(name)
+        if f is None:
+            f = self._fns[name] = raw(self.fmu.dll, name)
+        return f
 
     def accessor(self, fmi_type: str, op: str) -> tuple[Any, Any]:
         """The FMU's get or set of ``fmi_type``; its get gives each clocked variable the values of its last
@@ -408,7 +452,7 @@ class Clocked3(ClockEvents, Instance3):
         self._event_needed = False
         c = ctypes.c_void_p(self.c)
         if not in_event_mode:
-            self._ok(raw(self.fmu.dll, "fmi3EnterEventMode")(c), "fmi3EnterEventMode", t)
+            self._ok(self._fn("fmi3EnterEventMode")(c), "fmi3EnterEventMode", t)
         self._tick(n, t, due)
         for _ in range(MAX_UPDATES):
             needed, terminate = self.call("fmi3UpdateDiscreteStates", self.fmu.updateDiscreteStates, t=t)[:2]
@@ -419,7 +463,7 @@ class Clocked3(ClockEvents, Instance3):
         else:
             raise RunError(f"{self.name}: the event iteration at t = {t:.9g} s did not end after {MAX_UPDATES} "
                            "updates of the discrete states", self.name, t)
-        self._ok(raw(self.fmu.dll, "fmi3EnterStepMode")(c), "fmi3EnterStepMode", t)
+        self._ok(self._fn("fmi3EnterStepMode")(c), "fmi3EnterStepMode", t)
 
     def fast_path(self, in_vrs: list[int], n_in: int, out_vrs: list[int], n_out: int,
                   in_val: Any = None) -> FastPath:
