@@ -45,11 +45,10 @@ from __future__ import annotations
 
 import ctypes
 import os
-from fractions import Fraction
 from typing import TYPE_CHECKING, Any
 
 from ..messages.errors import RunError
-from ..model.clocks import Clock, clocks_of, grid_multiple
+from ..model.clocks import Clock, clocks_of
 from .contract import FastPath
 from .in_process import ACCESS, Instance3, raw
 from .model_exchange import ModelExchange3
@@ -151,9 +150,9 @@ class ClockEvents:
         self._start, self._step = start, step
         for c in self.clocks:
             if c.periodic and c.interval is not None:
-                n0, k = grid_multiple(Fraction(c.shift or "0"), step), grid_multiple(c.interval, step)
-                assert n0 is not None and k is not None and k > 0   # (check refuses the rest)
-                self._periodic[c.name] = (n0, k)
+                on_grid = c.grid(step)
+                assert on_grid is not None   # (check refuses the rest)
+                self._periodic[c.name] = on_grid
         for name, times in ticks.items():
             self._ticks[name] = {round((t - start) / step) for t in times}
 
@@ -303,7 +302,7 @@ class ClockEvents:
         tick (held by the master: the FMU defines them at its clock's ticks only), asking the FMU for the
         others."""
         fn, ctype = super().accessor(fmi_type, op)   # type: ignore[misc]
-        if op != "Get" or not any(vr in self.clocked_vr for vr in self._outputs.get(fmi_type, ())):
+        if op != "Get" or not self._outputs.get(fmi_type):   # (no clocked output of this type)
             return fn, ctype
         held, sizes = self.held, self.sizes
 

@@ -44,6 +44,7 @@ class ScheduledExecution3(Instance3):
         self._experiment = (0.0, None, None)
         with open(os.path.join(unzipdir, "modelDescription.xml"), "rb") as fh:
             self.clocks: list[Clock] = clocks_of(fh.read())
+        self._by_vr = {c.vr: c for c in self.clocks}   # (the scheduler's, at every step)
         self.raised: list[tuple[float, str]] = []   # (time [s], output clock) the FMU raised
         self._update = False
         self._start, self._step = 0.0, 1.0
@@ -88,11 +89,10 @@ class ScheduledExecution3(Instance3):
         self._horizon: dict[int, tuple[int, int]] = {}   # periodic: vr -> (first index, interval in steps)
         for c in self.clocks:
             if c.periodic and c.interval is not None:
-                n0 = grid_multiple(Fraction(c.shift or "0"), step)
-                k = grid_multiple(c.interval, step)
-                assert n0 is not None and k is not None and k > 0   # (check refuses the rest)
-                self._horizon[c.vr] = (n0, k)
-                self._push(n0, c)
+                on_grid = c.grid(step)
+                assert on_grid is not None   # (check refuses the rest)
+                self._horizon[c.vr] = on_grid
+                self._push(on_grid[0], c)
         for name, times in ticks.items():
             for t in times:
                 n = grid_multiple(Fraction(repr(t)) - Fraction(repr(start)), step)
@@ -112,7 +112,7 @@ class ScheduledExecution3(Instance3):
     def _run_until(self, n_end: int) -> int:
         """Activate every tick at grid index <= ``n_end``, instant by instant, each instant's by priority:
         the FMI status (0: OK)."""
-        by_vr = {c.vr: c for c in self.clocks}
+        by_vr = self._by_vr
         while self._due and self._due[0][0] <= n_end:
             n, _, vr = heapq.heappop(self._due)
             while self._due and self._due[0][:3] == (n, _, vr):   # the same tick given twice: once

@@ -45,6 +45,14 @@ class Clock:
             return f"periodic input clock ({self.variability})"
         return f"{self.variability} input clock"
 
+    def grid(self, step: float) -> tuple[int, int] | None:
+        """A periodic clock on the master's grid of ``step`` [s]: (its first tick, its interval) in whole
+        steps, or None where its interval is not declared, not positive, or either is off the grid."""
+        if self.interval is None or float(self.interval) <= 0:
+            return None
+        n0, k = grid_multiple(self.shift or "0", step), grid_multiple(self.interval, step)
+        return None if n0 is None or not k else (n0, k)
+
     def describe(self) -> str:
         """One line: name, kind, interval, priority, the variables it clocks."""
         parts = [f"clock {self.name}: {self.kind}"]

@@ -155,8 +155,7 @@ def periodic_on_grid(sc: Scenario, name: str, c: Clock) -> None:
     if c.interval is None:
         raise ScenarioError(sc.file, f"instances.{name}.fmu", f"clock {c.name}: a {c.variability} clock with "
                             "no intervalDecimal is not supported yet (its interval is known only at run time)")
-    k, n0 = grid_multiple(c.interval, step), grid_multiple(c.shift or "0", step)
-    if not k or n0 is None or float(c.interval) <= 0:
+    if c.grid(step) is None:
         raise ScenarioError(sc.file, "experiment.step", f"{step:g} s: clock {name}.{c.name} ticks every "
                             f"{c.interval} s" + (f" from {c.shift} s" if c.shift else "") +
                             ", not a whole number of steps")
