@@ -140,12 +140,18 @@ def _instance(sc: Scenario, name: str, ip: InstancePlan) -> None:
         if getattr(ip.spec, key):
             raise ScenarioError(sc.file, f"{fld}.{key}", "not supported for an instance with clocks (its events "
                                                          "run in the master's process, at every communication point)")
+    ticks_named(sc, name, ip)
+
+
+def ticks_named(sc: Scenario, name: str, ip: InstancePlan) -> None:
+    """Each clock ``clock_ticks`` of instance ``name`` names is a triggered input clock of its FMU, else
+    ScenarioError (one line)."""
     by_name = {c.name: c for c in ip.model.clocks}
     for cname in ip.spec.clock_ticks:
         c = by_name.get(cname)
         if c is None or c.causality != "input" or c.variability != "triggered":
-            raise ScenarioError(sc.file, f"{fld}.clock_ticks.{cname}", f"{file} has no triggered input clock "
-                                                                      f"{cname!r}")
+            raise ScenarioError(sc.file, f"instances.{name}.clock_ticks.{cname}", f"{ip.model.path.name} has no "
+                                                                                 f"triggered input clock {cname!r}")
 
 
 def periodic_on_grid(sc: Scenario, name: str, c: Clock) -> None:

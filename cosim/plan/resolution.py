@@ -39,7 +39,7 @@ from ..scenario.inputs import InputPlan, read_inputs
 from ..stepping import table as algorithms
 from ..stepping.graph import FeedGraph
 from ..stepping.settings import SpecError, check_adaptive
-from .clocked import (check_clocked, check_clocked_reads, clock_links, periodic_on_grid,
+from .clocked import (check_clocked, check_clocked_reads, clock_links, periodic_on_grid, ticks_named,
                       triggered_on_grid)
 from .feeds import feed_graph
 from .loops import check_iteration, coupling
@@ -953,12 +953,7 @@ def _scheduled(sc: Scenario, insts: dict[str, InstancePlan], conns: list[Connect
             if ev.variable is not None and ev.variable.split(".", 1)[0] == name:
                 raise ScenarioError(sc.file, f"events[{ev.index}].variable", f"{ev.variable}: events on a scheduled "
                                                                              "execution instance are not supported yet")
-        by_name = {c.name: c for c in ip.model.clocks}
-        for cname in ip.spec.clock_ticks:
-            c = by_name.get(cname)
-            if c is None or c.causality != "input" or c.variability != "triggered":
-                raise ScenarioError(sc.file, f"{fld}.clock_ticks.{cname}", f"{ip.model.path.name} has no triggered "
-                                                                          f"input clock {cname!r}")
+        ticks_named(sc, name, ip)
         _scheduled_clocks(sc, name, ip, notes)
 
 
